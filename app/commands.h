@@ -1,0 +1,16 @@
+#pragma once
+// Subcommands of the mrgi executable. Each registers its options on the CLI11 app and returns the
+// action to run after parsing. Actions return the process exit code and throw for user errors.
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace mrgi::app {
+
+using Action = std::function<int()>;
+
+Action addInfo(CLI::App& app);
+Action addReplay(CLI::App& app);
+Action addSynth(CLI::App& app);
+
+}  // namespace mrgi::app

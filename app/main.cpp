@@ -1,0 +1,50 @@
+// mrgi: inserts virtual objects into live or recorded RGB-D footage with consistent lighting.
+#include <csignal>
+#include <cstdio>
+#include <exception>
+#include <map>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "app/commands.h"
+#include "capture/image_io.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"mrgi: a mixed-reality compositor for RGB-D footage (differential rendering with DLPV lighting)"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "mrgi 0.1.0");
+  std::map<CLI::App*, mrgi::app::Action> actions;
+  auto add = [&](const char* name, const char* help, mrgi::app::Action (*fn)(CLI::App&)) {
+    CLI::App* sub = app.add_subcommand(name, help);
+    actions[sub] = fn(*sub);
+  };
+  add("info", "Print one JSON object describing a session, TUM sequence, .oni file or device", mrgi::app::addInfo);
+  add("replay", "Replay a recording headless (or in a window) and write composited frames + summary.json",
+      mrgi::app::addReplay);
+  add("synth", "Generate a synthetic tabletop session with ground truth (AprilTag, walls, a box, a light)",
+      mrgi::app::addSynth);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help / --version
+    // One line on stderr naming the problem.
+    std::fprintf(stderr, "mrgi: %s (see mrgi --help)\n", e.what());
+    return 2;
+  }
+  mrgi::capture::quietOpenCv();
+  try {
+    for (const auto& [sub, action] : actions)
+      if (sub->parsed()) return action();
+  } catch (const cv::Exception& e) {
+    std::fprintf(stderr, "mrgi: OpenCV: %s\n", e.err.c_str());
+    return 1;
+  } catch (const std::exception& e) {
+    std::string msg = e.what();
+    for (char& c : msg)
+      if (c == '\n') c = ' ';
+    std::fprintf(stderr, "mrgi: %s\n", msg.c_str());
+    return 1;
+  }
+  return 1;
+}

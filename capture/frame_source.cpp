@@ -1,0 +1,33 @@
+#include "capture/frame_source.h"
+
+#include <filesystem>
+
+#include "capture/error.h"
+#include "capture/openni2_source.h"
+#include "capture/session.h"
+#include "capture/tum.h"
+#include "capture/v4l2_source.h"
+
+namespace fs = std::filesystem;
+
+namespace mrgi::capture {
+
+std::unique_ptr<FrameSource> open(const std::string& uri, const OpenOptions& options) {
+  if (uri.rfind("openni2://", 0) == 0) return std::make_unique<OpenNI2Source>(uri.substr(10), options);
+  if (uri.rfind("v4l2://", 0) == 0) return std::make_unique<V4l2Source>(uri.substr(7), options);
+  std::error_code ec;
+  const fs::path p(uri);
+  if (uri.size() > 4 && uri.compare(uri.size() - 4, 4, ".oni") == 0) {
+    if (!fs::is_regular_file(p, ec)) throw CaptureError(uri, ".oni file does not exist");
+    return std::make_unique<OpenNI2Source>(uri, options);
+  }
+  if (!fs::exists(p, ec)) throw CaptureError(uri, "does not exist");
+  if (fs::is_directory(p, ec)) {
+    if (fs::exists(p / "manifest.json", ec) || fs::exists(p / "frames.jsonl", ec)) return std::make_unique<SessionSource>(uri);
+    if (fs::exists(p / "rgb.txt", ec) && fs::exists(p / "depth.txt", ec)) return std::make_unique<TumSource>(uri);
+    throw CaptureError(uri, "neither an mrgi session (manifest.json) nor a TUM RGB-D sequence (rgb.txt, depth.txt)");
+  }
+  throw CaptureError(uri, "not a session directory, TUM directory, .oni file or device URI");
+}
+
+}  // namespace mrgi::capture

@@ -1,0 +1,145 @@
+#include "capture/image_io.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/error.h"
+
+namespace mrgi::capture {
+namespace {
+
+std::vector<unsigned char> readBytes(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw CaptureError(path, "file is missing");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw CaptureError(path, "cannot open for reading");
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+cv::Mat decode(const std::string& path, int flags) {
+  quietOpenCv();
+  const std::vector<unsigned char> bytes = readBytes(path);
+  if (bytes.empty()) throw CaptureError(path, "file is empty");
+  cv::Mat img;
+  try {
+    img = cv::imdecode(bytes, flags);
+  } catch (const cv::Exception&) {
+    img.release();
+  }
+  if (img.empty()) throw CaptureError(path, "cannot decode image (corrupt or truncated)");
+  return img;
+}
+
+}  // namespace
+
+
+namespace {
+void writeFileDurably(const std::filesystem::path& path, const std::vector<unsigned char>& bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw CaptureError(path.string(), std::string("cannot create: ") + std::strerror(errno));
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int e = errno;
+      ::close(fd);
+      throw CaptureError(path.string(), std::string("write failed: ") + std::strerror(e));
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0)
+    throw CaptureError(path.string(), std::string("cannot flush to disk: ") + std::strerror(errno));
+}
+
+}  // namespace
+
+void writeFileAtomically(const std::filesystem::path& path, const std::vector<unsigned char>& bytes) {
+  std::filesystem::path tmp = path;
+  tmp += ".tmp";
+  writeFileDurably(tmp, bytes);
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw CaptureError(path.string(), "cannot rename temporary file: " + ec.message());
+}
+
+
+void quietOpenCv() {
+  static const bool once = [] {
+    cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+    return true;
+  }();
+  (void)once;
+}
+
+cv::Mat readColour(const std::string& path) {
+  cv::Mat img = decode(path, cv::IMREAD_COLOR);
+  if (img.depth() != CV_8U) throw CaptureError(path, "colour image is not 8-bit");
+  cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
+  return img;
+}
+
+cv::Mat readDepth(const std::string& path, double unitsMetres) {
+  cv::Mat raw = decode(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
+  if (raw.channels() != 1) throw CaptureError(path, "depth image has " + std::to_string(raw.channels()) + " channels, expected 1");
+  cv::Mat metres;
+  if (raw.depth() == CV_16U) {
+    raw.convertTo(metres, CV_32F, unitsMetres);
+  } else if (raw.depth() == CV_32F) {
+    metres = raw;
+    for (int y = 0; y < metres.rows; ++y) {
+      const float* row = metres.ptr<float>(y);
+      for (int x = 0; x < metres.cols; ++x)
+        if (!std::isfinite(row[x]) || row[x] < 0.f)
+          throw CaptureError(path, "depth holds a non-finite or negative value at pixel (" + std::to_string(x) +
+                                       ", " + std::to_string(y) + ")");
+    }
+  } else {
+    throw CaptureError(path, "depth image must be 16-bit integer or 32-bit float");
+  }
+  return metres;
+}
+
+cv::Mat readAny(const std::string& path) {
+  cv::Mat img = decode(path, cv::IMREAD_UNCHANGED);
+  if (img.channels() == 3) cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
+  else if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2RGB);
+  else if (img.channels() == 1) cv::cvtColor(img, img, cv::COLOR_GRAY2RGB);
+  return img;
+}
+
+cv::Mat depthToUnits(const cv::Mat& depthMetres, double unitsMetres) {
+  CV_Assert(depthMetres.type() == CV_32FC1 && unitsMetres > 0);
+  cv::Mat out(depthMetres.size(), CV_16UC1);
+  for (int y = 0; y < depthMetres.rows; ++y) {
+    const float* in = depthMetres.ptr<float>(y);
+    uint16_t* o = out.ptr<uint16_t>(y);
+    for (int x = 0; x < depthMetres.cols; ++x) {
+      const double u = std::isfinite(in[x]) && in[x] > 0 ? std::round(in[x] / unitsMetres) : 0.0;
+      o[x] = u > 0 && u <= 65535 ? static_cast<uint16_t>(u) : 0;
+    }
+  }
+  return out;
+}
+
+std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors) {
+  cv::Mat bgr = image;
+  if (image.channels() == 3) cv::cvtColor(image, bgr, cv::COLOR_RGB2BGR);
+  std::vector<unsigned char> bytes;
+  if (!cv::imencode(".png", bgr, bytes, {cv::IMWRITE_PNG_COMPRESSION, 3}))
+    throw CaptureError(nameForErrors, "cannot encode PNG");
+  return bytes;
+}
+
+}  // namespace mrgi::capture

@@ -1,0 +1,382 @@
+#include "capture/session.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/error.h"
+#include "capture/image_io.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace mrgi::capture {
+namespace {
+
+constexpr const char* kManifest = "manifest.json";
+constexpr const char* kIndex = "frames.jsonl";
+
+// --- JSON field access that names the key in every error ---------------------------------------------
+
+const json& need(const json& j, const std::string& key, const std::string& file, const std::string& path) {
+  if (!j.is_object() || !j.contains(key)) throw CaptureError(file, "missing key '" + path + key + "'");
+  return j.at(key);
+}
+
+double number(const json& j, const std::string& key, const std::string& file, const std::string& path) {
+  const json& v = need(j, key, file, path);
+  if (!v.is_number() || !std::isfinite(v.get<double>()))
+    throw CaptureError(file, "key '" + path + key + "' must be a finite number");
+  return v.get<double>();
+}
+
+int integer(const json& j, const std::string& key, const std::string& file, const std::string& path) {
+  const json& v = need(j, key, file, path);
+  if (!v.is_number_integer()) throw CaptureError(file, "key '" + path + key + "' must be an integer");
+  return v.get<int>();
+}
+
+std::vector<double> numbers(const json& v, size_t n, const std::string& file, const std::string& key) {
+  if (!v.is_array() || v.size() != n)
+    throw CaptureError(file, "key '" + key + "' must be an array of " + std::to_string(n) + " numbers");
+  std::vector<double> out;
+  for (const json& x : v) {
+    if (!x.is_number() || !std::isfinite(x.get<double>()))
+      throw CaptureError(file, "key '" + key + "' must hold finite numbers");
+    out.push_back(x.get<double>());
+  }
+  return out;
+}
+
+json intrinsicsToJson(const Intrinsics& k) {
+  return {{"width", k.width}, {"height", k.height}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}};
+}
+
+Intrinsics intrinsicsFromJson(const json& j, const std::string& file, const std::string& path) {
+  Intrinsics k;
+  k.width = integer(j, "width", file, path);
+  k.height = integer(j, "height", file, path);
+  k.fx = number(j, "fx", file, path);
+  k.fy = number(j, "fy", file, path);
+  k.cx = number(j, "cx", file, path);
+  k.cy = number(j, "cy", file, path);
+  if (!k.valid()) throw CaptureError(file, "key '" + path + "' holds non-positive size or focal length");
+  return k;
+}
+
+void syncDirectory(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
+
+std::string frameName(const char* kind, int64_t index, const char* ext) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%s/%06lld.%s", kind, static_cast<long long>(index), ext);
+  return buf;
+}
+
+}  // namespace
+
+json poseToJson(const Pose& p) {
+  json a = json::array();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) a.push_back(p(r, c));
+  return a;
+}
+
+Pose poseFromJson(const json& j, const std::string& file, const std::string& key) {
+  const auto v = numbers(j, 16, file, key);
+  Pose p;
+  for (int i = 0; i < 16; ++i) p(i / 4, i % 4) = v[i];
+  if (std::abs(p(3, 0)) + std::abs(p(3, 1)) + std::abs(p(3, 2)) > 1e-9 || std::abs(p(3, 3) - 1.0) > 1e-9)
+    throw CaptureError(file, "key '" + key + "' is not a rigid transform (last row must be 0 0 0 1)");
+  return p;
+}
+
+// --- manifest ---------------------------------------------------------------------------------------------
+
+json SessionManifest::toJson() const {
+  json j;
+  j["format"] = "mrgi-session";
+  j["version"] = version;
+  j["colour"] = intrinsicsToJson(colour);
+  j["depth"] = intrinsicsToJson(depth);
+  j["depth"]["units_m"] = depthUnitsMetres;
+  j["depth"]["registered"] = depthRegistered;
+  j["depth"]["T_colour_depth"] = poseToJson(T_colour_depth);
+  if (fisheye) {
+    json f = {{"width", fisheye->width}, {"height", fisheye->height}, {"model", fisheye->model}};
+    f["K"] = json::array();
+    for (int i = 0; i < 9; ++i) f["K"].push_back(fisheye->K(i / 3, i % 3));
+    f["D"] = {fisheye->D[0], fisheye->D[1], fisheye->D[2], fisheye->D[3]};
+    if (fisheye->T_world_fisheye) f["T_world_fisheye"] = poseToJson(*fisheye->T_world_fisheye);
+    j["fisheye"] = f;
+  }
+  if (marker) j["marker"] = {{"family", marker->family}, {"size_m", marker->sizeMetres}, {"id", marker->id}};
+  if (!groundTruth.is_null()) j["ground_truth"] = groundTruth;
+  return j;
+}
+
+SessionManifest SessionManifest::fromJson(const json& j, const std::string& file) {
+  if (!j.is_object()) throw CaptureError(file, "manifest is not a JSON object");
+  if (j.value("format", "") != "mrgi-session") throw CaptureError(file, "key 'format' must be \"mrgi-session\"");
+  SessionManifest m;
+  m.version = integer(j, "version", file, "");
+  if (m.version != kSessionVersion)
+    throw CaptureError(file, "unknown session version " + std::to_string(m.version) + " (this build reads version " +
+                                 std::to_string(kSessionVersion) + ")");
+  m.colour = intrinsicsFromJson(need(j, "colour", file, ""), file, "colour.");
+  const json& d = need(j, "depth", file, "");
+  m.depth = intrinsicsFromJson(d, file, "depth.");
+  m.depthUnitsMetres = number(d, "units_m", file, "depth.");
+  if (!(m.depthUnitsMetres > 0)) throw CaptureError(file, "key 'depth.units_m' must be positive");
+  m.depthRegistered = d.value("registered", true);
+  if (d.contains("T_colour_depth")) m.T_colour_depth = poseFromJson(d["T_colour_depth"], file, "depth.T_colour_depth");
+  if (m.depthRegistered && (m.depth.width != m.colour.width || m.depth.height != m.colour.height))
+    throw CaptureError(file, "registered depth must match the colour resolution (depth " + std::to_string(m.depth.width) +
+                                 "x" + std::to_string(m.depth.height) + ", colour " + std::to_string(m.colour.width) +
+                                 "x" + std::to_string(m.colour.height) + ")");
+  if (j.contains("fisheye")) {
+    const json& f = j["fisheye"];
+    FisheyeCalibration c;
+    c.width = integer(f, "width", file, "fisheye.");
+    c.height = integer(f, "height", file, "fisheye.");
+    c.model = f.value("model", "equidistant");
+    if (c.model != "equidistant") throw CaptureError(file, "key 'fisheye.model' must be \"equidistant\"");
+    const auto K = numbers(need(f, "K", file, "fisheye."), 9, file, "fisheye.K");
+    for (int i = 0; i < 9; ++i) c.K(i / 3, i % 3) = K[i];
+    const auto D = numbers(need(f, "D", file, "fisheye."), 4, file, "fisheye.D");
+    c.D = {D[0], D[1], D[2], D[3]};
+    if (f.contains("T_world_fisheye")) c.T_world_fisheye = poseFromJson(f["T_world_fisheye"], file, "fisheye.T_world_fisheye");
+    m.fisheye = c;
+  }
+  if (j.contains("marker")) {
+    const json& mk = j["marker"];
+    MarkerSpec s;
+    if (!mk.contains("family") || !mk["family"].is_string()) throw CaptureError(file, "key 'marker.family' must be a string");
+    s.family = mk["family"].get<std::string>();
+    s.sizeMetres = number(mk, "size_m", file, "marker.");
+    s.id = integer(mk, "id", file, "marker.");
+    if (!(s.sizeMetres > 0)) throw CaptureError(file, "key 'marker.size_m' must be positive");
+    m.marker = s;
+  }
+  if (j.contains("ground_truth")) m.groundTruth = j["ground_truth"];
+  return m;
+}
+
+// --- writer -------------------------------------------------------------------------------------------------
+
+SessionWriter::SessionWriter(std::string directory, SessionManifest manifest)
+    : dir_(std::move(directory)), manifest_(std::move(manifest)) {
+  std::error_code ec;
+  if (fs::exists(dir_, ec) && !(fs::is_directory(dir_, ec) && fs::is_empty(dir_, ec)))
+    throw CaptureError(dir_, "already exists and is not an empty directory; refusing to overwrite");
+  for (const char* sub : {"", "colour", "depth", "fisheye"}) {
+    if (std::string(sub) == "fisheye" && !manifest_.fisheye) continue;
+    fs::create_directories(fs::path(dir_) / sub, ec);
+    if (ec) throw CaptureError(dir_, "cannot create directory: " + ec.message());
+  }
+  const std::string text = manifest_.toJson().dump(2) + "\n";
+  writeFileAtomically(fs::path(dir_) / kManifest, std::vector<unsigned char>(text.begin(), text.end()));
+  const fs::path index = fs::path(dir_) / kIndex;
+  indexFd_ = ::open(index.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (indexFd_ < 0) throw CaptureError(index.string(), std::string("cannot create: ") + std::strerror(errno));
+  syncDirectory(dir_);
+}
+
+SessionWriter::~SessionWriter() {
+  if (indexFd_ >= 0) ::close(indexFd_);
+}
+
+void SessionWriter::append(const Frame& frame) {
+  const fs::path dir(dir_);
+  if (written_ > 0 && !(frame.timestamp > lastTimestamp_))
+    throw CaptureError(dir_, "frame timestamps must increase (" + std::to_string(frame.timestamp) + " after " +
+                                 std::to_string(lastTimestamp_) + ")");
+  const int64_t i = written_;
+  json line = {{"index", i}, {"t", frame.timestamp}};
+  if (frame.rgbd) {
+    const RgbdFrame& f = *frame.rgbd;
+    if (f.colour.type() != CV_8UC3 || f.colour.cols != manifest_.colour.width || f.colour.rows != manifest_.colour.height)
+      throw CaptureError(dir_, "colour frame does not match the manifest's size/type");
+    if (f.depth.type() != CV_32FC1 || f.depth.cols != manifest_.depth.width || f.depth.rows != manifest_.depth.height)
+      throw CaptureError(dir_, "depth frame does not match the manifest's size/type");
+    const std::string colourName = frameName("colour", i, "png"), depthName = frameName("depth", i, "png");
+    writeFileAtomically(dir / colourName, encodePng(f.colour, colourName));
+    writeFileAtomically(dir / depthName, encodePng(depthToUnits(f.depth, manifest_.depthUnitsMetres), depthName));
+    line["colour"] = colourName;
+    line["depth"] = depthName;
+  }
+  if (frame.fisheye) {
+    if (!manifest_.fisheye) throw CaptureError(dir_, "fisheye frame given but the manifest has no fisheye calibration");
+    const FisheyeFrame& f = *frame.fisheye;
+    const std::string name = frameName("fisheye", i, f.image.depth() == CV_8U ? "png" : "exr");
+    std::vector<unsigned char> bytes;
+    if (f.image.depth() == CV_8U) {
+      bytes = encodePng(f.image, name);
+    } else {
+      cv::Mat bgr;
+      cv::cvtColor(f.image, bgr, cv::COLOR_RGB2BGR);
+      if (!cv::imencode(".exr", bgr, bytes)) throw CaptureError(name, "cannot encode EXR");
+    }
+    writeFileAtomically(dir / name, bytes);
+    line["fisheye"] = name;
+    line["exposure"] = f.exposure;
+  }
+  if (frame.groundTruthT_world_camera) line["T_world_camera"] = poseToJson(*frame.groundTruthT_world_camera);
+  syncDirectory(dir / "colour");
+  const std::string text = line.dump() + "\n";
+  // One write() of the whole line: a crash leaves a prefix without '\n', which readers ignore.
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(indexFd_, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) throw CaptureError((dir / kIndex).string(), std::string("write failed: ") + std::strerror(errno));
+    done += static_cast<size_t>(n);
+  }
+  if (::fsync(indexFd_) != 0) throw CaptureError((dir / kIndex).string(), std::string("fsync failed: ") + std::strerror(errno));
+  lastTimestamp_ = frame.timestamp;
+  ++written_;
+}
+
+// --- reader -------------------------------------------------------------------------------------------------
+
+SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
+  quietOpenCv();
+  const fs::path dir(directory);
+  const std::string manifestPath = (dir / kManifest).string();
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw CaptureError(directory, "session directory does not exist");
+  if (!fs::is_regular_file(manifestPath, ec)) throw CaptureError(manifestPath, "missing: not an mrgi session");
+  json mj;
+  {
+    std::ifstream in(manifestPath);
+    try {
+      mj = json::parse(in);
+    } catch (const json::exception& e) {
+      throw CaptureError(manifestPath, std::string("malformed JSON (") + e.what() + ")");
+    }
+  }
+  manifest_ = SessionManifest::fromJson(mj, manifestPath);
+
+  const std::string indexPath = (dir / kIndex).string();
+  if (!fs::is_regular_file(indexPath, ec)) throw CaptureError(indexPath, "missing: the session has no frame index");
+  std::ifstream in(indexPath, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string text = ss.str();
+  size_t start = 0;
+  int lineNo = 0;
+  while (start < text.size()) {
+    const size_t nl = text.find('\n', start);
+    if (nl == std::string::npos) {  // a write cut short: not a complete frame
+      trailingBytes_ = static_cast<int64_t>(text.size() - start);
+      break;
+    }
+    ++lineNo;
+    const std::string line = text.substr(start, nl - start);
+    start = nl + 1;
+    const std::string where = indexPath + ":" + std::to_string(lineNo);
+    json j;
+    try {
+      j = json::parse(line);
+    } catch (const json::exception&) {
+      throw CaptureError(where, "malformed frame line");
+    }
+    Entry e;
+    e.index = integer(j, "index", where, "");
+    e.t = number(j, "t", where, "");
+    if (e.index != static_cast<int64_t>(entries_.size()))
+      throw CaptureError(where, "frame index " + std::to_string(e.index) + " out of sequence (expected " +
+                                    std::to_string(entries_.size()) + ")");
+    if (!entries_.empty() && !(e.t > entries_.back().t))
+      throw CaptureError(where, "timestamp " + std::to_string(e.t) + " does not increase (previous " +
+                                    std::to_string(entries_.back().t) + ")");
+    auto relPath = [&](const char* key) -> std::string {
+      if (!j.contains(key)) return {};
+      if (!j[key].is_string()) throw CaptureError(where, std::string("key '") + key + "' must be a string");
+      const std::string p = j[key].get<std::string>();
+      if (p.empty() || p[0] == '/' || p.find("..") != std::string::npos)
+        throw CaptureError(where, std::string("key '") + key + "' must be a path inside the session");
+      return p;
+    };
+    e.colour = relPath("colour");
+    e.depth = relPath("depth");
+    e.fisheye = relPath("fisheye");
+    if (e.colour.empty() != e.depth.empty()) throw CaptureError(where, "a frame needs both 'colour' and 'depth' or neither");
+    if (e.colour.empty() && e.fisheye.empty()) throw CaptureError(where, "frame has no images");
+    if (!e.fisheye.empty() && !manifest_.fisheye)
+      throw CaptureError(where, "frame has a fisheye image but the manifest has no fisheye calibration");
+    if (j.contains("exposure")) e.exposure = number(j, "exposure", where, "");
+    if (j.contains("T_world_camera")) e.pose = poseFromJson(j["T_world_camera"], where, "T_world_camera");
+    entries_.push_back(std::move(e));
+  }
+  if (entries_.empty()) throw CaptureError(indexPath, "the session holds no complete frame");
+
+  info_.uri = directory;
+  info_.kind = "session";
+  info_.frameCount = frameCount();
+  info_.colourIntrinsics = manifest_.colour;
+  info_.depthIntrinsics = manifest_.depth;
+  info_.hasRgbd = !entries_.front().colour.empty();
+  info_.hasFisheye = manifest_.fisheye.has_value();
+  info_.hasGroundTruth = !manifest_.groundTruth.is_null() || entries_.front().pose.has_value();
+}
+
+Frame SessionSource::read(int64_t i) const {
+  const Entry& e = entries_.at(static_cast<size_t>(i));
+  const fs::path dir(dir_);
+  Frame f;
+  f.index = e.index;
+  f.timestamp = e.t;
+  f.groundTruthT_world_camera = e.pose;
+  if (!e.colour.empty()) {
+    RgbdFrame r;
+    const std::string colourPath = (dir / e.colour).string(), depthPath = (dir / e.depth).string();
+    r.colour = readColour(colourPath);
+    r.depth = readDepth(depthPath, manifest_.depthUnitsMetres);
+    if (r.colour.cols != manifest_.colour.width || r.colour.rows != manifest_.colour.height)
+      throw CaptureError(colourPath, "image is " + std::to_string(r.colour.cols) + "x" + std::to_string(r.colour.rows) +
+                                         ", the manifest says " + std::to_string(manifest_.colour.width) + "x" +
+                                         std::to_string(manifest_.colour.height));
+    if (r.depth.cols != manifest_.depth.width || r.depth.rows != manifest_.depth.height)
+      throw CaptureError(depthPath, "image is " + std::to_string(r.depth.cols) + "x" + std::to_string(r.depth.rows) +
+                                        ", the manifest says " + std::to_string(manifest_.depth.width) + "x" +
+                                        std::to_string(manifest_.depth.height));
+    r.colourIntrinsics = manifest_.colour;
+    r.depthIntrinsics = manifest_.depth;
+    r.depthRegistered = manifest_.depthRegistered;
+    r.T_colour_depth = manifest_.T_colour_depth;
+    f.rgbd = std::move(r);
+  }
+  if (!e.fisheye.empty()) {
+    FisheyeFrame ff;
+    const std::string path = (dir / e.fisheye).string();
+    ff.image = readAny(path);
+    ff.exposure = e.exposure;
+    ff.calibration = *manifest_.fisheye;
+    if (ff.image.cols != ff.calibration.width || ff.image.rows != ff.calibration.height)
+      throw CaptureError(path, "fisheye image size does not match the calibration in the manifest");
+    f.fisheye = std::move(ff);
+  }
+  return f;
+}
+
+std::optional<Frame> SessionSource::next() {
+  if (cursor_ >= frameCount()) return std::nullopt;
+  return read(cursor_++);
+}
+
+}  // namespace mrgi::capture

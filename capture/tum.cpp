@@ -1,0 +1,146 @@
+#include "capture/tum.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <opencv2/core/quaternion.hpp>
+
+#include "capture/error.h"
+#include "capture/image_io.h"
+
+namespace fs = std::filesystem;
+
+namespace mrgi::capture {
+
+std::vector<TumEntry> readTumList(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw CaptureError(path, "cannot open");
+  std::vector<TumEntry> out;
+  std::string line;
+  int lineNo = 0;
+  while (std::getline(in, line)) {
+    ++lineNo;
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::istringstream ls(line);
+    TumEntry e{};
+    std::string rest;
+    if (!(ls >> e.t) || !std::isfinite(e.t)) throw CaptureError(path + ":" + std::to_string(lineNo), "bad timestamp");
+    std::getline(ls, rest);
+    const auto b = rest.find_first_not_of(" \t"), en = rest.find_last_not_of(" \t\r");
+    if (b == std::string::npos) throw CaptureError(path + ":" + std::to_string(lineNo), "missing value after timestamp");
+    e.value = rest.substr(b, en - b + 1);
+    if (!out.empty() && !(e.t > out.back().t))
+      throw CaptureError(path + ":" + std::to_string(lineNo), "timestamp " + std::to_string(e.t) + " does not increase");
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
+std::vector<std::pair<size_t, size_t>> associateTimestamps(const std::vector<double>& a, const std::vector<double>& b,
+                                                           double maxGap) {
+  // All candidate pairs within maxGap, best first; greedy one-to-one matching (as associate.py does).
+  std::vector<std::tuple<double, size_t, size_t>> candidates;
+  for (size_t i = 0; i < a.size(); ++i) {
+    auto lo = std::lower_bound(b.begin(), b.end(), a[i] - maxGap);
+    for (auto it = lo; it != b.end() && *it <= a[i] + maxGap; ++it)
+      candidates.emplace_back(std::abs(*it - a[i]), i, static_cast<size_t>(it - b.begin()));
+  }
+  std::sort(candidates.begin(), candidates.end());
+  std::vector<char> usedA(a.size(), 0), usedB(b.size(), 0);
+  std::vector<std::pair<size_t, size_t>> pairs;
+  for (const auto& [d, i, j] : candidates) {
+    if (usedA[i] || usedB[j]) continue;
+    usedA[i] = usedB[j] = 1;
+    pairs.emplace_back(i, j);
+  }
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
+}
+
+Intrinsics tumIntrinsics(const std::string& name, int width, int height) {
+  Intrinsics k{width, height, 525.0, 525.0, 319.5, 239.5};
+  if (name.find("freiburg1") != std::string::npos) k = {width, height, 517.3, 516.5, 318.6, 255.3};
+  if (name.find("freiburg2") != std::string::npos) k = {width, height, 520.9, 521.0, 325.1, 249.7};
+  if (name.find("freiburg3") != std::string::npos) k = {width, height, 535.4, 539.2, 320.1, 247.6};
+  return k;
+}
+
+TumSource::TumSource(const std::string& directory) : dir_(directory) {
+  quietOpenCv();
+  const fs::path dir(directory);
+  const auto rgb = readTumList((dir / "rgb.txt").string());
+  const auto depth = readTumList((dir / "depth.txt").string());
+  std::vector<double> tr, td;
+  for (const auto& e : rgb) tr.push_back(e.t);
+  for (const auto& e : depth) td.push_back(e.t);
+  const auto pairs = associateTimestamps(tr, td, kTumMaxAssociationGap);
+  if (pairs.empty()) throw CaptureError((dir / "depth.txt").string(), "no depth frame lies within 20 ms of a colour frame");
+
+  std::vector<TumEntry> gt;
+  std::vector<double> tg;
+  const fs::path gtPath = dir / "groundtruth.txt";
+  if (fs::exists(gtPath)) {
+    gt = readTumList(gtPath.string());
+    for (const auto& e : gt) tg.push_back(e.t);
+  }
+  for (const auto& [i, j] : pairs) {
+    Item it{tr[i], (dir / rgb[i].value).string(), (dir / depth[j].value).string(), std::nullopt};
+    if (!gt.empty()) {
+      auto lo = std::lower_bound(tg.begin(), tg.end(), tr[i]);
+      size_t best = lo == tg.end() ? tg.size() - 1 : static_cast<size_t>(lo - tg.begin());
+      if (best > 0 && std::abs(tg[best - 1] - tr[i]) < std::abs(tg[best] - tr[i])) --best;
+      if (std::abs(tg[best] - tr[i]) <= kTumMaxAssociationGap) {
+        std::istringstream ps(gt[best].value);
+        double v[7];
+        for (double& x : v)
+          if (!(ps >> x)) throw CaptureError(gtPath.string(), "pose line needs 7 numbers: " + gt[best].value);
+        const cv::Quatd q(v[6], v[3], v[4], v[5]);  // TUM order qx qy qz qw
+        if (!(q.norm() > 0.5)) throw CaptureError(gtPath.string(), "pose quaternion is not unit length: " + gt[best].value);
+        const cv::Matx33d R = q.normalize().toRotMat3x3();
+        Pose p = Pose::eye();
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) p(r, c) = R(r, c);
+          p(r, 3) = v[r];
+        }
+        it.pose = p;
+      }
+    }
+    items_.push_back(std::move(it));
+  }
+  // Resolution from the first colour image; every later frame must match it.
+  const cv::Mat first = readColour(items_.front().colour);
+  info_.uri = directory;
+  info_.kind = "tum";
+  info_.frameCount = static_cast<int64_t>(items_.size());
+  info_.colourIntrinsics = tumIntrinsics(fs::absolute(dir).lexically_normal().string(), first.cols, first.rows);
+  info_.depthIntrinsics = info_.colourIntrinsics;
+  info_.hasRgbd = true;
+  info_.hasGroundTruth = !gt.empty();
+}
+
+std::optional<Frame> TumSource::next() {
+  if (cursor_ >= items_.size()) return std::nullopt;
+  const Item& it = items_[cursor_];
+  Frame f;
+  f.index = static_cast<int64_t>(cursor_++);
+  f.timestamp = it.t;
+  f.groundTruthT_world_camera = it.pose;
+  RgbdFrame r;
+  r.colour = readColour(it.colour);
+  r.depth = readDepth(it.depth, 1.0 / kTumDepthUnitsPerMetre);
+  const Intrinsics& k = info_.colourIntrinsics;
+  if (r.colour.cols != k.width || r.colour.rows != k.height)
+    throw CaptureError(it.colour, "image size differs from the sequence's first frame");
+  if (r.depth.cols != k.width || r.depth.rows != k.height)
+    throw CaptureError(it.depth, "depth size differs from the colour image");
+  r.colourIntrinsics = r.depthIntrinsics = k;
+  r.depthRegistered = true;  // TUM depth is registered to colour by the Kinect driver
+  f.rgbd = std::move(r);
+  return f;
+}
+
+}  // namespace mrgi::capture

@@ -1,0 +1,70 @@
+#pragma once
+/// Frame types produced by every capture source. Units: metres, seconds, pixels.
+/// Camera frame: OpenCV (x right, y down, z forward). Poses T_a_b map points from frame b to frame a.
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+namespace mrgi::capture {
+
+/// Pinhole intrinsics of an image of width x height pixels (pixel centres at integer coordinates).
+struct Intrinsics {
+  int width = 0, height = 0;
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  bool valid() const { return width > 0 && height > 0 && fx > 0 && fy > 0; }
+  bool operator==(const Intrinsics&) const = default;
+};
+
+/// Rigid transform as a 4x4 row-major matrix, translation in metres.
+using Pose = cv::Matx44d;
+inline Pose identityPose() { return Pose::eye(); }
+
+/// Calibration of a fisheye camera in OpenCV's fisheye (equidistant / Kannala-Brandt) model.
+struct FisheyeCalibration {
+  int width = 0, height = 0;
+  cv::Matx33d K = cv::Matx33d::eye();
+  cv::Vec4d D{0, 0, 0, 0};  ///< k1..k4 of theta_d = theta (1 + k1 theta^2 + k2 theta^4 + ...)
+  std::string model = "equidistant";
+  /// Pose of the fisheye camera in the world (y up), if known (fixed rig); identity otherwise.
+  std::optional<Pose> T_world_fisheye;
+};
+
+struct RgbdFrame {
+  cv::Mat colour;  ///< CV_8UC3, RGB channel order, sRGB-encoded
+  cv::Mat depth;   ///< CV_32FC1, metres along the optical axis, 0 = no measurement (never NaN/negative)
+  Intrinsics colourIntrinsics;
+  Intrinsics depthIntrinsics;
+  /// Depth camera -> colour camera. When depthRegistered, depth is already resampled into the colour
+  /// camera (same size, same intrinsics) and this is the identity.
+  Pose T_colour_depth = identityPose();
+  bool depthRegistered = true;
+};
+
+struct FisheyeFrame {
+  cv::Mat image;          ///< CV_8UC3 RGB sRGB-encoded, or CV_32FC3 linear radiance (HDR)
+  double exposure = 1.0;  ///< relative exposure (seconds when the device reports it); linear = value / exposure
+  FisheyeCalibration calibration;
+};
+
+struct Frame {
+  int64_t index = 0;       ///< 0-based position in the source
+  double timestamp = 0.0;  ///< seconds, strictly increasing within a source
+  std::optional<RgbdFrame> rgbd;
+  std::optional<FisheyeFrame> fisheye;
+  std::optional<Pose> groundTruthT_world_camera;  ///< colour camera pose, when the source knows it
+};
+
+/// What a source can tell before reading frames.
+struct SourceInfo {
+  std::string uri;
+  std::string kind;                   ///< "session", "tum", "openni2", "v4l2"
+  std::optional<int64_t> frameCount;  ///< unknown for live devices
+  Intrinsics colourIntrinsics, depthIntrinsics;
+  bool hasRgbd = false;
+  bool hasFisheye = false;
+  bool hasGroundTruth = false;
+};
+
+}  // namespace mrgi::capture

@@ -1,0 +1,21 @@
+# Every dependency comes from a Debian package (tools/install-deps.sh installs them all).
+find_package(PkgConfig REQUIRED)
+find_package(Threads REQUIRED)
+find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs calib3d)
+find_package(nlohmann_json 3 REQUIRED)
+find_package(CLI11 REQUIRED)
+find_package(glfw3 3.3 REQUIRED)
+find_package(glm REQUIRED)
+find_package(embree 3 REQUIRED)
+find_package(Python3 REQUIRED COMPONENTS Interpreter)
+
+pkg_check_modules(OSMESA REQUIRED IMPORTED_TARGET osmesa)
+pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
+pkg_check_modules(OPENNI2 REQUIRED IMPORTED_TARGET libopenni2)
+pkg_check_modules(LIBV4L2 REQUIRED IMPORTED_TARGET libv4l2)
+pkg_check_modules(APRILTAG REQUIRED IMPORTED_TARGET apriltag)
+
+set(MRGI_GL_XML /usr/share/khronos-api/gl.xml CACHE FILEPATH "Khronos GL registry (package khronos-api)")
+if(NOT EXISTS ${MRGI_GL_XML})
+  message(FATAL_ERROR "gl.xml not found at ${MRGI_GL_XML}: install the khronos-api package (tools/install-deps.sh)")
+endif()

@@ -1,0 +1,30 @@
+#pragma once
+/// sRGB transfer functions (IEC 61966-2-1). All lighting math is in linear RGB; decode camera images once
+/// on the way in, encode once on the way out. GLSL twin: lighting/colour.glsl (same constants).
+#include <cmath>
+
+namespace mrgi::lighting {
+
+/// sRGB-encoded value in [0, 1] -> linear; values outside [0, 1] are clamped first.
+inline float srgbToLinear(float c) {
+  c = c < 0.f ? 0.f : (c > 1.f ? 1.f : c);
+  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+
+/// Linear value -> sRGB-encoded in [0, 1]; negative, NaN and > 1 values are clamped.
+inline float linearToSrgb(float c) {
+  if (!(c > 0.f)) return 0.f;
+  if (c >= 1.f) return 1.f;
+  return c <= 0.0031308f ? c * 12.92f : 1.055f * std::pow(c, 1.f / 2.4f) - 0.055f;
+}
+
+}  // namespace mrgi::lighting
+
+#include <opencv2/core.hpp>
+
+namespace mrgi::lighting {
+/// RGB8 sRGB image (CV_8UC3) -> linear CV_32FC3.
+cv::Mat decodeSrgb(const cv::Mat& rgb8);
+/// Linear CV_32FC3 -> RGB8 sRGB (rounded to nearest; clamped; NaN -> 0).
+cv::Mat encodeSrgb(const cv::Mat& linear);
+}  // namespace mrgi::lighting

@@ -1,0 +1,92 @@
+#include "gl/objects.h"
+
+#include <string>
+
+#include "gl/error.h"
+
+namespace mrgi::gl {
+
+Buffer::Buffer(GLsizeiptr size, const void* data, GLbitfield flags) : size_(size) {
+  GLuint id = 0;
+  glCreateBuffers(1, &id);
+  handle_ = BufferHandle(id);
+  glNamedBufferStorage(id, size, data, flags);
+}
+
+void Buffer::upload(GLintptr offset, GLsizeiptr bytes, const void* data) {
+  glNamedBufferSubData(handle_.id(), offset, bytes, data);
+}
+
+void Buffer::download(GLintptr offset, GLsizeiptr bytes, void* out) const {
+  glGetNamedBufferSubData(handle_.id(), offset, bytes, out);
+}
+
+Texture::Texture(GLenum target, GLenum internalFormat, int width, int height, int depth, int levels)
+    : target_(target), format_(internalFormat), width_(width), height_(height), depth_(depth) {
+  if (width <= 0 || height <= 0 || depth <= 0)
+    throw GlError("Texture(): size " + std::to_string(width) + "x" + std::to_string(height) + "x" +
+                  std::to_string(depth) + " is not positive");
+  GLuint id = 0;
+  glCreateTextures(target, 1, &id);
+  handle_ = Handle<traits::Texture>(id);
+  if (target == GL_TEXTURE_2D)
+    glTextureStorage2D(id, levels, internalFormat, width, height);
+  else
+    glTextureStorage3D(id, levels, internalFormat, width, height, depth);
+  setFilter(GL_LINEAR, GL_LINEAR);
+  glTextureParameteri(id, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTextureParameteri(id, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glTextureParameteri(id, GL_TEXTURE_WRAP_R, GL_CLAMP_TO_EDGE);
+}
+
+void Texture::upload(GLenum format, GLenum type, const void* data, int rowAlignment) {
+  glPixelStorei(GL_UNPACK_ALIGNMENT, rowAlignment);
+  if (target_ == GL_TEXTURE_2D)
+    glTextureSubImage2D(handle_.id(), 0, 0, 0, width_, height_, format, type, data);
+  else
+    glTextureSubImage3D(handle_.id(), 0, 0, 0, 0, width_, height_, depth_, format, type, data);
+}
+
+void Texture::download(GLenum format, GLenum type, void* out, GLsizei bufSize, int rowAlignment) const {
+  glPixelStorei(GL_PACK_ALIGNMENT, rowAlignment);
+  glGetTextureImage(handle_.id(), 0, format, type, bufSize, out);
+}
+
+void Texture::setFilter(GLenum minFilter, GLenum magFilter) {
+  glTextureParameteri(handle_.id(), GL_TEXTURE_MIN_FILTER, static_cast<GLint>(minFilter));
+  glTextureParameteri(handle_.id(), GL_TEXTURE_MAG_FILTER, static_cast<GLint>(magFilter));
+}
+
+Framebuffer::Framebuffer() {
+  GLuint id = 0;
+  glCreateFramebuffers(1, &id);
+  handle_ = FramebufferHandle(id);
+}
+
+void Framebuffer::attachColour(int index, const Texture& texture, int level) {
+  glNamedFramebufferTexture(handle_.id(), GL_COLOR_ATTACHMENT0 + index, texture.id(), level);
+}
+
+void Framebuffer::attachDepth(const Texture& texture) {
+  glNamedFramebufferTexture(handle_.id(), GL_DEPTH_ATTACHMENT, texture.id(), 0);
+}
+
+void Framebuffer::finalise(int colourCount) {
+  GLenum buffers[8];
+  for (int i = 0; i < colourCount && i < 8; ++i) buffers[i] = GL_COLOR_ATTACHMENT0 + i;
+  glNamedFramebufferDrawBuffers(handle_.id(), colourCount, buffers);
+  const GLenum status = glCheckNamedFramebufferStatus(handle_.id(), GL_FRAMEBUFFER);
+  if (status != GL_FRAMEBUFFER_COMPLETE) {
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "0x%04x", status);
+    throw GlError(std::string("Framebuffer::finalise(): incomplete framebuffer, status ") + buf);
+  }
+}
+
+VertexArray::VertexArray() {
+  GLuint id = 0;
+  glCreateVertexArrays(1, &id);
+  handle_ = VertexArrayHandle(id);
+}
+
+}  // namespace mrgi::gl

@@ -1,0 +1,51 @@
+#pragma once
+/// Per-pass GPU timings with timestamp queries (GL_TIMESTAMP, so scopes may nest), plus CPU wall time,
+/// collected under stable names ("gbuffer", "rsm", "dlpv.propagate", ...).
+#include <chrono>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "gl/objects.h"
+
+namespace mrgi::gl {
+
+struct StageTime {
+  double gpuMs = 0.0;  ///< GPU time between the scope's begin and end timestamps (0 for CPU-only stages)
+  double cpuMs = 0.0;  ///< CPU wall time of the scope
+};
+
+class Profiler {
+ public:
+  class Scope {
+   public:
+    Scope(Profiler& p, std::string name, bool gpu);
+    ~Scope();
+    Scope(const Scope&) = delete;
+    Scope& operator=(const Scope&) = delete;
+
+   private:
+    Profiler& profiler_;
+    size_t index_;
+  };
+
+  /// Times a stage on the GPU and the CPU; the result is available after resolve().
+  Scope gpu(std::string name) { return Scope(*this, std::move(name), true); }
+  /// Times a CPU-only stage.
+  Scope cpu(std::string name) { return Scope(*this, std::move(name), false); }
+
+  /// Waits for this frame's queries and returns the stage times (summed over repeated names), then
+  /// starts a new frame. The map is ordered by name.
+  std::map<std::string, StageTime> resolve();
+
+ private:
+  struct Pending {
+    std::string name;
+    bool gpu;
+    std::chrono::steady_clock::time_point cpuBegin, cpuEnd;
+    QueryHandle begin, end;
+  };
+  std::vector<Pending> pending_;
+};
+
+}  // namespace mrgi::gl

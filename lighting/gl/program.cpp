@@ -1,0 +1,158 @@
+#include "gl/program.h"
+
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "gl/error.h"
+#include "gl/shader_registry.h"
+
+namespace mrgi::gl {
+namespace {
+
+std::string directoryOf(const std::string& path) {
+  const auto slash = path.rfind('/');
+  return slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
+}
+
+struct Expander {
+  PreprocessedSource out;
+  std::set<std::string> included;
+  std::vector<std::string> stack;
+
+  void expand(const std::string& name, int fileId, bool top, const Defines& defines) {
+    std::istringstream in(shaderSource(name));
+    std::string line;
+    int lineNo = 0;
+    bool sawVersion = false;
+    static const std::regex includeRe(R"re(^\s*#\s*include\s+"([^"]+)"\s*$)re");
+    while (std::getline(in, line)) {
+      ++lineNo;
+      std::smatch m;
+      if (top && !sawVersion && line.rfind("#version", 0) == 0) {
+        sawVersion = true;
+        out.text += line + "\n";
+        for (const auto& [k, v] : defines) out.text += "#define " + k + " " + v + "\n";
+        out.text += "#line " + std::to_string(lineNo + 1) + " " + std::to_string(fileId) + "\n";
+        continue;
+      }
+      if (std::regex_match(line, m, includeRe)) {
+        std::string target = directoryOf(name) + m[1].str();
+        if (!hasShaderSource(target)) target = m[1].str();
+        if (!hasShaderSource(target))
+          throw GlError("shader " + name + ":" + std::to_string(lineNo) + ": cannot include '" + m[1].str() + "'");
+        for (const auto& s : stack)
+          if (s == target) throw GlError("shader " + name + ":" + std::to_string(lineNo) + ": include cycle via " + target);
+        if (included.insert(target).second) {
+          const int childId = static_cast<int>(out.files.size());
+          out.files.push_back(target);
+          out.text += "#line 1 " + std::to_string(childId) + "\n";
+          stack.push_back(target);
+          expand(target, childId, false, defines);
+          stack.pop_back();
+        }
+        out.text += "#line " + std::to_string(lineNo + 1) + " " + std::to_string(fileId) + "\n";
+        continue;
+      }
+      out.text += line + "\n";
+    }
+    if (top && !sawVersion) throw GlError("shader " + name + ":1: the first line must be a #version directive");
+  }
+};
+
+ShaderHandle compileStage(GLenum stage, const std::string& name, const Defines& defines) {
+  const PreprocessedSource src = preprocessShader(name, defines);
+  ShaderHandle shader(glCreateShader(stage));
+  const char* text = src.text.c_str();
+  glShaderSource(shader.id(), 1, &text, nullptr);
+  glCompileShader(shader.id());
+  GLint ok = GL_FALSE;
+  glGetShaderiv(shader.id(), GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    GLint len = 0;
+    glGetShaderiv(shader.id(), GL_INFO_LOG_LENGTH, &len);
+    std::string log(static_cast<size_t>(std::max(len, 1)), '\0');
+    glGetShaderInfoLog(shader.id(), len, nullptr, log.data());
+    throw GlError("shader compile failed: " + mapShaderLog(log, src.files));
+  }
+  return shader;
+}
+
+ProgramHandle link(const std::vector<ShaderHandle>& shaders, const std::string& what) {
+  ProgramHandle program(glCreateProgram());
+  for (const auto& s : shaders) glAttachShader(program.id(), s.id());
+  glLinkProgram(program.id());
+  GLint ok = GL_FALSE;
+  glGetProgramiv(program.id(), GL_LINK_STATUS, &ok);
+  if (!ok) {
+    GLint len = 0;
+    glGetProgramiv(program.id(), GL_INFO_LOG_LENGTH, &len);
+    std::string log(static_cast<size_t>(std::max(len, 1)), '\0');
+    glGetProgramInfoLog(program.id(), len, nullptr, log.data());
+    throw GlError("program link failed (" + what + "): " + mapShaderLog(log, {}));
+  }
+  for (const auto& s : shaders) glDetachShader(program.id(), s.id());
+  return program;
+}
+
+}  // namespace
+
+PreprocessedSource preprocessShader(const std::string& name, const Defines& defines) {
+  Expander e;
+  e.out.files.push_back(name);
+  e.included.insert(name);
+  e.stack.push_back(name);
+  e.expand(name, 0, true, defines);
+  return e.out;
+}
+
+std::string mapShaderLog(const std::string& log, const std::vector<std::string>& files) {
+  // Keep the first line that reports an error (the log may hold many); user errors are one line.
+  std::istringstream in(log);
+  std::string line, first;
+  while (std::getline(in, line)) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (first.empty()) first = line;
+    if (line.find("error") != std::string::npos) {
+      first = line;
+      break;
+    }
+  }
+  while (!first.empty() && (first.back() == '\r' || first.back() == '\0' || first.back() == ' ')) first.pop_back();
+  static const std::regex mesaRe(R"re(^(\d+):(\d+)\(\d+\):\s*)re");  // Mesa: 0:12(5): error: ...
+  static const std::regex nvRe(R"re(^(\d+)\((\d+)\)\s*:\s*)re");      // NVIDIA: 0(12) : error C...
+  std::smatch m;
+  if (std::regex_search(first, m, mesaRe) || std::regex_search(first, m, nvRe)) {
+    const size_t id = std::stoul(m[1].str());
+    const std::string file = id < files.size() ? files[id] : "source " + m[1].str();
+    return file + ":" + m[2].str() + ": " + m.suffix().str();
+  }
+  return first;
+}
+
+Program Program::graphics(const std::string& vert, const std::string& frag, const Defines& defines) {
+  std::vector<ShaderHandle> shaders;
+  shaders.push_back(compileStage(GL_VERTEX_SHADER, vert, defines));
+  shaders.push_back(compileStage(GL_FRAGMENT_SHADER, frag, defines));
+  Program p;
+  p.handle_ = link(shaders, vert + " + " + frag);
+  return p;
+}
+
+Program Program::compute(const std::string& comp, const Defines& defines) {
+  std::vector<ShaderHandle> shaders;
+  shaders.push_back(compileStage(GL_COMPUTE_SHADER, comp, defines));
+  Program p;
+  p.handle_ = link(shaders, comp);
+  return p;
+}
+
+GLint Program::location(const std::string& name) const {
+  auto it = locations_.find(name);
+  if (it != locations_.end()) return it->second;
+  const GLint loc = glGetUniformLocation(handle_.id(), name.c_str());
+  locations_.emplace(name, loc);
+  return loc;
+}
+
+}  // namespace mrgi::gl

@@ -1,0 +1,57 @@
+#pragma once
+/// GLSL programs built from embedded shader files, with `#include "file"` and `#define` variants.
+/// Compile and link errors are thrown as one line naming the shader file and line.
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "gl/glapi.h"
+#include "gl/objects.h"
+
+namespace mrgi::gl {
+
+/// Preprocessor defines prepended after the #version line: {"NAME", "VALUE"} -> "#define NAME VALUE".
+using Defines = std::vector<std::pair<std::string, std::string>>;
+
+/// Result of resolving includes: the text handed to GL and the file of each GLSL source-string number.
+struct PreprocessedSource {
+  std::string text;
+  std::vector<std::string> files;  ///< files[i] is the shader file of `#line n i`
+};
+
+/// Expands `#include "path"` (relative to the including file, then to the root) once per file, inserts
+/// the defines and `#line` directives. Throws GlError on a missing include or a missing #version line.
+PreprocessedSource preprocessShader(const std::string& name, const Defines& defines);
+
+/// Rewrites a driver log's "0:12(3): error ..." / "0(12) : error ..." locations as "file:12".
+std::string mapShaderLog(const std::string& log, const std::vector<std::string>& files);
+
+class Program {
+ public:
+  Program() = default;
+  /// A vertex + fragment program; names are registry names ("compositor/fullscreen.vert").
+  static Program graphics(const std::string& vert, const std::string& frag, const Defines& defines = {});
+  /// A compute program.
+  static Program compute(const std::string& comp, const Defines& defines = {});
+
+  GLuint id() const { return handle_.id(); }
+  void use() const { glUseProgram(handle_.id()); }
+  /// Uniform location by name, cached; -1 if the uniform is absent or optimised away.
+  GLint location(const std::string& name) const;
+  void set(const std::string& name, int v) const { glProgramUniform1i(id(), location(name), v); }
+  void set(const std::string& name, float v) const { glProgramUniform1f(id(), location(name), v); }
+  void set(const std::string& name, float x, float y) const { glProgramUniform2f(id(), location(name), x, y); }
+  void set(const std::string& name, float x, float y, float z) const {
+    glProgramUniform3f(id(), location(name), x, y, z);
+  }
+  void setMat4(const std::string& name, const float* columnMajor) const {
+    glProgramUniformMatrix4fv(id(), location(name), 1, GL_FALSE, columnMajor);
+  }
+
+ private:
+  ProgramHandle handle_;
+  mutable std::unordered_map<std::string, GLint> locations_;
+};
+
+}  // namespace mrgi::gl
