@@ -1,7 +1,201 @@
+// mrgi synth: writes a synthetic tabletop session with ground truth through the session writer.
+#include <cmath>
+#include <cstdio>
+#include <unistd.h>
+
+#include <opencv2/core.hpp>
+
 #include "app/commands.h"
+#include "app/tabletop.h"
+#include "capture/sensor_model.h"
+#include "capture/session.h"
+#include "lighting/colour.h"
+#include "lighting/reference/raycaster.h"
 
 namespace mrgi::app {
-Action addSynth(CLI::App& app) {
-  return [] { return 0; };
+namespace {
+
+using lighting::reference::RayCaster;
+
+struct SynthOptions {
+  std::string out;
+  int frames = 20;
+  int width = 640, height = 480;
+  uint64_t seed = 1;
+  int tagId = 0;
+  double tagSize = 0.16;
+  int fisheyeEvery = 30;  ///< a fisheye frame every N frames (the room is static), 0 = none
+};
+
+cv::Vec3f transformPoint(const capture::Pose& T, cv::Vec3d p) {
+  return {static_cast<float>(T(0, 0) * p[0] + T(0, 1) * p[1] + T(0, 2) * p[2] + T(0, 3)),
+          static_cast<float>(T(1, 0) * p[0] + T(1, 1) * p[1] + T(1, 2) * p[2] + T(1, 3)),
+          static_cast<float>(T(2, 0) * p[0] + T(2, 1) * p[1] + T(2, 2) * p[2] + T(2, 3))};
 }
+cv::Vec3f rotate(const capture::Pose& T, cv::Vec3d d) {
+  return {static_cast<float>(T(0, 0) * d[0] + T(0, 1) * d[1] + T(0, 2) * d[2]),
+          static_cast<float>(T(1, 0) * d[0] + T(1, 1) * d[1] + T(1, 2) * d[2]),
+          static_cast<float>(T(2, 0) * d[0] + T(2, 1) * d[1] + T(2, 2) * d[2])};
+}
+
+struct RgbdRender {
+  cv::Mat radiance;  // CV_32FC3 linear, 2x2 supersampled
+  cv::Mat depth;     // CV_32FC1 ideal z, metres
+  cv::Mat normals;   // CV_32FC3 camera space
+};
+
+RgbdRender renderRgbd(const RayCaster& rc, const capture::Intrinsics& k, const capture::Pose& T_wc) {
+  RgbdRender r{cv::Mat(k.height, k.width, CV_32FC3), cv::Mat(k.height, k.width, CV_32FC1),
+               cv::Mat(k.height, k.width, CV_32FC3)};
+  const cv::Vec3f origin = transformPoint(T_wc, {0, 0, 0});
+  const cv::Matx33d Rt = cv::Matx33d(T_wc(0, 0), T_wc(0, 1), T_wc(0, 2), T_wc(1, 0), T_wc(1, 1), T_wc(1, 2), T_wc(2, 0),
+                                     T_wc(2, 1), T_wc(2, 2)).t();
+  cv::parallel_for_(cv::Range(0, k.height), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < k.width; ++x) {
+        cv::Vec3f sum(0, 0, 0);
+        for (int s = 0; s < 4; ++s) {  // 2x2 supersampling for clean tag edges
+          const double px = x + (s % 2 ? 0.25 : -0.25), py = y + (s / 2 ? 0.25 : -0.25);
+          const cv::Vec3f d = cv::normalize(rotate(T_wc, {(px - k.cx) / k.fx, (py - k.cy) / k.fy, 1.0}));
+          if (auto h = rc.intersect(origin, d)) sum += rc.shadeDirect(*h);
+        }
+        r.radiance.at<cv::Vec3f>(y, x) = sum * 0.25f;
+        // Depth and normal at the pixel centre, as a depth camera measures them.
+        const cv::Vec3d dc((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0);
+        const cv::Vec3f d = cv::normalize(rotate(T_wc, dc));
+        const auto h = rc.intersect(origin, d, 1e-4f, 1e30f, false);
+        r.depth.at<float>(y, x) = h ? static_cast<float>(h->t / cv::norm(dc)) : 0.f;
+        cv::Vec3f n(0, 0, 0);
+        if (h) {
+          const cv::Vec3d nc = Rt * cv::Vec3d(h->normal[0], h->normal[1], h->normal[2]);
+          n = cv::Vec3f(static_cast<float>(nc[0]), static_cast<float>(nc[1]), static_cast<float>(nc[2]));
+        }
+        r.normals.at<cv::Vec3f>(y, x) = n;
+      }
+  });
+  return r;
+}
+
+/// Inverts theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8) by Newton's method.
+double undistortTheta(double thetaD, const cv::Vec4d& D) {
+  double t = thetaD;
+  for (int i = 0; i < 20; ++i) {
+    const double t2 = t * t;
+    const double f = t * (1 + t2 * (D[0] + t2 * (D[1] + t2 * (D[2] + t2 * D[3])))) - thetaD;
+    const double df = 1 + t2 * (3 * D[0] + t2 * (5 * D[1] + t2 * (7 * D[2] + t2 * 9 * D[3])));
+    if (std::abs(df) < 1e-12) break;
+    t -= f / df;
+  }
+  return t;
+}
+
+cv::Mat renderFisheye(const RayCaster& rc, const capture::FisheyeCalibration& c) {
+  cv::Mat img(c.height, c.width, CV_32FC3, cv::Scalar(0, 0, 0));
+  const capture::Pose& T = *c.T_world_fisheye;
+  const cv::Vec3f origin = transformPoint(T, {0, 0, 0});
+  cv::parallel_for_(cv::Range(0, c.height), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < c.width; ++x) {
+        const double my = (y - c.K(1, 2)) / c.K(1, 1);
+        const double mx = (x - c.K(0, 2) - c.K(0, 1) * my) / c.K(0, 0);
+        const double thetaD = std::hypot(mx, my);
+        const double theta = undistortTheta(thetaD, c.D);
+        if (!(theta >= 0) || theta > CV_PI * 0.5 * 1.2) continue;  // outside the lens' field of view
+        const double s = thetaD > 1e-12 ? std::sin(theta) / thetaD : 1.0;
+        const cv::Vec3f d = cv::normalize(rotate(T, {mx * s, my * s, std::cos(theta)}));
+        if (auto h = rc.intersect(origin, d)) img.at<cv::Vec3f>(y, x) = rc.shadeDirect(*h);
+      }
+  });
+  return img;
+}
+
+capture::FisheyeCalibration tableFisheye() {
+  // The calibration of a real 800x503 fisheye (equidistant model), as OpenCV's fisheye module estimates it
+  // from ../shared/data/fisheye-ros-calib; mounted on the table, looking at the ceiling.
+  capture::FisheyeCalibration c;
+  c.width = 800;
+  c.height = 503;
+  c.K = cv::Matx33d(290.050152, 0, 399.938345, 0, 289.392837, 273.885669, 0, 0, 1);
+  c.D = {-0.030464, -0.019695, 0.002098, 0.001030};
+  // Optical axis (z) = world up; x = world x; y = z x x = world -z.
+  c.T_world_fisheye = capture::Pose(1, 0, 0, -0.45, 0, 0, 1, 0.76, 0, -1, 0, 0.25, 0, 0, 0, 1);
+  return c;
+}
+
+int runSynth(const SynthOptions& o) {
+  TabletopConfig tc;
+  tc.tagId = o.tagId;
+  tc.tagSize = o.tagSize;
+  tc.seed = o.seed;
+  const Tabletop table = buildTabletop(tc);
+  const RayCaster rc(table.scene);
+
+  capture::SessionManifest m;
+  const double f = 525.0 * o.width / 640.0;
+  m.colour = {o.width, o.height, f, f, (o.width - 1) / 2.0, (o.height - 1) / 2.0};
+  m.depth = m.colour;
+  m.depthUnitsMetres = 0.001;
+  m.marker = capture::MarkerSpec{tc.tagFamily, tc.tagSize, tc.tagId};
+  if (o.fisheyeEvery > 0) m.fisheye = tableFisheye();
+  m.groundTruth = table.groundTruth;
+  capture::SessionWriter writer(o.out, m);
+
+  cv::Mat fisheye;
+  if (m.fisheye) fisheye = renderFisheye(rc, *m.fisheye);
+  const capture::DepthNoiseModel noise;
+  const bool tty = isatty(fileno(stdout));
+  for (int i = 0; i < o.frames; ++i) {
+    capture::Frame frame;
+    frame.index = i;
+    frame.timestamp = i / 30.0;
+    frame.groundTruthT_world_camera = orbitCamera(i, o.frames);
+    const RgbdRender r = renderRgbd(rc, m.colour, *frame.groundTruthT_world_camera);
+    capture::RgbdFrame rgbd;
+    // Camera: linear radiance -> sRGB 8-bit with a little sensor noise.
+    cv::Mat srgb = lighting::encodeSrgb(r.radiance);
+    cv::Mat noiseImg(srgb.size(), CV_16SC3);
+    cv::RNG rng(o.seed * 7919 + static_cast<uint64_t>(i));
+    rng.fill(noiseImg, cv::RNG::NORMAL, 0, 1.2);
+    cv::Mat noisy;
+    srgb.convertTo(noisy, CV_16SC3);
+    noisy += noiseImg;
+    noisy.convertTo(rgbd.colour, CV_8UC3);  // saturating
+    rgbd.depth = capture::applyDepthNoise(r.depth, r.normals, m.colour.fx, m.colour.fy, m.colour.cx, m.colour.cy, noise,
+                                          o.seed * 104729 + static_cast<uint64_t>(i));
+    rgbd.colourIntrinsics = rgbd.depthIntrinsics = m.colour;
+    frame.rgbd = std::move(rgbd);
+    if (m.fisheye && i % o.fisheyeEvery == 0) {
+      capture::FisheyeFrame ff;
+      ff.image = fisheye;
+      ff.exposure = 1.0;
+      ff.calibration = *m.fisheye;
+      frame.fisheye = std::move(ff);
+    }
+    writer.append(frame);
+    if (tty) {
+      std::printf("\rsynth %d/%d frames", i + 1, o.frames);
+      std::fflush(stdout);
+    }
+  }
+  if (tty) std::printf("\n");
+  std::printf("wrote %d frames to %s\n", o.frames, o.out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+Action addSynth(CLI::App& app) {
+  auto o = std::make_shared<SynthOptions>();
+  app.add_option("--out", o->out, "new session directory (must not exist or be empty)")->required();
+  app.add_option("--frames", o->frames, "number of frames along the camera orbit")->check(CLI::Range(1, 100000));
+  app.add_option("--width", o->width, "image width (height follows at 4:3 unless given)")->check(CLI::Range(16, 8192));
+  app.add_option("--height", o->height, "image height")->check(CLI::Range(12, 8192));
+  app.add_option("--seed", o->seed, "noise seed (output is deterministic for a seed)");
+  app.add_option("--tag-id", o->tagId, "tag36h11 id of the marker on the table")->check(CLI::Range(0, 586));
+  app.add_option("--tag-size", o->tagSize, "marker black-square edge in metres")->check(CLI::PositiveNumber);
+  app.add_option("--fisheye-every", o->fisheyeEvery, "store a fisheye HDR frame every N frames (0 = no fisheye)")
+      ->check(CLI::NonNegativeNumber);
+  return [o] { return runSynth(*o); };
+}
+
 }  // namespace mrgi::app

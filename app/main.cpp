@@ -28,6 +28,14 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help / --version
+    if (argc > 1 && argv[1][0] != '-') {
+      bool known = false;
+      for (const auto* sub : app.get_subcommands({})) known |= sub->get_name() == argv[1];
+      if (!known) {
+        std::fprintf(stderr, "mrgi: unknown subcommand '%s' (see mrgi --help)\n", argv[1]);
+        return 2;
+      }
+    }
     // One line on stderr naming the problem.
     std::fprintf(stderr, "mrgi: %s (see mrgi --help)\n", e.what());
     return 2;

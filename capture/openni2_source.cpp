@@ -14,8 +14,9 @@ std::string lastError() {
   const char* e = openni::OpenNI::getExtendedError();
   std::string s = e ? e : "";
   for (char& c : s)
-    if (c == '\n' || c == '\r') c = ' ';
+    if (c == '\n' || c == '\r' || c == '\t') c = ' ';
   while (!s.empty() && s.back() == ' ') s.pop_back();
+  while (!s.empty() && s.front() == ' ') s.erase(s.begin());
   return s.empty() ? "unknown OpenNI2 error" : s;
 }
 

@@ -229,14 +229,15 @@ void SessionWriter::append(const Frame& frame) {
     } else {
       cv::Mat bgr;
       cv::cvtColor(f.image, bgr, cv::COLOR_RGB2BGR);
-      if (!cv::imencode(".exr", bgr, bytes)) throw CaptureError(name, "cannot encode EXR");
+      if (!cv::imencode(".exr", bgr, bytes, {cv::IMWRITE_EXR_TYPE, cv::IMWRITE_EXR_TYPE_HALF})) throw CaptureError(name, "cannot encode EXR");
     }
     writeFileAtomically(dir / name, bytes);
     line["fisheye"] = name;
     line["exposure"] = f.exposure;
   }
   if (frame.groundTruthT_world_camera) line["T_world_camera"] = poseToJson(*frame.groundTruthT_world_camera);
-  syncDirectory(dir / "colour");
+  for (const char* sub : {"colour", "depth", "fisheye"})
+    if (line.contains(sub)) syncDirectory(dir / sub);
   const std::string text = line.dump() + "\n";
   // One write() of the whole line: a crash leaves a prefix without '\n', which readers ignore.
   size_t done = 0;

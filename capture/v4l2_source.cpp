@@ -9,6 +9,8 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -77,7 +79,11 @@ FisheyeCalibration readFisheyeCalibration(const std::string& path) {
   quietOpenCv();
   cv::FileStorage fsr;
   try {
-    fsr.open(path, cv::FileStorage::READ);
+    // ROS writes YAML without OpenCV's "%YAML:1.0" directive; add it and parse from memory.
+    std::ifstream in(path);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (text.rfind("%YAML", 0) != 0) text = "%YAML:1.0\n---\n" + text;
+    fsr.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   } catch (const cv::Exception&) {
   }
   if (!fsr.isOpened()) throw CaptureError(path, "cannot parse calibration YAML");
@@ -113,8 +119,8 @@ FisheyeCalibration readFisheyeCalibration(const std::string& path) {
   D.convertTo(D, CV_64F);
   for (int i = 0; i < 9; ++i) c.K(i / 3, i % 3) = K.at<double>(i);
   for (int i = 0; i < 4; ++i) c.D[i] = D.at<double>(i);
-  const std::string model = fsr["distortion_model"].empty() ? "equidistant" : static_cast<std::string>(fsr["distortion_model"]);
-  if (model != "equidistant") throw CaptureError(path, "distortion_model '" + model + "' is not the fisheye (equidistant) model");
+  // ROS's fisheye calibrator labels its 4-coefficient equidistant output "plumb_bob"; the coefficient count
+  // (checked above) is what tells the models apart.
   return c;
 }
 

@@ -20,7 +20,12 @@ struct Expander {
   std::set<std::string> included;
   std::vector<std::string> stack;
 
-  void expand(const std::string& name, int fileId, bool top, const Defines& defines) {
+  void emit(const std::string& line, const std::string& origin) {
+    out.text += line + "\n";
+    out.origins.push_back(origin);
+  }
+
+  void expand(const std::string& name, bool top, const Defines& defines) {
     std::istringstream in(shaderSource(name));
     std::string line;
     int lineNo = 0;
@@ -28,33 +33,29 @@ struct Expander {
     static const std::regex includeRe(R"re(^\s*#\s*include\s+"([^"]+)"\s*$)re");
     while (std::getline(in, line)) {
       ++lineNo;
+      const std::string origin = name + ":" + std::to_string(lineNo);
       std::smatch m;
       if (top && !sawVersion && line.rfind("#version", 0) == 0) {
         sawVersion = true;
-        out.text += line + "\n";
-        for (const auto& [k, v] : defines) out.text += "#define " + k + " " + v + "\n";
-        out.text += "#line " + std::to_string(lineNo + 1) + " " + std::to_string(fileId) + "\n";
+        emit(line, origin);
+        for (const auto& [k, v] : defines) emit("#define " + k + " " + v, "<define " + k + ">");
         continue;
       }
       if (std::regex_match(line, m, includeRe)) {
         std::string target = directoryOf(name) + m[1].str();
         if (!hasShaderSource(target)) target = m[1].str();
-        if (!hasShaderSource(target))
-          throw GlError("shader " + name + ":" + std::to_string(lineNo) + ": cannot include '" + m[1].str() + "'");
+        if (!hasShaderSource(target)) throw GlError("shader " + origin + ": cannot include '" + m[1].str() + "'");
         for (const auto& s : stack)
-          if (s == target) throw GlError("shader " + name + ":" + std::to_string(lineNo) + ": include cycle via " + target);
+          if (s == target) throw GlError("shader " + origin + ": include cycle via " + target);
         if (included.insert(target).second) {
-          const int childId = static_cast<int>(out.files.size());
-          out.files.push_back(target);
-          out.text += "#line 1 " + std::to_string(childId) + "\n";
           stack.push_back(target);
-          expand(target, childId, false, defines);
+          expand(target, false, defines);
           stack.pop_back();
         }
-        out.text += "#line " + std::to_string(lineNo + 1) + " " + std::to_string(fileId) + "\n";
+        emit("", origin);  // keeps one output line per input line
         continue;
       }
-      out.text += line + "\n";
+      emit(line, origin);
     }
     if (top && !sawVersion) throw GlError("shader " + name + ":1: the first line must be a #version directive");
   }
@@ -73,7 +74,7 @@ ShaderHandle compileStage(GLenum stage, const std::string& name, const Defines& 
     glGetShaderiv(shader.id(), GL_INFO_LOG_LENGTH, &len);
     std::string log(static_cast<size_t>(std::max(len, 1)), '\0');
     glGetShaderInfoLog(shader.id(), len, nullptr, log.data());
-    throw GlError("shader compile failed: " + mapShaderLog(log, src.files));
+    throw GlError("shader compile failed: " + mapShaderLog(log, src.origins));
   }
   return shader;
 }
@@ -99,14 +100,13 @@ ProgramHandle link(const std::vector<ShaderHandle>& shaders, const std::string& 
 
 PreprocessedSource preprocessShader(const std::string& name, const Defines& defines) {
   Expander e;
-  e.out.files.push_back(name);
   e.included.insert(name);
   e.stack.push_back(name);
-  e.expand(name, 0, true, defines);
+  e.expand(name, true, defines);
   return e.out;
 }
 
-std::string mapShaderLog(const std::string& log, const std::vector<std::string>& files) {
+std::string mapShaderLog(const std::string& log, const std::vector<std::string>& origins) {
   // Keep the first line that reports an error (the log may hold many); user errors are one line.
   std::istringstream in(log);
   std::string line, first;
@@ -123,9 +123,9 @@ std::string mapShaderLog(const std::string& log, const std::vector<std::string>&
   static const std::regex nvRe(R"re(^(\d+)\((\d+)\)\s*:\s*)re");      // NVIDIA: 0(12) : error C...
   std::smatch m;
   if (std::regex_search(first, m, mesaRe) || std::regex_search(first, m, nvRe)) {
-    const size_t id = std::stoul(m[1].str());
-    const std::string file = id < files.size() ? files[id] : "source " + m[1].str();
-    return file + ":" + m[2].str() + ": " + m.suffix().str();
+    const size_t lineNo = std::stoul(m[2].str());
+    const std::string where = lineNo >= 1 && lineNo <= origins.size() ? origins[lineNo - 1] : "line " + m[2].str();
+    return where + ": " + m.suffix().str();
   }
   return first;
 }

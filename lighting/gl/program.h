@@ -14,18 +14,20 @@ namespace mrgi::gl {
 /// Preprocessor defines prepended after the #version line: {"NAME", "VALUE"} -> "#define NAME VALUE".
 using Defines = std::vector<std::pair<std::string, std::string>>;
 
-/// Result of resolving includes: the text handed to GL and the file of each GLSL source-string number.
+/// Result of resolving includes: the text handed to GL and, for each of its lines, where it came from.
+/// (Drivers disagree on `#line` source-string numbers, so locations are mapped back through this table.)
 struct PreprocessedSource {
   std::string text;
-  std::vector<std::string> files;  ///< files[i] is the shader file of `#line n i`
+  std::vector<std::string> origins;  ///< origins[i] = "file:line" of text line i+1 ("<defines>" for injected)
 };
 
-/// Expands `#include "path"` (relative to the including file, then to the root) once per file, inserts
-/// the defines and `#line` directives. Throws GlError on a missing include or a missing #version line.
+/// Expands `#include "path"` (relative to the including file, then to the root) once per file and inserts
+/// the defines after #version. Throws GlError on a missing include, a cycle or a missing #version line.
 PreprocessedSource preprocessShader(const std::string& name, const Defines& defines);
 
-/// Rewrites a driver log's "0:12(3): error ..." / "0(12) : error ..." locations as "file:12".
-std::string mapShaderLog(const std::string& log, const std::vector<std::string>& files);
+/// Keeps the first error line of a driver log and rewrites its "0:12(3): " (Mesa) or "0(12) : " (NVIDIA)
+/// location as the original "file:line: " through origins.
+std::string mapShaderLog(const std::string& log, const std::vector<std::string>& origins);
 
 class Program {
  public:

@@ -1,0 +1,103 @@
+#include "app/tabletop.h"
+
+#include <cmath>
+
+#include "capture/session.h"
+#include "lighting/colour.h"
+#include "reconstruction/marker_image.h"
+
+namespace mrgi::app {
+
+using lighting::reference::Material;
+using V = cv::Vec3f;
+
+namespace {
+constexpr float kTableTop = 0.75f;
+}
+
+Tabletop buildTabletop(const TabletopConfig& c) {
+  Tabletop t;
+  auto& s = t.scene;
+  const float W = 2.0f, H = 2.6f;  // room half-width, height
+  const int floorM = s.addMaterial({"floor", {0.35f, 0.33f, 0.30f}});
+  const int ceilM = s.addMaterial({"ceiling", {0.80f, 0.80f, 0.80f}});
+  const int backM = s.addMaterial({"wall_back_red", {0.70f, 0.18f, 0.12f}});
+  const int leftM = s.addMaterial({"wall_left_green", {0.18f, 0.55f, 0.22f}});
+  const int rightM = s.addMaterial({"wall_right_white", {0.72f, 0.72f, 0.68f}});
+  const int frontM = s.addMaterial({"wall_front_blue", {0.20f, 0.28f, 0.62f}});
+  const int tableM = s.addMaterial({"table", {0.48f, 0.34f, 0.22f}});
+  const int boxM = s.addMaterial({"box_yellow", {0.78f, 0.66f, 0.16f}});
+  // Room faces point inwards.
+  s.addQuad({-W, 0, -W}, {0, 0, 2 * W}, {2 * W, 0, 0}, floorM);
+  s.addQuad({-W, H, -W}, {2 * W, 0, 0}, {0, 0, 2 * W}, ceilM);
+  s.addQuad({-W, 0, -W}, {2 * W, 0, 0}, {0, H, 0}, backM);
+  s.addQuad({-W, 0, -W}, {0, H, 0}, {0, 0, 2 * W}, leftM);
+  s.addQuad({W, 0, -W}, {0, 0, 2 * W}, {0, H, 0}, rightM);
+  s.addQuad({-W, 0, W}, {0, H, 0}, {2 * W, 0, 0}, frontM);
+  // Table: top slab and four legs.
+  s.addBox({-0.6f, kTableTop - 0.03f, -0.4f}, {0.6f, kTableTop, 0.4f}, tableM);
+  for (float x : {-0.55f, 0.52f})
+    for (float z : {-0.35f, 0.32f}) s.addBox({x, 0, z}, {x + 0.03f, kTableTop - 0.03f, z + 0.03f}, tableM);
+  // A box on the table.
+  s.addBox({0.22f, kTableTop, -0.26f}, {0.37f, kTableTop + 0.15f, -0.11f}, boxM);
+
+  // The AprilTag lies flat at the table centre, slightly above the top to avoid z-fighting.
+  reconstruction::TagLayout layout{};
+  const cv::Mat tag = reconstruction::renderTag(c.tagFamily, c.tagId, &layout);
+  cv::Mat tex(tag.size(), CV_32FC3);
+  for (int y = 0; y < tag.rows; ++y)
+    for (int x = 0; x < tag.cols; ++x) {
+      const float a = tag.at<uchar>(y, x) > 127 ? 0.85f : 0.03f;  // printed paper / toner albedo
+      tex.at<cv::Vec3f>(y, x) = {a, a, a};
+    }
+  s.textures.push_back(tex);
+  const int tagM = s.addMaterial({"apriltag", {1, 1, 1}, 0});
+  const float full = static_cast<float>(c.tagSize * layout.totalCells / layout.borderCells);
+  const float tagY = kTableTop + 0.0005f;
+  // Image rows run along world +z (marker -y), columns along world +x (marker x).
+  s.addQuad({-full / 2, tagY, -full / 2}, {full, 0, 0}, {0, 0, full}, tagM);
+
+  s.lights.push_back({{0.45f, 1.95f, 0.55f}, {9.0f, 8.4f, 7.6f}, 0.04f});
+  s.ambient = {0.05f, 0.05f, 0.05f};
+
+  // Marker frame: x = world x, z = world y (out of the table), y = z x x = world -z.
+  t.T_world_marker = capture::Pose(1, 0, 0, 0,  //
+                                   0, 0, 1, tagY,  //
+                                   0, -1, 0, 0,  //
+                                   0, 0, 0, 1);
+  nlohmann::json gt;
+  gt["T_world_marker"] = capture::poseToJson(t.T_world_marker);
+  gt["lights"] = nlohmann::json::array();
+  for (const auto& l : s.lights)
+    gt["lights"].push_back({{"type", "point"},
+                            {"position", {l.position[0], l.position[1], l.position[2]}},
+                            {"intensity_w_sr", {l.intensity[0], l.intensity[1], l.intensity[2]}},
+                            {"radius_m", l.radius}});
+  gt["scene"]["generator"] = "mrgi synth (direct light + constant ambient, ray cast)";
+  gt["scene"]["seed"] = c.seed;
+  gt["scene"]["ambient_radiance"] = {s.ambient[0], s.ambient[1], s.ambient[2]};
+  gt["scene"]["materials"] = nlohmann::json::array();
+  for (const auto& m : s.materials)
+    gt["scene"]["materials"].push_back({{"name", m.name}, {"albedo", {m.albedo[0], m.albedo[1], m.albedo[2]}}});
+  t.groundTruth = gt;
+  return t;
+}
+
+capture::Pose orbitCamera(int i, int n) {
+  const double a = (n > 1 ? -0.45 + 0.9 * i / (n - 1) : 0.0);  // radians around the tag
+  const cv::Vec3d target(0, kTableTop, 0);
+  const cv::Vec3d pos(0.85 * std::sin(a), kTableTop + 0.55 + 0.05 * std::sin(3 * a), 0.85 * std::cos(a));
+  const cv::Vec3d fwd = cv::normalize(target - pos);
+  const cv::Vec3d right = cv::normalize(fwd.cross(cv::Vec3d(0, 1, 0)));
+  const cv::Vec3d down = fwd.cross(right);
+  capture::Pose p = capture::Pose::eye();
+  for (int r = 0; r < 3; ++r) {
+    p(r, 0) = right[r];
+    p(r, 1) = down[r];
+    p(r, 2) = fwd[r];
+    p(r, 3) = pos[r];
+  }
+  return p;
+}
+
+}  // namespace mrgi::app

@@ -1,0 +1,31 @@
+#pragma once
+// The synthetic tabletop scene of `mrgi synth`: a room with differently coloured walls, a table with an
+// AprilTag, a box and a point light; camera path orbiting the tag; a fisheye camera on the table looking up.
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "capture/types.h"
+#include "lighting/reference/scene.h"
+
+namespace mrgi::app {
+
+struct TabletopConfig {
+  std::string tagFamily = "tag36h11";
+  int tagId = 0;
+  double tagSize = 0.16;  ///< black-square edge, metres
+  uint64_t seed = 1;
+};
+
+struct Tabletop {
+  lighting::reference::Scene scene;
+  capture::Pose T_world_marker;
+  nlohmann::json groundTruth;  ///< lights, materials, marker pose, as stored in the manifest
+};
+
+Tabletop buildTabletop(const TabletopConfig& config);
+
+/// Camera i of n on the orbit: OpenCV camera frame (x right, y down, z forward) in the world.
+capture::Pose orbitCamera(int i, int n);
+
+}  // namespace mrgi::app

@@ -1,0 +1,133 @@
+#include "lighting/reference/raycaster.h"
+
+#include <embree3/rtcore.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace mrgi::lighting::reference {
+namespace {
+constexpr float kPi = 3.14159265358979f;
+
+/// Smallest t > tNear at which the ray meets the sphere, or +inf.
+float hitSphere(cv::Vec3f o, cv::Vec3f d, cv::Vec3f c, float r, float tNear) {
+  const cv::Vec3f oc = o - c;
+  const float b = oc.dot(d), cc = oc.dot(oc) - r * r;
+  const float disc = b * b - cc;
+  if (disc < 0) return std::numeric_limits<float>::infinity();
+  const float s = std::sqrt(disc);
+  if (-b - s > tNear) return -b - s;
+  if (-b + s > tNear) return -b + s;
+  return std::numeric_limits<float>::infinity();
+}
+}  // namespace
+
+RayCaster::RayCaster(const Scene& scene) : scene_(scene) {
+  device_ = rtcNewDevice(nullptr);
+  if (!device_) throw std::runtime_error("RayCaster(): cannot create an Embree device");
+  rtcScene_ = rtcNewScene(device_);
+  if (!scene.triangles.empty()) {
+    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), scene.vertices.size()));
+    for (size_t i = 0; i < scene.vertices.size(); ++i)
+      for (int c = 0; c < 3; ++c) v[3 * i + c] = scene.vertices[i][c];
+    auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                               3 * sizeof(unsigned), scene.triangles.size()));
+    for (size_t i = 0; i < scene.triangles.size(); ++i)
+      for (int c = 0; c < 3; ++c) idx[3 * i + c] = static_cast<unsigned>(scene.triangles[i][c]);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(rtcScene_, g);
+    rtcReleaseGeometry(g);
+  }
+  rtcCommitScene(rtcScene_);
+}
+
+RayCaster::~RayCaster() {
+  rtcReleaseScene(rtcScene_);
+  rtcReleaseDevice(device_);
+}
+
+std::optional<Hit> RayCaster::intersect(cv::Vec3f o, cv::Vec3f d, float tNear, float tFar, bool hitLights) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh{};
+  rh.ray.org_x = o[0], rh.ray.org_y = o[1], rh.ray.org_z = o[2];
+  rh.ray.dir_x = d[0], rh.ray.dir_y = d[1], rh.ray.dir_z = d[2];
+  rh.ray.tnear = tNear;
+  rh.ray.tfar = tFar;
+  rh.ray.mask = 0xffffffffu;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(rtcScene_, &ctx, &rh);
+
+  float best = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID ? rh.ray.tfar : std::numeric_limits<float>::infinity();
+  int light = -1;
+  if (hitLights) {
+    for (size_t i = 0; i < scene_.lights.size(); ++i) {
+      const float t = hitSphere(o, d, scene_.lights[i].position, scene_.lights[i].radius, tNear);
+      if (t < best && t < tFar) best = t, light = static_cast<int>(i);
+    }
+  }
+  if (!std::isfinite(best)) return std::nullopt;
+  Hit h;
+  h.t = best;
+  h.position = o + best * d;
+  if (light >= 0) {
+    h.light = light;
+    h.normal = cv::normalize(h.position - scene_.lights[light].position);
+    return h;
+  }
+  h.triangle = static_cast<int>(rh.hit.primID);
+  const cv::Vec3i tri = scene_.triangles[h.triangle];
+  cv::Vec3f n(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+  n = cv::normalize(n);
+  if (n.dot(d) > 0) n = -n;
+  h.normal = n;
+  const Material& m = scene_.materials[scene_.triangleMaterial[h.triangle]];
+  h.albedo = m.albedo;
+  if (m.texture >= 0) {
+    const float u = rh.hit.u, v = rh.hit.v, w = 1.f - u - v;
+    const cv::Vec2f uv = w * scene_.uvs[tri[0]] + u * scene_.uvs[tri[1]] + v * scene_.uvs[tri[2]];
+    const cv::Mat& tex = scene_.textures[m.texture];
+    const int x = std::clamp(static_cast<int>(uv[0] * tex.cols), 0, tex.cols - 1);
+    const int y = std::clamp(static_cast<int>(uv[1] * tex.rows), 0, tex.rows - 1);
+    h.albedo = h.albedo.mul(tex.at<cv::Vec3f>(y, x));
+  }
+  return h;
+}
+
+bool RayCaster::occluded(cv::Vec3f o, cv::Vec3f d, float tNear, float tFar) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay ray{};
+  ray.org_x = o[0], ray.org_y = o[1], ray.org_z = o[2];
+  ray.dir_x = d[0], ray.dir_y = d[1], ray.dir_z = d[2];
+  ray.tnear = tNear;
+  ray.tfar = tFar;
+  ray.mask = 0xffffffffu;
+  rtcOccluded1(rtcScene_, &ctx, &ray);
+  return ray.tfar < 0;  // Embree sets tfar = -inf on a hit
+}
+
+cv::Vec3f RayCaster::shadeDirect(const Hit& hit) const {
+  if (hit.light >= 0) {
+    const PointLight& l = scene_.lights[hit.light];
+    return l.intensity * (1.f / (kPi * l.radius * l.radius));
+  }
+  cv::Vec3f e(0, 0, 0);
+  for (const PointLight& l : scene_.lights) {
+    const cv::Vec3f toLight = l.position - hit.position;
+    const float dist2 = toLight.dot(toLight);
+    const float dist = std::sqrt(dist2);
+    if (!(dist > l.radius)) continue;  // inside the emitter: no defined irradiance from a point light
+    const cv::Vec3f w = toLight / dist;
+    const float cosTheta = hit.normal.dot(w);
+    if (cosTheta <= 0) continue;
+    if (occluded(hit.position + 1e-4f * hit.normal, w, 0.f, dist - l.radius)) continue;
+    e += l.intensity * (cosTheta / dist2);
+  }
+  return hit.albedo.mul(e * (1.f / kPi) + scene_.ambient);
+}
+
+}  // namespace mrgi::lighting::reference
