@@ -1,0 +1,6 @@
+#!/usr/bin/env bash
+# README command 2: build (if needed) and run the whole test suite. Needs ../shared/data beside the repo.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash tools/build.sh
+ctest --test-dir build -j2 --output-on-failure --timeout 600
