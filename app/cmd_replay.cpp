@@ -13,6 +13,7 @@
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
+#include "capture/registration.h"
 #include "compositor/compositor.h"
 #include "gl/context.h"
 #include "reconstruction/depth.h"
@@ -77,7 +78,11 @@ int runReplay(const ReplayOptions& o) {
       frame = source->next();
     }
     if (!frame) break;
-    const capture::RgbdFrame& rgbd = *frame->rgbd;
+    capture::RgbdFrame& rgbd = *frame->rgbd;
+    if (!rgbd.depthRegistered) {
+      auto s = profiler.cpu("register");
+      capture::ensureRegistered(rgbd);
+    }
     cv::Mat normals;
     {
       auto s = profiler.cpu("normals");
