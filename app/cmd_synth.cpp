@@ -27,16 +27,7 @@ struct SynthOptions {
   int fisheyeEvery = 30;  ///< a fisheye frame every N frames (the room is static), 0 = none
 };
 
-cv::Vec3f transformPoint(const capture::Pose& T, cv::Vec3d p) {
-  return {static_cast<float>(T(0, 0) * p[0] + T(0, 1) * p[1] + T(0, 2) * p[2] + T(0, 3)),
-          static_cast<float>(T(1, 0) * p[0] + T(1, 1) * p[1] + T(1, 2) * p[2] + T(1, 3)),
-          static_cast<float>(T(2, 0) * p[0] + T(2, 1) * p[1] + T(2, 2) * p[2] + T(2, 3))};
-}
-cv::Vec3f rotate(const capture::Pose& T, cv::Vec3d d) {
-  return {static_cast<float>(T(0, 0) * d[0] + T(0, 1) * d[1] + T(0, 2) * d[2]),
-          static_cast<float>(T(1, 0) * d[0] + T(1, 1) * d[1] + T(1, 2) * d[2]),
-          static_cast<float>(T(2, 0) * d[0] + T(2, 1) * d[1] + T(2, 2) * d[2])};
-}
+cv::Vec3f toFloat(const cv::Vec3d& v) { return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])}; }
 
 struct RgbdRender {
   cv::Mat radiance;  // CV_32FC3 linear, 2x2 supersampled
@@ -47,30 +38,24 @@ struct RgbdRender {
 RgbdRender renderRgbd(const RayCaster& rc, const capture::Intrinsics& k, const capture::Pose& T_wc) {
   RgbdRender r{cv::Mat(k.height, k.width, CV_32FC3), cv::Mat(k.height, k.width, CV_32FC1),
                cv::Mat(k.height, k.width, CV_32FC3)};
-  const cv::Vec3f origin = transformPoint(T_wc, {0, 0, 0});
-  const cv::Matx33d Rt = cv::Matx33d(T_wc(0, 0), T_wc(0, 1), T_wc(0, 2), T_wc(1, 0), T_wc(1, 1), T_wc(1, 2), T_wc(2, 0),
-                                     T_wc(2, 1), T_wc(2, 2)).t();
+  const cv::Vec3f origin = toFloat(capture::transformPoint(T_wc, {0, 0, 0}));
+  const cv::Matx33d R = capture::rotationOf(T_wc), Rt = R.t();
   cv::parallel_for_(cv::Range(0, k.height), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y)
       for (int x = 0; x < k.width; ++x) {
         cv::Vec3f sum(0, 0, 0);
         for (int s = 0; s < 4; ++s) {  // 2x2 supersampling for clean tag edges
           const double px = x + (s % 2 ? 0.25 : -0.25), py = y + (s / 2 ? 0.25 : -0.25);
-          const cv::Vec3f d = cv::normalize(rotate(T_wc, {(px - k.cx) / k.fx, (py - k.cy) / k.fy, 1.0}));
+          const cv::Vec3f d = cv::normalize(toFloat(R * cv::Vec3d((px - k.cx) / k.fx, (py - k.cy) / k.fy, 1.0)));
           if (auto h = rc.intersect(origin, d)) sum += rc.shadeDirect(*h);
         }
         r.radiance.at<cv::Vec3f>(y, x) = sum * 0.25f;
         // Depth and normal at the pixel centre, as a depth camera measures them.
         const cv::Vec3d dc((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0);
-        const cv::Vec3f d = cv::normalize(rotate(T_wc, dc));
+        const cv::Vec3f d = cv::normalize(toFloat(R * dc));
         const auto h = rc.intersect(origin, d, 1e-4f, 1e30f, false);
         r.depth.at<float>(y, x) = h ? static_cast<float>(h->t / cv::norm(dc)) : 0.f;
-        cv::Vec3f n(0, 0, 0);
-        if (h) {
-          const cv::Vec3d nc = Rt * cv::Vec3d(h->normal[0], h->normal[1], h->normal[2]);
-          n = cv::Vec3f(static_cast<float>(nc[0]), static_cast<float>(nc[1]), static_cast<float>(nc[2]));
-        }
-        r.normals.at<cv::Vec3f>(y, x) = n;
+        r.normals.at<cv::Vec3f>(y, x) = h ? toFloat(Rt * cv::Vec3d(h->normal)) : cv::Vec3f(0, 0, 0);
       }
   });
   return r;
@@ -92,7 +77,8 @@ double undistortTheta(double thetaD, const cv::Vec4d& D) {
 cv::Mat renderFisheye(const RayCaster& rc, const capture::FisheyeCalibration& c) {
   cv::Mat img(c.height, c.width, CV_32FC3, cv::Scalar(0, 0, 0));
   const capture::Pose& T = *c.T_world_fisheye;
-  const cv::Vec3f origin = transformPoint(T, {0, 0, 0});
+  const cv::Vec3f origin = toFloat(capture::transformPoint(T, {0, 0, 0}));
+  const cv::Matx33d R = capture::rotationOf(T);
   cv::parallel_for_(cv::Range(0, c.height), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y)
       for (int x = 0; x < c.width; ++x) {
@@ -102,7 +88,7 @@ cv::Mat renderFisheye(const RayCaster& rc, const capture::FisheyeCalibration& c)
         const double theta = undistortTheta(thetaD, c.D);
         if (!(theta >= 0) || theta > CV_PI * 0.5 * 1.2) continue;  // outside the lens' field of view
         const double s = thetaD > 1e-12 ? std::sin(theta) / thetaD : 1.0;
-        const cv::Vec3f d = cv::normalize(rotate(T, {mx * s, my * s, std::cos(theta)}));
+        const cv::Vec3f d = cv::normalize(toFloat(R * cv::Vec3d(mx * s, my * s, std::cos(theta))));
         if (auto h = rc.intersect(origin, d)) img.at<cv::Vec3f>(y, x) = rc.shadeDirect(*h);
       }
   });
@@ -188,7 +174,7 @@ Action addSynth(CLI::App& app) {
   auto o = std::make_shared<SynthOptions>();
   app.add_option("--out", o->out, "new session directory (must not exist or be empty)")->required();
   app.add_option("--frames", o->frames, "number of frames along the camera orbit")->check(CLI::Range(1, 100000));
-  app.add_option("--width", o->width, "image width (height follows at 4:3 unless given)")->check(CLI::Range(16, 8192));
+  app.add_option("--width", o->width, "image width")->check(CLI::Range(16, 8192));
   app.add_option("--height", o->height, "image height")->check(CLI::Range(12, 8192));
   app.add_option("--seed", o->seed, "noise seed (output is deterministic for a seed)");
   app.add_option("--tag-id", o->tagId, "tag36h11 id of the marker on the table")->check(CLI::Range(0, 586));

@@ -3,13 +3,9 @@
 #include <cmath>
 
 #include "capture/session.h"
-#include "lighting/colour.h"
 #include "reconstruction/marker_image.h"
 
 namespace mrgi::app {
-
-using lighting::reference::Material;
-using V = cv::Vec3f;
 
 namespace {
 constexpr float kTableTop = 0.75f;

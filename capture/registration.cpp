@@ -9,12 +9,10 @@ cv::Mat registerDepthToColour(const cv::Mat& depth, const Intrinsics& dk, const 
   CV_Assert(depth.type() == CV_32FC1 && depth.cols == dk.width && depth.rows == dk.height && dk.valid() && ck.valid());
   cv::Mat out(ck.height, ck.width, CV_32FC1, cv::Scalar(0));
   auto project = [&](double u, double v, double z, double& cu, double& cv_, double& cz) {
-    const double x = (u - dk.cx) * z / dk.fx, y = (v - dk.cy) * z / dk.fy;
-    const double X = T(0, 0) * x + T(0, 1) * y + T(0, 2) * z + T(0, 3);
-    const double Y = T(1, 0) * x + T(1, 1) * y + T(1, 2) * z + T(1, 3);
-    cz = T(2, 0) * x + T(2, 1) * y + T(2, 2) * z + T(2, 3);
-    cu = ck.fx * X / cz + ck.cx;
-    cv_ = ck.fy * Y / cz + ck.cy;
+    const cv::Vec3d p = transformPoint(T, {(u - dk.cx) * z / dk.fx, (v - dk.cy) * z / dk.fy, z});
+    cz = p[2];
+    cu = ck.fx * p[0] / cz + ck.cx;
+    cv_ = ck.fy * p[1] / cz + ck.cy;
   };
   for (int v = 0; v < depth.rows; ++v) {
     const float* row = depth.ptr<float>(v);

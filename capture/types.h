@@ -20,6 +20,12 @@ struct Intrinsics {
 /// Rigid transform as a 4x4 row-major matrix, translation in metres.
 using Pose = cv::Matx44d;
 inline Pose identityPose() { return Pose::eye(); }
+/// The rotation block of a pose.
+inline cv::Matx33d rotationOf(const Pose& T) { return T.get_minor<3, 3>(0, 0); }
+/// T applied to a point (rotation and translation).
+inline cv::Vec3d transformPoint(const Pose& T, const cv::Vec3d& p) {
+  return rotationOf(T) * p + cv::Vec3d(T(0, 3), T(1, 3), T(2, 3));
+}
 
 /// Calibration of a fisheye camera in OpenCV's fisheye (equidistant / Kannala-Brandt) model.
 struct FisheyeCalibration {

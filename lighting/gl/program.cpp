@@ -52,7 +52,6 @@ struct Expander {
           expand(target, false, defines);
           stack.pop_back();
         }
-        emit("", origin);  // keeps one output line per input line
         continue;
       }
       emit(line, origin);
