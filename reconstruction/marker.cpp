@@ -1,0 +1,342 @@
+#include "reconstruction/marker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "reconstruction/apriltag_family.h"
+#include "reconstruction/depth.h"
+
+extern "C" {
+#include <apriltag/common/zarray.h>
+}
+
+namespace mrgi::reconstruction {
+
+// ---------------------------------------------------------------------------------------------- detector
+
+struct TagDetector::Impl {
+  detail::FamilyHandle family;
+  apriltag_detector_t* detector = nullptr;
+  ~Impl() {
+    if (detector) apriltag_detector_destroy(detector);
+  }
+};
+
+TagDetector::TagDetector(const DetectorOptions& options) : impl_(std::make_unique<Impl>()), options_(options) {
+  impl_->family = detail::createFamily(options.family);
+  impl_->detector = apriltag_detector_create();
+  apriltag_detector_add_family_bits(impl_->detector, impl_->family.family, std::max(0, options.maxHamming));
+  impl_->detector->quad_decimate = std::max(1.0f, options.decimate);
+  impl_->detector->quad_sigma = options.blurSigma;
+  impl_->detector->nthreads = std::max(1, options.threads);
+  impl_->detector->refine_edges = true;
+}
+
+TagDetector::~TagDetector() = default;
+
+std::vector<TagDetection> TagDetector::detect(const cv::Mat& image) const {
+  cv::Mat grey;
+  if (image.type() == CV_8UC1) grey = image;
+  else if (image.type() == CV_8UC3) cv::cvtColor(image, grey, cv::COLOR_RGB2GRAY);
+  else if (image.type() == CV_8UC4) cv::cvtColor(image, grey, cv::COLOR_RGBA2GRAY);
+  else throw std::invalid_argument("tag detection needs an 8-bit grey or colour image");
+  if (!grey.isContinuous()) grey = grey.clone();
+  std::vector<TagDetection> out;
+  if (grey.empty()) return out;
+  image_u8_t im{grey.cols, grey.rows, static_cast<int32_t>(grey.step[0]), grey.data};
+  zarray_t* found = apriltag_detector_detect(impl_->detector, &im);
+  for (int i = 0; i < zarray_size(found); ++i) {
+    apriltag_detection_t* d = nullptr;
+    zarray_get(found, i, &d);
+    if (d->hamming > options_.maxHamming || d->decision_margin < options_.minDecisionMargin) continue;
+    TagDetection t;
+    t.id = d->id;
+    t.hamming = d->hamming;
+    t.decisionMargin = d->decision_margin;
+    for (int c = 0; c < 4; ++c) t.corners[c] = {d->p[c][0], d->p[c][1]};
+    t.centre = {d->c[0], d->c[1]};
+    out.push_back(t);
+  }
+  apriltag_detections_destroy(found);
+  std::sort(out.begin(), out.end(), [](const TagDetection& a, const TagDetection& b) { return a.id < b.id; });
+  return out;
+}
+
+// -------------------------------------------------------------------------------------------------- pose
+
+std::array<cv::Point3d, 4> tagCornersInTagFrame(double s) {
+  const double h = s / 2;
+  return {cv::Point3d(-h, -h, 0), cv::Point3d(h, -h, 0), cv::Point3d(h, h, 0), cv::Point3d(-h, h, 0)};
+}
+
+namespace {
+
+capture::Pose poseFrom(const cv::Mat& rvec, const cv::Mat& tvec) {
+  cv::Matx33d R;
+  cv::Rodrigues(rvec, R);
+  capture::Pose T = capture::identityPose();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) T(r, c) = R(r, c);
+    T(r, 3) = tvec.at<double>(r);
+  }
+  return T;
+}
+
+double rmsOf(const std::vector<cv::Point3d>& obj, const std::vector<cv::Point2d>& img, const cv::Mat& K,
+             const cv::Mat& rvec, const cv::Mat& tvec) {
+  std::vector<cv::Point2d> proj;
+  cv::projectPoints(obj, rvec, tvec, K, cv::noArray(), proj);
+  double s = 0;
+  for (size_t i = 0; i < img.size(); ++i) s += std::pow(cv::norm(proj[i] - img[i]), 2);
+  return std::sqrt(s / img.size());
+}
+
+cv::Vec3d zAxis(const capture::Pose& T) { return {T(0, 2), T(1, 2), T(2, 2)}; }
+
+}  // namespace
+
+std::optional<TagPose> estimateTagPose(const TagDetection& det, double size, const capture::Intrinsics& k,
+                                       const PoseOptions& options, const capture::Pose* previous,
+                                       const cv::Vec3d* planeNormal) {
+  if (!(size > 0) || !k.valid()) return std::nullopt;
+  const auto c = tagCornersInTagFrame(size);
+  // IPPE square wants (-h, h), (h, h), (h, -h), (-h, -h): corners 3, 2, 1, 0.
+  const std::vector<cv::Point3d> obj{c[3], c[2], c[1], c[0]};
+  const std::vector<cv::Point2d> img{det.corners[3], det.corners[2], det.corners[1], det.corners[0]};
+  for (const auto& p : img)
+    if (!std::isfinite(p.x) || !std::isfinite(p.y)) return std::nullopt;
+  double area2 = 0;  // shoelace: twice the signed quad area
+  for (int i = 0; i < 4; ++i) area2 += img[i].x * img[(i + 1) % 4].y - img[(i + 1) % 4].x * img[i].y;
+  if (std::abs(area2) < 8.0) return std::nullopt;  // collapsed quad (< 4 px^2)
+  const cv::Mat K = (cv::Mat_<double>(3, 3) << k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
+  std::vector<cv::Mat> rvecs, tvecs;
+  int n = 0;
+  try {
+    n = cv::solvePnPGeneric(obj, img, K, cv::noArray(), rvecs, tvecs, false, cv::SOLVEPNP_IPPE_SQUARE);
+  } catch (const cv::Exception&) {
+    return std::nullopt;
+  }
+  if (n <= 0) return std::nullopt;
+  struct Candidate {
+    cv::Mat r, t;
+    double rms;
+  };
+  std::vector<Candidate> cand;
+  for (int i = 0; i < n; ++i) {
+    cv::Mat r = rvecs[i].clone(), t = tvecs[i].clone();
+    r.convertTo(r, CV_64F), t.convertTo(t, CV_64F);
+    if (t.at<double>(2) <= 0) continue;  // behind the camera
+    cv::solvePnPRefineLM(obj, img, K, cv::noArray(), r, t);
+    cand.push_back({r, t, rmsOf(obj, img, K, r, t)});
+  }
+  if (cand.empty()) return std::nullopt;
+  std::sort(cand.begin(), cand.end(), [](const Candidate& a, const Candidate& b) { return a.rms < b.rms; });
+  TagPose out;
+  size_t pick = 0;
+  out.alternativeRms = cand.size() > 1 ? cand[1].rms : std::numeric_limits<double>::infinity();
+  out.ambiguous = cand.size() > 1 && cand[0].rms >= options.ambiguityRatio * cand[1].rms;
+  if (out.ambiguous) {
+    const capture::Pose T0 = poseFrom(cand[0].r, cand[0].t), T1 = poseFrom(cand[1].r, cand[1].t);
+    if (planeNormal) {
+      pick = zAxis(T1).dot(*planeNormal) > zAxis(T0).dot(*planeNormal) ? 1 : 0;
+    } else if (previous) {
+      pick = rotationErrorDeg(T1, *previous) < rotationErrorDeg(T0, *previous) ? 1 : 0;
+    }
+  }
+  out.T_camera_tag = poseFrom(cand[pick].r, cand[pick].t);
+  out.reprojectionRms = cand[pick].rms;
+  if (pick == 1) out.alternativeRms = cand[0].rms;
+  return out;
+}
+
+std::optional<std::pair<cv::Vec3d, cv::Vec3d>> fitTagPlane(const TagDetection& det, const cv::Mat& depth,
+                                                           const capture::Intrinsics& k, int minSamples) {
+  if (depth.empty() || depth.type() != CV_32FC1 || !k.valid()) return std::nullopt;
+  cv::Mat mask(depth.size(), CV_8UC1, cv::Scalar(0));
+  std::vector<cv::Point> quad;
+  for (const auto& p : det.corners) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y)) return std::nullopt;
+    quad.emplace_back(cvRound(p.x), cvRound(p.y));
+  }
+  cv::fillConvexPoly(mask, quad, cv::Scalar(255));
+  std::vector<cv::Vec3d> pts;
+  for (int y = 0; y < depth.rows; ++y)
+    for (int x = 0; x < depth.cols; ++x) {
+      const float z = depth.at<float>(y, x);
+      if (mask.at<uchar>(y, x) && validDepth(z) && std::isfinite(z))
+        pts.emplace_back((x - k.cx) * z / k.fx, (y - k.cy) * z / k.fy, z);
+    }
+  std::pair<cv::Vec3d, cv::Vec3d> plane;
+  for (int round = 0; round < 2; ++round) {
+    if (static_cast<int>(pts.size()) < minSamples) return std::nullopt;
+    cv::Vec3d mean(0, 0, 0);
+    for (const auto& p : pts) mean += p;
+    mean /= static_cast<double>(pts.size());
+    cv::Matx33d C = cv::Matx33d::zeros();
+    for (const auto& p : pts) {
+      const cv::Vec3d d = p - mean;
+      C += d * d.t();
+    }
+    cv::Mat values, vectors;
+    cv::eigen(cv::Mat(C), values, vectors);  // descending eigenvalues: the last vector is the normal
+    cv::Vec3d n(vectors.at<double>(2, 0), vectors.at<double>(2, 1), vectors.at<double>(2, 2));
+    if (n.dot(mean) > 0) n = -n;
+    plane = {n, mean};
+    const double rms = std::sqrt(std::max(0.0, values.at<double>(2)) / pts.size());
+    const double cut = std::max(3.0 * rms, 0.002);
+    std::vector<cv::Vec3d> kept;
+    for (const auto& p : pts)
+      if (std::abs((p - mean).dot(n)) <= cut) kept.push_back(p);
+    if (kept.size() == pts.size()) break;
+    pts.swap(kept);
+  }
+  return plane;
+}
+
+TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::Vec3d>& plane, double maxAngleDeg) {
+  const auto& [n, p0] = plane;
+  const cv::Vec3d z = zAxis(pose.T_camera_tag);
+  const double cosA = std::clamp(z.dot(n), -1.0, 1.0);
+  if (std::acos(cosA) * 180.0 / CV_PI > maxAngleDeg) return pose;
+  const cv::Vec3d t(pose.T_camera_tag(0, 3), pose.T_camera_tag(1, 3), pose.T_camera_tag(2, 3));
+  const double tn = cv::norm(t);
+  if (!(tn > 0)) return pose;
+  const cv::Vec3d ray = t / tn;
+  const double denom = n.dot(ray);
+  if (std::abs(denom) < 1e-3) return pose;  // grazing: the intersection is ill-conditioned
+  const double s = n.dot(p0) / denom;
+  if (!(s > 0) || !std::isfinite(s)) return pose;
+  // Smallest rotation taking z onto n, applied on the camera side.
+  cv::Vec3d axis = z.cross(n);
+  const double sinA = cv::norm(axis);
+  cv::Matx33d Rmin = cv::Matx33d::eye();
+  if (sinA > 1e-12) {
+    axis *= std::atan2(sinA, cosA) / sinA;
+    cv::Rodrigues(axis, Rmin);
+  }
+  const cv::Matx33d R = Rmin * capture::rotationOf(pose.T_camera_tag);
+  TagPose out = pose;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out.T_camera_tag(r, c) = R(r, c);
+    out.T_camera_tag(r, 3) = ray[r] * s;
+  }
+  out.depthRefined = true;
+  return out;
+}
+
+// ------------------------------------------------------------------------------------------- smoothing
+
+std::vector<double> OneEuroFilter::filter(double t, const std::vector<double>& x) {
+  if (!initialised_ || x.size() != xPrev_.size()) {
+    initialised_ = true;
+    tPrev_ = t;
+    xPrev_ = x;
+    dxPrev_.assign(x.size(), 0.0);
+    return x;
+  }
+  double dt = t - tPrev_;
+  if (!(dt > 1e-6)) dt = 1.0 / 30.0;  // repeated or reordered timestamps: assume one camera frame
+  auto alpha = [dt](double cutoff) {
+    const double tau = 1.0 / (2.0 * CV_PI * cutoff);
+    return 1.0 / (1.0 + tau / dt);
+  };
+  const double aD = alpha(dCutoff_);
+  double speed2 = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    dxPrev_[i] = aD * (x[i] - xPrev_[i]) / dt + (1 - aD) * dxPrev_[i];
+    speed2 += dxPrev_[i] * dxPrev_[i];
+  }
+  const double a = alpha(minCutoff_ + beta_ * std::sqrt(speed2));
+  for (size_t i = 0; i < x.size(); ++i) xPrev_[i] = a * x[i] + (1 - a) * xPrev_[i];
+  tPrev_ = t;
+  return xPrev_;
+}
+
+namespace {
+
+cv::Vec4d quaternionOf(const cv::Matx33d& R) {
+  // Shepperd's method: pick the largest of w, x, y, z for stability.
+  const double tr = R(0, 0) + R(1, 1) + R(2, 2);
+  cv::Vec4d q;  // (w, x, y, z)
+  if (tr > 0) {
+    const double s = std::sqrt(tr + 1.0) * 2;
+    q = {0.25 * s, (R(2, 1) - R(1, 2)) / s, (R(0, 2) - R(2, 0)) / s, (R(1, 0) - R(0, 1)) / s};
+  } else if (R(0, 0) > R(1, 1) && R(0, 0) > R(2, 2)) {
+    const double s = std::sqrt(1.0 + R(0, 0) - R(1, 1) - R(2, 2)) * 2;
+    q = {(R(2, 1) - R(1, 2)) / s, 0.25 * s, (R(0, 1) + R(1, 0)) / s, (R(0, 2) + R(2, 0)) / s};
+  } else if (R(1, 1) > R(2, 2)) {
+    const double s = std::sqrt(1.0 + R(1, 1) - R(0, 0) - R(2, 2)) * 2;
+    q = {(R(0, 2) - R(2, 0)) / s, (R(0, 1) + R(1, 0)) / s, 0.25 * s, (R(1, 2) + R(2, 1)) / s};
+  } else {
+    const double s = std::sqrt(1.0 + R(2, 2) - R(0, 0) - R(1, 1)) * 2;
+    q = {(R(1, 0) - R(0, 1)) / s, (R(0, 2) + R(2, 0)) / s, (R(1, 2) + R(2, 1)) / s, 0.25 * s};
+  }
+  return q / cv::norm(q);
+}
+
+cv::Matx33d rotationOfQuaternion(cv::Vec4d q) {
+  q /= cv::norm(q);
+  const double w = q[0], x = q[1], y = q[2], z = q[3];
+  return {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
+          2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+          2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
+}
+
+}  // namespace
+
+capture::Pose PoseSmoother::filter(double t, const capture::Pose& T) {
+  cv::Vec4d q = quaternionOf(capture::rotationOf(T));
+  if (havePrev_ && q.dot(qPrev_) < 0) q = -q;  // same hemisphere as the last output
+  const auto tr = translation_.filter(t, {T(0, 3), T(1, 3), T(2, 3)});
+  const auto qs = rotation_.filter(t, {q[0], q[1], q[2], q[3]});
+  qPrev_ = cv::Vec4d(qs[0], qs[1], qs[2], qs[3]);
+  qPrev_ /= cv::norm(qPrev_);
+  havePrev_ = true;
+  const cv::Matx33d R = rotationOfQuaternion(qPrev_);
+  capture::Pose out = capture::identityPose();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out(r, c) = R(r, c);
+    out(r, 3) = tr[r];
+  }
+  return out;
+}
+
+const char* toString(TrackStatus s) {
+  switch (s) {
+    case TrackStatus::Tracked: return "tracked";
+    case TrackStatus::Held: return "held";
+    case TrackStatus::Lost: return "lost";
+  }
+  return "lost";
+}
+
+TrackStatus MarkerTrack::update(double t, const std::optional<capture::Pose>& measured) {
+  if (measured) {
+    if (status_ == TrackStatus::Lost) smoother_.reset();
+    pose_ = options_.smooth ? smoother_.filter(t, *measured) : *measured;
+    lastMeasured_ = measured;
+    lastSeen_ = t;
+    status_ = TrackStatus::Tracked;
+  } else if (pose_ && t - lastSeen_ <= options_.holdSeconds) {
+    status_ = TrackStatus::Held;
+  } else {
+    status_ = TrackStatus::Lost;
+  }
+  return status_;
+}
+
+double rotationErrorDeg(const capture::Pose& a, const capture::Pose& b) {
+  const cv::Matx33d d = capture::rotationOf(a).t() * capture::rotationOf(b);
+  const double c = std::clamp((d(0, 0) + d(1, 1) + d(2, 2) - 1.0) / 2.0, -1.0, 1.0);
+  return std::acos(c) * 180.0 / CV_PI;
+}
+
+double translationError(const capture::Pose& a, const capture::Pose& b) {
+  return cv::norm(cv::Vec3d(a(0, 3) - b(0, 3), a(1, 3) - b(1, 3), a(2, 3) - b(2, 3)));
+}
+
+}  // namespace mrgi::reconstruction
