@@ -12,5 +12,6 @@ using Action = std::function<int()>;
 Action addInfo(CLI::App& app);
 Action addReplay(CLI::App& app);
 Action addSynth(CLI::App& app);
+Action addTrack(CLI::App& app);
 
 }  // namespace mrgi::app

@@ -24,6 +24,8 @@ int main(int argc, char** argv) {
       mrgi::app::addReplay);
   add("synth", "Generate a synthetic tabletop session with ground truth (AprilTag, walls, a box, a light)",
       mrgi::app::addSynth);
+  add("track", "Track an AprilTag marker: camera-from-tag pose per frame (JSON lines with --json)",
+      mrgi::app::addTrack);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -107,7 +107,7 @@ class OneEuroFilter {
 /// renormalised).
 class PoseSmoother {
  public:
-  PoseSmoother(double minCutoff = 1.0, double beta = 2.0) : translation_(minCutoff, beta), rotation_(minCutoff, beta) {}
+  PoseSmoother(double minCutoff = 1.0, double beta = 20.0) : translation_(minCutoff, beta), rotation_(minCutoff, beta) {}
   capture::Pose filter(double t, const capture::Pose& T);
   void reset() { translation_.reset(), rotation_.reset(), havePrev_ = false; }
 
@@ -123,7 +123,7 @@ const char* toString(TrackStatus s);
 struct TrackerOptions {
   double holdSeconds = 0.5;   ///< keep the last pose this long after the tag disappears, then "lost"
   bool smooth = true;
-  double minCutoff = 1.0, beta = 2.0;
+  double minCutoff = 1.0, beta = 20.0;  ///< One-Euro: Hz at rest; Hz added per m/s (or quaternion units/s)
 };
 
 /// Per-tag temporal state: smoothing while tracked, hold then loss when unseen; smoothing restarts after

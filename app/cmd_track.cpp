@@ -1,0 +1,191 @@
+// mrgi track: AprilTag marker pose per frame of a session (or one image), as JSON lines.
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "app/commands.h"
+#include "capture/error.h"
+#include "capture/frame_source.h"
+#include "capture/image_io.h"
+#include "capture/session.h"
+#include "reconstruction/depth_filter.h"
+#include "reconstruction/marker.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace mrgi::app {
+namespace {
+
+struct TrackOptions {
+  std::string input;
+  bool json = false;
+  std::string family;
+  double size = 0;
+  int id = -1;
+  std::string intrinsics;
+  double hold = 0.5;
+  bool noSmooth = false;
+  bool refineDepth = false;
+  float decimate = 1.0f;
+};
+
+bool isImageFile(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".pgm" || ext == ".ppm" ||
+         ext == ".tif" || ext == ".tiff";
+}
+
+capture::Intrinsics parseIntrinsics(const std::string& text, const cv::Size& size) {
+  std::stringstream ss(text);
+  std::vector<double> v;
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      throw std::invalid_argument("--intrinsics: '" + item + "' is not a number (expected fx,fy,cx,cy)");
+    }
+  }
+  if (v.size() != 4 || !(v[0] > 0) || !(v[1] > 0))
+    throw std::invalid_argument("--intrinsics: expected fx,fy,cx,cy with positive focal lengths, got '" + text + "'");
+  return {size.width, size.height, v[0], v[1], v[2], v[3]};
+}
+
+json poseJson(const capture::Pose& T) {
+  json rows = json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  return rows;
+}
+
+int runTrack(const TrackOptions& o) {
+  // Inputs: one image (with --intrinsics) or any frame source.
+  std::unique_ptr<capture::FrameSource> source;
+  std::optional<capture::Frame> single;
+  std::string family = o.family.empty() ? "tag36h11" : o.family;
+  double size = o.size;
+  int wantedId = o.id;
+  if (isImageFile(o.input)) {
+    if (o.intrinsics.empty()) throw capture::CaptureError(o.input, "a single image needs --intrinsics fx,fy,cx,cy");
+    const cv::Mat img = capture::readColour(o.input);
+    capture::RgbdFrame rgbd;
+    rgbd.colour = img;
+    rgbd.colourIntrinsics = parseIntrinsics(o.intrinsics, img.size());
+    single = capture::Frame{};
+    single->rgbd = rgbd;
+  } else {
+    source = capture::open(o.input);
+    if (!source->info().hasRgbd) throw capture::CaptureError(o.input, "has no colour frames to track a marker in");
+    if (const auto* session = dynamic_cast<const capture::SessionSource*>(source.get()))
+      if (const auto& m = session->manifest().marker) {
+        if (o.family.empty()) family = m->family;
+        if (!(size > 0)) size = m->sizeMetres;
+        if (wantedId < 0 && m->id >= 0) wantedId = m->id;
+      }
+  }
+  if (!(size > 0)) size = 0.1;
+  reconstruction::DetectorOptions dopt;
+  dopt.family = family;
+  dopt.decimate = o.decimate;
+  const reconstruction::TagDetector detector(dopt);
+  reconstruction::TrackerOptions topt;
+  topt.holdSeconds = o.hold;
+  topt.smooth = !o.noSmooth;
+  std::map<int, reconstruction::MarkerTrack> tracks;
+  if (wantedId >= 0) tracks.emplace(wantedId, reconstruction::MarkerTrack(topt));
+  bool everSeen = false;
+
+  auto process = [&](const capture::Frame& frame) {
+    const capture::RgbdFrame& f = *frame.rgbd;
+    const auto detections = detector.detect(f.colour);
+    std::map<int, std::pair<reconstruction::TagDetection, reconstruction::TagPose>> measured;
+    cv::Mat depth;
+    if (o.refineDepth && !f.depth.empty() && f.depthRegistered) depth = f.depth;
+    for (const auto& d : detections) {
+      if (wantedId >= 0 && d.id != wantedId) continue;
+      auto it = tracks.find(d.id);
+      const capture::Pose* previous = it != tracks.end() ? it->second.lastMeasured() : nullptr;
+      std::optional<std::pair<cv::Vec3d, cv::Vec3d>> plane;
+      if (!depth.empty()) plane = reconstruction::fitTagPlane(d, depth, f.colourIntrinsics);
+      auto pose = reconstruction::estimateTagPose(d, size, f.colourIntrinsics, {}, previous,
+                                                  plane ? &plane->first : nullptr);
+      if (!pose) continue;
+      if (plane) *pose = reconstruction::refinePoseWithDepth(*pose, *plane);
+      measured.emplace(d.id, std::make_pair(d, *pose));
+      tracks.try_emplace(d.id, reconstruction::MarkerTrack(topt));
+    }
+    everSeen |= !measured.empty();
+    if (tracks.empty()) {  // nothing seen yet and no id asked for
+      const json line = {{"frame", frame.index}, {"status", "lost"}, {"id", nullptr}, {"T_camera_tag", nullptr}};
+      std::printf("%s\n", o.json ? line.dump().c_str() : ("frame " + std::to_string(frame.index) + ": no tag").c_str());
+      return;
+    }
+    for (auto& [id, track] : tracks) {
+      const auto m = measured.find(id);
+      const auto status = track.update(frame.timestamp, m != measured.end() ? std::optional(m->second.second.T_camera_tag)
+                                                                            : std::nullopt);
+      json line = {{"frame", frame.index}, {"status", reconstruction::toString(status)}, {"id", id}};
+      line["T_camera_tag"] = (status != reconstruction::TrackStatus::Lost && track.pose()) ? poseJson(*track.pose()) : json();
+      if (m != measured.end()) {
+        line["reprojection_rms_px"] = m->second.second.reprojectionRms;
+        line["ambiguous"] = m->second.second.ambiguous;
+        line["depth_refined"] = m->second.second.depthRefined;
+        line["decision_margin"] = m->second.first.decisionMargin;
+      }
+      if (o.json) {
+        std::printf("%s\n", line.dump().c_str());
+      } else if (track.pose() && status != reconstruction::TrackStatus::Lost) {
+        const auto& T = *track.pose();
+        std::printf("frame %lld: tag %d %s, t = (%.4f, %.4f, %.4f) m\n", static_cast<long long>(frame.index), id,
+                    reconstruction::toString(status), T(0, 3), T(1, 3), T(2, 3));
+      } else {
+        std::printf("frame %lld: tag %d lost\n", static_cast<long long>(frame.index), id);
+      }
+    }
+    std::fflush(stdout);
+  };
+
+  if (single) {
+    process(*single);
+  } else {
+    while (auto frame = source->next())
+      if (frame->rgbd) process(*frame);
+  }
+  if (!everSeen) {
+    const std::string what = family + (wantedId >= 0 ? " id " + std::to_string(wantedId) : std::string(" tag"));
+    throw capture::CaptureError(o.input, "marker never seen (" + what + " not detected in any frame)");
+  }
+  return 0;
+}
+
+}  // namespace
+
+Action addTrack(CLI::App& app) {
+  auto o = std::make_shared<TrackOptions>();
+  app.add_option("input", o->input, "session directory, TUM sequence, .oni file, or one image (with --intrinsics)")
+      ->required();
+  app.add_flag("--json", o->json, "one JSON object per line per frame and tag: frame, status, id, T_camera_tag");
+  app.add_option("--family", o->family, "AprilTag family (default: the session's, else tag36h11)");
+  app.add_option("--size", o->size, "tag black-square edge in metres (default: the session's, else 0.1)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--id", o->id, "track only this tag id (default: the session's marker, else every tag)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy in pixels, for a single image input");
+  app.add_option("--hold", o->hold, "seconds to hold the last pose after the tag disappears before 'lost'")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--no-smooth", o->noSmooth, "report raw per-frame poses (no One-Euro smoothing)");
+  app.add_flag("--refine-depth", o->refineDepth, "re-seat the pose on the depth plane under the tag (registered depth)");
+  app.add_option("--decimate", o->decimate, "detect quads on an image decimated by this factor (faster)")
+      ->check(CLI::Range(1.0, 8.0));
+  return [o] { return runTrack(*o); };
+}
+
+}  // namespace mrgi::app
