@@ -9,7 +9,7 @@
 #include "app/tabletop.h"
 #include "capture/sensor_model.h"
 #include "capture/session.h"
-#include "lighting/colour.h"
+#include "capture/colour.h"
 #include "lighting/reference/raycaster.h"
 
 namespace mrgi::app {
@@ -138,7 +138,7 @@ int runSynth(const SynthOptions& o) {
     const RgbdRender r = renderRgbd(rc, m.colour, *frame.groundTruthT_world_camera);
     capture::RgbdFrame rgbd;
     // Camera: linear radiance -> sRGB 8-bit with a little sensor noise.
-    cv::Mat srgb = lighting::encodeSrgb(r.radiance);
+    cv::Mat srgb = capture::encodeSrgb(r.radiance);
     cv::Mat noiseImg(srgb.size(), CV_16SC3);
     cv::RNG rng(o.seed * 7919 + static_cast<uint64_t>(i));
     rng.fill(noiseImg, cv::RNG::NORMAL, 0, 1.2);

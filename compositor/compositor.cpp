@@ -6,13 +6,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include "gl/error.h"
-#include "lighting/colour.h"
+#include "capture/colour.h"
 
 namespace mrgi::compositor {
 
 cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask) {
   CV_Assert(background.type() == CV_8UC3);
-  cv::Mat linear = lighting::decodeSrgb(background);
+  cv::Mat linear = capture::decodeSrgb(background);
   if (!delta.empty()) {
     CV_Assert(delta.type() == CV_32FC3 && delta.size() == background.size());
     for (int y = 0; y < linear.rows; ++y) {
@@ -22,7 +22,7 @@ cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, cons
       for (int x = 0; x < linear.cols; ++x) l[x] = (m && m[x] > 127) ? d[x] : l[x] + d[x];
     }
   }
-  return lighting::encodeSrgb(linear);
+  return capture::encodeSrgb(linear);
 }
 
 Compositor::Compositor(int width, int height)

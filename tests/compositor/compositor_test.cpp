@@ -5,7 +5,7 @@
 
 #include "compositor/compositor.h"
 #include "gl/context.h"
-#include "lighting/colour.h"
+#include "capture/colour.h"
 
 using namespace mrgi;
 
@@ -27,11 +27,11 @@ struct CompositorTest : ::testing::Test {
 
 TEST(Colour, SrgbRoundTripIsExactFor8Bit) {
   for (int i = 0; i < 256; ++i)
-    EXPECT_EQ(std::lround(lighting::linearToSrgb(lighting::srgbToLinear(i / 255.f)) * 255.f), i);
-  EXPECT_EQ(lighting::linearToSrgb(std::numeric_limits<float>::quiet_NaN()), 0.f);
-  EXPECT_EQ(lighting::linearToSrgb(1e30f), 1.f);
-  EXPECT_EQ(lighting::linearToSrgb(-5.f), 0.f);
-  EXPECT_NEAR(lighting::srgbToLinear(0.5f), 0.214041f, 1e-6f);  // IEC 61966-2-1
+    EXPECT_EQ(std::lround(capture::linearToSrgb(capture::srgbToLinear(i / 255.f)) * 255.f), i);
+  EXPECT_EQ(capture::linearToSrgb(std::numeric_limits<float>::quiet_NaN()), 0.f);
+  EXPECT_EQ(capture::linearToSrgb(1e30f), 1.f);
+  EXPECT_EQ(capture::linearToSrgb(-5.f), 0.f);
+  EXPECT_NEAR(capture::srgbToLinear(0.5f), 0.214041f, 1e-6f);  // IEC 61966-2-1
 }
 
 TEST_F(CompositorTest, NoDeltaGivesTheBackgroundUntouched) {
@@ -59,7 +59,7 @@ TEST_F(CompositorTest, GpuMatchesCpuReference) {
   const cv::Mat shadowed = comp.composite(background, dark, cv::Mat(), nullptr);
   EXPECT_LT(cv::sum(shadowed)[0], cv::sum(background)[0]);
   cv::Mat all(kH, kW, CV_8UC1, cv::Scalar(255));
-  const float level128 = lighting::srgbToLinear(128.f / 255.f);
+  const float level128 = capture::srgbToLinear(128.f / 255.f);
   cv::Mat half(kH, kW, CV_32FC3, cv::Scalar(level128, level128, level128));
   const cv::Mat virt = comp.composite(background, half, all, nullptr);
   EXPECT_EQ(virt.at<cv::Vec3b>(5, 5), cv::Vec3b(128, 128, 128));

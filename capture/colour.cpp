@@ -1,8 +1,8 @@
-#include "lighting/colour.h"
+#include "capture/colour.h"
 
 #include <array>
 
-namespace mrgi::lighting {
+namespace mrgi::capture {
 
 cv::Mat decodeSrgb(const cv::Mat& rgb8) {
   CV_Assert(rgb8.type() == CV_8UC3);
@@ -33,4 +33,4 @@ cv::Mat encodeSrgb(const cv::Mat& linear) {
   return out;
 }
 
-}  // namespace mrgi::lighting
+}  // namespace mrgi::capture

@@ -3,7 +3,7 @@
 /// on the way in, encode once on the way out. GLSL twin: lighting/colour.glsl (same constants).
 #include <cmath>
 
-namespace mrgi::lighting {
+namespace mrgi::capture {
 
 /// sRGB-encoded value in [0, 1] -> linear; values outside [0, 1] are clamped first.
 inline float srgbToLinear(float c) {
@@ -18,13 +18,13 @@ inline float linearToSrgb(float c) {
   return c <= 0.0031308f ? c * 12.92f : 1.055f * std::pow(c, 1.f / 2.4f) - 0.055f;
 }
 
-}  // namespace mrgi::lighting
+}  // namespace mrgi::capture
 
 #include <opencv2/core.hpp>
 
-namespace mrgi::lighting {
+namespace mrgi::capture {
 /// RGB8 sRGB image (CV_8UC3) -> linear CV_32FC3.
 cv::Mat decodeSrgb(const cv::Mat& rgb8);
 /// Linear CV_32FC3 -> RGB8 sRGB (rounded to nearest; clamped; NaN -> 0).
 cv::Mat encodeSrgb(const cv::Mat& linear);
-}  // namespace mrgi::lighting
+}  // namespace mrgi::capture

@@ -1,0 +1,77 @@
+#pragma once
+/// Light estimation from a calibrated fisheye image (shared/notes/algorithms.md §8): per-pixel directions
+/// and solid angles through OpenCV's fisheye model (equidistant / Kannala-Brandt), and median cut
+/// (Debevec 2005) on the solid-angle-weighted luminance with summed-area tables in double, optionally
+/// with the variance-minimising split (Viriyothai & Debevec 2009) and an energy-concentration criterion
+/// choosing the number of lights.
+///
+/// Units: the image holds linear radiance L (any consistent unit); a light's `power` is the region's
+/// sum of L * dOmega per RGB channel, i.e. the irradiance it delivers at normal incidence, so that
+/// E(n) = sum_i power_i <n, direction_i>+ approximates the integral of L <n, w>+ dw over the view.
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "capture/types.h"
+
+namespace mrgi::reconstruction {
+
+/// Per-pixel geometry of a calibrated fisheye image.
+struct FisheyeRays {
+  cv::Mat directions;  ///< CV_32FC3 unit vectors in the fisheye camera frame (x right, y down, z forward)
+  cv::Mat solidAngle;  ///< CV_64FC1 steradians subtended by each pixel; 0 outside the model's valid field
+  double totalSolidAngle = 0;
+};
+
+/// Inverts the Kannala-Brandt model per pixel (Newton on theta_d(theta)); pixels whose four corners are
+/// not all inside maxThetaRad of the axis (or where the model stops being monotonic) get solid angle 0.
+/// Pixel solid angles are exact spherical quadrilaterals between the pixel-corner rays.
+FisheyeRays fisheyeRays(const capture::FisheyeCalibration& calibration, double maxThetaRad = CV_PI * 0.6);
+
+/// Angle of the ray through pixel (u, v) from the optical axis and its unit direction; false where the
+/// model is not invertible.
+bool fisheyePixelToRay(const capture::FisheyeCalibration& c, double u, double v, cv::Vec3d& direction);
+
+/// Linear radiance from a fisheye frame: 8-bit sRGB is decoded, floats are taken as linear; divided by
+/// exposure; NaN/negative -> 0. `saturated` (optional, CV_8UC1 255) flags 8-bit pixels with any channel
+/// >= 250 and float pixels >= saturationLevel.
+cv::Mat linearRadiance(const cv::Mat& image, double exposure = 1.0, cv::Mat* saturated = nullptr,
+                       double saturationLevel = 1e30);
+
+struct EstimatedLight {
+  cv::Vec3d direction;   ///< unit, towards the light, fisheye camera frame (or world after lightsToWorld)
+  cv::Vec3d power;       ///< RGB, sum of L * dOmega over the region
+  double solidAngle = 0; ///< steradians covered by the region
+  cv::Rect region;       ///< pixels of the fisheye image
+};
+
+struct MedianCutOptions {
+  int count = 16;              ///< number of lights (2^k gives classic median cut; others split the strongest first)
+  bool varianceSplit = false;  ///< choose the cut minimising the energy-weighted spatial variance of both halves
+  /// count <= 0: choose the number of lights. A region is split while its energy-weighted angular spread
+  /// exceeds maxSpreadRad and it holds more than minEnergyFraction of the total, up to maxCount.
+  double maxSpreadRad = 0.15;
+  double minEnergyFraction = 0.002;
+  int maxCount = 256;
+};
+
+/// Median cut on radiance (CV_32FC3 linear, same size as rays). Total power of the lights equals the
+/// image's total sum of L * dOmega (up to double round-off). Zero-energy regions still give a light
+/// (power 0, direction = the region's solid-angle centroid).
+std::vector<EstimatedLight> medianCut(const cv::Mat& radiance, const FisheyeRays& rays, const MedianCutOptions& options = {});
+
+/// Sum of L * dOmega over the valid field (the reference total for medianCut).
+cv::Vec3d totalPower(const cv::Mat& radiance, const FisheyeRays& rays);
+
+/// Lights rotated into the world by the fisheye camera's pose.
+std::vector<EstimatedLight> lightsToWorld(std::vector<EstimatedLight> lights, const capture::Pose& T_world_fisheye);
+
+/// Irradiance at a surface with unit normal n: from the lights, and by direct integration of the image.
+cv::Vec3d irradianceFromLights(const std::vector<EstimatedLight>& lights, const cv::Vec3d& n);
+cv::Vec3d irradianceFromImage(const cv::Mat& radiance, const FisheyeRays& rays, const cv::Vec3d& n);
+
+/// Renders an equirectangular (lat-long) radiance map through the fisheye model: each pixel looks up the
+/// map in direction R_world_fisheye * ray (world y up; map u = atan2(x, -z), v = acos(y)); bilinear.
+cv::Mat renderFisheyeFromLatLong(const cv::Mat& latlong, const FisheyeRays& rays, const cv::Matx33d& R_world_fisheye);
+
+}  // namespace mrgi::reconstruction
