@@ -13,5 +13,7 @@ Action addInfo(CLI::App& app);
 Action addReplay(CLI::App& app);
 Action addSynth(CLI::App& app);
 Action addTrack(CLI::App& app);
+Action addCalibrateFisheye(CLI::App& app);
+Action addLights(CLI::App& app);
 
 }  // namespace mrgi::app

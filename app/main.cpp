@@ -26,6 +26,10 @@ int main(int argc, char** argv) {
       mrgi::app::addSynth);
   add("track", "Track an AprilTag marker: camera-from-tag pose per frame (JSON lines with --json)",
       mrgi::app::addTrack);
+  add("lights", "Estimate distant lights from a calibrated fisheye image (solid-angle-weighted median cut)",
+      mrgi::app::addLights);
+  add("calibrate-fisheye", "Calibrate a fisheye camera from checkerboard images (OpenCV fisheye model)",
+      mrgi::app::addCalibrateFisheye);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -74,6 +74,31 @@ cv::Mat decodeV4l2Buffer(uint32_t fourcc, const uint8_t* data, size_t bytes, int
   return rgb;
 }
 
+void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& c, const std::string& cameraName) {
+  auto list = [](std::initializer_list<double> v) {
+    std::string s = "[";
+    char buf[32];
+    for (auto it = v.begin(); it != v.end(); ++it) {
+      std::snprintf(buf, sizeof buf, "%.6f", *it);
+      s += (it == v.begin() ? "" : ", ") + std::string(buf);
+    }
+    return s + "]";
+  };
+  const auto& K = c.K;
+  std::string y;
+  y += "image_width: " + std::to_string(c.width) + "\n";
+  y += "image_height: " + std::to_string(c.height) + "\n";
+  y += "camera_name: " + cameraName + "\n";
+  y += "camera_matrix:\n  rows: 3\n  cols: 3\n  data: " +
+       list({K(0, 0), K(0, 1), K(0, 2), K(1, 0), K(1, 1), K(1, 2), K(2, 0), K(2, 1), K(2, 2)}) + "\n";
+  y += "distortion_model: equidistant\n";
+  y += "distortion_coefficients:\n  rows: 1\n  cols: 4\n  data: " + list({c.D[0], c.D[1], c.D[2], c.D[3]}) + "\n";
+  y += "rectification_matrix:\n  rows: 3\n  cols: 3\n  data: " + list({1, 0, 0, 0, 1, 0, 0, 0, 1}) + "\n";
+  y += "projection_matrix:\n  rows: 3\n  cols: 4\n  data: " +
+       list({K(0, 0), 0, K(0, 2), 0, 0, K(1, 1), K(1, 2), 0, 0, 0, 1, 0}) + "\n";
+  writeFileAtomically(path, std::vector<uchar>(y.begin(), y.end()));
+}
+
 FisheyeCalibration readFisheyeCalibration(const std::string& path) {
   if (!std::filesystem::is_regular_file(path)) throw CaptureError(path, "calibration file is missing");
   quietOpenCv();

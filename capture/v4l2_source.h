@@ -16,6 +16,10 @@ cv::Mat decodeV4l2Buffer(uint32_t fourcc, const uint8_t* data, size_t bytes, int
 /// Reads an OpenCV fisheye calibration YAML (camera_matrix / distortion_coefficients as written by ROS
 /// camera_calibration, or K / D as written by `mrgi calibrate-fisheye`).
 FisheyeCalibration readFisheyeCalibration(const std::string& path);
+/// Writes a calibration in the ROS camera_calibration YAML form (image_width/height, camera_matrix,
+/// distortion_model "equidistant", distortion_coefficients, rectification_matrix, projection_matrix),
+/// atomically; readFisheyeCalibration reads it back.
+void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& c, const std::string& cameraName = "fisheye");
 
 class V4l2Source final : public FrameSource {
  public:

@@ -10,7 +10,11 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/v4l2_source.h"
 
 namespace fs = std::filesystem;
 
@@ -29,7 +33,7 @@ std::string slurp(const fs::path& p) {
   return ss.str();
 }
 
-Result mrgi(const std::string& args) {
+Result runMrgi(const std::string& args) {
   static int n = 0;
   const fs::path tmp = fs::temp_directory_path() / ("mrgi_cli_" + std::to_string(::getpid()) + "_" + std::to_string(n++));
   const std::string cmd = std::string(MRGI_BINARY) + " " + args + " >" + tmp.string() + ".out 2>" + tmp.string() + ".err";
@@ -51,7 +55,7 @@ const fs::path& session() {
   static const fs::path dir = [] {
     const fs::path d = fs::temp_directory_path() / ("mrgi_cli_session_" + std::to_string(::getpid()));
     fs::remove_all(d);
-    const Result r = mrgi("synth --out " + d.string() + " --frames 3 --width 160 --height 120 --fisheye-every 2");
+    const Result r = runMrgi("synth --out " + d.string() + " --frames 3 --width 160 --height 120 --fisheye-every 2");
     EXPECT_EQ(r.exitCode, 0) << r.err;
     return d;
   }();
@@ -69,13 +73,13 @@ void expectOneLineError(const Result& r, const std::string& needle) {
 }  // namespace
 
 TEST(Cli, HelpListsSubcommands) {
-  const Result r = mrgi("--help");
+  const Result r = runMrgi("--help");
   EXPECT_EQ(r.exitCode, 0);
   for (const char* sub : {"info", "replay", "synth"}) EXPECT_NE(r.out.find(sub), std::string::npos) << sub;
 }
 
 TEST(Cli, InfoPrintsOneJsonObject) {
-  const Result r = mrgi("info " + session().string());
+  const Result r = runMrgi("info " + session().string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   ASSERT_EQ(lines(r.out), 1);
   const auto j = nlohmann::json::parse(r.out);
@@ -107,7 +111,7 @@ TEST(Cli, SynthSessionCarriesGroundTruthAndFisheye) {
 TEST(Cli, ReplayWritesFramesAndSummary) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_replay_" + std::to_string(::getpid()));
   fs::remove_all(out);
-  const Result r = mrgi("replay " + session().string() + " --out " + out.string() + " --frames 2");
+  const Result r = runMrgi("replay " + session().string() + " --out " + out.string() + " --frames 2");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_TRUE(fs::exists(out / "frame_0000.png"));
   EXPECT_TRUE(fs::exists(out / "frame_0001.png"));
@@ -121,22 +125,22 @@ TEST(Cli, ReplayWritesFramesAndSummary) {
   const cv::Mat colour = cv::imread((session() / "colour/000001.png").string());
   EXPECT_LE(cv::norm(composite, colour, cv::NORM_INF), 1.0);
   // Running again into the same folder (earlier output) works; a folder of user files is refused.
-  EXPECT_EQ(mrgi("replay " + session().string() + " --out " + out.string() + " --frames 1").exitCode, 0);
+  EXPECT_EQ(runMrgi("replay " + session().string() + " --out " + out.string() + " --frames 1").exitCode, 0);
   const fs::path mine = out.string() + "_user";
   fs::create_directories(mine);
   std::ofstream(mine / "thesis.tex") << "precious";
-  expectOneLineError(mrgi("replay " + session().string() + " --out " + mine.string()), "refusing to overwrite");
+  expectOneLineError(runMrgi("replay " + session().string() + " --out " + mine.string()), "refusing to overwrite");
   EXPECT_EQ(slurp(mine / "thesis.tex"), "precious");
   fs::remove_all(out);
   fs::remove_all(mine);
 }
 
 TEST(Cli, BadInputsAreOneLineErrors) {
-  expectOneLineError(mrgi("info /nonexistent/session"), "/nonexistent/session: does not exist");
-  expectOneLineError(mrgi("replay /nonexistent/session --out /tmp/x"), "/nonexistent/session");
-  expectOneLineError(mrgi("replay " + session().string() + " --out /tmp/x --gl vulkan"), "--gl");
-  expectOneLineError(mrgi("nosuchcommand"), "nosuchcommand");
-  expectOneLineError(mrgi("info openni2://"), "openni2://");
+  expectOneLineError(runMrgi("info /nonexistent/session"), "/nonexistent/session: does not exist");
+  expectOneLineError(runMrgi("replay /nonexistent/session --out /tmp/x"), "/nonexistent/session");
+  expectOneLineError(runMrgi("replay " + session().string() + " --out /tmp/x --gl vulkan"), "--gl");
+  expectOneLineError(runMrgi("nosuchcommand"), "nosuchcommand");
+  expectOneLineError(runMrgi("info openni2://"), "openni2://");
   // A corrupt frame in a copy of the session: the error names the file.
   const fs::path copy = session().string() + "_corrupt";
   fs::remove_all(copy);
@@ -144,7 +148,7 @@ TEST(Cli, BadInputsAreOneLineErrors) {
   std::ofstream(copy / "colour/000001.png", std::ios::trunc) << "garbage";
   const fs::path out = copy.string() + "_out";
   fs::remove_all(out);
-  expectOneLineError(mrgi("replay " + copy.string() + " --out " + out.string()), "colour/000001.png: cannot decode");
+  expectOneLineError(runMrgi("replay " + copy.string() + " --out " + out.string()), "colour/000001.png: cannot decode");
   fs::remove_all(copy);
   fs::remove_all(out);
 }
@@ -178,7 +182,7 @@ cv::Matx44d matFromFlat(const nlohmann::json& v) {
 TEST(Cli, TrackFollowsTheMarkerOfTheBundledSession) {
   const fs::path rec = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth";
   for (const bool smooth : {false, true}) {
-  const Result r = mrgi("track " + rec.string() + " --json" + (smooth ? "" : " --no-smooth"));
+  const Result r = runMrgi("track " + rec.string() + " --json" + (smooth ? "" : " --no-smooth"));
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto out = jsonLines(r.out);
   ASSERT_EQ(out.size(), 20u);
@@ -205,7 +209,7 @@ TEST(Cli, TrackFollowsTheMarkerOfTheBundledSession) {
 
 TEST(Cli, TrackSingleImageAndItsErrors) {
   const std::string img = std::string(MRGI_SHARED_DATA) + "/apriltag-visp/AprilTag.png";
-  const Result r = mrgi("track " + img + " --intrinsics 615.167,615.168,312.189,243.437 --size 0.053 --json");
+  const Result r = runMrgi("track " + img + " --intrinsics 615.167,615.168,312.189,243.437 --size 0.053 --json");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto out = jsonLines(r.out);
   ASSERT_EQ(out.size(), 12u);  // ids 8-19
@@ -214,17 +218,81 @@ TEST(Cli, TrackSingleImageAndItsErrors) {
     EXPECT_EQ(l["T_camera_tag"].size(), 4u);
     EXPECT_GT(l["T_camera_tag"][2][3].get<double>(), 0.3);
   }
-  const Result one = mrgi("track " + img + " --intrinsics 615.167,615.168,312.189,243.437 --size 0.053 --id 13 --json");
+  const Result one = runMrgi("track " + img + " --intrinsics 615.167,615.168,312.189,243.437 --size 0.053 --id 13 --json");
   ASSERT_EQ(one.exitCode, 0) << one.err;
   ASSERT_EQ(jsonLines(one.out).size(), 1u);
   EXPECT_EQ(jsonLines(one.out)[0]["id"], 13);
-  expectOneLineError(mrgi("track " + img), "needs --intrinsics");
-  expectOneLineError(mrgi("track " + img + " --intrinsics 1,2,x,4"), "not a number");
+  expectOneLineError(runMrgi("track " + img), "needs --intrinsics");
+  expectOneLineError(runMrgi("track " + img + " --intrinsics 1,2,x,4"), "not a number");
   // A tag that is not there: each frame reports it lost, then one line and a non-zero exit.
-  const Result missing = mrgi("track " + img + " --intrinsics 615,615,312,243 --id 300 --json");
+  const Result missing = runMrgi("track " + img + " --intrinsics 615,615,312,243 --id 300 --json");
   expectOneLineError(missing, "marker never seen");
   ASSERT_EQ(jsonLines(missing.out).size(), 1u);
   EXPECT_EQ(jsonLines(missing.out)[0]["status"], "lost");
   EXPECT_TRUE(jsonLines(missing.out)[0]["T_camera_tag"].is_null());
-  expectOneLineError(mrgi("track " + img + " --intrinsics 615,615,312,243 --family tag99h1"), "unknown tag family");
+  expectOneLineError(runMrgi("track " + img + " --intrinsics 615,615,312,243 --family tag99h1"), "unknown tag family");
+}
+
+TEST(Cli, CalibrateFisheyeReproducesTheRosCalibration) {
+  const std::string dir = std::string(MRGI_SHARED_DATA) + "/fisheye-ros-calib";
+  const fs::path out = fs::temp_directory_path() / ("mrgi_calib_" + std::to_string(::getpid()) + ".yaml");
+  const Result r = runMrgi("calibrate-fisheye " + dir + " --board 6x8 --out " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["views_used"], 24);
+  EXPECT_LT(summary["rms_px"].get<double>(), 0.8);  // measured 0.50 px (ROS's own run: 0.70)
+  // Same form as ost.yaml: our reader (which reads ROS files) reads it back.
+  const auto mine = mrgi::capture::readFisheyeCalibration(out.string());
+  const auto ros = mrgi::capture::readFisheyeCalibration(dir + "/ost.yaml");
+  EXPECT_EQ(mine.width, 800);
+  EXPECT_EQ(mine.height, 503);
+  EXPECT_NEAR(mine.K(0, 0), ros.K(0, 0), 0.005 * ros.K(0, 0));
+  EXPECT_NEAR(mine.K(1, 1), ros.K(1, 1), 0.005 * ros.K(1, 1));
+  EXPECT_NEAR(mine.K(0, 2), ros.K(0, 2), 2.0);
+  EXPECT_NEAR(mine.K(1, 2), ros.K(1, 2), 2.0);
+  // D's coefficients trade off against each other; compare the models where it matters: the pixel each
+  // direction lands on, out to 90 degrees from the axis.
+  std::vector<cv::Point3d> dirs;
+  for (double th = 0.05; th < CV_PI / 2; th += 0.05)
+    for (double ph = 0; ph < 2 * CV_PI; ph += 0.3) dirs.emplace_back(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
+  std::vector<cv::Point2d> a, b;
+  cv::fisheye::projectPoints(dirs, a, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), mine.K, mine.D);
+  cv::fisheye::projectPoints(dirs, b, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), ros.K, ros.D);
+  double worst = 0;
+  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, cv::norm(a[i] - b[i]));
+  std::printf("max model difference to ost.yaml within 90 deg: %.2f px\n", worst);
+  EXPECT_LT(worst, 3.0);
+  fs::remove(out);
+  expectOneLineError(runMrgi("calibrate-fisheye " + dir + " --board 6by8 --out " + out.string()), "--board");
+  expectOneLineError(runMrgi("calibrate-fisheye /nonexistent --out " + out.string()), "/nonexistent");
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(Cli, LightsFromAnHdrFisheyeImage) {
+  const std::string calib = std::string(MRGI_SHARED_DATA) + "/fisheye-ros-calib/ost.yaml";
+  const fs::path rec = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth/fisheye/000000.exr";
+  const Result r = runMrgi("lights " + rec.string() + " --calib " + calib + " --count 8 --json");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["lights"].size(), 8u);
+  double sum[3] = {0, 0, 0};
+  for (const auto& l : j["lights"]) {
+    double n = 0;
+    for (int k = 0; k < 3; ++k) sum[k] += l["power"][k].get<double>(), n += std::pow(l["direction"][k].get<double>(), 2);
+    EXPECT_NEAR(n, 1.0, 1e-9);
+  }
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(sum[k], j["total_power"][k].get<double>(), 1e-9 * sum[k]);
+  // LDR input, automatic count, variance split.
+  const fs::path png = fs::temp_directory_path() / ("mrgi_fish_" + std::to_string(::getpid()) + ".png");
+  cv::Mat ldr(503, 800, CV_8UC3, cv::Scalar(40, 40, 40));
+  cv::circle(ldr, {300, 200}, 6, cv::Scalar(255, 255, 255), cv::FILLED);
+  cv::imwrite(png.string(), ldr);
+  const Result auto_ = runMrgi("lights " + png.string() + " --calib " + calib + " --count 0 --variance --json");
+  ASSERT_EQ(auto_.exitCode, 0) << auto_.err;
+  EXPECT_GT(nlohmann::json::parse(auto_.out)["saturated_fraction"].get<double>(), 0.0);
+  expectOneLineError(runMrgi("lights " + png.string() + " --calib /nonexistent.yaml"), "/nonexistent.yaml");
+  const fs::path small = fs::temp_directory_path() / ("mrgi_small_" + std::to_string(::getpid()) + ".png");
+  cv::imwrite(small.string(), cv::Mat(10, 10, CV_8UC3, cv::Scalar(1, 2, 3)));
+  expectOneLineError(runMrgi("lights " + small.string() + " --calib " + calib), "calibration");
+  fs::remove(png), fs::remove(small);
 }
