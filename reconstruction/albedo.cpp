@@ -1,0 +1,123 @@
+#include "reconstruction/albedo.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/photo.hpp>
+
+#include "capture/colour.h"
+
+namespace mrgi::reconstruction {
+namespace {
+
+struct Contribution {
+  cv::Vec3d toLight;  ///< unit
+  double distance;    ///< to the light (distant: ray length)
+  cv::Vec3d normalIrradiance;
+};
+
+double lum(const cv::Vec3d& v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
+
+/// True when the depth map shows a surface between p and the light along `dir` (screen-space march).
+bool occluded(const cv::Mat& positions, const capture::Intrinsics& k, const cv::Vec3d& p, const cv::Vec3d& dir,
+              double length, const AlbedoOptions& o) {
+  const double start = std::max(0.02, 0.01 * p[2]);  // leave the surface's own noise behind
+  for (int s = 1; s <= o.shadowSteps; ++s) {
+    const double t = start + (length - start) * s / o.shadowSteps;
+    const cv::Vec3d q = p + dir * t;
+    if (!(q[2] > 0.05)) return false;  // behind the camera: nothing seen there can occlude
+    const int u = static_cast<int>(std::lround(k.fx * q[0] / q[2] + k.cx));
+    const int v = static_cast<int>(std::lround(k.fy * q[1] / q[2] + k.cy));
+    if (u < 0 || v < 0 || u >= positions.cols || v >= positions.rows) return false;  // left the view
+    const float z = positions.at<cv::Vec3f>(v, u)[2];
+    if (z > 0.f && z < q[2] - o.shadowTolerance * q[2] && z > q[2] - o.shadowThickness) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, const cv::Mat& normals,
+                            const capture::Intrinsics& k, const AlbedoLights& lights, const AlbedoOptions& o) {
+  CV_Assert(colour.size() == positions.size() && normals.size() == positions.size());
+  CV_Assert(positions.type() == CV_32FC3 && normals.type() == CV_32FC3);
+  CV_Assert(colour.type() == CV_8UC3 || colour.type() == CV_32FC3);
+  const cv::Mat linear = colour.type() == CV_8UC3 ? capture::decodeSrgb(colour) : colour;
+  AlbedoResult out;
+  out.albedo.create(colour.size(), CV_32FC3);
+  out.status.create(colour.size(), CV_8UC1);
+  std::vector<Contribution> c;
+  for (int y = 0; y < colour.rows; ++y)
+    for (int x = 0; x < colour.cols; ++x) {
+      auto& status = out.status.at<uchar>(y, x);
+      auto& albedo = out.albedo.at<cv::Vec3f>(y, x);
+      albedo = {0, 0, 0};
+      const cv::Vec3d p(positions.at<cv::Vec3f>(y, x)), n(normals.at<cv::Vec3f>(y, x));
+      if (!(p[2] > 0) || !(cv::norm(n) > 0.5)) {
+        status = uchar(AlbedoStatus::NoGeometry);
+        continue;
+      }
+      if (colour.type() == CV_8UC3) {
+        const cv::Vec3b px = colour.at<cv::Vec3b>(y, x);
+        if (px[0] >= o.saturationLevel || px[1] >= o.saturationLevel || px[2] >= o.saturationLevel) {
+          status = uchar(AlbedoStatus::Saturated);
+          continue;
+        }
+      }
+      c.clear();
+      for (const auto& l : lights.points) {
+        cv::Vec3d d = l.position - p;
+        const double r2 = std::max(d.dot(d), 1e-8);  // d -> 0 stays finite
+        const double r = std::sqrt(r2);
+        d /= r;
+        c.push_back({d, r, l.intensity / r2});
+      }
+      for (const auto& l : lights.distant) c.push_back({l.direction, o.distantRayLength, l.power});
+      cv::Vec3d direct(0, 0, 0), normalSum(0, 0, 0);
+      for (const auto& ci : c) {
+        direct += ci.normalIrradiance * std::max(0.0, n.dot(ci.toLight));
+        normalSum += ci.normalIrradiance;
+      }
+      if (!c.empty() && lum(direct) < o.minEffectiveCos * lum(normalSum)) {
+        status = uchar(lum(direct) > 0 ? AlbedoStatus::Grazing : AlbedoStatus::Unlit);
+        if (lum(direct) > 0 || lum(lights.ambientIrradiance) <= 0) continue;
+      }
+      if (o.shadowTest && lum(direct) > 0) {
+        cv::Vec3d visible = direct;
+        for (const auto& ci : c) {
+          const cv::Vec3d e = ci.normalIrradiance * std::max(0.0, n.dot(ci.toLight));
+          if (lum(e) < 0.2 * lum(direct)) continue;  // only lights that matter are marched
+          if (occluded(positions, k, p, ci.toLight, ci.distance, o)) visible -= e;
+        }
+        if (lum(visible) < 0.5 * lum(direct)) {
+          status = uchar(AlbedoStatus::Shadowed);
+          continue;
+        }
+      }
+      const cv::Vec3d e = direct + lights.ambientIrradiance;
+      if (!(lum(e) > 1e-12)) {
+        status = uchar(AlbedoStatus::Unlit);
+        continue;
+      }
+      const cv::Vec3f I = linear.at<cv::Vec3f>(y, x);
+      for (int ch = 0; ch < 3; ++ch) {
+        const double kd = e[ch] > 1e-12 ? CV_PI * I[ch] / e[ch] : 0.0;
+        albedo[ch] = static_cast<float>(std::clamp(std::isfinite(kd) ? kd : 0.0, 0.0, 1.0));
+      }
+      status = uchar(AlbedoStatus::Measured);
+    }
+  if (o.fill) {
+    const cv::Mat rejected = out.status != uchar(AlbedoStatus::Measured);
+    if (cv::countNonZero(rejected) > 0 && cv::countNonZero(~rejected) > 0) {
+      std::vector<cv::Mat> ch;
+      cv::split(out.albedo, ch);
+      // Navier-Stokes inpainting: Telea's adds an 8-bit rounding offset (+0.5) to float images.
+      for (auto& m : ch) cv::inpaint(m.clone(), rejected, m, 5, cv::INPAINT_NS);
+      cv::merge(ch, out.albedo);
+      out.albedo = cv::min(cv::max(out.albedo, 0.0), 1.0);
+    }
+  }
+  return out;
+}
+
+}  // namespace mrgi::reconstruction

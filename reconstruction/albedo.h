@@ -1,0 +1,50 @@
+#pragma once
+/// Real-surface albedo from one linearised camera image, its geometry and the estimated lights
+/// (shared/notes/algorithms.md §3):  k_d = pi * I_p / E_p,  E_p = sum_i E_i <n_p, w_i>+ (+ ambient).
+/// The factor pi matches the compositor's Lambertian shading (radiance = k_d / pi * E), so re-shading a
+/// real pixel with the same lights reproduces its camera value. Pixels that cannot be trusted (no
+/// geometry, grazing light, saturated, in shadow, unlit) are rejected and filled from their neighbours.
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "capture/types.h"
+#include "reconstruction/light_estimation.h"
+
+namespace mrgi::reconstruction {
+
+struct AlbedoPointLight {
+  cv::Vec3d position;   ///< camera frame, metres
+  cv::Vec3d intensity;  ///< RGB radiant intensity (W/sr, or the camera's radiance units x m^2)
+};
+
+struct AlbedoLights {
+  std::vector<AlbedoPointLight> points;
+  std::vector<EstimatedLight> distant;  ///< directions in the camera frame; power = irradiance at normal incidence
+  cv::Vec3d ambientIrradiance{0, 0, 0}; ///< unoccluded ambient term (pi * ambient radiance)
+};
+
+enum class AlbedoStatus : uint8_t { Measured = 0, NoGeometry = 1, Grazing = 2, Saturated = 3, Shadowed = 4, Unlit = 5 };
+
+struct AlbedoOptions {
+  double minEffectiveCos = 0.2;  ///< reject when E_direct < this x the lights' normal-incidence sum
+  int saturationLevel = 250;     ///< 8-bit channel value counted as clipped
+  bool shadowTest = true;        ///< screen-space occlusion test towards each significant light
+  int shadowSteps = 48;
+  double shadowThickness = 0.25;  ///< metres: a surface this far in front of a ray sample does not occlude it
+  double shadowTolerance = 0.005; ///< relative depth: a surface must be this much in front of a sample to occlude it
+  double distantRayLength = 2.0;  ///< metres marched towards distant lights
+  bool fill = true;               ///< fill rejected pixels from their neighbours (cv::inpaint)
+};
+
+struct AlbedoResult {
+  cv::Mat albedo;  ///< CV_32FC3 linear RGB in [0, 1]
+  cv::Mat status;  ///< CV_8UC1 AlbedoStatus per pixel (filled pixels keep their rejection reason)
+};
+
+/// colour: CV_8UC3 sRGB (RGB order) or CV_32FC3 linear; positions/normals: CV_32FC3 camera frame from
+/// backProject/computeNormals (zero = unknown).
+AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, const cv::Mat& normals,
+                            const capture::Intrinsics& k, const AlbedoLights& lights, const AlbedoOptions& options = {});
+
+}  // namespace mrgi::reconstruction

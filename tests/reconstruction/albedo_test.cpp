@@ -1,0 +1,152 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "capture/colour.h"
+#include "capture/session.h"
+#include "reconstruction/albedo.h"
+#include "reconstruction/depth.h"
+#include "reconstruction/depth_filter.h"
+
+using namespace mrgi;
+using namespace mrgi::reconstruction;
+
+namespace {
+
+capture::Pose poseOf(const nlohmann::json& flat) {
+  capture::Pose T;
+  for (int i = 0; i < 16; ++i) T(i / 4, i % 4) = flat[i];
+  return T;
+}
+
+// Does the segment a -> b pass through the axis-aligned box [lo, hi]? (slab test)
+bool segmentHitsBox(const cv::Vec3d& a, const cv::Vec3d& b, const cv::Vec3d& lo, const cv::Vec3d& hi) {
+  double t0 = 0, t1 = 1;
+  for (int i = 0; i < 3; ++i) {
+    const double d = b[i] - a[i];
+    if (std::abs(d) < 1e-12) {
+      if (a[i] < lo[i] || a[i] > hi[i]) return false;
+      continue;
+    }
+    double ta = (lo[i] - a[i]) / d, tb = (hi[i] - a[i]) / d;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+    if (t0 > t1) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+// The bundled synthetic session has known albedos: recover the table's from a real pipeline frame
+// (noisy depth, guided filter, normals, the ground-truth point light and ambient term).
+TEST(Albedo, RecoversTheKnownTableAlbedoAndRejectsTheBoxShadow) {
+  capture::SessionSource session(std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-synth");
+  const auto& gt = session.manifest().groundTruth;
+  const capture::Frame frame = session.read(0);
+  const capture::RgbdFrame& f = *frame.rgbd;
+  const capture::Pose T_world_camera = *frame.groundTruthT_world_camera;
+  const capture::Pose T_camera_world = T_world_camera.inv();
+  DepthFilterOptions fo;
+  const cv::Mat depth = guidedFilterDepth(f.depth, guideFromColour(f.colour), fo.radiusPx, fo);
+  const cv::Mat pos = backProject(depth, f.colourIntrinsics);
+  const cv::Mat nrm = computeNormals(pos);
+
+  AlbedoLights lights;
+  const auto& l = gt["lights"][0];
+  const cv::Vec3d lightWorld(l["position"][0].get<double>(), l["position"][1].get<double>(), l["position"][2].get<double>());
+  lights.points.push_back(AlbedoPointLight{
+      capture::transformPoint(T_camera_world, lightWorld),
+      cv::Vec3d(l["intensity_w_sr"][0].get<double>(), l["intensity_w_sr"][1].get<double>(), l["intensity_w_sr"][2].get<double>())});
+  const double ambient = gt["scene"]["ambient_radiance"][0];
+  lights.ambientIrradiance = cv::Vec3d::all(CV_PI * ambient);
+  const auto result = estimateAlbedo(f.colour, pos, nrm, f.colourIntrinsics, lights);
+  ASSERT_TRUE(cv::checkRange(result.albedo, true, nullptr, 0.0, 1.0 + 1e-6));
+
+  cv::Vec3d table;
+  for (const auto& m : gt["scene"]["materials"])
+    if (m["name"] == "table") table = {m["albedo"][0].get<double>(), m["albedo"][1].get<double>(), m["albedo"][2].get<double>()};
+  const cv::Vec3d boxLo(0.22, 0.75, -0.26), boxHi(0.37, 0.90, -0.11);
+  int lit = 0, litGood = 0, shadow = 0, shadowRejected = 0, shadowFlagged = 0;
+  std::vector<double> red;
+  for (int y = 0; y < pos.rows; ++y)
+    for (int x = 0; x < pos.cols; ++x) {
+      const cv::Vec3d p(pos.at<cv::Vec3f>(y, x));
+      if (!(p[2] > 0)) continue;
+      const cv::Vec3d w = capture::transformPoint(T_world_camera, p);
+      // Table top, away from its edges, the tag and the box footprint.
+      if (std::abs(w[1] - 0.75) > 0.004 || std::abs(w[0]) > 0.55 || std::abs(w[2]) > 0.35) continue;
+      if (std::abs(w[0]) < 0.13 && std::abs(w[2]) < 0.13) continue;
+      if (w[0] > 0.19 && w[0] < 0.40 && w[2] > -0.29 && w[2] < -0.08) continue;
+      const cv::Vec3f a = result.albedo.at<cv::Vec3f>(y, x);
+      const bool good = cv::norm(cv::Vec3d(a) - table) < 0.1 * cv::norm(table);
+      const auto st = static_cast<AlbedoStatus>(result.status.at<uchar>(y, x));
+      if (segmentHitsBox(w + cv::Vec3d(0, 0.002, 0), lightWorld, boxLo, boxHi)) {
+        ++shadow;
+        shadowFlagged += st == AlbedoStatus::Shadowed;
+        shadowRejected += st != AlbedoStatus::Measured;
+      } else if (st == AlbedoStatus::Measured) {
+        ++lit;
+        litGood += good;
+        red.push_back(a[0]);
+      }
+    }
+  ASSERT_GT(lit, 5000);
+  ASSERT_GT(shadow, 100);
+  std::nth_element(red.begin(), red.begin() + red.size() / 2, red.end());
+  std::printf("table: %d lit px, %.1f%% within 10%% of truth, median red %.3f (truth %.3f); box shadow: %d px, "
+              "%.1f%% flagged shadowed, %.1f%% not used as measured\n",
+              lit, 100.0 * litGood / lit, red[red.size() / 2], table[0], shadow, 100.0 * shadowFlagged / shadow,
+              100.0 * shadowRejected / shadow);
+  // Measured: 99.5 % of lit table pixels within 10 %, median exact to 3 digits; of the visible box
+  // shadow (a thin strip at the table's far edge) 74 % flagged by the screen-space test, 90 % rejected.
+  EXPECT_NEAR(red[red.size() / 2], table[0], 0.03 * table[0]);
+  EXPECT_GT(static_cast<double>(litGood) / lit, 0.95);
+  EXPECT_GT(static_cast<double>(shadowFlagged) / shadow, 0.65);
+  EXPECT_GT(static_cast<double>(shadowRejected) / shadow, 0.85);
+}
+
+TEST(Albedo, AnalyticPlaneAndRejections) {
+  // A fronto-parallel plane at 1 m lit by a point light at the camera: I = k / pi * E exactly.
+  const capture::Intrinsics k{40, 30, 40, 40, 19.5, 14.5};
+  cv::Mat depth(30, 40, CV_32F, cv::Scalar(1.0f));
+  const cv::Mat pos = backProject(depth, k);
+  cv::Mat nrm(30, 40, CV_32FC3, cv::Scalar(0, 0, -1));
+  AlbedoLights lights;
+  lights.points.push_back(AlbedoPointLight{cv::Vec3d(0, 0, 0), cv::Vec3d(2, 2, 2)});
+  const cv::Vec3d truth(0.6, 0.3, 0.1);
+  cv::Mat colour(30, 40, CV_32FC3);
+  for (int y = 0; y < 30; ++y)
+    for (int x = 0; x < 40; ++x) {
+      const cv::Vec3d p(pos.at<cv::Vec3f>(y, x));
+      const double r = cv::norm(p), cosine = p[2] / r;
+      const cv::Vec3d I = truth / CV_PI * (2.0 * cosine / (r * r));
+      colour.at<cv::Vec3f>(y, x) = cv::Vec3f(I);
+    }
+  nrm.at<cv::Vec3f>(5, 5) = {0, 0, 0};  // no normal
+  AlbedoOptions o;
+  o.shadowTest = false;
+  auto r = estimateAlbedo(colour, pos, nrm, k, lights, o);
+  EXPECT_EQ(r.status.at<uchar>(5, 5), uchar(AlbedoStatus::NoGeometry));
+  for (int y = 0; y < 30; y += 7)
+    for (int x = 0; x < 40; x += 9) {
+      if (y == 5 && x == 5) continue;
+      EXPECT_EQ(r.status.at<uchar>(y, x), uchar(AlbedoStatus::Measured));
+      EXPECT_LT(cv::norm(cv::Vec3d(r.albedo.at<cv::Vec3f>(y, x)) - truth), 1e-5);
+    }
+  EXPECT_LT(cv::norm(cv::Vec3d(r.albedo.at<cv::Vec3f>(5, 5)) - truth), 0.02);  // filled from neighbours
+  // Grazing light, no light, a light on the surface (d -> 0), saturation: finite, clear statuses.
+  lights.points[0].position = {5, 0, 0.5};  // cos ~ 0.1
+  r = estimateAlbedo(colour, pos, nrm, k, lights, o);
+  EXPECT_EQ(r.status.at<uchar>(15, 20), uchar(AlbedoStatus::Grazing));
+  r = estimateAlbedo(colour, pos, nrm, k, AlbedoLights{}, o);
+  EXPECT_EQ(r.status.at<uchar>(15, 20), uchar(AlbedoStatus::Unlit));
+  EXPECT_TRUE(cv::checkRange(r.albedo));
+  lights.points[0].position = cv::Vec3d(pos.at<cv::Vec3f>(15, 20));
+  r = estimateAlbedo(colour, pos, nrm, k, lights, o);
+  EXPECT_TRUE(cv::checkRange(r.albedo, true, nullptr, 0.0, 1.0 + 1e-6));
+  cv::Mat white(30, 40, CV_8UC3, cv::Scalar(255, 255, 255));
+  lights.points[0].position = {0, 0, 0};
+  r = estimateAlbedo(white, pos, nrm, k, lights, o);
+  EXPECT_EQ(r.status.at<uchar>(15, 20), uchar(AlbedoStatus::Saturated));
+}
