@@ -7,8 +7,17 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/ximgproc/edge_filter.hpp>
 
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/npz.h"
+#include "capture/v4l2_source.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
+#include "reconstruction/light_estimation.h"
+#include "reconstruction/marker.h"
 
 using namespace mrgi;
 
@@ -80,8 +89,97 @@ void BM_DepthPipeline(benchmark::State& state) {
   }
 }
 
+// Marker accuracy and cost on the real ViSP RGB-D sequence (20 frames, 7 tags) against its poses:
+// counters report mean/worst translation (mm) and rotation (deg) errors, raw and depth-refined.
+void BM_MarkerPoseRealSequence(benchmark::State& state) {
+  const std::string dir = std::string(MRGI_SHARED_DATA) + "/rgbd-visp-apriltag/";
+  const auto cam = nlohmann::json::parse(std::ifstream(dir + "cam.json"));
+  const capture::Intrinsics k{cam["w"], cam["h"], cam["px"], cam["py"], cam["u0"], cam["v0"]};
+  const auto data = nlohmann::json::parse(std::ifstream(dir + "apriltag_data.json"));
+  const double size = data["tag_size"];
+  std::vector<cv::Mat> grey, depth;
+  for (int f = 0; f < 20; ++f) {
+    char n[16];
+    std::snprintf(n, sizeof n, "%04d", f);
+    grey.push_back(cv::imread(dir + "color_image_" + n + ".png", cv::IMREAD_GRAYSCALE));
+    cv::Mat d;
+    capture::readNpzArray(dir + "depth_image_" + n + ".npz", "data.npy").convertTo(d, CV_32F, 0.001);
+    depth.push_back(d);
+  }
+  reconstruction::DetectorOptions o;
+  o.decimate = static_cast<float>(state.range(0));
+  const reconstruction::TagDetector detector(o);
+  double st = 0, sr = 0, wt = 0, wr = 0, sdt = 0, sdr = 0;
+  int n = 0, nd = 0;
+  for (auto _ : state) {
+    st = sr = wt = wr = sdt = sdr = 0, n = nd = 0;
+    for (int f = 0; f < 20; ++f)
+      for (const auto& d : detector.detect(grey[f])) {
+        const auto& g = data["detections"][f];
+        if (!g.contains(std::to_string(d.id))) continue;
+        capture::Pose gt;
+        for (int r = 0; r < 4; ++r)
+          for (int c = 0; c < 4; ++c) gt(r, c) = g[std::to_string(d.id)]["cMo"][r][c];
+        const auto p = reconstruction::estimateTagPose(d, size, k);
+        if (!p) continue;
+        const double et = reconstruction::translationError(p->T_camera_tag, gt), er = reconstruction::rotationErrorDeg(p->T_camera_tag, gt);
+        st += et, sr += er, wt = std::max(wt, et), wr = std::max(wr, er), ++n;
+        if (const auto plane = reconstruction::fitTagPlane(d, depth[f], k)) {
+          const auto q = reconstruction::refinePoseWithDepth(*p, *plane);
+          if (q.depthRefined)
+            sdt += reconstruction::translationError(q.T_camera_tag, gt), sdr += reconstruction::rotationErrorDeg(q.T_camera_tag, gt), ++nd;
+        }
+      }
+  }
+  state.counters["poses"] = n;
+  state.counters["mean_t_mm"] = 1e3 * st / std::max(1, n);
+  state.counters["mean_R_deg"] = sr / std::max(1, n);
+  state.counters["worst_t_mm"] = 1e3 * wt;
+  state.counters["worst_R_deg"] = wr;
+  state.counters["depth_mean_t_mm"] = 1e3 * sdt / std::max(1, nd);
+  state.counters["depth_mean_R_deg"] = sdr / std::max(1, nd);
+  state.counters["ms_per_frame"] = benchmark::Counter(20, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
+// Median cut on real HDR maps rendered through the calibrated fisheye: time and the worst relative
+// irradiance error (5 normals, 5 maps) against direct integration of the image, per light count.
+void BM_MedianCutIrradianceError(benchmark::State& state) {
+  static const auto calib = capture::readFisheyeCalibration(std::string(MRGI_SHARED_DATA) + "/fisheye-ros-calib/ost.yaml");
+  static const auto rays = reconstruction::fisheyeRays(calib);
+  static const std::vector<cv::Mat> maps = [] {
+    std::vector<cv::Mat> out;
+    const cv::Matx33d up(1, 0, 0, 0, 0, -1, 0, 1, 0);
+    for (const char* name : {"city", "courtyard", "forest", "interior", "studio"}) {
+      cv::Mat m = cv::imread(std::string(MRGI_SHARED_DATA) + "/hdr-blender-world/" + name + ".exr", cv::IMREAD_UNCHANGED);
+      cv::cvtColor(m, m, cv::COLOR_BGR2RGB);
+      out.push_back(reconstruction::renderFisheyeFromLatLong(cv::max(m, 0.0), rays, up));
+    }
+    return out;
+  }();
+  reconstruction::MedianCutOptions o;
+  o.count = static_cast<int>(state.range(0));
+  o.varianceSplit = state.range(1) != 0;
+  const std::vector<cv::Vec3d> normals{{0, 0, 1}, cv::normalize(cv::Vec3d(1, 0, 1)), cv::normalize(cv::Vec3d(0, -1, 1)),
+                                       cv::normalize(cv::Vec3d(-1, 1, 0.3)), {1, 0, 0}};
+  std::vector<std::vector<reconstruction::EstimatedLight>> lights(maps.size());
+  for (auto _ : state)
+    for (size_t i = 0; i < maps.size(); ++i) lights[i] = reconstruction::medianCut(maps[i], rays, o);
+  double worst = 0;
+  for (size_t i = 0; i < maps.size(); ++i)
+    for (const auto& n : normals) {
+      const cv::Vec3d ref = reconstruction::irradianceFromImage(maps[i], rays, n);
+      worst = std::max(worst, cv::norm(reconstruction::irradianceFromLights(lights[i], n) - ref) / cv::norm(ref));
+    }
+  state.counters["worst_rel_irradiance_error"] = worst;
+}
+
 }  // namespace
 
+BENCHMARK(BM_MarkerPoseRealSequence)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MedianCutIrradianceError)
+    ->ArgsProduct({{1, 4, 16, 64, 256}, {0, 1}})
+    ->ArgNames({"lights", "variance"})
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_OpenCvGuidedFilter)->Arg(4)->Arg(8)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GuidedFilterDepth)->Arg(4)->Arg(8)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Normals)->Unit(benchmark::kMillisecond);

@@ -329,6 +329,10 @@ TrackStatus MarkerTrack::update(double t, const std::optional<capture::Pose>& me
   return status_;
 }
 
+cv::Vec3d taggedLightPosition(const TaggedPointLight& light, const capture::Pose& T_camera_tag) {
+  return capture::transformPoint(T_camera_tag, light.offset);
+}
+
 double rotationErrorDeg(const capture::Pose& a, const capture::Pose& b) {
   const cv::Matx33d d = capture::rotationOf(a).t() * capture::rotationOf(b);
   const double c = std::clamp((d(0, 0) + d(1, 1) + d(2, 2) - 1.0) / 2.0, -1.0, 1.0);

@@ -144,6 +144,16 @@ class MarkerTrack {
   TrackStatus status_ = TrackStatus::Lost;
 };
 
+/// Alternative light mode: a point light (a lamp) carrying its own AprilTag, with a set intensity.
+struct TaggedPointLight {
+  int tagId = 1;
+  cv::Vec3d offset{0, 0, 0};     ///< light centre in the tag frame, metres
+  cv::Vec3d intensity{1, 1, 1};  ///< RGB radiant intensity, W/sr
+};
+
+/// The light's position in the camera frame given the pose of its tag.
+cv::Vec3d taggedLightPosition(const TaggedPointLight& light, const capture::Pose& T_camera_tag);
+
 /// Rotation angle (degrees) between two rotations and translation distance (metres) between two poses.
 double rotationErrorDeg(const capture::Pose& a, const capture::Pose& b);
 double translationError(const capture::Pose& a, const capture::Pose& b);

@@ -363,3 +363,20 @@ TEST(Marker, TrackHoldsThenReportsLoss) {
   EXPECT_NEAR((*track.pose())(2, 3), 2.0, 1e-12);
   EXPECT_STREQ(toString(TrackStatus::Held), "held");
 }
+
+TEST(Marker, TaggedPointLightFollowsItsTag) {
+  // A lamp 12 cm above its tag (tag z out of the tag), seen in the synthetic view.
+  const capture::Intrinsics k{640, 480, 600, 600, 319.5, 239.5};
+  const capture::Pose truth = lookAtTag(0.7, 25, 15);
+  TagDetector detector;
+  const auto found = detector.detect(renderTagView(2, 0.08, truth, k));
+  ASSERT_EQ(found.size(), 1u);
+  const auto pose = estimateTagPose(found[0], 0.08, k);
+  ASSERT_TRUE(pose);
+  const TaggedPointLight lamp{2, {0, 0, 0.12}, {5, 5, 4}};
+  const cv::Vec3d expected = capture::transformPoint(truth, lamp.offset);
+  EXPECT_LT(cv::norm(taggedLightPosition(lamp, pose->T_camera_tag) - expected), 4e-3);
+  // The light sits on the tag's normal, towards the camera side.
+  const cv::Vec3d centre(truth(0, 3), truth(1, 3), truth(2, 3));
+  EXPECT_LT(cv::norm(expected), cv::norm(centre));
+}
