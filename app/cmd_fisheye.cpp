@@ -32,14 +32,10 @@ int runCalibrate(const CalibrateOptions& o) {
     throw std::invalid_argument("--board: expected inner corners as COLSxROWS (e.g. 6x8), got '" + o.board + "'");
   if (!fs::is_directory(o.dir)) throw capture::CaptureError(o.dir, "is not a directory of checkerboard images");
   std::vector<std::string> paths;
-  for (const auto& e : fs::directory_iterator(o.dir)) {
-    std::string ext = e.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-    if (e.is_regular_file() && (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".pgm"))
-      paths.push_back(e.path().string());
-  }
+  for (const auto& e : fs::directory_iterator(o.dir))
+    if (e.is_regular_file() && capture::isImageFile(e.path())) paths.push_back(e.path().string());
   std::sort(paths.begin(), paths.end());
-  if (paths.empty()) throw capture::CaptureError(o.dir, "holds no .png/.jpg/.bmp/.pgm images");
+  if (paths.empty()) throw capture::CaptureError(o.dir, "holds no images (.png .jpg .bmp .pgm .ppm .tif)");
   reconstruction::FisheyeCalibrationResult r;
   try {
     r = reconstruction::calibrateFisheye(paths, {std::stoi(m[1]), std::stoi(m[2])}, o.square);

@@ -1,6 +1,5 @@
 // mrgi track: AprilTag marker pose per frame of a session (or one image), as JSON lines.
 #include <cstdio>
-#include <filesystem>
 #include <map>
 #include <set>
 #include <sstream>
@@ -16,7 +15,6 @@
 #include "reconstruction/depth_filter.h"
 #include "reconstruction/marker.h"
 
-namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace mrgi::app {
@@ -34,13 +32,6 @@ struct TrackOptions {
   bool refineDepth = false;
   float decimate = 1.0f;
 };
-
-bool isImageFile(const std::string& path) {
-  std::string ext = fs::path(path).extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".pgm" || ext == ".ppm" ||
-         ext == ".tif" || ext == ".tiff";
-}
 
 capture::Intrinsics parseIntrinsics(const std::string& text, const cv::Size& size) {
   std::stringstream ss(text);
@@ -73,7 +64,7 @@ int runTrack(const TrackOptions& o) {
   std::string family = o.family.empty() ? "tag36h11" : o.family;
   double size = o.size;
   int wantedId = o.id;
-  if (isImageFile(o.input)) {
+  if (capture::isImageFile(o.input)) {
     if (o.intrinsics.empty()) throw capture::CaptureError(o.input, "a single image needs --intrinsics fx,fy,cx,cy");
     const cv::Mat img = capture::readColour(o.input);
     capture::RgbdFrame rgbd;

@@ -23,6 +23,11 @@ inline float linearToSrgb(float c) {
 #include <opencv2/core.hpp>
 
 namespace mrgi::capture {
+/// Relative luminance of linear Rec.709/sRGB primaries.
+inline double luminance(const cv::Vec3d& rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
+}  // namespace mrgi::capture
+
+namespace mrgi::capture {
 /// RGB8 sRGB image (CV_8UC3) -> linear CV_32FC3.
 cv::Mat decodeSrgb(const cv::Mat& rgb8);
 /// Linear CV_32FC3 -> RGB8 sRGB (rounded to nearest; clamped; NaN -> 0).

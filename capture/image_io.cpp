@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -17,6 +18,13 @@
 #include "capture/error.h"
 
 namespace mrgi::capture {
+
+bool isImageFile(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".pgm" || ext == ".ppm" ||
+         ext == ".tif" || ext == ".tiff";
+}
 namespace {
 
 std::vector<unsigned char> readBytes(const std::string& path) {

@@ -24,6 +24,10 @@ std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& na
 
 /// Writes bytes to "<path>.tmp", fsyncs, then renames over path: readers see the whole file or nothing.
 /// Throws CaptureError naming the path.
+/// True for a path whose extension names an image format the readers decode (.png .jpg .jpeg .bmp .pgm
+/// .ppm .tif .tiff, any case).
+bool isImageFile(const std::filesystem::path& path);
+
 void writeFileAtomically(const std::filesystem::path& path, const std::vector<unsigned char>& bytes);
 
 /// Silences OpenCV's own logging so a bad file produces our one-line error only.

@@ -100,13 +100,7 @@ TumSource::TumSource(const std::string& directory) : dir_(directory) {
           if (!(ps >> x)) throw CaptureError(gtPath.string(), "pose line needs 7 numbers: " + gt[best].value);
         const cv::Quatd q(v[6], v[3], v[4], v[5]);  // TUM order qx qy qz qw
         if (!(q.norm() > 0.5)) throw CaptureError(gtPath.string(), "pose quaternion is not unit length: " + gt[best].value);
-        const cv::Matx33d R = q.normalize().toRotMat3x3();
-        Pose p = Pose::eye();
-        for (int r = 0; r < 3; ++r) {
-          for (int c = 0; c < 3; ++c) p(r, c) = R(r, c);
-          p(r, 3) = v[r];
-        }
-        it.pose = p;
+        it.pose = makePose(q.normalize().toRotMat3x3(), cv::Vec3d(v[0], v[1], v[2]));
       }
     }
     items_.push_back(std::move(it));

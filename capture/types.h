@@ -22,10 +22,15 @@ using Pose = cv::Matx44d;
 inline Pose identityPose() { return Pose::eye(); }
 /// The rotation block of a pose.
 inline cv::Matx33d rotationOf(const Pose& T) { return T.get_minor<3, 3>(0, 0); }
-/// T applied to a point (rotation and translation).
-inline cv::Vec3d transformPoint(const Pose& T, const cv::Vec3d& p) {
-  return rotationOf(T) * p + cv::Vec3d(T(0, 3), T(1, 3), T(2, 3));
+/// The translation column of a pose.
+inline cv::Vec3d translationOf(const Pose& T) { return {T(0, 3), T(1, 3), T(2, 3)}; }
+/// The pose with rotation R and translation t.
+inline Pose makePose(const cv::Matx33d& R, const cv::Vec3d& t) {
+  return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1],
+          R(2, 0), R(2, 1), R(2, 2), t[2], 0, 0, 0, 1};
 }
+/// T applied to a point (rotation and translation).
+inline cv::Vec3d transformPoint(const Pose& T, const cv::Vec3d& p) { return rotationOf(T) * p + translationOf(T); }
 
 /// Calibration of a fisheye camera in OpenCV's fisheye (equidistant / Kannala-Brandt) model.
 struct FisheyeCalibration {

@@ -16,7 +16,7 @@ struct Contribution {
   cv::Vec3d normalIrradiance;
 };
 
-double lum(const cv::Vec3d& v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
+using capture::luminance;
 
 /// True when the depth map shows a surface between p and the light along `dir` (screen-space march).
 bool occluded(const cv::Mat& positions, const capture::Intrinsics& k, const cv::Vec3d& p, const cv::Vec3d& dir,
@@ -78,24 +78,24 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
         direct += ci.normalIrradiance * std::max(0.0, n.dot(ci.toLight));
         normalSum += ci.normalIrradiance;
       }
-      if (!c.empty() && lum(direct) < o.minEffectiveCos * lum(normalSum)) {
-        status = uchar(lum(direct) > 0 ? AlbedoStatus::Grazing : AlbedoStatus::Unlit);
-        if (lum(direct) > 0 || lum(lights.ambientIrradiance) <= 0) continue;
+      if (!c.empty() && luminance(direct) < o.minEffectiveCos * luminance(normalSum)) {
+        status = uchar(luminance(direct) > 0 ? AlbedoStatus::Grazing : AlbedoStatus::Unlit);
+        if (luminance(direct) > 0 || luminance(lights.ambientIrradiance) <= 0) continue;
       }
-      if (o.shadowTest && lum(direct) > 0) {
+      if (o.shadowTest && luminance(direct) > 0) {
         cv::Vec3d visible = direct;
         for (const auto& ci : c) {
           const cv::Vec3d e = ci.normalIrradiance * std::max(0.0, n.dot(ci.toLight));
-          if (lum(e) < 0.2 * lum(direct)) continue;  // only lights that matter are marched
+          if (luminance(e) < 0.2 * luminance(direct)) continue;  // only lights that matter are marched
           if (occluded(positions, k, p, ci.toLight, ci.distance, o)) visible -= e;
         }
-        if (lum(visible) < 0.5 * lum(direct)) {
+        if (luminance(visible) < 0.5 * luminance(direct)) {
           status = uchar(AlbedoStatus::Shadowed);
           continue;
         }
       }
       const cv::Vec3d e = direct + lights.ambientIrradiance;
-      if (!(lum(e) > 1e-12)) {
+      if (!(luminance(e) > 1e-12)) {
         status = uchar(AlbedoStatus::Unlit);
         continue;
       }

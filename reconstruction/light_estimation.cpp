@@ -11,8 +11,6 @@
 namespace mrgi::reconstruction {
 namespace {
 
-double luminance(const cv::Vec3f& c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
-
 /// Solid angle of the spherical triangle (a, b, c) of unit vectors (Van Oosterom & Strackee).
 double triangleSolidAngle(const cv::Vec3d& a, const cv::Vec3d& b, const cv::Vec3d& c) {
   const double num = std::abs(a.dot(b.cross(c)));
@@ -141,7 +139,7 @@ class RegionStats {
         cv::Vec3d L = o > 0 ? cv::Vec3d(radiance.at<cv::Vec3f>(y, x)) : cv::Vec3d(0, 0, 0);
         for (int k = 0; k < 3; ++k)
           if (!(L[k] > 0) || !std::isfinite(L[k])) L[k] = 0;
-        const double e = std::max(0.0, 0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2]) * o;
+        const double e = std::max(0.0, capture::luminance(L)) * o;
         const cv::Vec3d dir(rays.directions.at<cv::Vec3f>(y, x));
         a.at<cv::Vec4d>(y, x) = {e, e * x, e * y, e * (double(x) * x + double(y) * y)};
         b.at<cv::Vec4d>(y, x) = {L[0] * o, L[1] * o, L[2] * o, o};
@@ -289,7 +287,7 @@ std::vector<EstimatedLight> medianCut(const cv::Mat& radiance, const FisheyeRays
   lights.reserve(regions.size());
   for (const auto& r : regions) lights.push_back(lightOf(stats, r));
   std::sort(lights.begin(), lights.end(), [](const EstimatedLight& a, const EstimatedLight& b) {
-    return luminance(cv::Vec3f(a.power)) > luminance(cv::Vec3f(b.power));
+    return capture::luminance(a.power) > capture::luminance(b.power);
   });
   return lights;
 }

@@ -44,7 +44,6 @@ std::vector<TagDetection> TagDetector::detect(const cv::Mat& image) const {
   else if (image.type() == CV_8UC3) cv::cvtColor(image, grey, cv::COLOR_RGB2GRAY);
   else if (image.type() == CV_8UC4) cv::cvtColor(image, grey, cv::COLOR_RGBA2GRAY);
   else throw std::invalid_argument("tag detection needs an 8-bit grey or colour image");
-  if (!grey.isContinuous()) grey = grey.clone();
   std::vector<TagDetection> out;
   if (grey.empty()) return out;
   image_u8_t im{grey.cols, grey.rows, static_cast<int32_t>(grey.step[0]), grey.data};
@@ -78,12 +77,7 @@ namespace {
 capture::Pose poseFrom(const cv::Mat& rvec, const cv::Mat& tvec) {
   cv::Matx33d R;
   cv::Rodrigues(rvec, R);
-  capture::Pose T = capture::identityPose();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) T(r, c) = R(r, c);
-    T(r, 3) = tvec.at<double>(r);
-  }
-  return T;
+  return capture::makePose(R, cv::Vec3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
 }
 
 double rmsOf(const std::vector<cv::Point3d>& obj, const std::vector<cv::Point2d>& img, const cv::Mat& K,
@@ -163,9 +157,11 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> fitTagPlane(const TagDetection& d
     quad.emplace_back(cvRound(p.x), cvRound(p.y));
   }
   cv::fillConvexPoly(mask, quad, cv::Scalar(255));
+  // Only the quad's bounding box can hold samples.
+  const cv::Rect box = cv::boundingRect(quad) & cv::Rect(0, 0, depth.cols, depth.rows);
   std::vector<cv::Vec3d> pts;
-  for (int y = 0; y < depth.rows; ++y)
-    for (int x = 0; x < depth.cols; ++x) {
+  for (int y = box.y; y < box.y + box.height; ++y)
+    for (int x = box.x; x < box.x + box.width; ++x) {
       const float z = depth.at<float>(y, x);
       if (mask.at<uchar>(y, x) && validDepth(z) && std::isfinite(z))
         pts.emplace_back((x - k.cx) * z / k.fx, (y - k.cy) * z / k.fy, z);
@@ -202,7 +198,7 @@ TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::
   const cv::Vec3d z = zAxis(pose.T_camera_tag);
   const double cosA = std::clamp(z.dot(n), -1.0, 1.0);
   if (std::acos(cosA) * 180.0 / CV_PI > maxAngleDeg) return pose;
-  const cv::Vec3d t(pose.T_camera_tag(0, 3), pose.T_camera_tag(1, 3), pose.T_camera_tag(2, 3));
+  const cv::Vec3d t = capture::translationOf(pose.T_camera_tag);
   const double tn = cv::norm(t);
   if (!(tn > 0)) return pose;
   const cv::Vec3d ray = t / tn;
@@ -218,12 +214,8 @@ TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::
     axis *= std::atan2(sinA, cosA) / sinA;
     cv::Rodrigues(axis, Rmin);
   }
-  const cv::Matx33d R = Rmin * capture::rotationOf(pose.T_camera_tag);
   TagPose out = pose;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) out.T_camera_tag(r, c) = R(r, c);
-    out.T_camera_tag(r, 3) = ray[r] * s;
-  }
+  out.T_camera_tag = capture::makePose(Rmin * capture::rotationOf(pose.T_camera_tag), ray * s);
   out.depthRefined = true;
   return out;
 }
@@ -256,53 +248,14 @@ std::vector<double> OneEuroFilter::filter(double t, const std::vector<double>& x
   return xPrev_;
 }
 
-namespace {
-
-cv::Vec4d quaternionOf(const cv::Matx33d& R) {
-  // Shepperd's method: pick the largest of w, x, y, z for stability.
-  const double tr = R(0, 0) + R(1, 1) + R(2, 2);
-  cv::Vec4d q;  // (w, x, y, z)
-  if (tr > 0) {
-    const double s = std::sqrt(tr + 1.0) * 2;
-    q = {0.25 * s, (R(2, 1) - R(1, 2)) / s, (R(0, 2) - R(2, 0)) / s, (R(1, 0) - R(0, 1)) / s};
-  } else if (R(0, 0) > R(1, 1) && R(0, 0) > R(2, 2)) {
-    const double s = std::sqrt(1.0 + R(0, 0) - R(1, 1) - R(2, 2)) * 2;
-    q = {(R(2, 1) - R(1, 2)) / s, 0.25 * s, (R(0, 1) + R(1, 0)) / s, (R(0, 2) + R(2, 0)) / s};
-  } else if (R(1, 1) > R(2, 2)) {
-    const double s = std::sqrt(1.0 + R(1, 1) - R(0, 0) - R(2, 2)) * 2;
-    q = {(R(0, 2) - R(2, 0)) / s, (R(0, 1) + R(1, 0)) / s, 0.25 * s, (R(1, 2) + R(2, 1)) / s};
-  } else {
-    const double s = std::sqrt(1.0 + R(2, 2) - R(0, 0) - R(1, 1)) * 2;
-    q = {(R(1, 0) - R(0, 1)) / s, (R(0, 2) + R(2, 0)) / s, (R(1, 2) + R(2, 1)) / s, 0.25 * s};
-  }
-  return q / cv::norm(q);
-}
-
-cv::Matx33d rotationOfQuaternion(cv::Vec4d q) {
-  q /= cv::norm(q);
-  const double w = q[0], x = q[1], y = q[2], z = q[3];
-  return {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
-          2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-          2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
-}
-
-}  // namespace
-
 capture::Pose PoseSmoother::filter(double t, const capture::Pose& T) {
-  cv::Vec4d q = quaternionOf(capture::rotationOf(T));
+  cv::Quatd q = cv::Quatd::createFromRotMat(capture::rotationOf(T));
   if (havePrev_ && q.dot(qPrev_) < 0) q = -q;  // same hemisphere as the last output
   const auto tr = translation_.filter(t, {T(0, 3), T(1, 3), T(2, 3)});
-  const auto qs = rotation_.filter(t, {q[0], q[1], q[2], q[3]});
-  qPrev_ = cv::Vec4d(qs[0], qs[1], qs[2], qs[3]);
-  qPrev_ /= cv::norm(qPrev_);
+  const auto qs = rotation_.filter(t, {q.w, q.x, q.y, q.z});
+  qPrev_ = cv::Quatd(qs[0], qs[1], qs[2], qs[3]).normalize();
   havePrev_ = true;
-  const cv::Matx33d R = rotationOfQuaternion(qPrev_);
-  capture::Pose out = capture::identityPose();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) out(r, c) = R(r, c);
-    out(r, 3) = tr[r];
-  }
-  return out;
+  return capture::makePose(qPrev_.toRotMat3x3(), cv::Vec3d(tr[0], tr[1], tr[2]));
 }
 
 const char* toString(TrackStatus s) {
@@ -340,7 +293,7 @@ double rotationErrorDeg(const capture::Pose& a, const capture::Pose& b) {
 }
 
 double translationError(const capture::Pose& a, const capture::Pose& b) {
-  return cv::norm(cv::Vec3d(a(0, 3) - b(0, 3), a(1, 3) - b(1, 3), a(2, 3) - b(2, 3)));
+  return cv::norm(capture::translationOf(a) - capture::translationOf(b));
 }
 
 }  // namespace mrgi::reconstruction

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/core/quaternion.hpp>
 
 #include "capture/types.h"
 
@@ -114,7 +115,7 @@ class PoseSmoother {
  private:
   OneEuroFilter translation_, rotation_;
   bool havePrev_ = false;
-  cv::Vec4d qPrev_;
+  cv::Quatd qPrev_;
 };
 
 enum class TrackStatus { Tracked, Held, Lost };

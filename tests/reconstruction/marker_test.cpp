@@ -24,12 +24,7 @@ const std::string kData = MRGI_SHARED_DATA;
 capture::Pose poseFromRt(const cv::Vec3d& t, const cv::Vec3d& r) {
   cv::Matx33d R;
   cv::Rodrigues(r, R);
-  capture::Pose T = capture::identityPose();
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) T(i, j) = R(i, j);
-    T(i, 3) = t[i];
-  }
-  return T;
+  return capture::makePose(R, t);
 }
 
 struct VispGroundTruth {
@@ -186,12 +181,7 @@ capture::Pose lookAtTag(double distance, double tiltDeg, double yawDeg) {
   cv::Matx33d Rx, Ry;
   cv::Rodrigues(cv::Vec3d(CV_PI + tiltDeg * CV_PI / 180, 0, 0), Rx);  // z out of the tag towards the camera
   cv::Rodrigues(cv::Vec3d(0, yawDeg * CV_PI / 180, 0), Ry);
-  const cv::Matx33d R = Ry * Rx;
-  capture::Pose T = capture::identityPose();
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) T(r, c) = R(r, c);
-  T(0, 3) = 0.02, T(1, 3) = -0.01, T(2, 3) = distance;
-  return T;
+  return capture::makePose(Ry * Rx, cv::Vec3d(0.02, -0.01, distance));
 }
 
 }  // namespace
@@ -210,7 +200,7 @@ TEST(Marker, SyntheticViewGivesTheRenderedPoseAndFrameConvention) {
     EXPECT_LT(rotationErrorDeg(pose->T_camera_tag, truth), 1.0) << tilt << " " << yaw;
     // z points back at the camera; x runs along the first edge.
     const cv::Vec3d z(pose->T_camera_tag(0, 2), pose->T_camera_tag(1, 2), pose->T_camera_tag(2, 2));
-    const cv::Vec3d t(pose->T_camera_tag(0, 3), pose->T_camera_tag(1, 3), pose->T_camera_tag(2, 3));
+    const cv::Vec3d t = capture::translationOf(pose->T_camera_tag);
     EXPECT_LT(z.dot(t), 0.0);
     const cv::Point2d edge = found[0].corners[1] - found[0].corners[0];
     const cv::Vec3d x(pose->T_camera_tag(0, 0), pose->T_camera_tag(1, 0), pose->T_camera_tag(2, 0));
@@ -280,7 +270,7 @@ TEST(Marker, DepthPlaneRefinementSeatsThePoseOnTheMeasuredPlane) {
   const auto found = detector.detect(renderTagView(5, 0.1, truth, k));
   ASSERT_EQ(found.size(), 1u);
   // Depth of the true plane everywhere.
-  const cv::Vec3d n(truth(0, 2), truth(1, 2), truth(2, 2)), p0(truth(0, 3), truth(1, 3), truth(2, 3));
+  const cv::Vec3d n(truth(0, 2), truth(1, 2), truth(2, 2)), p0 = capture::translationOf(truth);
   cv::Mat depth(480, 640, CV_32F);
   for (int y = 0; y < 480; ++y)
     for (int x = 0; x < 640; ++x) {
@@ -294,11 +284,7 @@ TEST(Marker, DepthPlaneRefinementSeatsThePoseOnTheMeasuredPlane) {
   TagPose off;
   cv::Matx33d dR;
   cv::Rodrigues(0.05 * cv::Vec3d(truth(0, 0), truth(1, 0), truth(2, 0)), dR);  // tilt about the tag's x axis
-  off.T_camera_tag = truth;
-  const cv::Matx33d R = dR * capture::rotationOf(truth);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) off.T_camera_tag(r, c) = R(r, c);
-  for (int r = 0; r < 3; ++r) off.T_camera_tag(r, 3) *= 1.03;
+  off.T_camera_tag = capture::makePose(dR * capture::rotationOf(truth), 1.03 * capture::translationOf(truth));
   const TagPose fixed = refinePoseWithDepth(off, *plane);
   EXPECT_TRUE(fixed.depthRefined);
   EXPECT_LT(translationError(fixed.T_camera_tag, truth), 1e-4);
@@ -335,11 +321,7 @@ TEST(Marker, OneEuroSmoothsJitterWithoutLaggingFastMotion) {
   smoother.reset();
   double worstAngle = 0;
   for (int i = 0; i <= 15; ++i) {
-    cv::Matx33d R;
-    cv::Rodrigues(cv::Vec3d(0, i * 0.1, 0), R);
-    capture::Pose T = capture::identityPose();
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) T(r, c) = R(r, c);
+    const capture::Pose T = poseFromRt({0, 0, 0}, {0, i * 0.1, 0});
     const capture::Pose s = smoother.filter(i / 30.0, T);
     if (i > 5) worstAngle = std::max(worstAngle, rotationErrorDeg(s, T));
   }
@@ -377,6 +359,6 @@ TEST(Marker, TaggedPointLightFollowsItsTag) {
   const cv::Vec3d expected = capture::transformPoint(truth, lamp.offset);
   EXPECT_LT(cv::norm(taggedLightPosition(lamp, pose->T_camera_tag) - expected), 4e-3);
   // The light sits on the tag's normal, towards the camera side.
-  const cv::Vec3d centre(truth(0, 3), truth(1, 3), truth(2, 3));
+  const cv::Vec3d centre = capture::translationOf(truth);
   EXPECT_LT(cv::norm(expected), cv::norm(centre));
 }
