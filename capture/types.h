@@ -30,6 +30,11 @@ inline Pose makePose(const cv::Matx33d& R, const cv::Vec3d& t) {
           R(2, 0), R(2, 1), R(2, 2), t[2], 0, 0, 0, 1};
 }
 /// T applied to a point (rotation and translation).
+/// The inverse of a rigid transform.
+inline Pose inversePose(const Pose& T) {
+  const cv::Matx33d Rt = rotationOf(T).t();
+  return makePose(Rt, -(Rt * translationOf(T)));
+}
 inline cv::Vec3d transformPoint(const Pose& T, const cv::Vec3d& p) { return rotationOf(T) * p + translationOf(T); }
 
 /// Calibration of a fisheye camera in OpenCV's fisheye (equidistant / Kannala-Brandt) model.

@@ -57,6 +57,20 @@ void Texture::setFilter(GLenum minFilter, GLenum magFilter) {
   glTextureParameteri(handle_.id(), GL_TEXTURE_MAG_FILTER, static_cast<GLint>(magFilter));
 }
 
+void Texture::setWrap(GLenum wrap) {
+  const auto w = static_cast<GLint>(wrap);
+  glTextureParameteri(handle_.id(), GL_TEXTURE_WRAP_S, w);
+  glTextureParameteri(handle_.id(), GL_TEXTURE_WRAP_T, w);
+  glTextureParameteri(handle_.id(), GL_TEXTURE_WRAP_R, w);
+  const float zero[4] = {0, 0, 0, 0};
+  glTextureParameterfv(handle_.id(), GL_TEXTURE_BORDER_COLOR, zero);
+}
+
+void Texture::clear() {
+  const float zero[4] = {0, 0, 0, 0};
+  glClearTexImage(handle_.id(), 0, GL_RGBA, GL_FLOAT, zero);
+}
+
 Framebuffer::Framebuffer() {
   GLuint id = 0;
   glCreateFramebuffers(1, &id);
@@ -87,6 +101,13 @@ VertexArray::VertexArray() {
   GLuint id = 0;
   glCreateVertexArrays(1, &id);
   handle_ = VertexArrayHandle(id);
+}
+
+void VertexArray::attribute(GLuint index, const Buffer& buffer, GLuint offset, GLsizei stride, GLint components) {
+  glEnableVertexArrayAttrib(handle_.id(), index);
+  glVertexArrayVertexBuffer(handle_.id(), index, buffer.id(), 0, stride);
+  glVertexArrayAttribFormat(handle_.id(), index, components, GL_FLOAT, GL_FALSE, offset);
+  glVertexArrayAttribBinding(handle_.id(), index, index);
 }
 
 }  // namespace mrgi::gl

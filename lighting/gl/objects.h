@@ -87,6 +87,10 @@ class Texture {
   /// Reads the whole level-0 image back into out (caller sizes it).
   void download(GLenum format, GLenum type, void* out, GLsizei bufSize, int rowAlignment = 1) const;
   void setFilter(GLenum minFilter, GLenum magFilter);
+  /// Wrap mode for all axes (GL_CLAMP_TO_EDGE by default; GL_CLAMP_TO_BORDER uses a zero border).
+  void setWrap(GLenum wrap);
+  /// Sets every texel of level 0 to zero (glClearTexImage).
+  void clear();
   void bind(GLuint unit) const { glBindTextureUnit(unit, handle_.id()); }
 
  private:
@@ -110,11 +114,14 @@ class Framebuffer {
   FramebufferHandle handle_;
 };
 
-/// An empty vertex array: full-screen passes generate vertices from gl_VertexID.
+/// A vertex array. Empty, it serves full-screen passes that generate vertices from gl_VertexID.
 class VertexArray {
  public:
   VertexArray();
   GLuint id() const { return handle_.id(); }
+  /// Float attribute `index` read from buffer at byte offset within each stride-byte vertex (binding = index).
+  void attribute(GLuint index, const Buffer& buffer, GLuint offset, GLsizei stride, GLint components);
+  void elements(const Buffer& buffer) { glVertexArrayElementBuffer(handle_.id(), buffer.id()); }
   void bind() const { glBindVertexArray(handle_.id()); }
 
  private:

@@ -138,6 +138,17 @@ Program Program::graphics(const std::string& vert, const std::string& frag, cons
   return p;
 }
 
+Program Program::graphics(const std::string& vert, const std::string& geom, const std::string& frag,
+                          const Defines& defines) {
+  std::vector<ShaderHandle> shaders;
+  shaders.push_back(compileStage(GL_VERTEX_SHADER, vert, defines));
+  shaders.push_back(compileStage(GL_GEOMETRY_SHADER, geom, defines));
+  shaders.push_back(compileStage(GL_FRAGMENT_SHADER, frag, defines));
+  Program p;
+  p.handle_ = link(shaders, vert + " + " + geom + " + " + frag);
+  return p;
+}
+
 Program Program::compute(const std::string& comp, const Defines& defines) {
   std::vector<ShaderHandle> shaders;
   shaders.push_back(compileStage(GL_COMPUTE_SHADER, comp, defines));

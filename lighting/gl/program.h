@@ -34,6 +34,9 @@ class Program {
   Program() = default;
   /// A vertex + fragment program; names are registry names ("compositor/fullscreen.vert").
   static Program graphics(const std::string& vert, const std::string& frag, const Defines& defines = {});
+  /// A vertex + geometry + fragment program.
+  static Program graphics(const std::string& vert, const std::string& geom, const std::string& frag,
+                          const Defines& defines = {});
   /// A compute program.
   static Program compute(const std::string& comp, const Defines& defines = {});
 
@@ -47,6 +50,7 @@ class Program {
   void set(const std::string& name, float x, float y, float z) const {
     glProgramUniform3f(id(), location(name), x, y, z);
   }
+  void set(const std::string& name, int x, int y, int z) const { glProgramUniform3i(id(), location(name), x, y, z); }
   void setMat4(const std::string& name, const float* columnMajor) const {
     glProgramUniformMatrix4fv(id(), location(name), 1, GL_FALSE, columnMajor);
   }

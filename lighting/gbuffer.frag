@@ -1,0 +1,20 @@
+#version 450 core
+// G-buffer: world position, normal facing the camera, albedo and the real/virtual mask. Texels no surface
+// covers keep the clear value 0 (w = 0).
+in vec3 vPosition;
+in vec3 vNormal;
+in vec3 vAlbedo;
+uniform vec3 uEye;       // camera centre, world
+uniform float uVirtual;  // 1 for virtual objects, 0 for the real mesh
+
+layout(location = 0) out vec4 outPosition;  // xyz world, w = 1
+layout(location = 1) out vec4 outNormal;    // xyz unit world normal towards the camera, w = 1
+layout(location = 2) out vec4 outAlbedo;    // rgb albedo, a = 1 on virtual surfaces
+
+void main() {
+  vec3 n = normalize(vNormal);
+  if (dot(n, uEye - vPosition) < 0.0) n = -n;
+  outPosition = vec4(vPosition, 1.0);
+  outNormal = vec4(n, 1.0);
+  outAlbedo = vec4(vAlbedo, uVirtual);
+}

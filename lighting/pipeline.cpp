@@ -1,0 +1,526 @@
+#include "lighting/pipeline.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "gl/error.h"
+
+namespace mrgi::lighting {
+
+// ---------------------------------------------------------------------------------------------- meshes
+
+GpuMesh::GpuMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices)
+    : count_(static_cast<GLsizei>(indices.size())) {
+  if (indices.empty()) return;
+  static_assert(sizeof(MeshVertex) == 9 * sizeof(float));
+  vertices_ = gl::Buffer(static_cast<GLsizeiptr>(vertices.size() * sizeof(MeshVertex)), vertices.data(), 0);
+  indices_ = gl::Buffer(static_cast<GLsizeiptr>(indices.size() * sizeof(uint32_t)), indices.data(), 0);
+  vao_.attribute(0, vertices_, 0, sizeof(MeshVertex), 3);
+  vao_.attribute(1, vertices_, 3 * sizeof(float), sizeof(MeshVertex), 3);
+  vao_.attribute(2, vertices_, 6 * sizeof(float), sizeof(MeshVertex), 3);
+  vao_.elements(indices_);
+}
+
+void GpuMesh::draw() const {
+  if (count_ == 0) return;
+  vao_.bind();
+  glDrawElements(GL_TRIANGLES, count_, GL_UNSIGNED_INT, nullptr);
+}
+
+void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo, const capture::Pose& T_world_camera,
+                       std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices) {
+  const cv::Matx33d R = capture::rotationOf(T_world_camera);
+  vertices.resize(mesh.positions.size());
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    MeshVertex& v = vertices[i];
+    v.position = cv::Vec3f(capture::transformPoint(T_world_camera, cv::Vec3d(mesh.positions[i])));
+    v.normal = cv::Vec3f(R * cv::Vec3d(mesh.normals[i]));
+    v.albedo = {0.5f, 0.5f, 0.5f};
+    if (!albedo.empty()) {
+      const int x = std::clamp(static_cast<int>(std::lround(mesh.pixels[i][0])), 0, albedo.cols - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(mesh.pixels[i][1])), 0, albedo.rows - 1);
+      v.albedo = albedo.at<cv::Vec3f>(y, x);
+    }
+  }
+  indices = mesh.indices;
+}
+
+// ---------------------------------------------------------------------------------------------- cameras
+
+cv::Matx44d projectionFromIntrinsics(const capture::Intrinsics& k, double n, double f) {
+  const double W = k.width, H = k.height;
+  return {2 * k.fx / W, 0, 2 * (k.cx + 0.5) / W - 1, 0,  //
+          0, 2 * k.fy / H, 2 * (k.cy + 0.5) / H - 1, 0,  //
+          0, 0, (f + n) / (f - n), -2 * f * n / (f - n),  //
+          0, 0, 1, 0};
+}
+
+cv::Matx44d orthographicProjection(double h, double n, double f) {
+  return {1 / h, 0, 0, 0,  //
+          0, 1 / h, 0, 0,  //
+          0, 0, 2 / (f - n), -(f + n) / (f - n),  //
+          0, 0, 0, 1};
+}
+
+cv::Matx44d lookAtView(const cv::Vec3d& eye, const cv::Vec3d& target) {
+  cv::Vec3d z = cv::normalize(target - eye);
+  cv::Vec3d up = std::abs(z[1]) < 0.9 ? cv::Vec3d(0, 1, 0) : cv::Vec3d(1, 0, 0);
+  cv::Vec3d x = cv::normalize(z.cross(up));
+  cv::Vec3d y = z.cross(x);
+  cv::Matx33d R(x[0], x[1], x[2], y[0], y[1], y[2], z[0], z[1], z[2]);  // rows: camera axes in world
+  return capture::makePose(R, -(R * eye));
+}
+
+std::array<float, 16> toGl(const cv::Matx44d& m) {
+  std::array<float, 16> out;
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) out[c * 4 + r] = static_cast<float>(m(r, c));
+  return out;
+}
+
+LightView fitLightView(const SceneLight& light, const LpvGrid& grid, int size) {
+  LightView v;
+  const cv::Vec3d centre = grid.centre();
+  const double radius = 0.5 * std::sqrt(3.0) * grid.side();
+  if (light.type == LightType::Directional) {
+    const double back = 4.0 * radius;  // room for occluders in front of the volume
+    const cv::Vec3d eye = centre - light.direction * back;
+    v.viewProj = orthographicProjection(radius, 0.0, back + radius) * lookAtView(eye, centre);
+    const double texel = 2.0 * radius / size;
+    v.texelArea = texel * texel;
+    v.shadowBias = 2.0 * texel;
+  } else {
+    const double dist = cv::norm(centre - light.position);
+    if (dist < 1e-6) throw std::invalid_argument("a point light sits at the centre of the volume");
+    const double half = std::asin(std::min(radius / dist, std::sin(80.0 * CV_PI / 180.0)));
+    v.focalPixels = 0.5 * size / std::tan(half);
+    capture::Intrinsics k;
+    k.width = k.height = size;
+    k.fx = k.fy = v.focalPixels;
+    k.cx = k.cy = 0.5 * size - 0.5;
+    v.viewProj = projectionFromIntrinsics(k, std::max(1e-3, 0.01 * dist), dist + radius) * lookAtView(light.position, centre);
+    v.shadowBias = 2.0 * (dist + radius) / v.focalPixels;
+  }
+  return v;
+}
+
+// ---------------------------------------------------------------------------------------------- pipeline
+
+namespace {
+cv::Matx33f normalMatrix(const cv::Matx44d& T) {
+  const cv::Matx33d R = capture::rotationOf(T);
+  return cv::Matx33f(R.inv().t());
+}
+
+void setMat3(const gl::Program& p, const std::string& name, const cv::Matx33f& m) {
+  float cm[9];
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) cm[c * 3 + r] = m(r, c);
+  glProgramUniformMatrix3fv(p.id(), p.location(name), 1, GL_FALSE, cm);
+}
+
+void setVec3(const gl::Program& p, const std::string& name, const cv::Vec3d& v) {
+  p.set(name, static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
+}
+}  // namespace
+
+LightingPipeline::LightingPipeline(const PipelineConfig& config, const std::vector<VirtualObject>& objects)
+    : config_(config),
+      gbufferProgram_(gl::Program::graphics("lighting/mesh.vert", "lighting/gbuffer.frag")),
+      rsmProgram_(gl::Program::graphics("lighting/mesh.vert", "lighting/rsm.frag")),
+      injectProgram_(gl::Program::graphics("lighting/lpv_inject.vert", "lighting/lpv_inject.geom", "lighting/lpv_inject.frag")),
+      propagateProgram_(gl::Program::compute("lighting/lpv_propagate.comp")),
+      addProgram_(gl::Program::compute("lighting/lpv_add.comp")),
+      shadeProgram_(gl::Program::graphics("compositor/fullscreen.vert", "lighting/shade.frag")),
+      gPosition_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
+      gNormal_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
+      gAlbedo_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
+      gDepth_(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, config.width, config.height),
+      shade_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
+      irradiance_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
+      shadowArray_(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, config.lpv.rsmSize, config.lpv.rsmSize, kMaxLights) {
+  for (auto* t : {&gPosition_, &gNormal_, &gAlbedo_, &shade_, &irradiance_}) t->setFilter(GL_NEAREST, GL_NEAREST);
+  shadowArray_.setFilter(GL_NEAREST, GL_NEAREST);
+  gbufferFb_.attachColour(0, gPosition_);
+  gbufferFb_.attachColour(1, gNormal_);
+  gbufferFb_.attachColour(2, gAlbedo_);
+  gbufferFb_.attachDepth(gDepth_);
+  gbufferFb_.finalise(3);
+  shadeFb_.attachColour(0, shade_);
+  shadeFb_.attachColour(1, irradiance_);
+  shadeFb_.finalise(2);
+  rsmRho_ = makeRsm(config.lpv.rsmSize);
+  rsmMu_ = makeRsm(config.lpv.rsmSize);
+
+  for (const VirtualObject& o : objects) {
+    std::vector<MeshVertex> v(o.mesh.positions.size());
+    for (size_t i = 0; i < v.size(); ++i) v[i] = {o.mesh.positions[i], o.mesh.normals[i], o.material.albedo};
+    objectMeshes_.emplace_back(v, o.mesh.indices);
+    objectTransforms_.push_back(o.T_marker_object);
+    objectBoundsMin_.push_back(o.mesh.boundsMin);
+    objectBoundsMax_.push_back(o.mesh.boundsMax);
+  }
+}
+
+LightingPipeline::Volume LightingPipeline::makeVolume(int res) const {
+  Volume v{gl::Texture(GL_TEXTURE_3D, GL_RGBA32F, res, res, res), gl::Texture(GL_TEXTURE_3D, GL_RGBA32F, res, res, res),
+           gl::Texture(GL_TEXTURE_3D, GL_RGBA32F, res, res, res), gl::Framebuffer()};
+  v.fb.attachColour(0, v.r);
+  v.fb.attachColour(1, v.g);
+  v.fb.attachColour(2, v.b);
+  v.fb.finalise(3);
+  return v;
+}
+
+LightingPipeline::Rsm LightingPipeline::makeRsm(int size) const {
+  Rsm r{gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size), gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size), gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, size, size), gl::Framebuffer()};
+  for (auto* t : {&r.position, &r.normal, &r.flux, &r.direct}) t->setFilter(GL_NEAREST, GL_NEAREST);
+  r.fb.attachColour(0, r.position);
+  r.fb.attachColour(1, r.normal);
+  r.fb.attachColour(2, r.flux);
+  r.fb.attachColour(3, r.direct);
+  r.fb.attachDepth(r.depth);
+  r.fb.finalise(4);
+  return r;
+}
+
+void LightingPipeline::setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
+  realMesh_ = GpuMesh(vertices, indices);
+}
+
+void LightingPipeline::setObjectTransform(size_t i, const cv::Matx44d& T) { objectTransforms_.at(i) = T; }
+
+void LightingPipeline::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const {
+  program.use();
+  const auto vp = toGl(viewProj);
+  program.setMat4("uViewProj", vp.data());
+  const auto id = toGl(cv::Matx44d::eye());
+  program.setMat4("uModel", id.data());
+  setMat3(program, "uNormalModel", cv::Matx33f::eye());
+  program.set("uVirtual", 0.0f);
+  realMesh_.draw();
+  if (!includeVirtual) return;
+  program.set("uVirtual", 1.0f);
+  for (size_t i = 0; i < objectMeshes_.size(); ++i) {
+    const auto m = toGl(objectTransforms_[i]);
+    program.setMat4("uModel", m.data());
+    setMat3(program, "uNormalModel", normalMatrix(objectTransforms_[i]));
+    objectMeshes_[i].draw();
+  }
+}
+
+void LightingPipeline::renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual) {
+  const int size = config_.lpv.rsmSize;
+  rsm.fb.bind();
+  glViewport(0, 0, size, size);
+  const float zero[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 4; ++i) glClearNamedFramebufferfv(rsm.fb.id(), GL_COLOR, i, zero);
+  const float one = 1.0f;
+  glClearNamedFramebufferfv(rsm.fb.id(), GL_DEPTH, 0, &one);
+  const gl::Program& p = rsmProgram_;
+  p.set("uLightType", light.type == LightType::Point ? 0 : light.type == LightType::Spot ? 1 : 2);
+  setVec3(p, "uLightPosition", light.position);
+  setVec3(p, "uLightDirection", light.direction);
+  setVec3(p, "uLightPower", light.type == LightType::Directional ? light.irradiance : light.intensity);
+  p.set("uSpotCos", static_cast<float>(std::cos(light.spotHalfAngleDeg * CV_PI / 180.0)));
+  p.set("uFocal", static_cast<float>(view.focalPixels));
+  p.set("uCentre", 0.5f * size);
+  p.set("uTexelArea", static_cast<float>(view.texelArea));
+  drawScene(p, includeVirtual, view.viewProj);
+}
+
+void LightingPipeline::inject(Volume& target, const Rsm& source, const Rsm* other, float sign, unsigned mode,
+                              const SceneLight& light) {
+  const LpvGrid& g = *grid_;
+  const gl::Program& p = injectProgram_;
+  target.fb.bind();
+  glViewport(0, 0, g.resolution, g.resolution);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_ONE, GL_ONE);
+  glBlendEquation(GL_FUNC_ADD);
+  p.use();
+  p.set("uSize", config_.lpv.rsmSize);
+  p.set("uSign", sign);
+  p.set("uMode", static_cast<int>(mode));
+  p.set("uSkipIdentical", other ? 1 : 0);
+  p.set("uLightType", light.type == LightType::Point ? 0 : light.type == LightType::Spot ? 1 : 2);
+  setVec3(p, "uLightPosition", light.position);
+  setVec3(p, "uLightDirection", light.direction);
+  setVec3(p, "uGridOrigin", g.origin);
+  p.set("uCellSize", static_cast<float>(g.cellSize));
+  p.set("uResolution", g.resolution);
+  source.position.bind(0);
+  source.normal.bind(1);
+  source.flux.bind(2);
+  source.direct.bind(3);
+  const Rsm& o = other ? *other : source;
+  o.position.bind(4);
+  o.normal.bind(5);
+  o.flux.bind(6);
+  o.direct.bind(7);
+  emptyVao_.bind();
+  glDrawArraysInstanced(GL_POINTS, 0, config_.lpv.rsmSize * config_.lpv.rsmSize, 2);
+  glDisable(GL_BLEND);
+}
+
+void LightingPipeline::add(const Volume& src, Volume& dst) {
+  const int res = grid_->resolution;
+  const gl::Program& p = addProgram_;
+  p.use();
+  p.set("uResolution", res);
+  src.r.bind(0);
+  src.g.bind(1);
+  src.b.bind(2);
+  glBindImageTexture(0, dst.r.id(), 0, GL_TRUE, 0, GL_READ_WRITE, GL_RGBA32F);
+  glBindImageTexture(1, dst.g.id(), 0, GL_TRUE, 0, GL_READ_WRITE, GL_RGBA32F);
+  glBindImageTexture(2, dst.b.id(), 0, GL_TRUE, 0, GL_READ_WRITE, GL_RGBA32F);
+  const GLuint groups = static_cast<GLuint>((res + 3) / 4);
+  glDispatchCompute(groups, groups, groups);
+  glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+}
+
+void LightingPipeline::propagate(Volume& v, bool clampNegative, const Volume* late) {
+  const int res = grid_->resolution;
+  const int steps = config_.lpv.steps;
+  const int lateAt = std::max(0, steps - config_.lpv.directSteps);
+  if (steps == 0) {
+    if (late) add(*late, v);
+    return;
+  }
+  for (auto [src, dst] : {std::pair{&v.r, &scratchA_.r}, {&v.g, &scratchA_.g}, {&v.b, &scratchA_.b}})
+    glCopyImageSubData(src->id(), GL_TEXTURE_3D, 0, 0, 0, 0, dst->id(), GL_TEXTURE_3D, 0, 0, 0, 0, res, res, res);
+  const gl::Program& p = propagateProgram_;
+  p.use();
+  p.set("uResolution", res);
+  p.set("uDamping", static_cast<float>(config_.lpv.damping));
+  p.set("uClampNegative", clampNegative ? 1 : 0);
+  Volume* cur = &scratchA_;
+  Volume* nxt = &scratchB_;
+  const GLuint groups = static_cast<GLuint>((res + 3) / 4);
+  for (int s = 0; s < steps; ++s) {
+    if (late && s == lateAt) {
+      add(*late, v);
+      add(*late, *cur);
+      p.use();
+    }
+    cur->r.bind(0);
+    cur->g.bind(1);
+    cur->b.bind(2);
+    glBindImageTexture(0, nxt->r.id(), 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(1, nxt->g.id(), 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(2, nxt->b.id(), 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(3, v.r.id(), 0, GL_TRUE, 0, GL_READ_WRITE, GL_RGBA32F);
+    glBindImageTexture(4, v.g.id(), 0, GL_TRUE, 0, GL_READ_WRITE, GL_RGBA32F);
+    glBindImageTexture(5, v.b.id(), 0, GL_TRUE, 0, GL_READ_WRITE, GL_RGBA32F);
+    glDispatchCompute(groups, groups, groups);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    std::swap(cur, nxt);
+  }
+  if (late && lateAt >= steps) add(*late, v);
+}
+
+void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLight>& lights,
+                           const cv::Vec3d& ambientRadiance, gl::Profiler* profiler) {
+  if (static_cast<int>(lights.size()) > kMaxLights)
+    throw std::invalid_argument("at most " + std::to_string(kMaxLights) + " lights are supported, got " +
+                                std::to_string(lights.size()));
+  auto scope = [&](const char* name) {
+    return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, true) : std::nullopt;
+  };
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_BLEND);
+
+  // The volume: axis-aligned in the world, centred on and sized to the virtual objects.
+  grid_ = config_.fixedGrid;
+  if (!grid_ && !objectMeshes_.empty()) {
+    cv::Vec3d lo = cv::Vec3d::all(1e30), hi = cv::Vec3d::all(-1e30);
+    for (size_t i = 0; i < objectMeshes_.size(); ++i)
+      for (int c = 0; c < 8; ++c) {
+        const cv::Vec3d corner((c & 1) ? objectBoundsMax_[i][0] : objectBoundsMin_[i][0],
+                               (c & 2) ? objectBoundsMax_[i][1] : objectBoundsMin_[i][1],
+                               (c & 4) ? objectBoundsMax_[i][2] : objectBoundsMin_[i][2]);
+        const cv::Vec3d w = capture::transformPoint(objectTransforms_[i], corner);
+        for (int k = 0; k < 3; ++k) {
+          lo[k] = std::min(lo[k], w[k]);
+          hi[k] = std::max(hi[k], w[k]);
+        }
+      }
+    grid_ = fitGrid(lo, hi, config_.lpv.sizeFactor, config_.lpv.resolution);
+  }
+  const bool diff = config_.technique == Technique::LpvDiff;
+  if (grid_ && grid_->resolution != volumeRes_) {
+    volumeRes_ = grid_->resolution;
+    delta_ = makeVolume(volumeRes_);
+    deltaDirect_ = makeVolume(volumeRes_);
+    rho_ = makeVolume(volumeRes_);
+    scratchA_ = makeVolume(volumeRes_);
+    scratchB_ = makeVolume(volumeRes_);
+    if (diff) {
+      rhoFull_ = makeVolume(volumeRes_);
+      muFull_ = makeVolume(volumeRes_);
+      rhoDirect_ = makeVolume(volumeRes_);
+      muDirect_ = makeVolume(volumeRes_);
+    }
+  }
+
+  {
+    auto s = scope("gbuffer");
+    gbufferFb_.bind();
+    glViewport(0, 0, config_.width, config_.height);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LESS);
+    const float zero[4] = {0, 0, 0, 0};
+    for (int i = 0; i < 3; ++i) glClearNamedFramebufferfv(gbufferFb_.id(), GL_COLOR, i, zero);
+    const float one = 1.0f;
+    glClearNamedFramebufferfv(gbufferFb_.id(), GL_DEPTH, 0, &one);
+    const cv::Matx44d view = capture::inversePose(camera.T_world_camera);
+    setVec3(gbufferProgram_, "uEye", capture::translationOf(camera.T_world_camera));
+    drawScene(gbufferProgram_, true,
+              projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * view);
+  }
+
+  // Every frame starts from cleared volumes.
+  std::vector<LightView> views;
+  if (grid_) {
+    for (Volume* v : {&delta_, &rho_, &rhoFull_, &muFull_, &deltaDirect_, &rhoDirect_, &muDirect_})
+      if (v->r.id()) {
+        v->r.clear();
+        v->g.clear();
+        v->b.clear();
+      }
+    for (size_t li = 0; li < lights.size(); ++li) {
+      const SceneLight& light = lights[li];
+      views.push_back(fitLightView(light, *grid_, config_.lpv.rsmSize));
+      {
+        auto s = scope("rsm");
+        glEnable(GL_DEPTH_TEST);
+        renderRsm(rsmRho_, light, views.back(), true);
+        renderRsm(rsmMu_, light, views.back(), false);
+        glDisable(GL_DEPTH_TEST);
+        const int n = config_.lpv.rsmSize;
+        glCopyImageSubData(rsmRho_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowArray_.id(), GL_TEXTURE_2D_ARRAY, 0,
+                           0, 0, static_cast<GLint>(li), n, n, 1);
+      }
+      auto s = scope("lpv.inject");
+      inject(rho_, rsmRho_, nullptr, 1.0f, kInjectIndirect, light);
+      if (diff) {
+        inject(rhoFull_, rsmRho_, nullptr, 1.0f, kInjectIndirect, light);
+        inject(rhoDirect_, rsmRho_, nullptr, 1.0f, kInjectDirect, light);
+        inject(muFull_, rsmMu_, nullptr, 1.0f, kInjectIndirect, light);
+        inject(muDirect_, rsmMu_, nullptr, 1.0f, kInjectDirect, light);
+      } else {
+        // Delta injection, only where RSM^rho and RSM^mu differ: +VPLs of RSM^rho, -VPLs of RSM^mu, and the
+        // direct light RSM^mu received there, negative (the virtual object now intercepts it; its own direct
+        // light is shaded by the compositor and must not travel on through the object).
+        inject(delta_, rsmRho_, &rsmMu_, 1.0f, kInjectIndirect, light);
+        inject(delta_, rsmMu_, &rsmRho_, -1.0f, kInjectIndirect, light);
+        inject(deltaDirect_, rsmMu_, &rsmRho_, -1.0f, kInjectDirect, light);
+      }
+    }
+    glMemoryBarrier(GL_ALL_BARRIER_BITS);
+    auto s = scope("lpv.propagate");
+    propagate(rho_, true, nullptr);
+    if (diff) {
+      propagate(rhoFull_, true, &rhoDirect_);
+      propagate(muFull_, true, &muDirect_);
+    } else {
+      propagate(delta_, false, &deltaDirect_);
+    }
+  }
+
+  auto s = scope("shade");
+  shadeFb_.bind();
+  glViewport(0, 0, config_.width, config_.height);
+  glDisable(GL_DEPTH_TEST);
+  const gl::Program& p = shadeProgram_;
+  p.use();
+  p.set("uLighting", grid_ ? 1 : 0);
+  p.set("uDiff", diff ? 1 : 0);
+  if (grid_) {
+    setVec3(p, "uGridOrigin", grid_->origin);
+    p.set("uCellSize", static_cast<float>(grid_->cellSize));
+    p.set("uResolution", grid_->resolution);
+  }
+  setVec3(p, "uAmbient", ambientRadiance);
+  p.set("uLightCount", static_cast<int>(lights.size()));
+  for (size_t i = 0; i < lights.size(); ++i) {
+    const std::string k = "[" + std::to_string(i) + "]";
+    const SceneLight& l = lights[i];
+    p.set("uLightType" + k, l.type == LightType::Point ? 0 : l.type == LightType::Spot ? 1 : 2);
+    setVec3(p, "uLightPosition" + k, l.position);
+    setVec3(p, "uLightDirection" + k, l.direction);
+    setVec3(p, "uLightPower" + k, l.type == LightType::Directional ? l.irradiance : l.intensity);
+    p.set("uSpotCos" + k, static_cast<float>(std::cos(l.spotHalfAngleDeg * CV_PI / 180.0)));
+    if (i < views.size()) {
+      const auto m = toGl(views[i].viewProj);
+      p.setMat4("uLightViewProj" + k, m.data());
+      p.set("uShadowBias" + k, static_cast<float>(views[i].shadowBias));
+    } else {
+      p.set("uShadowBias" + k, -1e30f);  // no map: nothing occludes
+    }
+  }
+  gPosition_.bind(0);
+  gNormal_.bind(1);
+  gAlbedo_.bind(2);
+  const Volume& d = diff ? rhoFull_ : delta_;
+  const Volume& mu = diff ? muFull_ : delta_;
+  if (d.r.id()) {
+    d.r.bind(3), d.g.bind(4), d.b.bind(5);
+    mu.r.bind(6), mu.g.bind(7), mu.b.bind(8);
+    rho_.r.bind(9), rho_.g.bind(10), rho_.b.bind(11);
+  }  // without a volume uLighting = 0 and the shader samples none of them
+  shadowArray_.bind(12);
+  emptyVao_.bind();
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  gl::checkGlError("LightingPipeline::run()");
+}
+
+namespace {
+cv::Mat download4(const gl::Texture& t) {
+  cv::Mat m(t.height(), t.width(), CV_32FC4);
+  t.download(GL_RGBA, GL_FLOAT, m.ptr(), static_cast<GLsizei>(m.total() * m.elemSize()), 4);
+  return m;
+}
+}  // namespace
+
+cv::Mat LightingPipeline::downloadShade() const { return download4(shade_); }
+cv::Mat LightingPipeline::downloadIrradiance() const { return download4(irradiance_); }
+cv::Mat LightingPipeline::downloadGBuffer(int channel) const {
+  return download4(channel == 0 ? gPosition_ : channel == 1 ? gNormal_ : gAlbedo_);
+}
+
+const LightingPipeline::Volume* LightingPipeline::volume(const std::string& name) const {
+  if (name == "delta") return &delta_;
+  if (name == "rho") return &rho_;
+  if (name == "rho_full") return &rhoFull_;
+  if (name == "mu_full") return &muFull_;
+  if (name == "delta_direct") return &deltaDirect_;
+  if (name == "rho_direct") return &rhoDirect_;
+  if (name == "mu_direct") return &muDirect_;
+  throw std::invalid_argument("unknown volume '" + name + "'");
+}
+
+LpvVolumeCpu LightingPipeline::downloadVolume(const std::string& name) const {
+  const Volume* v = volume(name);
+  if (!grid_ || !v->r.id()) return LpvVolumeCpu(0);
+  const int res = grid_->resolution;
+  LpvVolumeCpu out(res);
+  std::vector<float> buf(size_t(res) * res * res * 4);
+  const gl::Texture* ch[3] = {&v->r, &v->g, &v->b};
+  for (int c = 0; c < 3; ++c) {
+    ch[c]->download(GL_RGBA, GL_FLOAT, buf.data(), static_cast<GLsizei>(buf.size() * sizeof(float)), 4);
+    for (size_t n = 0; n < out.cells.size(); ++n)
+      for (int i = 0; i < 4; ++i) out.cells[n][c][i] = buf[n * 4 + i];
+  }
+  return out;
+}
+
+RsmTexels LightingPipeline::downloadRsm(bool rho) const {
+  const Rsm& r = rho ? rsmRho_ : rsmMu_;
+  return {download4(r.position), download4(r.normal), download4(r.flux), download4(r.direct)};
+}
+
+}  // namespace mrgi::lighting

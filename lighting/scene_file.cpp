@@ -1,0 +1,287 @@
+#include "lighting/scene_file.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <assimp/Importer.hpp>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
+
+#include "capture/types.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace mrgi::lighting {
+
+void Mesh::computeBounds() {
+  if (positions.empty()) {
+    boundsMin = boundsMax = {0, 0, 0};
+    return;
+  }
+  boundsMin = boundsMax = positions[0];
+  for (const auto& p : positions)
+    for (int k = 0; k < 3; ++k) {
+      boundsMin[k] = std::min(boundsMin[k], p[k]);
+      boundsMax[k] = std::max(boundsMax[k], p[k]);
+    }
+}
+
+namespace {
+
+void appendNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent, Mesh& out) {
+  const aiMatrix4x4 m = parent * node->mTransformation;
+  aiMatrix3x3 nm(m);
+  nm.Inverse().Transpose();
+  for (unsigned i = 0; i < node->mNumMeshes; ++i) {
+    const aiMesh* mesh = scene->mMeshes[node->mMeshes[i]];
+    if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    const auto base = static_cast<uint32_t>(out.positions.size());
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D p = m * mesh->mVertices[v];
+      aiVector3D n = mesh->mNormals ? nm * mesh->mNormals[v] : aiVector3D(0, 0, 1);
+      n.Normalize();
+      out.positions.emplace_back(p.x, p.y, p.z);
+      out.normals.emplace_back(n.x, n.y, n.z);
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices != 3) continue;
+      for (int k = 0; k < 3; ++k) out.indices.push_back(base + face.mIndices[k]);
+    }
+  }
+  for (unsigned c = 0; c < node->mNumChildren; ++c) appendNode(scene, node->mChildren[c], m, out);
+}
+
+}  // namespace
+
+Mesh loadMesh(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw SceneError(path, "model file not found");
+  Assimp::Importer importer;
+  const aiScene* scene =
+      importer.ReadFile(path, aiProcess_Triangulate | aiProcess_GenSmoothNormals | aiProcess_JoinIdenticalVertices |
+                                  aiProcess_SortByPType | aiProcess_PreTransformVertices);
+  if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
+    throw SceneError(path, std::string("cannot read model: ") + importer.GetErrorString());
+  Mesh mesh;
+  appendNode(scene, scene->mRootNode, aiMatrix4x4(), mesh);
+  if (mesh.indices.empty()) throw SceneError(path, "model holds no triangles");
+  for (const auto& p : mesh.positions)
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+      throw SceneError(path, "model has a non-finite vertex position");
+  mesh.computeBounds();
+  return mesh;
+}
+
+Technique parseTechnique(const std::string& name) {
+  if (name == "dlpv") return Technique::Dlpv;
+  if (name == "lpv-diff") return Technique::LpvDiff;
+  throw std::invalid_argument("unknown technique '" + name + "' (expected dlpv or lpv-diff)");
+}
+
+const char* techniqueName(Technique t) { return t == Technique::Dlpv ? "dlpv" : "lpv-diff"; }
+
+namespace {
+
+/// Walks a JSON document keeping the key path for messages ("objects[0].material.albedo").
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const std::string& key, const std::string& problem) const {
+    throw SceneError(file_, key + ": " + problem);
+  }
+
+  void allowOnly(const json& obj, const std::string& key, const std::set<std::string>& allowed) const {
+    if (!obj.is_object()) fail(key.empty() ? "(top level)" : key, "must be an object");
+    for (const auto& [k, v] : obj.items())
+      if (!allowed.count(k)) {
+        std::string list;
+        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+        fail(join(key, k), "unknown key (expected one of: " + list + ")");
+      }
+  }
+
+  static std::string join(const std::string& parent, const std::string& k) {
+    return parent.empty() ? k : parent + "." + k;
+  }
+
+  double number(const json& v, const std::string& key, double lo, double hi) const {
+    if (!v.is_number()) fail(key, "must be a number");
+    const double x = v.get<double>();
+    if (!std::isfinite(x) || x < lo || x > hi) {
+      std::ostringstream s;
+      s << "value " << x << " out of range [" << lo << ", " << hi << "]";
+      fail(key, s.str());
+    }
+    return x;
+  }
+
+  int integer(const json& v, const std::string& key, int lo, int hi) const {
+    if (!v.is_number_integer()) fail(key, "must be an integer");
+    const auto x = v.get<long long>();
+    if (x < lo || x > hi) fail(key, "value " + std::to_string(x) + " out of range [" + std::to_string(lo) + ", " +
+                                        std::to_string(hi) + "]");
+    return static_cast<int>(x);
+  }
+
+  cv::Vec3d vec3(const json& v, const std::string& key, double lo, double hi) const {
+    if (!v.is_array() || v.size() != 3) fail(key, "must be an array of 3 numbers");
+    cv::Vec3d out;
+    for (int i = 0; i < 3; ++i) out[i] = number(v[i], key + "[" + std::to_string(i) + "]", lo, hi);
+    return out;
+  }
+
+  std::string string(const json& v, const std::string& key) const {
+    if (!v.is_string()) fail(key, "must be a string");
+    return v.get<std::string>();
+  }
+
+ private:
+  std::string file_;
+};
+
+cv::Vec3d unit(const cv::Vec3d& v, const Reader& r, const std::string& key) {
+  const double n = cv::norm(v);
+  if (n < 1e-9) r.fail(key, "must not be the zero vector");
+  return v / n;
+}
+
+}  // namespace
+
+SceneDescription parseScene(const std::string& text, const std::string& path) {
+  Reader r(path);
+  json doc;
+  try {
+    doc = json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw SceneError(path, std::string("not valid JSON: ") + e.what());
+  }
+  r.allowOnly(doc, "", {"objects", "lights", "ambient_radiance", "technique", "lpv"});
+  SceneDescription s;
+  s.path = path;
+  const fs::path base = fs::path(path).parent_path();
+
+  if (doc.contains("objects")) {
+    const json& objs = doc["objects"];
+    if (!objs.is_array()) r.fail("objects", "must be an array");
+    for (size_t i = 0; i < objs.size(); ++i) {
+      const std::string key = "objects[" + std::to_string(i) + "]";
+      const json& o = objs[i];
+      r.allowOnly(o, key, {"model", "translate", "rotate_deg", "scale", "material"});
+      if (!o.contains("model")) r.fail(key + ".model", "missing (a path to an OBJ, PLY or glTF file)");
+      VirtualObject obj;
+      const std::string model = r.string(o["model"], key + ".model");
+      obj.model = fs::path(model).is_absolute() ? model : (base / model).string();
+      const double scale = o.contains("scale") ? r.number(o["scale"], key + ".scale", 1e-6, 1e6) : 1.0;
+      const cv::Vec3d t = o.contains("translate") ? r.vec3(o["translate"], key + ".translate", -1e3, 1e3) : cv::Vec3d();
+      const cv::Vec3d rd = o.contains("rotate_deg") ? r.vec3(o["rotate_deg"], key + ".rotate_deg", -3600, 3600) : cv::Vec3d();
+      if (o.contains("material")) {
+        const json& m = o["material"];
+        r.allowOnly(m, key + ".material", {"albedo", "roughness"});
+        if (m.contains("albedo")) obj.material.albedo = r.vec3(m["albedo"], key + ".material.albedo", 0, 1);
+        if (m.contains("roughness"))
+          obj.material.roughness = static_cast<float>(r.number(m["roughness"], key + ".material.roughness", 0, 1));
+      }
+      try {
+        obj.mesh = loadMesh(obj.model);
+      } catch (const SceneError& e) {
+        r.fail(key + ".model", e.what());
+      }
+      for (auto& p : obj.mesh.positions) p *= static_cast<float>(scale);
+      obj.mesh.computeBounds();
+      // Rotation: x, then y, then z (extrinsic, degrees), about the marker axes.
+      const double d2r = CV_PI / 180.0;
+      cv::Matx33d R = cv::Matx33d::eye();
+      for (int axis = 0; axis < 3; ++axis) {
+        cv::Vec3d rv(0, 0, 0);
+        rv[axis] = rd[axis] * d2r;
+        cv::Matx33d Ra;
+        cv::Rodrigues(rv, Ra);
+        R = Ra * R;
+      }
+      obj.T_marker_object = capture::makePose(R, t);
+      s.objects.push_back(std::move(obj));
+    }
+  }
+
+  if (doc.contains("lights")) {
+    const json& l = doc["lights"];
+    if (l.is_string()) {
+      const std::string v = l.get<std::string>();
+      if (v != "manifest") r.fail("lights", "must be \"manifest\" or an array of lights");
+      s.lightSource = LightSource::Manifest;
+    } else if (l.is_array()) {
+      s.lightSource = LightSource::Scene;
+      for (size_t i = 0; i < l.size(); ++i) {
+        const std::string key = "lights[" + std::to_string(i) + "]";
+        const json& j = l[i];
+        r.allowOnly(j, key, {"type", "position", "direction", "intensity", "irradiance", "spot_half_angle_deg"});
+        if (!j.contains("type")) r.fail(key + ".type", "missing (point, spot or directional)");
+        const std::string type = r.string(j["type"], key + ".type");
+        SceneLight light;
+        auto need = [&](const char* k) {
+          if (!j.contains(k)) r.fail(key + "." + k, std::string("missing (required for a ") + type + " light)");
+          return j[k];
+        };
+        if (type == "point" || type == "spot") {
+          light.type = type == "point" ? LightType::Point : LightType::Spot;
+          light.position = r.vec3(need("position"), key + ".position", -1e3, 1e3);
+          light.intensity = r.vec3(need("intensity"), key + ".intensity", 0, 1e9);
+          if (light.type == LightType::Spot) {
+            light.direction = unit(r.vec3(need("direction"), key + ".direction", -1e3, 1e3), r, key + ".direction");
+            if (j.contains("spot_half_angle_deg"))
+              light.spotHalfAngleDeg = r.number(j["spot_half_angle_deg"], key + ".spot_half_angle_deg", 0.1, 89.0);
+          }
+        } else if (type == "directional") {
+          light.type = LightType::Directional;
+          light.direction = unit(r.vec3(need("direction"), key + ".direction", -1e3, 1e3), r, key + ".direction");
+          light.irradiance = r.vec3(need("irradiance"), key + ".irradiance", 0, 1e9);
+        } else {
+          r.fail(key + ".type", "unknown light type '" + type + "' (expected point, spot or directional)");
+        }
+        s.lights.push_back(light);
+      }
+    } else {
+      r.fail("lights", "must be \"manifest\" or an array of lights");
+    }
+  }
+  if (doc.contains("ambient_radiance")) {
+    s.ambientRadiance = r.vec3(doc["ambient_radiance"], "ambient_radiance", 0, 1e6);
+    s.ambientFromManifest = false;
+  }
+  if (doc.contains("technique")) {
+    try {
+      s.technique = parseTechnique(r.string(doc["technique"], "technique"));
+    } catch (const std::invalid_argument& e) {
+      r.fail("technique", e.what());
+    }
+  }
+  if (doc.contains("lpv")) {
+    const json& k = doc["lpv"];
+    r.allowOnly(k, "lpv", {"resolution", "steps", "rsm_size", "size_factor", "damping", "direct_steps"});
+    if (k.contains("resolution")) s.lpv.resolution = r.integer(k["resolution"], "lpv.resolution", 4, 128);
+    if (k.contains("steps")) s.lpv.steps = r.integer(k["steps"], "lpv.steps", 0, 256);
+    if (k.contains("rsm_size")) s.lpv.rsmSize = r.integer(k["rsm_size"], "lpv.rsm_size", 16, 4096);
+    if (k.contains("size_factor")) s.lpv.sizeFactor = r.number(k["size_factor"], "lpv.size_factor", 1.0, 64.0);
+    if (k.contains("damping")) s.lpv.damping = r.number(k["damping"], "lpv.damping", 0.0, 1.0);
+    if (k.contains("direct_steps")) s.lpv.directSteps = r.integer(k["direct_steps"], "lpv.direct_steps", 0, 256);
+  }
+  return s;
+}
+
+SceneDescription loadScene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError(path, "cannot open scene file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parseScene(ss.str(), path);
+}
+
+}  // namespace mrgi::lighting

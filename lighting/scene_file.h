@@ -1,0 +1,95 @@
+#pragma once
+/// Scene files: which virtual objects go where (relative to the marker), their materials, the lights and
+/// the lighting technique with its knobs. JSON; every error names the file and the offending key.
+///
+/// Frames: "marker" = the tag frame (origin at the tag centre, z out of the tag, x along its first edge,
+/// metres). The lighting world of `mrgi replay` is the marker frame: the tag is fixed in the room, so the
+/// volume stays axis-aligned in a frame that does not move with the camera.
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace mrgi::lighting {
+
+/// Bad scene file or model: "path: key: problem".
+class SceneError : public std::runtime_error {
+ public:
+  SceneError(const std::string& where, const std::string& problem) : std::runtime_error(where + ": " + problem) {}
+};
+
+/// A triangle mesh in its model frame (metres after the scene's scale).
+struct Mesh {
+  std::vector<cv::Vec3f> positions;
+  std::vector<cv::Vec3f> normals;  ///< unit, per vertex
+  std::vector<uint32_t> indices;   ///< triangles
+  cv::Vec3f boundsMin{0, 0, 0}, boundsMax{0, 0, 0};
+  size_t triangleCount() const { return indices.size() / 3; }
+  void computeBounds();
+};
+
+/// Loads OBJ, PLY, glTF/GLB (anything assimp reads): all meshes of the file in their node transforms,
+/// triangulated, smooth normals generated where missing. Throws SceneError naming the file when it cannot
+/// be read or holds no triangles.
+Mesh loadMesh(const std::string& path);
+
+struct Material {
+  cv::Vec3f albedo{0.8f, 0.8f, 0.8f};  ///< diffuse reflectance, linear RGB in [0, 1]
+  float roughness = 1.0f;              ///< [0, 1]; 1 = Lambertian (the only lobe DLPV transports)
+};
+
+struct VirtualObject {
+  std::string model;        ///< resolved path
+  Mesh mesh;                ///< already scaled
+  cv::Matx44d T_marker_object = cv::Matx44d::eye();
+  Material material;
+};
+
+enum class LightType { Point, Spot, Directional };
+
+/// A light in the lighting world (marker frame).
+struct SceneLight {
+  LightType type = LightType::Point;
+  cv::Vec3d position{0, 0, 0};   ///< point/spot, metres
+  cv::Vec3d direction{0, 0, -1}; ///< spot axis / directional travel direction (from the light into the scene), unit
+  cv::Vec3d intensity{0, 0, 0};  ///< point/spot: radiant intensity, W/sr per channel
+  cv::Vec3d irradiance{0, 0, 0}; ///< directional: irradiance at normal incidence, W/m^2 per channel
+  double spotHalfAngleDeg = 45;  ///< spot: cone half angle
+};
+
+/// Where lights come from: listed in the scene file, or the ground truth stored in a session's manifest.
+enum class LightSource { Scene, Manifest };
+
+enum class Technique { Dlpv, LpvDiff };
+Technique parseTechnique(const std::string& name);  ///< "dlpv" | "lpv-diff"; throws std::invalid_argument
+const char* techniqueName(Technique t);
+
+/// DLPV knobs (shared by the naive two-volume variant).
+struct LpvKnobs {
+  int resolution = 32;      ///< cells per axis (8..128)
+  int steps = 16;           ///< propagation steps (0..256)
+  int rsmSize = 256;        ///< RSM texels per side (16..4096)
+  double sizeFactor = 4.0;  ///< volume side = sizeFactor x the object's largest bounding-box edge
+  double damping = 1.0;     ///< directional damping of lateral/backward propagation, [0, 1] (0 = off)
+  int directSteps = 2;      ///< propagation steps of the direct (shadow) delta, <= steps: its lobes enter the
+                            ///< volume this many steps before the end (more = softer shadows, darker centre)
+};
+
+struct SceneDescription {
+  std::string path;
+  std::vector<VirtualObject> objects;
+  LightSource lightSource = LightSource::Manifest;
+  std::vector<SceneLight> lights;           ///< for LightSource::Scene
+  cv::Vec3d ambientRadiance{0, 0, 0};       ///< uniform environment radiance lighting the virtual object (W/m^2/sr)
+  bool ambientFromManifest = true;          ///< take ambient from the manifest when it has one
+  Technique technique = Technique::Dlpv;
+  LpvKnobs lpv;
+};
+
+/// Parses and validates a scene file; model paths are relative to the scene file. Throws SceneError.
+SceneDescription loadScene(const std::string& path);
+/// Same from a JSON text (path used in messages and to resolve models).
+SceneDescription parseScene(const std::string& text, const std::string& path);
+
+}  // namespace mrgi::lighting

@@ -1,0 +1,109 @@
+// Scene files and model loading: the three formats load with the right geometry; every bad input names
+// the file and the key.
+#include <gtest/gtest.h>
+
+#include "lighting/scene_file.h"
+
+using namespace mrgi::lighting;
+
+namespace {
+const std::string kModels = std::string(MRGI_SOURCE_DIR) + "/recordings/models/";
+const std::string kScenePath = kModels + "../scenes/test.json";  // models resolve relative to it
+
+std::string errorOf(const std::string& text) {
+  try {
+    parseScene(text, kScenePath);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(Models, ObjPlyGltfLoadWithTheirBounds) {
+  const Mesh cube = loadMesh(kModels + "cube.obj");
+  EXPECT_EQ(cube.triangleCount(), 12u);
+  EXPECT_EQ(cube.boundsMin, cv::Vec3f(-0.5f, -0.5f, -0.5f));
+  EXPECT_EQ(cube.boundsMax, cv::Vec3f(0.5f, 0.5f, 0.5f));
+  const Mesh sphere = loadMesh(kModels + "sphere.ply");
+  EXPECT_EQ(sphere.positions.size(), 642u);
+  for (size_t i = 0; i < sphere.positions.size(); ++i) {
+    EXPECT_NEAR(cv::norm(sphere.positions[i]), 1.0, 1e-5);
+    EXPECT_GT(sphere.normals[i].dot(sphere.positions[i]), 0.99f);  // outward normals
+  }
+  const Mesh torus = loadMesh(kModels + "torus.gltf");
+  EXPECT_EQ(torus.triangleCount(), 32u * 16u * 2u);
+  EXPECT_NEAR(torus.boundsMax[0], 1.35f, 1e-5f);
+  EXPECT_NEAR(torus.boundsMax[2], 0.35f, 1e-5f);
+}
+
+TEST(Models, BadModelFilesNameTheFile) {
+  EXPECT_THROW(loadMesh(kModels + "missing.obj"), SceneError);
+  try {
+    loadMesh(kModels + "../FORMAT.md");
+    FAIL() << "a text file loaded as a model";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("FORMAT.md"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
+  const SceneDescription s = parseScene(R"({
+    "objects": [{"model": "../models/cube.obj", "translate": [0, 0, 0.05], "rotate_deg": [0, 0, 90], "scale": 0.1,
+                 "material": {"albedo": [0.9, 0.2, 0.1], "roughness": 0.5}}],
+    "lights": [{"type": "point", "position": [0, 0, 1], "intensity": [5, 5, 5]},
+               {"type": "directional", "direction": [0, 0, -2], "irradiance": [1, 2, 3]}],
+    "ambient_radiance": [0.1, 0.1, 0.1],
+    "technique": "lpv-diff",
+    "lpv": {"resolution": 16, "steps": 8, "rsm_size": 128, "size_factor": 3, "damping": 0.25}
+  })", kScenePath);
+  ASSERT_EQ(s.objects.size(), 1u);
+  EXPECT_NEAR(s.objects[0].mesh.boundsMax[0], 0.05f, 1e-6f);  // scaled
+  EXPECT_NEAR(s.objects[0].T_marker_object(2, 3), 0.05, 1e-12);
+  EXPECT_NEAR(s.objects[0].T_marker_object(1, 0), 1.0, 1e-12);  // 90 deg about z: x -> y
+  EXPECT_EQ(s.objects[0].material.albedo, cv::Vec3f(0.9f, 0.2f, 0.1f));
+  EXPECT_EQ(s.lightSource, LightSource::Scene);
+  ASSERT_EQ(s.lights.size(), 2u);
+  EXPECT_EQ(s.lights[1].type, LightType::Directional);
+  EXPECT_NEAR(s.lights[1].direction[2], -1.0, 1e-12);  // normalised
+  EXPECT_EQ(s.technique, Technique::LpvDiff);
+  EXPECT_EQ(s.lpv.resolution, 16);
+  EXPECT_EQ(s.lpv.rsmSize, 128);
+  EXPECT_DOUBLE_EQ(s.lpv.damping, 0.25);
+  EXPECT_FALSE(s.ambientFromManifest);
+  const SceneDescription empty = parseScene("{}", kScenePath);
+  EXPECT_TRUE(empty.objects.empty());
+  EXPECT_EQ(empty.lightSource, LightSource::Manifest);
+}
+
+TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
+  struct Case {
+    const char* text;
+    const char* expected;
+  };
+  const Case cases[] = {
+      {"{", "not valid JSON"},
+      {R"({"object": []})", "object: unknown key"},
+      {R"({"objects": [{}]})", "objects[0].model: missing"},
+      {R"({"objects": [{"model": "nope.obj"}]})", "objects[0].model:"},
+      {R"({"objects": [{"model": "../models/cube.obj", "scale": -1}]})", "objects[0].scale: value -1 out of range"},
+      {R"({"objects": [{"model": "../models/cube.obj", "material": {"albedo": [1, 2]}}]})",
+       "objects[0].material.albedo: must be an array of 3 numbers"},
+      {R"({"objects": [{"model": "../models/cube.obj", "material": {"albedo": [1, 2, 0]}}]})",
+       "objects[0].material.albedo[1]: value 2 out of range"},
+      {R"({"lights": [{"type": "area"}]})", "lights[0].type: unknown light type 'area'"},
+      {R"({"lights": [{"type": "point", "position": [0, 0, 1]}]})", "lights[0].intensity: missing"},
+      {R"({"lights": [{"type": "directional", "direction": [0, 0, 0], "irradiance": [1, 1, 1]}]})",
+       "lights[0].direction: must not be the zero vector"},
+      {R"({"lights": "sun"})", "lights: must be \"manifest\""},
+      {R"({"technique": "rtx"})", "technique: unknown technique 'rtx'"},
+      {R"({"lpv": {"resolution": 1000}})", "lpv.resolution: value 1000 out of range"},
+      {R"({"lpv": {"steps": 2.5}})", "lpv.steps: must be an integer"},
+  };
+  for (const Case& c : cases) {
+    const std::string e = errorOf(c.text);
+    EXPECT_NE(e.find(kScenePath), std::string::npos) << c.text << " -> " << e;
+    EXPECT_NE(e.find(c.expected), std::string::npos) << c.text << " -> " << e;
+    EXPECT_EQ(e.find('\n'), std::string::npos) << "one line: " << e;
+  }
+}
