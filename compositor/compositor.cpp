@@ -57,14 +57,28 @@ cv::Mat Compositor::composite(const cv::Mat& background, const cv::Mat& delta, c
     }
   }
   delta_.upload(GL_RGBA, GL_FLOAT, delta4.ptr(), 4);
+  return merge(background, delta_);
+}
 
+cv::Mat Compositor::composite(const cv::Mat& background, const gl::Texture& delta, gl::Profiler* profiler) {
+  CV_Assert(background.type() == CV_8UC3 && background.cols == width_ && background.rows == height_);
+  CV_Assert(delta.width() == width_ && delta.height() == height_);
+  std::optional<gl::Profiler::Scope> scope;
+  if (profiler) scope.emplace(*profiler, "composite", true);
+  cv::Mat rgba;
+  cv::cvtColor(background, rgba, cv::COLOR_RGB2RGBA);
+  background_.upload(GL_RGBA, GL_UNSIGNED_BYTE, rgba.ptr(), 4);
+  return merge(background, delta);
+}
+
+cv::Mat Compositor::merge(const cv::Mat&, const gl::Texture& delta) {
   framebuffer_.bind();
   glViewport(0, 0, width_, height_);
   glDisable(GL_DEPTH_TEST);
   glDisable(GL_BLEND);
   program_.use();
   background_.bind(0);
-  delta_.bind(1);
+  delta.bind(1);
   vao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
 

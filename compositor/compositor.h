@@ -22,6 +22,10 @@ class Compositor {
   /// Same contract as compositeReference, on the GPU; returns RGB8. Timed as "composite".
   cv::Mat composite(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask, gl::Profiler* profiler);
 
+  /// Same merge with the delta already on the GPU: RGBA32F, rgb = delta or virtual radiance, a = 1 on
+  /// virtual pixels (lighting::LightingPipeline::shade()).
+  cv::Mat composite(const cv::Mat& background, const gl::Texture& delta, gl::Profiler* profiler);
+
   const gl::Texture& output() const { return output_; }
   /// Draws the last composite into the default framebuffer (window backend), scaled to width x height.
   void present(int width, int height) const;
@@ -32,6 +36,7 @@ class Compositor {
   gl::Texture background_, delta_, output_;
   gl::Framebuffer framebuffer_;
   gl::VertexArray vao_;
+  cv::Mat merge(const cv::Mat& background, const gl::Texture& delta);
 };
 
 }  // namespace mrgi::compositor

@@ -296,3 +296,78 @@ TEST(Cli, LightsFromAnHdrFisheyeImage) {
   expectOneLineError(runMrgi("lights " + small.string() + " --calib " + calib), "calibration");
   fs::remove(png), fs::remove(small);
 }
+
+namespace {
+fs::path writeScene(const std::string& name, const std::string& text) {
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_scenes_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / name) << text;
+  return dir / name;
+}
+const std::string kModels = std::string(MRGI_SOURCE_DIR) + "/recordings/models/";
+}  // namespace
+
+TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
+  const fs::path scene = writeScene("sphere.json", R"({"objects": [{"model": ")" + kModels +
+                                                       R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+      "lights": "manifest", "lpv": {"resolution": 16, "steps": 8, "rsm_size": 128}})");
+  for (const std::string technique : {"dlpv", "lpv-diff"}) {
+    const fs::path out = fs::temp_directory_path() / ("mrgi_cli_dlpv_" + technique + std::to_string(::getpid()));
+    fs::remove_all(out);
+    const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
+                             " --frames 2 --dump-delta --pose ground-truth --technique " + technique);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_NE(r.out.find("frame 2/2:"), std::string::npos) << r.out;  // per-stage timings per frame
+    EXPECT_NE(r.out.find("lpv.propagate"), std::string::npos) << r.out;
+    const cv::Mat delta = cv::imread((out / "delta_0001.exr").string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat mask = cv::imread((out / "mask_0001.png").string(), cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(delta.type(), CV_32FC3);
+    ASSERT_EQ(mask.type(), CV_8UC1);
+    EXPECT_GT(cv::countNonZero(mask == 255), 50);  // the sphere covers pixels
+    EXPECT_EQ(cv::countNonZero(mask != 255 & mask != 0), 0);
+    double lo, hi;
+    cv::minMaxLoc(delta.reshape(1), &lo, &hi);
+    EXPECT_LT(lo, 0.0) << technique;  // its shadow
+    EXPECT_TRUE(std::isfinite(lo) && std::isfinite(hi));
+    // Real pixels: composite = background + delta; virtual pixels differ from the camera image.
+    const cv::Mat composite = cv::imread((out / "frame_0001.png").string());
+    const cv::Mat colour = cv::imread((session() / "colour/000001.png").string());
+    cv::Mat diff;
+    cv::absdiff(composite, colour, diff);
+    cv::Mat diffGrey;
+    cv::cvtColor(diff, diffGrey, cv::COLOR_BGR2GRAY);
+    EXPECT_GT(cv::countNonZero((diffGrey > 10) & (mask == 255)), 20);
+    const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
+    EXPECT_EQ(s["technique"], technique);
+    EXPECT_TRUE(s["stages_ms"].contains("lpv.inject"));
+    fs::remove_all(out);
+  }
+}
+
+TEST(Cli, ReplayWithEmptySceneEqualsTheBackground) {
+  const fs::path scene = writeScene("empty.json", R"({"objects": [], "lights": "manifest"})");
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_empty_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
+                           " --frames 2 --dump-delta");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  for (int i = 0; i < 2; ++i) {
+    const std::string n = std::to_string(i);
+    const cv::Mat composite = cv::imread((out / ("frame_000" + n + ".png")).string());
+    const cv::Mat colour = cv::imread((session() / ("colour/00000" + n + ".png")).string());
+    EXPECT_LE(cv::norm(composite, colour, cv::NORM_INF), 1.0);  // <= 1/255
+    const cv::Mat delta = cv::imread((out / ("delta_000" + n + ".exr")).string(), cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(cv::norm(delta, cv::NORM_INF), 0.0);
+  }
+  fs::remove_all(out);
+}
+
+TEST(Cli, BadSceneFilesAreOneLineErrors) {
+  const std::string base = "replay " + session().string() + " --out /tmp/mrgi_never_written --scene ";
+  expectOneLineError(runMrgi(base + "/nonexistent/scene.json"), "/nonexistent/scene.json: cannot open scene file");
+  expectOneLineError(runMrgi(base + writeScene("typo.json", R"({"objets": []})").string()), "objets: unknown key");
+  expectOneLineError(runMrgi(base + writeScene("nomodel.json", R"({"objects": [{"model": "gone.obj"}]})").string()),
+                     "objects[0].model:");
+  expectOneLineError(runMrgi(base + writeScene("knob.json", R"({"lpv": {"steps": -1}})").string()), "lpv.steps");
+  EXPECT_FALSE(fs::exists("/tmp/mrgi_never_written"));
+}
