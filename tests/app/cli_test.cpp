@@ -363,6 +363,7 @@ TEST(Cli, ReplayWithEmptySceneEqualsTheBackground) {
 }
 
 TEST(Cli, BadSceneFilesAreOneLineErrors) {
+  fs::remove_all("/tmp/mrgi_never_written");
   const std::string base = "replay " + session().string() + " --out /tmp/mrgi_never_written --scene ";
   expectOneLineError(runMrgi(base + "/nonexistent/scene.json"), "/nonexistent/scene.json: cannot open scene file");
   expectOneLineError(runMrgi(base + writeScene("typo.json", R"({"objets": []})").string()), "objets: unknown key");
