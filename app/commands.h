@@ -15,5 +15,6 @@ Action addSynth(CLI::App& app);
 Action addTrack(CLI::App& app);
 Action addCalibrateFisheye(CLI::App& app);
 Action addLights(CLI::App& app);
+Action addImportVisp(CLI::App& app);
 
 }  // namespace mrgi::app

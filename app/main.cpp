@@ -30,6 +30,8 @@ int main(int argc, char** argv) {
       mrgi::app::addLights);
   add("calibrate-fisheye", "Calibrate a fisheye camera from checkerboard images (OpenCV fisheye model)",
       mrgi::app::addCalibrateFisheye);
+  add("import-visp", "Convert a ViSP RGB-D AprilTag sequence (PNG + NPZ depth) into an mrgi session",
+      mrgi::app::addImportVisp);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -5,4 +5,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/install-deps.sh
 bash tools/build.sh
-build/app/mrgi replay recordings/tabletop-synth --out out/replay
+build/app/mrgi replay recordings/tabletop-synth --scene recordings/scenes/tabletop.json --out out/replay
