@@ -23,6 +23,7 @@
 #include "reconstruction/albedo.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
+#include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
 
 namespace fs = std::filesystem;
@@ -53,6 +54,7 @@ struct LightingSetup {
   std::vector<lighting::SceneLight> lights;  ///< marker frame
   cv::Vec3d ambient{0, 0, 0};
   std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
+  std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
 };
 
 capture::Pose poseFromJson(const json& j, const std::string& where) {
@@ -77,6 +79,12 @@ LightingSetup prepareLighting(const ReplayOptions& o, const capture::FrameSource
     setup.T_world_marker = poseFromJson((*gt)["T_world_marker"], o.source + ": ground_truth.T_world_marker");
   if (setup.scene.lightSource == lighting::LightSource::Scene) {
     setup.lights = setup.scene.lights;
+  } else if (setup.scene.lightSource == lighting::LightSource::Fisheye) {
+    if (!session || !session->manifest().fisheye)
+      throw capture::CaptureError(o.scene, "lights: \"fisheye\" but " + o.source + " has no fisheye calibration");
+    setup.fisheye = session->manifest().fisheye;
+    // Lights come from the environment image, which already holds all the room's light: no extra ambient.
+    if (setup.scene.ambientFromManifest) setup.scene.ambientFromManifest = false;
   } else {
     if (!gt || !gt->contains("lights") || !setup.T_world_marker)
       throw capture::CaptureError(o.scene, "lights: \"manifest\" but " + o.source +
@@ -147,6 +155,8 @@ int runReplay(const ReplayOptions& o) {
   gl::Profiler profiler;
 
   std::unique_ptr<lighting::LightingPipeline> pipeline;
+  std::optional<reconstruction::FisheyeRays> fisheyeRays;
+  if (setup && setup->fisheye) fisheyeRays = reconstruction::fisheyeRays(*setup->fisheye);
   std::optional<reconstruction::TagDetector> detector;
   reconstruction::MarkerTrack track;
   if (setup) {
@@ -188,6 +198,27 @@ int runReplay(const ReplayOptions& o) {
       }
       composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
     } else {
+      if (fisheyeRays && frame->fisheye) {
+        // A new environment image: re-estimate the lights (skipped on frames without one).
+        auto s = profiler.cpu("lights");
+        reconstruction::MedianCutOptions mo;
+        mo.count = setup->scene.fisheyeLightCount;
+        mo.varianceSplit = true;
+        auto lights = reconstruction::medianCut(reconstruction::linearRadiance(frame->fisheye->image), *fisheyeRays, mo);
+        const capture::Pose T_world_fisheye = setup->fisheye->T_world_fisheye.value_or(capture::identityPose());
+        const capture::Pose T_marker_world =
+            setup->T_world_marker ? capture::inversePose(*setup->T_world_marker) : capture::identityPose();
+        lights = reconstruction::lightsToWorld(lights, T_marker_world * T_world_fisheye);
+        setup->lights.clear();
+        for (const auto& l : lights) {
+          lighting::SceneLight s;
+          s.type = lighting::LightType::Directional;
+          s.direction = -l.direction;  // from the light into the scene
+          s.irradiance = l.power;
+          setup->lights.push_back(s);
+        }
+        frameInfo["lights_estimated"] = setup->lights.size();
+      }
       // Marker -> camera pose in the lighting world (the marker frame).
       std::optional<capture::Pose> T_marker_camera;
       if (o.pose == "ground-truth" && frame->groundTruthT_world_camera) {

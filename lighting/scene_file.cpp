@@ -163,7 +163,7 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   } catch (const json::parse_error& e) {
     throw SceneError(path, std::string("not valid JSON: ") + e.what());
   }
-  r.allowOnly(doc, "", {"objects", "lights", "ambient_radiance", "technique", "lpv"});
+  r.allowOnly(doc, "", {"objects", "lights", "fisheye_light_count", "ambient_radiance", "technique", "lpv"});
   SceneDescription s;
   s.path = path;
   const fs::path base = fs::path(path).parent_path();
@@ -215,8 +215,8 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
     const json& l = doc["lights"];
     if (l.is_string()) {
       const std::string v = l.get<std::string>();
-      if (v != "manifest") r.fail("lights", "must be \"manifest\" or an array of lights");
-      s.lightSource = LightSource::Manifest;
+      if (v != "manifest" && v != "fisheye") r.fail("lights", "must be \"manifest\", \"fisheye\" or an array of lights");
+      s.lightSource = v == "manifest" ? LightSource::Manifest : LightSource::Fisheye;
     } else if (l.is_array()) {
       s.lightSource = LightSource::Scene;
       for (size_t i = 0; i < l.size(); ++i) {
@@ -249,9 +249,11 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
         s.lights.push_back(light);
       }
     } else {
-      r.fail("lights", "must be \"manifest\" or an array of lights");
+      r.fail("lights", "must be \"manifest\", \"fisheye\" or an array of lights");
     }
   }
+  if (doc.contains("fisheye_light_count"))
+    s.fisheyeLightCount = r.integer(doc["fisheye_light_count"], "fisheye_light_count", 1, 16);
   if (doc.contains("ambient_radiance")) {
     s.ambientRadiance = r.vec3(doc["ambient_radiance"], "ambient_radiance", 0, 1e6);
     s.ambientFromManifest = false;

@@ -58,8 +58,9 @@ struct SceneLight {
   double spotHalfAngleDeg = 45;  ///< spot: cone half angle
 };
 
-/// Where lights come from: listed in the scene file, or the ground truth stored in a session's manifest.
-enum class LightSource { Scene, Manifest };
+/// Where lights come from: listed in the scene file, the ground truth stored in a session's manifest, or
+/// estimated per fisheye frame of the session (solid-angle-weighted median cut -> directional lights).
+enum class LightSource { Scene, Manifest, Fisheye };
 
 enum class Technique { Dlpv, LpvDiff };
 Technique parseTechnique(const std::string& name);  ///< "dlpv" | "lpv-diff"; throws std::invalid_argument
@@ -81,6 +82,7 @@ struct SceneDescription {
   std::vector<VirtualObject> objects;
   LightSource lightSource = LightSource::Manifest;
   std::vector<SceneLight> lights;           ///< for LightSource::Scene
+  int fisheyeLightCount = 16;               ///< for LightSource::Fisheye: median-cut lights (1..16)
   cv::Vec3d ambientRadiance{0, 0, 0};       ///< uniform environment radiance lighting the virtual object (W/m^2/sr)
   bool ambientFromManifest = true;          ///< take ambient from the manifest when it has one
   Technique technique = Technique::Dlpv;

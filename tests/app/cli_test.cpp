@@ -372,3 +372,29 @@ TEST(Cli, BadSceneFilesAreOneLineErrors) {
   expectOneLineError(runMrgi(base + writeScene("knob.json", R"({"lpv": {"steps": -1}})").string()), "lpv.steps");
   EXPECT_FALSE(fs::exists("/tmp/mrgi_never_written"));
 }
+
+TEST(Cli, ReplayEstimatesLightsFromTheSessionFisheye) {
+  const fs::path scene = writeScene("fisheye.json", R"({"objects": [{"model": ")" + kModels +
+                                                        R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+      "lights": "fisheye", "fisheye_light_count": 4, "lpv": {"resolution": 16, "steps": 4, "rsm_size": 64}})");
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_fisheye_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
+                           " --frames 2 --dump-delta --pose ground-truth");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
+  EXPECT_EQ(s["per_frame"][0]["lights_estimated"], 4);  // the session has a fisheye image on frame 0
+  EXPECT_FALSE(s["per_frame"][1].contains("lights_estimated"));  // none on frame 1: lights kept, not re-estimated
+  const cv::Mat delta = cv::imread((out / "delta_0001.exr").string(), cv::IMREAD_UNCHANGED);
+  double lo;
+  cv::minMaxLoc(delta.reshape(1), &lo);
+  EXPECT_LT(lo, 0.0);  // the estimated lights cast a shadow
+  fs::remove_all(out);
+  // A session without a fisheye calibration is a one-line error naming the scene.
+  const fs::path noFisheye = fs::temp_directory_path() / ("mrgi_cli_nofisheye_" + std::to_string(::getpid()));
+  fs::remove_all(noFisheye);
+  ASSERT_EQ(runMrgi("synth --out " + noFisheye.string() + " --frames 1 --width 160 --height 120 --fisheye-every 0").exitCode, 0);
+  expectOneLineError(runMrgi("replay " + noFisheye.string() + " --scene " + scene.string() + " --out " + out.string()),
+                     "has no fisheye calibration");
+  fs::remove_all(noFisheye);
+}
