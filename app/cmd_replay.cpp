@@ -57,13 +57,6 @@ struct LightingSetup {
   std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
 };
 
-capture::Pose poseFromJson(const json& j, const std::string& where) {
-  if (!j.is_array() || j.size() != 16) throw capture::CaptureError(where, "must be 16 numbers (row-major 4x4)");
-  capture::Pose T;
-  for (int i = 0; i < 16; ++i) T(i / 4, i % 4) = j[i].get<double>();
-  return T;
-}
-
 LightingSetup prepareLighting(const ReplayOptions& o, const capture::FrameSource& source) {
   LightingSetup setup;
   setup.scene = lighting::loadScene(o.scene);
@@ -76,7 +69,7 @@ LightingSetup prepareLighting(const ReplayOptions& o, const capture::FrameSource
     setup.tagId = session->manifest().marker->id;
   }
   if (gt && gt->contains("T_world_marker"))
-    setup.T_world_marker = poseFromJson((*gt)["T_world_marker"], o.source + ": ground_truth.T_world_marker");
+    setup.T_world_marker = capture::poseFromJson((*gt)["T_world_marker"], o.source, "ground_truth.T_world_marker");
   if (setup.scene.lightSource == lighting::LightSource::Scene) {
     setup.lights = setup.scene.lights;
   } else if (setup.scene.lightSource == lighting::LightSource::Fisheye) {
@@ -84,7 +77,7 @@ LightingSetup prepareLighting(const ReplayOptions& o, const capture::FrameSource
       throw capture::CaptureError(o.scene, "lights: \"fisheye\" but " + o.source + " has no fisheye calibration");
     setup.fisheye = session->manifest().fisheye;
     // Lights come from the environment image, which already holds all the room's light: no extra ambient.
-    if (setup.scene.ambientFromManifest) setup.scene.ambientFromManifest = false;
+    setup.scene.ambientFromManifest = false;
   } else {
     if (!gt || !gt->contains("lights") || !setup.T_world_marker)
       throw capture::CaptureError(o.scene, "lights: \"manifest\" but " + o.source +
@@ -288,6 +281,11 @@ int runReplay(const ReplayOptions& o) {
         // Marker lost: nothing can be placed; the frame is the background.
         composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
       }
+      cv::Mat shade;  // read back once for both the debug views and the dump
+      if ((o.debug || o.dumpDelta) && T_marker_camera) {
+        auto s = profiler.cpu("readback");
+        shade = pipeline->downloadShade();
+      }
       if (o.debug && T_marker_camera) {
         auto s = profiler.cpu("debug");
         char prefix[32];
@@ -295,13 +293,13 @@ int runReplay(const ReplayOptions& o) {
         const fs::path base = fs::path(o.out) / prefix;
         auto png = [&](const std::string& name, const cv::Mat& img) { writePng(base.string() + name + ".png", img); };
         double scale = 0;
-        const cv::Mat shade = pipeline->downloadShade();
         png("delta", lighting::signedImage(shade, scale));
         frameInfo["debug_delta_scale"] = scale;
-        png("gbuffer_albedo", lighting::linearImage(pipeline->downloadGBuffer(2)));
+        const cv::Mat albedo = pipeline->downloadGBuffer(2);
+        png("gbuffer_albedo", lighting::linearImage(albedo));
         png("gbuffer_normal", lighting::normalImage(pipeline->downloadGBuffer(1)));
         cv::Mat mask;
-        cv::extractChannel(pipeline->downloadGBuffer(2), mask, 3);
+        cv::extractChannel(albedo, mask, 3);
         mask.convertTo(mask, CV_8U, 255);
         png("gbuffer_mask", mask);
         const lighting::RsmTexels rsm = pipeline->downloadRsm(true);
@@ -315,7 +313,7 @@ int runReplay(const ReplayOptions& o) {
       }
       if (o.dumpDelta) {
         auto s = profiler.cpu("dump");
-        cv::Mat shade = T_marker_camera ? pipeline->downloadShade() : cv::Mat(height, width, CV_32FC4, cv::Scalar::all(0));
+        if (shade.empty()) shade = cv::Mat(height, width, CV_32FC4, cv::Scalar::all(0));
         cv::Mat delta(height, width, CV_32FC3), mask(height, width, CV_8UC1);
         for (int y = 0; y < height; ++y)
           for (int x = 0; x < width; ++x) {
@@ -328,7 +326,7 @@ int runReplay(const ReplayOptions& o) {
         std::snprintf(name, sizeof name, "delta_%04lld.exr", static_cast<long long>(done));
         writeExr((fs::path(o.out) / name).string(), delta);
         std::snprintf(name, sizeof name, "mask_%04lld.png", static_cast<long long>(done));
-        capture::writeFileAtomically((fs::path(o.out) / name).string(), capture::encodePng(mask, name));
+        writePng((fs::path(o.out) / name).string(), mask);
       }
     }
     if (context->backend() == gl::Backend::Window) {

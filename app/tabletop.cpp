@@ -83,17 +83,7 @@ capture::Pose orbitCamera(int i, int n) {
   const double a = (n > 1 ? -0.45 + 0.9 * i / (n - 1) : 0.0);  // radians around the tag
   const cv::Vec3d target(0, kTableTop, 0);
   const cv::Vec3d pos(0.85 * std::sin(a), kTableTop + 0.55 + 0.05 * std::sin(3 * a), 0.85 * std::cos(a));
-  const cv::Vec3d fwd = cv::normalize(target - pos);
-  const cv::Vec3d right = cv::normalize(fwd.cross(cv::Vec3d(0, 1, 0)));
-  const cv::Vec3d down = fwd.cross(right);
-  capture::Pose p = capture::Pose::eye();
-  for (int r = 0; r < 3; ++r) {
-    p(r, 0) = right[r];
-    p(r, 1) = down[r];
-    p(r, 2) = fwd[r];
-    p(r, 3) = pos[r];
-  }
-  return p;
+  return capture::lookAtPose(pos, target);
 }
 
 }  // namespace mrgi::app

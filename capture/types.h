@@ -29,12 +29,21 @@ inline Pose makePose(const cv::Matx33d& R, const cv::Vec3d& t) {
   return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1],
           R(2, 0), R(2, 1), R(2, 2), t[2], 0, 0, 0, 1};
 }
-/// T applied to a point (rotation and translation).
 /// The inverse of a rigid transform.
 inline Pose inversePose(const Pose& T) {
   const cv::Matx33d Rt = rotationOf(T).t();
   return makePose(Rt, -(Rt * translationOf(T)));
 }
+/// T_world_camera of a camera at eye looking at target, OpenCV camera frame (x right, y down, z forward),
+/// image x along forward x world-y (world x when looking nearly straight along world y).
+inline Pose lookAtPose(const cv::Vec3d& eye, const cv::Vec3d& target) {
+  const cv::Vec3d z = cv::normalize(target - eye);
+  const cv::Vec3d up = std::abs(z[1]) < 0.9 ? cv::Vec3d(0, 1, 0) : cv::Vec3d(1, 0, 0);
+  const cv::Vec3d x = cv::normalize(z.cross(up));
+  const cv::Vec3d y = z.cross(x);
+  return makePose(cv::Matx33d(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]), eye);
+}
+/// T applied to a point (rotation and translation).
 inline cv::Vec3d transformPoint(const Pose& T, const cv::Vec3d& p) { return rotationOf(T) * p + translationOf(T); }
 
 /// Calibration of a fisheye camera in OpenCV's fisheye (equidistant / Kannala-Brandt) model.

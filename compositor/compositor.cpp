@@ -43,9 +43,6 @@ cv::Mat Compositor::composite(const cv::Mat& background, const cv::Mat& delta, c
   CV_Assert(background.type() == CV_8UC3 && background.cols == width_ && background.rows == height_);
   std::optional<gl::Profiler::Scope> scope;
   if (profiler) scope.emplace(*profiler, "composite", true);
-  cv::Mat rgba;
-  cv::cvtColor(background, rgba, cv::COLOR_RGB2RGBA);
-  background_.upload(GL_RGBA, GL_UNSIGNED_BYTE, rgba.ptr(), 4);
   cv::Mat delta4(height_, width_, CV_32FC4, cv::Scalar(0, 0, 0, 0));
   if (!delta.empty()) {
     CV_Assert(delta.type() == CV_32FC3 && delta.size() == background.size());
@@ -65,13 +62,13 @@ cv::Mat Compositor::composite(const cv::Mat& background, const gl::Texture& delt
   CV_Assert(delta.width() == width_ && delta.height() == height_);
   std::optional<gl::Profiler::Scope> scope;
   if (profiler) scope.emplace(*profiler, "composite", true);
-  cv::Mat rgba;
-  cv::cvtColor(background, rgba, cv::COLOR_RGB2RGBA);
-  background_.upload(GL_RGBA, GL_UNSIGNED_BYTE, rgba.ptr(), 4);
   return merge(background, delta);
 }
 
-cv::Mat Compositor::merge(const cv::Mat&, const gl::Texture& delta) {
+cv::Mat Compositor::merge(const cv::Mat& background, const gl::Texture& delta) {
+  cv::Mat rgba;
+  cv::cvtColor(background, rgba, cv::COLOR_RGB2RGBA);
+  background_.upload(GL_RGBA, GL_UNSIGNED_BYTE, rgba.ptr(), 4);
   framebuffer_.bind();
   glViewport(0, 0, width_, height_);
   glDisable(GL_DEPTH_TEST);

@@ -36,6 +36,7 @@ class Compositor {
   gl::Texture background_, delta_, output_;
   gl::Framebuffer framebuffer_;
   gl::VertexArray vao_;
+  /// Uploads the background and draws the merge with delta (the two composite() overloads' shared tail).
   cv::Mat merge(const cv::Mat& background, const gl::Texture& delta);
 };
 

@@ -80,7 +80,8 @@ cv::Mat volumeSlices(const LpvVolumeCpu& volume, int every, int cellPixels, doub
         const auto& c = volume.at(i, j, k);
         const double l = capture::luminance(cv::Vec3d(c[0][0], c[1][0], c[2][0]));
         const cv::Rect r(s * (res * cellPixels + gap) + i * cellPixels, (res - 1 - j) * cellPixels, cellPixels, cellPixels);
-        out(r).setTo(cv::Scalar(signedColour(l, scale)[0], signedColour(l, scale)[1], signedColour(l, scale)[2]));
+        const cv::Vec3b colour = signedColour(l, scale);
+        out(r).setTo(cv::Scalar(colour[0], colour[1], colour[2]));
       }
   }
   return out;

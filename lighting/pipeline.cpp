@@ -63,15 +63,6 @@ cv::Matx44d orthographicProjection(double h, double n, double f) {
           0, 0, 0, 1};
 }
 
-cv::Matx44d lookAtView(const cv::Vec3d& eye, const cv::Vec3d& target) {
-  cv::Vec3d z = cv::normalize(target - eye);
-  cv::Vec3d up = std::abs(z[1]) < 0.9 ? cv::Vec3d(0, 1, 0) : cv::Vec3d(1, 0, 0);
-  cv::Vec3d x = cv::normalize(z.cross(up));
-  cv::Vec3d y = z.cross(x);
-  cv::Matx33d R(x[0], x[1], x[2], y[0], y[1], y[2], z[0], z[1], z[2]);  // rows: camera axes in world
-  return capture::makePose(R, -(R * eye));
-}
-
 std::array<float, 16> toGl(const cv::Matx44d& m) {
   std::array<float, 16> out;
   for (int c = 0; c < 4; ++c)
@@ -86,7 +77,8 @@ LightView fitLightView(const SceneLight& light, const LpvGrid& grid, int size) {
   if (light.type == LightType::Directional) {
     const double back = 4.0 * radius;  // room for occluders in front of the volume
     const cv::Vec3d eye = centre - light.direction * back;
-    v.viewProj = orthographicProjection(radius, 0.0, back + radius) * lookAtView(eye, centre);
+    v.viewProj = orthographicProjection(radius, 0.0, back + radius) *
+                 capture::inversePose(capture::lookAtPose(eye, centre));
     const double texel = 2.0 * radius / size;
     v.texelArea = texel * texel;
     v.shadowBias = 2.0 * texel;
@@ -99,7 +91,8 @@ LightView fitLightView(const SceneLight& light, const LpvGrid& grid, int size) {
     k.width = k.height = size;
     k.fx = k.fy = v.focalPixels;
     k.cx = k.cy = 0.5 * size - 0.5;
-    v.viewProj = projectionFromIntrinsics(k, std::max(1e-3, 0.01 * dist), dist + radius) * lookAtView(light.position, centre);
+    v.viewProj = projectionFromIntrinsics(k, std::max(1e-3, 0.01 * dist), dist + radius) *
+                 capture::inversePose(capture::lookAtPose(light.position, centre));
     v.shadowBias = 2.0 * (dist + radius) / v.focalPixels;
   }
   return v;
@@ -119,6 +112,9 @@ void setMat3(const gl::Program& p, const std::string& name, const cv::Matx33f& m
     for (int r = 0; r < 3; ++r) cm[c * 3 + r] = m(r, c);
   glProgramUniformMatrix3fv(p.id(), p.location(name), 1, GL_FALSE, cm);
 }
+
+/// uLightType of the shaders: 0 point, 1 spot, 2 directional.
+int shaderLightType(LightType t) { return t == LightType::Point ? 0 : t == LightType::Spot ? 1 : 2; }
 
 void setVec3(const gl::Program& p, const std::string& name, const cv::Vec3d& v) {
   p.set(name, static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
@@ -221,7 +217,7 @@ void LightingPipeline::renderRsm(Rsm& rsm, const SceneLight& light, const LightV
   const float one = 1.0f;
   glClearNamedFramebufferfv(rsm.fb.id(), GL_DEPTH, 0, &one);
   const gl::Program& p = rsmProgram_;
-  p.set("uLightType", light.type == LightType::Point ? 0 : light.type == LightType::Spot ? 1 : 2);
+  p.set("uLightType", shaderLightType(light.type));
   setVec3(p, "uLightPosition", light.position);
   setVec3(p, "uLightDirection", light.direction);
   setVec3(p, "uLightPower", light.type == LightType::Directional ? light.irradiance : light.intensity);
@@ -246,7 +242,7 @@ void LightingPipeline::inject(Volume& target, const Rsm& source, const Rsm* othe
   p.set("uSign", sign);
   p.set("uMode", static_cast<int>(mode));
   p.set("uSkipIdentical", other ? 1 : 0);
-  p.set("uLightType", light.type == LightType::Point ? 0 : light.type == LightType::Spot ? 1 : 2);
+  p.set("uLightType", shaderLightType(light.type));
   setVec3(p, "uLightPosition", light.position);
   setVec3(p, "uLightDirection", light.direction);
   setVec3(p, "uGridOrigin", g.origin);
@@ -449,7 +445,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   for (size_t i = 0; i < lights.size(); ++i) {
     const std::string k = "[" + std::to_string(i) + "]";
     const SceneLight& l = lights[i];
-    p.set("uLightType" + k, l.type == LightType::Point ? 0 : l.type == LightType::Spot ? 1 : 2);
+    p.set("uLightType" + k, shaderLightType(l.type));
     setVec3(p, "uLightPosition" + k, l.position);
     setVec3(p, "uLightDirection" + k, l.direction);
     setVec3(p, "uLightPower" + k, l.type == LightType::Directional ? l.irradiance : l.intensity);

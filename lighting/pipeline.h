@@ -51,8 +51,6 @@ void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& alb
 /// framebuffer rows come back in cv::Mat order.
 cv::Matx44d projectionFromIntrinsics(const capture::Intrinsics& k, double nearPlane, double farPlane);
 cv::Matx44d orthographicProjection(double halfExtent, double nearPlane, double farPlane);
-/// T_camera_world of a camera at eye looking at target (OpenCV frame).
-cv::Matx44d lookAtView(const cv::Vec3d& eye, const cv::Vec3d& target);
 std::array<float, 16> toGl(const cv::Matx44d& m);
 
 /// How one light sees the volume: perspective for point/spot lights (frustum around the volume's

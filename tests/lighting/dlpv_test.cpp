@@ -68,10 +68,27 @@ TestScene makeScene(bool wall, double cube, cv::Vec3d at) {
   return s;
 }
 
+/// G-buffer size, volume resolution and RSM size of a test; the other knobs keep their defaults.
+PipelineConfig testConfig(int width, int height, int resolution, int rsmSize) {
+  PipelineConfig cfg;
+  cfg.width = width;
+  cfg.height = height;
+  cfg.lpv.resolution = resolution;
+  cfg.lpv.rsmSize = rsmSize;
+  return cfg;
+}
+
+/// A pipeline over the scene's virtual objects with its real mesh set.
+LightingPipeline makePipeline(const PipelineConfig& cfg, const TestScene& s) {
+  LightingPipeline pipe(cfg, s.objects);
+  pipe.setRealMesh(s.vertices, s.indices);
+  return pipe;
+}
+
 CameraView topCamera(int w, int h) {
   CameraView c;
   c.intrinsics = {w, h, 0.9 * w, 0.9 * w, 0.5 * w - 0.5, 0.5 * h - 0.5};
-  c.T_world_camera = capture::inversePose(lookAtView({0.0, -0.25, 1.6}, {0, 0, 0}));
+  c.T_world_camera = capture::lookAtPose({0.0, -0.25, 1.6}, {0, 0, 0});
   return c;
 }
 
@@ -186,15 +203,10 @@ TEST(Lpv, FitGridIsCentredAndSizedToTheObject) {
 TEST(GL, DlpvWithoutVirtualObjectIsExactlyZero) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.0, {});
-  PipelineConfig cfg;
-  cfg.width = 96;
-  cfg.height = 72;
-  cfg.lpv.resolution = 16;
-  cfg.lpv.rsmSize = 64;
+  PipelineConfig cfg = testConfig(96, 72, 16, 64);
   cfg.lpv.steps = 8;
   cfg.fixedGrid = fitGrid({-0.1, -0.1, 0.0}, {0.1, 0.1, 0.2}, 4.0, 16);
-  LightingPipeline pipe(cfg, s.objects);
-  pipe.setRealMesh(s.vertices, s.indices);
+  LightingPipeline pipe = makePipeline(cfg, s);
   pipe.run(topCamera(96, 72), {pointAbove(), sunDown()}, {0, 0, 0}, nullptr);
   EXPECT_EQ(maxAbs(pipe.downloadVolume("delta")), 0.0f);
   EXPECT_GT(maxAbs(pipe.downloadVolume("rho")), 0.0f);  // the real scene still bounces light
@@ -208,17 +220,12 @@ TEST(GL, DlpvWithoutVirtualObjectIsExactlyZero) {
 TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
-  PipelineConfig cfg;
-  cfg.width = 96;
-  cfg.height = 72;
-  cfg.lpv.resolution = 16;
-  cfg.lpv.rsmSize = 64;
+  PipelineConfig cfg = testConfig(96, 72, 16, 64);
   cfg.lpv.steps = 6;
   cfg.lpv.directSteps = 2;
   cfg.lpv.damping = 0.5;
   for (const SceneLight& light : {pointAbove(), sunDown()}) {
-    LightingPipeline pipe(cfg, s.objects);
-    pipe.setRealMesh(s.vertices, s.indices);
+    LightingPipeline pipe = makePipeline(cfg, s);
     pipe.run(topCamera(96, 72), {light}, {0, 0, 0}, nullptr);
     const LpvGrid g = *pipe.grid();
     const RsmTexels rho = pipe.downloadRsm(true), mu = pipe.downloadRsm(false);
@@ -293,11 +300,7 @@ TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
   const double cube = 0.16;
   const cv::Vec3d centre(0.0, 0.0, 0.2);
   TestScene s = makeScene(false, cube, centre);
-  PipelineConfig cfg;
-  cfg.width = 160;
-  cfg.height = 120;
-  cfg.lpv.resolution = 32;
-  cfg.lpv.rsmSize = 256;
+  PipelineConfig cfg = testConfig(160, 120, 32, 256);
   cfg.lpv.steps = 8;
   const double E = 10.0;
   struct Result {
@@ -307,8 +310,7 @@ TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
   for (auto [damping, directSteps] : {std::pair{0.0, 0}, {0.0, 1}, {0.0, 2}, {0.5, 1}, {0.5, 2}, {1.0, 1}, {1.0, 2}, {1.0, 4}}) {
     cfg.lpv.damping = damping;
     cfg.lpv.directSteps = directSteps;
-    LightingPipeline pipe(cfg, s.objects);
-    pipe.setRealMesh(s.vertices, s.indices);
+    LightingPipeline pipe = makePipeline(cfg, s);
     SceneLight sun = sunDown(E);
     sun.direction = {0.6, 0.0, -0.8};  // oblique, so the camera above sees the shadow beside the cube
     pipe.run(topCamera(160, 120), {sun}, {0, 0, 0}, nullptr);
@@ -355,17 +357,12 @@ TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
 TEST(GL, WhiteObjectNextToRedWallReceivesRedBounce) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.2, {-0.3, 0.0, 0.1});  // its -x face 0.1 m from the red wall
-  PipelineConfig cfg;
-  cfg.width = 96;
-  cfg.height = 72;
-  cfg.lpv.resolution = 32;
-  cfg.lpv.rsmSize = 128;
+  PipelineConfig cfg = testConfig(96, 72, 32, 128);
   cfg.lpv.steps = 8;
   SceneLight light;  // above the gap between wall and cube, so the wall next to the cube is lit
   light.position = {-0.1, 0.0, 1.0};
   light.intensity = {4, 4, 4};
-  LightingPipeline pipe(cfg, s.objects);
-  pipe.setRealMesh(s.vertices, s.indices);
+  LightingPipeline pipe = makePipeline(cfg, s);
   pipe.run(topCamera(96, 72), {light}, {0, 0, 0}, nullptr);
   const LpvVolumeCpu rho = pipe.downloadVolume("rho");
   const cv::Vec3f wallSide = irradianceReference(*pipe.grid(), rho, {-0.4f, 0.0f, 0.1f}, {-1, 0, 0});
@@ -381,16 +378,11 @@ TEST(GL, WhiteObjectNextToRedWallReceivesRedBounce) {
 TEST(GL, EveryFrameStartsFromAClearedVolume) {
   auto ctx = makeContext();
   TestScene s = makeScene(false, 0.2, {0.0, 0.0, 0.2});
-  PipelineConfig cfg;
-  cfg.width = 64;
-  cfg.height = 48;
-  cfg.lpv.resolution = 16;
-  cfg.lpv.rsmSize = 64;
+  PipelineConfig cfg = testConfig(64, 48, 16, 64);
   cfg.fixedGrid = fitGrid({-0.1, -0.1, 0.1}, {0.1, 0.1, 0.3}, 4.0, 16);
   for (int steps : {0, 4}) {
     cfg.lpv.steps = steps;
-    LightingPipeline pipe(cfg, s.objects);
-    pipe.setRealMesh(s.vertices, s.indices);
+    LightingPipeline pipe = makePipeline(cfg, s);
     pipe.run(topCamera(64, 48), {sunDown()}, {0, 0, 0}, nullptr);
     ASSERT_GT(maxAbs(pipe.downloadVolume("delta")), 0.0f);
     // The object leaves the light's view (far below the floor): the next frame must hold nothing.
@@ -405,16 +397,11 @@ TEST(GL, GBufferMaskAndOcclusionBothWays) {
   TestScene s = makeScene(false, 0.2, {0.0, 0.0, 0.1});
   // A real vertical panel between the camera (at y = -0.25, looking down) and the cube's left half.
   addQuad(s.vertices, s.indices, {-0.3f, -0.15f, 0.0f}, {0.3f, 0, 0}, {0, 0, 0.6f}, kRed, 4);
-  PipelineConfig cfg;
-  cfg.width = 120;
-  cfg.height = 90;
-  cfg.lpv.resolution = 8;
-  cfg.lpv.rsmSize = 32;
-  LightingPipeline pipe(cfg, s.objects);
-  pipe.setRealMesh(s.vertices, s.indices);
+  PipelineConfig cfg = testConfig(120, 90, 8, 32);
+  LightingPipeline pipe = makePipeline(cfg, s);
   CameraView cam;
   cam.intrinsics = {120, 90, 100, 100, 59.5, 44.5};
-  cam.T_world_camera = capture::inversePose(lookAtView({0.0, -1.2, 0.4}, {0, 0, 0.1}));
+  cam.T_world_camera = capture::lookAtPose({0.0, -1.2, 0.4}, {0, 0, 0.1});
   pipe.run(cam, {sunDown()}, {0, 0, 0}, nullptr);
   const cv::Mat pos = pipe.downloadGBuffer(0), alb = pipe.downloadGBuffer(2);
   // Project the cube centre and check the pixel is virtual only on the right (panel covers x < 0).
@@ -437,14 +424,9 @@ TEST(GL, GBufferMaskAndOcclusionBothWays) {
 TEST(GL, RsmCarriesTheLightsFlux) {
   auto ctx = makeContext();
   TestScene s = makeScene(false, 0.2, {0.0, 0.0, 0.1});
-  PipelineConfig cfg;
-  cfg.width = 32;
-  cfg.height = 32;
-  cfg.lpv.resolution = 16;
-  cfg.lpv.rsmSize = 128;
+  PipelineConfig cfg = testConfig(32, 32, 16, 128);
   cfg.lpv.sizeFactor = 2.0;
-  LightingPipeline pipe(cfg, s.objects);
-  pipe.setRealMesh(s.vertices, s.indices);
+  LightingPipeline pipe = makePipeline(cfg, s);
   {  // Directional: every texel sees floor or cube, sum of flux through texels = E x the map's area.
     pipe.run(topCamera(32, 32), {sunDown(10.0)}, {0, 0, 0}, nullptr);
     const RsmTexels r = pipe.downloadRsm(true);
@@ -471,15 +453,10 @@ TEST(GL, RsmCarriesTheLightsFlux) {
 TEST(GL, VirtualPixelIsDirectPlusIndirectTimesAlbedo) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
-  PipelineConfig cfg;
-  cfg.width = 96;
-  cfg.height = 72;
-  cfg.lpv.resolution = 16;
-  cfg.lpv.rsmSize = 128;
+  PipelineConfig cfg = testConfig(96, 72, 16, 128);
   const SceneLight light = pointAbove();
   const cv::Vec3d ambient(0.02, 0.03, 0.04);
-  LightingPipeline pipe(cfg, s.objects);
-  pipe.setRealMesh(s.vertices, s.indices);
+  LightingPipeline pipe = makePipeline(cfg, s);
   pipe.run(topCamera(96, 72), {light}, ambient, nullptr);
   const cv::Mat pos = pipe.downloadGBuffer(0), nrm = pipe.downloadGBuffer(1), alb = pipe.downloadGBuffer(2);
   const cv::Mat shade = pipe.downloadShade(), irr = pipe.downloadIrradiance();
@@ -509,14 +486,9 @@ TEST(GL, VirtualPixelIsDirectPlusIndirectTimesAlbedo) {
 TEST(GL, GoldenCompositeOfTheTestScene) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.2, {-0.25, 0.05, 0.1});
-  PipelineConfig cfg;
-  cfg.width = 96;
-  cfg.height = 72;
-  cfg.lpv.resolution = 16;
-  cfg.lpv.rsmSize = 128;
+  PipelineConfig cfg = testConfig(96, 72, 16, 128);
   cfg.lpv.steps = 8;
-  LightingPipeline pipe(cfg, s.objects);
-  pipe.setRealMesh(s.vertices, s.indices);
+  LightingPipeline pipe = makePipeline(cfg, s);
   pipe.run(topCamera(96, 72), {pointAbove()}, {0.02, 0.02, 0.02}, nullptr);
   compositor::Compositor comp(96, 72);
   const cv::Mat background(72, 96, CV_8UC3, cv::Scalar(150, 150, 150));
