@@ -10,21 +10,16 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/commands.h"
+#include "app/frame_pipeline.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
-#include "capture/registration.h"
 #include "compositor/compositor.h"
 #include "gl/context.h"
 #include "capture/session.h"
 #include "lighting/debug_views.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
-#include "reconstruction/albedo.h"
-#include "reconstruction/depth.h"
-#include "reconstruction/depth_filter.h"
-#include "reconstruction/light_estimation.h"
-#include "reconstruction/marker.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -44,64 +39,6 @@ struct ReplayOptions {
   std::string pose = "marker";
   int meshStride = 2;
 };
-
-/// What the lighting path needs besides the frames: the scene, the marker and the lights.
-struct LightingSetup {
-  lighting::SceneDescription scene;
-  std::string tagFamily = "tag36h11";
-  double tagSize = 0.16;
-  int tagId = -1;
-  std::vector<lighting::SceneLight> lights;  ///< marker frame
-  cv::Vec3d ambient{0, 0, 0};
-  std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
-  std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
-};
-
-LightingSetup prepareLighting(const ReplayOptions& o, const capture::FrameSource& source) {
-  LightingSetup setup;
-  setup.scene = lighting::loadScene(o.scene);
-  if (!o.technique.empty()) setup.scene.technique = lighting::parseTechnique(o.technique);
-  const auto* session = dynamic_cast<const capture::SessionSource*>(&source);
-  const json* gt = session && session->manifest().groundTruth.is_object() ? &session->manifest().groundTruth : nullptr;
-  if (session && session->manifest().marker) {
-    setup.tagFamily = session->manifest().marker->family;
-    setup.tagSize = session->manifest().marker->sizeMetres;
-    setup.tagId = session->manifest().marker->id;
-  }
-  if (gt && gt->contains("T_world_marker"))
-    setup.T_world_marker = capture::poseFromJson((*gt)["T_world_marker"], o.source, "ground_truth.T_world_marker");
-  if (setup.scene.lightSource == lighting::LightSource::Scene) {
-    setup.lights = setup.scene.lights;
-  } else if (setup.scene.lightSource == lighting::LightSource::Fisheye) {
-    if (!session || !session->manifest().fisheye)
-      throw capture::CaptureError(o.scene, "lights: \"fisheye\" but " + o.source + " has no fisheye calibration");
-    setup.fisheye = session->manifest().fisheye;
-    // Lights come from the environment image, which already holds all the room's light: no extra ambient.
-    setup.scene.ambientFromManifest = false;
-  } else {
-    if (!gt || !gt->contains("lights") || !setup.T_world_marker)
-      throw capture::CaptureError(o.scene, "lights: \"manifest\" but " + o.source +
-                                               " has no ground-truth lights; list the lights in the scene file");
-    const capture::Pose T_marker_world = capture::inversePose(*setup.T_world_marker);
-    for (const json& l : (*gt)["lights"]) {
-      if (l.value("type", "") != "point") continue;
-      lighting::SceneLight s;
-      s.type = lighting::LightType::Point;
-      const auto p = l.at("position"), i = l.at("intensity_w_sr");
-      s.position = capture::transformPoint(T_marker_world, {p[0].get<double>(), p[1].get<double>(), p[2].get<double>()});
-      s.intensity = {i[0].get<double>(), i[1].get<double>(), i[2].get<double>()};
-      setup.lights.push_back(s);
-    }
-  }
-  setup.ambient = setup.scene.ambientRadiance;
-  if (setup.scene.ambientFromManifest && gt && gt->contains("scene") && (*gt)["scene"].contains("ambient_radiance")) {
-    const auto a = (*gt)["scene"]["ambient_radiance"];
-    setup.ambient = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
-  }
-  if (o.pose == "ground-truth" && !setup.T_world_marker)
-    throw capture::CaptureError(o.source, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
-  return setup;
-}
 
 void writeExr(const std::string& path, const cv::Mat& rgb) {
   cv::Mat bgr;
@@ -135,7 +72,11 @@ int runReplay(const ReplayOptions& o) {
   const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
   // A bad scene file stops here, before anything is written.
   std::optional<LightingSetup> setup;
-  if (!o.scene.empty()) setup = prepareLighting(o, *source);
+  if (!o.scene.empty()) {
+    lighting::SceneDescription scene = lighting::loadScene(o.scene);
+    if (!o.technique.empty()) scene.technique = lighting::parseTechnique(o.technique);
+    setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose);
+  }
   prepareOutputDirectory(o.out);
 
   gl::ContextConfig cfg;
@@ -147,22 +88,12 @@ int runReplay(const ReplayOptions& o) {
   compositor::Compositor compositor(width, height);
   gl::Profiler profiler;
 
-  std::unique_ptr<lighting::LightingPipeline> pipeline;
-  std::optional<reconstruction::FisheyeRays> fisheyeRays;
-  if (setup && setup->fisheye) fisheyeRays = reconstruction::fisheyeRays(*setup->fisheye);
-  std::optional<reconstruction::TagDetector> detector;
-  reconstruction::MarkerTrack track;
-  if (setup) {
-    lighting::PipelineConfig pc;
-    pc.width = width;
-    pc.height = height;
-    pc.technique = setup->scene.technique;
-    pc.lpv = setup->scene.lpv;
-    pipeline = std::make_unique<lighting::LightingPipeline>(pc, setup->scene.objects);
-    reconstruction::DetectorOptions dopt;
-    dopt.family = setup->tagFamily;
-    detector.emplace(dopt);
-  }
+  FrameOptions fo;
+  fo.pose = o.pose;
+  fo.meshStride = o.meshStride;
+  const lighting::Technique technique = setup ? setup->scene.technique : lighting::Technique::Dlpv;
+  FramePipeline frames(std::move(setup), width, height, fo);
+  lighting::LightingPipeline* pipeline = frames.lighting();
 
   const int64_t total = info.frameCount ? *info.frameCount : -1;
   const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
@@ -177,116 +108,16 @@ int runReplay(const ReplayOptions& o) {
       frame = source->next();
     }
     if (!frame) break;
-    capture::RgbdFrame& rgbd = *frame->rgbd;
-    if (!rgbd.depthRegistered) {
-      auto s = profiler.cpu("register");
-      capture::ensureRegistered(rgbd);
-    }
-    json frameInfo;
-    cv::Mat composite;
-    if (!pipeline) {
-      {
-        auto s = profiler.cpu("normals");
-        reconstruction::computeNormals(reconstruction::backProject(rgbd.depth, rgbd.depthIntrinsics));
-      }
-      composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
-    } else {
-      if (fisheyeRays && frame->fisheye) {
-        // A new environment image: re-estimate the lights (skipped on frames without one).
-        auto s = profiler.cpu("lights");
-        reconstruction::MedianCutOptions mo;
-        mo.count = setup->scene.fisheyeLightCount;
-        mo.varianceSplit = true;
-        auto lights = reconstruction::medianCut(reconstruction::linearRadiance(frame->fisheye->image), *fisheyeRays, mo);
-        const capture::Pose T_world_fisheye = setup->fisheye->T_world_fisheye.value_or(capture::identityPose());
-        const capture::Pose T_marker_world =
-            setup->T_world_marker ? capture::inversePose(*setup->T_world_marker) : capture::identityPose();
-        lights = reconstruction::lightsToWorld(lights, T_marker_world * T_world_fisheye);
-        setup->lights.clear();
-        for (const auto& l : lights) {
-          lighting::SceneLight s;
-          s.type = lighting::LightType::Directional;
-          s.direction = -l.direction;  // from the light into the scene
-          s.irradiance = l.power;
-          setup->lights.push_back(s);
-        }
-        frameInfo["lights_estimated"] = setup->lights.size();
-      }
-      // Marker -> camera pose in the lighting world (the marker frame).
-      std::optional<capture::Pose> T_marker_camera;
-      if (o.pose == "ground-truth" && frame->groundTruthT_world_camera) {
-        T_marker_camera = capture::inversePose(*setup->T_world_marker) * *frame->groundTruthT_world_camera;
-        frameInfo["marker"] = "ground-truth";
-      } else {
-        auto s = profiler.cpu("marker");
-        std::optional<capture::Pose> measured;
-        for (const auto& d : detector->detect(rgbd.colour)) {
-          if (setup->tagId >= 0 && d.id != setup->tagId) continue;
-          auto pose = reconstruction::estimateTagPose(d, setup->tagSize, rgbd.colourIntrinsics, {}, track.lastMeasured());
-          if (pose) {
-            measured = pose->T_camera_tag;
-            break;
-          }
-        }
-        const auto status = track.update(frame->timestamp, measured);
-        frameInfo["marker"] = reconstruction::toString(status);
-        if (status != reconstruction::TrackStatus::Lost && track.pose()) T_marker_camera = capture::inversePose(*track.pose());
-      }
-      cv::Mat depth, positions, normals;
-      {
-        auto s = profiler.cpu("depth_filter");
-        reconstruction::DepthFilterOptions fo;
-        const cv::Mat guide = reconstruction::guideFromColour(rgbd.colour);
-        depth = reconstruction::guidedFilterDepth(rgbd.depth, guide,
-                                                  reconstruction::filterRadiusPixels(rgbd.depth, rgbd.colourIntrinsics, fo), fo);
-      }
-      {
-        auto s = profiler.cpu("normals");
-        positions = reconstruction::backProject(depth, rgbd.colourIntrinsics);
-        normals = reconstruction::computeNormals(positions);
-      }
-      if (T_marker_camera) {
-        const capture::Pose T_camera_marker = capture::inversePose(*T_marker_camera);
-        cv::Mat albedo;
-        {
-          auto s = profiler.cpu("albedo");
-          reconstruction::AlbedoLights al;
-          for (const auto& l : setup->lights) {
-            if (l.type == lighting::LightType::Directional) {
-              reconstruction::EstimatedLight e;
-              e.direction = -(capture::rotationOf(T_camera_marker) * l.direction);
-              e.power = l.irradiance;
-              al.distant.push_back(e);
-            } else {
-              al.points.push_back({capture::transformPoint(T_camera_marker, l.position), l.intensity});
-            }
-          }
-          al.ambientIrradiance = CV_PI * setup->ambient;
-          albedo = reconstruction::estimateAlbedo(rgbd.colour, positions, normals, rgbd.colourIntrinsics, al).albedo;
-        }
-        {
-          auto s = profiler.cpu("mesh");
-          const auto mesh = reconstruction::buildDepthMesh(positions, normals, o.meshStride);
-          std::vector<lighting::MeshVertex> vertices;
-          std::vector<uint32_t> indices;
-          lighting::buildRealVertices(mesh, albedo, *T_marker_camera, vertices, indices);
-          pipeline->setRealMesh(vertices, indices);
-        }
-        lighting::CameraView view;
-        view.intrinsics = rgbd.colourIntrinsics;
-        view.T_world_camera = *T_marker_camera;
-        pipeline->run(view, setup->lights, setup->ambient, &profiler);
-        composite = compositor.composite(rgbd.colour, pipeline->shade(), &profiler);
-      } else {
-        // Marker lost: nothing can be placed; the frame is the background.
-        composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
-      }
+    FrameResult result = frames.process(*frame, compositor, profiler);
+    json frameInfo = result.info;
+    const cv::Mat& composite = result.composite;
+    if (pipeline) {
       cv::Mat shade;  // read back once for both the debug views and the dump
-      if ((o.debug || o.dumpDelta) && T_marker_camera) {
+      if ((o.debug || o.dumpDelta) && result.lit) {
         auto s = profiler.cpu("readback");
         shade = pipeline->downloadShade();
       }
-      if (o.debug && T_marker_camera) {
+      if (o.debug && result.lit) {
         auto s = profiler.cpu("debug");
         char prefix[32];
         std::snprintf(prefix, sizeof prefix, "debug_%04lld_", static_cast<long long>(done));
@@ -307,7 +138,7 @@ int runReplay(const ReplayOptions& o) {
         png("rsm_flux", lighting::signedImage(rsm.flux, rsmScale));
         png("rsm_normal", lighting::normalImage(rsm.normal));
         double volScale = 0;
-        const auto vol = pipeline->downloadVolume(setup->scene.technique == lighting::Technique::Dlpv ? "delta" : "rho_full");
+        const auto vol = pipeline->downloadVolume(technique == lighting::Technique::Dlpv ? "delta" : "rho_full");
         png("dlpv_slices", lighting::volumeSlices(vol, 4, 4, volScale));
         frameInfo["debug_volume_scale"] = volScale;
       }
@@ -372,7 +203,7 @@ int runReplay(const ReplayOptions& o) {
   json mean;
   for (const auto& [name, s] : sums) mean[name] = {{"cpu_ms", s.first / done}, {"gpu_ms", s.second / done}};
   summary["stages_ms"] = mean;
-  if (setup) {
+  if (const LightingSetup* setup = frames.setup()) {
     summary["scene"] = o.scene;
     summary["technique"] = lighting::techniqueName(setup->scene.technique);
     const auto& k = setup->scene.lpv;

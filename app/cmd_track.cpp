@@ -104,12 +104,8 @@ int runTrack(const TrackOptions& o) {
       if (wantedId >= 0 && d.id != wantedId) continue;
       auto it = tracks.find(d.id);
       const capture::Pose* previous = it != tracks.end() ? it->second.lastMeasured() : nullptr;
-      std::optional<std::pair<cv::Vec3d, cv::Vec3d>> plane;
-      if (!depth.empty()) plane = reconstruction::fitTagPlane(d, depth, f.colourIntrinsics);
-      auto pose = reconstruction::estimateTagPose(d, size, f.colourIntrinsics, {}, previous,
-                                                  plane ? &plane->first : nullptr);
+      const auto pose = reconstruction::measureTagPose(d, size, f.colourIntrinsics, depth, previous);
       if (!pose) continue;
-      if (plane) *pose = reconstruction::refinePoseWithDepth(*pose, *plane);
       measured.emplace(d.id, std::make_pair(d, *pose));
       tracks.try_emplace(d.id, reconstruction::MarkerTrack(topt));
     }

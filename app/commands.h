@@ -16,5 +16,6 @@ Action addTrack(CLI::App& app);
 Action addCalibrateFisheye(CLI::App& app);
 Action addLights(CLI::App& app);
 Action addImportVisp(CLI::App& app);
+Action addInsert(CLI::App& app);
 
 }  // namespace mrgi::app

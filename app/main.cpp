@@ -32,6 +32,8 @@ int main(int argc, char** argv) {
       mrgi::app::addCalibrateFisheye);
   add("import-visp", "Convert a ViSP RGB-D AprilTag sequence (PNG + NPZ depth) into an mrgi session",
       mrgi::app::addImportVisp);
+  add("insert", "Place a virtual object relative to the marker (optionally snapped onto the table plane) and save it into a scene file",
+      mrgi::app::addInsert);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -12,7 +12,8 @@ layout(location = 1) out vec4 outNormal;    // xyz unit world normal towards the
 layout(location = 2) out vec4 outAlbedo;    // rgb albedo, a = 1 on virtual surfaces
 
 void main() {
-  vec3 n = normalize(vNormal);
+  // A degenerate interpolated normal (opposite vertex normals) faces the camera instead of becoming NaN.
+  vec3 n = dot(vNormal, vNormal) > 1e-20 ? normalize(vNormal) : normalize(uEye - vPosition);
   if (dot(n, uEye - vPosition) < 0.0) n = -n;
   outPosition = vec4(vPosition, 1.0);
   outNormal = vec4(n, 1.0);

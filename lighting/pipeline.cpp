@@ -31,11 +31,29 @@ void GpuMesh::draw() const {
 void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo, const capture::Pose& T_world_camera,
                        std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices) {
   const cv::Matx33d R = capture::rotationOf(T_world_camera);
+  // Vertices whose depth normal is unknown (isolated samples, edges) take the area-weighted normal of their
+  // triangles, turned towards the camera; a zero normal would shade as NaN.
+  std::vector<cv::Vec3f> normals = mesh.normals;
+  std::vector<cv::Vec3f> faceSum(mesh.positions.size(), cv::Vec3f(0, 0, 0));
+  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+    const uint32_t a = mesh.indices[t], b = mesh.indices[t + 1], c = mesh.indices[t + 2];
+    const cv::Vec3f f = (mesh.positions[b] - mesh.positions[a]).cross(mesh.positions[c] - mesh.positions[a]);
+    for (uint32_t i : {a, b, c}) faceSum[i] += f;
+  }
+  for (size_t i = 0; i < normals.size(); ++i) {
+    if (normals[i] != cv::Vec3f(0, 0, 0)) continue;
+    cv::Vec3f n = faceSum[i];
+    const float len = static_cast<float>(cv::norm(n));
+    if (!(len > 0)) n = -mesh.positions[i];  // no triangle: face the camera
+    n = cv::normalize(n);
+    if (n.dot(mesh.positions[i]) > 0) n = -n;
+    normals[i] = n;
+  }
   vertices.resize(mesh.positions.size());
   for (size_t i = 0; i < mesh.positions.size(); ++i) {
     MeshVertex& v = vertices[i];
     v.position = cv::Vec3f(capture::transformPoint(T_world_camera, cv::Vec3d(mesh.positions[i])));
-    v.normal = cv::Vec3f(R * cv::Vec3d(mesh.normals[i]));
+    v.normal = cv::Vec3f(R * cv::Vec3d(normals[i]));
     v.albedo = {0.5f, 0.5f, 0.5f};
     if (!albedo.empty()) {
       const int x = std::clamp(static_cast<int>(std::lround(mesh.pixels[i][0])), 0, albedo.cols - 1);

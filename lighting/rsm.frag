@@ -22,8 +22,9 @@ layout(location = 2) out vec4 outFlux;
 layout(location = 3) out vec4 outDirect;
 
 void main() {
-  vec3 n = normalize(vNormal);
   vec3 toLight = uLightType == 2 ? -uLightDirection : uLightPosition - vPosition;
+  // A degenerate interpolated normal (opposite vertex normals) faces the light instead of becoming NaN.
+  vec3 n = dot(vNormal, vNormal) > 1e-20 ? normalize(vNormal) : normalize(toLight);
   if (dot(n, toLight) < 0.0) n = -n;
   vec3 phi;
   if (uLightType == 2) {

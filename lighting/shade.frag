@@ -39,7 +39,11 @@ uniform float uShadowBias[MAX_LIGHTS];  // metres, distance tolerance of the sha
 layout(location = 0) out vec4 outShade;
 layout(location = 1) out vec4 outIrradiance;
 
-float visibility(int i, vec3 x) {
+// Shadow-map test with a normal offset: the lookup point moves off the surface by the bias (about two map
+// texels) along its normal, so surfaces near the terminator (depth slope ~ tan θ per texel) do not shadow
+// themselves; the depth comparison keeps the same tolerance for the remaining slope.
+float visibility(int i, vec3 x, vec3 n) {
+  x += n * max(uShadowBias[i], 0.0);
   vec4 c = uLightViewProj[i] * vec4(x, 1.0);
   if (c.w <= 0.0) return 1.0;
   vec3 ndc = c.xyz / c.w;
@@ -70,7 +74,7 @@ vec3 directIrradiance(vec3 x, vec3 n) {
       if (uLightType[i] == 1 && dot(-ln, uLightDirection[i]) < uSpotCos[i]) continue;
       contribution = uLightPower[i] * max(dot(n, ln), 0.0) / d2;
     }
-    if (any(greaterThan(contribution, vec3(0.0)))) e += contribution * visibility(i, x);
+    if (any(greaterThan(contribution, vec3(0.0)))) e += contribution * visibility(i, x, n);
   }
   return e;
 }

@@ -193,6 +193,15 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> fitTagPlane(const TagDetection& d
   return plane;
 }
 
+std::optional<TagPose> measureTagPose(const TagDetection& detection, double tagSize, const capture::Intrinsics& k,
+                                      const cv::Mat& depth, const capture::Pose* previous) {
+  std::optional<std::pair<cv::Vec3d, cv::Vec3d>> plane;
+  if (!depth.empty()) plane = fitTagPlane(detection, depth, k);
+  auto pose = estimateTagPose(detection, tagSize, k, {}, previous, plane ? &plane->first : nullptr);
+  if (pose && plane) *pose = refinePoseWithDepth(*pose, *plane);
+  return pose;
+}
+
 TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::Vec3d>& plane, double maxAngleDeg) {
   const auto& [n, p0] = plane;
   const cv::Vec3d z = zAxis(pose.T_camera_tag);

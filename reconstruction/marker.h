@@ -88,6 +88,11 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> fitTagPlane(const TagDetection& d
 TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::Vec3d>& plane,
                             double maxAngleDeg = 25.0);
 
+/// One frame's measurement of a tag: estimateTagPose, disambiguated and re-seated by the depth plane under
+/// the tag when `depth` (registered to the colour image, metres) is given and holds enough samples there.
+std::optional<TagPose> measureTagPose(const TagDetection& detection, double tagSize, const capture::Intrinsics& k,
+                                      const cv::Mat& depth = cv::Mat(), const capture::Pose* previous = nullptr);
+
 /// One-Euro filter (Casiez et al. 2012) of a vector signal: low cutoff when slow (no jitter), high when
 /// fast (no lag). Cutoffs in Hz, time in seconds.
 class OneEuroFilter {

@@ -398,3 +398,55 @@ TEST(Cli, ReplayEstimatesLightsFromTheSessionFisheye) {
                      "has no fisheye calibration");
   fs::remove_all(noFisheye);
 }
+
+TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
+  const fs::path rec = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth";
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_insert_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path scene = dir / "placed.json";
+  // Floating 0.3 m above the marker and rotated: --snap rests the 5 cm sphere on the table (the marker plane).
+  Result r = runMrgi("insert --session " + rec.string() + " --model " + kModels + "sphere.ply --scale 0.05 --translate 0.1,0.05,0.3" +
+                     " --rotate-deg 30,0,10 --snap --save " + scene.string() + " --preview " + (dir / "preview.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  auto doc = nlohmann::json::parse(slurp(scene));
+  ASSERT_EQ(doc["objects"].size(), 1u);
+  const auto t = doc["objects"][0]["translate"];
+  EXPECT_NEAR(t[0].get<double>(), 0.1, 0.01);
+  EXPECT_NEAR(t[1].get<double>(), 0.05, 0.01);
+  EXPECT_NEAR(t[2].get<double>(), 0.05, 0.008);  // centre one radius above the table (depth noise, tag pose)
+  const auto rd = doc["objects"][0]["rotate_deg"];
+  EXPECT_LT(std::abs(rd[0].get<double>()) + std::abs(rd[1].get<double>()), 4.0);  // up turned onto the normal
+  EXPECT_EQ(doc["lights"], "fisheye");  // the session has a fisheye camera
+  EXPECT_EQ(doc["objects"][0]["model"], fs::proximate(kModels + "sphere.ply", dir).generic_string());
+  const auto report = nlohmann::json::parse(r.out);
+  EXPECT_GT(report["plane"]["normal"][2].get<double>(), 0.99);
+  // The preview shows the object: it differs from the camera image.
+  const cv::Mat preview = cv::imread((dir / "preview.png").string());
+  const cv::Mat colour = cv::imread((rec / "colour/000000.png").string());
+  ASSERT_EQ(preview.size(), colour.size());
+  EXPECT_GT(cv::norm(preview, colour, cv::NORM_L1) / preview.total(), 1.0);
+  // A second insert into the same file keeps the first object.
+  r = runMrgi("insert --session " + rec.string() + " --model " + kModels + "cube.obj --scale 0.04 --translate -0.1,0,0.02 --save " +
+              scene.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  doc = nlohmann::json::parse(slurp(scene));
+  ASSERT_EQ(doc["objects"].size(), 2u);
+  EXPECT_NEAR(doc["objects"][0]["translate"][2].get<double>(), t[2].get<double>(), 1e-12);
+  // Replay reads it.
+  const fs::path out = dir / "replay";
+  r = runMrgi("replay " + rec.string() + " --scene " + scene.string() + " --out " + out.string() + " --frames 1");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out / "frame_0000.png"));
+  // User errors: one line, the scene untouched.
+  const std::string before = slurp(scene);
+  const std::string base = "insert --session " + rec.string() + " --save " + scene.string();
+  expectOneLineError(runMrgi(base + " --model /nonexistent/m.obj"), "/nonexistent/m.obj: model file not found");
+  expectOneLineError(runMrgi(base + " --model " + kModels + "cube.obj --replace 7"), "--replace 7");
+  expectOneLineError(runMrgi(base + " --model " + kModels + "cube.obj --frame 999"), "has no frame 999");
+  expectOneLineError(runMrgi(base + " --model " + kModels + "cube.obj --at 5000,1"), "--at 5000,1: outside");
+  expectOneLineError(runMrgi("insert --session /nonexistent/s --model " + kModels + "cube.obj --save " + scene.string()),
+                     "/nonexistent/s");
+  EXPECT_EQ(slurp(scene), before);
+  fs::remove_all(dir);
+}

@@ -510,3 +510,23 @@ TEST(GL, GoldenCompositeOfTheTestScene) {
   EXPECT_LE(worst, 4.0);
   EXPECT_LE(mean, 0.25);
 }
+
+TEST(RealMesh, UnknownDepthNormalsBecomeFaceNormalsTowardsTheCamera) {
+  // Two triangles of a plane z = 2 (camera frame) with every depth normal unknown, plus a lone vertex.
+  reconstruction::DepthMesh mesh;
+  mesh.positions = {{0, 0, 2}, {0.1f, 0, 2}, {0, 0.1f, 2}, {0.1f, 0.1f, 2}, {0.5f, 0.5f, 3}};
+  mesh.normals.assign(5, cv::Vec3f(0, 0, 0));
+  mesh.normals[3] = {0, 0, -1};  // a known one is kept
+  mesh.pixels.assign(5, cv::Vec2f(0, 0));
+  mesh.indices = {0, 2, 1, 1, 2, 3};
+  std::vector<lighting::MeshVertex> v;
+  std::vector<uint32_t> idx;
+  const capture::Pose T = capture::lookAtPose({0, 0, 0}, {0, 0, 1});  // world = camera rotated
+  lighting::buildRealVertices(mesh, cv::Mat(), capture::identityPose(), v, idx);
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(cv::norm(v[i].normal - cv::Vec3f(0, 0, -1)), 0.0, 1e-6) << i;
+  const cv::Vec3f lone = v[4].normal;
+  EXPECT_NEAR(cv::norm(lone), 1.0, 1e-6);
+  EXPECT_LT(lone.dot(cv::normalize(mesh.positions[4])), -0.999f);  // faces the camera
+  lighting::buildRealVertices(mesh, cv::Mat(), T, v, idx);
+  for (const auto& x : v) EXPECT_NEAR(cv::norm(x.normal), 1.0, 1e-6);
+}

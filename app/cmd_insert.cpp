@@ -1,0 +1,230 @@
+// mrgi insert: place a virtual object relative to the marker (flags, optional snap onto the support plane
+// from depth), preview the composite, and save the placement into a scene file replay and live read.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
+
+#include "app/commands.h"
+#include "app/frame_pipeline.h"
+#include "capture/error.h"
+#include "capture/image_io.h"
+#include "capture/session.h"
+#include "gl/context.h"
+#include "reconstruction/plane.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace mrgi::app {
+namespace {
+
+struct InsertOptions {
+  std::string session;
+  std::string model;
+  std::vector<double> translate{0, 0, 0};
+  std::vector<double> rotateDeg{0, 0, 0};
+  double scale = 1.0;
+  std::vector<double> albedo{0.8, 0.8, 0.8};
+  std::string scene;  // base scene (lights, technique); default: --save if it exists
+  std::string save;
+  int replace = -1;
+  bool snap = false;
+  std::string up = "camera";
+  int64_t frame = 0;
+  std::vector<double> at;  // pixel u,v: translate = the surface point seen there
+  std::string preview;
+  std::string gl = "osmesa";
+};
+
+json readJson(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw capture::CaptureError(path, "cannot be read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  lighting::parseScene(ss.str(), path);  // validates with key-named errors
+  return json::parse(ss.str());
+}
+
+/// Euler angles (degrees) of R = Rz Ry Rx, the scene file's rotate_deg convention.
+cv::Vec3d eulerDeg(const cv::Matx33d& R) {
+  const double r2d = 180.0 / CV_PI;
+  const double sy = std::clamp(-R(2, 0), -1.0, 1.0);
+  const double b = std::asin(sy);
+  double a, c;
+  if (std::abs(sy) < 1 - 1e-9) {
+    a = std::atan2(R(2, 1), R(2, 2));
+    c = std::atan2(R(1, 0), R(0, 0));
+  } else {  // gimbal lock: x and z turn about the same axis
+    a = 0;
+    c = std::atan2(-R(0, 1), R(1, 1));
+  }
+  return {a * r2d, b * r2d, c * r2d};
+}
+
+json vec(const cv::Vec3d& v, double round = 1e-6) {
+  json a = json::array();
+  for (int i = 0; i < 3; ++i) a.push_back(std::round(v[i] / round) * round + 0.0);
+  return a;
+}
+
+int runInsert(const InsertOptions& o) {
+  auto source = capture::open(o.session);
+  if (!source->info().hasRgbd) throw capture::CaptureError(o.session, "has no RGB-D frames");
+  const auto* session = dynamic_cast<const capture::SessionSource*>(source.get());
+
+  // The document to extend: --scene, else the existing --save file, else a new scene whose lights come from
+  // the session (fisheye estimate or ground truth).
+  json doc;
+  const std::string basePath = !o.scene.empty() ? o.scene : (fs::exists(o.save) ? o.save : std::string());
+  if (!basePath.empty()) {
+    doc = readJson(basePath);
+    // Models in the base are relative to it; rewrite them relative to the file we save.
+    if (doc.contains("objects"))
+      for (auto& obj : doc["objects"]) {
+        fs::path m = obj["model"].get<std::string>();
+        if (m.is_relative()) m = fs::absolute(fs::path(basePath).parent_path() / m);
+        obj["model"] = fs::proximate(m, fs::absolute(fs::path(o.save).parent_path())).generic_string();
+      }
+  } else {
+    doc = json::object();
+    if (session && session->manifest().fisheye)
+      doc["lights"] = "fisheye";
+    else if (session && session->manifest().groundTruth.is_object() && session->manifest().groundTruth.contains("lights"))
+      doc["lights"] = "manifest";
+    else
+      throw capture::CaptureError(o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights");
+  }
+  if (!doc.contains("objects")) doc["objects"] = json::array();
+  if (o.replace >= static_cast<int>(doc["objects"].size()))
+    throw std::invalid_argument("--replace " + std::to_string(o.replace) + ": the scene has only " +
+                                std::to_string(doc["objects"].size()) + " objects");
+  if (!fs::exists(o.model)) throw capture::CaptureError(o.model, "model file not found");
+  json object = {{"model", fs::proximate(fs::absolute(o.model), fs::absolute(fs::path(o.save).parent_path())).generic_string()},
+                 {"translate", o.translate},
+                 {"rotate_deg", o.rotateDeg},
+                 {"scale", o.scale},
+                 {"material", {{"albedo", o.albedo}}}};
+  const size_t index = o.replace >= 0 ? static_cast<size_t>(o.replace) : doc["objects"].size();
+  if (o.replace >= 0)
+    doc["objects"][index] = object;
+  else
+    doc["objects"].push_back(object);
+  // Parse as if saved already (model paths resolve against the save folder); bad input stops here.
+  const std::string savePath = fs::absolute(o.save).string();
+  lighting::SceneDescription scene = lighting::parseScene(doc.dump(), savePath);
+
+  // The frame to measure and preview on.
+  const capture::SourceInfo& info = source->info();
+  const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
+  LightingSetup setup = prepareLighting(scene, savePath, *source, o.session, "marker");
+  gl::ContextConfig cfg;
+  cfg.backend = gl::parseBackend(o.gl);
+  cfg.width = width;
+  cfg.height = height;
+  cfg.title = "mrgi insert: " + o.session;
+  auto context = gl::createContext(cfg);
+  compositor::Compositor compositor(width, height);
+  gl::Profiler profiler;
+  FramePipeline frames(setup, width, height, FrameOptions{});
+  std::optional<capture::Frame> frame;
+  FrameResult result;
+  for (int64_t i = 0; i <= o.frame; ++i) {
+    frame = source->next();
+    if (!frame) throw capture::CaptureError(o.session, "has no frame " + std::to_string(o.frame));
+    if (i < o.frame) continue;
+    result = frames.measure(*frame, profiler);
+  }
+  if (!result.T_marker_camera)
+    throw capture::CaptureError(o.session, "marker not found in frame " + std::to_string(o.frame) + " (" +
+                                               setup.tagFamily + (setup.tagId >= 0 ? " id " + std::to_string(setup.tagId) : "") + ")");
+
+  lighting::VirtualObject& obj = scene.objects[index];
+  json report = {{"scene", o.save}, {"object", index}};
+  if (!o.at.empty()) {
+    const int u = static_cast<int>(std::lround(o.at[0])), v = static_cast<int>(std::lround(o.at[1]));
+    if (u < 0 || v < 0 || u >= width || v >= height)
+      throw std::invalid_argument("--at " + std::to_string(u) + "," + std::to_string(v) + ": outside the " +
+                                  std::to_string(width) + "x" + std::to_string(height) + " image");
+    const cv::Vec3f p = result.positions.at<cv::Vec3f>(v, u);
+    if (!(p[2] > 0))
+      throw capture::CaptureError(o.session, "frame " + std::to_string(o.frame) + ": no depth at pixel " +
+                                                 std::to_string(u) + "," + std::to_string(v));
+    const cv::Vec3d t = capture::transformPoint(*result.T_marker_camera, cv::Vec3d(p));
+    obj.T_marker_object = capture::makePose(capture::rotationOf(obj.T_marker_object), t);
+    doc["objects"][index]["translate"] = vec(t);
+    frames.lighting()->setObjectTransform(index, obj.T_marker_object);
+  }
+  if (o.snap) {
+    cv::Mat labels;
+    const auto planes = reconstruction::findPlanes(result.positions, result.normals, {}, &labels);
+    const capture::Pose& T_marker_camera = *result.T_marker_camera;
+    std::vector<reconstruction::Plane> inMarker;
+    for (const auto& p : planes) inMarker.push_back(reconstruction::transformPlane(p, T_marker_camera));
+    cv::Vec3d up;
+    if (o.up == "camera") {
+      up = capture::rotationOf(T_marker_camera) * cv::Vec3d(0, -1, 0);
+    } else if (o.up == "marker") {
+      up = {0, 0, 1};
+    } else {
+      std::stringstream ss(o.up);
+      std::string item;
+      int n = 0;
+      while (std::getline(ss, item, ',') && n < 3) up[n++] = std::stod(item);
+      if (n != 3) throw std::invalid_argument("--up: expected camera, marker or x,y,z, got '" + o.up + "'");
+    }
+    const auto plane = reconstruction::supportPlane(inMarker, capture::translationOf(obj.T_marker_object), up, labels,
+                                                    capture::inversePose(T_marker_camera), frame->rgbd->colourIntrinsics);
+    if (!plane)
+      throw capture::CaptureError(o.session, "frame " + std::to_string(o.frame) + ": no support plane below the object (" +
+                                                 std::to_string(planes.size()) + " planes found; try --up)");
+    obj.T_marker_object = reconstruction::restOnPlane(obj.T_marker_object, obj.mesh.positions, *plane);
+    doc["objects"][index]["translate"] = vec(capture::translationOf(obj.T_marker_object));
+    doc["objects"][index]["rotate_deg"] = vec(eulerDeg(capture::rotationOf(obj.T_marker_object)), 1e-4);
+    report["plane"] = {{"normal", vec(plane->normal)}, {"d", plane->d}, {"pixels", plane->inliers}};
+    frames.lighting()->setObjectTransform(index, obj.T_marker_object);
+  }
+  report["translate"] = doc["objects"][index]["translate"];
+  report["rotate_deg"] = doc["objects"][index]["rotate_deg"];
+
+  if (!o.preview.empty()) {
+    frames.render(*frame, result, compositor, profiler);
+    capture::writeFileAtomically(o.preview, capture::encodePng(result.composite, o.preview));
+    report["preview"] = o.preview;
+  }
+  if (!fs::path(o.save).parent_path().empty()) fs::create_directories(fs::path(o.save).parent_path());
+  const std::string text = doc.dump(2) + "\n";
+  capture::writeFileAtomically(o.save, std::vector<unsigned char>(text.begin(), text.end()));
+  std::printf("%s\n", report.dump().c_str());
+  return 0;
+}
+
+}  // namespace
+
+Action addInsert(CLI::App& app) {
+  auto o = std::make_shared<InsertOptions>();
+  app.add_option("--session", o->session, "session (or TUM / .oni) whose marker anchors the object")->required();
+  app.add_option("--model", o->model, "model file: OBJ, PLY or glTF")->required();
+  app.add_option("--translate", o->translate, "x,y,z in metres in the marker frame")->delimiter(',')->expected(3);
+  app.add_option("--rotate-deg", o->rotateDeg, "x,y,z rotation in degrees about the marker axes (x, then y, then z)")
+      ->delimiter(',')->expected(3);
+  app.add_option("--scale", o->scale, "uniform scale of the model")->check(CLI::PositiveNumber);
+  app.add_option("--albedo", o->albedo, "r,g,b diffuse albedo in [0, 1]")->delimiter(',')->expected(3);
+  app.add_option("--scene", o->scene, "base scene file (lights, technique, other objects); default: --save if it exists");
+  app.add_option("--save", o->save, "scene file to write (written atomically; existing objects are kept)")->required();
+  app.add_option("--replace", o->replace, "replace object N of the base scene instead of appending")->check(CLI::NonNegativeNumber);
+  app.add_option("--at", o->at, "u,v: put the object's origin on the surface seen at this pixel (overrides --translate)")
+      ->delimiter(',')->expected(2);
+  app.add_flag("--snap", o->snap, "rest the object on the plane below it (planes from the frame's depth)");
+  app.add_option("--up", o->up, "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame");
+  app.add_option("--frame", o->frame, "frame of the session to measure and preview on")->check(CLI::NonNegativeNumber);
+  app.add_option("--preview", o->preview, "write the composite of that frame with the placed object (PNG)");
+  app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl, window")->check(CLI::IsMember({"osmesa", "egl", "window"}));
+  return [o] { return runInsert(*o); };
+}
+
+}  // namespace mrgi::app

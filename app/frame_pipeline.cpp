@@ -1,0 +1,202 @@
+#include "app/frame_pipeline.h"
+
+#include "capture/error.h"
+#include "capture/registration.h"
+#include "capture/session.h"
+#include "reconstruction/albedo.h"
+#include "reconstruction/depth.h"
+#include "reconstruction/depth_filter.h"
+
+using nlohmann::json;
+
+namespace mrgi::app {
+
+LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
+                              const capture::FrameSource& source, const std::string& sourcePath,
+                              const std::string& poseMode) {
+  LightingSetup setup;
+  setup.scene = std::move(scene);
+  const auto* session = dynamic_cast<const capture::SessionSource*>(&source);
+  const json* gt = session && session->manifest().groundTruth.is_object() ? &session->manifest().groundTruth : nullptr;
+  if (session && session->manifest().marker) {
+    setup.tagFamily = session->manifest().marker->family;
+    setup.tagSize = session->manifest().marker->sizeMetres;
+    setup.tagId = session->manifest().marker->id;
+  }
+  if (gt && gt->contains("T_world_marker"))
+    setup.T_world_marker = capture::poseFromJson((*gt)["T_world_marker"], sourcePath, "ground_truth.T_world_marker");
+  if (setup.scene.lightSource == lighting::LightSource::Scene) {
+    setup.lights = setup.scene.lights;
+  } else if (setup.scene.lightSource == lighting::LightSource::Fisheye) {
+    if (!session || !session->manifest().fisheye)
+      throw capture::CaptureError(sceneFile, "lights: \"fisheye\" but " + sourcePath + " has no fisheye calibration");
+    setup.fisheye = session->manifest().fisheye;
+    // Lights come from the environment image, which already holds all the room's light: no extra ambient.
+    setup.scene.ambientFromManifest = false;
+  } else {
+    if (!gt || !gt->contains("lights") || !setup.T_world_marker)
+      throw capture::CaptureError(sceneFile, "lights: \"manifest\" but " + sourcePath +
+                                                 " has no ground-truth lights; list the lights in the scene file");
+    const capture::Pose T_marker_world = capture::inversePose(*setup.T_world_marker);
+    for (const json& l : (*gt)["lights"]) {
+      if (l.value("type", "") != "point") continue;
+      lighting::SceneLight s;
+      s.type = lighting::LightType::Point;
+      const auto p = l.at("position"), i = l.at("intensity_w_sr");
+      s.position = capture::transformPoint(T_marker_world, {p[0].get<double>(), p[1].get<double>(), p[2].get<double>()});
+      s.intensity = {i[0].get<double>(), i[1].get<double>(), i[2].get<double>()};
+      setup.lights.push_back(s);
+    }
+  }
+  setup.ambient = setup.scene.ambientRadiance;
+  if (setup.scene.ambientFromManifest && gt && gt->contains("scene") && (*gt)["scene"].contains("ambient_radiance")) {
+    const auto a = (*gt)["scene"]["ambient_radiance"];
+    setup.ambient = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
+  }
+  if (poseMode == "ground-truth" && !setup.T_world_marker)
+    throw capture::CaptureError(sourcePath, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
+  return setup;
+}
+
+FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int height, const FrameOptions& options)
+    : setup_(std::move(setup)), options_(options) {
+  if (!setup_) return;
+  lighting::PipelineConfig pc;
+  pc.width = width;
+  pc.height = height;
+  pc.technique = setup_->scene.technique;
+  pc.lpv = setup_->scene.lpv;
+  pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
+  if (setup_->fisheye) fisheyeRays_ = reconstruction::fisheyeRays(*setup_->fisheye);
+  reconstruction::DetectorOptions dopt;
+  dopt.family = setup_->tagFamily;
+  detector_.emplace(dopt);
+}
+
+void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler) {
+  // A new environment image: re-estimate the lights (kept on frames without one).
+  auto s = profiler.cpu("lights");
+  reconstruction::MedianCutOptions mo;
+  mo.count = setup_->scene.fisheyeLightCount;
+  mo.varianceSplit = true;
+  auto lights = reconstruction::medianCut(reconstruction::linearRadiance(frame.fisheye->image), *fisheyeRays_, mo);
+  const capture::Pose T_world_fisheye = setup_->fisheye->T_world_fisheye.value_or(capture::identityPose());
+  const capture::Pose T_marker_world =
+      setup_->T_world_marker ? capture::inversePose(*setup_->T_world_marker) : capture::identityPose();
+  lights = reconstruction::lightsToWorld(lights, T_marker_world * T_world_fisheye);
+  setup_->lights.clear();
+  for (const auto& l : lights) {
+    lighting::SceneLight sl;
+    sl.type = lighting::LightType::Directional;
+    sl.direction = -l.direction;  // from the light into the scene
+    sl.irradiance = l.power;
+    setup_->lights.push_back(sl);
+  }
+  r.info["lights_estimated"] = setup_->lights.size();
+}
+
+std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& frame, FrameResult& r,
+                                                       gl::Profiler& profiler) {
+  if (options_.pose == "ground-truth" && frame.groundTruthT_world_camera) {
+    r.info["marker"] = "ground-truth";
+    return capture::inversePose(*setup_->T_world_marker) * *frame.groundTruthT_world_camera;
+  }
+  auto s = profiler.cpu("marker");
+  const capture::RgbdFrame& rgbd = *frame.rgbd;
+  std::optional<capture::Pose> measured;
+  for (const auto& d : detector_->detect(rgbd.colour)) {
+    if (setup_->tagId >= 0 && d.id != setup_->tagId) continue;
+    const auto pose = reconstruction::measureTagPose(d, setup_->tagSize, rgbd.colourIntrinsics,
+                                                     rgbd.depthRegistered ? rgbd.depth : cv::Mat(), track_.lastMeasured());
+    if (pose) {
+      measured = pose->T_camera_tag;
+      break;
+    }
+  }
+  const auto status = track_.update(frame.timestamp, measured);
+  r.info["marker"] = reconstruction::toString(status);
+  if (status != reconstruction::TrackStatus::Lost && track_.pose()) return capture::inversePose(*track_.pose());
+  return std::nullopt;
+}
+
+FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler) {
+  FrameResult r = measure(frame, profiler);
+  render(frame, r, compositor, profiler);
+  return r;
+}
+
+FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler) {
+  FrameResult r;
+  capture::RgbdFrame& rgbd = *frame.rgbd;
+  if (!rgbd.depthRegistered) {
+    auto s = profiler.cpu("register");
+    capture::ensureRegistered(rgbd);
+  }
+  if (!setup_) {
+    auto s = profiler.cpu("normals");
+    r.positions = reconstruction::backProject(rgbd.depth, rgbd.colourIntrinsics);
+    r.normals = reconstruction::computeNormals(r.positions);
+    return r;
+  }
+  if (fisheyeRays_ && frame.fisheye) estimateLights(frame, r, profiler);
+  // Marker -> camera pose in the lighting world (the marker frame).
+  r.T_marker_camera = markerPose(frame, r, profiler);
+  cv::Mat depth;
+  {
+    auto s = profiler.cpu("depth_filter");
+    reconstruction::DepthFilterOptions fo;
+    const cv::Mat guide = reconstruction::guideFromColour(rgbd.colour);
+    depth = reconstruction::guidedFilterDepth(rgbd.depth, guide,
+                                              reconstruction::filterRadiusPixels(rgbd.depth, rgbd.colourIntrinsics, fo), fo);
+  }
+  {
+    auto s = profiler.cpu("normals");
+    r.positions = reconstruction::backProject(depth, rgbd.colourIntrinsics);
+    r.normals = reconstruction::computeNormals(r.positions);
+  }
+  return r;
+}
+
+void FramePipeline::render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor,
+                           gl::Profiler& profiler) {
+  const capture::RgbdFrame& rgbd = *frame.rgbd;
+  if (!setup_ || !r.T_marker_camera) {
+    // No scene, or marker lost: nothing can be placed; the frame is the background.
+    r.composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
+    return;
+  }
+  const capture::Pose T_camera_marker = capture::inversePose(*r.T_marker_camera);
+  cv::Mat albedo;
+  {
+    auto s = profiler.cpu("albedo");
+    reconstruction::AlbedoLights al;
+    for (const auto& l : setup_->lights) {
+      if (l.type == lighting::LightType::Directional) {
+        reconstruction::EstimatedLight e;
+        e.direction = -(capture::rotationOf(T_camera_marker) * l.direction);
+        e.power = l.irradiance;
+        al.distant.push_back(e);
+      } else {
+        al.points.push_back({capture::transformPoint(T_camera_marker, l.position), l.intensity});
+      }
+    }
+    al.ambientIrradiance = CV_PI * setup_->ambient;
+    albedo = reconstruction::estimateAlbedo(rgbd.colour, r.positions, r.normals, rgbd.colourIntrinsics, al).albedo;
+  }
+  {
+    auto s = profiler.cpu("mesh");
+    const auto mesh = reconstruction::buildDepthMesh(r.positions, r.normals, options_.meshStride);
+    std::vector<lighting::MeshVertex> vertices;
+    std::vector<uint32_t> indices;
+    lighting::buildRealVertices(mesh, albedo, *r.T_marker_camera, vertices, indices);
+    pipeline_->setRealMesh(vertices, indices);
+  }
+  lighting::CameraView view;
+  view.intrinsics = rgbd.colourIntrinsics;
+  view.T_world_camera = *r.T_marker_camera;
+  pipeline_->run(view, setup_->lights, setup_->ambient, &profiler);
+  r.composite = compositor.composite(rgbd.colour, pipeline_->shade(), &profiler);
+  r.lit = true;
+}
+
+}  // namespace mrgi::app

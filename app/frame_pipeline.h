@@ -1,0 +1,79 @@
+#pragma once
+// The per-frame work every application shares (replay, insert, and later live): marker pose, filtered
+// depth, estimated lights and albedo, real mesh, lighting and compositing of one RGB-D frame.
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "capture/frame_source.h"
+#include "compositor/compositor.h"
+#include "gl/profiler.h"
+#include "lighting/pipeline.h"
+#include "lighting/scene_file.h"
+#include "reconstruction/light_estimation.h"
+#include "reconstruction/marker.h"
+
+namespace mrgi::app {
+
+/// What the lighting path needs besides the frames: the scene, the marker and the lights.
+struct LightingSetup {
+  lighting::SceneDescription scene;
+  std::string tagFamily = "tag36h11";
+  double tagSize = 0.16;
+  int tagId = -1;
+  std::vector<lighting::SceneLight> lights;  ///< marker frame
+  cv::Vec3d ambient{0, 0, 0};
+  std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
+  std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
+};
+
+/// Resolves a loaded scene against a source (marker from the manifest, lights from the scene, the
+/// manifest's ground truth or its fisheye calibration). `sceneFile` and `sourcePath` name the culprit in
+/// errors; poseMode "ground-truth" needs the manifest's T_world_marker.
+LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
+                              const capture::FrameSource& source, const std::string& sourcePath,
+                              const std::string& poseMode);
+
+struct FrameOptions {
+  std::string pose = "marker";  ///< marker | ground-truth
+  int meshStride = 2;
+};
+
+struct FrameResult {
+  cv::Mat composite;  ///< 8-bit RGB, same order as the camera image
+  std::optional<capture::Pose> T_marker_camera;
+  cv::Mat positions, normals;  ///< camera frame, from the filtered depth (empty without a scene)
+  bool lit = false;            ///< the lighting pipeline ran (a scene and a marker pose)
+  nlohmann::json info = nlohmann::json::object();  ///< per-frame facts for the stats (marker status, lights)
+};
+
+class FramePipeline {
+ public:
+  /// Without a setup frames are only decoded and composited as background.
+  FramePipeline(std::optional<LightingSetup> setup, int width, int height, const FrameOptions& options);
+  /// Processes one frame (registers its depth if needed) inside the current GL context: measure, then render.
+  FrameResult process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler);
+  /// The measuring half: registration, fisheye lights, marker pose, filtered depth, normals.
+  FrameResult measure(capture::Frame& frame, gl::Profiler& profiler);
+  /// The rendering half: albedo, real mesh, lighting, composite (background only without a marker pose).
+  void render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor, gl::Profiler& profiler);
+  lighting::LightingPipeline* lighting() { return pipeline_.get(); }
+  const LightingSetup* setup() const { return setup_ ? &*setup_ : nullptr; }
+
+ private:
+  void estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);
+  std::optional<capture::Pose> markerPose(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);
+
+  std::optional<LightingSetup> setup_;
+  FrameOptions options_;
+  std::unique_ptr<lighting::LightingPipeline> pipeline_;
+  std::optional<reconstruction::FisheyeRays> fisheyeRays_;
+  std::optional<reconstruction::TagDetector> detector_;
+  reconstruction::MarkerTrack track_;
+};
+
+}  // namespace mrgi::app
