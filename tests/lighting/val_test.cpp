@@ -1,0 +1,324 @@
+// Kinect-VAL reference math (lighting/val.h): analytic disc lights, guards, renormalisation, sparse vs brute
+// force, occlusion, sparse sampling, k-d tree weights, RGB-D VALs and surfel fusion.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "lighting/val.h"
+
+using namespace mrgi;
+using lighting::Val;
+
+namespace {
+
+Val disc(const cv::Vec3f& p, const cv::Vec3f& n, float radius, const cv::Vec3f& flux) {
+  Val v;
+  v.position = p;
+  v.normal = cv::normalize(n);
+  v.area = static_cast<float>(CV_PI) * radius * radius;
+  v.flux = flux;
+  return v;
+}
+
+lighting::Receiver receiver(const cv::Vec3f& p, const cv::Vec3f& n, const cv::Vec3f& view = {0, 0, 1}, float k = 0) {
+  return {p, cv::normalize(n), cv::normalize(view), k};
+}
+
+bool finite(const cv::Vec3f& v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
+
+/// A flat square grid (z = 0, normal +z) of n×n vertices over [-s, s]².
+lighting::Mesh grid(int n, float s) {
+  lighting::Mesh m;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      m.positions.emplace_back(-s + 2 * s * x / (n - 1), -s + 2 * s * y / (n - 1), 0.f);
+      m.normals.emplace_back(0.f, 0.f, 1.f);
+    }
+  for (int y = 0; y + 1 < n; ++y)
+    for (int x = 0; x + 1 < n; ++x) {
+      const uint32_t a = y * n + x, b = a + 1, c = a + n, d = c + 1;
+      m.indices.insert(m.indices.end(), {a, b, d, a, d, c});
+    }
+  m.computeBounds();
+  return m;
+}
+
+}  // namespace
+
+TEST(Val, OnAxisDiscIrradianceIsExact) {
+  // Lambertian disc of exitance M: on its axis at distance d, E = M r² / (d² + r²) exactly.
+  for (float d : {1e-4f, 0.01f, 0.1f, 1.f, 10.f})
+    for (float r : {0.001f, 0.05f, 0.5f}) {
+      const Val v = disc({0, 0, d}, {0, 0, -1}, r, {2, 1, 0.5f});
+      const auto g = lighting::gatherReference(receiver({0, 0, 0}, {0, 0, 1}), {v});
+      const float M = 2.f / v.area;
+      EXPECT_NEAR(g.E[0], M * r * r / (d * d + r * r), 1e-5 * M) << d << " " << r;
+      EXPECT_NEAR(g.E[1] / g.E[0], 0.5f, 1e-6);
+      EXPECT_NEAR(lighting::discFormFactor(v, {0, 0, 0}), r * r / (d * d + r * r), 1e-6);
+    }
+}
+
+TEST(Val, FarDiscIsAPointLightAndNearDiscIsBounded) {
+  // Far field: E = φ cos ϑ_j cos ϑ_i / (π d²).
+  const Val v = disc({0.3f, 0.f, 2.f}, {0.2f, 0.1f, -1.f}, 0.001f, {1, 1, 1});
+  const cv::Vec3f n = cv::normalize(cv::Vec3f(0.1f, 0.f, 1.f));
+  const auto g = lighting::gatherReference(receiver({0, 0, 0}, n), {v});
+  const cv::Vec3f dir = v.position;
+  const float d = static_cast<float>(cv::norm(dir));
+  const float expected = v.normal.dot(-dir / d) * n.dot(dir / d) / (static_cast<float>(CV_PI) * d * d);
+  EXPECT_NEAR(g.E[0] / expected, 1.f, 1e-5);
+  // A disc touching the receiver: finite and at most its exitance, also at the exact centre.
+  for (float d0 : {1e-3f, 1e-6f, 1e-12f, 0.f}) {
+    const Val t = disc({0, 0, d0}, {0, 0, -1}, 0.01f, {1, 1, 1});
+    for (float k : {0.f, 1.f, 100.f, 1e4f}) {
+      const auto h = lighting::gatherReference(receiver({0, 0, 0}, {0, 0, 1}, {0, 0, 1}, k), {t});
+      EXPECT_TRUE(finite(h.E) && finite(h.S) && finite(h.ld) && finite(h.ls));
+      EXPECT_LE(h.E[0], 1.f / t.area * 1.0001f);
+      EXPECT_LE(h.S[0], 1.f / t.area * 1.0001f);
+    }
+  }
+}
+
+TEST(Val, NothingReachesThePoint) {
+  // Lights behind the receiver, or facing away: zero light, finite VPLs, no NaN anywhere.
+  const std::vector<Val> vals = {disc({0, 0, -1}, {0, 0, 1}, 0.1f, {5, 5, 5}), disc({0, 0, 1}, {0, 0, 1}, 0.1f, {5, 5, 5})};
+  for (const auto& set : {vals, std::vector<Val>{}}) {
+    const auto r = receiver({0, 0, 0}, {0, 0, 1}, {0, 0, 1}, 50);
+    const auto g = lighting::gatherReference(r, set);
+    EXPECT_EQ(g.E, cv::Vec3f(0, 0, 0));
+    EXPECT_EQ(g.S, cv::Vec3f(0, 0, 0));
+    const auto vpl = lighting::normalizeReference(g, r);
+    EXPECT_TRUE(finite(vpl.ld) && finite(vpl.ls) && std::isfinite(vpl.radiusD));
+    EXPECT_EQ(vpl.Ld, cv::Vec3f(0, 0, 0));
+    cv::Vec3f E, S;
+    lighting::evaluateVpl(vpl, receiver({0.1f, 0, 0}, {0, 0, 1}), E, S);
+    EXPECT_EQ(E, cv::Vec3f(0, 0, 0));
+    EXPECT_EQ(S, cv::Vec3f(0, 0, 0));
+  }
+}
+
+TEST(Val, RenormalisedVplsReproduceTheGatherAtThePoint) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1, 1);
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<Val> vals;
+    for (int i = 0; i < 50; ++i)
+      vals.push_back(disc({u(rng), u(rng), 1.f + 0.5f * u(rng)}, {0.3f * u(rng), 0.3f * u(rng), -1.f}, 0.02f,
+                          {1.f + u(rng), 1.f, 0.5f}));
+    lighting::setValWeights(vals);
+    const float k = trial < 10 ? 0.f : 8.f;
+    const auto r = receiver({0.2f * u(rng), 0.2f * u(rng), 0}, {0.2f * u(rng), 0.2f * u(rng), 1.f}, {u(rng), u(rng), 1.f}, k);
+    const auto g = lighting::gatherReference(r, vals);
+    const auto vpl = lighting::normalizeReference(g, r);
+    cv::Vec3f E, S;
+    lighting::evaluateVpl(vpl, r, E, S);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(E[c], g.E[c], 1e-4 * g.E[c]) << trial;
+    if (g.S[0] > 0) {
+      // Exact whenever the averaged glossy light is inside the lobe by more than the guard.
+      const cv::Vec3f ds = cv::normalize(vpl.ls - r.position);
+      const cv::Vec3f refl = 2.f * r.normal.dot(r.view) * r.normal - r.view;
+      if (std::pow(refl.dot(ds), k) > lighting::kValMinLobe) EXPECT_NEAR(S[0], g.S[0], 1e-4 * g.S[0]) << trial;
+    }
+  }
+}
+
+TEST(Val, SparseEqualsBruteForceWhenEveryVertexIsASparsePoint) {
+  const lighting::Mesh mesh = grid(9, 0.2f);
+  lighting::SparsePoints pts;
+  pts.positions = mesh.positions;
+  pts.normals = mesh.normals;
+  pts.discRadius.assign(pts.positions.size(), 0.01f);
+  const auto w = lighting::vertexWeights(mesh, pts);
+  std::vector<Val> one = {disc({0.05f, -0.1f, 0.3f}, {0.1f, 0.2f, -1.f}, 0.03f, {0.7f, 0.5f, 0.2f})};
+  lighting::setValWeights(one);
+  const cv::Vec3f eye(0.4f, 0.3f, 1.f);
+  std::vector<lighting::SparseVpl> sparse;
+  for (size_t i = 0; i < pts.positions.size(); ++i) {
+    const auto r = receiver(pts.positions[i], pts.normals[i], eye - pts.positions[i], 20.f);
+    sparse.push_back(lighting::normalizeReference(lighting::gatherReference(r, one), r));
+  }
+  float maxS = 0;
+  for (const auto& p : mesh.positions) maxS = std::max(maxS, lighting::gatherReference(receiver(p, {0, 0, 1}, eye - p, 20.f), one).S[0]);
+  ASSERT_GT(maxS, 0.f);
+  for (size_t v = 0; v < mesh.positions.size(); ++v) {
+    const auto r = receiver(mesh.positions[v], mesh.normals[v], eye - mesh.positions[v], 20.f);
+    const auto brute = lighting::gatherReference(r, one);
+    cv::Vec3f E, S;
+    lighting::evaluateVpl(lighting::interpolateVpl(w, v, sparse), r, E, S);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(E[c], brute.E[c], 1e-5 * brute.E[0]) << v;
+      // Exact where the light is inside the lobe by more than the guard (kValMinLobe); outside it the VPL is
+      // damped, never brightened, and off by < 1 % of the highlight.
+      EXPECT_LE(S[c], brute.S[c] * 1.0001f + 1e-12f) << v;
+      EXPECT_NEAR(S[c], brute.S[c], 1e-2 * maxS) << v;
+    }
+  }
+}
+
+TEST(Val, PhongExponentsFromOneToTenThousandStayFiniteAndBounded) {
+  std::vector<Val> vals = {disc({0, 0, 0.5f}, {0, 0, -1}, 0.05f, {1, 1, 1}), disc({0.3f, 0, 0.01f}, {-1, 0, 0}, 0.05f, {1, 1, 1})};
+  lighting::setValWeights(vals);
+  for (float k : {0.f, 1.f, 10.f, 100.f, 1000.f, 1e4f}) {
+    for (const cv::Vec3f view : {cv::Vec3f(0, 0, 1), cv::Vec3f(1, 0, 0.01f), cv::Vec3f(0.3f, 0.2f, 1)}) {
+      const auto r = receiver({0, 0, 0}, {0, 0, 1}, view, k);
+      const auto g = lighting::gatherReference(r, vals);
+      const auto vpl = lighting::normalizeReference(g, r);
+      cv::Vec3f E, S;
+      lighting::evaluateVpl(vpl, receiver({0.01f, 0, 0}, {0, 0, 1}, view, k), E, S);
+      const cv::Vec3f L = lighting::valRadiance(E, S, {0.8f, 0.8f, 0.8f}, {0.5f, 0.5f, 0.5f}, k);
+      EXPECT_TRUE(finite(g.S) && finite(vpl.Ls) && finite(vpl.ls) && finite(E) && finite(S) && finite(L)) << k;
+      // Bounded: the glossy sum never exceeds the exitance sum, the VPL reproduces at most 1/kValMinCos of it.
+      EXPECT_LE(g.S[0], 2.f / vals[0].area * 1.0001f);
+      EXPECT_LE(S[0], g.S[0] / lighting::kValMinLobe * 1.01f + 1e-6f);
+    }
+  }
+  EXPECT_EQ(lighting::phongExponent(1.f), 0.f);
+  EXPECT_EQ(lighting::phongExponent(0.f), lighting::kMaxPhongExponent);
+  EXPECT_NEAR(lighting::phongExponent(0.5f), 6.f, 1e-5);
+}
+
+TEST(Val, WallOfPixelVALsGivesPiTimesRadiance) {
+  // A camera 1 m in front of a wide wall of uniform radiance L: the pixel VALs, summed at a receiver 10 cm in
+  // front of the wall's centre and facing it, give E = π L F (F: the rectangle's form factor).
+  const capture::Intrinsics k{320, 240, 80.0, 80.0, 159.5, 119.5};  // wide view: ±2 m at 1 m
+  cv::Mat depth(240, 320, CV_32FC3), normals(240, 320, CV_32FC3), colour(240, 320, CV_32FC3, cv::Scalar(0.2, 0.1, 0.05));
+  for (int y = 0; y < 240; ++y)
+    for (int x = 0; x < 320; ++x) {
+      depth.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>((x - k.cx) / k.fx), static_cast<float>((y - k.cy) / k.fy), 1.f);
+      normals.at<cv::Vec3f>(y, x) = cv::Vec3f(0, 0, -1);
+    }
+  const auto vals = lighting::valsFromRgbd(depth, normals, colour, k, capture::identityPose(), 1);
+  ASSERT_EQ(vals.size(), 320u * 240u);
+  double area = 0;
+  for (const auto& v : vals) area += v.area;
+  EXPECT_NEAR(area, (320 / 80.0) * (240 / 80.0), 1e-3);  // the wall's seen area, m²
+  const auto g = lighting::gatherReference(receiver({0, 0, 0.9f}, {0, 0, 1}), vals);
+  // Analytic: point-to-parallel-rectangle form factor, 4 quarters of 2 m × 1.5 m at h = 0.1 m.
+  const double a = 2.0 / 0.1, b = 1.5 / 0.1;
+  const double F = 4 * (a / std::sqrt(1 + a * a) * std::atan(b / std::sqrt(1 + a * a)) +
+                        b / std::sqrt(1 + b * b) * std::atan(a / std::sqrt(1 + b * b))) / (2 * CV_PI);
+  EXPECT_NEAR(g.E[0] / (CV_PI * 0.2 * F), 1.0, 0.01);
+  EXPECT_NEAR(g.E[2] / g.E[0], 0.25, 1e-4);
+  // Stride 4: the same light from 16× fewer VALs.
+  const auto sparse = lighting::valsFromRgbd(depth, normals, colour, k, capture::identityPose(), 4);
+  EXPECT_EQ(sparse.size(), 80u * 60u);
+  const auto g4 = lighting::gatherReference(receiver({0, 0, 0.8f}, {0, 0, 1}), sparse);
+  const auto g1 = lighting::gatherReference(receiver({0, 0, 0.8f}, {0, 0, 1}), vals);
+  EXPECT_NEAR(g4.E[0] / g1.E[0], 1.0, 0.02);  // 5 cm VALs 20 cm away
+}
+
+TEST(Val, SparsePointsAreAreaUniformOnTheSurface) {
+  // Two triangles of areas 1 and 3 (z = 0): points split 1 : 3, all on the plane, inside the triangles.
+  lighting::Mesh m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 2, 0}, {0, 0, 0}, {3, 0, 0}, {0, -2, 0}};
+  m.normals.assign(6, cv::Vec3f(0, 0, 1));
+  m.indices = {0, 1, 2, 3, 5, 4};
+  m.computeBounds();
+  const auto pts = lighting::sampleSparsePoints(m, 400);
+  ASSERT_EQ(pts.positions.size(), 400u);
+  int upper = 0;
+  for (const auto& p : pts.positions) {
+    EXPECT_EQ(p[2], 0.f);
+    upper += p[1] > 0;
+    if (p[1] > 0) EXPECT_LE(p[0] + p[1] / 2, 1.0001f);
+    else EXPECT_LE(p[0] / 3 - p[1] / 2, 1.0001f);
+  }
+  EXPECT_EQ(upper, 100);
+  // Low discrepancy: no two points closer than a fraction of the mean spacing on this plane.
+  float closest = 1e9f;
+  for (size_t i = 0; i < pts.positions.size(); ++i)
+    for (size_t j = i + 1; j < pts.positions.size(); ++j)
+      closest = std::min(closest, static_cast<float>(cv::norm(pts.positions[i] - pts.positions[j])));
+  EXPECT_GT(closest, 0.1f * std::sqrt(4.f / 400.f));
+}
+
+TEST(Val, KdTreeNeighboursMatchABruteForceSearch) {
+  const lighting::Mesh mesh = grid(21, 1.f);
+  auto pts = lighting::sampleSparsePoints(mesh, 64);
+  const auto w = lighting::vertexWeights(mesh, pts);
+  for (size_t v = 0; v < mesh.positions.size(); v += 7) {
+    std::vector<std::pair<float, int>> all;
+    for (size_t j = 0; j < pts.positions.size(); ++j)
+      all.emplace_back(static_cast<float>(cv::norm(pts.positions[j] - mesh.positions[v])), static_cast<int>(j));
+    std::sort(all.begin(), all.end());
+    float sum = 0;
+    for (int j = 0; j < 8; ++j) {
+      EXPECT_NEAR(cv::norm(pts.positions[w.index[v * 8 + j]] - mesh.positions[v]), all[j].first, 1e-6) << v;
+      sum += w.weight[v * 8 + j];
+      EXPECT_GE(w.weight[v * 8 + j], 0.f);
+    }
+    EXPECT_NEAR(sum, 1.f, 1e-5);
+    EXPECT_EQ(w.weight[v * 8 + 7], 0.f);  // the farthest of the eight has weight 1 - d/d_max = 0
+  }
+  for (float r : pts.discRadius) EXPECT_GT(r, 0.f);
+}
+
+TEST(Val, DiscOccludersShadowTheLightBetweenThemOnly) {
+  // Receiver point at the origin facing up; the averaged light 1 m above with spread 0.1 m.
+  auto occluded = [](const cv::Vec3f& occ, float radius) {
+    std::vector<cv::Vec3f> pos = {{0, 0, 0}, occ}, nrm = {{0, 0, 1}, {0, 0, -1}};
+    std::vector<float> rad = {0.01f, radius};
+    std::vector<lighting::SparseVpl> vpl(2);
+    vpl[0].ld = vpl[0].ls = {0, 0, 1};
+    vpl[0].radiusD = vpl[0].radiusS = 0.1f;
+    vpl[0].Ld = vpl[0].Ls = {1, 1, 1};
+    vpl[1].ld = vpl[1].ls = {0, 0, 2};
+    lighting::occludeReference(pos, nrm, rad, vpl);
+    return vpl[0].Ld[0];
+  };
+  EXPECT_NEAR(occluded({0, 0, 0.5f}, 0.3f), 0.f, 1e-6);   // a big disc halfway: fully occluded
+  EXPECT_NEAR(occluded({0, 0, 0.5f}, 0.0f), 1.f, 1e-6);   // a zero disc: nothing
+  const float partial = occluded({0, 0, 0.5f}, 0.03f);    // a small disc: partly
+  EXPECT_GT(partial, 0.05f);
+  EXPECT_LT(partial, 0.95f);
+  EXPECT_NEAR(occluded({0, 0, 1.5f}, 0.3f), 1.f, 1e-6);   // beyond the light: nothing
+  EXPECT_NEAR(occluded({2.f, 0, 0.5f}, 0.05f), 1.f, 1e-6);  // off to the side: nothing
+  EXPECT_NEAR(occluded({0, 0, -0.5f}, 0.3f), 1.f, 1e-6);  // below the receiver: nothing
+  const float inside = occluded({0, 0, 0.95f}, 0.3f);    // inside the light sphere: faded
+  EXPECT_GT(inside, 0.f);
+  EXPECT_LT(inside, 1.f);
+}
+
+TEST(Val, SurfelFusionKeepsUnseenSurfacesAndAveragesNoise) {
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(0.f, 0.1f);
+  auto frame = [&](float n) {
+    std::vector<Val> v;
+    for (int i = 0; i < 10; ++i) v.push_back(disc({0.1f * i + 0.05f, 0.05f, 0.05f}, {0, 0, 1}, 0.01f, cv::Vec3f(1, 1, 1) * (1.f + n * noise(rng))));
+    return v;
+  };
+  lighting::SurfelOptions o;
+  o.voxel = 0.1f;
+  lighting::SurfelMap map(o);
+  double rawVar = 0, fusedVar = 0;
+  float prevRaw = 0, prevFused = 0;
+  for (int f = 0; f < 40; ++f) {
+    const auto v = frame(1.f);
+    map.integrate(v);
+    const auto fused = map.vals();
+    ASSERT_EQ(fused.size(), 10u);
+    if (f > 10) {
+      rawVar += std::pow(v[0].flux[0] - prevRaw, 2);
+      float fv = 0;
+      for (const auto& s : fused)
+        if (s.position[0] < 0.1f) fv = s.flux[0];
+      fusedVar += std::pow(fv - prevFused, 2);
+    }
+    prevRaw = v[0].flux[0];
+    for (const auto& s : fused)
+      if (s.position[0] < 0.1f) prevFused = s.flux[0];
+  }
+  EXPECT_LT(fusedVar, 0.2 * rawVar);  // frame-to-frame change of the fused light is far smaller
+  // The camera turns away (the surfels project outside the image): they keep their light.
+  const capture::Intrinsics k{64, 48, 50, 50, 31.5, 23.5};
+  const cv::Mat depth(48, 64, CV_32FC1, cv::Scalar(1.f));
+  const capture::Pose away = capture::lookAtPose({0, 0, 0.05f}, {0, -5, 0.05f});
+  for (int f = 0; f < 100; ++f) map.integrate({}, depth, k, away);
+  EXPECT_EQ(map.vals().size(), 10u);
+  // The camera looks at them and they are gone (depth valid behind them): they fade out.
+  const capture::Pose at = capture::lookAtPose({0.5f, 0.05f, 1.0f}, {0.5f, 0.05f, 0.f});
+  const cv::Mat far(48, 64, CV_32FC1, cv::Scalar(2.f));
+  for (int f = 0; f < 100; ++f) map.integrate({}, far, k, at);
+  EXPECT_LT(map.vals().size(), 10u);
+}
