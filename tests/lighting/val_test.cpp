@@ -322,3 +322,90 @@ TEST(Val, SurfelFusionKeepsUnseenSurfacesAndAveragesNoise) {
   for (int f = 0; f < 100; ++f) map.integrate({}, far, k, at);
   EXPECT_LT(map.vals().size(), 10u);
 }
+
+// ------------------------------------------------------------------------------------------- GPU twin
+
+#include "gl/context.h"
+#include "lighting/val_gpu.h"
+
+namespace {
+std::vector<Val> randomVals(int n, std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<Val> vals;
+  for (int i = 0; i < n; ++i)
+    vals.push_back(disc({u(rng), u(rng), 0.6f + 0.5f * u(rng)}, {0.4f * u(rng), 0.4f * u(rng), -1.f},
+                        0.005f + 0.02f * (u(rng) + 1), {0.5f + 0.5f * u(rng), 0.4f, 0.3f + 0.2f * u(rng)}));
+  // A few touching the receivers' plane and one far away.
+  vals.push_back(disc({0.01f, 0.f, 1e-4f}, {0, 0, -1}, 0.01f, {1, 1, 1}));
+  vals.push_back(disc({50.f, 3.f, 20.f}, {-1, 0, -0.3f}, 0.5f, {2, 2, 2}));
+  lighting::setValWeights(vals);
+  return vals;
+}
+}  // namespace
+
+TEST(GL, ValGatherMatchesTheCpuReference) {
+  gl::ContextConfig cfg;
+  cfg.width = 16, cfg.height = 16;
+  auto ctx = gl::createContext(cfg);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1, 1);
+  const auto vals = randomVals(700, rng);
+  std::vector<lighting::Receiver> rec;
+  for (int i = 0; i < 150; ++i) {
+    const float k = std::pow(10.f, 4.f * i / 150.f) - 1.f;  // 0 .. 1e4
+    rec.push_back(receiver({0.5f * u(rng), 0.5f * u(rng), 0.1f * u(rng)}, {0.3f * u(rng), 0.3f * u(rng), 1.f},
+                           {u(rng), u(rng), 1.f}, k));
+  }
+  for (int kCache : {16, 128, 512}) {
+    lighting::ValGpu gpu(kCache);
+    gpu.setVals(vals);
+    gpu.gather(rec);
+    const auto vpls = gpu.downloadVpls();
+    std::vector<cv::Vec3f> E, S;
+    gpu.downloadSums(E, S);
+    ASSERT_EQ(vpls.size(), rec.size());
+    for (size_t i = 0; i < rec.size(); ++i) {
+      const auto g = lighting::gatherReference(rec[i], vals);
+      const auto ref = lighting::normalizeReference(g, rec[i]);
+      auto near = [&](const cv::Vec3f& a, const cv::Vec3f& b, double rel, const char* what) {
+        EXPECT_LE(cv::norm(a - b), rel * std::max(cv::norm(b), 1e-12)) << what << " receiver " << i << " K " << kCache;
+      };
+      near(E[i], g.E, 1e-4, "E");
+      // cos^k = exp(k log cos) in float on both sides: the relative error grows with k (≈ k · 1e-7).
+      const double lobeTol = 3e-7 * rec[i].exponent;
+      near(S[i], g.S, 1e-3 + lobeTol, "S");
+      near(vpls[i].Ld, ref.Ld, 1e-3, "Ld");
+      near(vpls[i].ld, ref.ld, 1e-4, "ld");
+      near(vpls[i].Ls, ref.Ls, 2e-3 + 2 * lobeTol, "Ls");
+      near(vpls[i].ls, ref.ls, 1e-4, "ls");
+      EXPECT_NEAR(vpls[i].radiusD, ref.radiusD, 1e-3 * std::max(ref.radiusD, 1e-3f));
+    }
+  }
+  // Occlusion: receivers as disc occluders of each other.
+  lighting::ValGpu gpu(64);
+  gpu.setVals(vals);
+  std::vector<lighting::Receiver> pts;
+  std::vector<cv::Vec3f> pos, nrm;
+  std::vector<float> rad;
+  for (int i = 0; i < 200; ++i) {  // two facing plates: floor z = 0 and a lid z = 0.3 with a hole
+    const bool lid = i >= 120;
+    const cv::Vec3f p(0.6f * u(rng), 0.6f * u(rng), lid ? 0.3f : 0.f);
+    pts.push_back(receiver(p, {0, 0, lid ? -1.f : 1.f}, {0.1f, 0.f, 1.f}, 5.f));
+    pos.push_back(p);
+    nrm.push_back(pts.back().normal);
+    rad.push_back(0.06f);
+  }
+  gpu.gather(pts);
+  auto ref = gpu.downloadVpls();
+  lighting::occludeReference(pos, nrm, rad, ref);
+  gpu.occlude(pos, nrm, rad);
+  const auto got = gpu.downloadVpls();
+  int partly = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_NEAR(got[i].occlusionD, ref[i].occlusionD, 1e-4) << i;
+    EXPECT_NEAR(got[i].occlusionS, ref[i].occlusionS, 1e-4) << i;
+    EXPECT_LE(cv::norm(got[i].Ld - ref[i].Ld), 1e-4 * std::max(cv::norm(ref[i].Ld), 1e-12));
+    partly += ref[i].occlusionD < 0.99f;
+  }
+  EXPECT_GT(partly, 20);  // the lid shadows the floor's light
+}
