@@ -17,5 +17,6 @@ Action addCalibrateFisheye(CLI::App& app);
 Action addLights(CLI::App& app);
 Action addImportVisp(CLI::App& app);
 Action addInsert(CLI::App& app);
+Action addBench(CLI::App& app);
 
 }  // namespace mrgi::app

@@ -450,3 +450,26 @@ TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
   EXPECT_EQ(slurp(scene), before);
   fs::remove_all(dir);
 }
+
+TEST(Cli, BenchKinectValWritesSparseAndBruteForceRecords) {
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_bench_" + std::to_string(::getpid()) + ".json");
+  const std::string rec = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
+  const Result r = runMrgi("bench --technique kinect-val --session " + rec + " --model " + kModels +
+                           "sphere.ply --vals 512,2048 --sparse 64,642 --receivers 2048 --repeats 1 --json " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto doc = nlohmann::json::parse(slurp(out));
+  ASSERT_EQ(doc["records"].size(), 8u);  // 2 VAL counts × 2 sparse counts × occlusion off/on
+  for (const auto& rec : doc["records"]) {
+    EXPECT_EQ(rec["technique"], "kinect-val");
+    EXPECT_GT(rec["ms_sparse"].get<double>(), 0.0);
+    EXPECT_GT(rec["ms_bruteforce"].get<double>(), 0.0);
+    const double e = rec["rel_error_vs_bruteforce"].get<double>();
+    EXPECT_TRUE(std::isfinite(e));
+    EXPECT_GE(e, 0.0);
+    EXPECT_LT(e, 0.25);
+  }
+  // More sparse points, less error (same VALs, no occlusion): records 0 (64) and 2 (642).
+  EXPECT_LT(doc["records"][2]["rel_error_vs_bruteforce"].get<double>(), doc["records"][0]["rel_error_vs_bruteforce"].get<double>());
+  fs::remove(out);
+  expectOneLineError(runMrgi("bench --technique dlpv --json " + out.string()), "--technique dlpv");
+}
