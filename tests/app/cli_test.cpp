@@ -324,7 +324,7 @@ TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
     ASSERT_EQ(delta.type(), CV_32FC3);
     ASSERT_EQ(mask.type(), CV_8UC1);
     EXPECT_GT(cv::countNonZero(mask == 255), 50);  // the sphere covers pixels
-    EXPECT_EQ(cv::countNonZero(mask != 255 & mask != 0), 0);
+    EXPECT_EQ(cv::countNonZero((mask != 255) & (mask != 0)), 0);
     double lo, hi;
     cv::minMaxLoc(delta.reshape(1), &lo, &hi);
     EXPECT_LT(lo, 0.0) << technique;  // its shadow

@@ -218,7 +218,9 @@ TEST(Marker, PartialGrazingAndEmptyViewsAreHandled) {
   // Grazing view (85 degrees).
   for (const auto& d : detector.detect(renderTagView(3, 0.1, lookAtTag(0.5, 85, 0), k))) {
     const auto p = estimateTagPose(d, 0.1, k);
-    if (p) EXPECT_TRUE(cv::checkRange(cv::Mat(p->T_camera_tag)));
+    if (p) {
+      EXPECT_TRUE(cv::checkRange(cv::Mat(p->T_camera_tag)));
+    }
   }
   EXPECT_TRUE(detector.detect(cv::Mat(480, 640, CV_8UC1, cv::Scalar(0))).empty());
   EXPECT_TRUE(detector.detect(cv::Mat(480, 640, CV_8UC1, cv::Scalar(255))).empty());
