@@ -184,10 +184,16 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
       const cv::Vec3d rd = o.contains("rotate_deg") ? r.vec3(o["rotate_deg"], key + ".rotate_deg", -3600, 3600) : cv::Vec3d();
       if (o.contains("material")) {
         const json& m = o["material"];
-        r.allowOnly(m, key + ".material", {"albedo", "roughness"});
+        const std::string materialKey = key + ".material";
+        r.allowOnly(m, materialKey, {"albedo", "roughness", "specular"});
         if (m.contains("albedo")) obj.material.albedo = r.vec3(m["albedo"], key + ".material.albedo", 0, 1);
         if (m.contains("roughness"))
           obj.material.roughness = static_cast<float>(r.number(m["roughness"], key + ".material.roughness", 0, 1));
+        if (m.contains("specular"))
+          obj.material.specular = static_cast<float>(r.number(m["specular"], key + ".material.specular", 0, 1));
+        if (obj.material.albedo[0] + obj.material.specular > 1.0f || obj.material.albedo[1] + obj.material.specular > 1.0f ||
+            obj.material.albedo[2] + obj.material.specular > 1.0f)
+          r.fail(materialKey, "albedo + specular exceeds 1 in a channel (the surface would create energy)");
       }
       try {
         obj.mesh = loadMesh(obj.model);

@@ -36,7 +36,8 @@ Mesh loadMesh(const std::string& path);
 
 struct Material {
   cv::Vec3f albedo{0.8f, 0.8f, 0.8f};  ///< diffuse reflectance, linear RGB in [0, 1]
-  float roughness = 1.0f;              ///< [0, 1]; 1 = Lambertian (the only lobe DLPV transports)
+  float roughness = 1.0f;              ///< [0, 1]; Phong exponent k = 2/r² − 2 for the glossy lobe (Kinect-VAL)
+  float specular = 0.0f;               ///< glossy reflectance in [0, 1], albedo + specular ≤ 1 per channel
 };
 
 struct VirtualObject {

@@ -154,7 +154,7 @@ TEST(Lpv, DirectionalLobeEnergyPerStepIsBounded) {
   LpvGrid g;
   g.resolution = 41;
   g.cellSize = 0.1;
-  for (const cv::Vec3f dir : {cv::Vec3f(0, 0, 1), cv::normalize(cv::Vec3f(1, 1, 1)), cv::normalize(cv::Vec3f(1, 0.3f, 0))}) {
+  for (const cv::Vec3f& dir : {cv::Vec3f(0, 0, 1), cv::normalize(cv::Vec3f(1, 1, 1)), cv::normalize(cv::Vec3f(1, 0.3f, 0))}) {
     LpvVolumeCpu v(41);
     const auto lobe = cosineLobe(dir);
     for (int i = 0; i < 4; ++i) v.at(20, 20, 20)[0][i] = lobe[i] / float(CV_PI);

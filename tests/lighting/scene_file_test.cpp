@@ -50,7 +50,7 @@ TEST(Models, BadModelFilesNameTheFile) {
 TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   const SceneDescription s = parseScene(R"({
     "objects": [{"model": "../models/cube.obj", "translate": [0, 0, 0.05], "rotate_deg": [0, 0, 90], "scale": 0.1,
-                 "material": {"albedo": [0.9, 0.2, 0.1], "roughness": 0.5}}],
+                 "material": {"albedo": [0.9, 0.2, 0.1], "roughness": 0.5, "specular": 0.1}}],
     "lights": [{"type": "point", "position": [0, 0, 1], "intensity": [5, 5, 5]},
                {"type": "directional", "direction": [0, 0, -2], "irradiance": [1, 2, 3]}],
     "ambient_radiance": [0.1, 0.1, 0.1],
@@ -62,6 +62,16 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   EXPECT_NEAR(s.objects[0].T_marker_object(2, 3), 0.05, 1e-12);
   EXPECT_NEAR(s.objects[0].T_marker_object(1, 0), 1.0, 1e-12);  // 90 deg about z: x -> y
   EXPECT_EQ(s.objects[0].material.albedo, cv::Vec3f(0.9f, 0.2f, 0.1f));
+  EXPECT_FLOAT_EQ(s.objects[0].material.specular, 0.1f);
+  EXPECT_FLOAT_EQ(s.objects[0].material.roughness, 0.5f);
+  // A material reflecting more than it receives is refused, naming the key.
+  try {
+    parseScene(R"({"objects": [{"model": "../models/cube.obj", "material": {"albedo": [0.9, 0.2, 0.1], "specular": 0.2}}]})",
+               kScenePath);
+    ADD_FAILURE() << "accepted albedo + specular > 1";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("objects[0].material: albedo + specular exceeds 1"), std::string::npos) << e.what();
+  }
   EXPECT_EQ(s.lightSource, LightSource::Scene);
   ASSERT_EQ(s.lights.size(), 2u);
   EXPECT_EQ(s.lights[1].type, LightType::Directional);

@@ -118,7 +118,9 @@ TEST(Val, RenormalisedVplsReproduceTheGatherAtThePoint) {
       // Exact whenever the averaged glossy light is inside the lobe by more than the guard.
       const cv::Vec3f ds = cv::normalize(vpl.ls - r.position);
       const cv::Vec3f refl = 2.f * r.normal.dot(r.view) * r.normal - r.view;
-      if (std::pow(refl.dot(ds), k) > lighting::kValMinLobe) EXPECT_NEAR(S[0], g.S[0], 1e-4 * g.S[0]) << trial;
+      if (std::pow(refl.dot(ds), k) > lighting::kValMinLobe) {
+        EXPECT_NEAR(S[0], g.S[0], 1e-4 * g.S[0]) << trial;
+      }
     }
   }
 }
@@ -160,7 +162,7 @@ TEST(Val, PhongExponentsFromOneToTenThousandStayFiniteAndBounded) {
   std::vector<Val> vals = {disc({0, 0, 0.5f}, {0, 0, -1}, 0.05f, {1, 1, 1}), disc({0.3f, 0, 0.01f}, {-1, 0, 0}, 0.05f, {1, 1, 1})};
   lighting::setValWeights(vals);
   for (float k : {0.f, 1.f, 10.f, 100.f, 1000.f, 1e4f}) {
-    for (const cv::Vec3f view : {cv::Vec3f(0, 0, 1), cv::Vec3f(1, 0, 0.01f), cv::Vec3f(0.3f, 0.2f, 1)}) {
+    for (const cv::Vec3f& view : {cv::Vec3f(0, 0, 1), cv::Vec3f(1, 0, 0.01f), cv::Vec3f(0.3f, 0.2f, 1)}) {
       const auto r = receiver({0, 0, 0}, {0, 0, 1}, view, k);
       const auto g = lighting::gatherReference(r, vals);
       const auto vpl = lighting::normalizeReference(g, r);

@@ -13,12 +13,6 @@ using namespace mrgi::reconstruction;
 
 namespace {
 
-capture::Pose poseOf(const nlohmann::json& flat) {
-  capture::Pose T;
-  for (int i = 0; i < 16; ++i) T(i / 4, i % 4) = flat[i];
-  return T;
-}
-
 // Does the segment a -> b pass through the axis-aligned box [lo, hi]? (slab test)
 bool segmentHitsBox(const cv::Vec3d& a, const cv::Vec3d& b, const cv::Vec3d& lo, const cv::Vec3d& hi) {
   double t0 = 0, t1 = 1;

@@ -196,7 +196,9 @@ TEST(MedianCut, IrradianceFromLightsConvergesOnRealHdrMaps) {
       for (const auto& nrm : normals)
         worst = std::max(worst, relErr(irradianceFromLights(lights, nrm), irradianceFromImage(fish, rays, nrm)));
       std::printf("  N=%d: %.2f%%", n, 100 * worst);
-      if (n >= 16) EXPECT_LT(worst, previous * 1.05) << name << " " << n;  // no worse with more lights
+      if (n >= 16) {
+        EXPECT_LT(worst, previous * 1.05) << name << " " << n;  // no worse with more lights
+      }
       previous = worst;
       if (n == 64) at64 = worst;
     }
