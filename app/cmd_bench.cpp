@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 
 #include <nlohmann/json.hpp>
 
@@ -133,12 +132,7 @@ int runBench(const BenchOptions& o) {
           gpu.gather(sparse);
           gpu.occlude(points.positions, points.normals, points.discRadius);
         }) - msGather : 0.0;
-        if (occlusion) {
-          gpu.gather(sparse);
-          gpu.occlude(points.positions, points.normals, points.discRadius);
-        } else {
-          gpu.gather(sparse);
-        }
+        // The last timed run left this configuration's VPLs on the GPU.
         const auto vpls = gpu.downloadVpls();
         double err = 0;
         for (size_t v = 0; v < mesh.positions.size(); ++v) {
@@ -167,8 +161,7 @@ int runBench(const BenchOptions& o) {
   json out = {{"session", o.session}, {"model", o.model}, {"gl", context->renderer()}, {"records", records}};
   if (!o.json.empty()) {
     if (!fs::path(o.json).parent_path().empty()) fs::create_directories(fs::path(o.json).parent_path());
-    const std::string text = out.dump(2) + "\n";
-    capture::writeFileAtomically(o.json, std::vector<unsigned char>(text.begin(), text.end()));
+    capture::writeFileAtomically(o.json, out.dump(2) + "\n");
   }
   return 0;
 }

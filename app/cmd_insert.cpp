@@ -197,8 +197,7 @@ int runInsert(const InsertOptions& o) {
     report["preview"] = o.preview;
   }
   if (!fs::path(o.save).parent_path().empty()) fs::create_directories(fs::path(o.save).parent_path());
-  const std::string text = doc.dump(2) + "\n";
-  capture::writeFileAtomically(o.save, std::vector<unsigned char>(text.begin(), text.end()));
+  capture::writeFileAtomically(o.save, doc.dump(2) + "\n");
   std::printf("%s\n", report.dump().c_str());
   return 0;
 }

@@ -1,7 +1,6 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <unistd.h>
 
@@ -213,9 +212,7 @@ int runReplay(const ReplayOptions& o) {
   }
   summary["wall_ms_per_frame"] = wallMs / done;
   summary["per_frame"] = perFrame;
-  const std::string summaryPath = (fs::path(o.out) / "summary.json").string();
-  std::ofstream(summaryPath + ".tmp") << summary.dump(2) << "\n";
-  fs::rename(summaryPath + ".tmp", summaryPath);
+  capture::writeFileAtomically(fs::path(o.out) / "summary.json", summary.dump(2) + "\n");
   std::printf("replayed %lld frames into %s (%.1f ms/frame)\n", static_cast<long long>(done), o.out.c_str(),
               wallMs / done);
   return 0;

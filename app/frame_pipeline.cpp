@@ -106,8 +106,9 @@ std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& fra
   std::optional<capture::Pose> measured;
   for (const auto& d : detector_->detect(rgbd.colour)) {
     if (setup_->tagId >= 0 && d.id != setup_->tagId) continue;
-    const auto pose = reconstruction::measureTagPose(d, setup_->tagSize, rgbd.colourIntrinsics,
-                                                     rgbd.depthRegistered ? rgbd.depth : cv::Mat(), track_.lastMeasured());
+    // measure() registered the depth to the colour image before this.
+    const auto pose = reconstruction::measureTagPose(d, setup_->tagSize, rgbd.colourIntrinsics, rgbd.depth,
+                                                     track_.lastMeasured());
     if (pose) {
       measured = pose->T_camera_tag;
       break;

@@ -73,6 +73,10 @@ void writeFileDurably(const std::filesystem::path& path, const std::vector<unsig
 
 }  // namespace
 
+void writeFileAtomically(const std::filesystem::path& path, const std::string& text) {
+  writeFileAtomically(path, std::vector<unsigned char>(text.begin(), text.end()));
+}
+
 void writeFileAtomically(const std::filesystem::path& path, const std::vector<unsigned char>& bytes) {
   std::filesystem::path tmp = path;
   tmp += ".tmp";

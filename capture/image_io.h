@@ -22,13 +22,15 @@ cv::Mat depthToUnits(const cv::Mat& depthMetres, double unitsMetres);
 /// Encodes an RGB or grey image (8/16-bit) to PNG bytes; throws CaptureError on failure.
 std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors);
 
-/// Writes bytes to "<path>.tmp", fsyncs, then renames over path: readers see the whole file or nothing.
-/// Throws CaptureError naming the path.
 /// True for a path whose extension names an image format the readers decode (.png .jpg .jpeg .bmp .pgm
 /// .ppm .tif .tiff, any case).
 bool isImageFile(const std::filesystem::path& path);
 
+/// Writes bytes to "<path>.tmp", fsyncs, then renames over path: readers see the whole file or nothing.
+/// Throws CaptureError naming the path.
 void writeFileAtomically(const std::filesystem::path& path, const std::vector<unsigned char>& bytes);
+/// The same for text (JSON documents, manifests).
+void writeFileAtomically(const std::filesystem::path& path, const std::string& text);
 
 /// Silences OpenCV's own logging so a bad file produces our one-line error only.
 void quietOpenCv();

@@ -188,8 +188,7 @@ SessionWriter::SessionWriter(std::string directory, SessionManifest manifest)
     fs::create_directories(fs::path(dir_) / sub, ec);
     if (ec) throw CaptureError(dir_, "cannot create directory: " + ec.message());
   }
-  const std::string text = manifest_.toJson().dump(2) + "\n";
-  writeFileAtomically(fs::path(dir_) / kManifest, std::vector<unsigned char>(text.begin(), text.end()));
+  writeFileAtomically(fs::path(dir_) / kManifest, manifest_.toJson().dump(2) + "\n");
   const fs::path index = fs::path(dir_) / kIndex;
   indexFd_ = ::open(index.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
   if (indexFd_ < 0) throw CaptureError(index.string(), std::string("cannot create: ") + std::strerror(errno));
