@@ -136,10 +136,25 @@ int runReplay(const ReplayOptions& o) {
         double rsmScale = 0;
         png("rsm_flux", lighting::signedImage(rsm.flux, rsmScale));
         png("rsm_normal", lighting::normalImage(rsm.normal));
-        double volScale = 0;
-        const auto vol = pipeline->downloadVolume(technique == lighting::Technique::Dlpv ? "delta" : "rho_full");
-        png("dlpv_slices", lighting::volumeSlices(vol, 4, 4, volScale));
-        frameInfo["debug_volume_scale"] = volScale;
+        if (lighting::usesLpv(technique)) {
+          double volScale = 0;
+          const auto vol = pipeline->downloadVolume(technique == lighting::Technique::LpvDiff ? "rho_full" : "delta");
+          png("dlpv_slices", lighting::volumeSlices(vol, 4, 4, volScale));
+          frameInfo["debug_volume_scale"] = volScale;
+        }
+        if (lighting::usesVal(technique)) {
+          // Bounce irradiance the virtual object receives (Kinect-VAL), on a linear scale.
+          cv::Mat e = pipeline->downloadIrradiance(), mask;
+          cv::extractChannel(albedo, mask, 3);
+          cv::Mat rgb;
+          cv::cvtColor(e, rgb, cv::COLOR_RGBA2RGB);
+          double lo = 0, hi = 0;
+          cv::Mat lum;
+          cv::cvtColor(rgb, lum, cv::COLOR_RGB2GRAY);
+          cv::minMaxLoc(lum, &lo, &hi, nullptr, nullptr, mask > 0.5f);
+          png("val_irradiance", lighting::linearImage(rgb, hi > 0 ? 1.0 / hi : 0.0));
+          frameInfo["debug_val_irradiance_max"] = hi;
+        }
       }
       if (o.dumpDelta) {
         auto s = profiler.cpu("dump");
@@ -208,6 +223,17 @@ int runReplay(const ReplayOptions& o) {
     const auto& k = setup->scene.lpv;
     summary["knobs"] = {{"resolution", k.resolution}, {"steps", k.steps}, {"rsm_size", k.rsmSize},
                         {"size_factor", k.sizeFactor}, {"damping", k.damping}, {"direct_steps", k.directSteps}};
+    if (lighting::usesVal(setup->scene.technique)) {
+      const auto& v = setup->scene.val;
+      summary["knobs"]["val"] = {{"sparse_points", v.sparsePoints}, {"k_cache", v.kCache}, {"occlusion", v.occlusion},
+                                 {"stride", v.stride}, {"rsm_stride", v.rsmStride}, {"fusion", v.fusion},
+                                 {"voxel", v.voxel}, {"decay", v.decay}, {"brute_force", v.bruteForce}};
+      double flicker = 0;
+      int n = 0;
+      for (const auto& f : perFrame)
+        if (f.contains("val") && f["val"].contains("flicker")) flicker += f["val"]["flicker"].get<double>(), ++n;
+      if (n > 0) summary["val_flicker_mean"] = flicker / n;
+    }
     summary["lights"] = setup->lights.size();
   }
   summary["wall_ms_per_frame"] = wallMs / done;
@@ -229,7 +255,7 @@ Action addReplay(CLI::App& app) {
       ->check(CLI::IsMember({"osmesa", "egl", "window"}));
   app.add_option("--scene", o->scene, "scene file (JSON): virtual objects relative to the marker, lights, technique");
   app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
-      ->check(CLI::IsMember({"dlpv", "lpv-diff"}));
+      ->check(CLI::IsMember({"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}));
   app.add_flag("--dump-delta", o->dumpDelta, "also write delta_NNNN.exr (linear RGB added to real pixels) and mask_NNNN.png (255 = virtual)");
   app.add_flag("--debug", o->debug, "also write debug_NNNN_*.png: delta (red = negative), G-buffer albedo/normal/mask, "
                                      "RSM flux/normal of the last light, DLPV z-slices");

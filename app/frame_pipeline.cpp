@@ -1,5 +1,6 @@
 #include "app/frame_pipeline.h"
 
+#include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/registration.h"
 #include "capture/session.h"
@@ -66,6 +67,13 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
   pc.height = height;
   pc.technique = setup_->scene.technique;
   pc.lpv = setup_->scene.lpv;
+  pc.val = setup_->scene.val;
+  if (lighting::usesVal(pc.technique) && pc.val.fusion) {
+    lighting::SurfelOptions so;
+    so.voxel = static_cast<float>(pc.val.voxel);
+    so.decay = static_cast<float>(pc.val.decay);
+    surfels_.emplace(so);
+  }
   pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
   if (setup_->fisheye) fisheyeRays_ = reconstruction::fisheyeRays(*setup_->fisheye);
   reconstruction::DetectorOptions dopt;
@@ -192,10 +200,45 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     lighting::buildRealVertices(mesh, albedo, *r.T_marker_camera, vertices, indices);
     pipeline_->setRealMesh(vertices, indices);
   }
+  const bool val = lighting::usesVal(setup_->scene.technique);
+  if (val) {
+    // Real surfaces as VALs: the seen radiance of every stride-th filtered pixel, fused over frames when
+    // the scene asks for it (surfels out of view keep their light).
+    auto s = profiler.cpu("val.real_vals");
+    auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::decodeSrgb(rgbd.colour), rgbd.colourIntrinsics,
+                                       *r.T_marker_camera, setup_->scene.val.stride);
+    if (surfels_) {
+      cv::Mat depth;
+      cv::extractChannel(r.positions, depth, 2);
+      surfels_->integrate(vals, depth, rgbd.colourIntrinsics, *r.T_marker_camera);
+      vals = surfels_->vals();
+    }
+    pipeline_->setRealVals(std::move(vals));
+  }
   lighting::CameraView view;
   view.intrinsics = rgbd.colourIntrinsics;
   view.T_world_camera = *r.T_marker_camera;
   pipeline_->run(view, setup_->lights, setup_->ambient, &profiler);
+  if (val) {
+    // Flicker of the bounce light: frame-to-frame change of the sparse points' irradiance (model space,
+    // so a moving camera alone changes nothing), relative to its mean.
+    const auto& st = pipeline_->valStats();
+    nlohmann::json v = {{"real_vals", st.realVals}, {"virtual_vals", st.virtualVals}, {"receivers", st.receivers}};
+    if (surfels_) v["surfels"] = surfels_->size();
+    std::vector<cv::Vec3f> E, S;
+    pipeline_->downloadValSums(E, S);
+    double sum = 0;
+    for (const auto& e : E) sum += capture::luminance(cv::Vec3d(e));
+    v["mean_irradiance"] = E.empty() ? 0.0 : sum / static_cast<double>(E.size());
+    if (!st.bruteForce && !prevValE_.empty() && prevValE_.size() == E.size() && sum > 0) {
+      double change = 0;
+      for (size_t i = 0; i < E.size(); ++i)
+        change += std::abs(capture::luminance(cv::Vec3d(E[i])) - capture::luminance(cv::Vec3d(prevValE_[i])));
+      v["flicker"] = change / sum;
+    }
+    prevValE_ = st.bruteForce ? std::vector<cv::Vec3f>() : E;
+    r.info["val"] = v;
+  }
   r.composite = compositor.composite(rgbd.colour, pipeline_->shade(), &profiler);
   r.lit = true;
 }

@@ -14,6 +14,7 @@
 #include "gl/profiler.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
+#include "lighting/val.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
 
@@ -74,6 +75,8 @@ class FramePipeline {
   std::optional<reconstruction::FisheyeRays> fisheyeRays_;
   std::optional<reconstruction::TagDetector> detector_;
   reconstruction::MarkerTrack track_;
+  std::optional<lighting::SurfelMap> surfels_;  ///< Kinect-VAL fusion of real VALs over frames
+  std::vector<cv::Vec3f> prevValE_;             ///< last frame's sparse-point irradiance (flicker)
 };
 
 }  // namespace mrgi::app

@@ -6,9 +6,10 @@ in vec3 vNormal;
 in vec3 vAlbedo;
 uniform vec3 uEye;       // camera centre, world
 uniform float uVirtual;  // 1 for virtual objects, 0 for the real mesh
+uniform float uObject;   // 0 for the real mesh, 1 + index for virtual object index
 
 layout(location = 0) out vec4 outPosition;  // xyz world, w = 1
-layout(location = 1) out vec4 outNormal;    // xyz unit world normal towards the camera, w = 1
+layout(location = 1) out vec4 outNormal;    // xyz unit world normal towards the camera, w = uObject
 layout(location = 2) out vec4 outAlbedo;    // rgb albedo, a = 1 on virtual surfaces
 
 void main() {
@@ -16,6 +17,6 @@ void main() {
   vec3 n = dot(vNormal, vNormal) > 1e-20 ? normalize(vNormal) : normalize(uEye - vPosition);
   if (dot(n, uEye - vPosition) < 0.0) n = -n;
   outPosition = vec4(vPosition, 1.0);
-  outNormal = vec4(n, 1.0);
+  outNormal = vec4(n, uObject);
   outAlbedo = vec4(vAlbedo, uVirtual);
 }

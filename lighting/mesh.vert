@@ -8,6 +8,8 @@ uniform mat4 uModel;       // world <- model
 uniform mat3 uNormalModel; // inverse transpose of uModel's 3x3
 uniform mat4 uViewProj;    // clip <- world
 
+invariant gl_Position;  // val_mesh.vert repeats this transform and depth-tests against it
+
 out vec3 vPosition;
 out vec3 vNormal;
 out vec3 vAlbedo;

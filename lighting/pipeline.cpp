@@ -175,6 +175,45 @@ LightingPipeline::LightingPipeline(const PipelineConfig& config, const std::vect
     objectBoundsMin_.push_back(o.mesh.boundsMin);
     objectBoundsMax_.push_back(o.mesh.boundsMax);
   }
+
+  if (usesVal(config.technique)) {
+    // Sparse points and per-vertex weights depend on the mesh only (model space): computed once.
+    for (const VirtualObject& o : objects) {
+      ValObject vo;
+      vo.material = o.material;
+      vo.points = sampleSparsePoints(o.mesh, config.val.sparsePoints);
+      const VertexWeights w = vertexWeights(o.mesh, vo.points);
+      constexpr int K = VertexWeights::kNeighbours;
+      static_assert(K == 8);
+      struct Packed {
+        int32_t index[8];
+        float weight[8];
+      };
+      std::vector<Packed> packed(o.mesh.positions.size());
+      for (size_t v = 0; v < packed.size(); ++v)
+        for (int k = 0; k < K; ++k) {
+          packed[v].index[k] = w.index[v * K + k];
+          packed[v].weight[k] = w.weight[v * K + k];
+        }
+      vo.weights = gl::Buffer(static_cast<GLsizeiptr>(std::max<size_t>(packed.size(), 1) * sizeof(Packed)),
+                              packed.empty() ? nullptr : packed.data());
+      valObjects_.push_back(std::move(vo));
+    }
+    valGpu_.emplace(config.val.kCache);
+    valMeshProgram_ = gl::Program::graphics("lighting/val_mesh.vert", "lighting/val_mesh.frag");
+    valRadiance_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height);
+    valIrradiance_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height);
+    valRadiance_.setFilter(GL_NEAREST, GL_NEAREST);
+    valIrradiance_.setFilter(GL_NEAREST, GL_NEAREST);
+    valFb_.attachColour(0, valRadiance_);
+    valFb_.attachColour(1, valIrradiance_);
+    valFb_.attachDepth(gDepth_);
+    valFb_.finalise(2);
+  }
+  if (config.technique == Technique::KinectVal) {
+    shadowMuArray_ = gl::Texture(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, config.lpv.rsmSize, config.lpv.rsmSize, kMaxLights);
+    shadowMuArray_.setFilter(GL_NEAREST, GL_NEAREST);
+  }
 }
 
 LightingPipeline::Volume LightingPipeline::makeVolume(int res) const {
@@ -215,10 +254,12 @@ void LightingPipeline::drawScene(const gl::Program& program, bool includeVirtual
   program.setMat4("uModel", id.data());
   setMat3(program, "uNormalModel", cv::Matx33f::eye());
   program.set("uVirtual", 0.0f);
+  program.set("uObject", 0.0f);
   realMesh_.draw();
   if (!includeVirtual) return;
   program.set("uVirtual", 1.0f);
   for (size_t i = 0; i < objectMeshes_.size(); ++i) {
+    program.set("uObject", static_cast<float>(i + 1));
     const auto m = toGl(objectTransforms_[i]);
     program.setMat4("uModel", m.data());
     setMat3(program, "uNormalModel", normalMatrix(objectTransforms_[i]));
@@ -365,11 +406,12 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     grid_ = fitGrid(lo, hi, config_.lpv.sizeFactor, config_.lpv.resolution);
   }
   const bool diff = config_.technique == Technique::LpvDiff;
-  if (grid_ && grid_->resolution != volumeRes_) {
+  const bool lpv = usesLpv(config_.technique), val = usesVal(config_.technique);
+  if (lpv && grid_ && grid_->resolution != volumeRes_) {
     volumeRes_ = grid_->resolution;
     delta_ = makeVolume(volumeRes_);
     deltaDirect_ = makeVolume(volumeRes_);
-    rho_ = makeVolume(volumeRes_);
+    if (!val) rho_ = makeVolume(volumeRes_);
     scratchA_ = makeVolume(volumeRes_);
     scratchB_ = makeVolume(volumeRes_);
     if (diff) {
@@ -398,6 +440,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
 
   // Every frame starts from cleared volumes.
   std::vector<LightView> views;
+  rsmVals_.clear();
   if (grid_) {
     for (Volume* v : {&delta_, &rho_, &rhoFull_, &muFull_, &deltaDirect_, &rhoDirect_, &muDirect_})
       if (v->r.id()) {
@@ -417,9 +460,19 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
         const int n = config_.lpv.rsmSize;
         glCopyImageSubData(rsmRho_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowArray_.id(), GL_TEXTURE_2D_ARRAY, 0,
                            0, 0, static_cast<GLint>(li), n, n, 1);
+        if (shadowMuArray_.id())
+          glCopyImageSubData(rsmMu_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowMuArray_.id(), GL_TEXTURE_2D_ARRAY,
+                             0, 0, 0, static_cast<GLint>(li), n, n, 1);
       }
+      if (val) {
+        // The virtual object's lit texels become VALs (virtual -> virtual bounce).
+        auto s = scope("val.rsm_vals");
+        const auto v = valsFromRsm(downloadRsm(true), light, config_.val.rsmStride);
+        rsmVals_.insert(rsmVals_.end(), v.begin(), v.end());
+      }
+      if (!lpv) continue;
       auto s = scope("lpv.inject");
-      inject(rho_, rsmRho_, nullptr, 1.0f, kInjectIndirect, light);
+      if (!val) inject(rho_, rsmRho_, nullptr, 1.0f, kInjectIndirect, light);
       if (diff) {
         inject(rhoFull_, rsmRho_, nullptr, 1.0f, kInjectIndirect, light);
         inject(rhoDirect_, rsmRho_, nullptr, 1.0f, kInjectDirect, light);
@@ -435,14 +488,17 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       }
     }
     glMemoryBarrier(GL_ALL_BARRIER_BITS);
-    auto s = scope("lpv.propagate");
-    propagate(rho_, true, nullptr);
-    if (diff) {
-      propagate(rhoFull_, true, &rhoDirect_);
-      propagate(muFull_, true, &muDirect_);
-    } else {
-      propagate(delta_, false, &deltaDirect_);
+    if (lpv) {
+      auto s = scope("lpv.propagate");
+      if (!val) propagate(rho_, true, nullptr);
+      if (diff) {
+        propagate(rhoFull_, true, &rhoDirect_);
+        propagate(muFull_, true, &muDirect_);
+      } else {
+        propagate(delta_, false, &deltaDirect_);
+      }
     }
+    if (val) runVal(camera, profiler);
   }
 
   auto s = scope("shade");
@@ -452,7 +508,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   const gl::Program& p = shadeProgram_;
   p.use();
   p.set("uLighting", grid_ ? 1 : 0);
-  p.set("uDiff", diff ? 1 : 0);
+  p.set("uRealMode", diff ? 1 : lpv ? 0 : 2);
+  p.set("uVirtualMode", val ? 1 : 0);
   if (grid_) {
     setVec3(p, "uGridOrigin", grid_->origin);
     p.set("uCellSize", static_cast<float>(grid_->cellSize));
@@ -487,9 +544,101 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     rho_.r.bind(9), rho_.g.bind(10), rho_.b.bind(11);
   }  // without a volume uLighting = 0 and the shader samples none of them
   shadowArray_.bind(12);
+  if (shadowMuArray_.id()) shadowMuArray_.bind(13);
+  if (val) {
+    valRadiance_.bind(14);
+    valIrradiance_.bind(15);
+  }
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
   gl::checkGlError("LightingPipeline::run()");
+}
+
+void LightingPipeline::runVal(const CameraView& camera, gl::Profiler* profiler) {
+  auto scope = [&](const char* name) {
+    return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, true) : std::nullopt;
+  };
+  const cv::Vec3f eye(capture::translationOf(camera.T_world_camera));
+  {
+    auto s = scope("val.upload");
+    std::vector<Val> vals;
+    vals.reserve(realVals_.size() + rsmVals_.size());
+    vals.insert(vals.end(), realVals_.begin(), realVals_.end());
+    vals.insert(vals.end(), rsmVals_.begin(), rsmVals_.end());
+    setValWeights(vals);
+    valGpu_->setVals(vals);
+    valStats_ = {realVals_.size(), rsmVals_.size(), 0, config_.val.bruteForce};
+  }
+  const float zero[4] = {0, 0, 0, 0};
+  glClearNamedFramebufferfv(valFb_.id(), GL_COLOR, 0, zero);
+  glClearNamedFramebufferfv(valFb_.id(), GL_COLOR, 1, zero);
+  if (config_.val.bruteForce) {
+    valBruteForce(camera);
+    return;
+  }
+
+  // Receivers: every object's sparse points in the lighting world, seen from the camera.
+  std::vector<Receiver> receivers;
+  std::vector<cv::Vec3f> positions, normals;
+  std::vector<float> radii;
+  std::vector<int> base;
+  for (size_t o = 0; o < valObjects_.size(); ++o) {
+    const ValObject& vo = valObjects_[o];
+    base.push_back(static_cast<int>(receivers.size()));
+    const cv::Matx44d& T = objectTransforms_[o];
+    const cv::Matx33f N = normalMatrix(T);
+    const float k = phongExponent(vo.material.roughness);
+    for (size_t i = 0; i < vo.points.positions.size(); ++i) {
+      Receiver r;
+      r.position = cv::Vec3f(capture::transformPoint(T, cv::Vec3d(vo.points.positions[i])));
+      r.normal = cv::normalize(N * vo.points.normals[i]);
+      const cv::Vec3f toEye = eye - r.position;
+      r.view = cv::norm(toEye) > 0 ? cv::normalize(toEye) : r.normal;
+      r.exponent = k;
+      receivers.push_back(r);
+      positions.push_back(r.position);
+      normals.push_back(r.normal);
+      radii.push_back(vo.points.discRadius[i]);
+    }
+  }
+  valStats_.receivers = receivers.size();
+  {
+    auto s = scope("val.gather");
+    valGpu_->gather(receivers);
+  }
+  if (config_.val.occlusion) {
+    auto s = scope("val.occlude");
+    valGpu_->occlude(positions, normals, radii);
+  }
+
+  // Per-vertex interpolation and per-pixel evaluation on the visible virtual surfaces.
+  auto s = scope("val.shade");
+  valFb_.bind();
+  glViewport(0, 0, config_.width, config_.height);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LEQUAL);
+  glDepthMask(GL_FALSE);
+  const gl::Program& p = valMeshProgram_;
+  p.use();
+  const auto vp = toGl(projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) *
+                       capture::inversePose(camera.T_world_camera));
+  p.setMat4("uViewProj", vp.data());
+  setVec3(p, "uEye", cv::Vec3d(eye));
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, valGpu_->vplBuffer().id());
+  for (size_t o = 0; o < valObjects_.size(); ++o) {
+    const ValObject& vo = valObjects_[o];
+    const auto m = toGl(objectTransforms_[o]);
+    p.setMat4("uModel", m.data());
+    setMat3(p, "uNormalModel", normalMatrix(objectTransforms_[o]));
+    p.set("uBase", base[o]);
+    setVec3(p, "uSpecular", cv::Vec3d(vo.material.specular, vo.material.specular, vo.material.specular));
+    p.set("uExponent", phongExponent(vo.material.roughness));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, vo.weights.id());
+    objectMeshes_[o].draw();
+  }
+  glDepthMask(GL_TRUE);
+  glDepthFunc(GL_LESS);
+  glDisable(GL_DEPTH_TEST);
 }
 
 namespace {
@@ -499,6 +648,52 @@ cv::Mat download4(const gl::Texture& t) {
   return m;
 }
 }  // namespace
+
+void LightingPipeline::valBruteForce(const CameraView& camera) {
+  // Every visible virtual pixel is a receiver of every VAL (no interpolation, no occlusion): the reference
+  // the sparse method is measured against. The gather runs on the GPU; the per-pixel material comes from
+  // the G-buffer (albedo) and the object index in the normal's w.
+  const cv::Vec3f eye(capture::translationOf(camera.T_world_camera));
+  const cv::Mat pos = download4(gPosition_), nrm = download4(gNormal_), alb = download4(gAlbedo_);
+  std::vector<Receiver> receivers;
+  std::vector<int> pixels, objects;
+  for (int y = 0; y < pos.rows; ++y)
+    for (int x = 0; x < pos.cols; ++x) {
+      const cv::Vec4f p = pos.at<cv::Vec4f>(y, x), n = nrm.at<cv::Vec4f>(y, x), a = alb.at<cv::Vec4f>(y, x);
+      if (p[3] < 0.5f || a[3] < 0.5f) continue;
+      const int o = static_cast<int>(std::lround(n[3])) - 1;
+      if (o < 0 || o >= static_cast<int>(valObjects_.size())) continue;
+      Receiver r;
+      r.position = {p[0], p[1], p[2]};
+      r.normal = {n[0], n[1], n[2]};
+      const cv::Vec3f toEye = eye - r.position;
+      r.view = cv::norm(toEye) > 0 ? cv::normalize(toEye) : r.normal;
+      r.exponent = phongExponent(valObjects_[o].material.roughness);
+      receivers.push_back(r);
+      pixels.push_back(y * pos.cols + x);
+      objects.push_back(o);
+    }
+  valStats_.receivers = receivers.size();
+  valGpu_->gather(receivers);
+  std::vector<cv::Vec3f> E, S;
+  valGpu_->downloadSums(E, S);
+  cv::Mat radiance(pos.size(), CV_32FC4, cv::Scalar::all(0)), irradiance(pos.size(), CV_32FC4, cv::Scalar::all(0));
+  for (size_t i = 0; i < receivers.size(); ++i) {
+    const Material& m = valObjects_[static_cast<size_t>(objects[i])].material;
+    const cv::Vec4f a = alb.at<cv::Vec4f>(pixels[i]);
+    const cv::Vec3f L = valRadiance(E[i], S[i], {a[0], a[1], a[2]}, cv::Vec3f::all(m.specular), receivers[i].exponent);
+    radiance.at<cv::Vec4f>(pixels[i]) = {L[0], L[1], L[2], 1.f};
+    irradiance.at<cv::Vec4f>(pixels[i]) = {E[i][0], E[i][1], E[i][2], 1.f};
+  }
+  valRadiance_.upload(GL_RGBA, GL_FLOAT, radiance.ptr(), 4);
+  valIrradiance_.upload(GL_RGBA, GL_FLOAT, irradiance.ptr(), 4);
+}
+
+void LightingPipeline::downloadValSums(std::vector<cv::Vec3f>& E, std::vector<cv::Vec3f>& S) const {
+  E.clear();
+  S.clear();
+  if (valGpu_) valGpu_->downloadSums(E, S);
+}
 
 cv::Mat LightingPipeline::downloadShade() const { return download4(shade_); }
 cv::Mat LightingPipeline::downloadIrradiance() const { return download4(irradiance_); }

@@ -15,6 +15,8 @@
 #include "gl/program.h"
 #include "lighting/lpv.h"
 #include "lighting/scene_file.h"
+#include "lighting/val.h"
+#include "lighting/val_gpu.h"
 #include "reconstruction/depth_filter.h"
 
 namespace mrgi::lighting {
@@ -67,6 +69,7 @@ struct PipelineConfig {
   int width = 640, height = 480;  ///< G-buffer / output size (camera colour resolution)
   Technique technique = Technique::Dlpv;
   LpvKnobs lpv;
+  ValKnobs val;
   std::optional<LpvGrid> fixedGrid;  ///< overrides fitting the volume to the virtual objects (tests)
 };
 
@@ -85,6 +88,19 @@ class LightingPipeline {
   void setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
   /// Where object i sits in the lighting world.
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object);
+  /// Kinect-VAL: the real-surface VALs (lighting world) of the next runs; the virtual ones come from the RSMs.
+  void setRealVals(std::vector<Val> vals) { realVals_ = std::move(vals); }
+
+  /// What Kinect-VAL did in the last run.
+  struct ValStats {
+    size_t realVals = 0, virtualVals = 0, receivers = 0;
+    bool bruteForce = false;
+  };
+  const ValStats& valStats() const { return valStats_; }
+  /// Per sparse point (objects in order; brute force: per visible virtual pixel) E and S of the last run.
+  void downloadValSums(std::vector<cv::Vec3f>& E, std::vector<cv::Vec3f>& S) const;
+  /// Object i's sparse points (model frame).
+  const SparsePoints& sparsePoints(size_t i) const { return valObjects_.at(i).points; }
 
   /// Renders the G-buffer, RSMs and volumes and shades every pixel. Stages timed on profiler
   /// ("gbuffer", "rsm", "lpv.inject", "lpv.propagate", "shade"). lights: at most kMaxLights.
@@ -120,6 +136,8 @@ class LightingPipeline {
   Rsm makeRsm(int size) const;
   void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const;
   void renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual);
+  void runVal(const CameraView& camera, gl::Profiler* profiler);
+  void valBruteForce(const CameraView& camera);
   void inject(Volume& target, const Rsm& source, const Rsm* other, float sign, unsigned mode, const SceneLight& light);
   void propagate(Volume& volume, bool clampNegative, const Volume* late);
   void add(const Volume& src, Volume& dst);
@@ -141,6 +159,21 @@ class LightingPipeline {
   Volume delta_, rho_, rhoFull_, muFull_, scratchA_, scratchB_;
   Volume deltaDirect_, rhoDirect_, muDirect_;  ///< direct lobes, joined lpv.directSteps before the end
   gl::VertexArray emptyVao_;
+
+  // Kinect-VAL
+  struct ValObject {
+    SparsePoints points;       ///< model frame
+    gl::Buffer weights;        ///< per vertex: 8 neighbour indices + 8 weights (64 B)
+    Material material;
+  };
+  std::vector<ValObject> valObjects_;
+  std::optional<ValGpu> valGpu_;
+  std::vector<Val> realVals_;
+  std::vector<Val> rsmVals_;   ///< virtual VALs of the last run, all lights
+  ValStats valStats_;
+  gl::Program valMeshProgram_;
+  gl::Texture valRadiance_, valIrradiance_, shadowMuArray_;
+  gl::Framebuffer valFb_;
 };
 
 }  // namespace mrgi::lighting

@@ -82,10 +82,20 @@ Mesh loadMesh(const std::string& path) {
 Technique parseTechnique(const std::string& name) {
   if (name == "dlpv") return Technique::Dlpv;
   if (name == "lpv-diff") return Technique::LpvDiff;
-  throw std::invalid_argument("unknown technique '" + name + "' (expected dlpv or lpv-diff)");
+  if (name == "kinect-val") return Technique::KinectVal;
+  if (name == "dlpv+kinect-val") return Technique::DlpvKinectVal;
+  throw std::invalid_argument("unknown technique '" + name + "' (expected dlpv, lpv-diff, kinect-val or dlpv+kinect-val)");
 }
 
-const char* techniqueName(Technique t) { return t == Technique::Dlpv ? "dlpv" : "lpv-diff"; }
+const char* techniqueName(Technique t) {
+  switch (t) {
+    case Technique::Dlpv: return "dlpv";
+    case Technique::LpvDiff: return "lpv-diff";
+    case Technique::KinectVal: return "kinect-val";
+    case Technique::DlpvKinectVal: return "dlpv+kinect-val";
+  }
+  return "?";
+}
 
 namespace {
 
@@ -138,6 +148,11 @@ class Reader {
     return out;
   }
 
+  bool boolean(const json& v, const std::string& key) const {
+    if (!v.is_boolean()) fail(key, "must be true or false");
+    return v.get<bool>();
+  }
+
   std::string string(const json& v, const std::string& key) const {
     if (!v.is_string()) fail(key, "must be a string");
     return v.get<std::string>();
@@ -163,7 +178,7 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   } catch (const json::parse_error& e) {
     throw SceneError(path, std::string("not valid JSON: ") + e.what());
   }
-  r.allowOnly(doc, "", {"objects", "lights", "fisheye_light_count", "ambient_radiance", "technique", "lpv"});
+  r.allowOnly(doc, "", {"objects", "lights", "fisheye_light_count", "ambient_radiance", "technique", "lpv", "val"});
   SceneDescription s;
   s.path = path;
   const fs::path base = fs::path(path).parent_path();
@@ -280,6 +295,21 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
     if (k.contains("size_factor")) s.lpv.sizeFactor = r.number(k["size_factor"], "lpv.size_factor", 1.0, 64.0);
     if (k.contains("damping")) s.lpv.damping = r.number(k["damping"], "lpv.damping", 0.0, 1.0);
     if (k.contains("direct_steps")) s.lpv.directSteps = r.integer(k["direct_steps"], "lpv.direct_steps", 0, 256);
+  }
+  if (doc.contains("val")) {
+    const json& k = doc["val"];
+    r.allowOnly(k, "val", {"sparse_points", "k_cache", "occlusion", "stride", "rsm_stride", "fusion", "voxel", "decay",
+                           "brute_force"});
+    ValKnobs& v = s.val;
+    if (k.contains("sparse_points")) v.sparsePoints = r.integer(k["sparse_points"], "val.sparse_points", 16, 65536);
+    if (k.contains("k_cache")) v.kCache = r.integer(k["k_cache"], "val.k_cache", 16, 512);
+    if (k.contains("occlusion")) v.occlusion = r.boolean(k["occlusion"], "val.occlusion");
+    if (k.contains("stride")) v.stride = r.integer(k["stride"], "val.stride", 1, 64);
+    if (k.contains("rsm_stride")) v.rsmStride = r.integer(k["rsm_stride"], "val.rsm_stride", 1, 64);
+    if (k.contains("fusion")) v.fusion = r.boolean(k["fusion"], "val.fusion");
+    if (k.contains("voxel")) v.voxel = r.number(k["voxel"], "val.voxel", 1e-3, 1.0);
+    if (k.contains("decay")) v.decay = r.number(k["decay"], "val.decay", 0.0, 1.0);
+    if (k.contains("brute_force")) v.bruteForce = r.boolean(k["brute_force"], "val.brute_force");
   }
   return s;
 }

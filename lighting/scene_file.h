@@ -63,9 +63,18 @@ struct SceneLight {
 /// estimated per fisheye frame of the session (solid-angle-weighted median cut -> directional lights).
 enum class LightSource { Scene, Manifest, Fisheye };
 
-enum class Technique { Dlpv, LpvDiff };
-Technique parseTechnique(const std::string& name);  ///< "dlpv" | "lpv-diff"; throws std::invalid_argument
+/// dlpv: DLPV delta on real pixels, V^rho bounce on the virtual object. lpv-diff: the naive two-volume
+/// difference. kinect-val: Kinect-VAL bounce (real RGB-D pixels + virtual RSM texels as area lights) on the
+/// virtual object, and on real pixels only the direct shadow the object casts (no virtual->real bounce).
+/// dlpv+kinect-val: DLPV delta on real pixels, Kinect-VAL on the virtual object.
+enum class Technique { Dlpv, LpvDiff, KinectVal, DlpvKinectVal };
+/// "dlpv" | "lpv-diff" | "kinect-val" | "dlpv+kinect-val"; throws std::invalid_argument
+Technique parseTechnique(const std::string& name);
 const char* techniqueName(Technique t);
+/// The technique propagates a delta volume (real pixels' bounce and shadow).
+inline bool usesLpv(Technique t) { return t != Technique::KinectVal; }
+/// The virtual object's bounce light comes from Kinect-VAL.
+inline bool usesVal(Technique t) { return t == Technique::KinectVal || t == Technique::DlpvKinectVal; }
 
 /// DLPV knobs (shared by the naive two-volume variant).
 struct LpvKnobs {
@@ -78,6 +87,19 @@ struct LpvKnobs {
                             ///< volume this many steps before the end (more = softer shadows, darker centre)
 };
 
+/// Kinect-VAL knobs (scene key "val").
+struct ValKnobs {
+  int sparsePoints = 1024;  ///< sparse shading points per object (16..65536)
+  int kCache = 128;         ///< VALs per shared-memory tile of the gather (16..512)
+  bool occlusion = true;    ///< disc-occluder approximation (§3.3)
+  int stride = 4;           ///< RGB-D pixel stride of the real VALs (1..64)
+  int rsmStride = 2;        ///< RSM texel stride of the virtual VALs (1..64)
+  bool fusion = false;      ///< fuse real VALs over frames in a world-space surfel map
+  double voxel = 0.02;      ///< surfel voxel, metres
+  double decay = 0.9;       ///< confidence a surfel keeps per frame that should have seen it but did not
+  bool bruteForce = false;  ///< reference: every VAL gathered at every visible virtual pixel (no occlusion)
+};
+
 struct SceneDescription {
   std::string path;
   std::vector<VirtualObject> objects;
@@ -88,6 +110,7 @@ struct SceneDescription {
   bool ambientFromManifest = true;          ///< take ambient from the manifest when it has one
   Technique technique = Technique::Dlpv;
   LpvKnobs lpv;
+  ValKnobs val;
 };
 
 /// Parses and validates a scene file; model paths are relative to the scene file. Throws SceneError.

@@ -299,10 +299,12 @@ std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, 
   return out;
 }
 
-std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light) {
+std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light, int stride) {
   std::vector<Val> out;
-  for (int y = 0; y < rsm.position.rows; ++y)
-    for (int x = 0; x < rsm.position.cols; ++x) {
+  stride = std::max(stride, 1);
+  const float block = static_cast<float>(stride * stride);  // texels one sample stands for
+  for (int y = stride / 2; y < rsm.position.rows; y += stride)
+    for (int x = stride / 2; x < rsm.position.cols; x += stride) {
       const cv::Vec4f n4 = rsm.normal.at<cv::Vec4f>(y, x);
       if (n4[3] < 0.5f) continue;  // real texel (or empty)
       const cv::Vec4f p4 = rsm.position.at<cv::Vec4f>(y, x), f4 = rsm.flux.at<cv::Vec4f>(y, x),
@@ -325,8 +327,8 @@ std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light) {
       Val v;
       v.position = p;
       v.normal = n;
-      v.area = across / std::max(n.dot(toLight), 0.1f);
-      v.flux = cv::Vec3f(f4[0], f4[1], f4[2]);
+      v.area = block * across / std::max(n.dot(toLight), 0.1f);
+      v.flux = block * cv::Vec3f(f4[0], f4[1], f4[2]);
       out.push_back(v);
     }
   setValWeights(out);

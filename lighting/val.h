@@ -128,8 +128,9 @@ std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, 
                               const capture::Intrinsics& k, const capture::Pose& T_world_camera, int stride);
 /// VALs from the virtual texels of an RSM (normal.w = 1): flux = the reflected flux, area = the texel's
 /// footprint across the beam (direct flux / beam irradiance: E for a directional light, I/d² for a point or
-/// spot) over <n, l>+ (clamped at 0.1).
-std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light);
+/// spot) over <n, l>+ (clamped at 0.1). stride > 1 takes every stride-th texel per axis, standing for its
+/// stride² block (area and flux × stride²).
+std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light, int stride = 1);
 /// Sets every VAL's averaging weight: its flux luminance over the set's mean (1 when that is 0) times the
 /// set's mean area, so that ε + weight · cos ϑ_j cos ϑ_i / (π d² + a_j) ∝ lum(E_j) is a form-factor-sized number.
 void setValWeights(std::vector<Val>& vals);

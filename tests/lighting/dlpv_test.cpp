@@ -14,99 +14,13 @@
 #include "lighting/lpv.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
+#include "tests/lighting/test_scene.h"
 
 using namespace mrgi;
 using namespace mrgi::lighting;
+using namespace mrgi::test;
 
 namespace {
-
-std::unique_ptr<gl::Context> makeContext() {
-  gl::ContextConfig cfg;
-  cfg.width = 64;
-  cfg.height = 64;
-  return gl::createContext(cfg);
-}
-
-/// Quad p0, p0+e1, p0+e1+e2, p0+e2, normal e1 x e2, subdivided n x n (so the real mesh resembles a depth mesh).
-void addQuad(std::vector<MeshVertex>& v, std::vector<uint32_t>& idx, cv::Vec3f p0, cv::Vec3f e1, cv::Vec3f e2,
-             cv::Vec3f albedo, int n = 8) {
-  const cv::Vec3f normal = cv::normalize(e1.cross(e2));
-  const auto base = static_cast<uint32_t>(v.size());
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i)
-      v.push_back({p0 + e1 * (float(i) / n) + e2 * (float(j) / n), normal, albedo});
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const uint32_t a = base + j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
-      idx.insert(idx.end(), {a, b, c, a, c, d});
-    }
-}
-
-const cv::Vec3f kFloorAlbedo(0.5f, 0.5f, 0.5f);
-const cv::Vec3f kRed(0.8f, 0.1f, 0.1f);
-
-struct TestScene {
-  std::vector<MeshVertex> vertices;
-  std::vector<uint32_t> indices;
-  std::vector<VirtualObject> objects;
-};
-
-/// Floor 2 x 2 m around the origin, optionally the red wall, and a white cube of side `cube` centred at `at`.
-TestScene makeScene(bool wall, double cube, cv::Vec3d at) {
-  TestScene s;
-  addQuad(s.vertices, s.indices, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, kFloorAlbedo, 16);
-  if (wall) addQuad(s.vertices, s.indices, {-0.5f, -1, 0}, {0, 2, 0}, {0, 0, 1.5f}, kRed, 16);
-  if (cube > 0) {
-    VirtualObject o;
-    o.mesh = loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/cube.obj");
-    for (auto& p : o.mesh.positions) p *= static_cast<float>(cube);
-    o.mesh.computeBounds();
-    o.material.albedo = {0.9f, 0.9f, 0.9f};
-    o.T_marker_object = capture::makePose(cv::Matx33d::eye(), at);
-    s.objects.push_back(std::move(o));
-  }
-  return s;
-}
-
-/// G-buffer size, volume resolution and RSM size of a test; the other knobs keep their defaults.
-PipelineConfig testConfig(int width, int height, int resolution, int rsmSize) {
-  PipelineConfig cfg;
-  cfg.width = width;
-  cfg.height = height;
-  cfg.lpv.resolution = resolution;
-  cfg.lpv.rsmSize = rsmSize;
-  return cfg;
-}
-
-/// A pipeline over the scene's virtual objects with its real mesh set.
-LightingPipeline makePipeline(const PipelineConfig& cfg, const TestScene& s) {
-  LightingPipeline pipe(cfg, s.objects);
-  pipe.setRealMesh(s.vertices, s.indices);
-  return pipe;
-}
-
-CameraView topCamera(int w, int h) {
-  CameraView c;
-  c.intrinsics = {w, h, 0.9 * w, 0.9 * w, 0.5 * w - 0.5, 0.5 * h - 0.5};
-  c.T_world_camera = capture::lookAtPose({0.0, -0.25, 1.6}, {0, 0, 0});
-  return c;
-}
-
-SceneLight sunDown(double e = 10.0) {
-  SceneLight l;
-  l.type = LightType::Directional;
-  l.direction = {0, 0, -1};
-  l.irradiance = {e, e, e};
-  return l;
-}
-
-SceneLight pointAbove() {
-  SceneLight l;
-  l.type = LightType::Point;
-  l.position = {0.3, 0.2, 1.2};
-  l.intensity = {5, 5, 5};
-  return l;
-}
 
 float maxAbs(const LpvVolumeCpu& v) {
   float m = 0;
@@ -123,8 +37,6 @@ float maxAbsDiff(const LpvVolumeCpu& a, const LpvVolumeCpu& b) {
       for (int i = 0; i < 4; ++i) m = std::max(m, std::abs(a.cells[n][ch][i] - b.cells[n][ch][i]));
   return m;
 }
-
-float lum(const cv::Vec4f& v) { return 0.2126f * v[0] + 0.7152f * v[1] + 0.0722f * v[2]; }
 
 }  // namespace
 
@@ -276,24 +188,6 @@ TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
 
 // ----------------------------------------------------------------------------------------- properties
 
-namespace {
-/// Does the ray from p towards -dir cross the axis-aligned box centre c, half-size h (slab test)?
-bool inShadow(const cv::Vec3d& p, const cv::Vec3d& dir, const cv::Vec3d& c, double h) {
-  double t0 = 0, t1 = 1e9;
-  for (int k = 0; k < 3; ++k) {
-    const double d = -dir[k];
-    if (std::abs(d) < 1e-12) {
-      if (std::abs(p[k] - c[k]) > h) return false;
-      continue;
-    }
-    double a = (c[k] - h - p[k]) / d, b = (c[k] + h - p[k]) / d;
-    if (a > b) std::swap(a, b);
-    t0 = std::max(t0, a);
-    t1 = std::min(t1, b);
-  }
-  return t0 <= t1;
-}
-}  // namespace
 
 TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
   auto ctx = makeContext();

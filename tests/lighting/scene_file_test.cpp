@@ -81,6 +81,24 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   EXPECT_EQ(s.lpv.rsmSize, 128);
   EXPECT_DOUBLE_EQ(s.lpv.damping, 0.25);
   EXPECT_FALSE(s.ambientFromManifest);
+  const SceneDescription val = parseScene(R"({"technique": "dlpv+kinect-val",
+    "val": {"sparse_points": 2048, "k_cache": 64, "occlusion": false, "stride": 2, "rsm_stride": 4,
+            "fusion": true, "voxel": 0.03, "decay": 0.8, "brute_force": true}})",
+                                         kScenePath);
+  EXPECT_EQ(val.technique, Technique::DlpvKinectVal);
+  EXPECT_TRUE(usesLpv(val.technique) && usesVal(val.technique));
+  EXPECT_FALSE(usesLpv(Technique::KinectVal));
+  for (const char* name : {"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"})
+    EXPECT_STREQ(techniqueName(parseTechnique(name)), name);
+  EXPECT_EQ(val.val.sparsePoints, 2048);
+  EXPECT_EQ(val.val.kCache, 64);
+  EXPECT_FALSE(val.val.occlusion);
+  EXPECT_EQ(val.val.stride, 2);
+  EXPECT_EQ(val.val.rsmStride, 4);
+  EXPECT_TRUE(val.val.fusion);
+  EXPECT_DOUBLE_EQ(val.val.voxel, 0.03);
+  EXPECT_DOUBLE_EQ(val.val.decay, 0.8);
+  EXPECT_TRUE(val.val.bruteForce);
   const SceneDescription empty = parseScene("{}", kScenePath);
   EXPECT_TRUE(empty.objects.empty());
   EXPECT_EQ(empty.lightSource, LightSource::Manifest);
@@ -109,6 +127,9 @@ TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
       {R"({"technique": "rtx"})", "technique: unknown technique 'rtx'"},
       {R"({"lpv": {"resolution": 1000}})", "lpv.resolution: value 1000 out of range"},
       {R"({"lpv": {"steps": 2.5}})", "lpv.steps: must be an integer"},
+      {R"({"val": {"k_cache": 1024}})", "val.k_cache: value 1024 out of range"},
+      {R"({"val": {"occlusion": 1}})", "val.occlusion: must be true or false"},
+      {R"({"val": {"sparse": 100}})", "val.sparse: unknown key"},
   };
   for (const Case& c : cases) {
     const std::string e = errorOf(c.text);

@@ -1,0 +1,260 @@
+// Kinect-VAL inside the lighting pipeline: the sparse method against the per-pixel brute force, the brute
+// force against the C++ reference, the standalone technique's real pixels (the object's direct shadow only),
+// and its composition with DLPV.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "lighting/pipeline.h"
+#include "lighting/val.h"
+#include "tests/lighting/test_scene.h"
+
+using namespace mrgi;
+using namespace mrgi::lighting;
+using namespace mrgi::test;
+
+namespace {
+
+/// VALs tiling the quad p0 + [0,1] e1 + [0,1] e2 (n x n cells, normal e1 x e2) with a uniform exitance M:
+/// the real surfaces as the depth sensor would hand them over, without the sensor.
+void addQuadVals(std::vector<Val>& vals, cv::Vec3f p0, cv::Vec3f e1, cv::Vec3f e2, cv::Vec3f exitance, int n) {
+  const cv::Vec3f normal = cv::normalize(e1.cross(e2));
+  const float area = static_cast<float>(cv::norm(e1.cross(e2))) / static_cast<float>(n * n);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      Val v;
+      v.position = p0 + e1 * ((i + 0.5f) / n) + e2 * ((j + 0.5f) / n);
+      v.normal = normal;
+      v.area = area;
+      v.flux = exitance * area;
+      vals.push_back(v);
+    }
+}
+
+/// The floor (lit grey) and the red wall of makeScene as VALs.
+std::vector<Val> roomVals() {
+  std::vector<Val> vals;
+  addQuadVals(vals, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {2.0f, 2.0f, 2.0f}, 48);
+  addQuadVals(vals, {-0.5f, -1, 0}, {0, 2, 0}, {0, 0, 1.5f}, {3.0f, 0.3f, 0.3f}, 48);
+  return vals;
+}
+
+/// A glossy white sphere of radius r at `at`, next to the red wall.
+TestScene sphereScene(cv::Vec3d at, double r, float roughness = 1.0f, float specular = 0.0f) {
+  TestScene s = makeScene(true, 0.0, {0, 0, 0});
+  VirtualObject o;
+  o.mesh = loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
+  for (auto& p : o.mesh.positions) p *= static_cast<float>(r);
+  o.mesh.computeBounds();
+  o.material.albedo = {0.6f, 0.6f, 0.6f};
+  o.material.roughness = roughness;
+  o.material.specular = specular;
+  o.T_marker_object = capture::makePose(cv::Matx33d::eye(), at);
+  s.objects.push_back(std::move(o));
+  return s;
+}
+
+PipelineConfig valConfig(Technique t, int sparse, bool bruteForce, bool occlusion = false) {
+  PipelineConfig cfg = testConfig(128, 96, 16, 128);
+  cfg.technique = t;
+  cfg.val.sparsePoints = sparse;
+  cfg.val.bruteForce = bruteForce;
+  cfg.val.occlusion = occlusion;
+  return cfg;
+}
+
+CameraView sideCamera() {
+  CameraView c;
+  const int w = 128, h = 96;
+  c.intrinsics = {w, h, 1.4 * w, 1.4 * w, 0.5 * w - 0.5, 0.5 * h - 0.5};
+  c.T_world_camera = capture::lookAtPose({0.3, -0.9, 0.5}, {-0.3, 0.0, 0.12});
+  return c;
+}
+
+/// Shades the scene without lights or ambient: virtual pixels then carry the Kinect-VAL radiance alone.
+cv::Mat bounceOnly(const PipelineConfig& cfg, const TestScene& s, const std::vector<Val>& vals) {
+  LightingPipeline pipe = makePipeline(cfg, s);
+  pipe.setRealVals(vals);
+  pipe.run(sideCamera(), {}, {0, 0, 0}, nullptr);
+  return pipe.downloadShade();
+}
+
+/// Mean |a - b| over b's virtual pixels, relative to b's mean (luminance).
+double relativeError(const cv::Mat& a, const cv::Mat& b, int* pixels = nullptr) {
+  double diff = 0, ref = 0;
+  int n = 0;
+  for (int i = 0; i < static_cast<int>(b.total()); ++i) {
+    const cv::Vec4f x = a.at<cv::Vec4f>(i), y = b.at<cv::Vec4f>(i);
+    if (y[3] < 0.5f) continue;
+    diff += std::abs(lum(x) - lum(y));
+    ref += lum(y);
+    ++n;
+  }
+  if (pixels) *pixels = n;
+  return ref > 0 ? diff / ref : 1e30;
+}
+
+}  // namespace
+
+TEST(GL, KinectValSparseConvergesToTheBruteForceOnTheVirtualObject) {
+  auto ctx = makeContext();
+  const TestScene s = sphereScene({-0.3, 0.0, 0.12}, 0.1);
+  const auto vals = roomVals();
+  const cv::Mat brute = bounceOnly(valConfig(Technique::KinectVal, 256, true), s, vals);
+  int pixels = 0;
+  double prev = 1e30;
+  for (int sparse : {64, 256, 1024, 4096}) {
+    const cv::Mat sp = bounceOnly(valConfig(Technique::KinectVal, sparse, false), s, vals);
+    const double err = relativeError(sp, brute, &pixels);
+    std::printf("sparse points %5d: %.2f %% mean relative error vs brute force over %d pixels\n", sparse, 100 * err,
+                pixels);
+    EXPECT_LT(err, prev * 1.05) << sparse;  // more points never make it clearly worse
+    prev = err;
+  }
+  ASSERT_GT(pixels, 500);
+  EXPECT_LT(prev, 0.03);  // 4096 sparse points: within 3 % of the per-pixel gather
+  // The bounce is red on the side facing the red wall (-x) and grey-white from the floor below.
+  bool sawRed = false;
+  for (int i = 0; i < static_cast<int>(brute.total()); ++i) {
+    const cv::Vec4f v = brute.at<cv::Vec4f>(i);
+    if (v[3] < 0.5f) continue;
+    EXPECT_TRUE(std::isfinite(v[0]) && v[0] >= 0 && v[1] >= 0 && v[2] >= 0);
+    sawRed |= v[0] > 2.0f * v[1];
+  }
+  EXPECT_TRUE(sawRed);
+}
+
+TEST(GL, KinectValBruteForceMatchesTheCppReferencePerPixel) {
+  auto ctx = makeContext();
+  const TestScene s = sphereScene({-0.3, 0.0, 0.12}, 0.1, 0.3f, 0.3f);  // glossy: k = 2/0.09 - 2
+  const auto vals = roomVals();
+  const PipelineConfig cfg = valConfig(Technique::KinectVal, 256, true);
+  LightingPipeline pipe = makePipeline(cfg, s);
+  pipe.setRealVals(vals);
+  const CameraView cam = sideCamera();
+  pipe.run(cam, {}, {0, 0, 0}, nullptr);
+  const cv::Mat shade = pipe.downloadShade(), pos = pipe.downloadGBuffer(0), nrm = pipe.downloadGBuffer(1);
+  std::vector<Val> weighted = vals;
+  setValWeights(weighted);
+  const cv::Vec3f eye(capture::translationOf(cam.T_world_camera));
+  const float k = phongExponent(0.3f);
+  int checked = 0;
+  for (int i = 0; i < static_cast<int>(shade.total()); i += 7) {
+    const cv::Vec4f v = shade.at<cv::Vec4f>(i);
+    if (v[3] < 0.5f) continue;
+    const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i);
+    EXPECT_EQ(n[3], 1.0f);  // object index 0 + 1
+    Receiver r;
+    r.position = {p[0], p[1], p[2]};
+    r.normal = {n[0], n[1], n[2]};
+    r.view = cv::normalize(eye - r.position);
+    r.exponent = k;
+    const ValGather g = gatherReference(r, weighted);
+    const cv::Vec3f L = valRadiance(g.E, g.S, {0.6f, 0.6f, 0.6f}, cv::Vec3f::all(0.3f), k);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(v[c], L[c], 2e-3 * L[c] + 1e-6) << "pixel " << i << " channel " << c;
+    ++checked;
+  }
+  EXPECT_GT(checked, 50);
+}
+
+TEST(GL, KinectValAloneDarkensRealPixelsOnlyInTheObjectsShadow) {
+  auto ctx = makeContext();
+  const double cube = 0.16;
+  const cv::Vec3d centre(0.0, 0.0, 0.2);
+  const TestScene s = makeScene(false, cube, centre);
+  PipelineConfig cfg = testConfig(160, 120, 16, 256);
+  cfg.technique = Technique::KinectVal;
+  LightingPipeline pipe = makePipeline(cfg, s);
+  pipe.setRealVals(roomVals());
+  SceneLight sun = sunDown(10.0);
+  sun.direction = {0.6, 0.0, -0.8};
+  pipe.run(topCamera(160, 120), {sun}, {0, 0, 0}, nullptr);
+  const cv::Mat shade = pipe.downloadShade(), pos = pipe.downloadGBuffer(0);
+  // Exact loss in the shadow: E cos(theta) albedo / pi with E cos = 8 W/m^2 on the grey floor.
+  const float lost = 8.0f * kFloorAlbedo[0] / static_cast<float>(CV_PI);
+  int inside = 0, outside = 0, wrong = 0;
+  for (int i = 0; i < static_cast<int>(shade.total()); ++i) {
+    const cv::Vec4f v = shade.at<cv::Vec4f>(i), p = pos.at<cv::Vec4f>(i);
+    if (p[3] < 0.5f || v[3] > 0.5f) continue;
+    const cv::Vec3d pw(p[0], p[1], p[2]);
+    // Shadow of a slightly smaller / larger box: the map's texels blur the exact edge.
+    auto shadowed = [&](double h) { return inShadow(pw, sun.direction, centre, h); };
+    if (shadowed(0.5 * cube - 0.01)) {
+      ++inside;
+      if (std::abs(v[0] + lost) > 1e-4f) ++wrong;
+    } else if (!shadowed(0.5 * cube + 0.01)) {
+      ++outside;
+      if (v[0] != 0.0f || v[1] != 0.0f || v[2] != 0.0f) ++wrong;
+    }
+  }
+  EXPECT_GT(inside, 100);
+  EXPECT_GT(outside, 5000);
+  EXPECT_EQ(wrong, 0);
+}
+
+TEST(GL, DlpvPlusKinectValKeepsDlpvsRealPixelsAndReplacesTheObjectsBounce) {
+  auto ctx = makeContext();
+  const TestScene s = sphereScene({-0.3, 0.0, 0.12}, 0.1);
+  SceneLight sun = sunDown(10.0);
+  sun.direction = {-0.6, 0.0, -0.8};  // from +x: the wall behind the sphere does not shade it
+  auto render = [&](Technique t) {
+    PipelineConfig cfg = valConfig(t, 512, false, true);
+    LightingPipeline pipe = makePipeline(cfg, s);
+    pipe.setRealVals(roomVals());
+    pipe.run(sideCamera(), {sun}, {0, 0, 0}, nullptr);
+    return std::pair{pipe.downloadShade(), pipe.valStats()};
+  };
+  const auto [dlpv, st0] = render(Technique::Dlpv);
+  const auto [both, st] = render(Technique::DlpvKinectVal);
+  EXPECT_EQ(st.receivers, 512u);
+  EXPECT_EQ(st.realVals, roomVals().size());
+  EXPECT_GT(st.virtualVals, 10u);  // the sphere's lit texels of the RSM
+  int real = 0, virt = 0, differ = 0;
+  for (int i = 0; i < static_cast<int>(dlpv.total()); ++i) {
+    const cv::Vec4f a = dlpv.at<cv::Vec4f>(i), b = both.at<cv::Vec4f>(i);
+    ASSERT_EQ(a[3], b[3]);
+    if (a[3] > 0.5f) {
+      ++virt;
+      differ += std::abs(lum(a) - lum(b)) > 1e-3f;
+    } else {
+      ++real;
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(a[c], b[c]) << "real pixel " << i;
+    }
+  }
+  EXPECT_GT(real, 5000);
+  EXPECT_GT(differ, virt / 2);
+}
+
+TEST(GL, KinectValExtremesStayFiniteAndBounded) {
+  auto ctx = makeContext();
+  // A VAL touching the sphere's surface with 1e6 W, denormal and zero VALs, and no VALs at all.
+  const cv::Vec3d at(-0.3, 0.0, 0.12);
+  const double r = 0.1;
+  for (bool bruteForce : {false, true})
+    for (int variant = 0; variant < 4; ++variant) {
+      const TestScene s = sphereScene(at, r, 0.01f, 0.5f);  // k = 1e4 (clamped)
+      std::vector<Val> vals;
+      if (variant == 0 || variant == 1) {
+        Val v;
+        v.position = cv::Vec3f(at) + cv::Vec3f(0, 0, -static_cast<float>(r));  // on the sphere's bottom
+        v.normal = {0, 0, 1};
+        v.area = variant == 0 ? 1e-4f : 1e-30f;
+        v.flux = cv::Vec3f::all(variant == 0 ? 1e6f : 1e-38f);
+        vals.push_back(v);
+      } else if (variant == 2) {
+        vals = roomVals();
+        for (auto& v : vals) v.flux = {0, 0, 0};
+      }
+      const cv::Mat shade = bounceOnly(valConfig(Technique::KinectVal, 256, bruteForce, true), s, vals);
+      for (int i = 0; i < static_cast<int>(shade.total()); ++i) {
+        const cv::Vec4f v = shade.at<cv::Vec4f>(i);
+        for (int c = 0; c < 3; ++c) {
+          ASSERT_TRUE(std::isfinite(v[c])) << "variant " << variant << " brute " << bruteForce;
+          ASSERT_GE(v[c], 0.0f);
+          // Bounded by the exitance the VAL can deliver: phi / a (1e10) times (albedo/pi + specular c_k).
+          ASSERT_LE(v[c], 1e10f * (0.6f / CV_PI + 0.5f * phongNorm(kMaxPhongExponent)) * 1.01f);
+          if (variant >= 2) ASSERT_EQ(v[c], 0.0f) << "nothing lights the object";
+        }
+      }
+    }
+}
