@@ -139,7 +139,9 @@ void setValWeights(std::vector<Val>& vals);
 /// that left the view keep lighting the object and the light does not flicker with sensor noise.
 struct SurfelOptions {
   float voxel = 0.02f;       ///< metres
-  float decay = 0.9f;        ///< confidence kept per frame by a surfel not observed
+  float decay = 0.0f;        ///< confidence kept per frame by a surfel the frame should have seen but did not:
+                             ///< 0 drops it (the frame is authoritative for what it sees; otherwise a surface
+                             ///< quantised into a neighbouring voxel this time counts twice)
   float minConfidence = 0.05f;
   float maxConfidence = 10.f;
 };

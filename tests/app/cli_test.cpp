@@ -311,14 +311,16 @@ TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
   const fs::path scene = writeScene("sphere.json", R"({"objects": [{"model": ")" + kModels +
                                                        R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
       "lights": "manifest", "lpv": {"resolution": 16, "steps": 8, "rsm_size": 128}})");
-  for (const std::string technique : {"dlpv", "lpv-diff"}) {
+  for (const std::string technique : {"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}) {
     const fs::path out = fs::temp_directory_path() / ("mrgi_cli_dlpv_" + technique + std::to_string(::getpid()));
+    const bool lpv = technique != "kinect-val", val = technique.find("kinect-val") != std::string::npos;
     fs::remove_all(out);
     const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
                              " --frames 2 --dump-delta --pose ground-truth --technique " + technique);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("frame 2/2:"), std::string::npos) << r.out;  // per-stage timings per frame
-    EXPECT_NE(r.out.find("lpv.propagate"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("lpv.propagate") != std::string::npos, lpv) << r.out;
+    EXPECT_EQ(r.out.find("val.gather") != std::string::npos, val) << r.out;
     const cv::Mat delta = cv::imread((out / "delta_0001.exr").string(), cv::IMREAD_UNCHANGED);
     const cv::Mat mask = cv::imread((out / "mask_0001.png").string(), cv::IMREAD_UNCHANGED);
     ASSERT_EQ(delta.type(), CV_32FC3);
@@ -339,7 +341,20 @@ TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
     EXPECT_GT(cv::countNonZero((diffGrey > 10) & (mask == 255)), 20);
     const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
     EXPECT_EQ(s["technique"], technique);
-    EXPECT_TRUE(s["stages_ms"].contains("lpv.inject"));
+    EXPECT_EQ(s["stages_ms"].contains("lpv.inject"), lpv);
+    if (val) {
+      // Kinect-VAL: real VALs from the frame, virtual ones from the RSM, the default 1024 sparse points,
+      // the real surfaces fused over the two frames, and the bounce light's frame-to-frame change.
+      const auto& f = s["per_frame"][1]["val"];
+      EXPECT_GT(f["real_vals"].get<int>(), 1000);
+      EXPECT_GT(f["virtual_vals"].get<int>(), 10);
+      EXPECT_EQ(f["receivers"].get<int>(), 1024);
+      EXPECT_GE(f["surfels"].get<int>(), f["real_vals"].get<int>());
+      EXPECT_GT(f["mean_irradiance"].get<double>(), 0.0);
+      const double flicker = s["val_flicker_mean"].get<double>();  // 2 frames far apart on the orbit
+      EXPECT_TRUE(flicker > 0.0 && flicker < 1.0) << flicker;
+      EXPECT_EQ(s["knobs"]["val"]["sparse_points"], 1024);
+    }
     fs::remove_all(out);
   }
 }

@@ -321,8 +321,18 @@ TEST(Val, SurfelFusionKeepsUnseenSurfacesAndAveragesNoise) {
   // The camera looks at them and they are gone (depth valid behind them): they fade out.
   const capture::Pose at = capture::lookAtPose({0.5f, 0.05f, 1.0f}, {0.5f, 0.05f, 0.f});
   const cv::Mat far(48, 64, CV_32FC1, cv::Scalar(2.f));
-  for (int f = 0; f < 100; ++f) map.integrate({}, far, k, at);
-  EXPECT_LT(map.vals().size(), 10u);
+  map.integrate({}, far, k, at);
+  EXPECT_EQ(map.vals().size(), 0u);  // decay 0: one frame that should have seen them removes them
+
+  // Depth noise moves the same surface across a voxel boundary between two frames: its light counts once.
+  lighting::SurfelMap jitter(o);
+  const cv::Mat seen(48, 64, CV_32FC1, cv::Scalar(1.f));  // the surface 1 m in front of `at2`
+  const capture::Pose at2 = capture::lookAtPose({0.1f, 0.05f, 1.05f}, {0.1f, 0.05f, 0.f});
+  jitter.integrate({disc({0.099f, 0.05f, 0.05f}, {0, 0, 1}, 0.01f, {1, 1, 1})}, seen, k, at2);
+  jitter.integrate({disc({0.101f, 0.05f, 0.05f}, {0, 0, 1}, 0.01f, {1, 1, 1})}, seen, k, at2);
+  float area = 0;
+  for (const auto& v : jitter.vals()) area += v.area;
+  EXPECT_FLOAT_EQ(area, disc({0, 0, 0}, {0, 0, 1}, 0.01f, {1, 1, 1}).area);
 }
 
 // ------------------------------------------------------------------------------------------- GPU twin
