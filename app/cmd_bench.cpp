@@ -1,6 +1,8 @@
 // mrgi bench: speed/accuracy of the lighting techniques' knobs. Kinect-VAL: the sparse method (gather on
-// sparse points, occlusion, per-vertex interpolation) against brute force (every VAL at every receiver),
-// on VALs from a recorded RGB-D frame lighting a virtual object.
+// sparse points, occlusion, per-vertex interpolation, per-pixel evaluation) against the brute force (every
+// VAL gathered at every visible pixel of the object), both run by the lighting pipeline on a recorded frame:
+// its RGB-D pixels are the VALs, its depth mesh occludes the object, and the error is measured on the
+// object's pixels.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -10,13 +12,15 @@
 #include "app/commands.h"
 #include "capture/colour.h"
 #include "capture/error.h"
-#include "capture/image_io.h"
 #include "capture/frame_source.h"
+#include "capture/image_io.h"
 #include "capture/registration.h"
 #include "capture/session.h"
 #include "gl/context.h"
-#include "lighting/val_gpu.h"
+#include "gl/profiler.h"
+#include "lighting/pipeline.h"
 #include "reconstruction/depth.h"
+#include "reconstruction/depth_filter.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -32,25 +36,26 @@ struct BenchOptions {
   std::vector<int> valCounts{1024, 4096, 16384, 65536};
   std::vector<int> sparseCounts{256, 1024, 4096};
   int kCache = 128;
-  int receivers = 16384;  // brute force: visible pixels of the object
   int repeats = 3;
+  double scale = 0.06;
+  std::string occlusion = "both";
   std::string gl = "osmesa";
 };
 
-double nowMs() {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+/// Stage times of one pipeline run (ms, the larger of CPU wall and GPU time per stage).
+std::map<std::string, double> stageMs(gl::Profiler& profiler) {
+  std::map<std::string, double> out;
+  for (const auto& [name, t] : profiler.resolve()) out[name] = std::max(t.cpuMs, t.gpuMs);
+  return out;
 }
 
-/// Best of `repeats` wall times of fn, finished on the GPU (glFinish).
-template <class F>
-double timeMs(int repeats, F&& fn) {
-  double best = 1e300;
+/// Best (per stage) over `repeats` runs of the pipeline.
+std::map<std::string, double> bestStages(lighting::LightingPipeline& pipe, const lighting::CameraView& view, int repeats) {
+  gl::Profiler profiler;
+  std::map<std::string, double> best;
   for (int i = 0; i < repeats; ++i) {
-    glFinish();
-    const double t0 = nowMs();
-    fn();
-    glFinish();
-    best = std::min(best, nowMs() - t0);
+    pipe.run(view, {}, {0, 0, 0}, &profiler);
+    for (const auto& [name, ms] : stageMs(profiler)) best[name] = best.count(name) ? std::min(best[name], ms) : ms;
   }
   return best;
 }
@@ -65,13 +70,13 @@ int runBench(const BenchOptions& o) {
   capture::ensureRegistered(rgbd);
   // The camera pose in the object's world (marker frame with ground truth, else the camera frame).
   capture::Pose T_world_camera = capture::identityPose();
-  cv::Vec3d objectAt(0, 0, 0.06);
+  bool onMarker = true;
   if (const auto* s = dynamic_cast<const capture::SessionSource*>(source.get());
       s && frame->groundTruthT_world_camera && s->manifest().groundTruth.contains("T_world_marker")) {
     const auto T_world_marker = capture::poseFromJson(s->manifest().groundTruth["T_world_marker"], o.session, "ground_truth.T_world_marker");
     T_world_camera = capture::inversePose(T_world_marker) * *frame->groundTruthT_world_camera;
   } else {
-    objectAt = {0, 0, 1.0};  // 1 m in front of the camera
+    onMarker = false;  // no marker frame: 1 m in front of the camera
   }
   const cv::Mat positions = reconstruction::backProject(rgbd.depth, rgbd.colourIntrinsics);
   const cv::Mat normals = reconstruction::computeNormals(positions);
@@ -79,80 +84,101 @@ int runBench(const BenchOptions& o) {
                                           T_world_camera, 1);
   if (all.empty()) throw capture::CaptureError(o.session, "frame 0 has no valid depth to make VALs from");
 
-  lighting::Mesh mesh = lighting::loadMesh(o.model);
-  const float scale = 0.06f;
-  for (auto& p : mesh.positions) p = p * scale + cv::Vec3f(objectAt);
-  mesh.computeBounds();
-  const cv::Vec3f eye(capture::translationOf(T_world_camera));
-  const float exponent = lighting::phongExponent(0.5f);
-  const cv::Vec3f albedo(0.8f, 0.8f, 0.8f), specular(0.2f, 0.2f, 0.2f);
-  auto receiverAt = [&](const cv::Vec3f& p, const cv::Vec3f& n) {
-    return lighting::Receiver{p, n, cv::normalize(eye - p), exponent};
-  };
-  std::vector<lighting::Receiver> vertexReceivers;
-  for (size_t v = 0; v < mesh.positions.size(); ++v) vertexReceivers.push_back(receiverAt(mesh.positions[v], mesh.normals[v]));
-  const auto dense = lighting::sampleSparsePoints(mesh, o.receivers);
-  std::vector<lighting::Receiver> pixels;
-  for (size_t i = 0; i < dense.positions.size(); ++i) pixels.push_back(receiverAt(dense.positions[i], dense.normals[i]));
+  lighting::VirtualObject object;
+  object.model = o.model;
+  object.mesh = lighting::loadMesh(o.model);
+  for (auto& p : object.mesh.positions) p *= static_cast<float>(o.scale);
+  object.mesh.computeBounds();
+  const cv::Vec3d objectAt(0, 0, onMarker ? -object.mesh.boundsMin[2] : 1.0);  // resting on the marker plane
+  object.T_marker_object = capture::makePose(cv::Matx33d::eye(), objectAt);
+  object.material.albedo = {0.7f, 0.7f, 0.7f};
+  object.material.specular = 0.2f;
+  object.material.roughness = 0.5f;
 
+  const int width = rgbd.colour.cols, height = rgbd.colour.rows;
   gl::ContextConfig cfg;
   cfg.backend = gl::parseBackend(o.gl);
-  cfg.width = cfg.height = 16;
+  cfg.width = width;
+  cfg.height = height;
   auto context = gl::createContext(cfg);
-  lighting::ValGpu gpu(o.kCache);
+  std::vector<lighting::MeshVertex> realVertices;
+  std::vector<uint32_t> realIndices;
+  lighting::buildRealVertices(reconstruction::buildDepthMesh(positions, normals, 2), cv::Mat(), T_world_camera,
+                              realVertices, realIndices);
+  lighting::CameraView view;
+  view.intrinsics = rgbd.colourIntrinsics;
+  view.T_world_camera = T_world_camera;
+  auto makePipeline = [&](int sparse, bool occlusion, bool bruteForce) {
+    lighting::PipelineConfig pc;
+    pc.width = width;
+    pc.height = height;
+    pc.technique = lighting::Technique::KinectVal;
+    pc.val.kCache = o.kCache;
+    pc.val.sparsePoints = sparse;
+    pc.val.occlusion = occlusion;
+    pc.val.bruteForce = bruteForce;
+    auto pipe = std::make_unique<lighting::LightingPipeline>(pc, std::vector<lighting::VirtualObject>{object});
+    pipe->setRealMesh(realVertices, realIndices);
+    return pipe;
+  };
+
   json records = json::array();
   for (int valCount : o.valCounts) {
     // An even subsample of the frame's VALs, each carrying its share of the frame's light.
     std::vector<lighting::Val> vals;
     const size_t n = std::min<size_t>(valCount, all.size());
+    const float share = static_cast<float>(all.size()) / static_cast<float>(n);
     for (size_t i = 0; i < n; ++i) {
       lighting::Val v = all[i * all.size() / n];
-      const float share = static_cast<float>(all.size()) / static_cast<float>(n);
       v.area *= share;
       v.flux *= share;
       vals.push_back(v);
     }
-    lighting::setValWeights(vals);
-    gpu.setVals(vals);
-    // Brute force at the vertices (error reference) and at `receivers` pixel-like points (its cost).
-    gpu.gather(vertexReceivers);
-    std::vector<cv::Vec3f> bruteE, bruteS;
-    gpu.downloadSums(bruteE, bruteS);
-    const double msBrute = timeMs(o.repeats, [&] { gpu.gather(pixels); });
-    double bruteSum = 0;
-    for (size_t v = 0; v < bruteE.size(); ++v) bruteSum += cv::norm(lighting::valRadiance(bruteE[v], bruteS[v], albedo, specular, exponent), cv::NORM_L1);
+    // Brute force: the reference image of the object's bounce light and the cost of its gather.
+    auto brute = makePipeline(64, false, true);
+    brute->setRealVals(vals);
+    const auto bruteStages = bestStages(*brute, view, std::max(1, std::min(o.repeats, 2)));
+    const cv::Mat reference = brute->downloadShade();
+    const size_t pixels = brute->valStats().receivers;
+    const double msBrute = bruteStages.at("val.gather");
+    double refSum = 0;
+    for (int i = 0; i < static_cast<int>(reference.total()); ++i) {
+      const cv::Vec4f v = reference.at<cv::Vec4f>(i);
+      if (v[3] > 0.5f) refSum += v[0] + v[1] + v[2];
+    }
     for (int sparseCount : o.sparseCounts)
       for (bool occlusion : {false, true}) {
-        auto points = lighting::sampleSparsePoints(mesh, sparseCount);
-        const auto weights = lighting::vertexWeights(mesh, points);
-        std::vector<lighting::Receiver> sparse;
-        for (size_t i = 0; i < points.positions.size(); ++i) sparse.push_back(receiverAt(points.positions[i], points.normals[i]));
-        const double msGather = timeMs(o.repeats, [&] { gpu.gather(sparse); });
-        const double msOcclusion = occlusion ? timeMs(o.repeats, [&] {
-          gpu.gather(sparse);
-          gpu.occlude(points.positions, points.normals, points.discRadius);
-        }) - msGather : 0.0;
-        // The last timed run left this configuration's VPLs on the GPU.
-        const auto vpls = gpu.downloadVpls();
+        if ((occlusion && o.occlusion == "off") || (!occlusion && o.occlusion == "on")) continue;
+        const auto t0 = std::chrono::steady_clock::now();
+        auto pipe = makePipeline(sparseCount, occlusion, false);
+        const double msPrecompute = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        pipe->setRealVals(vals);
+        const auto stages = bestStages(*pipe, view, o.repeats);
+        const cv::Mat shade = pipe->downloadShade();
         double err = 0;
-        for (size_t v = 0; v < mesh.positions.size(); ++v) {
-          cv::Vec3f E, S;
-          lighting::evaluateVpl(lighting::interpolateVpl(weights, v, vpls), vertexReceivers[v], E, S);
-          const cv::Vec3f L = lighting::valRadiance(E, S, albedo, specular, exponent);
-          const cv::Vec3f B = lighting::valRadiance(bruteE[v], bruteS[v], albedo, specular, exponent);
-          err += cv::norm(L - B, cv::NORM_L1);
+        for (int i = 0; i < static_cast<int>(shade.total()); ++i) {
+          const cv::Vec4f a = shade.at<cv::Vec4f>(i), b = reference.at<cv::Vec4f>(i);
+          if (b[3] > 0.5f) err += std::abs(a[0] - b[0]) + std::abs(a[1] - b[1]) + std::abs(a[2] - b[2]);
         }
-        const double msSparse = msGather + msOcclusion;
+        json msStages = json::object();
+        double msSparse = 0;
+        for (const char* stage : {"val.upload", "val.gather", "val.occlude", "val.shade"})
+          if (stages.count(stage)) {
+            msStages[stage] = stages.at(stage);
+            msSparse += stages.at(stage);
+          }
+        msStages["val.precompute"] = msPrecompute;  // sparse points + k-d tree weights, once per mesh
         json r = {{"technique", "kinect-val"},
                   {"knobs", {{"vals", vals.size()}, {"sparse_points", sparseCount}, {"k_cache", o.kCache}, {"occlusion", occlusion}}},
-                  {"receivers_bruteforce", pixels.size()},
+                  {"receivers_bruteforce", pixels},
                   {"ms_sparse", msSparse},
-                  {"ms_stages", {{"val.gather", msGather}, {"val.occlusion", msOcclusion}}},
+                  {"ms_stages", msStages},
                   {"ms_bruteforce", msBrute},
                   {"speedup", msSparse > 0 ? msBrute / msSparse : 0.0},
-                  {"rel_error_vs_bruteforce", bruteSum > 0 ? err / bruteSum : 0.0}};
-        std::printf("kinect-val vals %6zu sparse %5d occlusion %d: sparse %8.2f ms, brute force %9.2f ms (x%.1f), rel. error %.4f\n",
-                    vals.size(), sparseCount, occlusion ? 1 : 0, msSparse, msBrute, r["speedup"].get<double>(),
+                  {"rel_error_vs_bruteforce", refSum > 0 ? err / refSum : 0.0}};
+        std::printf("kinect-val vals %6zu sparse %5d occlusion %d: sparse %8.2f ms, brute force %9.2f ms over %zu pixels "
+                    "(x%.1f), rel. error %.4f\n",
+                    vals.size(), sparseCount, occlusion ? 1 : 0, msSparse, msBrute, pixels, r["speedup"].get<double>(),
                     r["rel_error_vs_bruteforce"].get<double>());
         std::fflush(stdout);
         records.push_back(r);
@@ -173,11 +199,14 @@ Action addBench(CLI::App& app) {
   app.add_option("--technique", o->technique, "technique to sweep (kinect-val)");
   app.add_option("--json", o->json, "write one record per configuration (JSON)");
   app.add_option("--session", o->session, "session whose first RGB-D frame provides the VALs");
-  app.add_option("--model", o->model, "virtual object (placed 6 cm above the marker, 6 cm radius for the sphere)");
+  app.add_option("--model", o->model, "virtual object, resting on the marker plane at its centre");
+  app.add_option("--scale", o->scale, "model scale (the bundled unit sphere: its radius in metres)")
+      ->check(CLI::Range(1e-3, 10.0));
+  app.add_option("--occlusion", o->occlusion, "sparse runs with disc occlusion off, on or both")
+      ->check(CLI::IsMember({"off", "on", "both"}));
   app.add_option("--vals", o->valCounts, "VAL counts to sweep (e.g. 1024,16384,262144)")->delimiter(',');
   app.add_option("--sparse", o->sparseCounts, "sparse point counts to sweep (e.g. 256,4096,16384)")->delimiter(',');
   app.add_option("--k-cache", o->kCache, "VALs per shared-memory tile (16..512)")->check(CLI::Range(16, 512));
-  app.add_option("--receivers", o->receivers, "brute-force receivers (visible object pixels)")->check(CLI::PositiveNumber);
   app.add_option("--repeats", o->repeats, "timing repeats (best is kept)")->check(CLI::PositiveNumber);
   app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl")->check(CLI::IsMember({"osmesa", "egl"}));
   return [o] { return runBench(*o); };

@@ -573,7 +573,7 @@ void LightingPipeline::runVal(const CameraView& camera, gl::Profiler* profiler) 
   glClearNamedFramebufferfv(valFb_.id(), GL_COLOR, 0, zero);
   glClearNamedFramebufferfv(valFb_.id(), GL_COLOR, 1, zero);
   if (config_.val.bruteForce) {
-    valBruteForce(camera);
+    valBruteForce(camera, profiler);
     return;
   }
 
@@ -649,7 +649,11 @@ cv::Mat download4(const gl::Texture& t) {
 }
 }  // namespace
 
-void LightingPipeline::valBruteForce(const CameraView& camera) {
+void LightingPipeline::valBruteForce(const CameraView& camera, gl::Profiler* profiler) {
+  auto scope = [&](const char* name, bool gpu) {
+    return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, gpu) : std::nullopt;
+  };
+  auto staging = scope("val.bruteforce_staging", false);  // G-buffer read-back, radiance upload (CPU)
   // Every visible virtual pixel is a receiver of every VAL (no interpolation, no occlusion): the reference
   // the sparse method is measured against. The gather runs on the GPU; the per-pixel material comes from
   // the G-buffer (albedo) and the object index in the normal's w.
@@ -674,7 +678,10 @@ void LightingPipeline::valBruteForce(const CameraView& camera) {
       objects.push_back(o);
     }
   valStats_.receivers = receivers.size();
-  valGpu_->gather(receivers);
+  {
+    auto s = scope("val.gather", true);
+    valGpu_->gather(receivers);
+  }
   std::vector<cv::Vec3f> E, S;
   valGpu_->downloadSums(E, S);
   cv::Mat radiance(pos.size(), CV_32FC4, cv::Scalar::all(0)), irradiance(pos.size(), CV_32FC4, cv::Scalar::all(0));

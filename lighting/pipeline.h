@@ -137,7 +137,7 @@ class LightingPipeline {
   void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const;
   void renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual);
   void runVal(const CameraView& camera, gl::Profiler* profiler);
-  void valBruteForce(const CameraView& camera);
+  void valBruteForce(const CameraView& camera, gl::Profiler* profiler);
   void inject(Volume& target, const Rsm& source, const Rsm* other, float sign, unsigned mode, const SceneLight& light);
   void propagate(Volume& volume, bool clampNegative, const Volume* late);
   void add(const Volume& src, Volume& dst);

@@ -301,7 +301,7 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
     r.allowOnly(k, "val", {"sparse_points", "k_cache", "occlusion", "stride", "rsm_stride", "fusion", "voxel", "decay",
                            "brute_force"});
     ValKnobs& v = s.val;
-    if (k.contains("sparse_points")) v.sparsePoints = r.integer(k["sparse_points"], "val.sparse_points", 16, 65536);
+    if (k.contains("sparse_points")) v.sparsePoints = r.integer(k["sparse_points"], "val.sparse_points", 16, 16384);
     if (k.contains("k_cache")) v.kCache = r.integer(k["k_cache"], "val.k_cache", 16, 512);
     if (k.contains("occlusion")) v.occlusion = r.boolean(k["occlusion"], "val.occlusion");
     if (k.contains("stride")) v.stride = r.integer(k["stride"], "val.stride", 1, 64);

@@ -89,7 +89,7 @@ struct LpvKnobs {
 
 /// Kinect-VAL knobs (scene key "val").
 struct ValKnobs {
-  int sparsePoints = 1024;  ///< sparse shading points per object (16..65536)
+  int sparsePoints = 1024;  ///< sparse shading points per object (16..16384)
   int kCache = 128;         ///< VALs per shared-memory tile of the gather (16..512)
   bool occlusion = true;    ///< disc-occluder approximation (§3.3)
   int stride = 4;           ///< RGB-D pixel stride of the real VALs (1..64)

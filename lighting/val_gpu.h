@@ -14,6 +14,8 @@ class ValGpu {
  public:
   /// kCache: VALs per shared-memory tile, 16..512. Needs a current GL 4.5 context.
   explicit ValGpu(int kCache = 128);
+  /// VALs per gather dispatch; larger sets take several, the sums carried between them.
+  static constexpr size_t kValsPerDispatch = 16384;
   int kCache() const { return kCache_; }
 
   void setVals(const std::vector<Val>& vals);
@@ -34,7 +36,7 @@ class ValGpu {
   void ensure(gl::Buffer& b, size_t bytes);
   int kCache_;
   gl::Program gather_, occlude_;
-  gl::Buffer vals_, receivers_, vpls_, vplsScratch_, sums_, occluders_;
+  gl::Buffer vals_, receivers_, vpls_, vplsScratch_, sums_, occluders_, partial_;
   size_t valCount_ = 0, receiverCount_ = 0;
 };
 

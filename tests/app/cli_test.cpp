@@ -470,7 +470,7 @@ TEST(Cli, BenchKinectValWritesSparseAndBruteForceRecords) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_bench_" + std::to_string(::getpid()) + ".json");
   const std::string rec = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
   const Result r = runMrgi("bench --technique kinect-val --session " + rec + " --model " + kModels +
-                           "sphere.ply --vals 512,2048 --sparse 64,642 --receivers 2048 --repeats 1 --json " + out.string());
+                           "sphere.ply --vals 512,2048 --sparse 64,642 --repeats 1 --json " + out.string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto doc = nlohmann::json::parse(slurp(out));
   ASSERT_EQ(doc["records"].size(), 8u);  // 2 VAL counts × 2 sparse counts × occlusion off/on

@@ -421,3 +421,29 @@ TEST(GL, ValGatherMatchesTheCpuReference) {
   }
   EXPECT_GT(partly, 20);  // the lid shadows the floor's light
 }
+
+TEST(GL, ValGatherHandlesAQuarterMillionVals) {
+  // The bench's largest VAL count (a full 640x480 frame): every VAL must reach the gather.
+  gl::ContextConfig cfg;
+  cfg.width = 16, cfg.height = 16;
+  auto ctx = gl::createContext(cfg);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<Val> vals;
+  for (int i = 0; i < 262144; ++i)
+    vals.push_back(disc({u(rng), u(rng), 0.8f}, {0, 0, -1}, 0.001f, {1e-4f, 1e-4f, 1e-4f}));
+  // One bright VAL at the end: missed if the gather stops early.
+  vals.back() = disc({0.f, 0.f, 0.5f}, {0, 0, -1}, 0.01f, {1.f, 1.f, 1.f});
+  lighting::setValWeights(vals);
+  std::vector<lighting::Receiver> rec;
+  for (int i = 0; i < 32; ++i) rec.push_back(receiver({0.3f * u(rng), 0.3f * u(rng), 0.f}, {0, 0, 1}, {0, 0, 1}, 10.f));
+  lighting::ValGpu gpu(128);
+  gpu.setVals(vals);
+  gpu.gather(rec);
+  std::vector<cv::Vec3f> E, S;
+  gpu.downloadSums(E, S);
+  for (size_t i = 0; i < rec.size(); ++i) {
+    const auto g = lighting::gatherReference(rec[i], vals);
+    EXPECT_LE(cv::norm(E[i] - g.E), 1e-3 * cv::norm(g.E)) << i;
+  }
+}
