@@ -152,6 +152,7 @@ int runReplay(const ReplayOptions& o) {
           cv::Mat lum;
           cv::cvtColor(rgb, lum, cv::COLOR_RGB2GRAY);
           cv::minMaxLoc(lum, &lo, &hi, nullptr, nullptr, mask > 0.5f);
+          rgb.setTo(cv::Scalar::all(0), mask <= 0.5f);  // real pixels carry their delta in this target
           png("val_irradiance", lighting::linearImage(rgb, hi > 0 ? 1.0 / hi : 0.0));
           frameInfo["debug_val_irradiance_max"] = hi;
         }

@@ -223,7 +223,8 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     // Flicker of the bounce light: frame-to-frame change of the sparse points' irradiance (model space,
     // so a moving camera alone changes nothing), relative to its mean.
     const auto& st = pipeline_->valStats();
-    nlohmann::json v = {{"real_vals", st.realVals}, {"virtual_vals", st.virtualVals}, {"receivers", st.receivers}};
+    nlohmann::json v = {{"real_vals", st.realVals}, {"virtual_vals", st.virtualVals}, {"receivers", st.receivers},
+                      {"shadowed_vals", st.shadowedVals}};
     if (surfels_) v["surfels"] = surfels_->size();
     std::vector<cv::Vec3f> E, S;
     pipeline_->downloadValSums(E, S);

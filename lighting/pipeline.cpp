@@ -441,6 +441,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   // Every frame starts from cleared volumes.
   std::vector<LightView> views;
   rsmVals_.clear();
+  shadowMaps_.clear();
   if (grid_) {
     for (Volume* v : {&delta_, &rho_, &rhoFull_, &muFull_, &deltaDirect_, &rhoDirect_, &muDirect_})
       if (v->r.id()) {
@@ -467,8 +468,12 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       if (val) {
         // The virtual object's lit texels become VALs (virtual -> virtual bounce).
         auto s = scope("val.rsm_vals");
-        const auto v = valsFromRsm(downloadRsm(true), light, config_.val.rsmStride);
+        const RsmTexels rho = downloadRsm(true);
+        const auto v = valsFromRsm(rho, light, config_.val.rsmStride);
         rsmVals_.insert(rsmVals_.end(), v.begin(), v.end());
+        cv::Mat mu(rho.position.size(), CV_32FC4);
+        rsmMu_.position.download(GL_RGBA, GL_FLOAT, mu.ptr(), static_cast<GLsizei>(mu.total() * mu.elemSize()), 4);
+        shadowMaps_.push_back({light, views.back(), rho.position, mu});
       }
       if (!lpv) continue;
       auto s = scope("lpv.inject");
@@ -498,7 +503,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
         propagate(delta_, false, &deltaDirect_);
       }
     }
-    if (val) runVal(camera, profiler);
+    if (val) runVal(camera, ambientRadiance, profiler);
   }
 
   auto s = scope("shade");
@@ -554,20 +559,79 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   gl::checkGlError("LightingPipeline::run()");
 }
 
-void LightingPipeline::runVal(const CameraView& camera, gl::Profiler* profiler) {
+namespace {
+/// The shade pass's shadow-map test (shade.frag visibility()) on the CPU: 1 lit, 0 occluded.
+float mapVisibility(const cv::Mat& positions, const SceneLight& light, const LightView& view, const cv::Vec3f& p,
+                    const cv::Vec3f& n) {
+  const cv::Vec3d x = cv::Vec3d(p) + cv::Vec3d(n) * std::max(view.shadowBias, 0.0);
+  const cv::Vec4d c = view.viewProj * cv::Vec4d(x[0], x[1], x[2], 1.0);
+  if (c[3] <= 0) return 1.f;
+  const double u = c[0] / c[3], v = c[1] / c[3];
+  if (std::abs(u) > 1 || std::abs(v) > 1) return 1.f;
+  const int col = std::clamp(static_cast<int>((u * 0.5 + 0.5) * positions.cols), 0, positions.cols - 1);
+  const int row = std::clamp(static_cast<int>((v * 0.5 + 0.5) * positions.rows), 0, positions.rows - 1);
+  const cv::Vec4f s = positions.at<cv::Vec4f>(row, col);
+  if (s[3] < 0.5f) return 1.f;
+  const cv::Vec3d occ(s[0], s[1], s[2]);
+  double self, other;
+  if (light.type == LightType::Directional) {
+    self = x.dot(light.direction);
+    other = occ.dot(light.direction);
+  } else {
+    self = cv::norm(x - light.position);
+    other = cv::norm(occ - light.position);
+  }
+  return other < self - view.shadowBias ? 0.f : 1.f;
+}
+
+/// Direct irradiance a light sends to (p, n) without shadowing.
+cv::Vec3d lightIrradiance(const SceneLight& light, const cv::Vec3f& p, const cv::Vec3f& n) {
+  if (light.type == LightType::Directional) return light.irradiance * std::max(-cv::Vec3d(n).dot(light.direction), 0.0);
+  const cv::Vec3d l = light.position - cv::Vec3d(p);
+  const double d2 = std::max(l.dot(l), 1e-8);
+  const cv::Vec3d ln = l / std::sqrt(d2);
+  if (light.type == LightType::Spot && (-ln).dot(light.direction) < std::cos(light.spotHalfAngleDeg * CV_PI / 180.0))
+    return {0, 0, 0};
+  return light.intensity * (std::max(cv::Vec3d(n).dot(ln), 0.0) / d2);
+}
+}  // namespace
+
+size_t LightingPipeline::shadowRealVals(std::vector<Val>& vals, const cv::Vec3d& ambientRadiance) const {
+  // The camera saw the real surfaces without the virtual object; where the object now shadows them they
+  // reflect less: exitance x E_with / E_without (direct light through RSM^rho vs RSM^mu, plus the ambient),
+  // so the object's underside does not receive bounce from the table it shadows.
+  size_t dimmed = 0;
+  for (Val& v : vals) {
+    cv::Vec3d with = CV_PI * ambientRadiance, without = with;
+    for (const ShadowMaps& m : shadowMaps_) {
+      const cv::Vec3d e = lightIrradiance(m.light, v.position, v.normal);
+      if (e == cv::Vec3d(0, 0, 0)) continue;
+      without += e * mapVisibility(m.mu, m.light, m.view, v.position, v.normal);
+      with += e * mapVisibility(m.rho, m.light, m.view, v.position, v.normal);
+    }
+    if (with == without) continue;
+    for (int c = 0; c < 3; ++c)
+      if (without[c] > 0) v.flux[c] *= static_cast<float>(std::clamp(with[c] / without[c], 0.0, 1.0));
+    ++dimmed;
+  }
+  return dimmed;
+}
+
+void LightingPipeline::runVal(const CameraView& camera, const cv::Vec3d& ambientRadiance, gl::Profiler* profiler) {
   auto scope = [&](const char* name) {
     return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, true) : std::nullopt;
   };
   const cv::Vec3f eye(capture::translationOf(camera.T_world_camera));
+  valStats_ = {realVals_.size(), rsmVals_.size(), 0, 0, config_.val.bruteForce};
   {
     auto s = scope("val.upload");
-    std::vector<Val> vals;
-    vals.reserve(realVals_.size() + rsmVals_.size());
-    vals.insert(vals.end(), realVals_.begin(), realVals_.end());
-    vals.insert(vals.end(), rsmVals_.begin(), rsmVals_.end());
-    setValWeights(vals);
-    valGpu_->setVals(vals);
-    valStats_ = {realVals_.size(), rsmVals_.size(), 0, config_.val.bruteForce};
+    vals_.clear();
+    vals_.reserve(realVals_.size() + rsmVals_.size());
+    vals_.insert(vals_.end(), realVals_.begin(), realVals_.end());
+    valStats_.shadowedVals = shadowRealVals(vals_, ambientRadiance);
+    vals_.insert(vals_.end(), rsmVals_.begin(), rsmVals_.end());
+    setValWeights(vals_);
+    valGpu_->setVals(vals_);
   }
   const float zero[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(valFb_.id(), GL_COLOR, 0, zero);

@@ -94,9 +94,12 @@ class LightingPipeline {
   /// What Kinect-VAL did in the last run.
   struct ValStats {
     size_t realVals = 0, virtualVals = 0, receivers = 0;
+    size_t shadowedVals = 0;  ///< real VALs dimmed because the object shadows them
     bool bruteForce = false;
   };
   const ValStats& valStats() const { return valStats_; }
+  /// The VALs of the last run (real ones dimmed where the object shadows them, then the virtual ones).
+  const std::vector<Val>& vals() const { return vals_; }
   /// Per sparse point (objects in order; brute force: per visible virtual pixel) E and S of the last run.
   void downloadValSums(std::vector<cv::Vec3f>& E, std::vector<cv::Vec3f>& S) const;
   /// Object i's sparse points (model frame).
@@ -136,7 +139,8 @@ class LightingPipeline {
   Rsm makeRsm(int size) const;
   void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const;
   void renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual);
-  void runVal(const CameraView& camera, gl::Profiler* profiler);
+  void runVal(const CameraView& camera, const cv::Vec3d& ambientRadiance, gl::Profiler* profiler);
+  size_t shadowRealVals(std::vector<Val>& vals, const cv::Vec3d& ambientRadiance) const;
   void valBruteForce(const CameraView& camera, gl::Profiler* profiler);
   void inject(Volume& target, const Rsm& source, const Rsm* other, float sign, unsigned mode, const SceneLight& light);
   void propagate(Volume& volume, bool clampNegative, const Volume* late);
@@ -170,6 +174,13 @@ class LightingPipeline {
   std::optional<ValGpu> valGpu_;
   std::vector<Val> realVals_;
   std::vector<Val> rsmVals_;   ///< virtual VALs of the last run, all lights
+  std::vector<Val> vals_;      ///< everything the last run gathered
+  struct ShadowMaps {
+    SceneLight light;
+    LightView view;
+    cv::Mat rho, mu;  ///< RSM world positions with and without the virtual objects (CPU copies)
+  };
+  std::vector<ShadowMaps> shadowMaps_;
   ValStats valStats_;
   gl::Program valMeshProgram_;
   gl::Texture valRadiance_, valIrradiance_, shadowMuArray_;

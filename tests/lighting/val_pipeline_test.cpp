@@ -157,7 +157,7 @@ TEST(GL, KinectValBruteForceMatchesTheCppReferencePerPixel) {
   EXPECT_GT(checked, 50);
 }
 
-TEST(GL, KinectValAloneDarkensRealPixelsOnlyInTheObjectsShadow) {
+TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
   auto ctx = makeContext();
   const double cube = 0.16;
   const cv::Vec3d centre(0.0, 0.0, 0.2);
@@ -165,10 +165,29 @@ TEST(GL, KinectValAloneDarkensRealPixelsOnlyInTheObjectsShadow) {
   PipelineConfig cfg = testConfig(160, 120, 16, 256);
   cfg.technique = Technique::KinectVal;
   LightingPipeline pipe = makePipeline(cfg, s);
-  pipe.setRealVals(roomVals());
+  const std::vector<Val> original = roomVals();
+  pipe.setRealVals(original);
   SceneLight sun = sunDown(10.0);
   sun.direction = {0.6, 0.0, -0.8};
-  pipe.run(topCamera(160, 120), {sun}, {0, 0, 0}, nullptr);
+  const double ambient = 0.1;  // W/m^2/sr: pi * 0.1 W/m^2 still reach the shadow
+  pipe.run(topCamera(160, 120), {sun}, cv::Vec3d::all(ambient), nullptr);
+  // Real VALs in the shadow reflect only the ambient: exitance x pi a / (E cos + pi a); the rest unchanged.
+  const auto& used = pipe.vals();
+  ASSERT_EQ(used.size(), original.size() + pipe.valStats().virtualVals);
+  const double ratio = CV_PI * ambient / (8.0 + CV_PI * ambient);
+  int dimmed = 0;
+  for (size_t i = 0; i < original.size(); ++i) {
+    const cv::Vec3d p(original[i].position);
+    if (original[i].normal[2] < 0.5f) continue;  // the floor
+    if (inShadow(p, sun.direction, centre, 0.5 * cube - 0.01)) {
+      EXPECT_NEAR(used[i].flux[0], original[i].flux[0] * ratio, 1e-4 * original[i].flux[0]) << i;
+      ++dimmed;
+    } else if (!inShadow(p, sun.direction, centre, 0.5 * cube + 0.01)) {
+      EXPECT_EQ(used[i].flux, original[i].flux) << i;
+    }
+  }
+  EXPECT_GT(dimmed, 20);
+  EXPECT_GE(pipe.valStats().shadowedVals, static_cast<size_t>(dimmed));
   const cv::Mat shade = pipe.downloadShade(), pos = pipe.downloadGBuffer(0);
   // Exact loss in the shadow: E cos(theta) albedo / pi with E cos = 8 W/m^2 on the grey floor.
   const float lost = 8.0f * kFloorAlbedo[0] / static_cast<float>(CV_PI);
