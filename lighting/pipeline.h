@@ -102,6 +102,8 @@ class LightingPipeline {
   const std::vector<Val>& vals() const { return vals_; }
   /// Per sparse point (objects in order; brute force: per visible virtual pixel) E and S of the last run.
   void downloadValSums(std::vector<cv::Vec3f>& E, std::vector<cv::Vec3f>& S) const;
+  /// The sparse points' VPL pairs of the last run (objects in order), after occlusion.
+  std::vector<SparseVpl> downloadSparseVpls() const { return valGpu_ ? valGpu_->downloadVpls() : std::vector<SparseVpl>(); }
   /// Object i's sparse points (model frame).
   const SparsePoints& sparsePoints(size_t i) const { return valObjects_.at(i).points; }
 

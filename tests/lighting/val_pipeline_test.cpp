@@ -277,3 +277,69 @@ TEST(GL, KinectValExtremesStayFiniteAndBounded) {
       }
     }
 }
+
+TEST(GL, KinectValPixelPassMatchesTheCppInterpolationAndEvaluation) {
+  // A virtual quad (two triangles) facing the camera: each pixel's VPL pair is the barycentric blend of its
+  // triangle's per-vertex pairs (eq. 13 on the sparse points' VPLs), evaluated at the pixel (eq. 10).
+  auto ctx = makeContext();
+  TestScene s = makeScene(true, 0.0, {0, 0, 0});
+  VirtualObject o;
+  o.mesh.positions = {{-0.15f, -0.15f, 0.f}, {0.15f, -0.15f, 0.f}, {0.15f, 0.15f, 0.f}, {-0.15f, 0.15f, 0.f}};
+  o.mesh.normals.assign(4, cv::Vec3f(0.3f, 0.f, 0.954f));
+  for (auto& n : o.mesh.normals) n = cv::normalize(n);
+  o.mesh.indices = {0, 1, 2, 0, 2, 3};
+  o.mesh.computeBounds();
+  o.material.albedo = {0.6f, 0.6f, 0.6f};
+  o.material.roughness = 0.4f;
+  o.material.specular = 0.3f;
+  o.T_marker_object = capture::makePose(cv::Matx33d::eye(), {-0.2, 0.0, 0.3});
+  s.objects.push_back(o);
+  PipelineConfig cfg = valConfig(Technique::KinectVal, 64, false, true);
+  LightingPipeline pipe = makePipeline(cfg, s);
+  pipe.setRealVals(roomVals());
+  CameraView cam;
+  cam.intrinsics = {128, 96, 120, 120, 63.5, 47.5};
+  cam.T_world_camera = capture::lookAtPose({-0.1, -0.2, 1.2}, {-0.2, 0.0, 0.3});
+  pipe.run(cam, {}, {0, 0, 0}, nullptr);
+  const cv::Mat shade = pipe.downloadShade(), pos = pipe.downloadGBuffer(0);
+  const auto vpls = pipe.downloadSparseVpls();
+  SparsePoints points = sampleSparsePoints(o.mesh, 64);
+  const VertexWeights w = vertexWeights(o.mesh, points);
+  ASSERT_EQ(vpls.size(), points.positions.size());
+  std::vector<SparseVpl> perVertex;
+  for (size_t v = 0; v < 4; ++v) perVertex.push_back(interpolateVpl(w, v, vpls));
+  const cv::Vec3f eye(capture::translationOf(cam.T_world_camera)), offset(-0.2f, 0.f, 0.3f);
+  const float k = phongExponent(0.4f);
+  int checked = 0;
+  for (int i = 0; i < static_cast<int>(shade.total()); ++i) {
+    const cv::Vec4f v = shade.at<cv::Vec4f>(i);
+    if (v[3] < 0.5f) continue;
+    const cv::Vec4f p4 = pos.at<cv::Vec4f>(i);
+    const cv::Vec3f x(p4[0], p4[1], p4[2]), m = x - offset;  // model frame (translation only)
+    // Which triangle, and the barycentrics in the quad's plane (z = 0 in the model frame).
+    const bool first = m[0] >= m[1];  // triangle 0-1-2 lies below the diagonal x = y
+    const int a = 0, b = first ? 1 : 2, c = first ? 2 : 3;
+    const cv::Vec3f pa = o.mesh.positions[a], pb = o.mesh.positions[b], pc = o.mesh.positions[c];
+    const float area = (pb - pa).cross(pc - pa)[2];
+    const float wb = (m - pa).cross(pc - pa)[2] / area, wc = (pb - pa).cross(m - pa)[2] / area, wa = 1 - wb - wc;
+    if (std::min({wa, wb, wc}) < 0.02f) continue;  // keep off the diagonal and the edges
+    SparseVpl blend;
+    blend.Ld = wa * perVertex[a].Ld + wb * perVertex[b].Ld + wc * perVertex[c].Ld;
+    blend.ld = wa * perVertex[a].ld + wb * perVertex[b].ld + wc * perVertex[c].ld;
+    blend.Ls = wa * perVertex[a].Ls + wb * perVertex[b].Ls + wc * perVertex[c].Ls;
+    blend.ls = wa * perVertex[a].ls + wb * perVertex[b].ls + wc * perVertex[c].ls;
+    Receiver r;
+    r.position = x;
+    r.view = cv::normalize(eye - x);
+    r.normal = o.mesh.normals[0];
+    if (r.normal.dot(r.view) < 0) r.normal = -r.normal;
+    r.exponent = k;
+    cv::Vec3f E, S;
+    evaluateVpl(blend, r, E, S);
+    const cv::Vec3f L = valRadiance(E, S, o.material.albedo, cv::Vec3f::all(o.material.specular), k);
+    for (int ch = 0; ch < 3; ++ch)
+      EXPECT_NEAR(v[ch], L[ch], 2e-3f * L[ch] + 1e-6f) << "pixel " << i << " channel " << ch;
+    ++checked;
+  }
+  EXPECT_GT(checked, 300);
+}
