@@ -144,15 +144,12 @@ int runReplay(const ReplayOptions& o) {
         }
         if (lighting::usesVal(technique)) {
           // Bounce irradiance the virtual object receives (Kinect-VAL), on a linear scale.
-          cv::Mat e = pipeline->downloadIrradiance(), mask;
-          cv::extractChannel(albedo, mask, 3);
-          cv::Mat rgb;
-          cv::cvtColor(e, rgb, cv::COLOR_RGBA2RGB);
-          double lo = 0, hi = 0;
-          cv::Mat lum;
+          cv::Mat rgb, lum;
+          cv::cvtColor(pipeline->downloadIrradiance(), rgb, cv::COLOR_RGBA2RGB);
           cv::cvtColor(rgb, lum, cv::COLOR_RGB2GRAY);
-          cv::minMaxLoc(lum, &lo, &hi, nullptr, nullptr, mask > 0.5f);
-          rgb.setTo(cv::Scalar::all(0), mask <= 0.5f);  // real pixels carry their delta in this target
+          double lo = 0, hi = 0;
+          cv::minMaxLoc(lum, &lo, &hi, nullptr, nullptr, mask);  // the G-buffer mask above: 255 = virtual
+          rgb.setTo(cv::Scalar::all(0), mask == 0);  // real pixels carry their delta in this target
           png("val_irradiance", lighting::linearImage(rgb, hi > 0 ? 1.0 / hi : 0.0));
           frameInfo["debug_val_irradiance_max"] = hi;
         }

@@ -131,6 +131,17 @@ void setMat3(const gl::Program& p, const std::string& name, const cv::Matx33f& m
   glProgramUniformMatrix3fv(p.id(), p.location(name), 1, GL_FALSE, cm);
 }
 
+/// A timed stage when there is a profiler (GPU timer queries too when `gpu`).
+std::optional<gl::Profiler::Scope> timed(gl::Profiler* profiler, const char* name, bool gpu = true) {
+  return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, gpu) : std::nullopt;
+}
+
+/// A receiver at (p, n) seen from `eye`.
+Receiver seenFrom(const cv::Vec3f& p, const cv::Vec3f& n, const cv::Vec3f& eye, float exponent) {
+  const cv::Vec3f toEye = eye - p;
+  return {p, n, cv::norm(toEye) > 0 ? cv::normalize(toEye) : n, exponent};
+}
+
 /// uLightType of the shaders: 0 point, 1 spot, 2 directional.
 int shaderLightType(LightType t) { return t == LightType::Point ? 0 : t == LightType::Spot ? 1 : 2; }
 
@@ -280,7 +291,7 @@ void LightingPipeline::renderRsm(Rsm& rsm, const SceneLight& light, const LightV
   setVec3(p, "uLightPosition", light.position);
   setVec3(p, "uLightDirection", light.direction);
   setVec3(p, "uLightPower", light.type == LightType::Directional ? light.irradiance : light.intensity);
-  p.set("uSpotCos", static_cast<float>(std::cos(light.spotHalfAngleDeg * CV_PI / 180.0)));
+  p.set("uSpotCos", static_cast<float>(light.spotCos()));
   p.set("uFocal", static_cast<float>(view.focalPixels));
   p.set("uCentre", 0.5f * size);
   p.set("uTexelArea", static_cast<float>(view.texelArea));
@@ -382,9 +393,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   if (static_cast<int>(lights.size()) > kMaxLights)
     throw std::invalid_argument("at most " + std::to_string(kMaxLights) + " lights are supported, got " +
                                 std::to_string(lights.size()));
-  auto scope = [&](const char* name) {
-    return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, true) : std::nullopt;
-  };
+  auto scope = [&](const char* name) { return timed(profiler, name); };
   glDisable(GL_CULL_FACE);
   glDisable(GL_BLEND);
 
@@ -529,7 +538,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     setVec3(p, "uLightPosition" + k, l.position);
     setVec3(p, "uLightDirection" + k, l.direction);
     setVec3(p, "uLightPower" + k, l.type == LightType::Directional ? l.irradiance : l.intensity);
-    p.set("uSpotCos" + k, static_cast<float>(std::cos(l.spotHalfAngleDeg * CV_PI / 180.0)));
+    p.set("uSpotCos" + k, static_cast<float>(l.spotCos()));
     if (i < views.size()) {
       const auto m = toGl(views[i].viewProj);
       p.setMat4("uLightViewProj" + k, m.data());
@@ -590,7 +599,7 @@ cv::Vec3d lightIrradiance(const SceneLight& light, const cv::Vec3f& p, const cv:
   const cv::Vec3d l = light.position - cv::Vec3d(p);
   const double d2 = std::max(l.dot(l), 1e-8);
   const cv::Vec3d ln = l / std::sqrt(d2);
-  if (light.type == LightType::Spot && (-ln).dot(light.direction) < std::cos(light.spotHalfAngleDeg * CV_PI / 180.0))
+  if (light.type == LightType::Spot && (-ln).dot(light.direction) < light.spotCos())
     return {0, 0, 0};
   return light.intensity * (std::max(cv::Vec3d(n).dot(ln), 0.0) / d2);
 }
@@ -618,9 +627,7 @@ size_t LightingPipeline::shadowRealVals(std::vector<Val>& vals, const cv::Vec3d&
 }
 
 void LightingPipeline::runVal(const CameraView& camera, const cv::Vec3d& ambientRadiance, gl::Profiler* profiler) {
-  auto scope = [&](const char* name) {
-    return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, true) : std::nullopt;
-  };
+  auto scope = [&](const char* name) { return timed(profiler, name); };
   const cv::Vec3f eye(capture::translationOf(camera.T_world_camera));
   valStats_ = {realVals_.size(), rsmVals_.size(), 0, 0, config_.val.bruteForce};
   {
@@ -653,12 +660,8 @@ void LightingPipeline::runVal(const CameraView& camera, const cv::Vec3d& ambient
     const cv::Matx33f N = normalMatrix(T);
     const float k = phongExponent(vo.material.roughness);
     for (size_t i = 0; i < vo.points.positions.size(); ++i) {
-      Receiver r;
-      r.position = cv::Vec3f(capture::transformPoint(T, cv::Vec3d(vo.points.positions[i])));
-      r.normal = cv::normalize(N * vo.points.normals[i]);
-      const cv::Vec3f toEye = eye - r.position;
-      r.view = cv::norm(toEye) > 0 ? cv::normalize(toEye) : r.normal;
-      r.exponent = k;
+      const Receiver r = seenFrom(cv::Vec3f(capture::transformPoint(T, cv::Vec3d(vo.points.positions[i]))),
+                                  cv::normalize(N * vo.points.normals[i]), eye, k);
       receivers.push_back(r);
       positions.push_back(r.position);
       normals.push_back(r.normal);
@@ -714,10 +717,7 @@ cv::Mat download4(const gl::Texture& t) {
 }  // namespace
 
 void LightingPipeline::valBruteForce(const CameraView& camera, gl::Profiler* profiler) {
-  auto scope = [&](const char* name, bool gpu) {
-    return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, gpu) : std::nullopt;
-  };
-  auto staging = scope("val.bruteforce_staging", false);  // G-buffer read-back, radiance upload (CPU)
+  auto staging = timed(profiler, "val.bruteforce_staging", false);  // G-buffer read-back, radiance upload (CPU)
   // Every visible virtual pixel is a receiver of every VAL (no interpolation, no occlusion): the reference
   // the sparse method is measured against. The gather runs on the GPU; the per-pixel material comes from
   // the G-buffer (albedo) and the object index in the normal's w.
@@ -731,19 +731,14 @@ void LightingPipeline::valBruteForce(const CameraView& camera, gl::Profiler* pro
       if (p[3] < 0.5f || a[3] < 0.5f) continue;
       const int o = static_cast<int>(std::lround(n[3])) - 1;
       if (o < 0 || o >= static_cast<int>(valObjects_.size())) continue;
-      Receiver r;
-      r.position = {p[0], p[1], p[2]};
-      r.normal = {n[0], n[1], n[2]};
-      const cv::Vec3f toEye = eye - r.position;
-      r.view = cv::norm(toEye) > 0 ? cv::normalize(toEye) : r.normal;
-      r.exponent = phongExponent(valObjects_[o].material.roughness);
-      receivers.push_back(r);
+      receivers.push_back(
+          seenFrom({p[0], p[1], p[2]}, {n[0], n[1], n[2]}, eye, phongExponent(valObjects_[o].material.roughness)));
       pixels.push_back(y * pos.cols + x);
       objects.push_back(o);
     }
   valStats_.receivers = receivers.size();
   {
-    auto s = scope("val.gather", true);
+    auto s = timed(profiler, "val.gather");
     valGpu_->gather(receivers);
   }
   std::vector<cv::Vec3f> E, S;

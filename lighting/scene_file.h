@@ -5,6 +5,7 @@
 /// Frames: "marker" = the tag frame (origin at the tag centre, z out of the tag, x along its first edge,
 /// metres). The lighting world of `mrgi replay` is the marker frame: the tag is fixed in the room, so the
 /// volume stays axis-aligned in a frame that does not move with the camera.
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -57,6 +58,7 @@ struct SceneLight {
   cv::Vec3d intensity{0, 0, 0};  ///< point/spot: radiant intensity, W/sr per channel
   cv::Vec3d irradiance{0, 0, 0}; ///< directional: irradiance at normal incidence, W/m^2 per channel
   double spotHalfAngleDeg = 45;  ///< spot: cone half angle
+  double spotCos() const { return std::cos(spotHalfAngleDeg * CV_PI / 180.0); }
 };
 
 /// Where lights come from: listed in the scene file, the ground truth stored in a session's manifest, or

@@ -41,14 +41,14 @@ void ValGpu::gather(const std::vector<Receiver>& receivers) {
   if (receivers.empty()) return;
   receivers_.upload(0, static_cast<GLsizeiptr>(packed.size() * sizeof(cv::Vec4f)), packed.data());
   const size_t chunks = std::max<size_t>(1, (valCount_ + kValsPerDispatch - 1) / kValsPerDispatch);
-  if (chunks > 1) ensure(partial_, receivers.size() * 5 * sizeof(cv::Vec4f));
+  ensure(partial_, chunks > 1 ? receivers.size() * 5 * sizeof(cv::Vec4f) : 0);  // untouched by a single chunk
   gather_.use();
   gather_.set("uReceiverCount", static_cast<int>(receivers.size()));
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, vals_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, receivers_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, vpls_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, sums_.id());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, (chunks > 1 ? partial_ : sums_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, partial_.id());
   for (size_t c = 0; c < chunks; ++c) {
     gather_.set("uValBegin", static_cast<int>(c * kValsPerDispatch));
     gather_.set("uValEnd", static_cast<int>(std::min(valCount_, (c + 1) * kValsPerDispatch)));

@@ -341,6 +341,12 @@ TEST(Val, SurfelFusionKeepsUnseenSurfacesAndAveragesNoise) {
 #include "lighting/val_gpu.h"
 
 namespace {
+std::unique_ptr<gl::Context> smallContext() {
+  gl::ContextConfig cfg;
+  cfg.width = 16, cfg.height = 16;
+  return gl::createContext(cfg);
+}
+
 std::vector<Val> randomVals(int n, std::mt19937& rng) {
   std::uniform_real_distribution<float> u(-1, 1);
   std::vector<Val> vals;
@@ -356,9 +362,7 @@ std::vector<Val> randomVals(int n, std::mt19937& rng) {
 }  // namespace
 
 TEST(GL, ValGatherMatchesTheCpuReference) {
-  gl::ContextConfig cfg;
-  cfg.width = 16, cfg.height = 16;
-  auto ctx = gl::createContext(cfg);
+  auto ctx = smallContext();
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-1, 1);
   const auto vals = randomVals(700, rng);
@@ -424,9 +428,7 @@ TEST(GL, ValGatherMatchesTheCpuReference) {
 
 TEST(GL, ValGatherHandlesAQuarterMillionVals) {
   // The bench's largest VAL count (a full 640x480 frame): every VAL must reach the gather.
-  gl::ContextConfig cfg;
-  cfg.width = 16, cfg.height = 16;
-  auto ctx = gl::createContext(cfg);
+  auto ctx = smallContext();
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-1, 1);
   std::vector<Val> vals;
