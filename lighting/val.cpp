@@ -14,16 +14,15 @@ constexpr float kPi = static_cast<float>(CV_PI);
 
 float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 
-/// cos^k with cos^0 = 1 everywhere (also at cos = 0) and 0 below the lobe; the GLSL twin is phongLobe().
+cv::Vec3f reflectView(const Receiver& r) { return 2.f * r.normal.dot(r.view) * r.normal - r.view; }
+
+}  // namespace
+
 float phongLobe(float c, float k) {
   if (k <= 0.f) return 1.f;
   if (c <= 0.f) return 0.f;
   return std::exp(k * std::log(c));
 }
-
-cv::Vec3f reflectView(const Receiver& r) { return 2.f * r.normal.dot(r.view) * r.normal - r.view; }
-
-}  // namespace
 
 float phongExponent(float roughness) {
   const float r = std::clamp(roughness, 0.f, 1.f);

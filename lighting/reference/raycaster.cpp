@@ -65,6 +65,7 @@ std::optional<Hit> RayCaster::intersect(cv::Vec3f o, cv::Vec3f d, float tNear, f
   int light = -1;
   if (hitLights) {
     for (size_t i = 0; i < scene_.lights.size(); ++i) {
+      if (scene_.lights[i].type == LightType::Directional || !(scene_.lights[i].radius > 0)) continue;
       const float t = hitSphere(o, d, scene_.lights[i].position, scene_.lights[i].radius, tNear);
       if (t < best && t < tFar) best = t, light = static_cast<int>(i);
     }
@@ -84,10 +85,19 @@ std::optional<Hit> RayCaster::intersect(cv::Vec3f o, cv::Vec3f d, float tNear, f
   n = cv::normalize(n);
   if (n.dot(d) > 0) n = -n;
   h.normal = n;
-  const Material& m = scene_.materials[scene_.triangleMaterial[h.triangle]];
+  h.material = scene_.triangleMaterial[h.triangle];
+  const Material& m = scene_.materials[h.material];
+  const float u = rh.hit.u, v = rh.hit.v, w = 1.f - u - v;
+  h.shading = n;
+  if (!scene_.normals.empty()) {
+    const cv::Vec3f s = w * scene_.normals[tri[0]] + u * scene_.normals[tri[1]] + v * scene_.normals[tri[2]];
+    const float len = static_cast<float>(cv::norm(s));
+    if (len > 1e-6f) h.shading = (s.dot(n) < 0 ? -s : s) / len;
+  }
   h.albedo = m.albedo;
+  if (!scene_.vertexAlbedo.empty())
+    h.albedo = h.albedo.mul(w * scene_.vertexAlbedo[tri[0]] + u * scene_.vertexAlbedo[tri[1]] + v * scene_.vertexAlbedo[tri[2]]);
   if (m.texture >= 0) {
-    const float u = rh.hit.u, v = rh.hit.v, w = 1.f - u - v;
     const cv::Vec2f uv = w * scene_.uvs[tri[0]] + u * scene_.uvs[tri[1]] + v * scene_.uvs[tri[2]];
     const cv::Mat& tex = scene_.textures[m.texture];
     const int x = std::clamp(static_cast<int>(uv[0] * tex.cols), 0, tex.cols - 1);
@@ -110,22 +120,33 @@ bool RayCaster::occluded(cv::Vec3f o, cv::Vec3f d, float tNear, float tFar) cons
   return ray.tfar < 0;  // Embree sets tfar = -inf on a hit
 }
 
+RayCaster::Incident RayCaster::incident(size_t i, cv::Vec3f p, cv::Vec3f g) const {
+  const Light& l = scene_.lights[i];
+  const cv::Vec3f origin = p + 1e-4f * g;
+  if (l.type == LightType::Directional) {
+    const cv::Vec3f w = -l.direction;
+    if (g.dot(w) <= 0 || occluded(origin, w, 0.f, 1e30f)) return {w, {0, 0, 0}};
+    return {w, l.irradiance};
+  }
+  const cv::Vec3f toLight = l.position - p;
+  const float dist2 = toLight.dot(toLight);
+  const float dist = std::sqrt(dist2);
+  if (!(dist > l.radius) || dist == 0.f) return {{0, 0, 1}, {0, 0, 0}};  // inside the emitter: undefined
+  const cv::Vec3f w = toLight / dist;
+  if (l.type == LightType::Spot && -w.dot(l.direction) < l.spotCos) return {w, {0, 0, 0}};
+  if (g.dot(w) <= 0 || occluded(origin, w, 0.f, dist - l.radius)) return {w, {0, 0, 0}};
+  return {w, l.intensity * (1.f / dist2)};
+}
+
 cv::Vec3f RayCaster::shadeDirect(const Hit& hit) const {
   if (hit.light >= 0) {
-    const PointLight& l = scene_.lights[hit.light];
+    const Light& l = scene_.lights[hit.light];
     return l.intensity * (1.f / (kPi * l.radius * l.radius));
   }
   cv::Vec3f e(0, 0, 0);
-  for (const PointLight& l : scene_.lights) {
-    const cv::Vec3f toLight = l.position - hit.position;
-    const float dist2 = toLight.dot(toLight);
-    const float dist = std::sqrt(dist2);
-    if (!(dist > l.radius)) continue;  // inside the emitter: no defined irradiance from a point light
-    const cv::Vec3f w = toLight / dist;
-    const float cosTheta = hit.normal.dot(w);
-    if (cosTheta <= 0) continue;
-    if (occluded(hit.position + 1e-4f * hit.normal, w, 0.f, dist - l.radius)) continue;
-    e += l.intensity * (cosTheta / dist2);
+  for (size_t i = 0; i < scene_.lights.size(); ++i) {
+    const Incident in = incident(i, hit.position, hit.normal);
+    e += in.irradiance * std::max(hit.shading.dot(in.direction), 0.f);
   }
   return hit.albedo.mul(e * (1.f / kPi) + scene_.ambient);
 }

@@ -1,0 +1,173 @@
+#include "lighting/reference/path_tracer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <thread>
+#include <vector>
+
+#include "lighting/val.h"
+
+namespace mrgi::lighting::reference {
+namespace {
+constexpr float kPi = 3.14159265358979f;
+
+float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
+
+/// SplitMix64 finaliser: decorrelates the per-sample seeds.
+uint64_t mix(uint64_t z) {
+  z += 0x9e3779b97f4a7c15ull;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+/// Unit vector with polar angle acos(cosTheta) and azimuth phi about axis a.
+cv::Vec3f aroundAxis(cv::Vec3f a, float cosTheta, float phi) {
+  // Orthonormal basis from a unit vector (branchless, Duff et al. 2017).
+  const float sign = std::copysign(1.0f, a[2]);
+  const float p = -1.0f / (sign + a[2]);
+  const float q = a[0] * a[1] * p;
+  const cv::Vec3f t(1.0f + sign * a[0] * a[0] * p, sign * q, -sign * a[0]);
+  const cv::Vec3f b(q, sign + a[1] * a[1] * p, -a[1]);
+  const float sinTheta = std::sqrt(std::max(0.f, 1.f - cosTheta * cosTheta));
+  return sinTheta * std::cos(phi) * t + sinTheta * std::sin(phi) * b + cosTheta * a;
+}
+
+/// Runs rows [0, rows) on `threads` workers plus the calling thread, which reports progress.
+template <typename RowFn>
+void forEachRow(int rows, int threads, const std::function<void(double)>& progress, RowFn&& row) {
+  std::atomic<int> next{0}, done{0};
+  auto work = [&](bool report) {
+    for (int y; (y = next.fetch_add(1)) < rows;) {
+      row(y);
+      const int d = done.fetch_add(1) + 1;
+      if (report && progress) progress(static_cast<double>(d) / rows);
+    }
+  };
+  const int n = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  std::vector<std::thread> pool;
+  for (int i = 1; i < n; ++i) pool.emplace_back(work, false);
+  work(true);
+  for (auto& t : pool) t.join();
+  if (progress) progress(1.0);
+}
+}  // namespace
+
+void cameraRay(const PinholeCamera& c, double x, double y, cv::Vec3f& origin, cv::Vec3f& dir) {
+  const capture::Intrinsics& k = c.intrinsics;
+  const cv::Matx44d& T = c.T_world_camera;
+  const cv::Vec3d d((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0);
+  const cv::Vec3d w(T(0, 0) * d[0] + T(0, 1) * d[1] + T(0, 2) * d[2], T(1, 0) * d[0] + T(1, 1) * d[1] + T(1, 2) * d[2],
+                    T(2, 0) * d[0] + T(2, 1) * d[1] + T(2, 2) * d[2]);
+  origin = cv::Vec3f(static_cast<float>(T(0, 3)), static_cast<float>(T(1, 3)), static_cast<float>(T(2, 3)));
+  dir = cv::normalize(cv::Vec3f(static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2])));
+}
+
+PathTracer::PathTracer(const RayCaster& caster, PathTraceOptions options) : caster_(caster), options_(std::move(options)) {}
+
+cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng) const {
+  const Scene& scene = caster_.scene();
+  cv::Vec3f L(0, 0, 0), beta(1, 1, 1);
+  for (int depth = 0;; ++depth) {
+    const auto hit = caster_.intersect(origin, dir, 1e-4f, 1e30f, depth == 0);
+    if (!hit) {
+      L += beta.mul(scene.environment);
+      break;
+    }
+    if (hit->light >= 0) {  // only camera rays see a light's sphere; paths find lights by next-event estimation
+      L += beta.mul(caster_.shadeDirect(*hit));
+      break;
+    }
+    const Material& m = scene.materials[hit->material];
+    L += beta.mul(m.emission);
+    const cv::Vec3f n = hit->shading, g = hit->normal, wo = -dir;
+    const cv::Vec3f refl = 2.f * n.dot(wo) * n - wo;
+    const float k = m.exponent, ck = phongNorm(k);
+    const bool glossy = lum(m.specular) > 0.f;
+    // f(wi) cos(theta_i) of the real-time material: the glossy term carries no cosine (see Material).
+    auto fcos = [&](cv::Vec3f wi, float cosI) -> cv::Vec3f {
+      cv::Vec3f f = hit->albedo * (cosI / kPi);
+      if (glossy) f += m.specular * (ck * phongLobe(refl.dot(wi), k));
+      return f;
+    };
+    for (size_t i = 0; i < scene.lights.size(); ++i) {
+      const RayCaster::Incident in = caster_.incident(i, hit->position, g);
+      const float cosI = n.dot(in.direction);
+      if (cosI > 0.f && lum(in.irradiance) > 0.f) L += beta.mul(fcos(in.direction, cosI).mul(in.irradiance));
+    }
+    if (depth >= options_.bounces) break;
+    // Next direction: the diffuse lobe (cosine-weighted) or the glossy one, by their reflectance.
+    const float wd = lum(hit->albedo), ws = glossy ? lum(m.specular) : 0.f;
+    if (!(wd + ws > 0.f)) break;
+    const float pd = wd / (wd + ws);
+    const float u0 = rng.uniform(0.f, 1.f), u1 = rng.uniform(0.f, 1.f), u2 = rng.uniform(0.f, 1.f);
+    const float phi = 2.f * kPi * u2;
+    cv::Vec3f wi;
+    if (u0 < pd) wi = aroundAxis(n, std::sqrt(1.f - u1), phi);
+    else if (k <= 0.f) wi = aroundAxis(n, 1.f - u1, phi);  // k = 0: uniform over the hemisphere
+    else wi = aroundAxis(refl, std::pow(u1, 1.f / (k + 1.f)), phi);
+    const float cosI = n.dot(wi);
+    if (!(cosI > 0.f) || g.dot(wi) <= 0.f) break;
+    float pdf = pd * cosI / kPi;
+    if (ws > 0.f) pdf += (1.f - pd) * (k <= 0.f ? 1.f / (2.f * kPi) : ck * phongLobe(refl.dot(wi), k));
+    if (!(pdf > 0.f)) break;
+    beta = beta.mul(fcos(wi, cosI)) * (1.f / pdf);
+    origin = hit->position + 1e-4f * g;
+    dir = wi;
+  }
+  return L;
+}
+
+cv::Mat PathTracer::render(const PinholeCamera& camera) const {
+  const int W = camera.intrinsics.width, H = camera.intrinsics.height;
+  cv::Mat out(H, W, CV_32FC3, cv::Scalar::all(0));
+  const int spp = std::max(1, options_.spp);
+  forEachRow(H, options_.threads, options_.progress, [&](int y) {
+    for (int x = 0; x < W; ++x) {
+      cv::Vec3f sum(0, 0, 0);
+      const uint64_t pixel = mix(options_.seed ^ mix(static_cast<uint64_t>(y) * 65536u + static_cast<uint64_t>(x)));
+      for (int s = 0; s < spp; ++s) {
+        cv::RNG rng(mix(pixel + static_cast<uint64_t>(s)) | 1u);
+        double px = x, py = y;
+        if (options_.jitter) px += rng.uniform(-0.5, 0.5), py += rng.uniform(-0.5, 0.5);
+        cv::Vec3f o, d;
+        cameraRay(camera, px, py, o, d);
+        sum += trace(o, d, rng);
+      }
+      out.at<cv::Vec3f>(y, x) = sum * (1.f / static_cast<float>(spp));
+    }
+  });
+  return out;
+}
+
+cv::Mat DifferentialImages::delta() const {
+  cv::Mat d = rho - mu;
+  rho.copyTo(d, mask);
+  return d;
+}
+
+DifferentialImages renderDifferential(const Scene& withObjects, const Scene& realOnly, const PinholeCamera& camera,
+                                      const PathTraceOptions& options) {
+  DifferentialImages out;
+  const RayCaster rhoCaster(withObjects), muCaster(realOnly);
+  auto half = [&](double offset) {
+    PathTraceOptions o = options;
+    if (options.progress) o.progress = [&options, offset](double f) { options.progress(offset + 0.5 * f); };
+    return o;
+  };
+  out.rho = PathTracer(rhoCaster, half(0.0)).render(camera);
+  out.mu = PathTracer(muCaster, half(0.5)).render(camera);
+  const int W = camera.intrinsics.width, H = camera.intrinsics.height;
+  out.mask = cv::Mat(H, W, CV_8UC1, cv::Scalar(0));
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      cv::Vec3f o, d;
+      cameraRay(camera, x, y, o, d);
+      const auto hit = rhoCaster.intersect(o, d, 1e-4f, 1e30f, false);
+      if (hit && withObjects.materials[hit->material].isVirtual) out.mask.at<uchar>(y, x) = 255;
+    }
+  return out;
+}
+
+}  // namespace mrgi::lighting::reference
