@@ -10,6 +10,7 @@
 
 #include "app/commands.h"
 #include "app/frame_pipeline.h"
+#include "app/output.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
@@ -39,30 +40,6 @@ struct ReplayOptions {
   int meshStride = 2;
 };
 
-void writeExr(const std::string& path, const cv::Mat& rgb) {
-  cv::Mat bgr;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  std::vector<uchar> bytes;
-  if (!cv::imencode(".exr", bgr, bytes)) throw capture::CaptureError(path, "cannot encode EXR");
-  capture::writeFileAtomically(path, bytes);
-}
-
-/// Refuses to write into a folder holding anything but an earlier replay's output.
-void prepareOutputDirectory(const std::string& out) {
-  std::error_code ec;
-  if (fs::exists(out, ec)) {
-    if (!fs::is_directory(out, ec)) throw capture::CaptureError(out, "exists and is not a directory");
-    if (!fs::is_empty(out, ec) && !fs::exists(fs::path(out) / "summary.json", ec))
-      throw capture::CaptureError(out, "is not empty and holds no earlier mrgi output; refusing to overwrite");
-  }
-  fs::create_directories(out, ec);
-  if (ec) throw capture::CaptureError(out, "cannot create output directory: " + ec.message());
-}
-
-void writePng(const std::string& path, const cv::Mat& rgb) {
-  capture::writeFileAtomically(path, capture::encodePng(rgb, path));
-}
-
 int runReplay(const ReplayOptions& o) {
   const gl::Backend backend = gl::parseBackend(o.gl);
   auto source = capture::open(o.source);
@@ -76,7 +53,7 @@ int runReplay(const ReplayOptions& o) {
     if (!o.technique.empty()) scene.technique = lighting::parseTechnique(o.technique);
     setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose);
   }
-  prepareOutputDirectory(o.out);
+  prepareOutputDirectory(o.out, "summary.json");
 
   gl::ContextConfig cfg;
   cfg.backend = backend;

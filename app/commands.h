@@ -18,5 +18,6 @@ Action addLights(CLI::App& app);
 Action addImportVisp(CLI::App& app);
 Action addInsert(CLI::App& app);
 Action addBench(CLI::App& app);
+Action addReference(CLI::App& app);
 
 }  // namespace mrgi::app

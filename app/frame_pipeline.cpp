@@ -74,7 +74,7 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
     so.decay = static_cast<float>(pc.val.decay);
     surfels_.emplace(so);
   }
-  pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
+  if (options_.gpu) pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
   if (setup_->fisheye) fisheyeRays_ = reconstruction::fisheyeRays(*setup_->fisheye);
   reconstruction::DetectorOptions dopt;
   dopt.family = setup_->tagFamily;
@@ -166,14 +166,8 @@ FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler
   return r;
 }
 
-void FramePipeline::render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor,
-                           gl::Profiler& profiler) {
-  const capture::RgbdFrame& rgbd = *frame.rgbd;
-  if (!setup_ || !r.T_marker_camera) {
-    // No scene, or marker lost: nothing can be placed; the frame is the background.
-    r.composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
-    return;
-  }
+RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameResult& r, gl::Profiler& profiler) const {
+  RealSurface out;
   const capture::Pose T_camera_marker = capture::inversePose(*r.T_marker_camera);
   cv::Mat albedo;
   {
@@ -190,16 +184,26 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
       }
     }
     al.ambientIrradiance = CV_PI * setup_->ambient;
-    albedo = reconstruction::estimateAlbedo(rgbd.colour, r.positions, r.normals, rgbd.colourIntrinsics, al).albedo;
+    albedo = reconstruction::estimateAlbedo(frame.rgbd->colour, r.positions, r.normals, frame.rgbd->colourIntrinsics, al).albedo;
   }
   {
     auto s = profiler.cpu("mesh");
     const auto mesh = reconstruction::buildDepthMesh(r.positions, r.normals, options_.meshStride);
-    std::vector<lighting::MeshVertex> vertices;
-    std::vector<uint32_t> indices;
-    lighting::buildRealVertices(mesh, albedo, *r.T_marker_camera, vertices, indices);
-    pipeline_->setRealMesh(vertices, indices);
+    lighting::buildRealVertices(mesh, albedo, *r.T_marker_camera, out.vertices, out.indices);
   }
+  return out;
+}
+
+void FramePipeline::render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor,
+                           gl::Profiler& profiler) {
+  const capture::RgbdFrame& rgbd = *frame.rgbd;
+  if (!setup_ || !r.T_marker_camera) {
+    // No scene, or marker lost: nothing can be placed; the frame is the background.
+    r.composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
+    return;
+  }
+  const RealSurface real = realSurface(frame, r, profiler);
+  pipeline_->setRealMesh(real.vertices, real.indices);
   const bool val = lighting::usesVal(setup_->scene.technique);
   if (val) {
     // Real surfaces as VALs: the seen radiance of every stride-th filtered pixel, fused over frames when

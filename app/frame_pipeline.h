@@ -42,6 +42,7 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
 struct FrameOptions {
   std::string pose = "marker";  ///< marker | ground-truth
   int meshStride = 2;
+  bool gpu = true;  ///< false: measure() and realSurface() only, no lighting pipeline (no GL context needed)
 };
 
 struct FrameResult {
@@ -50,6 +51,13 @@ struct FrameResult {
   cv::Mat positions, normals;  ///< camera frame, from the filtered depth (empty without a scene)
   bool lit = false;            ///< the lighting pipeline ran (a scene and a marker pose)
   nlohmann::json info = nlohmann::json::object();  ///< per-frame facts for the stats (marker status, lights)
+};
+
+/// The real scene as the lighting sees it: the filtered depth's mesh in the marker frame, each vertex
+/// with the albedo estimated at its pixel under the setup's lights.
+struct RealSurface {
+  std::vector<lighting::MeshVertex> vertices;
+  std::vector<uint32_t> indices;
 };
 
 class FramePipeline {
@@ -62,6 +70,8 @@ class FramePipeline {
   FrameResult measure(capture::Frame& frame, gl::Profiler& profiler);
   /// The rendering half: albedo, real mesh, lighting, composite (background only without a marker pose).
   void render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor, gl::Profiler& profiler);
+  /// Albedo and real mesh of a measured frame with a marker pose (the first steps of render()).
+  RealSurface realSurface(const capture::Frame& frame, const FrameResult& r, gl::Profiler& profiler) const;
   lighting::LightingPipeline* lighting() { return pipeline_.get(); }
   const LightingSetup* setup() const { return setup_ ? &*setup_ : nullptr; }
 

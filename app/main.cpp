@@ -34,6 +34,8 @@ int main(int argc, char** argv) {
       mrgi::app::addImportVisp);
   add("insert", "Place a virtual object relative to the marker (optionally snapped onto the table plane) and save it into a scene file",
       mrgi::app::addInsert);
+  add("reference", "Path-trace the ground truth of one frame (rho, mu, delta EXR and the reference composite)",
+      mrgi::app::addReference);
   add("bench", "Measure speed against accuracy of a technique's knobs (Kinect-VAL: sparse vs brute force), JSON records",
       mrgi::app::addBench);
   try {

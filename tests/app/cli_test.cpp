@@ -488,3 +488,50 @@ TEST(Cli, BenchKinectValWritesSparseAndBruteForceRecords) {
   fs::remove(out);
   expectOneLineError(runMrgi("bench --technique dlpv --json " + out.string()), "--technique dlpv");
 }
+
+TEST(Cli, ReferencePathTracesRhoMuDeltaAndComposite) {
+  const fs::path scene = writeScene("ref_sphere.json", R"({"objects": [{"model": ")" + kModels +
+                                                           R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+      "lights": "manifest"})");
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_reference_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const std::string base = "reference " + session().string() + " --scene " + scene.string() + " --pose ground-truth ";
+  const Result r = runMrgi(base + "--frame 1 --spp 8 --bounces 2 --out " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const cv::Mat rho = cv::imread((out / "rho.exr").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat mu = cv::imread((out / "mu.exr").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat delta = cv::imread((out / "delta.exr").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat mask = cv::imread((out / "mask.png").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat composite = cv::imread((out / "composite.png").string());
+  ASSERT_EQ(rho.type(), CV_32FC3);
+  ASSERT_EQ(delta.size(), cv::Size(160, 120));
+  ASSERT_EQ(mask.type(), CV_8UC1);
+  EXPECT_GT(cv::countNonZero(mask), 50);  // the sphere
+  // delta = ρ − μ on real pixels, ρ on virtual ones; the shadow is negative, and far from the object most
+  // real pixels are exactly unchanged (ρ and μ share their random numbers).
+  cv::Mat expect = rho - mu;
+  rho.copyTo(expect, mask);
+  EXPECT_LT(cv::norm(expect, delta, cv::NORM_INF), 1e-6);
+  double lo, hi;
+  cv::minMaxLoc(delta.reshape(1), &lo, &hi);
+  EXPECT_LT(lo, -0.01);
+  cv::Mat realZero;
+  cv::cvtColor(cv::abs(delta), realZero, cv::COLOR_BGR2GRAY);
+  EXPECT_GT(cv::countNonZero((realZero == 0) & (mask == 0)), 160 * 120 / 2);
+  // Composite: the camera image wherever delta is exactly 0.
+  const cv::Mat colour = cv::imread((session() / "colour/000001.png").string());
+  cv::Mat diff;
+  cv::absdiff(composite, colour, diff);
+  cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
+  EXPECT_EQ(cv::countNonZero((diff > 0) & (realZero == 0) & (mask == 0)), 0);
+  const auto info = nlohmann::json::parse(slurp(out / "reference.json"));
+  EXPECT_EQ(info["spp"], 8);
+  EXPECT_EQ(info["frame"], 1);
+  // Deterministic: the same seed gives the same images; the folder is recognised as ours.
+  const Result again = runMrgi(base + "--frame 1 --spp 8 --bounces 2 --out " + out.string());
+  ASSERT_EQ(again.exitCode, 0) << again.err;
+  EXPECT_EQ(cv::norm(rho, cv::imread((out / "rho.exr").string(), cv::IMREAD_UNCHANGED), cv::NORM_INF), 0.0);
+  expectOneLineError(runMrgi(base + "--frame 7 --out " + out.string()), "has no frame 7");
+  expectOneLineError(runMrgi(base + "--out " + (fs::path(MRGI_SOURCE_DIR) / "recordings").string()), "refusing to overwrite");
+  fs::remove_all(out);
+}

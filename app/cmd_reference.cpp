@@ -1,0 +1,112 @@
+// mrgi reference: the path-traced ground truth of one frame, rendered from the same inputs the real-time
+// techniques see (measured real mesh and albedo, the scene's objects and lights): ρ, μ, their delta and the
+// reference composite.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+
+#include "app/commands.h"
+#include "app/frame_pipeline.h"
+#include "app/output.h"
+#include "app/reference_scene.h"
+#include "capture/colour.h"
+#include "capture/error.h"
+#include "capture/frame_source.h"
+#include "capture/image_io.h"
+#include "capture/session.h"
+#include "compositor/compositor.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace mrgi::app {
+namespace {
+
+struct ReferenceOptions {
+  std::string source, scene, out;
+  int frame = 0;
+  int spp = 64;
+  int bounces = 3;
+  uint64_t seed = 1;
+  int threads = 0;
+  std::string pose = "marker";
+  int meshStride = 2;
+};
+
+int runReference(const ReferenceOptions& o) {
+  auto source = capture::open(o.source);
+  if (!source->info().hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames");
+  LightingSetup setup = prepareLighting(lighting::loadScene(o.scene), o.scene, *source, o.source, o.pose);
+
+  std::optional<capture::Frame> frame;
+  for (int i = 0; i <= o.frame; ++i) {
+    frame = source->next();
+    if (!frame) throw capture::CaptureError(o.source, "has no frame " + std::to_string(o.frame) + " (it ends after " + std::to_string(i) + ")");
+  }
+  if (!frame->rgbd) throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + " has no RGB-D image");
+  prepareOutputDirectory(o.out, "reference.json");  // after every input check: nothing is created on error
+  const capture::Intrinsics k = frame->rgbd->colourIntrinsics;
+  FrameOptions fo;
+  fo.pose = o.pose;
+  fo.meshStride = o.meshStride;
+  fo.gpu = false;
+  FramePipeline frames(setup, k.width, k.height, fo);
+  gl::Profiler profiler;
+  const FrameResult r = frames.measure(*frame, profiler);
+  if (!r.T_marker_camera)
+    throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + ": marker not found, nothing to place the objects on");
+  const RealSurface real = frames.realSurface(*frame, r, profiler);
+  const ReferenceScenes scenes = reconstructedScenes(*frames.setup(), real, k, *r.T_marker_camera);
+
+  lighting::reference::PathTraceOptions po;
+  po.spp = o.spp;
+  po.bounces = o.bounces;
+  po.seed = o.seed;
+  po.threads = o.threads;
+  ProgressBar bar("reference frame " + std::to_string(o.frame));
+  po.progress = [&bar](double f) { bar(f); };
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto images = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const cv::Mat delta = images.delta();
+
+  const fs::path dir(o.out);
+  writeExr((dir / "rho.exr").string(), images.rho);
+  writeExr((dir / "mu.exr").string(), images.mu);
+  writeExr((dir / "delta.exr").string(), delta);
+  writePng((dir / "mask.png").string(), images.mask);
+  writePng((dir / "composite.png").string(), compositor::compositeReference(frame->rgbd->colour, delta, images.mask));
+  json info = {{"source", o.source},     {"scene", o.scene},       {"frame", o.frame},
+               {"spp", o.spp},           {"bounces", o.bounces},   {"seed", o.seed},
+               {"pose", o.pose},         {"marker", r.info.value("marker", "")},
+               {"triangles_real", real.indices.size() / 3},
+               {"virtual_pixels", cv::countNonZero(images.mask)},
+               {"ms", ms},
+               {"T_marker_camera", capture::poseToJson(*r.T_marker_camera)}};
+  capture::writeFileAtomically(dir / "reference.json", info.dump(2) + "\n");
+  std::printf("reference of frame %d (%d spp, %d bounces) in %.1f s -> %s\n", o.frame, o.spp, o.bounces, ms / 1000,
+              o.out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+Action addReference(CLI::App& app) {
+  auto o = std::make_shared<ReferenceOptions>();
+  app.add_option("SESSION", o->source, "session directory, TUM directory or .oni file")->required();
+  app.add_option("--scene", o->scene, "scene file (JSON): virtual objects, lights")->required();
+  app.add_option("--out", o->out, "output folder for rho.exr, mu.exr, delta.exr, mask.png, composite.png")->required();
+  app.add_option("--frame", o->frame, "frame index K (0-based)")->check(CLI::NonNegativeNumber);
+  app.add_option("--spp", o->spp, "samples per pixel")->check(CLI::Range(1, 1 << 20));
+  app.add_option("--bounces", o->bounces, "indirect bounces after the first surface")->check(CLI::Range(0, 64));
+  app.add_option("--seed", o->seed, "random seed (the images depend on it alone)");
+  app.add_option("--threads", o->threads, "worker threads (0 = all)")->check(CLI::Range(0, 1024));
+  app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
+      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(CLI::Range(1, 16));
+  return [o] { return runReference(*o); };
+}
+
+}  // namespace mrgi::app

@@ -1,0 +1,61 @@
+#include "app/reference_scene.h"
+
+#include "lighting/val.h"
+
+namespace mrgi::app {
+
+namespace ref = lighting::reference;
+
+namespace {
+cv::Vec3f toFloat(const cv::Vec3d& v) {
+  return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
+}
+}  // namespace
+
+std::vector<ref::Light> referenceLights(const std::vector<lighting::SceneLight>& lights) {
+  std::vector<ref::Light> out;
+  for (const auto& l : lights) {
+    ref::Light r;
+    r.radius = 0;
+    r.position = toFloat(l.position);
+    r.direction = toFloat(l.direction);
+    r.intensity = toFloat(l.intensity);
+    r.irradiance = toFloat(l.irradiance);
+    r.spotCos = static_cast<float>(l.spotCos());
+    r.type = l.type == lighting::LightType::Directional ? ref::LightType::Directional
+             : l.type == lighting::LightType::Spot      ? ref::LightType::Spot
+                                                        : ref::LightType::Point;
+    out.push_back(r);
+  }
+  return out;
+}
+
+ReferenceScenes reconstructedScenes(const LightingSetup& setup, const RealSurface& real,
+                                    const capture::Intrinsics& intrinsics, const capture::Pose& T_marker_camera) {
+  ReferenceScenes out;
+  ref::Scene& s = out.realOnly;
+  const int realMaterial = s.addMaterial({"real", {1, 1, 1}});  // the albedo is per vertex
+  std::vector<cv::Vec3f> positions, normals;
+  for (const auto& v : real.vertices) positions.push_back(v.position), normals.push_back(v.normal);
+  s.addMesh(positions, normals, real.indices, realMaterial);
+  for (size_t i = 0; i < real.vertices.size(); ++i) s.vertexAlbedo[i] = real.vertices[i].albedo;
+  s.lights = referenceLights(setup.lights);
+  s.environment = toFloat(setup.ambient);
+
+  out.withObjects = s;
+  for (const auto& o : setup.scene.objects) {
+    ref::Material m;
+    m.name = o.model;
+    m.albedo = o.material.albedo;
+    m.specular = cv::Vec3f::all(o.material.specular);
+    m.exponent = lighting::phongExponent(o.material.roughness);
+    m.isVirtual = true;
+    const int id = out.withObjects.addMaterial(m);
+    out.withObjects.addMesh(o.mesh.positions, o.mesh.normals, o.mesh.indices, id, o.T_marker_object);
+  }
+  out.camera.intrinsics = intrinsics;
+  out.camera.T_world_camera = T_marker_camera;
+  return out;
+}
+
+}  // namespace mrgi::app
