@@ -1,15 +1,26 @@
-// mrgi bench: speed/accuracy of the lighting techniques' knobs. Kinect-VAL: the sparse method (gather on
-// sparse points, occlusion, per-vertex interpolation, per-pixel evaluation) against the brute force (every
-// VAL gathered at every visible pixel of the object), both run by the lighting pipeline on a recorded frame:
-// its RGB-D pixels are the VALs, its depth mesh occludes the object, and the error is measured on the
-// object's pixels.
+// mrgi bench: speed/accuracy of the lighting techniques' knobs.
+// Default (--against reference): every technique's knobs swept one at a time on a session's frames; per
+// configuration the per-stage times, GPU memory, and the error against the path-traced reference of the
+// same inputs (real-pixel delta, virtual radiance, composite SSIM) and the frame-to-frame flicker of the
+// real-pixel delta; JSON, CSV, an HTML report and the presets chosen from the measured front.
+// --against bruteforce (Kinect-VAL): the sparse method (gather on sparse points, occlusion, per-vertex
+// interpolation, per-pixel evaluation) against the brute force (every VAL gathered at every visible pixel
+// of the object) on one recorded frame: its RGB-D pixels are the VALs, its depth mesh occludes the object.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
 
+#include <opencv2/imgproc.hpp>
+#include <opencv2/quality.hpp>
+
+#include "app/bench.h"
 #include "app/commands.h"
+#include "app/frame_pipeline.h"
+#include "app/output.h"
+#include "app/reference_scene.h"
+#include "compositor/compositor.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -29,8 +40,16 @@ namespace mrgi::app {
 namespace {
 
 struct BenchOptions {
-  std::string technique = "kinect-val";
-  std::string json;
+  std::string technique;  ///< empty: all (reference mode)
+  std::string against = "reference";
+  std::string json, csv, html, presets;
+  std::string scene = "recordings/scenes/tabletop.json";
+  int frames = 4;
+  int refFrames = 2;
+  int refSpp = 64;
+  int refBounces = 3;
+  bool quick = false;
+  std::string pose = "ground-truth";
   std::string session = "recordings/tabletop-synth";
   std::string model = "recordings/models/sphere.ply";
   std::vector<int> valCounts{1024, 4096, 16384, 65536};
@@ -60,9 +79,9 @@ std::map<std::string, double> bestStages(lighting::LightingPipeline& pipe, const
   return best;
 }
 
-int runBench(const BenchOptions& o) {
+int runValBruteForce(const BenchOptions& o) {
   if (o.technique != "kinect-val")
-    throw std::invalid_argument("--technique " + o.technique + ": only kinect-val is benchmarked so far");
+    throw std::invalid_argument("--technique " + o.technique + ": --against bruteforce compares Kinect-VAL only");
   auto source = capture::open(o.session);
   auto frame = source->next();
   if (!frame || !frame->rgbd) throw capture::CaptureError(o.session, "has no RGB-D frame");
@@ -192,14 +211,306 @@ int runBench(const BenchOptions& o) {
   return 0;
 }
 
+/// The path-traced truth of one frame.
+struct Truth {
+  int frame = 0;
+  lighting::reference::DifferentialImages images;
+  cv::Mat delta, composite;  ///< the compositor's delta input; the reference composite (RGB8)
+};
+
+/// What one frame of a configuration left behind for the flicker of the next.
+struct FrameState {
+  cv::Mat shade, positions;  ///< RGBA32F: delta or virtual radiance (a = virtual); G-buffer positions (w = valid)
+  capture::Pose T_marker_camera;
+};
+
+float lum3(const cv::Vec4f& v) { return 0.2126f * v[0] + 0.7152f * v[1] + 0.0722f * v[2]; }
+
+/// Frame-to-frame change of the real pixels' delta at the same marker-frame points (reprojected with the
+/// camera poses), relative to its magnitude: Σ|lum δ_t − lum δ_{t−1}| / Σ|lum δ_{t−1}| over matched pixels.
+std::pair<double, double> flickerSums(const FrameState& prev, const FrameState& cur, const capture::Intrinsics& k) {
+  const capture::Pose T_camera_marker = capture::inversePose(prev.T_marker_camera);
+  double num = 0, den = 0;
+  for (int y = 0; y < cur.positions.rows; ++y)
+    for (int x = 0; x < cur.positions.cols; ++x) {
+      const cv::Vec4f p = cur.positions.at<cv::Vec4f>(y, x);
+      const cv::Vec4f s = cur.shade.at<cv::Vec4f>(y, x);
+      if (p[3] < 0.5f || s[3] > 0.5f) continue;
+      const cv::Vec3d c = capture::transformPoint(T_camera_marker, {p[0], p[1], p[2]});
+      if (c[2] <= 0) continue;
+      const int u = static_cast<int>(std::lround(k.fx * c[0] / c[2] + k.cx)), v = static_cast<int>(std::lround(k.fy * c[1] / c[2] + k.cy));
+      if (u < 0 || v < 0 || u >= prev.positions.cols || v >= prev.positions.rows) continue;
+      const cv::Vec4f q = prev.positions.at<cv::Vec4f>(v, u);
+      const cv::Vec4f t = prev.shade.at<cv::Vec4f>(v, u);
+      if (q[3] < 0.5f || t[3] > 0.5f) continue;
+      if (cv::norm(cv::Vec3f(q[0] - p[0], q[1] - p[1], q[2] - p[2])) > 0.01) continue;  // not the same surface point
+      num += std::abs(lum3(s) - lum3(t));
+      den += std::abs(lum3(t));
+    }
+  return {num, den};
+}
+
+/// Error sums of one frame against its truth.
+struct ErrorSums {
+  double sq = 0, abs = 0, absRef = 0;
+  size_t real = 0;
+  double virtAbs = 0, virtRef = 0;
+  size_t mismatched = 0;  ///< pixels virtual in one image only (silhouette), left out
+};
+
+ErrorSums errorSums(const cv::Mat& shade, const Truth& truth) {
+  ErrorSums e;
+  for (int y = 0; y < shade.rows; ++y)
+    for (int x = 0; x < shade.cols; ++x) {
+      const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
+      const cv::Vec3f r = truth.delta.at<cv::Vec3f>(y, x);
+      const bool virtRt = s[3] > 0.5f, virtRef = truth.images.mask.at<uchar>(y, x) != 0;
+      if (virtRt != virtRef) {
+        ++e.mismatched;
+        continue;
+      }
+      for (int c = 0; c < 3; ++c) {
+        const double d = s[c] - r[c];
+        if (virtRt) {
+          e.virtAbs += std::abs(d);
+          e.virtRef += std::abs(r[c]);
+        } else {
+          e.sq += d * d;
+          e.abs += std::abs(d);
+          e.absRef += std::abs(r[c]);
+        }
+      }
+      if (!virtRt) ++e.real;
+    }
+  return e;
+}
+
+/// |delta_rt − delta_ref| as a heat image (black = 0, white = `scale`), virtual pixels grey.
+cv::Mat errorImage(const cv::Mat& shade, const Truth& truth, double scale) {
+  cv::Mat out(shade.size(), CV_8UC3);
+  for (int y = 0; y < shade.rows; ++y)
+    for (int x = 0; x < shade.cols; ++x) {
+      const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
+      const cv::Vec3f r = truth.delta.at<cv::Vec3f>(y, x);
+      if (s[3] > 0.5f || truth.images.mask.at<uchar>(y, x)) {
+        out.at<cv::Vec3b>(y, x) = {90, 90, 90};
+        continue;
+      }
+      const double d = (s[0] - r[0]) * 0.2126 + (s[1] - r[1]) * 0.7152 + (s[2] - r[2]) * 0.0722;
+      const auto v = cv::saturate_cast<uchar>(255.0 * std::abs(d) / scale);
+      out.at<cv::Vec3b>(y, x) = d < 0 ? cv::Vec3b(v, v / 4, v / 4) : cv::Vec3b(v / 4, v, v / 4);  // red: too dark
+    }
+  return out;
+}
+
+double ssimOf(const cv::Mat& a, const cv::Mat& b) {
+  const cv::Scalar s = cv::quality::QualitySSIM::compute(a, b, cv::noArray());
+  return (s[0] + s[1] + s[2]) / 3.0;
+}
+
+bool lightingStage(const std::string& n) {
+  return n == "gbuffer" || n == "rsm" || n == "shade" || n.rfind("lpv.", 0) == 0 || n.rfind("val.", 0) == 0;
+}
+
+int runSweep(const BenchOptions& o) {
+  auto source = capture::open(o.session);
+  const capture::SourceInfo& info = source->info();
+  if (!info.hasRgbd) throw capture::CaptureError(o.session, "has no RGB-D frames");
+  LightingSetup setup = prepareLighting(lighting::loadScene(o.scene), o.scene, *source, o.session, o.pose);
+  if (setup.scene.objects.empty()) throw capture::CaptureError(o.scene, "has no virtual object to measure");
+  std::vector<capture::Frame> frames;
+  while (static_cast<int>(frames.size()) < o.frames) {
+    auto f = source->next();
+    if (!f) break;
+    if (f->rgbd) frames.push_back(std::move(*f));
+  }
+  if (frames.empty()) throw capture::CaptureError(o.session, "has no RGB-D frame");
+  const int W = info.colourIntrinsics.width, H = info.colourIntrinsics.height;
+  const int n = static_cast<int>(frames.size());
+  std::vector<int> refFrames;
+  const int refs = std::min(o.refFrames, n);
+  for (int i = 0; i < refs; ++i) refFrames.push_back(refs == 1 ? 0 : i * (n - 1) / (refs - 1));
+
+  FrameOptions fo;
+  fo.pose = o.pose;
+  // Ground truth: the same inputs, path traced.
+  std::map<int, Truth> truths;
+  json refInfo = {{"spp", o.refSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
+  {
+    FrameOptions mo = fo;
+    mo.gpu = false;
+    FramePipeline measurer(setup, W, H, mo);
+    gl::Profiler none;
+    double ms = 0;
+    for (int f : refFrames) {
+      capture::Frame frame = frames[f];
+      const FrameResult r = measurer.measure(frame, none);
+      if (!r.T_marker_camera) throw capture::CaptureError(o.session, "frame " + std::to_string(f) + ": no camera pose (marker not found)");
+      const ReferenceScenes scenes = reconstructedScenes(*measurer.setup(), measurer.realSurface(frame, r, none),
+                                                         frame.rgbd->colourIntrinsics, *r.T_marker_camera);
+      lighting::reference::PathTraceOptions po;
+      po.spp = o.refSpp;
+      po.bounces = o.refBounces;
+      ProgressBar bar("reference frame " + std::to_string(f));
+      po.progress = [&bar](double x) { bar(x); };
+      const auto t0 = std::chrono::steady_clock::now();
+      Truth t;
+      t.frame = f;
+      t.images = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
+      ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      t.delta = t.images.delta();
+      t.composite = compositor::compositeReference(frame.rgbd->colour, t.delta, t.images.mask);
+      truths[f] = std::move(t);
+    }
+    refInfo["ms_per_frame"] = ms / refs;
+    std::printf("reference: %d frames, %d spp, %d bounces, %.1f s per frame\n", refs, o.refSpp, o.refBounces, ms / refs / 1000);
+  }
+
+  gl::ContextConfig cfg;
+  cfg.backend = gl::parseBackend(o.gl);
+  cfg.width = W;
+  cfg.height = H;
+  auto context = gl::createContext(cfg);
+  compositor::Compositor compositor(W, H);
+  std::vector<ReportImage> images;
+  for (const auto& [f, t] : truths) images.push_back({"reference composite, frame " + std::to_string(f), t.composite});
+  double errScale = 0;  // one error-image scale for all: the reference delta's 99th percentile magnitude
+  {
+    std::vector<float> mags;
+    const Truth& t = truths.begin()->second;
+    for (int i = 0; i < static_cast<int>(t.delta.total()); ++i)
+      if (!t.images.mask.at<uchar>(i)) {
+        const cv::Vec3f d = t.delta.at<cv::Vec3f>(i);
+        mags.push_back(std::abs(0.2126f * d[0] + 0.7152f * d[1] + 0.0722f * d[2]));
+      }
+    std::sort(mags.begin(), mags.end());
+    errScale = mags.empty() ? 1.0 : std::max(1e-6, static_cast<double>(mags[mags.size() * 99 / 100]));
+  }
+
+  json records = json::array();
+  const auto configs = sweepConfigs(o.technique, o.quick, setup.scene.lpv, setup.scene.val);
+  for (size_t ci = 0; ci < configs.size(); ++ci) {
+    const BenchConfig& c = configs[ci];
+    LightingSetup s = setup;
+    s.scene.technique = c.technique;
+    s.scene.lpv = c.lpv;
+    s.scene.val = c.val;
+    FramePipeline fp(s, W, H, fo);
+    std::map<std::string, double> stageSum;
+    int timed = 0;
+    ErrorSums err;
+    double ssimSum = 0, flickNum = 0, flickDen = 0;
+    size_t gpuBytes = 0;
+    std::optional<FrameState> prev;
+    for (int f = 0; f < n; ++f) {
+      capture::Frame frame = frames[f];
+      gl::Profiler profiler;
+      const FrameResult r = fp.process(frame, compositor, profiler);
+      const auto stages = profiler.resolve();
+      if (f > 0 || n == 1) {
+        for (const auto& [name, t] : stages) stageSum[name] += std::max(t.cpuMs, t.gpuMs);
+        ++timed;
+      }
+      if (!r.lit) {
+        prev.reset();
+        continue;
+      }
+      lighting::LightingPipeline& pipe = *fp.lighting();
+      gpuBytes = std::max(gpuBytes, pipe.gpuBytes());
+      FrameState st{pipe.downloadShade(), pipe.downloadGBuffer(0), *r.T_marker_camera};
+      if (prev) {
+        const auto [a, b] = flickerSums(*prev, st, frame.rgbd->colourIntrinsics);
+        flickNum += a, flickDen += b;
+      }
+      if (const auto it = truths.find(f); it != truths.end()) {
+        const ErrorSums e = errorSums(st.shade, it->second);
+        err.sq += e.sq, err.abs += e.abs, err.absRef += e.absRef, err.real += e.real;
+        err.virtAbs += e.virtAbs, err.virtRef += e.virtRef, err.mismatched += e.mismatched;
+        ssimSum += ssimOf(r.composite, it->second.composite);
+        if (c.varied.empty() && it == truths.begin()) {
+          images.push_back({std::string(lighting::techniqueName(c.technique)) + " (defaults), frame " + std::to_string(f), r.composite});
+          images.push_back({std::string(lighting::techniqueName(c.technique)) + ": |delta - reference| (red: too dark, white = " +
+                                std::to_string(errScale).substr(0, 6) + ")",
+                            errorImage(st.shade, it->second, errScale)});
+        }
+      }
+      prev = std::move(st);
+    }
+    json msStages = json::object();
+    double total = 0, lightingMs = 0;
+    for (const auto& [name, ms] : stageSum) {
+      if (name == "read" || name == "write") continue;
+      const double mean = ms / std::max(timed, 1);
+      msStages[name] = mean;
+      total += mean;
+      if (lightingStage(name)) lightingMs += mean;
+    }
+    json r = {{"technique", lighting::techniqueName(c.technique)},
+              {"varied", c.varied},
+              {"knobs", knobsJson(c)},
+              {"ms_total", total},
+              {"ms_lighting", lightingMs},
+              {"ms_stages", msStages},
+              {"gpu_mb", static_cast<double>(gpuBytes) / (1024.0 * 1024.0)},
+              {"rmse_delta", err.real ? std::sqrt(err.sq / (3.0 * static_cast<double>(err.real))) : 0.0},
+              {"rel_error_delta", err.absRef > 0 ? err.abs / err.absRef : 0.0},
+              {"rel_error_virtual", err.virtRef > 0 ? err.virtAbs / err.virtRef : 0.0},
+              {"ssim", truths.empty() ? 0.0 : ssimSum / static_cast<double>(truths.size())},
+              {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
+              {"silhouette_mismatch_pixels", err.mismatched}};
+    std::printf("[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker %.3f\n",
+                ci + 1, configs.size(), r["technique"].get<std::string>().c_str(), c.varied.c_str(), r["knobs"].dump().c_str(),
+                total, lightingMs, r["rel_error_delta"].get<double>(), r["rel_error_virtual"].get<double>(),
+                r["ssim"].get<double>(), r["flicker"].get<double>());
+    std::fflush(stdout);
+    records.push_back(r);
+  }
+  json doc = {{"session", o.session}, {"scene", o.scene},     {"frames", n},
+              {"gl", context->renderer()}, {"reference", refInfo}, {"records", records}};
+  doc["presets"] = choosePresets(records);
+  auto write = [](const std::string& path, const std::function<void()>& fn) {
+    if (path.empty()) return;
+    if (!fs::path(path).parent_path().empty()) fs::create_directories(fs::path(path).parent_path());
+    fn();
+  };
+  write(o.json, [&] { capture::writeFileAtomically(o.json, doc.dump(2) + "\n"); });
+  write(o.csv, [&] { writeCsv(o.csv, records); });
+  write(o.html, [&] { writeHtml(o.html, doc, images); });
+  write(o.presets, [&] {
+    json p = {{"generated_by", "mrgi bench"}, {"session", o.session}, {"gl", context->renderer()}, {"presets", doc["presets"]}};
+    capture::writeFileAtomically(o.presets, p.dump(2) + "\n");
+  });
+  for (const char* name : {"fast", "balanced", "accurate"})
+    if (doc["presets"].contains(name))
+      std::printf("preset %-8s: %s %s\n", name, doc["presets"][name]["technique"].get<std::string>().c_str(),
+                  doc["presets"][name]["knobs"].dump().c_str());
+  return 0;
+}
+
 }  // namespace
 
 Action addBench(CLI::App& app) {
   auto o = std::make_shared<BenchOptions>();
-  app.add_option("--technique", o->technique, "technique to sweep (kinect-val)");
+  app.add_option("--technique", o->technique, "technique to sweep (default: all)")
+      ->check(CLI::IsMember({"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}));
+  app.add_option("--against", o->against, "reference (path tracer, default) or bruteforce (Kinect-VAL sparse vs per-pixel)")
+      ->check(CLI::IsMember({"reference", "bruteforce"}));
   app.add_option("--json", o->json, "write one record per configuration (JSON)");
-  app.add_option("--session", o->session, "session whose first RGB-D frame provides the VALs");
-  app.add_option("--model", o->model, "virtual object, resting on the marker plane at its centre");
+  app.add_option("--csv", o->csv, "write the records as CSV");
+  app.add_option("--html", o->html, "write a self-contained HTML report (SVG plots, images)");
+  app.add_option("--presets", o->presets, "write the fast/balanced/accurate presets chosen from the front (JSON)");
+  app.add_option("--session", o->session, "session to measure on (its first frames)");
+  app.add_option("--scene", o->scene, "scene file: objects, lights and the knobs the sweep starts from");
+  app.add_option("--frames", o->frames, "consecutive frames per configuration (flicker; times exclude the first)")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--ref-frames", o->refFrames, "frames with a path-traced reference, spread over --frames")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--ref-spp", o->refSpp, "reference samples per pixel")->check(CLI::Range(1, 1 << 16));
+  app.add_option("--ref-bounces", o->refBounces, "reference bounces")->check(CLI::Range(0, 64));
+  app.add_flag("--quick", o->quick, "fewer knob values (small sessions, tests)");
+  app.add_option("--pose", o->pose, "camera pose: ground-truth (default; needs a synthetic session) or marker")
+      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  app.add_option("--model", o->model, "bruteforce: virtual object, resting on the marker plane at its centre");
   app.add_option("--scale", o->scale, "model scale (the bundled unit sphere: its radius in metres)")
       ->check(CLI::Range(1e-3, 10.0));
   app.add_option("--occlusion", o->occlusion, "sparse runs with disc occlusion off, on or both")
@@ -209,7 +520,13 @@ Action addBench(CLI::App& app) {
   app.add_option("--k-cache", o->kCache, "VALs per shared-memory tile (16..512)")->check(CLI::Range(16, 512));
   app.add_option("--repeats", o->repeats, "timing repeats (best is kept)")->check(CLI::PositiveNumber);
   app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl")->check(CLI::IsMember({"osmesa", "egl"}));
-  return [o] { return runBench(*o); };
+  return [o] {
+    if (o->against == "bruteforce") {
+      if (o->technique.empty()) o->technique = "kinect-val";
+      return runValBruteForce(*o);
+    }
+    return runSweep(*o);
+  };
 }
 
 }  // namespace mrgi::app

@@ -798,4 +798,16 @@ RsmTexels LightingPipeline::downloadRsm(bool rho) const {
   return {download4(r.position), download4(r.normal), download4(r.flux), download4(r.direct)};
 }
 
+size_t LightingPipeline::gpuBytes() const {
+  size_t sum = 0;
+  for (const gl::Texture* t : {&gPosition_, &gNormal_, &gAlbedo_, &gDepth_, &shade_, &irradiance_, &shadowArray_,
+                               &valRadiance_, &valIrradiance_, &shadowMuArray_})
+    sum += t->bytes();
+  for (const Rsm* r : {&rsmRho_, &rsmMu_})
+    for (const gl::Texture* t : {&r->position, &r->normal, &r->flux, &r->direct, &r->depth}) sum += t->bytes();
+  for (const Volume* v : {&delta_, &rho_, &rhoFull_, &muFull_, &scratchA_, &scratchB_, &deltaDirect_, &rhoDirect_, &muDirect_})
+    sum += v->r.bytes() + v->g.bytes() + v->b.bytes();
+  return sum;
+}
+
 }  // namespace mrgi::lighting

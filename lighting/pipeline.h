@@ -114,6 +114,9 @@ class LightingPipeline {
 
   /// RGBA32F: rgb = delta (real) or radiance (virtual), a = 1 on virtual pixels (compositor input).
   const gl::Texture& shade() const { return shade_; }
+  /// GPU memory of the textures this pipeline holds (G-buffer, RSMs, shadow arrays, volumes, Kinect-VAL
+  /// targets), bytes; meshes and small buffers not counted.
+  size_t gpuBytes() const;
   /// CV_32FC4 downloads of the shading result and of its debug irradiance (E_delta / E_indirect, W/m^2).
   cv::Mat downloadShade() const;
   cv::Mat downloadIrradiance() const;

@@ -21,6 +21,20 @@ void Buffer::download(GLintptr offset, GLsizeiptr bytes, void* out) const {
   glGetNamedBufferSubData(handle_.id(), offset, bytes, out);
 }
 
+size_t Texture::bytes() const {
+  if (id() == 0) return 0;
+  size_t texel = 0;
+  switch (format_) {
+    case GL_RGBA32F: texel = 16; break;
+    case GL_RGB32F: texel = 12; break;
+    case GL_RGBA16F: case GL_RG32F: texel = 8; break;
+    case GL_RGBA8: case GL_R32F: case GL_DEPTH_COMPONENT32F: case GL_DEPTH_COMPONENT24: case GL_DEPTH24_STENCIL8: texel = 4; break;
+    case GL_R8: texel = 1; break;
+    default: throw GlError("Texture::bytes(): unknown internal format " + std::to_string(format_));
+  }
+  return texel * static_cast<size_t>(width_) * static_cast<size_t>(height_) * static_cast<size_t>(depth_);
+}
+
 Texture::Texture(GLenum target, GLenum internalFormat, int width, int height, int depth, int levels)
     : target_(target), format_(internalFormat), width_(width), height_(height), depth_(depth) {
   if (width <= 0 || height <= 0 || depth <= 0)

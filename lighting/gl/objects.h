@@ -82,6 +82,8 @@ class Texture {
   int width() const { return width_; }
   int height() const { return height_; }
   int depth() const { return depth_; }
+  /// GPU memory of level 0 (0 for an empty texture); throws GlError for a format it does not know.
+  size_t bytes() const;
   /// Uploads a whole level-0 image (all layers/slices). format/type as for glTextureSubImage*.
   void upload(GLenum format, GLenum type, const void* data, int rowAlignment = 1);
   /// Reads the whole level-0 image back into out (caller sizes it).

@@ -1,0 +1,52 @@
+#pragma once
+// mrgi bench: the speed/accuracy sweep of the lighting techniques against the path-traced reference, its
+// report (CSV, self-contained HTML with SVG plots) and the presets chosen from the measured front.
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "lighting/scene_file.h"
+
+namespace mrgi::app {
+
+/// One configuration of the sweep: a technique and its knobs; `varied` names the knob this configuration
+/// moves away from the defaults ("" = the defaults themselves), which the scaling plots group by.
+struct BenchConfig {
+  lighting::Technique technique = lighting::Technique::Dlpv;
+  lighting::LpvKnobs lpv;
+  lighting::ValKnobs val;
+  std::string varied;
+};
+
+/// The knobs that matter for the configuration's technique, as JSON (the record's "knobs").
+nlohmann::json knobsJson(const BenchConfig& c);
+
+/// One-knob-at-a-time sweeps around `base` for each technique (all when `technique` is empty). quick: two
+/// values per knob and fewer knobs (tests, small sessions).
+std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::LpvKnobs& lpv,
+                                      const lighting::ValKnobs& val);
+
+/// Presets from the measured records: the Pareto front of (ms_lighting, error) where error is the mean of
+/// rel_error_delta and rel_error_virtual; accurate = least error, fast = the fastest front point within
+/// twice the least error, balanced = the front point with the least (ms / ms_min) x (error / error_min).
+/// Returns {"fast": record, "balanced": record, "accurate": record} (empty object without records).
+nlohmann::json choosePresets(const nlohmann::json& records);
+
+/// Applies a preset record's technique and knobs to a scene.
+void applyPreset(const nlohmann::json& preset, lighting::SceneDescription& scene);
+/// Loads preset `name` from a presets file written by `mrgi bench --presets`; errors name the file.
+nlohmann::json loadPreset(const std::string& path, const std::string& name);
+
+/// Images the HTML report shows, PNG-encoded.
+struct ReportImage {
+  std::string caption;
+  cv::Mat rgb;  ///< RGB8
+};
+
+void writeCsv(const std::string& path, const nlohmann::json& records);
+/// doc: the bench's JSON document (records, presets, reference, renderer).
+void writeHtml(const std::string& path, const nlohmann::json& doc, const std::vector<ReportImage>& images);
+
+}  // namespace mrgi::app

@@ -1,0 +1,440 @@
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "app/bench.h"
+#include "capture/error.h"
+#include "capture/image_io.h"
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+using nlohmann::json;
+
+namespace mrgi::app {
+
+json knobsJson(const BenchConfig& c) {
+  json k = json::object();
+  if (lighting::usesLpv(c.technique) || c.technique == lighting::Technique::KinectVal) {
+    // RSMs serve every technique (injection, virtual VALs, shadows).
+    k["rsm_size"] = c.lpv.rsmSize;
+  }
+  if (lighting::usesLpv(c.technique)) {
+    k["resolution"] = c.lpv.resolution;
+    k["steps"] = c.lpv.steps;
+    k["size_factor"] = c.lpv.sizeFactor;
+    k["damping"] = c.lpv.damping;
+    k["direct_steps"] = c.lpv.directSteps;
+  }
+  if (lighting::usesVal(c.technique)) {
+    k["sparse_points"] = c.val.sparsePoints;
+    k["k_cache"] = c.val.kCache;
+    k["occlusion"] = c.val.occlusion;
+    k["stride"] = c.val.stride;
+    k["fusion"] = c.val.fusion;
+  }
+  return k;
+}
+
+std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::LpvKnobs& lpv,
+                                      const lighting::ValKnobs& val) {
+  std::vector<BenchConfig> out;
+  auto wanted = [&](lighting::Technique t) { return technique.empty() || lighting::parseTechnique(technique) == t; };
+  auto add = [&](lighting::Technique t, const std::string& varied, auto&& change) {
+    BenchConfig c{t, lpv, val, varied};
+    change(c);
+    out.push_back(c);
+  };
+  auto none = [](BenchConfig&) {};
+  using T = lighting::Technique;
+  if (wanted(T::Dlpv)) {
+    add(T::Dlpv, "", none);
+    for (int v : quick ? std::vector<int>{64} : std::vector<int>{64, 128, 512})
+      add(T::Dlpv, "rsm_size", [v](BenchConfig& c) { c.lpv.rsmSize = v; });
+    for (int v : quick ? std::vector<int>{8} : std::vector<int>{8, 16, 48})
+      add(T::Dlpv, "resolution", [v](BenchConfig& c) { c.lpv.resolution = v; });
+    for (int v : quick ? std::vector<int>{4} : std::vector<int>{4, 8, 32})
+      add(T::Dlpv, "steps", [v](BenchConfig& c) { c.lpv.steps = v, c.lpv.directSteps = std::min(c.lpv.directSteps, v); });
+    if (!quick) {
+      for (double v : {2.0, 3.0, 6.0}) add(T::Dlpv, "size_factor", [v](BenchConfig& c) { c.lpv.sizeFactor = v; });
+      for (double v : {0.0, 0.5}) add(T::Dlpv, "damping", [v](BenchConfig& c) { c.lpv.damping = v; });
+    }
+  }
+  if (wanted(T::LpvDiff)) {
+    add(T::LpvDiff, "", none);
+    if (!quick)
+      for (int v : {16, 48}) add(T::LpvDiff, "resolution", [v](BenchConfig& c) { c.lpv.resolution = v; });
+  }
+  if (wanted(T::KinectVal)) {
+    add(T::KinectVal, "", none);
+    for (int v : quick ? std::vector<int>{64} : std::vector<int>{256, 4096})
+      add(T::KinectVal, "sparse_points", [v](BenchConfig& c) { c.val.sparsePoints = v; });
+    add(T::KinectVal, "occlusion", [](BenchConfig& c) { c.val.occlusion = !c.val.occlusion; });
+    if (!quick) {
+      for (int v : {2, 8}) add(T::KinectVal, "stride", [v](BenchConfig& c) { c.val.stride = v; });
+      add(T::KinectVal, "fusion", [](BenchConfig& c) { c.val.fusion = !c.val.fusion; });
+    }
+  }
+  if (wanted(T::DlpvKinectVal)) add(T::DlpvKinectVal, "", none);
+  return out;
+}
+
+namespace {
+double errorOf(const json& r) {
+  return 0.5 * (r.value("rel_error_delta", 0.0) + r.value("rel_error_virtual", 0.0));
+}
+double msOf(const json& r) { return r.value("ms_lighting", 0.0); }
+
+/// Indices of the records no other record beats in both time and error, fastest first.
+std::vector<size_t> paretoFront(const json& records, const std::vector<size_t>& subset) {
+  std::vector<size_t> idx = subset;
+  std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) {
+    return msOf(records[a]) != msOf(records[b]) ? msOf(records[a]) < msOf(records[b]) : errorOf(records[a]) < errorOf(records[b]);
+  });
+  std::vector<size_t> front;
+  double best = INFINITY;
+  for (size_t i : idx)
+    if (errorOf(records[i]) < best) best = errorOf(records[i]), front.push_back(i);
+  return front;
+}
+
+std::vector<size_t> allIndices(const json& records) {
+  std::vector<size_t> v(records.size());
+  for (size_t i = 0; i < v.size(); ++i) v[i] = i;
+  return v;
+}
+}  // namespace
+
+json choosePresets(const json& records) {
+  if (records.empty()) return json::object();
+  const auto front = paretoFront(records, allIndices(records));
+  double eMin = INFINITY, msMin = INFINITY;
+  size_t accurate = front.front();
+  for (size_t i : front) {
+    msMin = std::min(msMin, std::max(msOf(records[i]), 1e-6));
+    if (errorOf(records[i]) < eMin) eMin = errorOf(records[i]), accurate = i;
+  }
+  eMin = std::max(eMin, 1e-9);
+  size_t fast = accurate, balanced = accurate;
+  for (size_t i : front)
+    if (errorOf(records[i]) <= 2 * eMin) {
+      fast = i;
+      break;  // the front is fastest first
+    }
+  double bestScore = INFINITY;
+  for (size_t i : front) {
+    const double score = std::max(msOf(records[i]), 1e-6) / msMin * (errorOf(records[i]) / eMin);
+    if (score < bestScore) bestScore = score, balanced = i;
+  }
+  return {{"fast", records[fast]}, {"balanced", records[balanced]}, {"accurate", records[accurate]}};
+}
+
+void applyPreset(const json& preset, lighting::SceneDescription& scene) {
+  scene.technique = lighting::parseTechnique(preset.at("technique").get<std::string>());
+  const json& k = preset.at("knobs");
+  auto& l = scene.lpv;
+  l.rsmSize = k.value("rsm_size", l.rsmSize);
+  l.resolution = k.value("resolution", l.resolution);
+  l.steps = k.value("steps", l.steps);
+  l.sizeFactor = k.value("size_factor", l.sizeFactor);
+  l.damping = k.value("damping", l.damping);
+  l.directSteps = k.value("direct_steps", l.directSteps);
+  auto& v = scene.val;
+  v.sparsePoints = k.value("sparse_points", v.sparsePoints);
+  v.kCache = k.value("k_cache", v.kCache);
+  v.occlusion = k.value("occlusion", v.occlusion);
+  v.stride = k.value("stride", v.stride);
+  v.fusion = k.value("fusion", v.fusion);
+}
+
+json loadPreset(const std::string& path, const std::string& name) {
+  std::ifstream in(path);
+  if (!in) throw capture::CaptureError(path, "cannot read the presets file");
+  json doc;
+  try {
+    doc = json::parse(in);
+  } catch (const json::exception& e) {
+    throw capture::CaptureError(path, std::string("not valid JSON: ") + e.what());
+  }
+  const json& presets = doc.contains("presets") ? doc["presets"] : doc;
+  if (!presets.is_object() || !presets.contains(name))
+    throw capture::CaptureError(path, "has no preset \"" + name + "\" (fast, balanced, accurate)");
+  const json& p = presets[name];
+  if (!p.contains("technique") || !p.contains("knobs") || !p["knobs"].is_object())
+    throw capture::CaptureError(path, "preset \"" + name + "\" lacks technique or knobs");
+  try {
+    lighting::parseTechnique(p["technique"].get<std::string>());
+  } catch (const std::exception& e) {
+    throw capture::CaptureError(path, "preset \"" + name + "\": " + e.what());
+  }
+  return p;
+}
+
+void writeCsv(const std::string& path, const json& records) {
+  std::ostringstream s;
+  s << "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_virtual,ssim,flicker\n";
+  for (const auto& r : records) {
+    std::string knobs;
+    for (const auto& [k, v] : r["knobs"].items()) knobs += (knobs.empty() ? "" : ";") + k + "=" + v.dump();
+    s << r["technique"].get<std::string>() << "," << r.value("varied", "") << "," << knobs << "," << r["ms_total"] << ","
+      << r["ms_lighting"] << "," << r["gpu_mb"] << "," << r["rmse_delta"] << "," << r["rel_error_delta"] << ","
+      << r["rel_error_virtual"] << "," << r["ssim"] << "," << r["flicker"] << "\n";
+  }
+  capture::writeFileAtomically(path, s.str());
+}
+
+namespace {
+
+std::string base64(const std::vector<uchar>& bytes) {
+  static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  for (size_t i = 0; i < bytes.size(); i += 3) {
+    const uint32_t n = (uint32_t(bytes[i]) << 16) | (i + 1 < bytes.size() ? uint32_t(bytes[i + 1]) << 8 : 0) |
+                       (i + 2 < bytes.size() ? uint32_t(bytes[i + 2]) : 0);
+    out += table[(n >> 18) & 63];
+    out += table[(n >> 12) & 63];
+    out += i + 1 < bytes.size() ? table[(n >> 6) & 63] : '=';
+    out += i + 2 < bytes.size() ? table[n & 63] : '=';
+  }
+  return out;
+}
+
+const char* colourOf(const std::string& technique) {
+  if (technique == "dlpv") return "#1f77b4";
+  if (technique == "lpv-diff") return "#ff7f0e";
+  if (technique == "kinect-val") return "#2ca02c";
+  return "#d62728";
+}
+
+std::string fmt(double v, int digits = 3) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*g", digits, v);
+  return b;
+}
+
+std::string esc(const std::string& s) {
+  std::string o;
+  for (char c : s) o += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : c == '"' ? "&quot;" : std::string(1, c);
+  return o;
+}
+
+/// A scatter plot with log-scaled axes; each point has a tooltip; `lines` connects points per series.
+struct Plot {
+  Plot(std::string t, std::string x, std::string y) : title(std::move(t)), xLabel(std::move(x)), yLabel(std::move(y)) {}
+  std::string title, xLabel, yLabel;
+  bool logX = true, logY = true;
+  struct Point {
+    double x, y;
+    std::string series, tip;
+  };
+  std::vector<Point> points;
+  std::map<std::string, std::vector<std::pair<double, double>>> lines;
+  std::vector<std::string> notes;
+
+  std::string svg() const {
+    const double W = 560, H = 340, L = 70, R = 150, T = 30, B = 50;
+    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+    auto tx = [&](double v) { return logX ? std::log10(std::max(v, 1e-9)) : v; };
+    auto ty = [&](double v) { return logY ? std::log10(std::max(v, 1e-9)) : v; };
+    for (const auto& p : points) x0 = std::min(x0, tx(p.x)), x1 = std::max(x1, tx(p.x)), y0 = std::min(y0, ty(p.y)), y1 = std::max(y1, ty(p.y));
+    if (!(x1 > x0)) x0 -= 0.5, x1 += 0.5;
+    if (!(y1 > y0)) y0 -= 0.5, y1 += 0.5;
+    const double px = 0.05 * (x1 - x0), py = 0.08 * (y1 - y0);
+    x0 -= px, x1 += px, y0 -= py, y1 += py;
+    auto X = [&](double v) { return L + (tx(v) - x0) / (x1 - x0) * (W - L - R); };
+    auto Y = [&](double v) { return H - B - (ty(v) - y0) / (y1 - y0) * (H - T - B); };
+    std::ostringstream s;
+    s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' font-family='sans-serif' font-size='11'>";
+    s << "<text x='" << W / 2 << "' y='16' text-anchor='middle' font-weight='bold'>" << esc(title) << "</text>";
+    s << "<rect x='" << L << "' y='" << T << "' width='" << W - L - R << "' height='" << H - T - B << "' fill='none' stroke='#888'/>";
+    for (int i = 0; i <= 4; ++i) {  // axis ticks
+      const double vx = x0 + (x1 - x0) * i / 4, vy = y0 + (y1 - y0) * i / 4;
+      const double sx = L + (W - L - R) * i / 4, sy = H - B - (H - T - B) * i / 4;
+      s << "<text x='" << sx << "' y='" << H - B + 14 << "' text-anchor='middle'>" << fmt(logX ? std::pow(10, vx) : vx) << "</text>";
+      s << "<text x='" << L - 4 << "' y='" << sy + 4 << "' text-anchor='end'>" << fmt(logY ? std::pow(10, vy) : vy) << "</text>";
+    }
+    s << "<text x='" << (L + W - R) / 2 << "' y='" << H - 12 << "' text-anchor='middle'>" << esc(xLabel) << "</text>";
+    s << "<text transform='translate(14," << (T + H - B) / 2 << ") rotate(-90)' text-anchor='middle'>" << esc(yLabel) << "</text>";
+    for (const auto& [series, pts] : lines) {
+      s << "<polyline fill='none' stroke='" << colourOf(series) << "' stroke-width='1.5' points='";
+      for (const auto& [x, y] : pts) s << X(x) << "," << Y(y) << " ";
+      s << "'/>";
+    }
+    std::set<std::string> seen;
+    for (const auto& p : points) {
+      s << "<circle cx='" << X(p.x) << "' cy='" << Y(p.y) << "' r='4' fill='" << colourOf(p.series)
+        << "' fill-opacity='0.75'><title>" << esc(p.tip) << "</title></circle>";
+      seen.insert(p.series);
+    }
+    double ly = T + 10;
+    for (const auto& series : seen) {
+      s << "<circle cx='" << W - R + 14 << "' cy='" << ly - 4 << "' r='4' fill='" << colourOf(series) << "'/><text x='"
+        << W - R + 22 << "' y='" << ly << "'>" << esc(series) << "</text>";
+      ly += 16;
+    }
+    for (const auto& n : notes) {
+      s << "<text x='" << W - R + 8 << "' y='" << ly + 6 << "'>" << esc(n) << "</text>";
+      ly += 14;
+    }
+    s << "</svg>";
+    return s.str();
+  }
+};
+
+/// Least-squares slope of log y against log x.
+double logSlope(const std::vector<std::pair<double, double>>& xy) {
+  if (xy.size() < 2) return NAN;
+  double mx = 0, my = 0;
+  for (const auto& [x, y] : xy) mx += std::log(x), my += std::log(y);
+  mx /= xy.size(), my /= xy.size();
+  double sxy = 0, sxx = 0;
+  for (const auto& [x, y] : xy) sxy += (std::log(x) - mx) * (std::log(y) - my), sxx += (std::log(x) - mx) * (std::log(x) - mx);
+  return sxx > 0 ? sxy / sxx : NAN;
+}
+
+/// "dlpv rsm_size=64" or "dlpv defaults".
+std::string labelOf(const json& r) {
+  const std::string v = r.value("varied", "");
+  return r["technique"].get<std::string>() + (v.empty() ? " defaults" : " " + v + "=" + (r["knobs"].contains(v) ? r["knobs"][v].dump() : "?"));
+}
+
+std::string tipOf(const json& r) {
+  return r["technique"].get<std::string>() + " " + r["knobs"].dump() + "\nms " + fmt(msOf(r)) + ", error " + fmt(errorOf(r));
+}
+
+}  // namespace
+
+void writeHtml(const std::string& path, const json& doc, const std::vector<ReportImage>& images) {
+  const json& records = doc["records"];
+  std::ostringstream h;
+  h << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>mrgi bench</title><style>"
+       "body{font-family:sans-serif;max-width:1200px;margin:20px auto}table{border-collapse:collapse;font-size:12px}"
+       "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td.l{text-align:left}"
+       "figure{display:inline-block;margin:6px}figcaption{font-size:12px}</style></head><body>";
+  h << "<h1>mrgi bench</h1><p>Session <code>" << esc(doc.value("session", "")) << "</code>, scene <code>"
+    << esc(doc.value("scene", "")) << "</code>, " << doc.value("frames", 0) << " frames, renderer <code>"
+    << esc(doc.value("gl", "")) << "</code>. Reference: path traced, " << doc["reference"].value("spp", 0) << " spp, "
+    << doc["reference"].value("bounces", 0) << " bounces, frames " << doc["reference"]["frames"].dump()
+    << ". Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
+       "error = mean of the relative errors of the real-pixel delta and the virtual radiance.</p>";
+
+  // Pareto fronts.
+  Plot pareto("Time vs error (lines: Pareto front per technique)", "lighting ms per frame", "error (relative)");
+  std::map<std::string, std::vector<size_t>> byTechnique;
+  for (size_t i = 0; i < records.size(); ++i) {
+    byTechnique[records[i]["technique"]].push_back(i);
+    pareto.points.push_back({msOf(records[i]), std::max(errorOf(records[i]), 1e-6), records[i]["technique"], tipOf(records[i])});
+  }
+  for (const auto& [t, idx] : byTechnique)
+    for (size_t i : paretoFront(records, idx)) pareto.lines[t].push_back({msOf(records[i]), std::max(errorOf(records[i]), 1e-6)});
+  Plot ssim("Composite SSIM vs time", "lighting ms per frame", "1 - SSIM");
+  Plot flicker("Temporal flicker of the real-pixel delta", "lighting ms per frame", "flicker (relative)");
+  for (const auto& r : records) {
+    ssim.points.push_back({msOf(r), std::max(1.0 - r.value("ssim", 0.0), 1e-6), r["technique"], tipOf(r)});
+    if (r.value("flicker", 0.0) > 0) flicker.points.push_back({msOf(r), r["flicker"].get<double>(), r["technique"], tipOf(r)});
+  }
+  h << "<h2>Speed against accuracy</h2>" << pareto.svg() << ssim.svg();
+  if (!flicker.points.empty()) h << flicker.svg();
+
+  // Scaling curves with fitted slopes (DLPV).
+  Plot rsm("DLPV: RSM stage vs RSM texels", "RSM texels", "ms (rsm + lpv.inject)");
+  Plot vox("DLPV: propagation vs voxels x steps", "voxels x steps", "ms (lpv.propagate)");
+  std::vector<std::pair<double, double>> rsmXY, voxXY;
+  for (const auto& r : records) {
+    if (r["technique"] != "dlpv") continue;
+    const std::string v = r.value("varied", "");
+    const json& st = r["ms_stages"];
+    if (v == "" || v == "rsm_size") {
+      const double texels = std::pow(r["knobs"]["rsm_size"].get<double>(), 2);
+      const double ms = st.value("rsm", 0.0) + st.value("lpv.inject", 0.0);
+      if (ms > 0) rsm.points.push_back({texels, ms, "dlpv", tipOf(r)}), rsmXY.push_back({texels, ms});
+    }
+    if (v == "" || v == "resolution" || v == "steps") {
+      const double n = std::pow(r["knobs"]["resolution"].get<double>(), 3) * r["knobs"]["steps"].get<double>();
+      const double ms = st.value("lpv.propagate", 0.0);
+      if (ms > 0 && n > 0) vox.points.push_back({n, ms, "dlpv", tipOf(r)}), voxXY.push_back({n, ms});
+    }
+  }
+  if (!rsm.points.empty()) {
+    rsm.notes.push_back("slope " + fmt(logSlope(rsmXY), 2));
+    vox.notes.push_back("slope " + fmt(logSlope(voxXY), 2));
+    h << "<h2>Scaling</h2><p>Fitted slopes of log time against log size (1 = linear).</p>" << rsm.svg() << vox.svg();
+  }
+
+  // Stage-time stacks.
+  std::set<std::string> stageNames;
+  for (const auto& r : records)
+    for (const auto& [k, v] : r["ms_stages"].items()) stageNames.insert(k);
+  static const char* palette[] = {"#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1",
+                                  "#ff9da7", "#9c755f", "#bab0ac", "#17becf", "#bcbd22", "#8c564b", "#7f7f7f"};
+  std::map<std::string, const char*> stageColour;
+  size_t ci = 0;
+  for (const auto& n : stageNames) stageColour[n] = palette[ci++ % 14];
+  double maxTotal = 1e-9;
+  for (const auto& r : records) maxTotal = std::max(maxTotal, r.value("ms_total", 0.0));
+  const double rowH = 16, labelW = 230, barW = 700;
+  const int legendRows = static_cast<int>((stageNames.size() + 6) / 7);
+  h << "<h2>Stage times</h2><p>Mean ms per frame and stage (hover for values).</p><svg xmlns='http://www.w3.org/2000/svg' width='"
+    << labelW + barW + 60 << "' height='" << rowH * records.size() + 30 + 16 * legendRows << "' font-family='sans-serif' font-size='10'>";
+  for (size_t i = 0; i < records.size(); ++i) {
+    const json& r = records[i];
+    const double y = 10 + i * rowH;
+    h << "<text x='" << labelW - 4 << "' y='" << y + 11 << "' text-anchor='end'>" << esc(labelOf(r)) << "</text>";
+    double x = labelW;
+    for (const auto& [k, v] : r["ms_stages"].items()) {
+      const double w = v.get<double>() / maxTotal * barW;
+      h << "<rect x='" << x << "' y='" << y << "' width='" << w << "' height='" << rowH - 3 << "' fill='" << stageColour[k]
+        << "'><title>" << esc(k) << " " << fmt(v.get<double>()) << " ms</title></rect>";
+      x += w;
+    }
+    h << "<text x='" << x + 3 << "' y='" << y + 11 << "'>" << fmt(r.value("ms_total", 0.0)) << "</text>";
+  }
+  int li = 0;
+  for (const auto& [n, c] : stageColour) {
+    const double lx = 10 + (li % 7) * 130, ly = 20 + rowH * records.size() + 16 * (li / 7);
+    h << "<rect x='" << lx << "' y='" << ly << "' width='10' height='10' fill='" << c << "'/><text x='" << lx + 13 << "' y='"
+      << ly + 9 << "'>" << esc(n) << "</text>";
+    ++li;
+  }
+  h << "</svg>";
+
+  // Presets and the table.
+  if (doc.contains("presets") && !doc["presets"].empty()) {
+    h << "<h2>Presets</h2><table><tr><th>preset</th><th>technique</th><th class='l'>knobs</th><th>lighting ms</th><th>error</th></tr>";
+    for (const char* name : {"fast", "balanced", "accurate"}) {
+      const json& p = doc["presets"][name];
+      h << "<tr><td class='l'>" << name << "</td><td class='l'>" << esc(p["technique"].get<std::string>()) << "</td><td class='l'>"
+        << esc(p["knobs"].dump()) << "</td><td>" << fmt(msOf(p)) << "</td><td>" << fmt(errorOf(p)) << "</td></tr>";
+    }
+    h << "</table>";
+  }
+  h << "<h2>All configurations</h2><table><tr><th>technique</th><th>varied</th><th class='l'>knobs</th><th>ms total</th>"
+       "<th>ms lighting</th><th>GPU MB</th><th>RMSE delta</th><th>rel. err. delta</th><th>rel. err. virtual</th><th>SSIM</th>"
+       "<th>flicker</th></tr>";
+  for (const auto& r : records)
+    h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>" << esc(r.value("varied", ""))
+      << "</td><td class='l'>" << esc(r["knobs"].dump()) << "</td><td>" << fmt(r["ms_total"].get<double>()) << "</td><td>"
+      << fmt(msOf(r)) << "</td><td>" << fmt(r["gpu_mb"].get<double>()) << "</td><td>" << fmt(r["rmse_delta"].get<double>())
+      << "</td><td>" << fmt(r["rel_error_delta"].get<double>()) << "</td><td>" << fmt(r["rel_error_virtual"].get<double>())
+      << "</td><td>" << fmt(r["ssim"].get<double>(), 4) << "</td><td>" << fmt(r["flicker"].get<double>()) << "</td></tr>";
+  h << "</table>";
+
+  if (!images.empty()) {
+    h << "<h2>Images</h2>";
+    for (const auto& im : images) {
+      cv::Mat bgr;
+      cv::cvtColor(im.rgb, bgr, cv::COLOR_RGB2BGR);
+      std::vector<uchar> png;
+      cv::imencode(".png", bgr, png);
+      h << "<figure><img src='data:image/png;base64," << base64(png) << "'/><figcaption>" << esc(im.caption)
+        << "</figcaption></figure>";
+    }
+  }
+  h << "</body></html>\n";
+  capture::writeFileAtomically(path, h.str());
+}
+
+}  // namespace mrgi::app
