@@ -8,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "app/bench.h"
 #include "app/commands.h"
 #include "app/frame_pipeline.h"
 #include "app/output.h"
@@ -34,6 +35,8 @@ struct ReplayOptions {
   std::string gl = "osmesa";
   std::string scene;
   std::string technique;  // empty: the scene file's
+  std::string preset;     // empty: the scene file's knobs
+  std::string presets = MRGI_DEFAULT_PRESETS;
   bool dumpDelta = false;
   bool debug = false;
   std::string pose = "marker";
@@ -50,6 +53,7 @@ int runReplay(const ReplayOptions& o) {
   std::optional<LightingSetup> setup;
   if (!o.scene.empty()) {
     lighting::SceneDescription scene = lighting::loadScene(o.scene);
+    if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
     if (!o.technique.empty()) scene.technique = lighting::parseTechnique(o.technique);
     setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose);
   }
@@ -195,6 +199,7 @@ int runReplay(const ReplayOptions& o) {
   if (const LightingSetup* setup = frames.setup()) {
     summary["scene"] = o.scene;
     summary["technique"] = lighting::techniqueName(setup->scene.technique);
+    if (!o.preset.empty()) summary["preset"] = o.preset;
     const auto& k = setup->scene.lpv;
     summary["knobs"] = {{"resolution", k.resolution}, {"steps", k.steps}, {"rsm_size", k.rsmSize},
                         {"size_factor", k.sizeFactor}, {"damping", k.damping}, {"direct_steps", k.directSteps}};
@@ -231,6 +236,9 @@ Action addReplay(CLI::App& app) {
   app.add_option("--scene", o->scene, "scene file (JSON): virtual objects relative to the marker, lights, technique");
   app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
       ->check(CLI::IsMember({"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}));
+  app.add_option("--preset", o->preset, "technique and knobs from a measured preset (overrides the scene file's)")
+      ->check(CLI::IsMember({"fast", "balanced", "accurate"}));
+  app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();
   app.add_flag("--dump-delta", o->dumpDelta, "also write delta_NNNN.exr (linear RGB added to real pixels) and mask_NNNN.png (255 = virtual)");
   app.add_flag("--debug", o->debug, "also write debug_NNNN_*.png: delta (red = negative), G-buffer albedo/normal/mask, "
                                      "RSM flux/normal of the last light, DLPV z-slices");

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <filesystem>
+#include <set>
 #include <fstream>
 #include <sstream>
 
@@ -469,7 +470,7 @@ TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
 TEST(Cli, BenchKinectValWritesSparseAndBruteForceRecords) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_bench_" + std::to_string(::getpid()) + ".json");
   const std::string rec = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
-  const Result r = runMrgi("bench --technique kinect-val --session " + rec + " --model " + kModels +
+  const Result r = runMrgi("bench --against bruteforce --technique kinect-val --session " + rec + " --model " + kModels +
                            "sphere.ply --vals 512,2048 --sparse 64,642 --repeats 1 --json " + out.string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto doc = nlohmann::json::parse(slurp(out));
@@ -486,7 +487,64 @@ TEST(Cli, BenchKinectValWritesSparseAndBruteForceRecords) {
   // More sparse points, less error (same VALs, no occlusion): records 0 (64) and 2 (642).
   EXPECT_LT(doc["records"][2]["rel_error_vs_bruteforce"].get<double>(), doc["records"][0]["rel_error_vs_bruteforce"].get<double>());
   fs::remove(out);
-  expectOneLineError(runMrgi("bench --technique dlpv --json " + out.string()), "--technique dlpv");
+  expectOneLineError(runMrgi("bench --against bruteforce --technique dlpv --json " + out.string()), "--technique dlpv");
+}
+
+TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
+  const fs::path scene = writeScene("bench_sphere.json", R"({"objects": [{"model": ")" + kModels +
+                                                             R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+      "lights": "manifest", "lpv": {"resolution": 16, "steps": 8, "rsm_size": 128}})");
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_sweep_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const Result r = runMrgi("bench --quick --session " + session().string() + " --scene " + scene.string() +
+                           " --frames 2 --ref-frames 1 --ref-spp 4 --json " + (dir / "b.json").string() + " --csv " +
+                           (dir / "b.csv").string() + " --html " + (dir / "b.html").string() + " --presets " +
+                           (dir / "presets.json").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto doc = nlohmann::json::parse(slurp(dir / "b.json"));
+  std::set<std::string> techniques;
+  for (const auto& rec : doc["records"]) {
+    techniques.insert(rec["technique"].get<std::string>());
+    for (const char* key : {"ms_total", "ms_lighting", "rmse_delta", "rel_error_delta", "rel_error_virtual", "ssim", "flicker", "gpu_mb"}) {
+      ASSERT_TRUE(rec.contains(key)) << key;
+      const double v = rec[key].get<double>();
+      EXPECT_TRUE(std::isfinite(v) && v >= 0) << key << " " << v;
+    }
+    EXPECT_GT(rec["ms_lighting"].get<double>(), 0.0);
+    EXPECT_GT(rec["rel_error_virtual"].get<double>(), 0.0);  // a real-time approximation is never exact
+    EXPECT_LT(rec["rel_error_virtual"].get<double>(), 1.0);
+    EXPECT_GT(rec["ssim"].get<double>(), 0.8);
+    EXPECT_LE(rec["ssim"].get<double>(), 1.0);
+    EXPECT_GT(rec["gpu_mb"].get<double>(), 0.1);
+    EXPECT_TRUE(rec["ms_stages"].contains("gbuffer"));
+  }
+  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}));
+  // A coarser volume costs less GPU memory than the defaults.
+  double mbDefault = 0, mbCoarse = 0;
+  for (const auto& rec : doc["records"])
+    if (rec["technique"] == "dlpv" && rec["varied"] == "") mbDefault = rec["gpu_mb"];
+    else if (rec["technique"] == "dlpv" && rec["varied"] == "resolution") mbCoarse = rec["gpu_mb"];
+  EXPECT_LT(mbCoarse, mbDefault);
+  EXPECT_EQ(lines(slurp(dir / "b.csv")), static_cast<int>(doc["records"].size()) + 1);
+  const std::string html = slurp(dir / "b.html");
+  EXPECT_NE(html.find("<svg"), std::string::npos);
+  EXPECT_NE(html.find("data:image/png;base64,"), std::string::npos);
+  EXPECT_EQ(html.find("src='http"), std::string::npos);  // self-contained
+  // Presets: three, from the records, and replay uses them.
+  const auto presets = nlohmann::json::parse(slurp(dir / "presets.json"));
+  for (const char* name : {"fast", "balanced", "accurate"}) ASSERT_TRUE(presets["presets"].contains(name)) << name;
+  EXPECT_LE(presets["presets"]["fast"]["ms_lighting"].get<double>(), presets["presets"]["accurate"]["ms_lighting"].get<double>());
+  const fs::path out = dir / "replay";
+  const Result rp = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --frames 1 --pose ground-truth"
+                            " --preset accurate --presets " + (dir / "presets.json").string() + " --out " + out.string());
+  ASSERT_EQ(rp.exitCode, 0) << rp.err;
+  const auto summary = nlohmann::json::parse(slurp(out / "summary.json"));
+  EXPECT_EQ(summary["preset"], "accurate");
+  EXPECT_EQ(summary["technique"], presets["presets"]["accurate"]["technique"]);
+  expectOneLineError(runMrgi("replay " + session().string() + " --scene " + scene.string() + " --preset fast --presets " +
+                             scene.string() + " --out " + out.string()),
+                     "has no preset \"fast\"");
+  fs::remove_all(dir);
 }
 
 TEST(Cli, ReferencePathTracesRhoMuDeltaAndComposite) {
