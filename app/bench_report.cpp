@@ -318,7 +318,9 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
     << esc(doc.value("scene", "")) << "</code>, " << doc.value("frames", 0) << " frames, renderer <code>"
     << esc(doc.value("gl", "")) << "</code>. Reference: path traced, " << doc["reference"].value("spp", 0) << " spp, "
     << doc["reference"].value("bounces", 0) << " bounces, frames " << doc["reference"]["frames"].dump()
-    << ". Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
+    << " (its own noise, two seeds / sqrt 2: relative error " << fmt(doc["reference"].value("noise_rel_error_delta", 0.0))
+    << " on the delta, " << fmt(doc["reference"].value("noise_rel_error_virtual", 0.0))
+    << " on the virtual radiance: the floor under every error below). Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
        "error = mean of the relative errors of the real-pixel delta and the virtual radiance.</p>";
 
   // Pareto fronts.

@@ -360,6 +360,24 @@ int runSweep(const BenchOptions& o) {
       ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       t.delta = t.images.delta();
       t.composite = compositor::compositeReference(frame.rgbd->colour, t.delta, t.images.mask);
+      if (truths.empty()) {
+        // The reference's own noise: a second render with another seed. Each has error ≈ this / √2 against
+        // the converged image, the floor under every technique's error.
+        po.seed += 1;
+        po.progress = nullptr;
+        const auto again = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
+        cv::Mat shadeLike(again.rho.size(), CV_32FC4);
+        const cv::Mat d2 = again.delta();
+        for (int i = 0; i < static_cast<int>(d2.total()); ++i) {
+          const cv::Vec3f v = d2.at<cv::Vec3f>(i);
+          shadeLike.at<cv::Vec4f>(i) = {v[0], v[1], v[2], again.mask.at<uchar>(i) ? 1.f : 0.f};
+        }
+        const ErrorSums e = errorSums(shadeLike, t);
+        refInfo["noise_rel_error_delta"] = e.absRef > 0 ? e.abs / e.absRef / std::sqrt(2.0) : 0.0;
+        refInfo["noise_rel_error_virtual"] = e.virtRef > 0 ? e.virtAbs / e.virtRef / std::sqrt(2.0) : 0.0;
+        std::printf("reference noise (two seeds, / sqrt 2): delta %.3f, virtual %.3f\n",
+                    refInfo["noise_rel_error_delta"].get<double>(), refInfo["noise_rel_error_virtual"].get<double>());
+      }
       truths[f] = std::move(t);
     }
     refInfo["ms_per_frame"] = ms / refs;

@@ -1,5 +1,7 @@
 // mrgi synth: writes a synthetic tabletop session with ground truth through the session writer.
 #include <cmath>
+#include <filesystem>
+#include <optional>
 #include <cstdio>
 #include <unistd.h>
 
@@ -10,11 +12,19 @@
 #include "capture/sensor_model.h"
 #include "capture/session.h"
 #include "capture/colour.h"
-#include "lighting/reference/raycaster.h"
+#include "app/output.h"
+#include "capture/error.h"
+#include "capture/image_io.h"
+#include "lighting/reference/path_tracer.h"
+#include "lighting/scene_file.h"
+#include "lighting/val.h"
+
+namespace fs = std::filesystem;
 
 namespace mrgi::app {
 namespace {
 
+using lighting::reference::PathTracer;
 using lighting::reference::RayCaster;
 
 struct SynthOptions {
@@ -25,6 +35,9 @@ struct SynthOptions {
   int tagId = 0;
   double tagSize = 0.16;
   int fisheyeEvery = 30;  ///< a fisheye frame every N frames (the room is static), 0 = none
+  std::string render = "pathtrace";  ///< pathtrace (global illumination) | raycast (direct light + constant ambient)
+  int spp = 64, bounces = 3;
+  std::string scene;  ///< virtual objects whose path-traced reference composite each frame gets
 };
 
 cv::Vec3f toFloat(const cv::Vec3d& v) { return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])}; }
@@ -35,7 +48,8 @@ struct RgbdRender {
   cv::Mat normals;   // CV_32FC3 camera space
 };
 
-RgbdRender renderRgbd(const RayCaster& rc, const capture::Intrinsics& k, const capture::Pose& T_wc) {
+/// Camera radiance by the path tracer (anti-aliased) when one is given, else ray cast (2x2 supersampled).
+RgbdRender renderRgbd(const RayCaster& rc, const PathTracer* pt, const capture::Intrinsics& k, const capture::Pose& T_wc) {
   RgbdRender r{cv::Mat(k.height, k.width, CV_32FC3), cv::Mat(k.height, k.width, CV_32FC1),
                cv::Mat(k.height, k.width, CV_32FC3)};
   const cv::Vec3f origin = toFloat(capture::transformPoint(T_wc, {0, 0, 0}));
@@ -44,7 +58,7 @@ RgbdRender renderRgbd(const RayCaster& rc, const capture::Intrinsics& k, const c
     for (int y = rows.start; y < rows.end; ++y)
       for (int x = 0; x < k.width; ++x) {
         cv::Vec3f sum(0, 0, 0);
-        for (int s = 0; s < 4; ++s) {  // 2x2 supersampling for clean tag edges
+        for (int s = 0; s < (pt ? 0 : 4); ++s) {  // 2x2 supersampling for clean tag edges
           const double px = x + (s % 2 ? 0.25 : -0.25), py = y + (s / 2 ? 0.25 : -0.25);
           const cv::Vec3f d = cv::normalize(toFloat(R * cv::Vec3d((px - k.cx) / k.fx, (py - k.cy) / k.fy, 1.0)));
           if (auto h = rc.intersect(origin, d)) sum += rc.shadeDirect(*h);
@@ -58,6 +72,7 @@ RgbdRender renderRgbd(const RayCaster& rc, const capture::Intrinsics& k, const c
         r.normals.at<cv::Vec3f>(y, x) = h ? toFloat(Rt * cv::Vec3d(h->normal)) : cv::Vec3f(0, 0, 0);
       }
   });
+  if (pt) r.radiance = pt->render({k, T_wc});
   return r;
 }
 
@@ -74,7 +89,7 @@ double undistortTheta(double thetaD, const cv::Vec4d& D) {
   return t;
 }
 
-cv::Mat renderFisheye(const RayCaster& rc, const capture::FisheyeCalibration& c) {
+cv::Mat renderFisheye(const RayCaster& rc, const PathTracer* pt, const capture::FisheyeCalibration& c) {
   cv::Mat img(c.height, c.width, CV_32FC3, cv::Scalar(0, 0, 0));
   const capture::Pose& T = *c.T_world_fisheye;
   const cv::Vec3f origin = toFloat(capture::transformPoint(T, {0, 0, 0}));
@@ -89,7 +104,14 @@ cv::Mat renderFisheye(const RayCaster& rc, const capture::FisheyeCalibration& c)
         if (!(theta >= 0) || theta > CV_PI * 0.5 * 1.2) continue;  // outside the lens' field of view
         const double s = thetaD > 1e-12 ? std::sin(theta) / thetaD : 1.0;
         const cv::Vec3f d = cv::normalize(toFloat(R * cv::Vec3d(mx * s, my * s, std::cos(theta))));
-        if (auto h = rc.intersect(origin, d)) img.at<cv::Vec3f>(y, x) = rc.shadeDirect(*h);
+        if (pt) {
+          cv::RNG rng(static_cast<uint64_t>(y) * 100003u + static_cast<uint64_t>(x) + 1);
+          cv::Vec3f sum(0, 0, 0);
+          for (int s = 0; s < pt->options().spp; ++s) sum += pt->trace(origin, d, rng);
+          img.at<cv::Vec3f>(y, x) = sum * (1.f / static_cast<float>(pt->options().spp));
+        } else if (auto h = rc.intersect(origin, d)) {
+          img.at<cv::Vec3f>(y, x) = rc.shadeDirect(*h);
+        }
       }
   });
   return img;
@@ -108,13 +130,59 @@ capture::FisheyeCalibration tableFisheye() {
   return c;
 }
 
+/// Camera linear radiance -> sRGB 8-bit plus the frame's sensor noise (the same noise for a given frame).
+cv::Mat cameraImage(const cv::Mat& radiance, uint64_t noiseSeed) {
+  cv::Mat srgb = capture::encodeSrgb(radiance);
+  cv::Mat noiseImg(srgb.size(), CV_16SC3), noisy, out;
+  cv::RNG rng(noiseSeed);
+  rng.fill(noiseImg, cv::RNG::NORMAL, 0, 1.2);
+  srgb.convertTo(noisy, CV_16SC3);
+  noisy += noiseImg;
+  noisy.convertTo(out, CV_8UC3);  // saturating
+  return out;
+}
+
 int runSynth(const SynthOptions& o) {
   TabletopConfig tc;
   tc.tagId = o.tagId;
   tc.tagSize = o.tagSize;
   tc.seed = o.seed;
-  const Tabletop table = buildTabletop(tc);
+  Tabletop table = buildTabletop(tc);
+  const bool pathTrace = o.render == "pathtrace";
+  // The reference's virtual objects (marker frame) move into the room through the true marker pose.
+  lighting::reference::Scene augmented;
+  if (!o.scene.empty()) {
+    const lighting::SceneDescription desc = lighting::loadScene(o.scene);
+    if (desc.objects.empty()) throw capture::CaptureError(o.scene, "has no virtual object to render a reference of");
+    augmented = table.scene;
+    for (const auto& obj : desc.objects) {
+      lighting::reference::Material mat;
+      mat.name = obj.model;
+      mat.albedo = obj.material.albedo;
+      mat.specular = cv::Vec3f::all(obj.material.specular);
+      mat.exponent = lighting::phongExponent(obj.material.roughness);
+      mat.isVirtual = true;
+      augmented.addMesh(obj.mesh.positions, obj.mesh.normals, obj.mesh.indices, augmented.addMaterial(mat),
+                        table.T_world_marker * obj.T_marker_object);
+    }
+  }
+  if (pathTrace) {
+    table.groundTruth["scene"]["generator"] = "mrgi synth (path traced, " + std::to_string(o.spp) + " spp, " +
+                                              std::to_string(o.bounces) + " bounces)";
+    // The real-time stand-in for the bounce light the path tracer computes.
+    table.groundTruth["scene"]["ambient_note"] = "ambient_radiance is a suggestion for real-time shading; the frames carry full global illumination";
+  }
+  if (!o.scene.empty())
+    table.groundTruth["reference"] = {{"scene", o.scene},
+                                      {"composite", "reference/NNNNNN.png"},
+                                      {"delta", "reference/delta_NNNNNN.exr"},
+                                      {"mask", "reference/mask_NNNNNN.png"},
+                                      {"note", "the camera image of the room with the scene's objects, same noise"}};
   const RayCaster rc(table.scene);
+  lighting::reference::PathTraceOptions po;
+  po.spp = o.spp;
+  po.bounces = o.bounces;
+  po.jitter = true;
 
   capture::SessionManifest m;
   const double f = 525.0 * o.width / 640.0;
@@ -127,28 +195,55 @@ int runSynth(const SynthOptions& o) {
   capture::SessionWriter writer(o.out, m);
 
   cv::Mat fisheye;
-  if (m.fisheye) fisheye = renderFisheye(rc, *m.fisheye);
+  if (m.fisheye) {
+    lighting::reference::PathTraceOptions fo = po;
+    fo.spp = std::max(4, o.spp / 4);
+    const PathTracer fpt(rc, fo);
+    fisheye = renderFisheye(rc, pathTrace ? &fpt : nullptr, *m.fisheye);
+  }
+  std::optional<RayCaster> augmentedCaster;
+  if (!o.scene.empty()) augmentedCaster.emplace(augmented);
   const capture::DepthNoiseModel noise;
-  const bool tty = isatty(fileno(stdout));
+  ProgressBar bar("synth");
   for (int i = 0; i < o.frames; ++i) {
     capture::Frame frame;
     frame.index = i;
     frame.timestamp = i / 30.0;
     frame.groundTruthT_world_camera = orbitCamera(i, o.frames);
-    const RgbdRender r = renderRgbd(rc, m.colour, *frame.groundTruthT_world_camera);
+    po.seed = o.seed * 1000003u + static_cast<uint64_t>(i);
+    po.progress = [&bar, i, &o](double x) { bar((i + x) / o.frames); };
+    const PathTracer pt(rc, po);
+    const RgbdRender r = renderRgbd(rc, pathTrace ? &pt : nullptr, m.colour, *frame.groundTruthT_world_camera);
     capture::RgbdFrame rgbd;
-    // Camera: linear radiance -> sRGB 8-bit with a little sensor noise.
-    cv::Mat srgb = capture::encodeSrgb(r.radiance);
-    cv::Mat noiseImg(srgb.size(), CV_16SC3);
-    cv::RNG rng(o.seed * 7919 + static_cast<uint64_t>(i));
-    rng.fill(noiseImg, cv::RNG::NORMAL, 0, 1.2);
-    cv::Mat noisy;
-    srgb.convertTo(noisy, CV_16SC3);
-    noisy += noiseImg;
-    noisy.convertTo(rgbd.colour, CV_8UC3);  // saturating
+    const uint64_t noiseSeed = o.seed * 7919 + static_cast<uint64_t>(i);
+    rgbd.colour = cameraImage(r.radiance, noiseSeed);
     rgbd.depth = capture::applyDepthNoise(r.depth, r.normals, m.colour.fx, m.colour.fy, m.colour.cx, m.colour.cy, noise,
                                           o.seed * 104729 + static_cast<uint64_t>(i));
     rgbd.colourIntrinsics = rgbd.depthIntrinsics = m.colour;
+    if (augmentedCaster) {
+      // The ideal composite: the same camera (seed, noise) looking at the room with the objects in it.
+      const lighting::reference::PinholeCamera cam{m.colour, *frame.groundTruthT_world_camera};
+      const cv::Mat rho = pathTrace ? PathTracer(*augmentedCaster, po).render(cam) : r.radiance;
+      cv::Mat mask(m.colour.height, m.colour.width, CV_8UC1, cv::Scalar(0));
+      for (int y = 0; y < mask.rows; ++y)
+        for (int x = 0; x < mask.cols; ++x) {
+          cv::Vec3f org, dir;
+          lighting::reference::cameraRay(cam, x, y, org, dir);
+          const auto h = augmentedCaster->intersect(org, dir, 1e-4f, 1e30f, false);
+          if (h && augmented.materials[h->material].isVirtual) mask.at<uchar>(y, x) = 255;
+        }
+      cv::Mat delta = rho - r.radiance;
+      rho.copyTo(delta, mask);
+      char name[64];
+      const fs::path dir = fs::path(o.out) / "reference";
+      fs::create_directories(dir);
+      std::snprintf(name, sizeof name, "%06d.png", i);
+      writePng((dir / name).string(), cameraImage(rho, noiseSeed));
+      std::snprintf(name, sizeof name, "delta_%06d.exr", i);
+      writeExr((dir / name).string(), delta);
+      std::snprintf(name, sizeof name, "mask_%06d.png", i);
+      writePng((dir / name).string(), mask);
+    }
     frame.rgbd = std::move(rgbd);
     if (m.fisheye && i % o.fisheyeEvery == 0) {
       capture::FisheyeFrame ff;
@@ -158,12 +253,7 @@ int runSynth(const SynthOptions& o) {
       frame.fisheye = std::move(ff);
     }
     writer.append(frame);
-    if (tty) {
-      std::printf("\rsynth %d/%d frames", i + 1, o.frames);
-      std::fflush(stdout);
-    }
   }
-  if (tty) std::printf("\n");
   std::printf("wrote %d frames to %s\n", o.frames, o.out.c_str());
   return 0;
 }
@@ -179,6 +269,11 @@ Action addSynth(CLI::App& app) {
   app.add_option("--seed", o->seed, "noise seed (output is deterministic for a seed)");
   app.add_option("--tag-id", o->tagId, "tag36h11 id of the marker on the table")->check(CLI::Range(0, 586));
   app.add_option("--tag-size", o->tagSize, "marker black-square edge in metres")->check(CLI::PositiveNumber);
+  app.add_option("--render", o->render, "pathtrace (global illumination, default) or raycast (direct light + ambient)")
+      ->check(CLI::IsMember({"pathtrace", "raycast"}));
+  app.add_option("--spp", o->spp, "path-traced samples per pixel")->check(CLI::Range(1, 1 << 16));
+  app.add_option("--bounces", o->bounces, "path-traced bounces")->check(CLI::Range(0, 64));
+  app.add_option("--scene", o->scene, "also write each frame's reference composite with this scene's objects (reference/)");
   app.add_option("--fisheye-every", o->fisheyeEvery, "store a fisheye HDR frame every N frames (0 = no fisheye)")
       ->check(CLI::NonNegativeNumber);
   return [o] { return runSynth(*o); };

@@ -34,7 +34,7 @@ float discFormFactor(const Val& val, const cv::Vec3f& x) {
   const cv::Vec3f d = x - val.position;
   const float dist2 = d.dot(d);
   if (!(dist2 > 0.f)) return 0.f;  // the receiver at the disc centre: no defined direction
-  const float cosJ = std::max(val.normal.dot(d) / std::sqrt(dist2), 0.f);
+  const float cosJ = std::clamp(val.normal.dot(d) / std::sqrt(dist2), 0.f, 1.f);  // rounding can exceed 1
   const float denom = kPi * dist2 + val.area;
   return denom > 0.f ? val.area * cosJ / denom : 0.f;
 }
