@@ -57,7 +57,7 @@ const fs::path& session() {
   static const fs::path dir = [] {
     const fs::path d = fs::temp_directory_path() / ("mrgi_cli_session_" + std::to_string(::getpid()));
     fs::remove_all(d);
-    const Result r = runMrgi("synth --out " + d.string() + " --frames 3 --width 160 --height 120 --fisheye-every 2");
+    const Result r = runMrgi("synth --out " + d.string() + " --frames 3 --width 160 --height 120 --fisheye-every 2 --render raycast");
     EXPECT_EQ(r.exitCode, 0) << r.err;
     return d;
   }();
@@ -591,5 +591,42 @@ TEST(Cli, ReferencePathTracesRhoMuDeltaAndComposite) {
   EXPECT_EQ(cv::norm(rho, cv::imread((out / "rho.exr").string(), cv::IMREAD_UNCHANGED), cv::NORM_INF), 0.0);
   expectOneLineError(runMrgi(base + "--frame 7 --out " + out.string()), "has no frame 7");
   expectOneLineError(runMrgi(base + "--out " + (fs::path(MRGI_SOURCE_DIR) / "recordings").string()), "refusing to overwrite");
+  fs::remove_all(out);
+}
+
+TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {
+  const fs::path scene = writeScene("synth_ref.json", R"({"objects": [{"model": ")" + kModels +
+                                                          R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}]})");
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_synth_pt_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const Result r = runMrgi("synth --out " + out.string() + " --frames 2 --width 96 --height 72 --spp 8 --bounces 2"
+                           " --fisheye-every 0 --scene " + scene.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto manifest = nlohmann::json::parse(slurp(out / "manifest.json"));
+  EXPECT_NE(manifest["ground_truth"]["scene"]["generator"].get<std::string>().find("path traced"), std::string::npos);
+  EXPECT_EQ(manifest["ground_truth"]["reference"]["scene"], scene.string());
+  for (int i = 0; i < 2; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.png", i);
+    const cv::Mat frame = cv::imread((out / "colour" / name).string());
+    const cv::Mat ref = cv::imread((out / "reference" / name).string());
+    std::snprintf(name, sizeof name, "mask_%06d.png", i);
+    const cv::Mat mask = cv::imread((out / "reference" / name).string(), cv::IMREAD_UNCHANGED);
+    std::snprintf(name, sizeof name, "delta_%06d.exr", i);
+    const cv::Mat delta = cv::imread((out / "reference" / name).string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(frame.empty());
+    ASSERT_EQ(ref.size(), frame.size());
+    ASSERT_EQ(delta.type(), CV_32FC3);
+    EXPECT_GT(cv::countNonZero(mask), 20);  // the sphere on the tag
+    // Same seed and sensor noise: far from the sphere the reference equals the camera frame exactly.
+    cv::Mat diff;
+    cv::absdiff(frame, ref, diff);
+    cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
+    EXPECT_GT(cv::countNonZero(diff == 0), static_cast<int>(frame.total() / 2));
+    EXPECT_GT(cv::countNonZero((diff > 20) & (mask == 255)), 10);  // the sphere itself
+    double lo;
+    cv::minMaxLoc(delta.reshape(1), &lo, nullptr);
+    EXPECT_LT(lo, 0.0);  // its shadow
+  }
   fs::remove_all(out);
 }
