@@ -15,9 +15,8 @@
 #include "app/output.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
-#include "lighting/reference/path_tracer.h"
+#include "app/reference_scene.h"
 #include "lighting/scene_file.h"
-#include "lighting/val.h"
 
 namespace fs = std::filesystem;
 
@@ -155,16 +154,7 @@ int runSynth(const SynthOptions& o) {
     const lighting::SceneDescription desc = lighting::loadScene(o.scene);
     if (desc.objects.empty()) throw capture::CaptureError(o.scene, "has no virtual object to render a reference of");
     augmented = table.scene;
-    for (const auto& obj : desc.objects) {
-      lighting::reference::Material mat;
-      mat.name = obj.model;
-      mat.albedo = obj.material.albedo;
-      mat.specular = cv::Vec3f::all(obj.material.specular);
-      mat.exponent = lighting::phongExponent(obj.material.roughness);
-      mat.isVirtual = true;
-      augmented.addMesh(obj.mesh.positions, obj.mesh.normals, obj.mesh.indices, augmented.addMaterial(mat),
-                        table.T_world_marker * obj.T_marker_object);
-    }
+    addVirtualObjects(desc.objects, table.T_world_marker, augmented);
   }
   if (pathTrace) {
     table.groundTruth["scene"]["generator"] = "mrgi synth (path traced, " + std::to_string(o.spp) + " spp, " +
@@ -224,14 +214,7 @@ int runSynth(const SynthOptions& o) {
       // The ideal composite: the same camera (seed, noise) looking at the room with the objects in it.
       const lighting::reference::PinholeCamera cam{m.colour, *frame.groundTruthT_world_camera};
       const cv::Mat rho = pathTrace ? PathTracer(*augmentedCaster, po).render(cam) : r.radiance;
-      cv::Mat mask(m.colour.height, m.colour.width, CV_8UC1, cv::Scalar(0));
-      for (int y = 0; y < mask.rows; ++y)
-        for (int x = 0; x < mask.cols; ++x) {
-          cv::Vec3f org, dir;
-          lighting::reference::cameraRay(cam, x, y, org, dir);
-          const auto h = augmentedCaster->intersect(org, dir, 1e-4f, 1e30f, false);
-          if (h && augmented.materials[h->material].isVirtual) mask.at<uchar>(y, x) = 255;
-        }
+      const cv::Mat mask = lighting::reference::virtualMask(*augmentedCaster, cam);
       cv::Mat delta = rho - r.radiance;
       rho.copyTo(delta, mask);
       char name[64];

@@ -6,21 +6,28 @@ namespace mrgi::app {
 
 namespace ref = lighting::reference;
 
-namespace {
-cv::Vec3f toFloat(const cv::Vec3d& v) {
-  return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
+void addVirtualObjects(const std::vector<lighting::VirtualObject>& objects, const capture::Pose& T_world_marker,
+                       ref::Scene& scene) {
+  for (const auto& o : objects) {
+    ref::Material m;
+    m.name = o.model;
+    m.albedo = o.material.albedo;
+    m.specular = cv::Vec3f::all(o.material.specular);
+    m.exponent = lighting::phongExponent(o.material.roughness);
+    m.isVirtual = true;
+    scene.addMesh(o.mesh.positions, o.mesh.normals, o.mesh.indices, scene.addMaterial(m), T_world_marker * o.T_marker_object);
+  }
 }
-}  // namespace
 
 std::vector<ref::Light> referenceLights(const std::vector<lighting::SceneLight>& lights) {
   std::vector<ref::Light> out;
   for (const auto& l : lights) {
     ref::Light r;
     r.radius = 0;
-    r.position = toFloat(l.position);
-    r.direction = toFloat(l.direction);
-    r.intensity = toFloat(l.intensity);
-    r.irradiance = toFloat(l.irradiance);
+    r.position = cv::Vec3f(l.position);
+    r.direction = cv::Vec3f(l.direction);
+    r.intensity = cv::Vec3f(l.intensity);
+    r.irradiance = cv::Vec3f(l.irradiance);
     r.spotCos = static_cast<float>(l.spotCos());
     r.type = l.type == lighting::LightType::Directional ? ref::LightType::Directional
              : l.type == lighting::LightType::Spot      ? ref::LightType::Spot
@@ -40,19 +47,10 @@ ReferenceScenes reconstructedScenes(const LightingSetup& setup, const RealSurfac
   s.addMesh(positions, normals, real.indices, realMaterial);
   for (size_t i = 0; i < real.vertices.size(); ++i) s.vertexAlbedo[i] = real.vertices[i].albedo;
   s.lights = referenceLights(setup.lights);
-  s.environment = toFloat(setup.ambient);
+  s.environment = cv::Vec3f(setup.ambient);
 
   out.withObjects = s;
-  for (const auto& o : setup.scene.objects) {
-    ref::Material m;
-    m.name = o.model;
-    m.albedo = o.material.albedo;
-    m.specular = cv::Vec3f::all(o.material.specular);
-    m.exponent = lighting::phongExponent(o.material.roughness);
-    m.isVirtual = true;
-    const int id = out.withObjects.addMaterial(m);
-    out.withObjects.addMesh(o.mesh.positions, o.mesh.normals, o.mesh.indices, id, o.T_marker_object);
-  }
+  addVirtualObjects(setup.scene.objects, capture::identityPose(), out.withObjects);
   out.camera.intrinsics = intrinsics;
   out.camera.T_world_camera = T_marker_camera;
   return out;

@@ -17,6 +17,11 @@ struct ReferenceScenes {
 ReferenceScenes reconstructedScenes(const LightingSetup& setup, const RealSurface& real,
                                     const capture::Intrinsics& intrinsics, const capture::Pose& T_marker_camera);
 
+/// Adds the virtual objects (marker frame) to a path-tracer scene through T_world_marker, each with its
+/// material: albedo, specular and the Phong exponent of its roughness, marked virtual.
+void addVirtualObjects(const std::vector<lighting::VirtualObject>& objects, const capture::Pose& T_world_marker,
+                       lighting::reference::Scene& scene);
+
 /// The scene's lights (marker frame) as the path tracer's delta lights (invisible to the camera).
 std::vector<lighting::reference::Light> referenceLights(const std::vector<lighting::SceneLight>& lights);
 

@@ -147,6 +147,18 @@ cv::Mat DifferentialImages::delta() const {
   return d;
 }
 
+cv::Mat virtualMask(const RayCaster& caster, const PinholeCamera& camera) {
+  cv::Mat mask(camera.intrinsics.height, camera.intrinsics.width, CV_8UC1, cv::Scalar(0));
+  for (int y = 0; y < mask.rows; ++y)
+    for (int x = 0; x < mask.cols; ++x) {
+      cv::Vec3f o, d;
+      cameraRay(camera, x, y, o, d);
+      const auto hit = caster.intersect(o, d, 1e-4f, 1e30f, false);
+      if (hit && caster.scene().materials[hit->material].isVirtual) mask.at<uchar>(y, x) = 255;
+    }
+  return mask;
+}
+
 DifferentialImages renderDifferential(const Scene& withObjects, const Scene& realOnly, const PinholeCamera& camera,
                                       const PathTraceOptions& options) {
   DifferentialImages out;
@@ -158,15 +170,7 @@ DifferentialImages renderDifferential(const Scene& withObjects, const Scene& rea
   };
   out.rho = PathTracer(rhoCaster, half(0.0)).render(camera);
   out.mu = PathTracer(muCaster, half(0.5)).render(camera);
-  const int W = camera.intrinsics.width, H = camera.intrinsics.height;
-  out.mask = cv::Mat(H, W, CV_8UC1, cv::Scalar(0));
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x) {
-      cv::Vec3f o, d;
-      cameraRay(camera, x, y, o, d);
-      const auto hit = rhoCaster.intersect(o, d, 1e-4f, 1e30f, false);
-      if (hit && withObjects.materials[hit->material].isVirtual) out.mask.at<uchar>(y, x) = 255;
-    }
+  out.mask = virtualMask(rhoCaster, camera);
   return out;
 }
 

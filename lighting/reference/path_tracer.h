@@ -61,6 +61,9 @@ struct DifferentialImages {
   cv::Mat delta() const;
 };
 
+/// 255 where the pixel's centre ray first meets a material marked virtual, else 0 (CV_8UC1).
+cv::Mat virtualMask(const RayCaster& caster, const PinholeCamera& camera);
+
 /// Renders ρ from `withObjects` and μ from `realOnly` (progress reported over both, 0..1).
 DifferentialImages renderDifferential(const Scene& withObjects, const Scene& realOnly, const PinholeCamera& camera,
                                       const PathTraceOptions& options);
