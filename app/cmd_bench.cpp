@@ -205,7 +205,7 @@ int runValBruteForce(const BenchOptions& o) {
   }
   json out = {{"session", o.session}, {"model", o.model}, {"gl", context->renderer()}, {"records", records}};
   if (!o.json.empty()) {
-    if (!fs::path(o.json).parent_path().empty()) fs::create_directories(fs::path(o.json).parent_path());
+    createParentDirectory(o.json);
     capture::writeFileAtomically(o.json, out.dump(2) + "\n");
   }
   return 0;
@@ -224,7 +224,7 @@ struct FrameState {
   capture::Pose T_marker_camera;
 };
 
-float lum3(const cv::Vec4f& v) { return 0.2126f * v[0] + 0.7152f * v[1] + 0.0722f * v[2]; }
+double lum3(const cv::Vec4f& v) { return capture::luminance({v[0], v[1], v[2]}); }
 
 /// Frame-to-frame change of the real pixels' delta at the same marker-frame points (reprojected with the
 /// camera poses), relative to its magnitude: Σ|lum δ_t − lum δ_{t−1}| / Σ|lum δ_{t−1}| over matched pixels.
@@ -296,7 +296,7 @@ cv::Mat errorImage(const cv::Mat& shade, const Truth& truth, double scale) {
         out.at<cv::Vec3b>(y, x) = {90, 90, 90};
         continue;
       }
-      const double d = (s[0] - r[0]) * 0.2126 + (s[1] - r[1]) * 0.7152 + (s[2] - r[2]) * 0.0722;
+      const double d = capture::luminance({s[0] - r[0], s[1] - r[1], s[2] - r[2]});
       const auto v = cv::saturate_cast<uchar>(255.0 * std::abs(d) / scale);
       out.at<cv::Vec3b>(y, x) = d < 0 ? cv::Vec3b(v, v / 4, v / 4) : cv::Vec3b(v / 4, v, v / 4);  // red: too dark
     }
@@ -399,7 +399,7 @@ int runSweep(const BenchOptions& o) {
     for (int i = 0; i < static_cast<int>(t.delta.total()); ++i)
       if (!t.images.mask.at<uchar>(i)) {
         const cv::Vec3f d = t.delta.at<cv::Vec3f>(i);
-        mags.push_back(std::abs(0.2126f * d[0] + 0.7152f * d[1] + 0.0722f * d[2]));
+        mags.push_back(static_cast<float>(std::abs(capture::luminance(cv::Vec3d(d)))));
       }
     std::sort(mags.begin(), mags.end());
     errScale = mags.empty() ? 1.0 : std::max(1e-6, static_cast<double>(mags[mags.size() * 99 / 100]));
@@ -488,7 +488,7 @@ int runSweep(const BenchOptions& o) {
   doc["presets"] = choosePresets(records);
   auto write = [](const std::string& path, const std::function<void()>& fn) {
     if (path.empty()) return;
-    if (!fs::path(path).parent_path().empty()) fs::create_directories(fs::path(path).parent_path());
+    createParentDirectory(path);
     fn();
   };
   write(o.json, [&] { capture::writeFileAtomically(o.json, doc.dump(2) + "\n"); });

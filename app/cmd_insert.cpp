@@ -10,6 +10,7 @@
 #include <opencv2/calib3d.hpp>
 
 #include "app/commands.h"
+#include "app/output.h"
 #include "app/frame_pipeline.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
@@ -193,10 +194,10 @@ int runInsert(const InsertOptions& o) {
 
   if (!o.preview.empty()) {
     frames.render(*frame, result, compositor, profiler);
-    capture::writeFileAtomically(o.preview, capture::encodePng(result.composite, o.preview));
+    writePng(o.preview, result.composite);
     report["preview"] = o.preview;
   }
-  if (!fs::path(o.save).parent_path().empty()) fs::create_directories(fs::path(o.save).parent_path());
+  createParentDirectory(o.save);
   capture::writeFileAtomically(o.save, doc.dump(2) + "\n");
   std::printf("%s\n", report.dump().c_str());
   return 0;

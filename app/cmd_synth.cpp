@@ -201,7 +201,9 @@ int runSynth(const SynthOptions& o) {
     frame.timestamp = i / 30.0;
     frame.groundTruthT_world_camera = orbitCamera(i, o.frames);
     po.seed = o.seed * 1000003u + static_cast<uint64_t>(i);
-    po.progress = [&bar, i, &o](double x) { bar((i + x) / o.frames); };
+    // With a reference the frame's two renders share its step of the bar.
+    const double share = augmentedCaster && pathTrace ? 0.5 : 1.0;
+    po.progress = [&bar, i, share, &o](double x) { bar((i + share * x) / o.frames); };
     const PathTracer pt(rc, po);
     const RgbdRender r = renderRgbd(rc, pathTrace ? &pt : nullptr, m.colour, *frame.groundTruthT_world_camera);
     capture::RgbdFrame rgbd;
@@ -213,7 +215,9 @@ int runSynth(const SynthOptions& o) {
     if (augmentedCaster) {
       // The ideal composite: the same camera (seed, noise) looking at the room with the objects in it.
       const lighting::reference::PinholeCamera cam{m.colour, *frame.groundTruthT_world_camera};
-      const cv::Mat rho = pathTrace ? PathTracer(*augmentedCaster, po).render(cam) : r.radiance;
+      lighting::reference::PathTraceOptions rhoOptions = po;
+      rhoOptions.progress = [&bar, i, &o](double x) { bar((i + 0.5 + 0.5 * x) / o.frames); };
+      const cv::Mat rho = pathTrace ? PathTracer(*augmentedCaster, rhoOptions).render(cam) : r.radiance;
       const cv::Mat mask = lighting::reference::virtualMask(*augmentedCaster, cam);
       cv::Mat delta = rho - r.radiance;
       rho.copyTo(delta, mask);

@@ -26,6 +26,11 @@ void writePng(const std::string& path, const cv::Mat& rgb) {
   capture::writeFileAtomically(path, capture::encodePng(rgb, path));
 }
 
+void createParentDirectory(const std::string& path) {
+  const fs::path parent = fs::path(path).parent_path();
+  if (!parent.empty()) fs::create_directories(parent);
+}
+
 void prepareOutputDirectory(const std::string& out, const std::string& marker) {
   std::error_code ec;
   if (fs::exists(out, ec)) {

@@ -11,6 +11,8 @@ namespace mrgi::app {
 void writeExr(const std::string& path, const cv::Mat& rgb);
 /// RGB8 or grey 8/16-bit image -> PNG (atomically).
 void writePng(const std::string& path, const cv::Mat& rgb);
+/// Creates the folder a file is about to be written into (nothing for a bare file name).
+void createParentDirectory(const std::string& path);
 /// Creates `out`, or accepts it when empty or holding an earlier output of this command (it contains
 /// `marker`, e.g. summary.json); refuses any other folder so that nothing the user had is overwritten.
 void prepareOutputDirectory(const std::string& out, const std::string& marker);

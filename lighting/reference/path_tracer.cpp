@@ -6,13 +6,14 @@
 #include <thread>
 #include <vector>
 
+#include "capture/colour.h"
 #include "lighting/val.h"
 
 namespace mrgi::lighting::reference {
 namespace {
 constexpr float kPi = 3.14159265358979f;
 
-float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
+float lum(const cv::Vec3f& c) { return static_cast<float>(capture::luminance(cv::Vec3d(c))); }
 
 /// SplitMix64 finaliser: decorrelates the per-sample seeds.
 uint64_t mix(uint64_t z) {
