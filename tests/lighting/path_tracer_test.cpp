@@ -206,6 +206,40 @@ TEST(PathTracer, AreaLightConvergesToItsFormFactorAsOneOverSqrtSpp) {
   EXPECT_NEAR(std::exp(errors.back()), sigma / 16, 0.15 * sigma / 16);
 }
 
+TEST(RayCaster, RaysThroughMeshVerticesNeverSlipThrough) {
+  // A depth mesh has a vertex exactly on every second pixel's ray; a fast (non-watertight) traversal lets
+  // such rays pass between the triangles sharing that vertex.
+  const PinholeCamera cam = downCamera(1.0, 64, 48);
+  Scene s;
+  const int m = s.addMaterial({"grid", {0.5f, 0.5f, 0.5f}});
+  std::vector<cv::Vec3f> positions;
+  std::vector<uint32_t> indices;
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) {
+      cv::Vec3f o, d;
+      cameraRay(cam, x, y, o, d);
+      const float depth = 0.8f + 0.1f * std::sin(0.7f * x) * std::cos(0.5f * y);  // a bumpy surface
+      positions.push_back(o + (depth / -d[2]) * d);
+    }
+  for (uint32_t y = 0; y + 1 < 48; ++y)
+    for (uint32_t x = 0; x + 1 < 64; ++x) {
+      const uint32_t a = y * 64 + x, b = a + 1, c = a + 64, e = c + 1;
+      indices.insert(indices.end(), {a, c, b, b, c, e});
+    }
+  s.addMesh(positions, {}, indices, m);
+  const RayCaster rc(s);
+  int misses = 0;
+  for (int y = 1; y + 1 < 48; ++y)
+    for (int x = 1; x + 1 < 64; ++x) {
+      cv::Vec3f o, d;
+      cameraRay(cam, x, y, o, d);
+      misses += !rc.intersect(o, d);
+    }
+  // Fast traversal: 568 of the 2852 rays (20 %) escaped. Embree's robust mode leaves 30 (1 %), rays that
+  // meet a vertex exactly; bounded here until the ray caster closes that last gap.
+  EXPECT_LT(misses, 2852 / 50);
+}
+
 TEST(PathTracer, ImageDependsOnTheSeedAloneNotOnTheThreads) {
   Scene s;
   const int m = s.addMaterial({"grey", {0.5f, 0.5f, 0.5f}});
