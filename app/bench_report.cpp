@@ -74,6 +74,7 @@ std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, 
     add(T::KinectVal, "occlusion", [](BenchConfig& c) { c.val.occlusion = !c.val.occlusion; });
     if (!quick) {
       for (int v : {2, 8}) add(T::KinectVal, "stride", [v](BenchConfig& c) { c.val.stride = v; });
+      for (int v : {32, 512}) add(T::KinectVal, "k_cache", [v](BenchConfig& c) { c.val.kCache = v; });
       add(T::KinectVal, "fusion", [](BenchConfig& c) { c.val.fusion = !c.val.fusion; });
     }
   }
@@ -314,13 +315,21 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
        "body{font-family:sans-serif;max-width:1200px;margin:20px auto}table{border-collapse:collapse;font-size:12px}"
        "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td.l{text-align:left}"
        "figure{display:inline-block;margin:6px}figcaption{font-size:12px}</style></head><body>";
-  h << "<h1>mrgi bench</h1><p>Session <code>" << esc(doc.value("session", "")) << "</code>, scene <code>"
+  std::string sessionText;
+  if (doc.contains("session"))
+    for (const auto& sname : doc["session"].is_array() ? doc["session"] : json::array({doc["session"]}))
+      sessionText += (sessionText.empty() ? "" : ", ") + std::string("<code>") + esc(sname.get<std::string>()) + "</code>";
+  h << "<h1>mrgi bench</h1><p>Sessions " << sessionText << " (every measure below is the mean over the sessions), scene <code>"
     << esc(doc.value("scene", "")) << "</code>, " << doc.value("frames", 0) << " frames, renderer <code>"
     << esc(doc.value("gl", "")) << "</code>. Reference: path traced, " << doc["reference"].value("spp", 0) << " spp, "
     << doc["reference"].value("bounces", 0) << " bounces, frames " << doc["reference"]["frames"].dump()
     << " (its own noise, two seeds / sqrt 2: relative error " << fmt(doc["reference"].value("noise_rel_error_delta", 0.0))
     << " on the delta, " << fmt(doc["reference"].value("noise_rel_error_virtual", 0.0))
-    << " on the virtual radiance: the floor under every error below). Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
+    << " on the virtual radiance: the floor under every error below";
+  for (const auto& ref : doc.value("references", json::array()))
+    h << "; " << esc(ref.value("session", "")) << ": " << fmt(ref.value("noise_rel_error_delta", 0.0)) << " / "
+      << fmt(ref.value("noise_rel_error_virtual", 0.0));
+  h << "). Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
        "error = mean of the relative errors of the real-pixel delta and the virtual radiance.</p>";
 
   // Pareto fronts.
@@ -422,6 +431,29 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
       << fmt(msOf(r)) << "</td><td>" << fmt(r["gpu_mb"].get<double>()) << "</td><td>" << fmt(r["rmse_delta"].get<double>())
       << "</td><td>" << fmt(r["rel_error_delta"].get<double>()) << "</td><td>" << fmt(r["rel_error_virtual"].get<double>())
       << "</td><td>" << fmt(r["ssim"].get<double>(), 4) << "</td><td>" << fmt(r["flicker"].get<double>()) << "</td></tr>";
+  h << "</table>";
+
+  // Per session, with the whole pipeline against a synthetic session's own true reference where it has one.
+  h << "<h2>Per session</h2><p>Technique error: against the path-traced reference of the inputs the pipeline sees "
+       "(measured depth, estimated albedo). Whole pipeline: against the synthetic session's true reference composites "
+       "(the true room, albedos and lights), so depth noise, albedo and light estimation count too.</p>"
+       "<table><tr><th>technique</th><th>varied</th><th class='l'>session</th><th>ms lighting</th><th>rel. err. delta</th>"
+       "<th>rel. err. virtual</th><th>SSIM</th><th>flicker</th><th>whole: delta</th><th>whole: virtual</th><th>whole: SSIM</th></tr>";
+  for (const auto& r : records)
+    for (const auto& p : r.value("sessions", json::array())) {
+      h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>" << esc(r.value("varied", ""))
+        << "</td><td class='l'>" << esc(p.value("session", "")) << "</td><td>" << fmt(msOf(p)) << "</td><td>"
+        << fmt(p["rel_error_delta"].get<double>()) << "</td><td>" << fmt(p["rel_error_virtual"].get<double>()) << "</td><td>"
+        << fmt(p["ssim"].get<double>(), 4) << "</td><td>" << fmt(p["flicker"].get<double>()) << "</td>";
+      if (p.contains("whole_pipeline")) {
+        const json& w = p["whole_pipeline"];
+        h << "<td>" << fmt(w["rel_error_delta"].get<double>()) << "</td><td>" << fmt(w["rel_error_virtual"].get<double>())
+          << "</td><td>" << fmt(w["ssim"].get<double>(), 4) << "</td>";
+      } else {
+        h << "<td>-</td><td>-</td><td>-</td>";
+      }
+      h << "</tr>";
+    }
   h << "</table>";
 
   if (!images.empty()) {

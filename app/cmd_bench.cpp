@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/quality.hpp>
 
@@ -50,7 +51,8 @@ struct BenchOptions {
   int refBounces = 3;
   bool quick = false;
   std::string pose = "ground-truth";
-  std::string session = "recordings/tabletop-synth";
+  std::vector<std::string> sessions{"recordings/tabletop-synth", "recordings/tabletop-pt"};
+  std::string session = "recordings/tabletop-synth";  ///< bruteforce mode
   std::string model = "recordings/models/sphere.ply";
   std::vector<int> valCounts{1024, 4096, 16384, 65536};
   std::vector<int> sparseCounts{256, 1024, 4096};
@@ -221,13 +223,31 @@ struct Truth {
 /// What one frame of a configuration left behind for the flicker of the next.
 struct FrameState {
   cv::Mat shade, positions;  ///< RGBA32F: delta or virtual radiance (a = virtual); G-buffer positions (w = valid)
+  cv::Mat smooth;            ///< CV_32F: luminance of the real pixels' delta, averaged over a 5x5 window of real pixels
   capture::Pose T_marker_camera;
 };
 
 double lum3(const cv::Vec4f& v) { return capture::luminance({v[0], v[1], v[2]}); }
 
-/// Frame-to-frame change of the real pixels' delta at the same marker-frame points (reprojected with the
-/// camera poses), relative to its magnitude: Σ|lum δ_t − lum δ_{t−1}| / Σ|lum δ_{t−1}| over matched pixels.
+/// The frame's state; the delta's luminance is box-averaged over real, valid pixels (normalised convolution),
+/// so that a shadow edge landing one pixel over after reprojection does not count as flicker.
+FrameState frameState(cv::Mat shade, cv::Mat positions, const capture::Pose& T_marker_camera) {
+  cv::Mat lum(shade.size(), CV_32F, cv::Scalar(0)), weight(shade.size(), CV_32F, cv::Scalar(0));
+  for (int i = 0; i < static_cast<int>(shade.total()); ++i) {
+    const cv::Vec4f s = shade.at<cv::Vec4f>(i);
+    if (positions.at<cv::Vec4f>(i)[3] < 0.5f || s[3] > 0.5f) continue;
+    lum.at<float>(i) = static_cast<float>(lum3(s));
+    weight.at<float>(i) = 1.f;
+  }
+  cv::Mat num, den;
+  cv::boxFilter(lum, num, CV_32F, {5, 5}, {-1, -1}, false);
+  cv::boxFilter(weight, den, CV_32F, {5, 5}, {-1, -1}, false);
+  cv::Mat smooth = num / cv::max(den, 1.f);
+  return {std::move(shade), std::move(positions), std::move(smooth), T_marker_camera};
+}
+
+/// Frame-to-frame change of the real pixels' smoothed delta at the same marker-frame points (reprojected with
+/// the camera poses), relative to its magnitude: Σ|lum δ_t − lum δ_{t−1}| / Σ|lum δ_{t−1}| over matched pixels.
 std::pair<double, double> flickerSums(const FrameState& prev, const FrameState& cur, const capture::Intrinsics& k) {
   const capture::Pose T_camera_marker = capture::inversePose(prev.T_marker_camera);
   double num = 0, den = 0;
@@ -244,8 +264,9 @@ std::pair<double, double> flickerSums(const FrameState& prev, const FrameState& 
       const cv::Vec4f t = prev.shade.at<cv::Vec4f>(v, u);
       if (q[3] < 0.5f || t[3] > 0.5f) continue;
       if (cv::norm(cv::Vec3f(q[0] - p[0], q[1] - p[1], q[2] - p[2])) > 0.01) continue;  // not the same surface point
-      num += std::abs(lum3(s) - lum3(t));
-      den += std::abs(lum3(t));
+      const double a = cur.smooth.at<float>(y, x), b = prev.smooth.at<float>(v, u);
+      num += std::abs(a - b);
+      den += std::abs(b);
     }
   return {num, den};
 }
@@ -256,6 +277,13 @@ struct ErrorSums {
   size_t real = 0;
   double virtAbs = 0, virtRef = 0;
   size_t mismatched = 0;  ///< pixels virtual in one image only (silhouette), left out
+  void add(const ErrorSums& e) {
+    sq += e.sq, abs += e.abs, absRef += e.absRef, real += e.real;
+    virtAbs += e.virtAbs, virtRef += e.virtRef, mismatched += e.mismatched;
+  }
+  double rmse() const { return real ? std::sqrt(sq / (3.0 * static_cast<double>(real))) : 0.0; }
+  double relDelta() const { return absRef > 0 ? abs / absRef : 0.0; }
+  double relVirtual() const { return virtRef > 0 ? virtAbs / virtRef : 0.0; }
 };
 
 ErrorSums errorSums(const cv::Mat& shade, const Truth& truth) {
@@ -312,90 +340,236 @@ bool lightingStage(const std::string& n) {
   return n == "gbuffer" || n == "rsm" || n == "shade" || n.rfind("lpv.", 0) == 0 || n.rfind("val.", 0) == 0;
 }
 
-int runSweep(const BenchOptions& o) {
-  auto source = capture::open(o.session);
-  const capture::SourceInfo& info = source->info();
-  if (!info.hasRgbd) throw capture::CaptureError(o.session, "has no RGB-D frames");
-  LightingSetup setup = prepareLighting(lighting::loadScene(o.scene), o.scene, *source, o.session, o.pose);
-  if (setup.scene.objects.empty()) throw capture::CaptureError(o.scene, "has no virtual object to measure");
+/// One session of the sweep: its frames, lighting setup and truths.
+struct BenchSession {
+  std::string path;
+  LightingSetup setup;
   std::vector<capture::Frame> frames;
-  while (static_cast<int>(frames.size()) < o.frames) {
+  int W = 0, H = 0;
+  std::map<int, Truth> truths;    ///< path traced from the inputs the pipeline sees (measures the technique)
+  std::map<int, Truth> trueRefs;  ///< the synthetic session's own reference composites (the whole pipeline)
+  json refInfo;
+  std::unique_ptr<compositor::Compositor> compositor;
+};
+
+/// The true reference composites a synthetic session carries for `scene` (manifest ground_truth.reference),
+/// for `frames` (keyed by position): composite, delta (rho - mu on real pixels, rho on virtual) and mask.
+std::map<int, Truth> loadTrueReferences(const std::string& session, const std::string& scene,
+                                        const std::vector<capture::Frame>& frames) {
+  std::map<int, Truth> out;
+  if (!fs::is_directory(session) || !fs::exists(fs::path(session) / "manifest.json")) return out;
+  const capture::SessionSource reader(session);
+  const json& gt = reader.manifest().groundTruth;
+  if (!gt.contains("reference") || !gt["reference"].contains("scene")) return out;
+  std::error_code ec;
+  // The manifest names the scene relative to the session directory.
+  if (!fs::equivalent(fs::path(session) / gt["reference"]["scene"].get<std::string>(), scene, ec)) return out;
+  auto path = [&](const std::string& key, int64_t f) {
+    std::string pattern = gt["reference"].value(key, "");
+    const size_t at = pattern.find("NNNNNN");
+    if (at == std::string::npos) throw capture::CaptureError(session, "manifest ground_truth.reference." + key + " has no NNNNNN");
+    char idx[16];
+    std::snprintf(idx, sizeof idx, "%06lld", static_cast<long long>(f));
+    pattern.replace(at, 6, idx);
+    return (fs::path(session) / pattern).string();
+  };
+  for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
+    const int64_t index = frames[f].index;
+    Truth t;
+    t.frame = f;
+    const cv::Mat bgr = cv::imread(path("composite", index), cv::IMREAD_COLOR);
+    t.delta = cv::imread(path("delta", index), cv::IMREAD_UNCHANGED);
+    t.images.mask = cv::imread(path("mask", index), cv::IMREAD_GRAYSCALE);
+    if (bgr.empty() || t.delta.empty() || t.images.mask.empty())
+      throw capture::CaptureError(path("composite", index), "true reference of frame " + std::to_string(index) + " is missing or unreadable");
+    cv::cvtColor(bgr, t.composite, cv::COLOR_BGR2RGB);
+    if (t.delta.channels() == 4) cv::cvtColor(t.delta, t.delta, cv::COLOR_BGRA2BGR);
+    cv::cvtColor(t.delta, t.delta, cv::COLOR_BGR2RGB);  // EXR files hold BGR in OpenCV's order
+    out[f] = std::move(t);
+  }
+  return out;
+}
+
+BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
+  BenchSession bs;
+  bs.path = path;
+  auto source = capture::open(path);
+  const capture::SourceInfo& info = source->info();
+  if (!info.hasRgbd) throw capture::CaptureError(path, "has no RGB-D frames");
+  bs.setup = prepareLighting(lighting::loadScene(o.scene), o.scene, *source, path, o.pose);
+  if (bs.setup.scene.objects.empty()) throw capture::CaptureError(o.scene, "has no virtual object to measure");
+  while (static_cast<int>(bs.frames.size()) < o.frames) {
     auto f = source->next();
     if (!f) break;
-    if (f->rgbd) frames.push_back(std::move(*f));
+    if (f->rgbd) bs.frames.push_back(std::move(*f));
   }
-  if (frames.empty()) throw capture::CaptureError(o.session, "has no RGB-D frame");
-  const int W = info.colourIntrinsics.width, H = info.colourIntrinsics.height;
-  const int n = static_cast<int>(frames.size());
+  if (bs.frames.empty()) throw capture::CaptureError(path, "has no RGB-D frame");
+  bs.W = info.colourIntrinsics.width, bs.H = info.colourIntrinsics.height;
+  const int n = static_cast<int>(bs.frames.size());
   std::vector<int> refFrames;
   const int refs = std::min(o.refFrames, n);
   for (int i = 0; i < refs; ++i) refFrames.push_back(refs == 1 ? 0 : i * (n - 1) / (refs - 1));
 
+  // Ground truth: the same inputs, path traced.
+  bs.refInfo = {{"session", path}, {"spp", o.refSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
+  FrameOptions mo;
+  mo.pose = o.pose;
+  mo.gpu = false;
+  FramePipeline measurer(bs.setup, bs.W, bs.H, mo);
+  gl::Profiler none;
+  double ms = 0;
+  for (int f : refFrames) {
+    capture::Frame frame = bs.frames[f];
+    const FrameResult r = measurer.measure(frame, none);
+    if (!r.T_marker_camera) throw capture::CaptureError(path, "frame " + std::to_string(f) + ": no camera pose (marker not found)");
+    const ReferenceScenes scenes = reconstructedScenes(*measurer.setup(), measurer.realSurface(frame, r, none),
+                                                       frame.rgbd->colourIntrinsics, *r.T_marker_camera);
+    lighting::reference::PathTraceOptions po;
+    po.spp = o.refSpp;
+    po.bounces = o.refBounces;
+    ProgressBar bar(fs::path(path).filename().string() + ": reference frame " + std::to_string(f));
+    po.progress = [&bar](double x) { bar(x); };
+    const auto t0 = std::chrono::steady_clock::now();
+    Truth t;
+    t.frame = f;
+    t.images = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
+    ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    t.delta = t.images.delta();
+    t.composite = compositor::compositeReference(frame.rgbd->colour, t.delta, t.images.mask);
+    if (bs.truths.empty()) {
+      // The reference's own noise: a second render with another seed. Each has error ≈ this / √2 against
+      // the converged image, the floor under every technique's error.
+      po.seed += 1;
+      po.progress = nullptr;
+      const auto again = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
+      cv::Mat shadeLike(again.rho.size(), CV_32FC4);
+      const cv::Mat d2 = again.delta();
+      for (int i = 0; i < static_cast<int>(d2.total()); ++i) {
+        const cv::Vec3f v = d2.at<cv::Vec3f>(i);
+        shadeLike.at<cv::Vec4f>(i) = {v[0], v[1], v[2], again.mask.at<uchar>(i) ? 1.f : 0.f};
+      }
+      const ErrorSums e = errorSums(shadeLike, t);
+      bs.refInfo["noise_rel_error_delta"] = e.absRef > 0 ? e.abs / e.absRef / std::sqrt(2.0) : 0.0;
+      bs.refInfo["noise_rel_error_virtual"] = e.virtRef > 0 ? e.virtAbs / e.virtRef / std::sqrt(2.0) : 0.0;
+      std::printf("%s: reference noise (two seeds, / sqrt 2): delta %.3f, virtual %.3f\n", path.c_str(),
+                  bs.refInfo["noise_rel_error_delta"].get<double>(), bs.refInfo["noise_rel_error_virtual"].get<double>());
+    }
+    bs.truths[f] = std::move(t);
+  }
+  bs.refInfo["ms_per_frame"] = ms / refs;
+  std::printf("%s: reference %d frames, %d spp, %d bounces, %.1f s per frame\n", path.c_str(), refs, o.refSpp, o.refBounces,
+              ms / refs / 1000);
+  bs.trueRefs = loadTrueReferences(path, o.scene, bs.frames);
+  if (!bs.trueRefs.empty()) {
+    bs.refInfo["true_reference_frames"] = bs.trueRefs.size();
+    std::printf("%s: %zu true reference composites (whole-pipeline error)\n", path.c_str(), bs.trueRefs.size());
+  }
+  return bs;
+}
+
+/// A configuration's measurements on one session.
+json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o, double errScale,
+                   std::vector<ReportImage>* images) {
+  LightingSetup s = bs.setup;
+  s.scene.technique = c.technique;
+  s.scene.lpv = c.lpv;
+  s.scene.val = c.val;
   FrameOptions fo;
   fo.pose = o.pose;
-  // Ground truth: the same inputs, path traced.
-  std::map<int, Truth> truths;
-  json refInfo = {{"spp", o.refSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
-  {
-    FrameOptions mo = fo;
-    mo.gpu = false;
-    FramePipeline measurer(setup, W, H, mo);
-    gl::Profiler none;
-    double ms = 0;
-    for (int f : refFrames) {
-      capture::Frame frame = frames[f];
-      const FrameResult r = measurer.measure(frame, none);
-      if (!r.T_marker_camera) throw capture::CaptureError(o.session, "frame " + std::to_string(f) + ": no camera pose (marker not found)");
-      const ReferenceScenes scenes = reconstructedScenes(*measurer.setup(), measurer.realSurface(frame, r, none),
-                                                         frame.rgbd->colourIntrinsics, *r.T_marker_camera);
-      lighting::reference::PathTraceOptions po;
-      po.spp = o.refSpp;
-      po.bounces = o.refBounces;
-      ProgressBar bar("reference frame " + std::to_string(f));
-      po.progress = [&bar](double x) { bar(x); };
-      const auto t0 = std::chrono::steady_clock::now();
-      Truth t;
-      t.frame = f;
-      t.images = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
-      ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      t.delta = t.images.delta();
-      t.composite = compositor::compositeReference(frame.rgbd->colour, t.delta, t.images.mask);
-      if (truths.empty()) {
-        // The reference's own noise: a second render with another seed. Each has error ≈ this / √2 against
-        // the converged image, the floor under every technique's error.
-        po.seed += 1;
-        po.progress = nullptr;
-        const auto again = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
-        cv::Mat shadeLike(again.rho.size(), CV_32FC4);
-        const cv::Mat d2 = again.delta();
-        for (int i = 0; i < static_cast<int>(d2.total()); ++i) {
-          const cv::Vec3f v = d2.at<cv::Vec3f>(i);
-          shadeLike.at<cv::Vec4f>(i) = {v[0], v[1], v[2], again.mask.at<uchar>(i) ? 1.f : 0.f};
-        }
-        const ErrorSums e = errorSums(shadeLike, t);
-        refInfo["noise_rel_error_delta"] = e.absRef > 0 ? e.abs / e.absRef / std::sqrt(2.0) : 0.0;
-        refInfo["noise_rel_error_virtual"] = e.virtRef > 0 ? e.virtAbs / e.virtRef / std::sqrt(2.0) : 0.0;
-        std::printf("reference noise (two seeds, / sqrt 2): delta %.3f, virtual %.3f\n",
-                    refInfo["noise_rel_error_delta"].get<double>(), refInfo["noise_rel_error_virtual"].get<double>());
-      }
-      truths[f] = std::move(t);
+  FramePipeline fp(s, bs.W, bs.H, fo);
+  const int n = static_cast<int>(bs.frames.size());
+  std::map<std::string, double> stageSum;
+  int timed = 0;
+  ErrorSums err, whole;
+  double ssimSum = 0, wholeSsim = 0, flickNum = 0, flickDen = 0;
+  int wholeFrames = 0;
+  size_t gpuBytes = 0;
+  std::optional<FrameState> prev;
+  const std::string name = lighting::techniqueName(c.technique);
+  for (int f = 0; f < n; ++f) {
+    capture::Frame frame = bs.frames[f];
+    gl::Profiler profiler;
+    const FrameResult r = fp.process(frame, *bs.compositor, profiler);
+    const auto stages = profiler.resolve();
+    if (f > 0 || n == 1) {
+      for (const auto& [stage, t] : stages) stageSum[stage] += std::max(t.cpuMs, t.gpuMs);
+      ++timed;
     }
-    refInfo["ms_per_frame"] = ms / refs;
-    std::printf("reference: %d frames, %d spp, %d bounces, %.1f s per frame\n", refs, o.refSpp, o.refBounces, ms / refs / 1000);
+    if (!r.lit) {
+      prev.reset();
+      continue;
+    }
+    lighting::LightingPipeline& pipe = *fp.lighting();
+    gpuBytes = std::max(gpuBytes, pipe.gpuBytes());
+    FrameState st = frameState(pipe.downloadShade(), pipe.downloadGBuffer(0), *r.T_marker_camera);
+    if (prev) {
+      const auto [a, b] = flickerSums(*prev, st, frame.rgbd->colourIntrinsics);
+      flickNum += a, flickDen += b;
+    }
+    if (const auto it = bs.truths.find(f); it != bs.truths.end()) {
+      const ErrorSums e = errorSums(st.shade, it->second);
+      err.add(e);
+      ssimSum += ssimOf(r.composite, it->second.composite);
+      if (images && c.varied.empty() && it == bs.truths.begin()) {
+        images->push_back({name + " (defaults), frame " + std::to_string(f), r.composite});
+        images->push_back({name + ": |delta - reference| (red: too dark, white = " + std::to_string(errScale).substr(0, 6) + ")",
+                           errorImage(st.shade, it->second, errScale)});
+      }
+    }
+    if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
+      whole.add(errorSums(st.shade, it->second));
+      wholeSsim += ssimOf(r.composite, it->second.composite);
+      ++wholeFrames;
+    }
+    prev = std::move(st);
   }
+  json msStages = json::object();
+  double total = 0, lightingMs = 0;
+  for (const auto& [stage, ms] : stageSum) {
+    if (stage == "read" || stage == "write") continue;
+    const double mean = ms / std::max(timed, 1);
+    msStages[stage] = mean;
+    total += mean;
+    if (lightingStage(stage)) lightingMs += mean;
+  }
+  json r = {{"session", bs.path},
+            {"ms_total", total},
+            {"ms_lighting", lightingMs},
+            {"ms_stages", msStages},
+            {"gpu_mb", static_cast<double>(gpuBytes) / (1024.0 * 1024.0)},
+            {"rmse_delta", err.rmse()},
+            {"rel_error_delta", err.relDelta()},
+            {"rel_error_virtual", err.relVirtual()},
+            {"ssim", bs.truths.empty() ? 0.0 : ssimSum / static_cast<double>(bs.truths.size())},
+            {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
+            {"silhouette_mismatch_pixels", err.mismatched}};
+  if (wholeFrames > 0)
+    r["whole_pipeline"] = {{"frames", wholeFrames},
+                           {"rel_error_delta", whole.relDelta()},
+                           {"rel_error_virtual", whole.relVirtual()},
+                           {"ssim", wholeSsim / wholeFrames},
+                           {"silhouette_mismatch_pixels", whole.mismatched}};
+  return r;
+}
 
+int runSweep(const BenchOptions& o) {
+  std::vector<BenchSession> sessions;
+  for (const std::string& path : o.sessions) sessions.push_back(loadBenchSession(path, o));
+  int W = 0, H = 0;
+  for (const auto& bs : sessions) W = std::max(W, bs.W), H = std::max(H, bs.H);
   gl::ContextConfig cfg;
   cfg.backend = gl::parseBackend(o.gl);
   cfg.width = W;
   cfg.height = H;
   auto context = gl::createContext(cfg);
-  compositor::Compositor compositor(W, H);
+  for (auto& bs : sessions) bs.compositor = std::make_unique<compositor::Compositor>(bs.W, bs.H);
   std::vector<ReportImage> images;
-  for (const auto& [f, t] : truths) images.push_back({"reference composite, frame " + std::to_string(f), t.composite});
+  const BenchSession& first = sessions.front();
+  for (const auto& [f, t] : first.truths) images.push_back({"reference composite, frame " + std::to_string(f), t.composite});
   double errScale = 0;  // one error-image scale for all: the reference delta's 99th percentile magnitude
   {
     std::vector<float> mags;
-    const Truth& t = truths.begin()->second;
+    const Truth& t = first.truths.begin()->second;
     for (int i = 0; i < static_cast<int>(t.delta.total()); ++i)
       if (!t.images.mask.at<uchar>(i)) {
         const cv::Vec3f d = t.delta.at<cv::Vec3f>(i);
@@ -406,85 +580,52 @@ int runSweep(const BenchOptions& o) {
   }
 
   json records = json::array();
-  const auto configs = sweepConfigs(o.technique, o.quick, setup.scene.lpv, setup.scene.val);
+  // The knobs start from the first session's scene file (the same file for all).
+  const auto configs = sweepConfigs(o.technique, o.quick, first.setup.scene.lpv, first.setup.scene.val);
   for (size_t ci = 0; ci < configs.size(); ++ci) {
     const BenchConfig& c = configs[ci];
-    LightingSetup s = setup;
-    s.scene.technique = c.technique;
-    s.scene.lpv = c.lpv;
-    s.scene.val = c.val;
-    FramePipeline fp(s, W, H, fo);
-    std::map<std::string, double> stageSum;
-    int timed = 0;
-    ErrorSums err;
-    double ssimSum = 0, flickNum = 0, flickDen = 0;
-    size_t gpuBytes = 0;
-    std::optional<FrameState> prev;
-    for (int f = 0; f < n; ++f) {
-      capture::Frame frame = frames[f];
-      gl::Profiler profiler;
-      const FrameResult r = fp.process(frame, compositor, profiler);
-      const auto stages = profiler.resolve();
-      if (f > 0 || n == 1) {
-        for (const auto& [name, t] : stages) stageSum[name] += std::max(t.cpuMs, t.gpuMs);
-        ++timed;
-      }
-      if (!r.lit) {
-        prev.reset();
-        continue;
-      }
-      lighting::LightingPipeline& pipe = *fp.lighting();
-      gpuBytes = std::max(gpuBytes, pipe.gpuBytes());
-      FrameState st{pipe.downloadShade(), pipe.downloadGBuffer(0), *r.T_marker_camera};
-      if (prev) {
-        const auto [a, b] = flickerSums(*prev, st, frame.rgbd->colourIntrinsics);
-        flickNum += a, flickDen += b;
-      }
-      if (const auto it = truths.find(f); it != truths.end()) {
-        const ErrorSums e = errorSums(st.shade, it->second);
-        err.sq += e.sq, err.abs += e.abs, err.absRef += e.absRef, err.real += e.real;
-        err.virtAbs += e.virtAbs, err.virtRef += e.virtRef, err.mismatched += e.mismatched;
-        ssimSum += ssimOf(r.composite, it->second.composite);
-        if (c.varied.empty() && it == truths.begin()) {
-          images.push_back({std::string(lighting::techniqueName(c.technique)) + " (defaults), frame " + std::to_string(f), r.composite});
-          images.push_back({std::string(lighting::techniqueName(c.technique)) + ": |delta - reference| (red: too dark, white = " +
-                                std::to_string(errScale).substr(0, 6) + ")",
-                            errorImage(st.shade, it->second, errScale)});
-        }
-      }
-      prev = std::move(st);
+    json perSession = json::array();
+    for (size_t si = 0; si < sessions.size(); ++si)
+      perSession.push_back(measureConfig(c, sessions[si], o, errScale, si == 0 ? &images : nullptr));
+    // The record: each measure's mean over the sessions (each session weighs the same), per session below.
+    json r = {{"technique", lighting::techniqueName(c.technique)}, {"varied", c.varied}, {"knobs", knobsJson(c)}};
+    for (const char* key : {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_virtual", "ssim",
+                            "flicker", "silhouette_mismatch_pixels"}) {
+      double sum = 0;
+      for (const auto& p : perSession) sum += p[key].get<double>();
+      r[key] = sum / static_cast<double>(perSession.size());
     }
-    json msStages = json::object();
-    double total = 0, lightingMs = 0;
-    for (const auto& [name, ms] : stageSum) {
-      if (name == "read" || name == "write") continue;
-      const double mean = ms / std::max(timed, 1);
-      msStages[name] = mean;
-      total += mean;
-      if (lightingStage(name)) lightingMs += mean;
-    }
-    json r = {{"technique", lighting::techniqueName(c.technique)},
-              {"varied", c.varied},
-              {"knobs", knobsJson(c)},
-              {"ms_total", total},
-              {"ms_lighting", lightingMs},
-              {"ms_stages", msStages},
-              {"gpu_mb", static_cast<double>(gpuBytes) / (1024.0 * 1024.0)},
-              {"rmse_delta", err.real ? std::sqrt(err.sq / (3.0 * static_cast<double>(err.real))) : 0.0},
-              {"rel_error_delta", err.absRef > 0 ? err.abs / err.absRef : 0.0},
-              {"rel_error_virtual", err.virtRef > 0 ? err.virtAbs / err.virtRef : 0.0},
-              {"ssim", truths.empty() ? 0.0 : ssimSum / static_cast<double>(truths.size())},
-              {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
-              {"silhouette_mismatch_pixels", err.mismatched}};
-    std::printf("[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker %.3f\n",
+    json stages = json::object();
+    for (const auto& p : perSession)
+      for (const auto& [stage, ms] : p["ms_stages"].items())
+        stages[stage] = stages.value(stage, 0.0) + ms.get<double>() / static_cast<double>(perSession.size());
+    r["ms_stages"] = stages;
+    r["sessions"] = perSession;
+    std::string wholeText;
+    for (const auto& p : perSession)
+      if (p.contains("whole_pipeline")) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, ", whole pipeline (%s): delta %.3f virtual %.3f SSIM %.4f",
+                      fs::path(p["session"].get<std::string>()).filename().c_str(), p["whole_pipeline"]["rel_error_delta"].get<double>(),
+                      p["whole_pipeline"]["rel_error_virtual"].get<double>(), p["whole_pipeline"]["ssim"].get<double>());
+        wholeText += buf;
+      }
+    std::printf("[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker %.3f%s\n",
                 ci + 1, configs.size(), r["technique"].get<std::string>().c_str(), c.varied.c_str(), r["knobs"].dump().c_str(),
-                total, lightingMs, r["rel_error_delta"].get<double>(), r["rel_error_virtual"].get<double>(),
-                r["ssim"].get<double>(), r["flicker"].get<double>());
+                r["ms_total"].get<double>(), r["ms_lighting"].get<double>(), r["rel_error_delta"].get<double>(),
+                r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(), r["flicker"].get<double>(), wholeText.c_str());
     std::fflush(stdout);
     records.push_back(r);
   }
-  json doc = {{"session", o.session}, {"scene", o.scene},     {"frames", n},
-              {"gl", context->renderer()}, {"reference", refInfo}, {"records", records}};
+  json sessionInfo = json::array();
+  for (const auto& bs : sessions) sessionInfo.push_back(bs.refInfo);
+  json doc = {{"session", o.sessions.size() == 1 ? json(o.sessions.front()) : json(o.sessions)},
+              {"scene", o.scene},
+              {"frames", first.frames.size()},
+              {"gl", context->renderer()},
+              {"reference", first.refInfo},
+              {"references", sessionInfo},
+              {"records", records}};
   doc["presets"] = choosePresets(records);
   auto write = [](const std::string& path, const std::function<void()>& fn) {
     if (path.empty()) return;
@@ -495,7 +636,7 @@ int runSweep(const BenchOptions& o) {
   write(o.csv, [&] { writeCsv(o.csv, records); });
   write(o.html, [&] { writeHtml(o.html, doc, images); });
   write(o.presets, [&] {
-    json p = {{"generated_by", "mrgi bench"}, {"session", o.session}, {"gl", context->renderer()}, {"presets", doc["presets"]}};
+    json p = {{"generated_by", "mrgi bench"}, {"session", doc["session"]}, {"gl", context->renderer()}, {"presets", doc["presets"]}};
     capture::writeFileAtomically(o.presets, p.dump(2) + "\n");
   });
   for (const char* name : {"fast", "balanced", "accurate"})
@@ -517,7 +658,7 @@ Action addBench(CLI::App& app) {
   app.add_option("--csv", o->csv, "write the records as CSV");
   app.add_option("--html", o->html, "write a self-contained HTML report (SVG plots, images)");
   app.add_option("--presets", o->presets, "write the fast/balanced/accurate presets chosen from the front (JSON)");
-  app.add_option("--session", o->session, "session to measure on (its first frames)");
+  app.add_option("--session", o->sessions, "sessions to measure on, their first frames (repeat the flag; default: the two bundled synthetic sessions)");
   app.add_option("--scene", o->scene, "scene file: objects, lights and the knobs the sweep starts from");
   app.add_option("--frames", o->frames, "consecutive frames per configuration (flicker; times exclude the first)")
       ->check(CLI::Range(1, 1000));
@@ -541,6 +682,7 @@ Action addBench(CLI::App& app) {
   return [o] {
     if (o->against == "bruteforce") {
       if (o->technique.empty()) o->technique = "kinect-val";
+      o->session = o->sessions.front();
       return runValBruteForce(*o);
     }
     return runSweep(*o);

@@ -163,7 +163,8 @@ int runSynth(const SynthOptions& o) {
     table.groundTruth["scene"]["ambient_note"] = "ambient_radiance is a suggestion for real-time shading; the frames carry full global illumination";
   }
   if (!o.scene.empty())
-    table.groundTruth["reference"] = {{"scene", o.scene},
+    // Paths in the manifest are relative to the session directory.
+    table.groundTruth["reference"] = {{"scene", fs::relative(fs::absolute(o.scene), fs::absolute(o.out)).generic_string()},
                                       {"composite", "reference/NNNNNN.png"},
                                       {"delta", "reference/delta_NNNNNN.exr"},
                                       {"mask", "reference/mask_NNNNNN.png"},

@@ -604,7 +604,8 @@ TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto manifest = nlohmann::json::parse(slurp(out / "manifest.json"));
   EXPECT_NE(manifest["ground_truth"]["scene"]["generator"].get<std::string>().find("path traced"), std::string::npos);
-  EXPECT_EQ(manifest["ground_truth"]["reference"]["scene"], scene.string());
+  // Named relative to the session directory.
+  EXPECT_TRUE(fs::equivalent(out / manifest["ground_truth"]["reference"]["scene"].get<std::string>(), scene));
   for (int i = 0; i < 2; ++i) {
     char name[32];
     std::snprintf(name, sizeof name, "%06d.png", i);
@@ -628,5 +629,28 @@ TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {
     cv::minMaxLoc(delta.reshape(1), &lo, nullptr);
     EXPECT_LT(lo, 0.0);  // its shadow
   }
+  // The bench measures the whole pipeline against these true references, per session and averaged over sessions.
+  const fs::path json = out.string() + "_bench.json";
+  const Result b = runMrgi("bench --quick --technique dlpv --session " + out.string() + " --session " + session().string() +
+                           " --scene " + scene.string() + " --frames 2 --ref-frames 1 --ref-spp 2 --json " + json.string());
+  ASSERT_EQ(b.exitCode, 0) << b.err;
+  const auto doc = nlohmann::json::parse(slurp(json));
+  ASSERT_EQ(doc["references"].size(), 2u);
+  EXPECT_EQ(doc["references"][0]["true_reference_frames"], 2);
+  EXPECT_FALSE(doc["references"][1].contains("true_reference_frames"));  // a session without true references
+  for (const auto& rec : doc["records"]) {
+    ASSERT_EQ(rec["sessions"].size(), 2u);
+    const auto& whole = rec["sessions"][0]["whole_pipeline"];
+    EXPECT_EQ(whole["frames"], 2);
+    for (const char* key : {"rel_error_delta", "rel_error_virtual"}) {
+      EXPECT_GT(whole[key].get<double>(), 0.0) << key;
+      EXPECT_LT(whole[key].get<double>(), 2.0) << key;
+    }
+    EXPECT_GT(whole["ssim"].get<double>(), 0.5);
+    EXPECT_FALSE(rec["sessions"][1].contains("whole_pipeline"));
+    const double mean = 0.5 * (rec["sessions"][0]["rel_error_virtual"].get<double>() + rec["sessions"][1]["rel_error_virtual"].get<double>());
+    EXPECT_NEAR(rec["rel_error_virtual"].get<double>(), mean, 1e-12);
+  }
+  fs::remove(json);
   fs::remove_all(out);
 }
