@@ -476,6 +476,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   s.scene.val = c.val;
   FrameOptions fo;
   fo.pose = o.pose;
+  fo.reuse = false;  // every frame pays for every stage: the times are those of a moving camera
   FramePipeline fp(s, bs.W, bs.H, fo);
   const int n = static_cast<int>(bs.frames.size());
   std::map<std::string, double> stageSum;

@@ -41,6 +41,7 @@ struct ReplayOptions {
   bool debug = false;
   std::string pose = "marker";
   int meshStride = 2;
+  bool recomputeAll = false;
 };
 
 int runReplay(const ReplayOptions& o) {
@@ -71,6 +72,7 @@ int runReplay(const ReplayOptions& o) {
   FrameOptions fo;
   fo.pose = o.pose;
   fo.meshStride = o.meshStride;
+  fo.reuse = !o.recomputeAll;
   const lighting::Technique technique = setup ? setup->scene.technique : lighting::Technique::Dlpv;
   FramePipeline frames(std::move(setup), width, height, fo);
   lighting::LightingPipeline* pipeline = frames.lighting();
@@ -79,6 +81,7 @@ int runReplay(const ReplayOptions& o) {
   const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
   json perFrame = json::array();
   std::map<std::string, std::pair<double, double>> sums;  // stage -> (cpu, gpu) ms
+  std::map<std::string, int64_t> skipped;                 // stage -> frames it was skipped on
   int64_t done = 0;
   const auto start = std::chrono::steady_clock::now();
   while (limit < 0 || done < limit) {
@@ -90,6 +93,8 @@ int runReplay(const ReplayOptions& o) {
     if (!frame) break;
     FrameResult result = frames.process(*frame, compositor, profiler);
     json frameInfo = result.info;
+    if (frameInfo.contains("skipped"))
+      for (const auto& stage : frameInfo["skipped"]) ++skipped[stage.get<std::string>()];
     const cv::Mat& composite = result.composite;
     if (pipeline) {
       cv::Mat shade;  // read back once for both the debug views and the dump
@@ -195,7 +200,9 @@ int runReplay(const ReplayOptions& o) {
                    {"detail", context->detail()}};
   json mean;
   for (const auto& [name, s] : sums) mean[name] = {{"cpu_ms", s.first / done}, {"gpu_ms", s.second / done}};
-  summary["stages_ms"] = mean;
+  summary["stages_ms"] = mean;  // means over all frames: a skipped stage costs 0 on its frame
+  summary["skipped_frames"] = skipped;
+  summary["reuse"] = !o.recomputeAll;
   if (const LightingSetup* setup = frames.setup()) {
     summary["scene"] = o.scene;
     summary["technique"] = lighting::techniqueName(setup->scene.technique);
@@ -244,6 +251,7 @@ Action addReplay(CLI::App& app) {
                                      "RSM flux/normal of the last light, DLPV z-slices");
   app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
+  app.add_flag("--recompute-all", o->recomputeAll, "run every stage on every frame (default: skip stages whose inputs did not change)");
   app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(CLI::Range(1, 16));
   return [o] { return runReplay(*o); };
 }

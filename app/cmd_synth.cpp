@@ -33,6 +33,7 @@ struct SynthOptions {
   uint64_t seed = 1;
   int tagId = 0;
   double tagSize = 0.16;
+  bool staticCamera = false;  ///< every frame from the orbit's first pose (only the sensor noise changes)
   int fisheyeEvery = 30;  ///< a fisheye frame every N frames (the room is static), 0 = none
   std::string render = "pathtrace";  ///< pathtrace (global illumination) | raycast (direct light + constant ambient)
   int spp = 64, bounces = 3;
@@ -200,7 +201,7 @@ int runSynth(const SynthOptions& o) {
     capture::Frame frame;
     frame.index = i;
     frame.timestamp = i / 30.0;
-    frame.groundTruthT_world_camera = orbitCamera(i, o.frames);
+    frame.groundTruthT_world_camera = orbitCamera(o.staticCamera ? 0 : i, o.frames);
     po.seed = o.seed * 1000003u + static_cast<uint64_t>(i);
     // With a reference the frame's two renders share its step of the bar.
     const double share = augmentedCaster && pathTrace ? 0.5 : 1.0;
@@ -252,6 +253,7 @@ Action addSynth(CLI::App& app) {
   auto o = std::make_shared<SynthOptions>();
   app.add_option("--out", o->out, "new session directory (must not exist or be empty)")->required();
   app.add_option("--frames", o->frames, "number of frames along the camera orbit")->check(CLI::Range(1, 100000));
+  app.add_flag("--static-camera", o->staticCamera, "keep the camera at the orbit's first pose (only the sensor noise changes)");
   app.add_option("--width", o->width, "image width")->check(CLI::Range(16, 8192));
   app.add_option("--height", o->height, "image height")->check(CLI::Range(12, 8192));
   app.add_option("--seed", o->seed, "noise seed (output is deterministic for a seed)");

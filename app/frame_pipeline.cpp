@@ -1,5 +1,9 @@
 #include "app/frame_pipeline.h"
 
+#include <algorithm>
+
+#include <opencv2/imgproc.hpp>
+
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/registration.h"
@@ -128,6 +132,22 @@ std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& fra
   return std::nullopt;
 }
 
+namespace {
+/// Camera poses within 1 mm and 0.1 degree of each other.
+bool sameView(const capture::Pose& a, const capture::Pose& b) {
+  const cv::Vec3d dt = capture::translationOf(a) - capture::translationOf(b);
+  const cv::Matx33d R = capture::rotationOf(a).t() * capture::rotationOf(b);
+  const double cosAngle = std::clamp((R(0, 0) + R(1, 1) + R(2, 2) - 1.0) / 2.0, -1.0, 1.0);
+  return cv::norm(dt) < 1e-3 && std::acos(cosAngle) < 0.1 * CV_PI / 180.0;
+}
+
+/// Mean absolute change of b against a, relative to a's mean.
+double relativeChange(const cv::Mat& a, const cv::Mat& b) {
+  const double mean = cv::mean(a.reshape(1))[0];
+  return cv::norm(a, b, cv::NORM_L1) / (static_cast<double>(a.total() * a.channels()) * std::max(mean, 1e-6));
+}
+}  // namespace
+
 FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler) {
   FrameResult r = measure(frame, profiler);
   render(frame, r, compositor, profiler);
@@ -150,6 +170,20 @@ FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler
   if (fisheyeRays_ && frame.fisheye) estimateLights(frame, r, profiler);
   // Marker -> camera pose in the lighting world (the marker frame).
   r.T_marker_camera = markerPose(frame, r, profiler);
+  if (options_.reuse && options_.gpu) {
+    cv::resize(rgbd.colour, thumbnail_, {32, 24}, 0, 0, cv::INTER_AREA);
+    thumbnail_.convertTo(thumbnail_, CV_32F);
+    if (surfaceCache_ && r.T_marker_camera && sameView(surfaceCache_->T_marker_camera, *r.T_marker_camera) &&
+        relativeChange(surfaceCache_->thumbnail, thumbnail_) < 0.01) {
+      // A static camera over an unchanged image: the real surface it was built from still holds.
+      r.T_marker_camera = surfaceCache_->T_marker_camera;
+      r.positions = surfaceCache_->positions;
+      r.normals = surfaceCache_->normals;
+      r.reusedSurface = true;
+      r.info["skipped"] = {"depth_filter", "normals"};
+      return r;
+    }
+  }
   cv::Mat depth;
   {
     auto s = profiler.cpu("depth_filter");
@@ -202,10 +236,16 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     r.composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
     return;
   }
-  const RealSurface real = realSurface(frame, r, profiler);
-  pipeline_->setRealMesh(real.vertices, real.indices);
   const bool val = lighting::usesVal(setup_->scene.technique);
-  if (val) {
+  if (r.reusedSurface) {
+    for (const char* stage : {"albedo", "mesh"}) r.info["skipped"].push_back(stage);
+    if (val) r.info["skipped"].push_back("val.real_vals");
+  } else {
+    const RealSurface real = realSurface(frame, r, profiler);
+    pipeline_->setRealMesh(real.vertices, real.indices);
+    if (options_.reuse) surfaceCache_ = SurfaceCache{*r.T_marker_camera, thumbnail_.clone(), r.positions, r.normals};
+  }
+  if (val && !r.reusedSurface) {
     // Real surfaces as VALs: the seen radiance of every stride-th filtered pixel, fused over frames when
     // the scene asks for it (surfels out of view keep their light).
     auto s = profiler.cpu("val.real_vals");
@@ -223,6 +263,7 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   view.intrinsics = rgbd.colourIntrinsics;
   view.T_world_camera = *r.T_marker_camera;
   pipeline_->run(view, setup_->lights, setup_->ambient, &profiler);
+  for (const std::string& stage : pipeline_->skippedStages()) r.info["skipped"].push_back(stage);
   if (val) {
     // Flicker of the bounce light: frame-to-frame change of the sparse points' irradiance (model space,
     // so a moving camera alone changes nothing), relative to its mean.

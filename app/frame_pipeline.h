@@ -43,6 +43,11 @@ struct FrameOptions {
   std::string pose = "marker";  ///< marker | ground-truth
   int meshStride = 2;
   bool gpu = true;  ///< false: measure() and realSurface() only, no lighting pipeline (no GL context needed)
+  /// Skip work whose inputs did not change: while the camera stays put (pose within 1 mm and 0.1 degree of
+  /// the frame the real surface was built from) and the colour image has not changed (mean change of a
+  /// 32x24 thumbnail below 1 %), the real surface (filtered depth, normals, albedo, mesh, real VALs) is
+  /// kept and the camera pose snaps to that frame's; the lighting pipeline skips its own unchanged stages.
+  bool reuse = true;
 };
 
 struct FrameResult {
@@ -50,6 +55,7 @@ struct FrameResult {
   std::optional<capture::Pose> T_marker_camera;
   cv::Mat positions, normals;  ///< camera frame, from the filtered depth (empty without a scene)
   bool lit = false;            ///< the lighting pipeline ran (a scene and a marker pose)
+  bool reusedSurface = false;  ///< static camera: the last frame's real surface was kept (FrameOptions::reuse)
   nlohmann::json info = nlohmann::json::object();  ///< per-frame facts for the stats (marker status, lights)
 };
 
@@ -87,6 +93,13 @@ class FramePipeline {
   reconstruction::MarkerTrack track_;
   std::optional<lighting::SurfelMap> surfels_;  ///< Kinect-VAL fusion of real VALs over frames
   std::vector<cv::Vec3f> prevValE_;             ///< last frame's sparse-point irradiance (flicker)
+  /// The frame the lighting pipeline's real surface was built from (FrameOptions::reuse).
+  struct SurfaceCache {
+    capture::Pose T_marker_camera;
+    cv::Mat thumbnail, positions, normals;
+  };
+  std::optional<SurfaceCache> surfaceCache_;
+  cv::Mat thumbnail_;  ///< of the frame being processed
 };
 
 }  // namespace mrgi::app

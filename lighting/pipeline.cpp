@@ -253,6 +253,7 @@ LightingPipeline::Rsm LightingPipeline::makeRsm(int size) const {
 
 void LightingPipeline::setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
   realMesh_ = GpuMesh(vertices, indices);
+  ++realMeshVersion_;
 }
 
 void LightingPipeline::setObjectTransform(size_t i, const cv::Matx44d& T) { objectTransforms_.at(i) = T; }
@@ -397,6 +398,37 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   glDisable(GL_CULL_FACE);
   glDisable(GL_BLEND);
 
+  // Which stages the inputs require (exact comparison: any change recomputes).
+  RunInputs in;
+  in.camera = {camera.intrinsics.fx, camera.intrinsics.fy, camera.intrinsics.cx, camera.intrinsics.cy,
+               static_cast<double>(camera.intrinsics.width), static_cast<double>(camera.intrinsics.height),
+               camera.nearPlane, camera.farPlane};
+  for (int i = 0; i < 16; ++i) in.camera.push_back(camera.T_world_camera.val[i]);
+  for (const auto& T : objectTransforms_) in.objects.insert(in.objects.end(), T.val, T.val + 16);
+  for (const SceneLight& l : lights) {
+    in.lights.insert(in.lights.end(), {static_cast<double>(l.type), l.spotHalfAngleDeg});
+    for (const cv::Vec3d* v : {&l.position, &l.direction, &l.intensity, &l.irradiance}) in.lights.insert(in.lights.end(), v->val, v->val + 3);
+  }
+  in.ambient = {ambientRadiance[0], ambientRadiance[1], ambientRadiance[2]};
+  in.realMesh = realMeshVersion_;
+  in.realVals = realValsVersion_;
+  const bool fresh = !cache_;
+  const bool geometryChanged = fresh || in.realMesh != cache_->realMesh || in.objects != cache_->objects;
+  const bool cameraChanged = fresh || in.camera != cache_->camera;
+  const bool needGbuffer = geometryChanged || cameraChanged;
+  const bool needLights = geometryChanged || in.lights != cache_->lights;
+  const bool needVal = needLights || cameraChanged || in.realVals != cache_->realVals || in.ambient != cache_->ambient;
+  const bool needShade = needGbuffer || needVal || in.ambient != cache_->ambient;
+  cache_ = std::move(in);
+  skipped_.clear();
+  if (!needGbuffer) skipped_.push_back("gbuffer");
+  if (!needLights) skipped_.insert(skipped_.end(), {"rsm", "lpv"});
+  if (usesVal(config_.technique) && !needVal) skipped_.push_back("val");
+  if (!needShade) {
+    skipped_.push_back("shade");
+    return;
+  }
+
   // The volume: axis-aligned in the world, centred on and sized to the virtual objects.
   grid_ = config_.fixedGrid;
   if (!grid_ && !objectMeshes_.empty()) {
@@ -431,7 +463,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     }
   }
 
-  {
+  if (needGbuffer) {
     auto s = scope("gbuffer");
     gbufferFb_.bind();
     glViewport(0, 0, config_.width, config_.height);
@@ -447,11 +479,14 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
               projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * view);
   }
 
-  // Every frame starts from cleared volumes.
-  std::vector<LightView> views;
-  rsmVals_.clear();
-  shadowMaps_.clear();
-  if (grid_) {
+  // Every frame with new lights or geometry starts from cleared volumes.
+  std::vector<LightView>& views = views_;
+  if (needLights) {
+    views.clear();
+    rsmVals_.clear();
+    shadowMaps_.clear();
+  }
+  if (grid_ && needLights) {
     for (Volume* v : {&delta_, &rho_, &rhoFull_, &muFull_, &deltaDirect_, &rhoDirect_, &muDirect_})
       if (v->r.id()) {
         v->r.clear();
@@ -512,8 +547,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
         propagate(delta_, false, &deltaDirect_);
       }
     }
-    if (val) runVal(camera, ambientRadiance, profiler);
   }
+  if (grid_ && val && needVal) runVal(camera, ambientRadiance, profiler);
 
   auto s = scope("shade");
   shadeFb_.bind();

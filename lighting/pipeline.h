@@ -84,12 +84,15 @@ class LightingPipeline {
   /// Needs a current GL 4.5 context.
   LightingPipeline(const PipelineConfig& config, const std::vector<VirtualObject>& objects);
 
-  /// The real mesh in the lighting world (empty = no real geometry).
+  /// The real mesh in the lighting world (empty = no real geometry). Every call counts as a change.
   void setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
   /// Where object i sits in the lighting world.
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object);
   /// Kinect-VAL: the real-surface VALs (lighting world) of the next runs; the virtual ones come from the RSMs.
-  void setRealVals(std::vector<Val> vals) { realVals_ = std::move(vals); }
+  void setRealVals(std::vector<Val> vals) {
+    realVals_ = std::move(vals);
+    ++realValsVersion_;
+  }
 
   /// What Kinect-VAL did in the last run.
   struct ValStats {
@@ -109,8 +112,17 @@ class LightingPipeline {
 
   /// Renders the G-buffer, RSMs and volumes and shades every pixel. Stages timed on profiler
   /// ("gbuffer", "rsm", "lpv.inject", "lpv.propagate", "shade"). lights: at most kMaxLights.
+  /// Only what the inputs require runs: the G-buffer when the camera, the real mesh or an object moved;
+  /// RSMs and volumes when the lights, the real mesh or an object changed; Kinect-VAL when those, the real
+  /// VALs, the camera or the ambient changed; the shading when anything did. The results of a skipped
+  /// stage are the last run's, which equal what it would compute again.
   void run(const CameraView& camera, const std::vector<SceneLight>& lights, const cv::Vec3d& ambientRadiance,
            gl::Profiler* profiler);
+  /// Stages the last run skipped because their inputs had not changed: of "gbuffer", "rsm", "lpv", "val",
+  /// "shade".
+  const std::vector<std::string>& skippedStages() const { return skipped_; }
+  /// The next run computes every stage.
+  void invalidate() { cache_.reset(); }
 
   /// RGBA32F: rgb = delta (real) or radiance (virtual), a = 1 on virtual pixels (compositor input).
   const gl::Texture& shade() const { return shade_; }
@@ -187,6 +199,15 @@ class LightingPipeline {
   };
   std::vector<ShadowMaps> shadowMaps_;
   ValStats valStats_;
+  // What the last run computed from (stage skipping).
+  uint64_t realMeshVersion_ = 0, realValsVersion_ = 0;
+  struct RunInputs {
+    std::vector<double> camera, objects, lights, ambient;
+    uint64_t realMesh = 0, realVals = 0;
+  };
+  std::optional<RunInputs> cache_;
+  std::vector<LightView> views_;  ///< the last RSM run's light views
+  std::vector<std::string> skipped_;
   gl::Program valMeshProgram_;
   gl::Texture valRadiance_, valIrradiance_, shadowMuArray_;
   gl::Framebuffer valFb_;

@@ -654,3 +654,41 @@ TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {
   fs::remove(json);
   fs::remove_all(out);
 }
+
+TEST(Cli, ReplaySkipsStagesWhoseInputsDidNotChange) {
+  // A static camera: only the sensor noise changes from frame to frame.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_static_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  Result r = runMrgi("synth --out " + (dir / "s").string() + " --frames 3 --width 96 --height 72 --render raycast"
+                     " --fisheye-every 0 --static-camera");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const fs::path scene = writeScene("static_sphere.json", R"({"objects": [{"model": ")" + kModels +
+                                                              R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+      "lights": "manifest", "lpv": {"resolution": 8, "steps": 4, "rsm_size": 64}})");
+  auto replay = [&](const std::string& out, const std::string& extra) {
+    return runMrgi("replay " + (dir / "s").string() + " --scene " + scene.string() + " --pose ground-truth --dump-delta --out " +
+                   (dir / out).string() + extra);
+  };
+  auto exr = [&](const std::string& out, int i) {
+    return cv::imread((dir / out / ("delta_000" + std::to_string(i) + ".exr")).string(), cv::IMREAD_UNCHANGED);
+  };
+  r = replay("reuse", "");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  auto summary = nlohmann::json::parse(slurp(dir / "reuse" / "summary.json"));
+  for (const char* stage : {"depth_filter", "normals", "albedo", "mesh", "gbuffer", "rsm", "lpv", "shade"})
+    EXPECT_EQ(summary["skipped_frames"].value(stage, 0), 2) << stage;
+  EXPECT_FALSE(summary["per_frame"][0].contains("skipped"));
+  // The kept lighting is exactly the first frame's; the composites still follow the camera (new noise).
+  ASSERT_FALSE(exr("reuse", 0).empty());
+  EXPECT_EQ(cv::norm(exr("reuse", 0), exr("reuse", 2), cv::NORM_INF), 0.0);
+  const cv::Mat f0 = cv::imread((dir / "reuse" / "frame_0000.png").string()), f2 = cv::imread((dir / "reuse" / "frame_0002.png").string());
+  EXPECT_GT(cv::norm(f0, f2, cv::NORM_INF), 0.0);
+  // --recompute-all runs everything: the noisy depth changes the delta a little on every frame.
+  r = replay("all", " --recompute-all");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  summary = nlohmann::json::parse(slurp(dir / "all" / "summary.json"));
+  EXPECT_TRUE(summary["skipped_frames"].empty());
+  EXPECT_GT(cv::norm(exr("all", 0), exr("all", 2), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(exr("all", 0), exr("reuse", 0), cv::NORM_INF), 0.0);  // the first frame is the same either way
+  fs::remove_all(dir);
+}

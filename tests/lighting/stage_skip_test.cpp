@@ -1,0 +1,109 @@
+// The lighting pipeline runs only the stages whose inputs changed, and a skipped stage leaves exactly what
+// running it again would compute: after every change the cached pipeline's shading equals a fresh
+// pipeline's, for every technique.
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "tests/lighting/test_scene.h"
+
+namespace mrgi::test {
+namespace {
+
+using lighting::Technique;
+using lighting::Val;
+
+std::vector<Val> wallVals(float exitance) {
+  std::vector<Val> vals;
+  const int n = 16;
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      Val v;
+      v.position = {-0.5f, -1.f + 2.f * (i + 0.5f) / n, 1.5f * (j + 0.5f) / n};
+      v.normal = {1, 0, 0};
+      v.area = 2.f * 1.5f / (n * n);
+      v.flux = cv::Vec3f(exitance, exitance * 0.1f, exitance * 0.1f) * v.area;
+      vals.push_back(v);
+    }
+  return vals;
+}
+
+struct Inputs {
+  CameraView camera;
+  std::vector<SceneLight> lights;
+  cv::Vec3d at{0.0, 0.0, 0.1};  ///< the cube's centre
+  float valExitance = 2.f;
+  cv::Vec3d ambient{0.02, 0.02, 0.02};
+};
+
+/// The shading a pipeline computes from scratch for these inputs.
+cv::Mat fresh(const PipelineConfig& cfg, const Inputs& in) {
+  TestScene s = makeScene(true, 0.15, {0, 0, 0.1});
+  LightingPipeline pipe = makePipeline(cfg, s);
+  pipe.setObjectTransform(0, capture::makePose(cv::Matx33d::eye(), in.at));
+  if (lighting::usesVal(cfg.technique)) pipe.setRealVals(wallVals(in.valExitance));
+  pipe.run(in.camera, in.lights, in.ambient, nullptr);
+  return pipe.downloadShade();
+}
+
+std::set<std::string> skipped(const LightingPipeline& p) { return {p.skippedStages().begin(), p.skippedStages().end()}; }
+
+class StageSkipping : public ::testing::TestWithParam<Technique> {};
+
+TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChange) {
+  auto ctx = makeContext();
+  PipelineConfig cfg = testConfig(64, 48, 16, 64);
+  cfg.technique = GetParam();
+  cfg.val.sparsePoints = 64;
+  const bool val = lighting::usesVal(cfg.technique), lpv = lighting::usesLpv(cfg.technique);
+  TestScene s = makeScene(true, 0.15, {0, 0, 0.1});
+  LightingPipeline pipe = makePipeline(cfg, s);
+  Inputs in;
+  in.camera = topCamera(64, 48);
+  in.lights = {pointAbove()};
+  if (val) pipe.setRealVals(wallVals(in.valExitance));
+  auto check = [&](const std::set<std::string>& expectSkipped, const char* what) {
+    pipe.run(in.camera, in.lights, in.ambient, nullptr);
+    std::set<std::string> expect = expectSkipped;
+    if (!val) expect.erase("val");
+    EXPECT_EQ(skipped(pipe), expect) << what;
+    const cv::Mat got = pipe.downloadShade(), want = fresh(cfg, in);
+    double peak = 0;
+    cv::minMaxLoc(cv::Mat(cv::abs(want)).reshape(1), nullptr, &peak);
+    ASSERT_GT(peak, 0.0) << what;
+    EXPECT_LE(cv::norm(got, want, cv::NORM_INF), 1e-5 * peak) << what;
+  };
+  check({}, "first run");
+  check({"gbuffer", "rsm", "lpv", "val", "shade"}, "nothing changed");
+  in.camera.T_world_camera = capture::lookAtPose({0.1, -0.3, 1.5}, {0, 0, 0});
+  check({"rsm", "lpv"}, "camera moved");  // Kinect-VAL shades the object from the camera: val runs
+  in.lights = {sunDown(8.0)};
+  check({"gbuffer"}, "new light");
+  in.ambient = {0.05, 0.05, 0.05};
+  check({"gbuffer", "rsm", "lpv"}, "new ambient");
+  in.at = {0.05, 0.0, 0.1};
+  pipe.setObjectTransform(0, capture::makePose(cv::Matx33d::eye(), in.at));
+  check({}, "object moved");
+  pipe.setRealMesh(s.vertices, s.indices);  // the same mesh uploaded again still counts as new geometry
+  check({}, "real mesh set");
+  if (val) {
+    in.valExitance = 4.f;
+    pipe.setRealVals(wallVals(in.valExitance));
+    check({"gbuffer", "rsm", "lpv"}, "new real VALs");
+  }
+  pipe.invalidate();
+  check({}, "invalidated");
+  (void)lpv;
+}
+
+INSTANTIATE_TEST_SUITE_P(GL, StageSkipping,
+                         ::testing::Values(Technique::Dlpv, Technique::LpvDiff, Technique::KinectVal, Technique::DlpvKinectVal),
+                         [](const auto& info) {
+                           std::string n = lighting::techniqueName(info.param);
+                           for (char& c : n)
+                             if (c == '-' || c == '+') c = '_';
+                           return n;
+                         });
+
+}  // namespace
+}  // namespace mrgi::test
