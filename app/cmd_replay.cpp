@@ -42,6 +42,8 @@ struct ReplayOptions {
   std::string pose = "marker";
   int meshStride = 2;
   bool recomputeAll = false;
+  std::string mp4 = "replay.mp4";  ///< inside --out; empty: none
+  double fps = 0;                  ///< 0: from the source's timestamps
 };
 
 int runReplay(const ReplayOptions& o) {
@@ -77,6 +79,15 @@ int runReplay(const ReplayOptions& o) {
   FramePipeline frames(std::move(setup), width, height, fo);
   lighting::LightingPipeline* pipeline = frames.lighting();
 
+  // The video plays at the recording's rate: its median frame interval (30 fps without timestamps).
+  double fps = o.fps;
+  if (fps <= 0) fps = info.fps > 0 ? info.fps : 30.0;
+  std::optional<Mp4Writer> video;
+  if (!o.mp4.empty()) video.emplace((fs::path(o.out) / o.mp4).string(), width, height, fps);
+  InterruptGuard guard;
+  bool interrupted = false;
+  ProgressBar bar("replay");
+
   const int64_t total = info.frameCount ? *info.frameCount : -1;
   const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
   json perFrame = json::array();
@@ -85,6 +96,10 @@ int runReplay(const ReplayOptions& o) {
   int64_t done = 0;
   const auto start = std::chrono::steady_clock::now();
   while (limit < 0 || done < limit) {
+    if (InterruptGuard::interrupted()) {
+      interrupted = true;
+      break;
+    }
     std::optional<capture::Frame> frame;
     {
       auto s = profiler.cpu("read");
@@ -168,6 +183,7 @@ int runReplay(const ReplayOptions& o) {
       char name[32];
       std::snprintf(name, sizeof name, "frame_%04lld.png", static_cast<long long>(done));
       writePng((fs::path(o.out) / name).string(), composite);
+      if (video) video->write(composite);
     }
     json stages;
     std::string line;
@@ -187,8 +203,11 @@ int runReplay(const ReplayOptions& o) {
     std::printf("frame %lld/%lld:%s ms\n", static_cast<long long>(done), static_cast<long long>(limit),
                 line.c_str());
     std::fflush(stdout);
+    if (limit > 0) bar(static_cast<double>(done) / static_cast<double>(limit));
   }
-  if (done == 0) throw capture::CaptureError(o.source, "no frame could be replayed");
+  if (done == 0 && !interrupted) throw capture::CaptureError(o.source, "no frame could be replayed");
+  int videoFrames = 0;
+  if (video) videoFrames = video->close();
   const double wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   json summary;
   summary["source"] = o.source;
@@ -199,7 +218,7 @@ int runReplay(const ReplayOptions& o) {
                    {"version", context->version()},
                    {"detail", context->detail()}};
   json mean;
-  for (const auto& [name, s] : sums) mean[name] = {{"cpu_ms", s.first / done}, {"gpu_ms", s.second / done}};
+  for (const auto& [name, s] : sums) mean[name] = {{"cpu_ms", s.first / done}, {"gpu_ms", s.second / done}};  // done > 0 when sums has entries
   summary["stages_ms"] = mean;  // means over all frames: a skipped stage costs 0 on its frame
   summary["skipped_frames"] = skipped;
   summary["reuse"] = !o.recomputeAll;
@@ -223,12 +242,14 @@ int runReplay(const ReplayOptions& o) {
     }
     summary["lights"] = setup->lights.size();
   }
-  summary["wall_ms_per_frame"] = wallMs / done;
+  summary["wall_ms_per_frame"] = done ? wallMs / done : 0.0;
+  summary["interrupted"] = interrupted;
+  if (video) summary["video"] = {{"file", o.mp4}, {"frames", videoFrames}, {"fps", fps}};
   summary["per_frame"] = perFrame;
   capture::writeFileAtomically(fs::path(o.out) / "summary.json", summary.dump(2) + "\n");
-  std::printf("replayed %lld frames into %s (%.1f ms/frame)\n", static_cast<long long>(done), o.out.c_str(),
-              wallMs / done);
-  return 0;
+  std::printf("%s %lld frames into %s (%.1f ms/frame)\n", interrupted ? "interrupted: replayed" : "replayed",
+              static_cast<long long>(done), o.out.c_str(), done ? wallMs / done : 0.0);
+  return interrupted ? 130 : 0;
 }
 
 }  // namespace
@@ -251,6 +272,8 @@ Action addReplay(CLI::App& app) {
                                      "RSM flux/normal of the last light, DLPV z-slices");
   app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
+  app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();
+  app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")->check(CLI::PositiveNumber);
   app.add_flag("--recompute-all", o->recomputeAll, "run every stage on every frame (default: skip stages whose inputs did not change)");
   app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(CLI::Range(1, 16));
   return [o] { return runReplay(*o); };

@@ -1,5 +1,7 @@
 #include "app/output.h"
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <unistd.h>
@@ -57,6 +59,61 @@ void ProgressBar::operator()(double fraction) {
   bar[40] = 0;
   std::fprintf(stderr, "\r%s [%s] %3d%%", label_.c_str(), bar, percent);
   std::fflush(stderr);
+}
+
+namespace {
+std::atomic<bool> gInterrupted{false};
+struct sigaction gOldInt, gOldTerm;
+
+void onInterrupt(int) {
+  if (gInterrupted.exchange(true)) std::_Exit(130);  // the second Ctrl-C
+}
+}  // namespace
+
+InterruptGuard::InterruptGuard() {
+  gInterrupted = false;
+  struct sigaction sa {};
+  sa.sa_handler = onInterrupt;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, &gOldInt);
+  sigaction(SIGTERM, &sa, &gOldTerm);
+}
+
+InterruptGuard::~InterruptGuard() {
+  sigaction(SIGINT, &gOldInt, nullptr);
+  sigaction(SIGTERM, &gOldTerm, nullptr);
+}
+
+bool InterruptGuard::interrupted() { return gInterrupted.load(); }
+
+Mp4Writer::Mp4Writer(std::string path, int width, int height, double fps)
+    : path_(std::move(path)), partial_(path_ + ".partial.mp4") {
+  writer_ = cv::makePtr<cv::VideoWriter>(partial_, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, cv::Size(width, height));
+  if (!writer_->isOpened()) throw capture::CaptureError(path_, "cannot open an MP4 writer (OpenCV videoio without FFmpeg?)");
+}
+
+Mp4Writer::~Mp4Writer() {
+  if (writer_) {
+    writer_->release();
+    std::error_code ec;
+    fs::remove(partial_, ec);
+  }
+}
+
+void Mp4Writer::write(const cv::Mat& rgb) {
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  writer_->write(bgr);
+  ++frames_;
+}
+
+int Mp4Writer::close() {
+  writer_->release();
+  writer_.reset();
+  std::error_code ec;
+  fs::rename(partial_, path_, ec);
+  if (ec) throw capture::CaptureError(path_, "cannot move the finished video into place: " + ec.message());
+  return frames_;
 }
 
 }  // namespace mrgi::app

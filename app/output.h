@@ -4,6 +4,7 @@
 #include <string>
 
 #include <opencv2/core.hpp>
+#include <opencv2/videoio.hpp>
 
 namespace mrgi::app {
 
@@ -28,6 +29,33 @@ class ProgressBar {
   std::string label_;
   bool tty_;
   int shown_ = -1;
+};
+
+/// Ctrl-C (SIGINT) and SIGTERM while alive only raise a flag, so a long command stops between two complete
+/// frames and still finishes its output (summary, video). A second Ctrl-C ends the process at once.
+class InterruptGuard {
+ public:
+  InterruptGuard();
+  ~InterruptGuard();
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+  static bool interrupted();
+};
+
+/// An MP4 (MPEG-4 part 2 through OpenCV's VideoWriter) written to a temporary name and renamed into place
+/// when closed, so the file at `path` is always a complete video.
+class Mp4Writer {
+ public:
+  Mp4Writer(std::string path, int width, int height, double fps);
+  ~Mp4Writer();
+  void write(const cv::Mat& rgb);
+  /// Finishes the file and moves it into place; returns the number of frames written.
+  int close();
+
+ private:
+  std::string path_, partial_;
+  cv::Ptr<cv::VideoWriter> writer_;
+  int frames_ = 0;
 };
 
 }  // namespace mrgi::app

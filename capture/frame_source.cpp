@@ -1,5 +1,6 @@
 #include "capture/frame_source.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include "capture/error.h"
@@ -11,6 +12,15 @@
 namespace fs = std::filesystem;
 
 namespace mrgi::capture {
+
+double medianRate(const std::vector<double>& timestamps) {
+  std::vector<double> dt;
+  for (size_t i = 1; i < timestamps.size(); ++i)
+    if (timestamps[i] > timestamps[i - 1]) dt.push_back(timestamps[i] - timestamps[i - 1]);
+  if (dt.empty()) return 0.0;
+  std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
+  return 1.0 / dt[dt.size() / 2];
+}
 
 std::unique_ptr<FrameSource> open(const std::string& uri, const OpenOptions& options) {
   if (uri.rfind("openni2://", 0) == 0) return std::make_unique<OpenNI2Source>(uri.substr(10), options);

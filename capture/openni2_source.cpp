@@ -102,6 +102,7 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
   info_.depthIntrinsics = intrinsicsOf(d.depth);
   info_.colourIntrinsics = d.hasColour ? intrinsicsOf(d.colour) : info_.depthIntrinsics;
   info_.hasRgbd = true;
+  info_.fps = d.depth.getVideoMode().getFps();
 }
 
 OpenNI2Source::~OpenNI2Source() {

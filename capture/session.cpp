@@ -333,6 +333,9 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
   info_.hasRgbd = !entries_.front().colour.empty();
   info_.hasFisheye = manifest_.fisheye.has_value();
   info_.hasGroundTruth = !manifest_.groundTruth.is_null() || entries_.front().pose.has_value();
+  std::vector<double> ts;
+  for (const Entry& e : entries_) ts.push_back(e.t);
+  info_.fps = medianRate(ts);
 }
 
 Frame SessionSource::read(int64_t i) const {

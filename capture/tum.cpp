@@ -114,6 +114,9 @@ TumSource::TumSource(const std::string& directory) : dir_(directory) {
   info_.depthIntrinsics = info_.colourIntrinsics;
   info_.hasRgbd = true;
   info_.hasGroundTruth = !gt.empty();
+  std::vector<double> ts;
+  for (const Item& it : items_) ts.push_back(it.t);
+  info_.fps = medianRate(ts);
 }
 
 std::optional<Frame> TumSource::next() {

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -90,6 +91,10 @@ struct SourceInfo {
   bool hasRgbd = false;
   bool hasFisheye = false;
   bool hasGroundTruth = false;
+  double fps = 0;  ///< nominal frame rate: a recording's median frame interval, a device's mode (0 = unknown)
 };
+
+/// 1 / the median interval of increasing timestamps (seconds); 0 with fewer than two.
+double medianRate(const std::vector<double>& timestamps);
 
 }  // namespace mrgi::capture

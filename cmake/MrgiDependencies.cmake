@@ -1,7 +1,7 @@
 # Every dependency comes from a Debian package (tools/install-deps.sh installs them all).
 find_package(PkgConfig REQUIRED)
 find_package(Threads REQUIRED)
-find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs calib3d ximgproc photo rgbd quality)
+find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs calib3d ximgproc photo rgbd quality videoio)
 find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(glfw3 3.3 REQUIRED)

@@ -1,5 +1,6 @@
 // The command contract, checked from outside: run the mrgi binary and inspect exit codes, stdout, stderr
 // and the files it writes.
+#include <csignal>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -14,6 +15,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
 
 #include "capture/v4l2_source.h"
 #include "reconstruction/marker.h"
@@ -691,4 +693,61 @@ TEST(Cli, ReplaySkipsStagesWhoseInputsDidNotChange) {
   EXPECT_GT(cv::norm(exr("all", 0), exr("all", 2), cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(exr("all", 0), exr("reuse", 0), cv::NORM_INF), 0.0);  // the first frame is the same either way
   fs::remove_all(dir);
+}
+
+/// Starts mrgi in the background; returns its pid (stdout/stderr to `log`).
+pid_t spawnMrgi(const std::string& args, const fs::path& log) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const std::string cmd = "exec " + std::string(MRGI_BINARY) + " " + args + " >" + log.string() + " 2>&1";
+    ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    std::_Exit(127);
+  }
+  return pid;
+}
+
+/// Waits (up to `seconds`) for a file to appear.
+bool waitForFile(const fs::path& p, double seconds) {
+  for (int i = 0; i < static_cast<int>(seconds * 20); ++i) {
+    if (fs::exists(p)) return true;
+    ::usleep(50000);
+  }
+  return false;
+}
+
+TEST(Cli, CtrlCDuringReplayLeavesCompleteFramesVideoAndSummary) {
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_interrupt_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const fs::path rec = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-pt";
+  const pid_t pid = spawnMrgi("replay " + rec.string() + " --scene " + MRGI_SOURCE_DIR + "/recordings/scenes/tabletop.json"
+                              " --recompute-all --out " + out.string(), out.string() + ".log");
+  ASSERT_TRUE(waitForFile(out / "frame_0000.png", 120));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status)) << slurp(out.string() + ".log");
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  const auto summary = nlohmann::json::parse(slurp(out / "summary.json"));
+  EXPECT_TRUE(summary["interrupted"].get<bool>());
+  const int frames = summary["frames"];
+  EXPECT_GE(frames, 1);
+  EXPECT_LT(frames, 12);  // stopped early
+  int pngs = 0;
+  for (const auto& e : fs::directory_iterator(out)) {
+    const std::string name = e.path().filename().string();
+    EXPECT_EQ(name.find("partial"), std::string::npos) << name;  // nothing half written
+    if (name.rfind("frame_", 0) == 0) {
+      ++pngs;
+      EXPECT_FALSE(cv::imread(e.path().string()).empty()) << name;
+    }
+  }
+  EXPECT_EQ(pngs, frames);
+  EXPECT_EQ(summary["video"]["frames"], frames);
+  cv::VideoCapture video((out / "replay.mp4").string());
+  ASSERT_TRUE(video.isOpened());
+  int decoded = 0;
+  for (cv::Mat f; video.read(f);) ++decoded;
+  EXPECT_EQ(decoded, frames);
+  fs::remove_all(out);
+  fs::remove(out.string() + ".log");
 }
