@@ -6,11 +6,14 @@
 #include <fstream>
 #include <sstream>
 
+#include <imgui.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 
 #include "app/commands.h"
 #include "app/output.h"
+#include "app/window_ui.h"
+#include "app/debug_view.h"
 #include "app/frame_pipeline.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
@@ -40,6 +43,8 @@ struct InsertOptions {
   std::vector<double> at;  // pixel u,v: translate = the surface point seen there
   std::string preview;
   std::string gl = "osmesa";
+  int frames = 0;          ///< window: close after N UI frames (scripted runs, tests)
+  std::string screenshot;  ///< window: save its last frame
 };
 
 json readJson(const std::string& path) {
@@ -71,6 +76,96 @@ json vec(const cv::Vec3d& v, double round = 1e-6) {
   json a = json::array();
   for (int i = 0; i < 3; ++i) a.push_back(std::round(v[i] / round) * round + 0.0);
   return a;
+}
+
+/// The window: sliders move, turn and scale the object, the composite follows when a slider is let go;
+/// "snap" rests it on the table, "save" writes the scene file (so does closing after --frames N).
+int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, json& doc, size_t index,
+                const std::string& savePath, const LightingSetup& base, const capture::Frame& frame,
+                const FrameResult& measured, const std::function<bool(std::string*)>& snap, json& report) {
+  WindowUi ui(*context);
+  const int width = frame.rgbd->colour.cols, height = frame.rgbd->colour.rows;
+  compositor::Compositor compositor(width, height);
+  json& obj = doc["objects"][index];
+  auto get3 = [&](const char* key, float* v, double fallback) {
+    for (int i = 0; i < 3; ++i) v[i] = static_cast<float>(obj.contains(key) ? obj[key][i].get<double>() : fallback);
+  };
+  float t[3], r[3], albedo[3], scale = static_cast<float>(obj.value("scale", 1.0));
+  get3("translate", t, 0.0);
+  get3("rotate_deg", r, 0.0);
+  for (int i = 0; i < 3; ++i) albedo[i] = static_cast<float>(obj["material"]["albedo"][i].get<double>());
+  cv::Mat view;
+  bool dirty = true, unsaved = true;
+  std::string status = "drag a slider, then let go to see the composite";
+  int shown = 0;
+  auto save = [&] {
+    createParentDirectory(o.save);
+    capture::writeFileAtomically(o.save, doc.dump(2) + "\n");
+    unsaved = false;
+    status = "saved " + o.save;
+  };
+  while (!InterruptGuard::interrupted() && ui.beginFrame()) {
+    if (dirty) {
+      // Re-read the edited scene (scale is baked into the mesh) and render the measured frame again.
+      LightingSetup setup = base;
+      setup.scene = lighting::parseScene(doc.dump(), savePath);
+      FramePipeline fp(setup, width, height, FrameOptions{});
+      gl::Profiler profiler;
+      FrameResult r = measured;
+      fp.render(frame, r, compositor, profiler);
+      view = r.composite.clone();
+      drawMarkerAxes(view, frame.rgbd->colourIntrinsics, *r.T_marker_camera, setup.tagSize);
+      dirty = false;
+    }
+    ui.showImage(view, "object " + std::to_string(index) + " of " + o.save + (unsaved ? " (unsaved)" : ""));
+    ui.beginPanel("mrgi insert");
+    ImGui::TextWrapped("%s", o.model.c_str());
+    bool edited = false;
+    ImGui::DragFloat3("translate (m)", t, 0.002f, -10.f, 10.f, "%.3f");
+    edited |= ImGui::IsItemDeactivatedAfterEdit();
+    ImGui::DragFloat3("rotate (deg)", r, 0.5f, -360.f, 360.f, "%.1f");
+    edited |= ImGui::IsItemDeactivatedAfterEdit();
+    ImGui::DragFloat("scale", &scale, 0.002f, 1e-3f, 100.f, "%.3f");
+    edited |= ImGui::IsItemDeactivatedAfterEdit();
+    ImGui::ColorEdit3("albedo", albedo);
+    edited |= ImGui::IsItemDeactivatedAfterEdit();
+    if (edited) {
+      obj["translate"] = {t[0], t[1], t[2]};
+      obj["rotate_deg"] = {r[0], r[1], r[2]};
+      obj["scale"] = scale;
+      obj["material"]["albedo"] = {albedo[0], albedo[1], albedo[2]};
+      dirty = unsaved = true;
+    }
+    if (ImGui::Button("snap to the table")) {
+      std::string why;
+      if (snap(&why)) {
+        get3("translate", t, 0.0);
+        get3("rotate_deg", r, 0.0);
+        dirty = unsaved = true;
+        status = "resting on the plane below";
+      } else {
+        status = why;
+      }
+    }
+    ImGui::SameLine();
+    if (ImGui::Button("save")) save();
+    ImGui::TextWrapped("%s", status.c_str());
+    ui.endPanel();
+    const bool done = o.frames > 0 && ++shown >= o.frames;
+    cv::Mat shot;
+    ui.endFrame(done && !o.screenshot.empty() ? &shot : nullptr);
+    if (done) {
+      if (!o.screenshot.empty()) writePng(o.screenshot, shot);
+      save();
+      break;
+    }
+  }
+  if (unsaved) std::fprintf(stderr, "mrgi: insert window closed without saving; %s unchanged\n", o.save.c_str());
+  report["translate"] = obj["translate"];
+  report["rotate_deg"] = obj["rotate_deg"];
+  report["saved"] = !unsaved;
+  std::printf("%s\n", report.dump().c_str());
+  return 0;
 }
 
 int runInsert(const InsertOptions& o) {
@@ -125,8 +220,10 @@ int runInsert(const InsertOptions& o) {
   LightingSetup setup = prepareLighting(scene, savePath, *source, o.session, "marker");
   gl::ContextConfig cfg;
   cfg.backend = gl::parseBackend(o.gl);
-  cfg.width = width;
-  cfg.height = height;
+  const bool window = cfg.backend == gl::Backend::Window;
+  const cv::Size win = WindowUi::windowSize(width, height);
+  cfg.width = window ? win.width : width;
+  cfg.height = window ? win.height : height;
   cfg.title = "mrgi insert: " + o.session;
   auto context = gl::createContext(cfg);
   compositor::Compositor compositor(width, height);
@@ -160,7 +257,9 @@ int runInsert(const InsertOptions& o) {
     doc["objects"][index]["translate"] = vec(t);
     frames.lighting()->setObjectTransform(index, obj.T_marker_object);
   }
-  if (o.snap) {
+  // Rests the object on the plane below it (planes from the frame's depth); false when there is none.
+  auto snap = [&](std::string* why) {
+    obj = lighting::parseScene(doc.dump(), savePath).objects[index];  // the placement as edited so far
     cv::Mat labels;
     const auto planes = reconstruction::findPlanes(result.positions, result.normals, {}, &labels);
     const capture::Pose& T_marker_camera = *result.T_marker_camera;
@@ -180,18 +279,26 @@ int runInsert(const InsertOptions& o) {
     }
     const auto plane = reconstruction::supportPlane(inMarker, capture::translationOf(obj.T_marker_object), up, labels,
                                                     capture::inversePose(T_marker_camera), frame->rgbd->colourIntrinsics);
-    if (!plane)
-      throw capture::CaptureError(o.session, "frame " + std::to_string(o.frame) + ": no support plane below the object (" +
-                                                 std::to_string(planes.size()) + " planes found; try --up)");
+    if (!plane) {
+      *why = "frame " + std::to_string(o.frame) + ": no support plane below the object (" + std::to_string(planes.size()) +
+             " planes found; try --up)";
+      return false;
+    }
     obj.T_marker_object = reconstruction::restOnPlane(obj.T_marker_object, obj.mesh.positions, *plane);
     doc["objects"][index]["translate"] = vec(capture::translationOf(obj.T_marker_object));
     doc["objects"][index]["rotate_deg"] = vec(eulerDeg(capture::rotationOf(obj.T_marker_object)), 1e-4);
     report["plane"] = {{"normal", vec(plane->normal)}, {"d", plane->d}, {"pixels", plane->inliers}};
     frames.lighting()->setObjectTransform(index, obj.T_marker_object);
+    return true;
+  };
+  if (o.snap) {
+    std::string why;
+    if (!snap(&why)) throw capture::CaptureError(o.session, why);
   }
   report["translate"] = doc["objects"][index]["translate"];
   report["rotate_deg"] = doc["objects"][index]["rotate_deg"];
 
+  if (window) return interactive(o, context, doc, index, savePath, setup, *frame, result, snap, report);
   if (!o.preview.empty()) {
     frames.render(*frame, result, compositor, profiler);
     writePng(o.preview, result.composite);
@@ -223,7 +330,11 @@ Action addInsert(CLI::App& app) {
   app.add_option("--up", o->up, "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame");
   app.add_option("--frame", o->frame, "frame of the session to measure and preview on")->check(CLI::NonNegativeNumber);
   app.add_option("--preview", o->preview, "write the composite of that frame with the placed object (PNG)");
-  app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl, window")->check(CLI::IsMember({"osmesa", "egl", "window"}));
+  app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl, window (interactive: sliders, snap, save)")
+      ->check(CLI::IsMember({"osmesa", "egl", "window"}));
+  app.add_option("--frames", o->frames, "--gl window: close after N frames, saving the placement (scripted runs)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--screenshot", o->screenshot, "--gl window with --frames: save the window's last frame (PNG)");
   return [o] { return runInsert(*o); };
 }
 

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/bench.h"
+#include "app/debug_view.h"
 #include "app/commands.h"
 #include "app/frame_pipeline.h"
 #include "app/output.h"
@@ -18,7 +19,6 @@
 #include "compositor/compositor.h"
 #include "gl/context.h"
 #include "capture/session.h"
-#include "lighting/debug_views.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
 
@@ -91,6 +91,7 @@ int runReplay(const ReplayOptions& o) {
   const int64_t total = info.frameCount ? *info.frameCount : -1;
   const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
   json perFrame = json::array();
+  cv::Mat lastFisheye;  // --debug: the environment the lights were last estimated from
   std::map<std::string, std::pair<double, double>> sums;  // stage -> (cpu, gpu) ms
   std::map<std::string, int64_t> skipped;                 // stage -> frames it was skipped on
   int64_t done = 0;
@@ -112,47 +113,21 @@ int runReplay(const ReplayOptions& o) {
       for (const auto& stage : frameInfo["skipped"]) ++skipped[stage.get<std::string>()];
     const cv::Mat& composite = result.composite;
     if (pipeline) {
-      cv::Mat shade;  // read back once for both the debug views and the dump
-      if ((o.debug || o.dumpDelta) && result.lit) {
+      cv::Mat shade;
+      if (o.dumpDelta && result.lit) {
         auto s = profiler.cpu("readback");
         shade = pipeline->downloadShade();
       }
       if (o.debug && result.lit) {
         auto s = profiler.cpu("debug");
+        if (frame->fisheye) lastFisheye = frame->fisheye->image;
         char prefix[32];
         std::snprintf(prefix, sizeof prefix, "debug_%04lld_", static_cast<long long>(done));
-        const fs::path base = fs::path(o.out) / prefix;
-        auto png = [&](const std::string& name, const cv::Mat& img) { writePng(base.string() + name + ".png", img); };
-        double scale = 0;
-        png("delta", lighting::signedImage(shade, scale));
-        frameInfo["debug_delta_scale"] = scale;
-        const cv::Mat albedo = pipeline->downloadGBuffer(2);
-        png("gbuffer_albedo", lighting::linearImage(albedo));
-        png("gbuffer_normal", lighting::normalImage(pipeline->downloadGBuffer(1)));
-        cv::Mat mask;
-        cv::extractChannel(albedo, mask, 3);
-        mask.convertTo(mask, CV_8U, 255);
-        png("gbuffer_mask", mask);
-        const lighting::RsmTexels rsm = pipeline->downloadRsm(true);
-        double rsmScale = 0;
-        png("rsm_flux", lighting::signedImage(rsm.flux, rsmScale));
-        png("rsm_normal", lighting::normalImage(rsm.normal));
-        if (lighting::usesLpv(technique)) {
-          double volScale = 0;
-          const auto vol = pipeline->downloadVolume(technique == lighting::Technique::LpvDiff ? "rho_full" : "delta");
-          png("dlpv_slices", lighting::volumeSlices(vol, 4, 4, volScale));
-          frameInfo["debug_volume_scale"] = volScale;
-        }
-        if (lighting::usesVal(technique)) {
-          // Bounce irradiance the virtual object receives (Kinect-VAL), on a linear scale.
-          cv::Mat rgb, lum;
-          cv::cvtColor(pipeline->downloadIrradiance(), rgb, cv::COLOR_RGBA2RGB);
-          cv::cvtColor(rgb, lum, cv::COLOR_RGB2GRAY);
-          double lo = 0, hi = 0;
-          cv::minMaxLoc(lum, &lo, &hi, nullptr, nullptr, mask);  // the G-buffer mask above: 255 = virtual
-          rgb.setTo(cv::Scalar::all(0), mask == 0);  // real pixels carry their delta in this target
-          png("val_irradiance", lighting::linearImage(rgb, hi > 0 ? 1.0 / hi : 0.0));
-          frameInfo["debug_val_irradiance_max"] = hi;
+        const std::string base = (fs::path(o.out) / prefix).string();
+        for (const DebugView v : debugViews(frames.setup())) {
+          if (v == DebugView::Composite) continue;  // frame_NNNN.png
+          const cv::Mat img = renderDebugView(v, frames, result, frame->rgbd->colourIntrinsics, lastFisheye, &frameInfo);
+          if (!img.empty()) writePng(base + debugViewName(v) + ".png", img);
         }
       }
       if (o.dumpDelta) {
@@ -269,7 +244,8 @@ Action addReplay(CLI::App& app) {
   app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();
   app.add_flag("--dump-delta", o->dumpDelta, "also write delta_NNNN.exr (linear RGB added to real pixels) and mask_NNNN.png (255 = virtual)");
   app.add_flag("--debug", o->debug, "also write debug_NNNN_*.png: delta (red = negative), G-buffer albedo/normal/mask, "
-                                     "RSM flux/normal of the last light, DLPV z-slices");
+                                     "RSM flux/normal of the last light, DLPV z-slices, Kinect-VAL irradiance and sparse "
+                                     "points, the fisheye frame with its median-cut lights");
   app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
   app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();

@@ -19,5 +19,7 @@ Action addImportVisp(CLI::App& app);
 Action addInsert(CLI::App& app);
 Action addBench(CLI::App& app);
 Action addReference(CLI::App& app);
+Action addLive(CLI::App& app);
+Action addRecord(CLI::App& app);
 
 }  // namespace mrgi::app

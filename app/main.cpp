@@ -19,6 +19,10 @@ int main(int argc, char** argv) {
     CLI::App* sub = app.add_subcommand(name, help);
     actions[sub] = fn(*sub);
   };
+  add("live", "Interactive AR demo: depth sensor (or --source recording) in a window with technique, knobs, debug views, timings",
+      mrgi::app::addLive);
+  add("record", "Record the depth sensor (and fisheye camera) into a crash-safe session; Ctrl-C keeps every frame",
+      mrgi::app::addRecord);
   add("info", "Print one JSON object describing a session, TUM sequence, .oni file or device", mrgi::app::addInfo);
   add("replay", "Replay a recording headless (or in a window) and write composited frames + summary.json",
       mrgi::app::addReplay);

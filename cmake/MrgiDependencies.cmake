@@ -15,6 +15,7 @@ pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
 pkg_check_modules(OPENNI2 REQUIRED IMPORTED_TARGET libopenni2)
 pkg_check_modules(LIBV4L2 REQUIRED IMPORTED_TARGET libv4l2)
 pkg_check_modules(APRILTAG REQUIRED IMPORTED_TARGET apriltag)
+pkg_check_modules(IMGUI REQUIRED IMPORTED_TARGET imgui)  # Dear ImGui with its GLFW + OpenGL 3 backends
 
 set(MRGI_GL_XML /usr/share/khronos-api/gl.xml CACHE FILEPATH "Khronos GL registry (package khronos-api)")
 if(NOT EXISTS ${MRGI_GL_XML})

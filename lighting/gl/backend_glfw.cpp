@@ -60,6 +60,7 @@ class GlfwContext final : public BackendContext {
     return h;
   }
   ProcAddress procAddress() const override { return &glfwProc; }
+  void* nativeWindow() const override { return window_; }
 
  private:
   GLFWwindow* window_ = nullptr;

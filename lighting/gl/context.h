@@ -39,6 +39,8 @@ class Context {
   virtual void swapBuffers() {}
   /// Processes window events; returns false once the user asked to close the window.
   virtual bool pollEvents() { return true; }
+  /// The window backend's GLFWwindow* (for UI toolkits); nullptr headless.
+  virtual void* nativeWindow() const { return nullptr; }
   /// Default framebuffer size in pixels.
   virtual int width() const = 0;
   virtual int height() const = 0;

@@ -1,0 +1,312 @@
+// mrgi live: the interactive AR demo. A depth sensor (OpenNI2) and optionally a V4L2 fisheye camera, or a
+// recording played through the same window; a Dear ImGui panel with the technique, presets and every
+// knob, debug views, per-stage timings, marker status and a record toggle.
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <thread>
+
+#include <imgui.h>
+#include <nlohmann/json.hpp>
+
+#include "app/bench.h"
+#include "app/commands.h"
+#include "app/debug_view.h"
+#include "app/frame_pipeline.h"
+#include "app/live_source.h"
+#include "app/output.h"
+#include "app/window_ui.h"
+#include "capture/error.h"
+#include "capture/frame_source.h"
+#include "capture/session.h"
+#include "compositor/compositor.h"
+#include "gl/context.h"
+#include "lighting/scene_file.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace mrgi::app {
+namespace {
+
+struct LiveOptions {
+  LiveSourceOptions in;
+  std::string scene;
+  std::string technique, preset;
+  std::string presets = MRGI_DEFAULT_PRESETS;
+  std::string gl = "window";
+  int frames = 0;
+  std::string screenshot;
+  std::string record;
+  bool noLoop = false;
+  std::string pose = "marker";
+  std::string view = "composite";
+};
+
+std::string defaultRecordDir() {
+  char buf[64];
+  const std::time_t t = std::time(nullptr);
+  std::strftime(buf, sizeof buf, "live-%Y%m%d-%H%M%S", std::localtime(&t));
+  return buf;
+}
+
+/// A slider; true once the user lets go of it after a change (the pipeline is rebuilt then, not on every
+/// pixel of a drag).
+template <typename T>
+bool knob(const char* label, T& value, T lo, T hi, bool log = false) {
+  if constexpr (std::is_same_v<T, int>) {
+    ImGui::SliderInt(label, &value, lo, hi, "%d", log ? ImGuiSliderFlags_Logarithmic : 0);
+  } else {
+    float v = static_cast<float>(value);
+    if (ImGui::SliderFloat(label, &v, static_cast<float>(lo), static_cast<float>(hi), "%.2f")) value = v;
+  }
+  return ImGui::IsItemDeactivatedAfterEdit();
+}
+
+int runLive(const LiveOptions& o) {
+  LiveSource live(o.in);
+  const capture::SourceInfo& info = live.source().info();
+  const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
+
+  std::optional<LightingSetup> base;
+  lighting::SceneDescription scene;
+  if (!o.scene.empty()) {
+    scene = lighting::loadScene(o.scene);
+    if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
+    if (!o.technique.empty()) scene.technique = lighting::parseTechnique(o.technique);
+    if (scene.lightSource == lighting::LightSource::Fisheye && o.in.source.empty()) {
+      // Live: the lights come from the V4L2 fisheye camera, not from a session manifest.
+      if (o.in.fisheye.empty()) throw capture::CaptureError(o.scene, "lights: \"fisheye\" needs --fisheye /dev/videoN live");
+      scene.lightSource = lighting::LightSource::Scene;
+      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose);
+      base->fisheye = live.fisheyeCalibration();
+      if (!base->fisheye) throw capture::CaptureError(o.in.fisheye, "delivered no fisheye frame");
+      base->scene.ambientFromManifest = false;
+    } else {
+      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose);
+    }
+  }
+
+  const cv::Size win = WindowUi::windowSize(width, height);
+  gl::ContextConfig cfg;
+  cfg.backend = gl::parseBackend(o.gl);
+  cfg.width = win.width;
+  cfg.height = win.height;
+  cfg.title = "mrgi live: " + live.name();
+  auto context = gl::createContext(cfg);
+  WindowUi ui(*context);
+  compositor::Compositor compositor(width, height);
+
+  FrameOptions fo;
+  fo.pose = o.pose;
+  std::unique_ptr<FramePipeline> frames;
+  auto rebuild = [&] {
+    std::optional<LightingSetup> s = base;
+    if (s) s->scene = scene;
+    frames = std::make_unique<FramePipeline>(std::move(s), width, height, fo);
+  };
+  rebuild();
+
+  std::vector<DebugView> views = debugViews(frames->setup());
+  int viewIndex = 0;
+  for (size_t i = 0; i < views.size(); ++i)
+    if (o.view == debugViewName(views[i])) viewIndex = static_cast<int>(i);
+  bool axes = true, paused = false, step = false, needRebuild = false;
+  int presetIndex = 0;  // 0 = the scene file's knobs
+  const char* presetNames[] = {"scene file", "fast", "balanced", "accurate", "custom"};
+  std::optional<capture::SessionWriter> recorder;
+  std::string recordDir = o.record.empty() ? defaultRecordDir() : o.record;
+  bool recording = false;
+
+  std::optional<capture::Frame> frame;
+  FrameResult result;
+  cv::Mat lastFisheye, view;
+  std::map<std::string, gl::StageTime> stages;
+  double fps = 0, frameMs = 0;
+  int64_t processed = 0;
+  std::string status = "starting";
+  InterruptGuard guard;
+  const double period = info.fps > 0 ? 1.0 / info.fps : 0.0;
+  auto last = std::chrono::steady_clock::now();
+
+  while (!InterruptGuard::interrupted() && ui.beginFrame()) {
+    if (needRebuild) {
+      rebuild();
+      views = debugViews(frames->setup());
+      viewIndex = std::min(viewIndex, static_cast<int>(views.size()) - 1);
+      needRebuild = false;
+    }
+    bool fresh = false;
+    if (!paused || step) {
+      step = false;
+      auto next = live.next();
+      if (next && next->rgbd) {
+        if (recording) {
+          if (!recorder) recorder.emplace(recordDir, manifestFor(live.source(), *next));
+          recorder->append(*next);
+        }
+        frame = std::move(next);
+        gl::Profiler profiler;
+        const auto t0 = std::chrono::steady_clock::now();
+        result = frames->process(*frame, compositor, profiler);
+        frameMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        stages = profiler.resolve();
+        if (frame->fisheye) lastFisheye = frame->fisheye->image;
+        ++processed;
+        fresh = true;
+        status = "playing";
+      } else if (!next) {
+        status = "end of " + live.name();
+        paused = true;
+      }
+    }
+    if (fresh || view.empty() || ImGui::IsAnyItemActive()) {
+      view = frame ? renderDebugView(views[viewIndex], *frames, result, frame->rgbd->colourIntrinsics, lastFisheye) : cv::Mat();
+      if (!view.empty() && views[viewIndex] == DebugView::Composite && axes && result.T_marker_camera) {
+        view = view.clone();
+        drawMarkerAxes(view, frame->rgbd->colourIntrinsics, *result.T_marker_camera, frames->setup() ? frames->setup()->tagSize : 0.1);
+      }
+    }
+    ui.showImage(view, std::string(debugViewName(views[viewIndex])) + (view.empty() ? " (nothing to show on this frame)" : ""));
+
+    ui.beginPanel("mrgi live");
+    ImGui::Text("%s", live.name().c_str());
+    ImGui::Text("frame %lld  %s", frame ? static_cast<long long>(frame->index) : -1LL, status.c_str());
+    const auto now = std::chrono::steady_clock::now();
+    const double dt = std::chrono::duration<double>(now - last).count();
+    last = now;
+    if (dt > 0) fps = fps > 0 ? 0.9 * fps + 0.1 / dt : 1.0 / dt;
+    ImGui::Text("%.1f fps, pipeline %.1f ms", fps, frameMs);
+    const std::string marker = result.info.value("marker", std::string(frames->setup() ? "-" : "no scene"));
+    ImGui::Text("marker: %s", marker.c_str());
+    if (frames->setup()) ImGui::Text("lights: %zu", frames->setup()->lights.size());
+    ImGui::Checkbox("pause", &paused);
+    ImGui::SameLine();
+    if (ImGui::Button("step")) step = true;
+    ImGui::SameLine();
+    if (ImGui::Checkbox("record", &recording) && !recording && recorder) {
+      status = "recorded " + std::to_string(recorder->framesWritten()) + " frames into " + recordDir;
+      recorder.reset();
+      recordDir = o.record.empty() ? defaultRecordDir() : o.record + "-" + std::to_string(processed);
+    }
+    if (recording) ImGui::Text("recording into %s (%lld frames)", recordDir.c_str(),
+                               static_cast<long long>(recorder ? recorder->framesWritten() : 0));
+
+    if (ImGui::CollapsingHeader("View", ImGuiTreeNodeFlags_DefaultOpen)) {
+      for (size_t i = 0; i < views.size(); ++i)
+        if (ImGui::RadioButton(debugViewName(views[i]), viewIndex == static_cast<int>(i))) viewIndex = static_cast<int>(i), view.release();
+      ImGui::Checkbox("marker axes", &axes);
+    }
+    if (frames->setup() && ImGui::CollapsingHeader("Technique and knobs", ImGuiTreeNodeFlags_DefaultOpen)) {
+      int t = static_cast<int>(scene.technique);
+      const char* techniques[] = {"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"};
+      if (ImGui::Combo("technique", &t, techniques, 4)) scene.technique = static_cast<lighting::Technique>(t), needRebuild = true;
+      if (ImGui::Combo("preset", &presetIndex, presetNames, 5) && presetIndex < 4) {
+        if (presetIndex == 0)
+          scene = lighting::loadScene(o.scene);
+        else
+          applyPreset(loadPreset(o.presets, presetNames[presetIndex]), scene);
+        needRebuild = true;
+      }
+      bool edited = false;
+      auto& l = scene.lpv;
+      auto& v = scene.val;
+      if (lighting::usesLpv(scene.technique)) {
+        edited |= knob("volume resolution", l.resolution, 8, 64);
+        edited |= knob("propagation steps", l.steps, 0, 64);
+        l.directSteps = std::min(l.directSteps, l.steps);
+        edited |= knob("RSM size", l.rsmSize, 32, 1024, true);
+        edited |= knob("size factor", l.sizeFactor, 1.5, 8.0);
+        edited |= knob("damping", l.damping, 0.0, 1.0);
+      }
+      if (lighting::usesVal(scene.technique)) {
+        edited |= knob("sparse points", v.sparsePoints, 16, 16384, true);
+        edited |= knob("K_cache", v.kCache, 16, 512, true);
+        edited |= knob("pixel stride", v.stride, 1, 16);
+        edited |= ImGui::Checkbox("occlusion", &v.occlusion);
+        edited |= ImGui::Checkbox("fusion", &v.fusion);
+      }
+      if (edited) presetIndex = 4, needRebuild = true;
+    }
+    if (ImGui::CollapsingHeader("Stages (ms)", ImGuiTreeNodeFlags_DefaultOpen)) {
+      if (ImGui::BeginTable("stages", 3)) {
+        ImGui::TableSetupColumn("stage");
+        ImGui::TableSetupColumn("cpu");
+        ImGui::TableSetupColumn("gpu");
+        ImGui::TableHeadersRow();
+        for (const auto& [name, t] : stages) {
+          ImGui::TableNextRow();
+          ImGui::TableNextColumn();
+          ImGui::TextUnformatted(name.c_str());
+          ImGui::TableNextColumn();
+          ImGui::Text("%.1f", t.cpuMs);
+          ImGui::TableNextColumn();
+          ImGui::Text("%.1f", t.gpuMs);
+        }
+        ImGui::EndTable();
+      }
+      if (result.info.contains("skipped")) {
+        std::string s;
+        for (const auto& k : result.info["skipped"]) s += (s.empty() ? "" : ", ") + k.get<std::string>();
+        ImGui::TextWrapped("skipped (inputs unchanged): %s", s.c_str());
+      }
+    }
+    ui.endPanel();
+
+    const bool done = o.frames > 0 && processed >= o.frames;
+    cv::Mat shot;
+    ui.endFrame(done && !o.screenshot.empty() ? &shot : nullptr);
+    if (done) {
+      if (!o.screenshot.empty()) {
+        createParentDirectory(o.screenshot);
+        writePng(o.screenshot, shot);
+      }
+      break;
+    }
+    // A recording plays no faster than it was recorded.
+    if (fresh && live.recording() && period > 0 && o.frames == 0) {
+      const double spent = std::chrono::duration<double>(std::chrono::steady_clock::now() - now).count();
+      if (spent < period) std::this_thread::sleep_for(std::chrono::duration<double>(period - spent));
+    }
+  }
+  json summary = {{"source", live.name()}, {"frames", processed}, {"window", {context->width(), context->height()}},
+                  {"renderer", context->renderer()}};
+  if (!o.screenshot.empty() && o.frames > 0 && processed >= o.frames) summary["screenshot"] = o.screenshot;
+  if (recorder) summary["recorded"] = {{"session", recordDir}, {"frames", recorder->framesWritten()}};
+  std::printf("%s\n", summary.dump().c_str());
+  return InterruptGuard::interrupted() ? 130 : 0;
+}
+
+}  // namespace
+
+Action addLive(CLI::App& app) {
+  auto o = std::make_shared<LiveOptions>();
+  app.add_option("--source", o->in.source, "play a session, TUM sequence or .oni file in the window instead of the sensor");
+  app.add_option("--device", o->in.device, "depth sensor URI")->capture_default_str();
+  app.add_option("--fisheye", o->in.fisheye, "V4L2 fisheye camera for live light estimation (e.g. /dev/video0)");
+  app.add_option("--fisheye-calibration", o->in.fisheyeCalibration, "its calibration (YAML from mrgi calibrate-fisheye)");
+  app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")->check(CLI::PositiveNumber);
+  app.add_option("--scene", o->scene, "scene file: virtual objects relative to the marker, lights, technique, knobs");
+  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
+      ->check(CLI::IsMember({"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}));
+  app.add_option("--preset", o->preset, "measured preset (overrides the scene file's knobs)")
+      ->check(CLI::IsMember({"fast", "balanced", "accurate"}));
+  app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();
+  app.add_option("--gl", o->gl, "GL backend (the live demo needs a window; use mrgi replay headless)")
+      ->check(CLI::IsMember({"window"}));
+  app.add_option("--frames", o->frames, "stop after N frames (0 = until the window closes)")->check(CLI::NonNegativeNumber);
+  app.add_option("--screenshot", o->screenshot, "with --frames: save the window's last frame (PNG)");
+  app.add_option("--record", o->record, "folder the record toggle writes a session into (default: live-DATE-TIME)");
+  app.add_flag("--no-loop", o->noLoop, "stop at the end of a recording instead of playing it again");
+  app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
+      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  app.add_option("--view", o->view, "initial view: composite, delta, gbuffer_albedo, dlpv_slices, fisheye_lights, ...");
+  return [o] {
+    o->in.loop = !o->noLoop;
+    if (!o->screenshot.empty() && o->frames == 0) throw std::invalid_argument("--screenshot needs --frames N");
+    return runLive(*o);
+  };
+}
+
+}  // namespace mrgi::app

@@ -1,0 +1,66 @@
+#include "app/live_source.h"
+
+#include <algorithm>
+
+#include "capture/error.h"
+#include "capture/v4l2_source.h"
+
+namespace mrgi::app {
+
+LiveSource::LiveSource(LiveSourceOptions o) : o_(std::move(o)) {
+  if (!o_.source.empty()) {
+    source_ = capture::open(o_.source);
+    name_ = o_.source;
+  } else {
+    try {
+      source_ = capture::open(o_.device);
+    } catch (const capture::CaptureError& e) {
+      throw capture::CaptureError(o_.device, std::string("no depth sensor (") + e.what() +
+                                                 "); use --source SESSION or FILE.oni to play a recording instead");
+    }
+    name_ = o_.device;
+    if (!o_.fisheye.empty()) {
+      capture::OpenOptions fo;
+      fo.fisheyeCalibration = o_.fisheyeCalibration;
+      fisheye_ = capture::open("v4l2://" + o_.fisheye, fo);
+    }
+  }
+  if (!source_->info().hasRgbd) throw capture::CaptureError(name_, "has no RGB-D frames");
+}
+
+std::optional<capture::Frame> LiveSource::next() {
+  auto f = source_->next();
+  if (!f && recording() && o_.loop) {
+    source_ = capture::open(o_.source);  // from the start again
+    ++loops_;
+    f = source_->next();
+  }
+  if (f && fisheye_ && count_++ % std::max(o_.fisheyeEvery, 1) == 0)
+    if (auto fe = fisheye_->next(); fe && fe->fisheye) f->fisheye = fe->fisheye;
+  if (f && loops_ > 0) f->timestamp += static_cast<double>(loops_) * 1e6;  // timestamps keep increasing
+  return f;
+}
+
+std::optional<capture::FisheyeCalibration> LiveSource::fisheyeCalibration() const {
+  if (!fisheye_) return std::nullopt;
+  auto f = fisheye_->next();
+  if (f && f->fisheye) return f->fisheye->calibration;
+  return std::nullopt;
+}
+
+capture::SessionManifest manifestFor(const capture::FrameSource& source, const capture::Frame& first) {
+  if (const auto* s = dynamic_cast<const capture::SessionSource*>(&source)) {
+    capture::SessionManifest m = s->manifest();
+    if (m.groundTruth.is_object()) m.groundTruth.erase("reference");  // its files are not copied
+    return m;
+  }
+  capture::SessionManifest m;
+  m.colour = first.rgbd->colourIntrinsics;
+  m.depth = first.rgbd->depthIntrinsics;
+  m.depthRegistered = first.rgbd->depthRegistered;
+  m.T_colour_depth = first.rgbd->T_colour_depth;
+  if (first.fisheye) m.fisheye = first.fisheye->calibration;
+  return m;
+}
+
+}  // namespace mrgi::app

@@ -1,0 +1,42 @@
+#pragma once
+// The window the interactive commands (live, insert) share: Dear ImGui on the GLFW window backend, an
+// image view on the left, a control panel on the right, and screenshots of what the window shows.
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "gl/context.h"
+
+namespace mrgi::app {
+
+class WindowUi {
+ public:
+  static constexpr int kPanelWidth = 360;
+  /// Window size for showing a width x height image at an integer zoom (at least ~640 px wide) next to
+  /// the panel.
+  static cv::Size windowSize(int width, int height);
+
+  /// Needs a Backend::Window context (throws a one-line error otherwise).
+  explicit WindowUi(gl::Context& context);
+  ~WindowUi();
+  WindowUi(const WindowUi&) = delete;
+  WindowUi& operator=(const WindowUi&) = delete;
+
+  /// Polls events and starts a UI frame; false once the user closed the window (or pressed Escape).
+  bool beginFrame();
+  /// Shows an RGB8 (or grey) image in the view area, scaled to fit with its aspect ratio kept.
+  void showImage(const cv::Mat& image, const std::string& caption);
+  /// Opens the control panel (ImGui::Begin); close it with endPanel().
+  void beginPanel(const std::string& title);
+  void endPanel();
+  /// Draws the UI and presents the frame; when `screenshot` is given, the window's pixels as presented
+  /// (RGB8) are read back into it first.
+  void endFrame(cv::Mat* screenshot = nullptr);
+
+ private:
+  gl::Context& context_;
+  unsigned texture_ = 0;
+  int textureWidth_ = 0, textureHeight_ = 0;
+};
+
+}  // namespace mrgi::app
