@@ -211,6 +211,7 @@ int runInsert(const InsertOptions& o) {
   else
     doc["objects"].push_back(object);
   // Parse as if saved already (model paths resolve against the save folder); bad input stops here.
+  createParentDirectory(o.save);  // model paths relative to it must resolve
   const std::string savePath = fs::absolute(o.save).string();
   lighting::SceneDescription scene = lighting::parseScene(doc.dump(), savePath);
 
@@ -298,7 +299,7 @@ int runInsert(const InsertOptions& o) {
   report["translate"] = doc["objects"][index]["translate"];
   report["rotate_deg"] = doc["objects"][index]["rotate_deg"];
 
-  if (window) return interactive(o, context, doc, index, savePath, setup, *frame, result, snap, report);
+  if (window) return interactive(o, context, doc, index, savePath, *frames.setup(), *frame, result, snap, report);
   if (!o.preview.empty()) {
     frames.render(*frame, result, compositor, profiler);
     writePng(o.preview, result.composite);
