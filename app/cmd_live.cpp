@@ -219,11 +219,14 @@ int runLive(const LiveOptions& o) {
         edited |= knob("RSM size", l.rsmSize, 32, 1024, true);
         edited |= knob("size factor", l.sizeFactor, 1.5, 8.0);
         edited |= knob("damping", l.damping, 0.0, 1.0);
+        edited |= knob("direct steps", l.directSteps, 0, l.steps);
       }
       if (lighting::usesVal(scene.technique)) {
         edited |= knob("sparse points", v.sparsePoints, 16, 16384, true);
         edited |= knob("K_cache", v.kCache, 16, 512, true);
         edited |= knob("pixel stride", v.stride, 1, 16);
+        edited |= knob("RSM stride", v.rsmStride, 1, 16);
+        edited |= knob("surfel voxel (m)", v.voxel, 0.005, 0.1);
         edited |= ImGui::Checkbox("occlusion", &v.occlusion);
         edited |= ImGui::Checkbox("fusion", &v.fusion);
       }

@@ -75,7 +75,6 @@ int runReplay(const ReplayOptions& o) {
   fo.pose = o.pose;
   fo.meshStride = o.meshStride;
   fo.reuse = !o.recomputeAll;
-  const lighting::Technique technique = setup ? setup->scene.technique : lighting::Technique::Dlpv;
   FramePipeline frames(std::move(setup), width, height, fo);
   lighting::LightingPipeline* pipeline = frames.lighting();
 
@@ -94,7 +93,7 @@ int runReplay(const ReplayOptions& o) {
   cv::Mat lastFisheye;  // --debug: the environment the lights were last estimated from
   std::map<std::string, std::pair<double, double>> sums;  // stage -> (cpu, gpu) ms
   std::map<std::string, int64_t> skipped;                 // stage -> frames it was skipped on
-  int64_t done = 0;
+  int64_t done = 0, posed = 0;
   const auto start = std::chrono::steady_clock::now();
   while (limit < 0 || done < limit) {
     if (InterruptGuard::interrupted()) {
@@ -108,6 +107,7 @@ int runReplay(const ReplayOptions& o) {
     }
     if (!frame) break;
     FrameResult result = frames.process(*frame, compositor, profiler);
+    if (result.T_marker_camera) ++posed;
     json frameInfo = result.info;
     if (frameInfo.contains("skipped"))
       for (const auto& stage : frameInfo["skipped"]) ++skipped[stage.get<std::string>()];
@@ -221,7 +221,12 @@ int runReplay(const ReplayOptions& o) {
   summary["interrupted"] = interrupted;
   if (video) summary["video"] = {{"file", o.mp4}, {"frames", videoFrames}, {"fps", fps}};
   summary["per_frame"] = perFrame;
+  summary["frames_with_pose"] = posed;
   capture::writeFileAtomically(fs::path(o.out) / "summary.json", summary.dump(2) + "\n");
+  if (const LightingSetup* setup = frames.setup(); setup && posed == 0 && done > 0 && !interrupted)
+    // The frames are written (the camera images), but nothing could be placed: say so and fail.
+    throw capture::CaptureError(o.source, "marker (" + setup->tagFamily + (setup->tagId >= 0 ? " id " + std::to_string(setup->tagId) : "") +
+                                              ") never seen in " + std::to_string(done) + " frames; nothing was placed");
   std::printf("%s %lld frames into %s (%.1f ms/frame)\n", interrupted ? "interrupted: replayed" : "replayed",
               static_cast<long long>(done), o.out.c_str(), done ? wallMs / done : 0.0);
   return interrupted ? 130 : 0;

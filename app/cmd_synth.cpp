@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "app/commands.h"
 #include "app/tabletop.h"
@@ -38,7 +40,33 @@ struct SynthOptions {
   std::string render = "pathtrace";  ///< pathtrace (global illumination) | raycast (direct light + constant ambient)
   int spp = 64, bounces = 3;
   std::string scene;  ///< virtual objects whose path-traced reference composite each frame gets
+  std::string environment;        ///< HDR equirect EXR: outdoors under it instead of the room
+  double environmentScale = 0;    ///< 0: a white upward surface in the open reads 0.6
 };
+
+/// Loads an equirectangular EXR (linear RGB, 2:1) as the environment; scale 0 picks the exposure at which
+/// a white upward-facing surface under the open sky has radiance 0.6.
+std::shared_ptr<const lighting::reference::EnvironmentMap> loadEnvironment(const std::string& path, double& scale) {
+  cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (img.empty() || img.depth() != CV_32F || (img.channels() != 3 && img.channels() != 4) || img.cols != 2 * img.rows)
+    throw capture::CaptureError(path, "cannot be read as an HDR environment (float EXR, equirectangular, width = 2 x height)");
+  if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2BGR);
+  cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
+  auto env = std::make_shared<lighting::reference::EnvironmentMap>(img, 1.f);
+  if (scale <= 0) {
+    // Irradiance on an upward plane: sum of L cos(theta) over the upper half's texels (solid angle each).
+    double E = 0;
+    const int W = env->width(), H = env->height();
+    for (int y = 0; y < H / 2; ++y) {
+      const double theta = CV_PI * (y + 0.5) / H;
+      const double dOmega = (2 * CV_PI / W) * (CV_PI / H) * std::sin(theta);
+      for (int x = 0; x < W; ++x) E += capture::luminance(cv::Vec3d(env->image().at<cv::Vec3f>(y, x))) * std::cos(theta) * dOmega;
+    }
+    if (!(E > 0)) throw capture::CaptureError(path, "is black above the horizon");
+    scale = 0.6 * CV_PI / E;
+  }
+  return std::make_shared<lighting::reference::EnvironmentMap>(img, static_cast<float>(scale));
+}
 
 cv::Vec3f toFloat(const cv::Vec3d& v) { return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])}; }
 
@@ -147,6 +175,13 @@ int runSynth(const SynthOptions& o) {
   tc.tagId = o.tagId;
   tc.tagSize = o.tagSize;
   tc.seed = o.seed;
+  if (!o.environment.empty()) {
+    if (o.render != "pathtrace") throw std::invalid_argument("--environment needs --render pathtrace");
+    double scale = o.environmentScale;
+    tc.environment = loadEnvironment(o.environment, scale);
+    tc.environmentInfo = {{"file", fs::path(o.environment).filename().string()}, {"scale", scale},
+                          {"mapping", "equirectangular, y up, row 0 = zenith, u = 0.5 at -z"}};
+  }
   Tabletop table = buildTabletop(tc);
   const bool pathTrace = o.render == "pathtrace";
   // The reference's virtual objects (marker frame) move into the room through the true marker pose.
@@ -253,6 +288,9 @@ Action addSynth(CLI::App& app) {
   auto o = std::make_shared<SynthOptions>();
   app.add_option("--out", o->out, "new session directory (must not exist or be empty)")->required();
   app.add_option("--frames", o->frames, "number of frames along the camera orbit")->check(CLI::Range(1, 100000));
+  app.add_option("--environment", o->environment, "outdoors under this HDR environment (equirectangular EXR) instead of the room");
+  app.add_option("--environment-scale", o->environmentScale, "multiplies the environment (default: a white upward surface reads 0.6)")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--static-camera", o->staticCamera, "keep the camera at the orbit's first pose (only the sensor noise changes)");
   app.add_option("--width", o->width, "image width")->check(CLI::Range(16, 8192));
   app.add_option("--height", o->height, "image height")->check(CLI::Range(12, 8192));

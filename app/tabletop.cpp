@@ -23,13 +23,20 @@ Tabletop buildTabletop(const TabletopConfig& c) {
   const int frontM = s.addMaterial({"wall_front_blue", {0.20f, 0.28f, 0.62f}});
   const int tableM = s.addMaterial({"table", {0.48f, 0.34f, 0.22f}});
   const int boxM = s.addMaterial({"box_yellow", {0.78f, 0.66f, 0.16f}});
-  // Room faces point inwards.
-  s.addQuad({-W, 0, -W}, {0, 0, 2 * W}, {2 * W, 0, 0}, floorM);
-  s.addQuad({-W, H, -W}, {2 * W, 0, 0}, {0, 0, 2 * W}, ceilM);
-  s.addQuad({-W, 0, -W}, {2 * W, 0, 0}, {0, H, 0}, backM);
-  s.addQuad({-W, 0, -W}, {0, H, 0}, {0, 0, 2 * W}, leftM);
-  s.addQuad({W, 0, -W}, {0, 0, 2 * W}, {0, H, 0}, rightM);
-  s.addQuad({-W, 0, W}, {0, H, 0}, {2 * W, 0, 0}, frontM);
+  if (c.environment) {
+    // Outdoors: open ground (grey stone) to the horizon's foot, lit by the environment alone.
+    const float G = 30.f;
+    s.addQuad({-G, 0, -G}, {0, 0, 2 * G}, {2 * G, 0, 0}, floorM);
+    s.environmentMap = c.environment;
+  } else {
+    // Room faces point inwards.
+    s.addQuad({-W, 0, -W}, {0, 0, 2 * W}, {2 * W, 0, 0}, floorM);
+    s.addQuad({-W, H, -W}, {2 * W, 0, 0}, {0, 0, 2 * W}, ceilM);
+    s.addQuad({-W, 0, -W}, {2 * W, 0, 0}, {0, H, 0}, backM);
+    s.addQuad({-W, 0, -W}, {0, H, 0}, {0, 0, 2 * W}, leftM);
+    s.addQuad({W, 0, -W}, {0, 0, 2 * W}, {0, H, 0}, rightM);
+    s.addQuad({-W, 0, W}, {0, H, 0}, {2 * W, 0, 0}, frontM);
+  }
   // Table: top slab and four legs.
   s.addBox({-0.6f, kTableTop - 0.03f, -0.4f}, {0.6f, kTableTop, 0.4f}, tableM);
   for (float x : {-0.55f, 0.52f})
@@ -53,8 +60,10 @@ Tabletop buildTabletop(const TabletopConfig& c) {
   // Image rows run along world +z (marker -y), columns along world +x (marker x).
   s.addQuad({-full / 2, tagY, -full / 2}, {full, 0, 0}, {0, 0, full}, tagM);
 
-  s.lights.push_back({{0.45f, 1.95f, 0.55f}, {9.0f, 8.4f, 7.6f}, 0.04f});
-  s.ambient = {0.05f, 0.05f, 0.05f};
+  if (!c.environment) {
+    s.lights.push_back({{0.45f, 1.95f, 0.55f}, {9.0f, 8.4f, 7.6f}, 0.04f});
+    s.ambient = {0.05f, 0.05f, 0.05f};
+  }
 
   // Marker frame: x = world x, z = world y (out of the table), y = z x x = world -z.
   t.T_world_marker = capture::Pose(1, 0, 0, 0,  //
@@ -72,6 +81,7 @@ Tabletop buildTabletop(const TabletopConfig& c) {
   gt["scene"]["generator"] = "mrgi synth (direct light + constant ambient, ray cast)";
   gt["scene"]["seed"] = c.seed;
   gt["scene"]["ambient_radiance"] = {s.ambient[0], s.ambient[1], s.ambient[2]};
+  if (c.environment) gt["environment"] = c.environmentInfo;
   gt["scene"]["materials"] = nlohmann::json::array();
   for (const auto& m : s.materials)
     gt["scene"]["materials"].push_back({{"name", m.name}, {"albedo", {m.albedo[0], m.albedo[1], m.albedo[2]}}});

@@ -1,6 +1,8 @@
 #pragma once
 // The synthetic tabletop scene of `mrgi synth`: a room with differently coloured walls, a table with an
-// AprilTag, a box and a point light; camera path orbiting the tag; a fisheye camera on the table looking up.
+// AprilTag, a box and a point light (or outdoors under an HDR environment); camera path orbiting the tag; a
+// fisheye camera on the table looking up.
+#include <memory>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -15,6 +17,9 @@ struct TabletopConfig {
   int tagId = 0;
   double tagSize = 0.16;  ///< black-square edge, metres
   uint64_t seed = 1;
+  /// Outdoors: the table stands on open ground under this HDR environment (no room, no point light).
+  std::shared_ptr<const lighting::reference::EnvironmentMap> environment;
+  nlohmann::json environmentInfo;  ///< what the manifest records about it (file, scale)
 };
 
 struct Tabletop {

@@ -69,11 +69,19 @@ PathTracer::PathTracer(const RayCaster& caster, PathTraceOptions options) : cast
 
 cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng) const {
   const Scene& scene = caster_.scene();
+  const EnvironmentMap* env = scene.environmentMap.get();
   cv::Vec3f L(0, 0, 0), beta(1, 1, 1);
+  float lastPdf = 0;  // pdf of the BRDF-sampled direction that led here (0: a camera ray)
+  auto mis = [](float a, float b) { return a * a / (a * a + b * b); };  // power heuristic
   for (int depth = 0;; ++depth) {
     const auto hit = caster_.intersect(origin, dir, 1e-4f, 1e30f, depth == 0);
     if (!hit) {
       L += beta.mul(scene.environment);
+      if (env) {
+        // Found by the BRDF: weighted against next-event estimation of the same direction.
+        const float w = lastPdf > 0.f ? mis(lastPdf, env->pdf(dir)) : 1.f;
+        L += beta.mul(env->radiance(dir)) * w;
+      }
       break;
     }
     if (hit->light >= 0) {  // only camera rays see a light's sphere; paths find lights by next-event estimation
@@ -97,11 +105,28 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng) const
       const float cosI = n.dot(in.direction);
       if (cosI > 0.f && lum(in.irradiance) > 0.f) L += beta.mul(fcos(in.direction, cosI).mul(in.irradiance));
     }
-    if (depth >= options_.bounces) break;
-    // Next direction: the diffuse lobe (cosine-weighted) or the glossy one, by their reflectance.
+    // How the next direction is drawn: the diffuse lobe (cosine-weighted) or the glossy one, by their
+    // reflectance; bsdfPdf is that mixture's pdf per steradian.
     const float wd = lum(hit->albedo), ws = glossy ? lum(m.specular) : 0.f;
-    if (!(wd + ws > 0.f)) break;
-    const float pd = wd / (wd + ws);
+    const float pd = wd + ws > 0.f ? wd / (wd + ws) : 1.f;
+    auto bsdfPdf = [&](cv::Vec3f wi, float cosI) {
+      float p = pd * cosI / kPi;
+      if (ws > 0.f) p += (1.f - pd) * (k <= 0.f ? 1.f / (2.f * kPi) : ck * phongLobe(refl.dot(wi), k));
+      return p;
+    };
+    const bool continues = depth < options_.bounces && wd + ws > 0.f;
+    if (env) {
+      // Next-event estimation of the environment (the BRDF finds it too while the path continues: MIS).
+      const float e0 = rng.uniform(0.f, 1.f), e1 = rng.uniform(0.f, 1.f), e2 = rng.uniform(0.f, 1.f);
+      const EnvironmentMap::Sample es = env->sample(e0, e1, e2);
+      const float cosI = n.dot(es.direction);
+      if (es.pdf > 0.f && cosI > 0.f && g.dot(es.direction) > 0.f &&
+          !caster_.occluded(hit->position + 1e-4f * g, es.direction, 0.f, 1e30f)) {
+        const float w = continues ? mis(es.pdf, bsdfPdf(es.direction, cosI)) : 1.f;
+        L += beta.mul(fcos(es.direction, cosI).mul(es.radiance)) * (w / es.pdf);
+      }
+    }
+    if (!continues) break;
     const float u0 = rng.uniform(0.f, 1.f), u1 = rng.uniform(0.f, 1.f), u2 = rng.uniform(0.f, 1.f);
     const float phi = 2.f * kPi * u2;
     cv::Vec3f wi;
@@ -110,10 +135,10 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng) const
     else wi = aroundAxis(refl, std::pow(u1, 1.f / (k + 1.f)), phi);
     const float cosI = n.dot(wi);
     if (!(cosI > 0.f) || g.dot(wi) <= 0.f) break;
-    float pdf = pd * cosI / kPi;
-    if (ws > 0.f) pdf += (1.f - pd) * (k <= 0.f ? 1.f / (2.f * kPi) : ck * phongLobe(refl.dot(wi), k));
+    const float pdf = bsdfPdf(wi, cosI);
     if (!(pdf > 0.f)) break;
     beta = beta.mul(fcos(wi, cosI)) * (1.f / pdf);
+    lastPdf = pdf;
     origin = hit->position + 1e-4f * g;
     dir = wi;
   }

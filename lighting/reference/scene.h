@@ -1,10 +1,13 @@
 #pragma once
 /// Scene description shared by the reference renderer and the synthetic-session generator.
 /// World space: metres, right-handed, y up. Colours and albedos are linear RGB.
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
+
+#include "lighting/reference/environment.h"
 
 namespace mrgi::lighting::reference {
 
@@ -46,6 +49,8 @@ struct Scene {
   std::vector<Light> lights;
   cv::Vec3f ambient{0, 0, 0};  ///< ray caster only: constant radiance added as albedo * ambient (a crude bounce stand-in)
   cv::Vec3f environment{0, 0, 0};  ///< path tracer: radiance of every ray that leaves the scene
+  /// Path tracer: an HDR environment added to `environment` (importance-sampled, MIS with the BRDF).
+  std::shared_ptr<const EnvironmentMap> environmentMap;
 
   int addMaterial(Material m);
   /// Appends a triangle mesh moved by T (4x4, metres) with smooth normals (rotated by T) and one material.

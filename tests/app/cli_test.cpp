@@ -863,3 +863,21 @@ TEST(InsertWindow, DISABLED_PreviewsThePlacementAndSavesIt) {
   EXPECT_GT(cv::mean(grey, diff > 40)[0], 90.0);  // lit by the session's lights, not black
   fs::remove_all(dir);
 }
+
+TEST(Cli, ReplayFailsInOneLineWhenTheMarkerIsNeverSeen) {
+  // The session's manifest names a tag that is not in its images.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_nomarker_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::copy(session(), dir / "s", fs::copy_options::recursive);
+  auto manifest = nlohmann::json::parse(slurp(dir / "s" / "manifest.json"));
+  manifest["marker"]["id"] = manifest["marker"]["id"].get<int>() + 1;
+  std::ofstream(dir / "s" / "manifest.json") << manifest.dump(2);
+  const fs::path scene = writeScene("nomarker.json", R"({"objects": [{"model": ")" + kModels +
+                                                         R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}], "lights": "manifest"})");
+  const Result r = runMrgi("replay " + (dir / "s").string() + " --scene " + scene.string() + " --out " + (dir / "out").string());
+  expectOneLineError(r, "never seen in 3 frames");
+  EXPECT_TRUE(fs::exists(dir / "out" / "frame_0002.png"));  // the camera images are still written
+  const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
+  EXPECT_EQ(summary["frames_with_pose"], 0);
+  fs::remove_all(dir);
+}

@@ -3,7 +3,9 @@
 #include <cmath>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
+#include "capture/colour.h"
 #include "capture/session.h"
 #include "lighting/reference/path_tracer.h"
 #include "lighting/scene_file.h"
@@ -307,6 +309,94 @@ TEST(PathTracer, DifferentialImagesShadowAndMaskTheVirtualObject) {
   EXPECT_GT(virtualPixels, 10);
   EXPECT_GT(litVirtual, virtualPixels / 2);
   EXPECT_GT(shadowed, 5);
+}
+
+
+namespace env {
+/// A 2:1 map: a dim uniform sky above the horizon, black below, and a small hot "sun" of `sun` radiance
+/// over texels [x0, x0 + 2) x [y0, y0 + 2).
+cv::Mat skyWithSun(int W, float sky, float sun, int x0, int y0) {
+  cv::Mat m(W / 2, W, CV_32FC3, cv::Scalar::all(0));
+  m(cv::Rect(0, 0, W, W / 4)).setTo(cv::Scalar::all(sky));
+  m(cv::Rect(x0, y0, 2, 2)).setTo(cv::Scalar(sun, 0.9f * sun, 0.8f * sun));
+  return m;
+}
+}  // namespace env
+
+TEST(EnvironmentMap, SamplesInProportionToLuminanceAndItsPdfIsNormalised) {
+  cv::Mat img(32, 64, CV_32FC3);
+  cv::RNG rng(7);
+  rng.fill(img, cv::RNG::UNIFORM, 0.01, 1.0);
+  img.at<cv::Vec3f>(5, 9) = {500, 400, 300};
+  img.at<cv::Vec3f>(3, 3) = {NAN, -1, INFINITY};  // cleaned to 0
+  const EnvironmentMap map(img, 2.f);
+  EXPECT_EQ(map.image().at<cv::Vec3f>(3, 3), cv::Vec3f(0, 0, 0));
+  // The pdf integrates to 1 over the sphere (midpoint rule on a grid 8x finer than the texels).
+  double sum = 0;
+  const int nu = 512, nv = 256;
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      const float u = (i + 0.5f) / nu, v = (j + 0.5f) / nv;
+      const cv::Vec3f d = EnvironmentMap::directionOf(u, v);
+      const cv::Vec2f uv = EnvironmentMap::uvOf(d);
+      ASSERT_NEAR(uv[0], u, 1e-4);
+      ASSERT_NEAR(uv[1], v, 1e-4);
+      sum += map.pdf(d) * (2 * kPi * kPi * std::sin(kPi * v)) / (nu * nv);
+    }
+  EXPECT_NEAR(sum, 1.0, 2e-3);
+  // Texels are chosen in proportion to luminance x solid angle and sampled uniformly in (u, v) within: each
+  // sample's luminance / pdf is the map's integral up to sin(theta) / sin(theta at the texel's centre).
+  cv::RNG r(11);
+  int hot = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const auto s = map.sample(r.uniform(0.f, 1.f), r.uniform(0.f, 1.f), r.uniform(0.f, 1.f));
+    ASSERT_GT(s.pdf, 0.f);
+    const double v = EnvironmentMap::uvOf(s.direction)[1];
+    const double centre = kPi * (std::floor(v * map.height()) + 0.5) / map.height();
+    const double expected = map.integral() * std::sin(kPi * v) / std::sin(centre);
+    EXPECT_NEAR(capture::luminance(cv::Vec3d(s.radiance)) / s.pdf, expected, 1e-3 * expected);
+    EXPECT_EQ(map.radiance(s.direction), s.radiance);
+    hot += s.radiance[0] > 900.f;
+  }
+  EXPECT_GT(hot, 200);  // the hot texel holds a large share of the power
+  const EnvironmentMap black(cv::Mat(8, 16, CV_32FC3, cv::Scalar::all(0)));
+  EXPECT_EQ(black.sample(0.5f, 0.5f, 0.5f).pdf, 0.f);
+  EXPECT_EQ(black.integral(), 0.0);
+}
+
+TEST(PathTracer, PlaneUnderAnHdrSunMatchesItsTexelIrradianceWithLowNoise) {
+  // A plane facing up (+y) under a dim sky and a 2x2-texel sun 10^5 times brighter: the irradiance is the
+  // sum over texels of L * integral(cos theta dw) = L * dphi * (sin^2 theta1 - sin^2 theta0) / 2.
+  const int W = 128;
+  const float sky = 0.2f, sun = 2e4f;
+  const int x0 = 40, y0 = 9;
+  Scene s;
+  const float a = 0.5f;
+  const int m = s.addMaterial({"ground", {a, a, a}});
+  s.addQuad({-50, 0, -50}, {0, 0, 100}, {100, 0, 0}, m);
+  s.environmentMap = std::make_shared<EnvironmentMap>(env::skyWithSun(W, sky, sun, x0, y0));
+  const double dphi = 2 * kPi / W, dtheta = kPi / (W / 2);
+  double E = sky * kPi;  // green channel: the uniform upper hemisphere, then the sun's texels replacing sky
+  for (int y = y0; y < y0 + 2; ++y) {
+    const double s0 = std::sin(y * dtheta), s1 = std::sin((y + 1) * dtheta);
+    E += 2 * (0.9 * sun - sky) * dphi * (s1 * s1 - s0 * s0) / 2;
+  }
+  const double expected = a / kPi * E;
+  for (int bounces : {0, 2}) {  // 2: BRDF-sampled rays escape too and are weighted against the samples
+    PathTraceOptions o;
+    o.spp = 16;
+    o.bounces = bounces;
+    PinholeCamera cam;
+    cam.intrinsics = {24, 16, 20, 20, 11.5, 7.5};
+    cam.T_world_camera = capture::lookAtPose({0, 2, 0.01}, {0, 0, 0});
+    const cv::Mat img = PathTracer(RayCaster(s), o).render(cam);
+    cv::Mat green;
+    cv::extractChannel(img, green, 1);
+    cv::Scalar mean, dev;
+    cv::meanStdDev(green, mean, dev);
+    EXPECT_NEAR(mean[0], expected, 0.01 * expected) << bounces;
+    EXPECT_LT(dev[0] / mean[0], 0.05) << bounces;  // importance sampling: no fireflies from the sun
+  }
 }
 
 }  // namespace
