@@ -868,6 +868,7 @@ TEST(Cli, ReplayFailsInOneLineWhenTheMarkerIsNeverSeen) {
   // The session's manifest names a tag that is not in its images.
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_nomarker_" + std::to_string(::getpid()));
   fs::remove_all(dir);
+  fs::create_directories(dir);
   fs::copy(session(), dir / "s", fs::copy_options::recursive);
   auto manifest = nlohmann::json::parse(slurp(dir / "s" / "manifest.json"));
   manifest["marker"]["id"] = manifest["marker"]["id"].get<int>() + 1;
