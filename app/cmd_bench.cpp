@@ -44,14 +44,14 @@ struct BenchOptions {
   std::string technique;  ///< empty: all (reference mode)
   std::string against = "reference";
   std::string json, csv, html, presets;
-  std::string scene = "recordings/scenes/tabletop.json";
+  std::string scene;  ///< empty: per session, the scene of its true references, else recordings/scenes/tabletop.json
   int frames = 4;
   int refFrames = 2;
   int refSpp = 64;
   int refBounces = 3;
   bool quick = false;
   std::string pose = "ground-truth";
-  std::vector<std::string> sessions{"recordings/tabletop-synth", "recordings/tabletop-pt"};
+  std::vector<std::string> sessions{"recordings/tabletop-synth", "recordings/tabletop-pt", "recordings/tabletop-hdr"};
   std::string session = "recordings/tabletop-synth";  ///< bruteforce mode
   std::string model = "recordings/models/sphere.ply";
   std::vector<int> valCounts{1024, 4096, 16384, 65536};
@@ -342,7 +342,7 @@ bool lightingStage(const std::string& n) {
 
 /// One session of the sweep: its frames, lighting setup and truths.
 struct BenchSession {
-  std::string path;
+  std::string path, scene;
   LightingSetup setup;
   std::vector<capture::Frame> frames;
   int W = 0, H = 0;
@@ -396,8 +396,17 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   auto source = capture::open(path);
   const capture::SourceInfo& info = source->info();
   if (!info.hasRgbd) throw capture::CaptureError(path, "has no RGB-D frames");
-  bs.setup = prepareLighting(lighting::loadScene(o.scene), o.scene, *source, path, o.pose);
-  if (bs.setup.scene.objects.empty()) throw capture::CaptureError(o.scene, "has no virtual object to measure");
+  bs.scene = o.scene;
+  if (bs.scene.empty()) {
+    // A synthetic session names the scene its true references show (relative to the session).
+    const auto* session = dynamic_cast<const capture::SessionSource*>(source.get());
+    const json gt = session ? session->manifest().groundTruth : json();
+    bs.scene = gt.is_object() && gt.contains("reference") && gt["reference"].contains("scene")
+                   ? (fs::path(path) / gt["reference"]["scene"].get<std::string>()).lexically_normal().string()
+                   : std::string("recordings/scenes/tabletop.json");
+  }
+  bs.setup = prepareLighting(lighting::loadScene(bs.scene), bs.scene, *source, path, o.pose);
+  if (bs.setup.scene.objects.empty()) throw capture::CaptureError(bs.scene, "has no virtual object to measure");
   while (static_cast<int>(bs.frames.size()) < o.frames) {
     auto f = source->next();
     if (!f) break;
@@ -411,7 +420,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   for (int i = 0; i < refs; ++i) refFrames.push_back(refs == 1 ? 0 : i * (n - 1) / (refs - 1));
 
   // Ground truth: the same inputs, path traced.
-  bs.refInfo = {{"session", path}, {"spp", o.refSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
+  bs.refInfo = {{"session", path}, {"scene", bs.scene}, {"spp", o.refSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
   FrameOptions mo;
   mo.pose = o.pose;
   mo.gpu = false;
@@ -459,7 +468,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   bs.refInfo["ms_per_frame"] = ms / refs;
   std::printf("%s: reference %d frames, %d spp, %d bounces, %.1f s per frame\n", path.c_str(), refs, o.refSpp, o.refBounces,
               ms / refs / 1000);
-  bs.trueRefs = loadTrueReferences(path, o.scene, bs.frames);
+  bs.trueRefs = loadTrueReferences(path, bs.scene, bs.frames);
   if (!bs.trueRefs.empty()) {
     bs.refInfo["true_reference_frames"] = bs.trueRefs.size();
     std::printf("%s: %zu true reference composites (whole-pipeline error)\n", path.c_str(), bs.trueRefs.size());
@@ -621,7 +630,7 @@ int runSweep(const BenchOptions& o) {
   json sessionInfo = json::array();
   for (const auto& bs : sessions) sessionInfo.push_back(bs.refInfo);
   json doc = {{"session", o.sessions.size() == 1 ? json(o.sessions.front()) : json(o.sessions)},
-              {"scene", o.scene},
+              {"scene", first.scene},
               {"frames", first.frames.size()},
               {"gl", context->renderer()},
               {"reference", first.refInfo},
@@ -659,8 +668,8 @@ Action addBench(CLI::App& app) {
   app.add_option("--csv", o->csv, "write the records as CSV");
   app.add_option("--html", o->html, "write a self-contained HTML report (SVG plots, images)");
   app.add_option("--presets", o->presets, "write the fast/balanced/accurate presets chosen from the front (JSON)");
-  app.add_option("--session", o->sessions, "sessions to measure on, their first frames (repeat the flag; default: the two bundled synthetic sessions)");
-  app.add_option("--scene", o->scene, "scene file: objects, lights and the knobs the sweep starts from");
+  app.add_option("--session", o->sessions, "sessions to measure on, their first frames (repeat the flag; default: the three bundled synthetic sessions)");
+  app.add_option("--scene", o->scene, "scene file for every session: objects, lights, the knobs the sweep starts from (default: each session's reference scene, else recordings/scenes/tabletop.json)");
   app.add_option("--frames", o->frames, "consecutive frames per configuration (flicker; times exclude the first)")
       ->check(CLI::Range(1, 1000));
   app.add_option("--ref-frames", o->refFrames, "frames with a path-traced reference, spread over --frames")
