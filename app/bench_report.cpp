@@ -329,7 +329,17 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   for (const auto& ref : doc.value("references", json::array()))
     h << "; " << esc(ref.value("session", "")) << ": " << fmt(ref.value("noise_rel_error_delta", 0.0)) << " / "
       << fmt(ref.value("noise_rel_error_virtual", 0.0));
-  h << "). Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
+  h << ").</p><p>Marker tracking against the ground-truth camera poses (what --pose marker would add): ";
+  for (const auto& ref : doc.value("references", json::array()))
+    if (ref.contains("marker_pose_error") && ref["marker_pose_error"].is_object()) {
+      const json& m = ref["marker_pose_error"];
+      h << esc(ref.value("session", "")) << " (" << m["resolution"][0].get<int>() << "x" << m["resolution"][1].get<int>()
+        << "): " << fmt(m.value("position_mm_mean", 0.0)) << " mm / " << fmt(m.value("rotation_deg_mean", 0.0))
+        << "&deg; mean, " << fmt(m.value("position_mm_max", 0.0)) << " mm / " << fmt(m.value("rotation_deg_max", 0.0))
+        << "&deg; max, " << m.value("lost", 0) << " frames lost; ";
+    }
+  h << "</p><p>";
+  h << "Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
        "error = mean of the relative errors of the real-pixel delta and the virtual radiance.</p>";
 
   // Pareto fronts.

@@ -390,6 +390,39 @@ std::map<int, Truth> loadTrueReferences(const std::string& session, const std::s
   return out;
 }
 
+/// How far the tracked marker pose is from the session's ground truth over the bench frames: the camera
+/// position error (mm) and orientation error (degrees), mean and max, and the frames without a pose. The
+/// pipeline's own --pose decides what the sweep uses; this says what marker tracking would add.
+json markerPoseError(const BenchSession& bs, const BenchOptions& o) {
+  if (!bs.setup.T_world_marker) return nullptr;
+  FrameOptions mo;
+  mo.pose = "marker";
+  mo.gpu = false;
+  FramePipeline tracker(bs.setup, bs.W, bs.H, mo);
+  gl::Profiler none;
+  double tSum = 0, tMax = 0, rSum = 0, rMax = 0;
+  int n = 0, lost = 0;
+  for (const capture::Frame& f : bs.frames) {
+    if (!f.groundTruthT_world_camera) continue;
+    capture::Frame frame = f;
+    const FrameResult r = tracker.measure(frame, none);
+    if (!r.T_marker_camera) {
+      ++lost;
+      continue;
+    }
+    const capture::Pose truth = capture::inversePose(*bs.setup.T_world_marker) * *f.groundTruthT_world_camera;
+    const double dt = cv::norm(capture::translationOf(*r.T_marker_camera) - capture::translationOf(truth)) * 1000.0;
+    const cv::Matx33d R = capture::rotationOf(*r.T_marker_camera).t() * capture::rotationOf(truth);
+    const double dr = std::acos(std::clamp((R(0, 0) + R(1, 1) + R(2, 2) - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / CV_PI;
+    tSum += dt, rSum += dr, tMax = std::max(tMax, dt), rMax = std::max(rMax, dr);
+    ++n;
+  }
+  return {{"frames", n},           {"lost", lost},
+          {"position_mm_mean", n ? tSum / n : 0.0}, {"position_mm_max", tMax},
+          {"rotation_deg_mean", n ? rSum / n : 0.0}, {"rotation_deg_max", rMax},
+          {"resolution", {bs.W, bs.H}}};
+}
+
 BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   BenchSession bs;
   bs.path = path;
@@ -468,6 +501,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   bs.refInfo["ms_per_frame"] = ms / refs;
   std::printf("%s: reference %d frames, %d spp, %d bounces, %.1f s per frame\n", path.c_str(), refs, o.refSpp, o.refBounces,
               ms / refs / 1000);
+  bs.refInfo["marker_pose_error"] = markerPoseError(bs, o);
   bs.trueRefs = loadTrueReferences(path, bs.scene, bs.frames);
   if (!bs.trueRefs.empty()) {
     bs.refInfo["true_reference_frames"] = bs.trueRefs.size();

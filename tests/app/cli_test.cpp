@@ -640,6 +640,11 @@ TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {
   ASSERT_EQ(doc["references"].size(), 2u);
   EXPECT_EQ(doc["references"][0]["true_reference_frames"], 2);
   EXPECT_FALSE(doc["references"][1].contains("true_reference_frames"));  // a session without true references
+  for (const auto& ref : doc["references"]) {  // marker tracking against the true camera poses, every frame
+    const auto& m = ref["marker_pose_error"];
+    EXPECT_EQ(m["frames"].get<int>() + m["lost"].get<int>(), 2);
+    EXPECT_GE(m["position_mm_max"].get<double>(), m["position_mm_mean"].get<double>());
+  }
   for (const auto& rec : doc["records"]) {
     ASSERT_EQ(rec["sessions"].size(), 2u);
     const auto& whole = rec["sessions"][0]["whole_pipeline"];
@@ -881,4 +886,32 @@ TEST(Cli, ReplayFailsInOneLineWhenTheMarkerIsNeverSeen) {
   const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
   EXPECT_EQ(summary["frames_with_pose"], 0);
   fs::remove_all(dir);
+}
+
+TEST(Cli, SynthPutsTheTableOutdoorsUnderAnHdrEnvironment) {
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_synth_env_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const std::string env = std::string(MRGI_SHARED_DATA) + "/hdr-blender-world/forest.exr";
+  const std::string base = "synth --frames 1 --width 64 --height 48 --spp 4 --bounces 1 --fisheye-every 1 ";
+  const Result r = runMrgi(base + "--environment " + env + " --out " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto manifest = nlohmann::json::parse(slurp(out / "manifest.json"));
+  const auto& gt = manifest["ground_truth"];
+  EXPECT_EQ(gt["environment"]["file"], "forest.exr");
+  EXPECT_GT(gt["environment"]["scale"].get<double>(), 0.0);
+  EXPECT_TRUE(gt["lights"].empty());  // the environment is the only light
+  // The fisheye looks up at the sky: its centre is bright, and every pixel inside the image circle sees the
+  // environment (no room, so no ceiling).
+  const cv::Mat fish = cv::imread((out / "fisheye" / "000000.exr").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(fish.type(), CV_32FC3);
+  const cv::Vec3f centre = fish.at<cv::Vec3f>(fish.rows / 2, fish.cols / 2);
+  EXPECT_GT(centre[0] + centre[1] + centre[2], 0.1f);
+  const cv::Mat colour = cv::imread((out / "colour" / "000000.png").string());
+  EXPECT_GT(cv::mean(colour)[0], 30.0);  // lit
+  expectOneLineError(runMrgi(base + "--environment " + (out / "manifest.json").string() + " --out " + out.string() + "2"),
+                     "cannot be read as an HDR environment");
+  expectOneLineError(runMrgi(base + "--render raycast --environment " + env + " --out " + out.string() + "3"),
+                     "--environment needs --render pathtrace");
+  EXPECT_FALSE(fs::exists(out.string() + "2"));
+  fs::remove_all(out);
 }
