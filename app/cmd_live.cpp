@@ -112,7 +112,7 @@ int runLive(const LiveOptions& o) {
   int viewIndex = 0;
   for (size_t i = 0; i < views.size(); ++i)
     if (o.view == debugViewName(views[i])) viewIndex = static_cast<int>(i);
-  bool axes = true, paused = false, step = false, needRebuild = false;
+  bool axes = true, paused = false, step = false, needRebuild = false, ended = false;
   int presetIndex = 0;  // 0 = the scene file's knobs
   const char* presetNames[] = {"scene file", "fast", "balanced", "accurate", "custom"};
   std::optional<capture::SessionWriter> recorder;
@@ -158,7 +158,7 @@ int runLive(const LiveOptions& o) {
         status = "playing";
       } else if (!next) {
         status = "end of " + live.name();
-        paused = true;
+        paused = ended = true;
       }
     }
     if (fresh || view.empty() || ImGui::IsAnyItemActive()) {
@@ -257,7 +257,7 @@ int runLive(const LiveOptions& o) {
     }
     ui.endPanel();
 
-    const bool done = o.frames > 0 && processed >= o.frames;
+    const bool done = o.frames > 0 && (processed >= o.frames || ended);  // a scripted run never waits on a closed source
     cv::Mat shot;
     ui.endFrame(done && !o.screenshot.empty() ? &shot : nullptr);
     if (done) {
@@ -275,7 +275,7 @@ int runLive(const LiveOptions& o) {
   }
   json summary = {{"source", live.name()}, {"frames", processed}, {"window", {context->width(), context->height()}},
                   {"renderer", context->renderer()}};
-  if (!o.screenshot.empty() && o.frames > 0 && processed >= o.frames) summary["screenshot"] = o.screenshot;
+  if (!o.screenshot.empty() && o.frames > 0 && (processed >= o.frames || ended)) summary["screenshot"] = o.screenshot;
   if (recorder) summary["recorded"] = {{"session", recordDir}, {"frames", recorder->framesWritten()}};
   std::printf("%s\n", summary.dump().c_str());
   return InterruptGuard::interrupted() ? 130 : 0;
