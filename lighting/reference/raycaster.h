@@ -27,7 +27,8 @@ class RayCaster {
   RayCaster& operator=(const RayCaster&) = delete;
 
   /// Closest hit of the ray origin + t dir, t in (tNear, tFar); dir must be unit length. Light spheres are
-  /// hit only when hitLights is true.
+  /// hit only when hitLights is true (camera rays); a camera ray that misses is cast once more nudged by
+  /// ~1e-6 rad, so rays through a mesh vertex exactly never slip through.
   std::optional<Hit> intersect(cv::Vec3f origin, cv::Vec3f dir, float tNear = 1e-4f, float tFar = 1e30f,
                                bool hitLights = true) const;
   /// True if any triangle lies on the segment origin + t dir, t in (tNear, tFar).
