@@ -352,6 +352,22 @@ struct BenchSession {
   std::unique_ptr<compositor::Compositor> compositor;
 };
 
+/// Same models, placements, scales and materials, in the same order.
+bool sameObjects(const lighting::SceneDescription& a, const lighting::SceneDescription& b) {
+  if (a.objects.size() != b.objects.size()) return false;
+  std::error_code ec;
+  for (size_t i = 0; i < a.objects.size(); ++i) {
+    const auto &x = a.objects[i], &y = b.objects[i];
+    if (!fs::equivalent(x.model, y.model, ec) || cv::norm(x.T_marker_object - y.T_marker_object) > 1e-9 ||
+        x.mesh.positions.size() != y.mesh.positions.size() || cv::norm(x.material.albedo - y.material.albedo) > 1e-6 ||
+        x.material.roughness != y.material.roughness || x.material.specular != y.material.specular)
+      return false;
+    for (size_t k = 0; k < x.mesh.positions.size(); ++k)
+      if (cv::norm(x.mesh.positions[k] - y.mesh.positions[k]) > 1e-7) return false;  // the same scale
+  }
+  return true;
+}
+
 /// The true reference composites a synthetic session carries for `scene` (manifest ground_truth.reference),
 /// for `frames` (keyed by position): composite, delta (rho - mu on real pixels, rho on virtual) and mask.
 std::map<int, Truth> loadTrueReferences(const std::string& session, const std::string& scene,
@@ -361,9 +377,11 @@ std::map<int, Truth> loadTrueReferences(const std::string& session, const std::s
   const capture::SessionSource reader(session);
   const json& gt = reader.manifest().groundTruth;
   if (!gt.contains("reference") || !gt["reference"].contains("scene")) return out;
-  std::error_code ec;
-  // The manifest names the scene relative to the session directory.
-  if (!fs::equivalent(fs::path(session) / gt["reference"]["scene"].get<std::string>(), scene, ec)) return out;
+  // The truth depends on the objects alone (the room and its lights are the session's): any scene placing
+  // the same objects the same way (the manifest names its scene relative to the session) can use it.
+  if (!sameObjects(lighting::loadScene((fs::path(session) / gt["reference"]["scene"].get<std::string>()).string()),
+                   lighting::loadScene(scene)))
+    return out;
   auto path = [&](const std::string& key, int64_t f) {
     std::string pattern = gt["reference"].value(key, "");
     const size_t at = pattern.find("NNNNNN");
