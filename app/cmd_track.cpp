@@ -29,6 +29,7 @@ struct TrackOptions {
   std::string intrinsics;
   double hold = 0.5;
   bool noSmooth = false;
+  double smoothCutoff = -1, smoothBeta = -1, smoothDerivative = -1;  ///< < 0: the tracker's defaults
   bool refineDepth = false;
   float decimate = 1.0f;
 };
@@ -90,6 +91,9 @@ int runTrack(const TrackOptions& o) {
   reconstruction::TrackerOptions topt;
   topt.holdSeconds = o.hold;
   topt.smooth = !o.noSmooth;
+  if (o.smoothCutoff >= 0) topt.minCutoff = o.smoothCutoff;
+  if (o.smoothBeta >= 0) topt.beta = o.smoothBeta;
+  if (o.smoothDerivative >= 0) topt.derivativeCutoff = o.smoothDerivative;
   std::map<int, reconstruction::MarkerTrack> tracks;
   if (wantedId >= 0) tracks.emplace(wantedId, reconstruction::MarkerTrack(topt));
   bool everSeen = false;
@@ -169,6 +173,9 @@ Action addTrack(CLI::App& app) {
   app.add_option("--hold", o->hold, "seconds to hold the last pose after the tag disappears before 'lost'")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--no-smooth", o->noSmooth, "report raw per-frame poses (no One-Euro smoothing)");
+  app.add_option("--smooth-cutoff", o->smoothCutoff, "One-Euro cutoff at rest, Hz")->check(CLI::PositiveNumber);
+  app.add_option("--smooth-beta", o->smoothBeta, "One-Euro cutoff added per unit of speed")->check(CLI::NonNegativeNumber);
+  app.add_option("--smooth-derivative", o->smoothDerivative, "One-Euro cutoff of the speed estimate, Hz")->check(CLI::PositiveNumber);
   app.add_flag("--refine-depth", o->refineDepth, "re-seat the pose on the depth plane under the tag (registered depth)");
   app.add_option("--decimate", o->decimate, "detect quads on an image decimated by this factor (faster)")
       ->check(CLI::Range(1.0, 8.0));
