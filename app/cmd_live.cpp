@@ -39,6 +39,7 @@ struct LiveOptions {
   int frames = 0;
   std::string screenshot;
   std::string record;
+  bool recordNow = false;
   bool noLoop = false;
   std::string pose = "marker";
   std::string view = "composite";
@@ -117,7 +118,7 @@ int runLive(const LiveOptions& o) {
   const char* presetNames[] = {"scene file", "fast", "balanced", "accurate", "custom"};
   std::optional<capture::SessionWriter> recorder;
   std::string recordDir = o.record.empty() ? defaultRecordDir() : o.record;
-  bool recording = false;
+  bool recording = o.recordNow;
 
   std::optional<capture::Frame> frame;
   FrameResult result;
@@ -301,6 +302,7 @@ Action addLive(CLI::App& app) {
   app.add_option("--frames", o->frames, "stop after N frames (0 = until the window closes)")->check(CLI::NonNegativeNumber);
   app.add_option("--screenshot", o->screenshot, "with --frames: save the window's last frame (PNG)");
   app.add_option("--record", o->record, "folder the record toggle writes a session into (default: live-DATE-TIME)");
+  app.add_flag("--record-now", o->recordNow, "start recording with the first frame (as if the toggle were on)");
   app.add_flag("--no-loop", o->noLoop, "stop at the end of a recording instead of playing it again");
   app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
       ->check(CLI::IsMember({"marker", "ground-truth"}));

@@ -146,8 +146,13 @@ cv::Mat depthToUnits(const cv::Mat& depthMetres, double unitsMetres) {
 }
 
 std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors) {
-  cv::Mat bgr = image;
-  if (image.channels() == 3) cv::cvtColor(image, bgr, cv::COLOR_RGB2BGR);
+  // A fresh matrix for the conversion: `bgr = image` would share the caller's pixels, and cvtColor would
+  // then swap the caller's channels in place.
+  cv::Mat bgr;
+  if (image.channels() == 3)
+    cv::cvtColor(image, bgr, cv::COLOR_RGB2BGR);
+  else
+    bgr = image;
   std::vector<unsigned char> bytes;
   if (!cv::imencode(".png", bgr, bytes, {cv::IMWRITE_PNG_COMPRESSION, 3}))
     throw CaptureError(nameForErrors, "cannot encode PNG");

@@ -751,7 +751,14 @@ TEST(Cli, CtrlCDuringReplayLeavesCompleteFramesVideoAndSummary) {
   cv::VideoCapture video((out / "replay.mp4").string());
   ASSERT_TRUE(video.isOpened());
   int decoded = 0;
-  for (cv::Mat f; video.read(f);) ++decoded;
+  for (cv::Mat f; video.read(f);) {
+    if (decoded == 0) {  // the video shows what the PNG shows (MPEG-4 loses a little)
+      const cv::Mat png = cv::imread((out / "frame_0000.png").string());
+      ASSERT_EQ(f.size(), png.size());
+      EXPECT_LT(cv::norm(f, png, cv::NORM_L1) / static_cast<double>(png.total() * 3), 6.0);
+    }
+    ++decoded;
+  }
   EXPECT_EQ(decoded, frames);
   fs::remove_all(out);
   fs::remove(out.string() + ".log");
@@ -816,10 +823,14 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
   const std::string rec = std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-pt";
   const std::string scene = std::string(MRGI_SOURCE_DIR) + "/recordings/scenes/tabletop.json";
   const Result r = runMrgi("live --source " + rec + " --scene " + scene + " --pose ground-truth --gl window --frames 3"
-                           " --screenshot " + (dir / "live.png").string());
+                           " --screenshot " + (dir / "live.png").string() + " --record " + (dir / "rec").string() +
+                           " --record-now");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto summary = nlohmann::json::parse(r.out);
   EXPECT_EQ(summary["frames"], 3);
+  // The record toggle wrote the frames it showed into a session.
+  EXPECT_EQ(summary["recorded"]["frames"], 3);
+  EXPECT_EQ(nlohmann::json::parse(runMrgi("info " + (dir / "rec").string()).out)["frame_count"], 3);
   const cv::Mat shot = cv::imread((dir / "live.png").string());
   ASSERT_EQ(shot.cols, 320 * 2 + 360);  // the 320x240 session at 2x, then the panel
   ASSERT_EQ(shot.rows, 600);

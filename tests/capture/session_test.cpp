@@ -12,6 +12,7 @@
 
 #include "capture/error.h"
 #include "capture/frame_source.h"
+#include "capture/image_io.h"
 #include "capture/session.h"
 
 namespace fs = std::filesystem;
@@ -257,4 +258,14 @@ TEST(Session, BadInputsGiveOneLineErrorsNamingTheFile) {
   m = expectCaptureError([&] { open((dir / "colour").string()); });
   EXPECT_NE(m.find("neither an mrgi session"), std::string::npos) << m;
   fs::remove_all(dir);
+}
+
+TEST(Session, WritingAFrameLeavesTheCallersImagesUntouched) {
+  // PNG encoding converts RGB to OpenCV's BGR; it must do so into its own buffer, not the caller's.
+  cv::Mat rgb(8, 8, CV_8UC3, cv::Scalar(10, 20, 30));
+  const cv::Mat before = rgb.clone();
+  const auto bytes = mrgi::capture::encodePng(rgb, "x.png");
+  EXPECT_EQ(cv::norm(rgb, before, cv::NORM_INF), 0.0);
+  const cv::Mat back = cv::imdecode(bytes, cv::IMREAD_COLOR);
+  EXPECT_EQ(back.at<cv::Vec3b>(0, 0), cv::Vec3b(30, 20, 10));  // BGR in the file, RGB in memory
 }
