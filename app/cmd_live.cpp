@@ -22,6 +22,7 @@
 #include "capture/session.h"
 #include "compositor/compositor.h"
 #include "gl/context.h"
+#include "gl/error.h"
 #include "lighting/scene_file.h"
 
 namespace fs = std::filesystem;
@@ -95,7 +96,15 @@ int runLive(const LiveOptions& o) {
   cfg.width = win.width;
   cfg.height = win.height;
   cfg.title = "mrgi live: " + live.name();
-  auto context = gl::createContext(cfg);
+  std::unique_ptr<gl::Context> context;
+  try {
+    context = gl::createContext(cfg);
+  } catch (const gl::GlError& e) {
+    // The backend suggests a headless backend; the live demo has none (mrgi replay is its headless twin).
+    std::string why = e.what();
+    why = why.substr(0, why.find("; use --gl"));
+    throw gl::GlError(why + "; the live demo needs a display (mrgi replay runs headless)");
+  }
   WindowUi ui(*context);
   compositor::Compositor compositor(width, height);
 

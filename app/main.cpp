@@ -26,7 +26,7 @@ int main(int argc, char** argv) {
   add("info", "Print one JSON object describing a session, TUM sequence, .oni file or device", mrgi::app::addInfo);
   add("replay", "Replay a recording headless (or in a window) and write composited frames + summary.json",
       mrgi::app::addReplay);
-  add("synth", "Generate a synthetic tabletop session with ground truth (AprilTag, walls, a box, a light)",
+  add("synth", "Generate a synthetic tabletop session with ground truth (AprilTag, walls, a box, a light; or outdoors under an HDR environment)",
       mrgi::app::addSynth);
   add("track", "Track an AprilTag marker: camera-from-tag pose per frame (JSON lines with --json)",
       mrgi::app::addTrack);
@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
       mrgi::app::addInsert);
   add("reference", "Path-trace the ground truth of one frame (rho, mu, delta EXR and the reference composite)",
       mrgi::app::addReference);
-  add("bench", "Measure speed against accuracy of a technique's knobs (Kinect-VAL: sparse vs brute force), JSON records",
+  add("bench", "Measure speed against accuracy of every technique's knobs against the path-traced reference; JSON, CSV, HTML, presets",
       mrgi::app::addBench);
   try {
     app.parse(argc, argv);
