@@ -194,15 +194,16 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> fitTagPlane(const TagDetection& d
 }
 
 std::optional<TagPose> measureTagPose(const TagDetection& detection, double tagSize, const capture::Intrinsics& k,
-                                      const cv::Mat& depth, const capture::Pose* previous) {
+                                      const cv::Mat& depth, const capture::Pose* previous, const DepthGate& gate) {
   std::optional<std::pair<cv::Vec3d, cv::Vec3d>> plane;
   if (!depth.empty()) plane = fitTagPlane(detection, depth, k);
   auto pose = estimateTagPose(detection, tagSize, k, {}, previous, plane ? &plane->first : nullptr);
-  if (pose && plane) *pose = refinePoseWithDepth(*pose, *plane);
+  if (pose && plane) *pose = refinePoseWithDepth(*pose, *plane, gate.maxAngleDeg, gate.maxShiftMetres);
   return pose;
 }
 
-TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::Vec3d>& plane, double maxAngleDeg) {
+TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::Vec3d>& plane, double maxAngleDeg,
+                            double maxShiftMetres) {
   const auto& [n, p0] = plane;
   const cv::Vec3d z = zAxis(pose.T_camera_tag);
   const double cosA = std::clamp(z.dot(n), -1.0, 1.0);
@@ -215,6 +216,7 @@ TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::
   if (std::abs(denom) < 1e-3) return pose;  // grazing: the intersection is ill-conditioned
   const double s = n.dot(p0) / denom;
   if (!(s > 0) || !std::isfinite(s)) return pose;
+  if (std::abs(s - tn) > maxShiftMetres) return pose;  // the plane disagrees with the image on the distance
   // Smallest rotation taking z onto n, applied on the camera side.
   cv::Vec3d axis = z.cross(n);
   const double sinA = cv::norm(axis);

@@ -86,12 +86,22 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> fitTagPlane(const TagDetection& d
 /// rotation) and moves the centre along its viewing ray onto the plane. Keeps the pose when the plane
 /// disagrees with it by more than maxAngleDeg.
 TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::Vec3d>& plane,
-                            double maxAngleDeg = 25.0);
+                            double maxAngleDeg = 25.0, double maxShiftMetres = 1e30);
+
+/// The agreement measureTagPose asks of the depth plane before re-seating a pose on it: a sensor whose
+/// depth on the tag is biased (printed black and white fool some sensors by centimetres and degrees) must
+/// not pull a good image pose away; a noisy image pose (small tag in the image) gets corrected.
+struct DepthGate {
+  double maxAngleDeg = 2.5;       ///< between the pose's tag normal and the plane's
+  double maxShiftMetres = 0.025;  ///< of the tag centre along its viewing ray
+};
 
 /// One frame's measurement of a tag: estimateTagPose, disambiguated and re-seated by the depth plane under
-/// the tag when `depth` (registered to the colour image, metres) is given and holds enough samples there.
+/// the tag when `depth` (registered to the colour image, metres) is given, holds enough samples there and
+/// agrees with the image pose within `gate`.
 std::optional<TagPose> measureTagPose(const TagDetection& detection, double tagSize, const capture::Intrinsics& k,
-                                      const cv::Mat& depth = cv::Mat(), const capture::Pose* previous = nullptr);
+                                      const cv::Mat& depth = cv::Mat(), const capture::Pose* previous = nullptr,
+                                      const DepthGate& gate = {});
 
 /// One-Euro filter (Casiez et al. 2012) of a vector signal: low cutoff when slow (no jitter), high when
 /// fast (no lag). Cutoffs in Hz, time in seconds.
