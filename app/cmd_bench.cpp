@@ -429,9 +429,8 @@ json markerPoseError(const BenchSession& bs, const BenchOptions& o) {
       continue;
     }
     const capture::Pose truth = capture::inversePose(*bs.setup.T_world_marker) * *f.groundTruthT_world_camera;
-    const double dt = cv::norm(capture::translationOf(*r.T_marker_camera) - capture::translationOf(truth)) * 1000.0;
-    const cv::Matx33d R = capture::rotationOf(*r.T_marker_camera).t() * capture::rotationOf(truth);
-    const double dr = std::acos(std::clamp((R(0, 0) + R(1, 1) + R(2, 2) - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / CV_PI;
+    const double dt = reconstruction::translationError(*r.T_marker_camera, truth) * 1000.0;
+    const double dr = reconstruction::rotationErrorDeg(*r.T_marker_camera, truth);
     tSum += dt, rSum += dr, tMax = std::max(tMax, dt), rMax = std::max(rMax, dr);
     ++n;
   }

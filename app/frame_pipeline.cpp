@@ -135,10 +135,7 @@ std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& fra
 namespace {
 /// Camera poses within 1 mm and 0.1 degree of each other.
 bool sameView(const capture::Pose& a, const capture::Pose& b) {
-  const cv::Vec3d dt = capture::translationOf(a) - capture::translationOf(b);
-  const cv::Matx33d R = capture::rotationOf(a).t() * capture::rotationOf(b);
-  const double cosAngle = std::clamp((R(0, 0) + R(1, 1) + R(2, 2) - 1.0) / 2.0, -1.0, 1.0);
-  return cv::norm(dt) < 1e-3 && std::acos(cosAngle) < 0.1 * CV_PI / 180.0;
+  return reconstruction::translationError(a, b) < 1e-3 && reconstruction::rotationErrorDeg(a, b) < 0.1;
 }
 
 /// Mean absolute change of b against a, relative to a's mean.
