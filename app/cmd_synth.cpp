@@ -52,15 +52,17 @@ std::shared_ptr<const lighting::reference::EnvironmentMap> loadEnvironment(const
     throw capture::CaptureError(path, "cannot be read as an HDR environment (float EXR, equirectangular, width = 2 x height)");
   if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2BGR);
   cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
-  auto env = std::make_shared<lighting::reference::EnvironmentMap>(img, 1.f);
   if (scale <= 0) {
-    // Irradiance on an upward plane: sum of L cos(theta) over the upper half's texels (solid angle each).
+    // Irradiance on an upward plane: sum of L cos(theta) over the upper half's texels (solid angle each),
+    // from the map as the path tracer sees it (non-finite and negative texels cleared).
+    const lighting::reference::EnvironmentMap unscaled(img, 1.f);
     double E = 0;
-    const int W = env->width(), H = env->height();
+    const int W = unscaled.width(), H = unscaled.height();
     for (int y = 0; y < H / 2; ++y) {
       const double theta = CV_PI * (y + 0.5) / H;
       const double dOmega = (2 * CV_PI / W) * (CV_PI / H) * std::sin(theta);
-      for (int x = 0; x < W; ++x) E += capture::luminance(cv::Vec3d(env->image().at<cv::Vec3f>(y, x))) * std::cos(theta) * dOmega;
+      for (int x = 0; x < W; ++x)
+        E += capture::luminance(cv::Vec3d(unscaled.image().at<cv::Vec3f>(y, x))) * std::cos(theta) * dOmega;
     }
     if (!(E > 0)) throw capture::CaptureError(path, "is black above the horizon");
     scale = 0.6 * CV_PI / E;
