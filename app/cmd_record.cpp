@@ -53,7 +53,7 @@ int runRecord(const RecordOptions& o) {
     if (!frame->rgbd) continue;
     if (!writer) {
       capture::SessionManifest m = manifestFor(live.source(), *frame);
-      if (auto c = live.fisheyeCalibration(); c && !m.fisheye) m.fisheye = c;
+      if (!m.fisheye) m.fisheye = live.fisheyeCalibration();  // nullopt without a fisheye camera
       writer.emplace(o.out, m);  // refuses a folder that holds anything
     }
     fisheyeFrames += frame->fisheye ? 1 : 0;

@@ -36,16 +36,18 @@ std::optional<capture::Frame> LiveSource::next() {
     f = source_->next();
   }
   if (f && fisheye_ && count_++ % std::max(o_.fisheyeEvery, 1) == 0)
-    if (auto fe = fisheye_->next(); fe && fe->fisheye) f->fisheye = fe->fisheye;
+    if (auto fe = fisheye_->next(); fe && fe->fisheye) {
+      calibration_ = fe->fisheye->calibration;
+      f->fisheye = fe->fisheye;
+    }
   if (f && loops_ > 0) f->timestamp += static_cast<double>(loops_) * 1e6;  // timestamps keep increasing
   return f;
 }
 
-std::optional<capture::FisheyeCalibration> LiveSource::fisheyeCalibration() const {
-  if (!fisheye_) return std::nullopt;
-  auto f = fisheye_->next();
-  if (f && f->fisheye) return f->fisheye->calibration;
-  return std::nullopt;
+std::optional<capture::FisheyeCalibration> LiveSource::fisheyeCalibration() {
+  if (fisheye_ && !calibration_)
+    if (auto f = fisheye_->next(); f && f->fisheye) calibration_ = f->fisheye->calibration;
+  return calibration_;
 }
 
 capture::SessionManifest manifestFor(const capture::FrameSource& source, const capture::Frame& first) {

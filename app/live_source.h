@@ -28,14 +28,16 @@ class LiveSource {
   bool recording() const { return !o_.source.empty(); }
   /// The next frame (with a fisheye frame every N); nullopt at the end of a recording that does not loop.
   std::optional<capture::Frame> next();
-  /// The fisheye camera's calibration (sensor with --fisheye), else nullopt.
-  std::optional<capture::FisheyeCalibration> fisheyeCalibration() const;
+  /// The fisheye camera's calibration (sensor with --fisheye), else nullopt: that of the fisheye frames
+  /// next() handed out, or of one frame grabbed for it before any.
+  std::optional<capture::FisheyeCalibration> fisheyeCalibration();
 
  private:
   LiveSourceOptions o_;
   std::unique_ptr<capture::FrameSource> source_, fisheye_;
   std::string name_;
   int64_t loops_ = 0, count_ = 0;
+  std::optional<capture::FisheyeCalibration> calibration_;
 };
 
 /// The manifest a recording of this source starts with: a session's own (its ground-truth reference files
