@@ -78,6 +78,9 @@ json vec(const cv::Vec3d& v, double round = 1e-6) {
   return a;
 }
 
+/// Writes the scene file atomically (runInsert created its folder before resolving model paths).
+void saveScene(const std::string& path, const json& doc) { capture::writeFileAtomically(path, doc.dump(2) + "\n"); }
+
 /// The window: sliders move, turn and scale the object, the composite follows when a slider is let go;
 /// "snap" rests it on the table, "save" writes the scene file (so does closing after --frames N).
 int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, json& doc, size_t index,
@@ -99,8 +102,7 @@ int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, j
   std::string status = "drag a slider, then let go to see the composite";
   int shown = 0;
   auto save = [&] {
-    createParentDirectory(o.save);
-    capture::writeFileAtomically(o.save, doc.dump(2) + "\n");
+    saveScene(o.save, doc);
     unsaved = false;
     status = "saved " + o.save;
   };
@@ -305,8 +307,7 @@ int runInsert(const InsertOptions& o) {
     writePng(o.preview, result.composite);
     report["preview"] = o.preview;
   }
-  createParentDirectory(o.save);
-  capture::writeFileAtomically(o.save, doc.dump(2) + "\n");
+  saveScene(o.save, doc);
   std::printf("%s\n", report.dump().c_str());
   return 0;
 }
