@@ -418,7 +418,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   const bool needGbuffer = geometryChanged || cameraChanged;
   const bool needLights = geometryChanged || in.lights != cache_->lights;
   const bool needVal = needLights || cameraChanged || in.realVals != cache_->realVals || in.ambient != cache_->ambient;
-  const bool needShade = needGbuffer || needVal || in.ambient != cache_->ambient;
+  const bool needShade = needGbuffer || needVal;  // needVal already covers lights, real VALs and ambient
   cache_ = std::move(in);
   skipped_.clear();
   if (!needGbuffer) skipped_.push_back("gbuffer");
