@@ -108,6 +108,7 @@ int runReplay(const ReplayOptions& o) {
     if (!frame) break;
     FrameResult result = frames.process(*frame, compositor, profiler);
     if (result.T_marker_camera) ++posed;
+    if (frame->fisheye) lastFisheye = frame->fisheye->image;  // the lights are estimated from it, lit frame or not
     json frameInfo = result.info;
     if (frameInfo.contains("skipped"))
       for (const auto& stage : frameInfo["skipped"]) ++skipped[stage.get<std::string>()];
@@ -120,7 +121,6 @@ int runReplay(const ReplayOptions& o) {
       }
       if (o.debug && result.lit) {
         auto s = profiler.cpu("debug");
-        if (frame->fisheye) lastFisheye = frame->fisheye->image;
         char prefix[32];
         std::snprintf(prefix, sizeof prefix, "debug_%04lld_", static_cast<long long>(done));
         const std::string base = (fs::path(o.out) / prefix).string();
