@@ -368,22 +368,17 @@ bool sameObjects(const lighting::SceneDescription& a, const lighting::SceneDescr
   return true;
 }
 
-/// The true reference composites a synthetic session carries for `scene` (manifest ground_truth.reference),
-/// for `frames` (keyed by position): composite, delta (rho - mu on real pixels, rho on virtual) and mask.
-std::map<int, Truth> loadTrueReferences(const std::string& session, const std::string& scene,
-                                        const std::vector<capture::Frame>& frames) {
+/// The true reference composites a synthetic session carries (manifest ground_truth.reference, whose
+/// scene file is `referenceScene`) when `scene` places the same objects, for `frames` (keyed by position):
+/// composite, delta (rho - mu on real pixels, rho on virtual) and mask.
+std::map<int, Truth> loadTrueReferences(const std::string& session, const json& reference, const std::string& referenceScene,
+                                        const lighting::SceneDescription& scene, const std::vector<capture::Frame>& frames) {
   std::map<int, Truth> out;
-  if (!fs::is_directory(session) || !fs::exists(fs::path(session) / "manifest.json")) return out;
-  const capture::SessionSource reader(session);
-  const json& gt = reader.manifest().groundTruth;
-  if (!gt.contains("reference") || !gt["reference"].contains("scene")) return out;
   // The truth depends on the objects alone (the room and its lights are the session's): any scene placing
-  // the same objects the same way (the manifest names its scene relative to the session) can use it.
-  if (!sameObjects(lighting::loadScene((fs::path(session) / gt["reference"]["scene"].get<std::string>()).string()),
-                   lighting::loadScene(scene)))
-    return out;
+  // the same objects the same way can use it.
+  if (referenceScene.empty() || !sameObjects(lighting::loadScene(referenceScene), scene)) return out;
   auto path = [&](const std::string& key, int64_t f) {
-    std::string pattern = gt["reference"].value(key, "");
+    std::string pattern = reference.value(key, "");
     const size_t at = pattern.find("NNNNNN");
     if (at == std::string::npos) throw capture::CaptureError(session, "manifest ground_truth.reference." + key + " has no NNNNNN");
     char idx[16];
@@ -446,15 +441,14 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   auto source = capture::open(path);
   const capture::SourceInfo& info = source->info();
   if (!info.hasRgbd) throw capture::CaptureError(path, "has no RGB-D frames");
-  bs.scene = o.scene;
-  if (bs.scene.empty()) {
-    // A synthetic session names the scene its true references show (relative to the session).
-    const auto* session = dynamic_cast<const capture::SessionSource*>(source.get());
-    const json gt = session ? session->manifest().groundTruth : json();
-    bs.scene = gt.is_object() && gt.contains("reference") && gt["reference"].contains("scene")
-                   ? (fs::path(path) / gt["reference"]["scene"].get<std::string>()).lexically_normal().string()
-                   : std::string("recordings/scenes/tabletop.json");
-  }
+  // A synthetic session names the scene its true references show (relative to the session); without
+  // --scene that is the one measured.
+  const auto* session = dynamic_cast<const capture::SessionSource*>(source.get());
+  const json gt = session ? session->manifest().groundTruth : json();
+  const json reference = gt.is_object() && gt.contains("reference") ? gt["reference"] : json::object();
+  const std::string referenceScene =
+      reference.contains("scene") ? (fs::path(path) / reference["scene"].get<std::string>()).lexically_normal().string() : "";
+  bs.scene = !o.scene.empty() ? o.scene : !referenceScene.empty() ? referenceScene : "recordings/scenes/tabletop.json";
   bs.setup = prepareLighting(lighting::loadScene(bs.scene), bs.scene, *source, path, o.pose);
   if (bs.setup.scene.objects.empty()) throw capture::CaptureError(bs.scene, "has no virtual object to measure");
   while (static_cast<int>(bs.frames.size()) < o.frames) {
@@ -519,7 +513,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   std::printf("%s: reference %d frames, %d spp, %d bounces, %.1f s per frame\n", path.c_str(), refs, o.refSpp, o.refBounces,
               ms / refs / 1000);
   bs.refInfo["marker_pose_error"] = markerPoseError(bs, o);
-  bs.trueRefs = loadTrueReferences(path, bs.scene, bs.frames);
+  bs.trueRefs = loadTrueReferences(path, reference, referenceScene, bs.setup.scene, bs.frames);
   if (!bs.trueRefs.empty()) {
     bs.refInfo["true_reference_frames"] = bs.trueRefs.size();
     std::printf("%s: %zu true reference composites (whole-pipeline error)\n", path.c_str(), bs.trueRefs.size());
