@@ -55,7 +55,7 @@ TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChan
   PipelineConfig cfg = testConfig(64, 48, 16, 64);
   cfg.technique = GetParam();
   cfg.val.sparsePoints = 64;
-  const bool val = lighting::usesVal(cfg.technique), lpv = lighting::usesLpv(cfg.technique);
+  const bool val = lighting::usesVal(cfg.technique);
   TestScene s = makeScene(true, 0.15, {0, 0, 0.1});
   LightingPipeline pipe = makePipeline(cfg, s);
   Inputs in;
@@ -93,7 +93,6 @@ TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChan
   }
   pipe.invalidate();
   check({}, "invalidated");
-  (void)lpv;
 }
 
 INSTANTIATE_TEST_SUITE_P(GL, StageSkipping,
