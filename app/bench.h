@@ -11,22 +11,23 @@
 
 namespace mrgi::app {
 
-/// One configuration of the sweep: a technique and its knobs; `varied` names the knob this configuration
-/// moves away from the defaults ("" = the defaults themselves), which the scaling plots group by.
+/// One configuration of the sweep: the techniques by role and every knob; `varied` names the knob this
+/// configuration moves away from the defaults ("group.knob"; "" = the defaults themselves), which the
+/// scaling plots group by.
 struct BenchConfig {
-  lighting::Technique technique = lighting::Technique::Dlpv;
-  lighting::LpvKnobs lpv;
-  lighting::ValKnobs val;
+  lighting::TechniqueChoice technique;
+  lighting::KnobSet knobs;
   std::string varied;
 };
 
-/// The knobs that matter for the configuration's technique, as JSON (the record's "knobs").
+/// The knobs the configuration's techniques use, as JSON by group (the record's "knobs").
 nlohmann::json knobsJson(const BenchConfig& c);
 
-/// One-knob-at-a-time sweeps around `base` for each technique (all when `technique` is empty). quick: two
-/// values per knob and fewer knobs (tests, small sessions).
-std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::LpvKnobs& lpv,
-                                      const lighting::ValKnobs& val);
+/// From the registry: for each technique (all when `technique` is empty, else the techniques of that
+/// spelling) its defaults and one-knob-at-a-time sweeps over the declared sweep values of the shared frame
+/// knobs and its own; each alias and each pairing of a real-pixel technique with another virtual-object
+/// technique at the defaults. quick: the declared quick values only (tests, small sessions).
+std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::KnobSet& base);
 
 /// Presets from the measured records: the Pareto front of (ms_lighting, error) where error is the mean of
 /// rel_error_delta and rel_error_virtual; accurate = least error, fast = the fastest front point within
@@ -34,7 +35,7 @@ std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, 
 /// Returns {"fast": record, "balanced": record, "accurate": record} (empty object without records).
 nlohmann::json choosePresets(const nlohmann::json& records);
 
-/// Applies a preset record's technique and knobs to a scene.
+/// Applies a preset record's technique and knobs to a scene (knobs by group; older flat knob objects too).
 void applyPreset(const nlohmann::json& preset, lighting::SceneDescription& scene);
 /// Loads preset `name` from a presets file written by `mrgi bench --presets`; errors name the file.
 nlohmann::json loadPreset(const std::string& path, const std::string& name);

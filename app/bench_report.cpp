@@ -2,10 +2,12 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
 #include "app/bench.h"
+#include "lighting/techniques/registry.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
 #include <opencv2/imgcodecs.hpp>
@@ -15,70 +17,46 @@ using nlohmann::json;
 
 namespace mrgi::app {
 
-json knobsJson(const BenchConfig& c) {
-  json k = json::object();
-  if (lighting::usesLpv(c.technique) || c.technique == lighting::Technique::KinectVal) {
-    // RSMs serve every technique (injection, virtual VALs, shadows).
-    k["rsm_size"] = c.lpv.rsmSize;
-  }
-  if (lighting::usesLpv(c.technique)) {
-    k["resolution"] = c.lpv.resolution;
-    k["steps"] = c.lpv.steps;
-    k["size_factor"] = c.lpv.sizeFactor;
-    k["damping"] = c.lpv.damping;
-    k["direct_steps"] = c.lpv.directSteps;
-  }
-  if (lighting::usesVal(c.technique)) {
-    k["sparse_points"] = c.val.sparsePoints;
-    k["k_cache"] = c.val.kCache;
-    k["occlusion"] = c.val.occlusion;
-    k["stride"] = c.val.stride;
-    k["fusion"] = c.val.fusion;
-  }
-  return k;
-}
+json knobsJson(const BenchConfig& c) { return lighting::usedKnobsJson(c.technique, c.knobs); }
 
-std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::LpvKnobs& lpv,
-                                      const lighting::ValKnobs& val) {
+std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::KnobSet& base) {
   std::vector<BenchConfig> out;
-  auto wanted = [&](lighting::Technique t) { return technique.empty() || lighting::parseTechnique(technique) == t; };
-  auto add = [&](lighting::Technique t, const std::string& varied, auto&& change) {
-    BenchConfig c{t, lpv, val, varied};
-    change(c);
-    out.push_back(c);
+  lighting::KnobSet defaults = base;
+  lighting::completeKnobs(defaults);
+  std::optional<lighting::TechniqueChoice> only;
+  if (!technique.empty()) only = lighting::parseTechniqueChoice(technique, nullptr);
+  auto wanted = [&](const lighting::TechniqueChoice& c) { return !only || *only == c; };
+  // One knob at a time around the defaults, over its declared sweep values (booleans: the other value).
+  auto sweep = [&](const lighting::TechniqueChoice& c, const lighting::KnobSet& start, const lighting::KnobGroup& g) {
+    for (const lighting::KnobInfo& k : g.knobs)
+      for (double v : quick ? k.quickSweep : k.sweep) {
+        if (v == start.at(g.key).at(k.name)) continue;
+        BenchConfig bc{c, start, g.key + "." + k.name};
+        bc.knobs[g.key][k.name] = v;
+        out.push_back(std::move(bc));
+      }
   };
-  auto none = [](BenchConfig&) {};
-  using T = lighting::Technique;
-  if (wanted(T::Dlpv)) {
-    add(T::Dlpv, "", none);
-    for (int v : quick ? std::vector<int>{64} : std::vector<int>{64, 128, 512})
-      add(T::Dlpv, "rsm_size", [v](BenchConfig& c) { c.lpv.rsmSize = v; });
-    for (int v : quick ? std::vector<int>{8} : std::vector<int>{8, 16, 48})
-      add(T::Dlpv, "resolution", [v](BenchConfig& c) { c.lpv.resolution = v; });
-    for (int v : quick ? std::vector<int>{4} : std::vector<int>{4, 8, 32})
-      add(T::Dlpv, "steps", [v](BenchConfig& c) { c.lpv.steps = v, c.lpv.directSteps = std::min(c.lpv.directSteps, v); });
-    if (!quick) {
-      for (double v : {2.0, 3.0, 6.0}) add(T::Dlpv, "size_factor", [v](BenchConfig& c) { c.lpv.sizeFactor = v; });
-      for (double v : {0.0, 0.5}) add(T::Dlpv, "damping", [v](BenchConfig& c) { c.lpv.damping = v; });
+  for (const lighting::TechniqueInfo& t : lighting::techniques()) {
+    const lighting::TechniqueChoice c = lighting::parseTechniqueChoice(t.name, nullptr);
+    if (wanted(c)) {
+      out.push_back({c, defaults, ""});
+      sweep(c, defaults, lighting::frameKnobGroup());
+      sweep(c, defaults, t.knobs);
+    }
+    for (const lighting::TechniqueAlias& a : t.aliases) {
+      lighting::KnobSet k = defaults;
+      const lighting::TechniqueChoice ac = lighting::parseTechniqueChoice(a.name, &k);
+      if (wanted(ac)) out.push_back({ac, k, ""});
     }
   }
-  if (wanted(T::LpvDiff)) {
-    add(T::LpvDiff, "", none);
-    if (!quick)
-      for (int v : {16, 48}) add(T::LpvDiff, "resolution", [v](BenchConfig& c) { c.lpv.resolution = v; });
-  }
-  if (wanted(T::KinectVal)) {
-    add(T::KinectVal, "", none);
-    for (int v : quick ? std::vector<int>{64} : std::vector<int>{256, 4096})
-      add(T::KinectVal, "sparse_points", [v](BenchConfig& c) { c.val.sparsePoints = v; });
-    add(T::KinectVal, "occlusion", [](BenchConfig& c) { c.val.occlusion = !c.val.occlusion; });
-    if (!quick) {
-      for (int v : {2, 8}) add(T::KinectVal, "stride", [v](BenchConfig& c) { c.val.stride = v; });
-      for (int v : {32, 512}) add(T::KinectVal, "k_cache", [v](BenchConfig& c) { c.val.kCache = v; });
-      add(T::KinectVal, "fusion", [](BenchConfig& c) { c.val.fusion = !c.val.fusion; });
+  // A real-pixel technique with another technique for the virtual object.
+  for (const lighting::TechniqueInfo& r : lighting::techniques())
+    for (const lighting::TechniqueInfo& v : lighting::techniques()) {
+      if (&r == &v || !r.real || !v.virtualObject) continue;
+      lighting::TechniqueChoice c = lighting::parseTechniqueRoles(r.name, v.name, nullptr);
+      c.name = r.name + "+" + v.name;
+      if (wanted(c)) out.push_back({c, defaults, ""});
     }
-  }
-  if (wanted(T::DlpvKinectVal)) add(T::DlpvKinectVal, "", none);
   return out;
 }
 
@@ -133,21 +111,12 @@ json choosePresets(const json& records) {
 }
 
 void applyPreset(const json& preset, lighting::SceneDescription& scene) {
-  scene.technique = lighting::parseTechnique(preset.at("technique").get<std::string>());
-  const json& k = preset.at("knobs");
-  auto& l = scene.lpv;
-  l.rsmSize = k.value("rsm_size", l.rsmSize);
-  l.resolution = k.value("resolution", l.resolution);
-  l.steps = k.value("steps", l.steps);
-  l.sizeFactor = k.value("size_factor", l.sizeFactor);
-  l.damping = k.value("damping", l.damping);
-  l.directSteps = k.value("direct_steps", l.directSteps);
-  auto& v = scene.val;
-  v.sparsePoints = k.value("sparse_points", v.sparsePoints);
-  v.kCache = k.value("k_cache", v.kCache);
-  v.occlusion = k.value("occlusion", v.occlusion);
-  v.stride = k.value("stride", v.stride);
-  v.fusion = k.value("fusion", v.fusion);
+  const json& t = preset.at("technique");
+  if (t.is_string())
+    scene.technique = lighting::parseTechniqueChoice(t.get<std::string>(), &scene.knobs);
+  else
+    scene.technique = lighting::parseTechniqueRoles(t.value("real", "none"), t.value("virtual", "none"), &scene.knobs);
+  lighting::applyKnobsJson(preset.at("knobs"), scene.knobs);
 }
 
 json loadPreset(const std::string& path, const std::string& name) {
@@ -166,7 +135,8 @@ json loadPreset(const std::string& path, const std::string& name) {
   if (!p.contains("technique") || !p.contains("knobs") || !p["knobs"].is_object())
     throw capture::CaptureError(path, "preset \"" + name + "\" lacks technique or knobs");
   try {
-    lighting::parseTechnique(p["technique"].get<std::string>());
+    lighting::SceneDescription probe;
+    applyPreset(p, probe);
   } catch (const std::exception& e) {
     throw capture::CaptureError(path, "preset \"" + name + "\": " + e.what());
   }
@@ -203,11 +173,15 @@ std::string base64(const std::vector<uchar>& bytes) {
   return out;
 }
 
-const char* colourOf(const std::string& technique) {
-  if (technique == "dlpv") return "#1f77b4";
-  if (technique == "lpv-diff") return "#ff7f0e";
-  if (technique == "kinect-val") return "#2ca02c";
-  return "#d62728";
+/// A colour per series (technique spelling), stable for a name.
+const char* colourOf(const std::string& series) {
+  static const char* palette[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf"};
+  size_t h = 0;
+  for (const lighting::TechniqueInfo& t : lighting::techniques()) {  // registry order first: stable colours
+    if (t.name == series) return palette[h % 8];
+    ++h;
+  }
+  return palette[(std::hash<std::string>()(series) + h) % 8];
 }
 
 std::string fmt(double v, int digits = 3) {
@@ -296,10 +270,20 @@ double logSlope(const std::vector<std::pair<double, double>>& xy) {
   return sxx > 0 ? sxy / sxx : NAN;
 }
 
-/// "dlpv rsm_size=64" or "dlpv defaults".
+/// The value of a varied knob ("lpv.resolution") in a record's knobs, or null.
+json variedValue(const json& r) {
+  const std::string v = r.value("varied", "");
+  const size_t dot = v.find('.');
+  if (dot == std::string::npos) return nullptr;
+  const json& k = r["knobs"];
+  const std::string g = v.substr(0, dot), n = v.substr(dot + 1);
+  return k.contains(g) && k[g].contains(n) ? k[g][n] : json(nullptr);
+}
+
+/// "dlpv frame.rsm_size=64" or "dlpv defaults".
 std::string labelOf(const json& r) {
   const std::string v = r.value("varied", "");
-  return r["technique"].get<std::string>() + (v.empty() ? " defaults" : " " + v + "=" + (r["knobs"].contains(v) ? r["knobs"][v].dump() : "?"));
+  return r["technique"].get<std::string>() + (v.empty() ? " defaults" : " " + v + "=" + variedValue(r).dump());
 }
 
 std::string tipOf(const json& r) {
@@ -360,29 +344,39 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   h << "<h2>Speed against accuracy</h2>" << pareto.svg() << ssim.svg();
   if (!flicker.points.empty()) h << flicker.svg();
 
-  // Scaling curves with fitted slopes (DLPV).
-  Plot rsm("DLPV: RSM stage vs RSM texels", "RSM texels", "ms (rsm + lpv.inject)");
-  Plot vox("DLPV: propagation vs voxels x steps", "voxels x steps", "ms (lpv.propagate)");
-  std::vector<std::pair<double, double>> rsmXY, voxXY;
+  // Scaling: per technique and swept numeric knob, lighting time against the knob's value (with the
+  // defaults), and the fitted slope of log time against log value.
+  std::map<std::string, Plot> scaling;
+  std::map<std::string, std::vector<std::pair<double, double>>> scalingXY;
   for (const auto& r : records) {
-    if (r["technique"] != "dlpv") continue;
-    const std::string v = r.value("varied", "");
-    const json& st = r["ms_stages"];
-    if (v == "" || v == "rsm_size") {
-      const double texels = std::pow(r["knobs"]["rsm_size"].get<double>(), 2);
-      const double ms = st.value("rsm", 0.0) + st.value("lpv.inject", 0.0);
-      if (ms > 0) rsm.points.push_back({texels, ms, "dlpv", tipOf(r)}), rsmXY.push_back({texels, ms});
-    }
-    if (v == "" || v == "resolution" || v == "steps") {
-      const double n = std::pow(r["knobs"]["resolution"].get<double>(), 3) * r["knobs"]["steps"].get<double>();
-      const double ms = st.value("lpv.propagate", 0.0);
-      if (ms > 0 && n > 0) vox.points.push_back({n, ms, "dlpv", tipOf(r)}), voxXY.push_back({n, ms});
+    const json v = variedValue(r);
+    if (!v.is_number() || v.get<double>() <= 0) continue;
+    const std::string key = r["technique"].get<std::string>() + ": " + r["varied"].get<std::string>();
+    auto [it, inserted] = scaling.try_emplace(key, key, r["varied"].get<std::string>(), "lighting ms per frame");
+    it->second.points.push_back({v.get<double>(), msOf(r), r["technique"], tipOf(r)});
+    scalingXY[key].push_back({v.get<double>(), msOf(r)});
+  }
+  for (const auto& r : records) {  // each curve's defaults point
+    if (!r.value("varied", "").empty()) continue;
+    for (auto& [key, plot] : scaling) {
+      if (key.rfind(r["technique"].get<std::string>() + ": ", 0) != 0) continue;
+      const std::string knob = key.substr(key.find(": ") + 2);
+      json withKnob = r;
+      withKnob["varied"] = knob;
+      const json v = variedValue(withKnob);
+      if (!v.is_number() || v.get<double>() <= 0) continue;
+      plot.points.push_back({v.get<double>(), msOf(r), r["technique"], tipOf(r)});
+      scalingXY[key].push_back({v.get<double>(), msOf(r)});
     }
   }
-  if (!rsm.points.empty()) {
-    rsm.notes.push_back("slope " + fmt(logSlope(rsmXY), 2));
-    vox.notes.push_back("slope " + fmt(logSlope(voxXY), 2));
-    h << "<h2>Scaling</h2><p>Fitted slopes of log time against log size (1 = linear).</p>" << rsm.svg() << vox.svg();
+  if (!scaling.empty()) {
+    h << "<h2>Scaling</h2><p>Lighting time against each swept knob; fitted slope of log time against log value "
+         "(1 = linear).</p>";
+    for (auto& [key, plot] : scaling) {
+      if (plot.points.size() < 2) continue;
+      plot.notes.push_back("slope " + fmt(logSlope(scalingXY[key]), 2));
+      h << plot.svg();
+    }
   }
 
   // Stage-time stacks.

@@ -12,6 +12,7 @@
 
 #include "app/bench.h"
 #include "app/commands.h"
+#include "lighting/techniques/registry.h"
 #include "app/debug_view.h"
 #include "app/frame_pipeline.h"
 #include "app/live_source.h"
@@ -53,17 +54,51 @@ std::string defaultRecordDir() {
   return buf;
 }
 
-/// A slider; true once the user lets go of it after a change (the pipeline is rebuilt then, not on every
+/// A knob's widget from its declaration (slider over its declared range, logarithmic where declared, or a
+/// checkbox); true once the user lets go of it after a change (the pipeline is rebuilt then, not on every
 /// pixel of a drag).
-template <typename T>
-bool knob(const char* label, T& value, T lo, T hi, bool log = false) {
-  if constexpr (std::is_same_v<T, int>) {
-    ImGui::SliderInt(label, &value, lo, hi, "%d", log ? ImGuiSliderFlags_Logarithmic : 0);
-  } else {
-    float v = static_cast<float>(value);
-    if (ImGui::SliderFloat(label, &v, static_cast<float>(lo), static_cast<float>(hi), "%.2f")) value = v;
+bool knobWidget(const lighting::KnobInfo& k, double& value) {
+  const char* label = k.name.c_str();
+  switch (k.type) {
+    case lighting::KnobType::Bool: {
+      bool b = value != 0.0;
+      const bool changed = ImGui::Checkbox(label, &b);
+      value = b ? 1.0 : 0.0;
+      if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", k.description.c_str());
+      return changed;
+    }
+    case lighting::KnobType::Int: {
+      int v = static_cast<int>(value);
+      ImGui::SliderInt(label, &v, static_cast<int>(k.lo), static_cast<int>(k.hi), "%d",
+                       k.logScale ? ImGuiSliderFlags_Logarithmic : 0);
+      value = v;
+      break;
+    }
+    case lighting::KnobType::Real: {
+      float v = static_cast<float>(value);
+      ImGui::SliderFloat(label, &v, static_cast<float>(k.lo), static_cast<float>(k.hi), "%.3f",
+                         k.logScale ? ImGuiSliderFlags_Logarithmic : 0);
+      value = v;
+      break;
+    }
   }
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", k.description.c_str());
   return ImGui::IsItemDeactivatedAfterEdit();
+}
+
+/// A combo of "none" and every technique that can serve the role; true when the choice changed.
+bool roleCombo(const char* label, std::string& name, bool real) {
+  std::vector<std::string> items{"none"};
+  for (const auto& t : lighting::techniques())
+    if (real ? t.real : t.virtualObject) items.push_back(t.name);
+  int current = 0;
+  for (size_t i = 0; i < items.size(); ++i)
+    if (items[i] == name) current = static_cast<int>(i);
+  std::vector<const char*> cstr;
+  for (const auto& i : items) cstr.push_back(i.c_str());
+  if (!ImGui::Combo(label, &current, cstr.data(), static_cast<int>(cstr.size()))) return false;
+  name = items[static_cast<size_t>(current)];
+  return true;
 }
 
 int runLive(const LiveOptions& o) {
@@ -76,7 +111,7 @@ int runLive(const LiveOptions& o) {
   if (!o.scene.empty()) {
     scene = lighting::loadScene(o.scene);
     if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
-    if (!o.technique.empty()) scene.technique = lighting::parseTechnique(o.technique);
+    if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
     if (scene.lightSource == lighting::LightSource::Fisheye && o.in.source.empty()) {
       // Live: the lights come from the V4L2 fisheye camera, not from a session manifest.
       if (o.in.fisheye.empty()) throw capture::CaptureError(o.scene, "lights: \"fisheye\" needs --fisheye /dev/videoN live");
@@ -120,7 +155,7 @@ int runLive(const LiveOptions& o) {
   };
   rebuild();
 
-  std::vector<DebugView> views = debugViews(frames->setup());
+  std::vector<DebugView> views = debugViews(*frames);
   int viewIndex = 0;
   for (size_t i = 0; i < views.size(); ++i)
     if (o.view == debugViewName(views[i])) viewIndex = static_cast<int>(i);
@@ -145,7 +180,7 @@ int runLive(const LiveOptions& o) {
   while (!InterruptGuard::interrupted() && ui.beginFrame()) {
     if (needRebuild) {
       rebuild();
-      views = debugViews(frames->setup());
+      views = debugViews(*frames);
       viewIndex = std::min(viewIndex, static_cast<int>(views.size()) - 1);
       needRebuild = false;
     }
@@ -175,7 +210,7 @@ int runLive(const LiveOptions& o) {
     }
     if (fresh || view.empty() || ImGui::IsAnyItemActive()) {
       view = frame ? renderDebugView(views[viewIndex], *frames, result, frame->rgbd->colourIntrinsics, lastFisheye) : cv::Mat();
-      if (!view.empty() && views[viewIndex] == DebugView::Composite && axes && result.T_marker_camera) {
+      if (!view.empty() && views[viewIndex] == Views::kComposite && axes && result.T_marker_camera) {
         view = view.clone();
         drawMarkerAxes(view, frame->rgbd->colourIntrinsics, *result.T_marker_camera, frames->setup() ? frames->setup()->tagSize : 0.1);
       }
@@ -211,9 +246,10 @@ int runLive(const LiveOptions& o) {
       ImGui::Checkbox("marker axes", &axes);
     }
     if (frames->setup() && ImGui::CollapsingHeader("Technique and knobs", ImGuiTreeNodeFlags_DefaultOpen)) {
-      int t = static_cast<int>(scene.technique);
-      const char* techniques[] = {"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"};
-      if (ImGui::Combo("technique", &t, techniques, 4)) scene.technique = static_cast<lighting::Technique>(t), needRebuild = true;
+      lighting::TechniqueChoice& choice = scene.technique;
+      const bool realChanged = roleCombo("real pixels", choice.real, true);
+      const bool virtualChanged = roleCombo("virtual object", choice.virtualObject, false);
+      if (realChanged || virtualChanged) choice.name = lighting::canonicalName(choice), needRebuild = true;
       if (ImGui::Combo("preset", &presetIndex, presetNames, 5) && presetIndex < 4) {
         if (presetIndex == 0)
           scene = lighting::loadScene(o.scene);
@@ -221,26 +257,16 @@ int runLive(const LiveOptions& o) {
           applyPreset(loadPreset(o.presets, presetNames[presetIndex]), scene);
         needRebuild = true;
       }
+      // Every knob of the shared resources and of the techniques in use, from their declarations.
       bool edited = false;
-      auto& l = scene.lpv;
-      auto& v = scene.val;
-      if (lighting::usesLpv(scene.technique)) {
-        edited |= knob("volume resolution", l.resolution, 8, 64);
-        edited |= knob("propagation steps", l.steps, 0, 64);
-        l.directSteps = std::min(l.directSteps, l.steps);
-        edited |= knob("RSM size", l.rsmSize, 32, 1024, true);
-        edited |= knob("size factor", l.sizeFactor, 1.5, 8.0);
-        edited |= knob("damping", l.damping, 0.0, 1.0);
-        edited |= knob("direct steps", l.directSteps, 0, l.steps);
-      }
-      if (lighting::usesVal(scene.technique)) {
-        edited |= knob("sparse points", v.sparsePoints, 16, 16384, true);
-        edited |= knob("K_cache", v.kCache, 16, 512, true);
-        edited |= knob("pixel stride", v.stride, 1, 16);
-        edited |= knob("RSM stride", v.rsmStride, 1, 16);
-        edited |= knob("surfel voxel (m)", v.voxel, 0.005, 0.1);
-        edited |= ImGui::Checkbox("occlusion", &v.occlusion);
-        edited |= ImGui::Checkbox("fusion", &v.fusion);
+      std::vector<const lighting::KnobGroup*> groups{&lighting::frameKnobGroup()};
+      for (const auto& a : lighting::assignRoles(choice)) groups.push_back(&a.info->knobs);
+      for (const lighting::KnobGroup* g : groups) {
+        ImGui::Separator();
+        ImGui::TextUnformatted(g->key.c_str());
+        ImGui::PushID(g->key.c_str());
+        for (const lighting::KnobInfo& k : g->knobs) edited |= knobWidget(k, scene.knobs[g->key][k.name]);
+        ImGui::PopID();
       }
       if (edited) presetIndex = 4, needRebuild = true;
     }
@@ -303,8 +329,7 @@ Action addLive(CLI::App& app) {
   app.add_option("--fisheye-calibration", o->in.fisheyeCalibration, "its calibration (YAML from mrgi calibrate-fisheye)");
   app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")->check(CLI::PositiveNumber);
   app.add_option("--scene", o->scene, "scene file: virtual objects relative to the marker, lights, technique, knobs");
-  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
-      ->check(CLI::IsMember({"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}));
+  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")->check(techniqueValidator());
   app.add_option("--preset", o->preset, "measured preset (overrides the scene file's knobs)")
       ->check(CLI::IsMember({"fast", "balanced", "accurate"}));
   app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();

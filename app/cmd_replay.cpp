@@ -21,6 +21,7 @@
 #include "capture/session.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
+#include "lighting/techniques/registry.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -57,7 +58,7 @@ int runReplay(const ReplayOptions& o) {
   if (!o.scene.empty()) {
     lighting::SceneDescription scene = lighting::loadScene(o.scene);
     if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
-    if (!o.technique.empty()) scene.technique = lighting::parseTechnique(o.technique);
+    if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
     setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose);
   }
   prepareOutputDirectory(o.out, "summary.json");
@@ -124,8 +125,8 @@ int runReplay(const ReplayOptions& o) {
         char prefix[32];
         std::snprintf(prefix, sizeof prefix, "debug_%04lld_", static_cast<long long>(done));
         const std::string base = (fs::path(o.out) / prefix).string();
-        for (const DebugView v : debugViews(frames.setup())) {
-          if (v == DebugView::Composite) continue;  // frame_NNNN.png
+        for (const DebugView& v : debugViews(frames)) {
+          if (v == Views::kComposite) continue;  // frame_NNNN.png
           const cv::Mat img = renderDebugView(v, frames, result, frame->rgbd->colourIntrinsics, lastFisheye, &frameInfo);
           if (!img.empty()) writePng(base + debugViewName(v) + ".png", img);
         }
@@ -199,22 +200,17 @@ int runReplay(const ReplayOptions& o) {
   summary["reuse"] = !o.recomputeAll;
   if (const LightingSetup* setup = frames.setup()) {
     summary["scene"] = o.scene;
-    summary["technique"] = lighting::techniqueName(setup->scene.technique);
+    summary["technique"] = setup->scene.technique.name;
+    summary["roles"] = {{"real", setup->scene.technique.real}, {"virtual", setup->scene.technique.virtualObject}};
     if (!o.preset.empty()) summary["preset"] = o.preset;
-    const auto& k = setup->scene.lpv;
-    summary["knobs"] = {{"resolution", k.resolution}, {"steps", k.steps}, {"rsm_size", k.rsmSize},
-                        {"size_factor", k.sizeFactor}, {"damping", k.damping}, {"direct_steps", k.directSteps}};
-    if (lighting::usesVal(setup->scene.technique)) {
-      const auto& v = setup->scene.val;
-      summary["knobs"]["val"] = {{"sparse_points", v.sparsePoints}, {"k_cache", v.kCache}, {"occlusion", v.occlusion},
-                                 {"stride", v.stride}, {"rsm_stride", v.rsmStride}, {"fusion", v.fusion},
-                                 {"voxel", v.voxel}, {"decay", v.decay}, {"brute_force", v.bruteForce}};
-      double flicker = 0;
-      int n = 0;
-      for (const auto& f : perFrame)
-        if (f.contains("val") && f["val"].contains("flicker")) flicker += f["val"]["flicker"].get<double>(), ++n;
-      if (n > 0) summary["val_flicker_mean"] = flicker / n;
-    }
+    summary["knobs"] = lighting::usedKnobsJson(setup->scene.technique, setup->scene.knobs);
+    // Per technique, the mean of its per-frame flicker where it reports one.
+    std::map<std::string, std::pair<double, int>> flicker;
+    for (const auto& f : perFrame)
+      if (f.contains("techniques"))
+        for (const auto& [name, st] : f["techniques"].items())
+          if (st.contains("flicker")) flicker[name].first += st["flicker"].get<double>(), ++flicker[name].second;
+    for (const auto& [name, sum] : flicker) summary["flicker_mean"][name] = sum.first / sum.second;
     summary["lights"] = setup->lights.size();
   }
   summary["wall_ms_per_frame"] = done ? wallMs / done : 0.0;
@@ -242,8 +238,7 @@ Action addReplay(CLI::App& app) {
   app.add_option("--gl", o->gl, "GL backend: osmesa (headless, default), egl (headless GPU), window")
       ->check(CLI::IsMember({"osmesa", "egl", "window"}));
   app.add_option("--scene", o->scene, "scene file (JSON): virtual objects relative to the marker, lights, technique");
-  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
-      ->check(CLI::IsMember({"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}));
+  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")->check(techniqueValidator());
   app.add_option("--preset", o->preset, "technique and knobs from a measured preset (overrides the scene file's)")
       ->check(CLI::IsMember({"fast", "balanced", "accurate"}));
   app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();

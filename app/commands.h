@@ -9,6 +9,9 @@ namespace mrgi::app {
 
 using Action = std::function<int()>;
 
+/// Checks a --technique value against the registry (a name, an alias, "REAL+VIRTUAL").
+CLI::Validator techniqueValidator();
+
 Action addInfo(CLI::App& app);
 Action addReplay(CLI::App& app);
 Action addSynth(CLI::App& app);

@@ -11,31 +11,15 @@
 
 namespace mrgi::app {
 
-const char* debugViewName(DebugView v) {
-  switch (v) {
-    case DebugView::Composite: return "composite";
-    case DebugView::Delta: return "delta";
-    case DebugView::Albedo: return "gbuffer_albedo";
-    case DebugView::Normal: return "gbuffer_normal";
-    case DebugView::Mask: return "gbuffer_mask";
-    case DebugView::RsmFlux: return "rsm_flux";
-    case DebugView::RsmNormal: return "rsm_normal";
-    case DebugView::Volume: return "dlpv_slices";
-    case DebugView::ValIrradiance: return "val_irradiance";
-    case DebugView::SparsePoints: return "val_sparse_points";
-    case DebugView::Fisheye: return "fisheye_lights";
-  }
-  return "?";
-}
-
-std::vector<DebugView> debugViews(const LightingSetup* setup) {
-  std::vector<DebugView> out{DebugView::Composite};
+std::vector<DebugView> debugViews(FramePipeline& frames) {
+  std::vector<DebugView> out{Views::kComposite};
+  const LightingSetup* setup = frames.setup();
   if (!setup) return out;
-  out.insert(out.end(), {DebugView::Delta, DebugView::Albedo, DebugView::Normal, DebugView::Mask, DebugView::RsmFlux,
-                         DebugView::RsmNormal});
-  if (lighting::usesLpv(setup->scene.technique)) out.push_back(DebugView::Volume);
-  if (lighting::usesVal(setup->scene.technique)) out.insert(out.end(), {DebugView::ValIrradiance, DebugView::SparsePoints});
-  if (setup->fisheye) out.push_back(DebugView::Fisheye);
+  out.insert(out.end(), {Views::kDelta, Views::kAlbedo, Views::kNormal, Views::kMask, Views::kRsmFlux, Views::kRsmNormal});
+  if (const lighting::LightingPipeline* pipe = frames.lighting())
+    for (const auto& t : pipe->techniques())
+      for (const std::string& v : t->debugViews()) out.push_back(v);
+  if (setup->fisheye) out.push_back(Views::kFisheye);
   return out;
 }
 
@@ -61,14 +45,14 @@ cv::Mat toneMapped(const cv::Mat& image) {
 
 }  // namespace
 
-cv::Mat renderDebugView(DebugView v, FramePipeline& frames, const FrameResult& r, const capture::Intrinsics& k,
+cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameResult& r, const capture::Intrinsics& k,
                         const cv::Mat& fisheyeImage,
                         nlohmann::json* info) {
   nlohmann::json scratch;
   nlohmann::json& out = info ? *info : scratch;
-  if (v == DebugView::Composite) return r.composite;
+  if (v == Views::kComposite) return r.composite;
   const LightingSetup* setup = frames.setup();
-  if (v == DebugView::Fisheye) {
+  if (v == Views::kFisheye) {
     if (!setup || !setup->fisheye || fisheyeImage.empty()) return {};
     cv::Mat img = toneMapped(fisheyeImage);
     // Median-cut lights (marker frame, travel direction) back into the fisheye camera.
@@ -97,72 +81,33 @@ cv::Mat renderDebugView(DebugView v, FramePipeline& frames, const FrameResult& r
   }
   lighting::LightingPipeline* pipe = frames.lighting();
   if (!r.lit || !pipe) return {};
-  switch (v) {
-    case DebugView::Delta: {
-      double scale = 0;
-      cv::Mat img = lighting::signedImage(pipe->downloadShade(), scale);
-      img.setTo(cv::Scalar(40, 40, 90), virtualMask(*pipe));  // the object itself: dark blue
-      out["debug_delta_scale"] = scale;
-      return img;
-    }
-    case DebugView::Albedo: return lighting::linearImage(pipe->downloadGBuffer(2));
-    case DebugView::Normal: return lighting::normalImage(pipe->downloadGBuffer(1));
-    case DebugView::Mask: return virtualMask(*pipe);
-    case DebugView::RsmFlux: {
-      double scale = 0;
-      cv::Mat img = lighting::signedImage(pipe->downloadRsm(true).flux, scale);
-      out["debug_rsm_scale"] = scale;
-      return img;
-    }
-    case DebugView::RsmNormal: return lighting::normalImage(pipe->downloadRsm(true).normal);
-    case DebugView::Volume: {
-      if (!lighting::usesLpv(setup->scene.technique) || !pipe->grid()) return {};
-      double scale = 0;
-      const auto vol = pipe->downloadVolume(setup->scene.technique == lighting::Technique::LpvDiff ? "rho_full" : "delta");
-      cv::Mat img = lighting::volumeSlices(vol, 4, 4, scale);
-      out["debug_volume_scale"] = scale;
-      return img;
-    }
-    case DebugView::ValIrradiance: {
-      if (!lighting::usesVal(setup->scene.technique)) return {};
-      // Bounce irradiance the virtual object receives, on a linear scale.
-      cv::Mat rgb, lum;
-      cv::cvtColor(pipe->downloadIrradiance(), rgb, cv::COLOR_RGBA2RGB);
-      cv::cvtColor(rgb, lum, cv::COLOR_RGB2GRAY);
-      const cv::Mat mask = virtualMask(*pipe);
-      double lo = 0, hi = 0;
-      cv::minMaxLoc(lum, &lo, &hi, nullptr, nullptr, mask);
-      rgb.setTo(cv::Scalar::all(0), mask == 0);  // real pixels carry their delta in this target
-      out["debug_val_irradiance_max"] = hi;
-      return lighting::linearImage(rgb, hi > 0 ? 1.0 / hi : 0.0);
-    }
-    case DebugView::SparsePoints: {
-      if (!lighting::usesVal(setup->scene.technique) || !r.T_marker_camera) return {};
-      cv::Mat img = r.composite.clone();
-      std::vector<cv::Vec3f> E, S;
-      pipe->downloadValSums(E, S);
-      double maxE = 1e-12;
-      for (const auto& e : E) maxE = std::max(maxE, capture::luminance(cv::Vec3d(e)));
-      const capture::Pose T_camera_marker = capture::inversePose(*r.T_marker_camera);
-      size_t at = 0;
-      for (size_t oi = 0; oi < setup->scene.objects.size(); ++oi) {
-        const auto& pts = pipe->sparsePoints(oi);
-        const capture::Pose T = T_camera_marker * setup->scene.objects[oi].T_marker_object;
-        for (size_t i = 0; i < pts.positions.size(); ++i, ++at) {
-          const cv::Vec3d c = capture::transformPoint(T, cv::Vec3d(pts.positions[i]));
-          const cv::Vec3d n = capture::rotationOf(T) * cv::Vec3d(pts.normals[i]);
-          if (c[2] <= 0 || n.dot(c) > 0) continue;  // behind the camera or on the far side of the object
-          const double e = at < E.size() ? capture::luminance(cv::Vec3d(E[at])) / maxE : 0.0;
-          const auto g = cv::saturate_cast<uchar>(255.0 * std::sqrt(e));
-          cv::circle(img, cv::Point2d(k.fx * c[0] / c[2] + k.cx, k.fy * c[1] / c[2] + k.cy), 2, cv::Scalar(g, g, 255 - g),
-                     cv::FILLED, cv::LINE_AA);
-        }
-      }
-      out["debug_sparse_points"] = at;
-      return img;
-    }
-    default: return {};
+  if (v == Views::kDelta) {
+    double scale = 0;
+    cv::Mat img = lighting::signedImage(pipe->downloadShade(), scale);
+    img.setTo(cv::Scalar(40, 40, 90), virtualMask(*pipe));  // the object itself: dark blue
+    out["debug_delta_scale"] = scale;
+    return img;
   }
+  if (v == Views::kAlbedo) return lighting::linearImage(pipe->downloadGBuffer(2));
+  if (v == Views::kNormal) return lighting::normalImage(pipe->downloadGBuffer(1));
+  if (v == Views::kMask) return virtualMask(*pipe);
+  if (v == Views::kRsmFlux) {
+    double scale = 0;
+    cv::Mat img = lighting::signedImage(pipe->downloadRsm(true).flux, scale);
+    out["debug_rsm_scale"] = scale;
+    return img;
+  }
+  if (v == Views::kRsmNormal) return lighting::normalImage(pipe->downloadRsm(true).normal);
+  // A technique's own view.
+  lighting::DebugContext context;
+  context.composite = r.composite;
+  context.intrinsics = k;
+  context.T_world_camera = r.T_marker_camera;
+  for (const auto& t : pipe->techniques()) {
+    const auto names = t->debugViews();
+    if (std::find(names.begin(), names.end(), v) != names.end()) return t->debugImage(v, context, out);
+  }
+  return {};
 }
 
 void drawMarkerAxes(cv::Mat& rgb, const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length) {

@@ -11,29 +11,28 @@
 
 namespace mrgi::app {
 
-enum class DebugView {
-  Composite,
-  Delta,          ///< real pixels' delta (grey positive, red negative)
-  Albedo,         ///< G-buffer albedo
-  Normal,         ///< G-buffer normals
-  Mask,           ///< G-buffer virtual mask
-  RsmFlux,        ///< the last light's RSM^rho flux
-  RsmNormal,      ///< the last light's RSM^rho normals
-  Volume,         ///< DLPV (or lpv-diff rho) z-slices
-  ValIrradiance,  ///< Kinect-VAL bounce irradiance on the virtual object
-  SparsePoints,   ///< Kinect-VAL sparse points over the composite, coloured by their irradiance
-  Fisheye,        ///< the last fisheye frame, tone-mapped, with the median-cut lights drawn
+/// A view by its file-name-friendly name: the shared ones below, and each technique's own (e.g. "dlpv_slices").
+using DebugView = std::string;
+struct Views {
+static inline const DebugView kComposite = "composite";
+static inline const DebugView kDelta = "delta";             ///< real pixels' delta (grey positive, red negative)
+static inline const DebugView kAlbedo = "gbuffer_albedo";   ///< G-buffer albedo
+static inline const DebugView kNormal = "gbuffer_normal";   ///< G-buffer normals
+static inline const DebugView kMask = "gbuffer_mask";       ///< G-buffer virtual mask
+static inline const DebugView kRsmFlux = "rsm_flux";        ///< the last light's RSM^rho flux
+static inline const DebugView kRsmNormal = "rsm_normal";    ///< the last light's RSM^rho normals
+static inline const DebugView kFisheye = "fisheye_lights";  ///< the last fisheye frame, tone-mapped, with the median-cut lights
 };
 
-/// The file-name-friendly name ("delta", "gbuffer_albedo", "dlpv_slices", ...).
-const char* debugViewName(DebugView v);
-/// The views a pipeline of this technique can show (Composite first); fisheye only with a fisheye setup.
-std::vector<DebugView> debugViews(const LightingSetup* setup);
+inline const char* debugViewName(const DebugView& v) { return v.c_str(); }
+/// The views a frame pipeline can show (composite first, then the shared ones, each technique's, and the
+/// fisheye with a fisheye setup).
+std::vector<DebugView> debugViews(FramePipeline& frames);
 
 /// Renders a view of the frame just processed (the pipeline's last run). `info` receives the scales the
 /// image used (e.g. "debug_delta_scale"). Returns an empty image when the view has nothing to show (no
 /// lighting ran on this frame, no fisheye frame yet).
-cv::Mat renderDebugView(DebugView v, FramePipeline& frames, const FrameResult& r, const capture::Intrinsics& k,
+cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameResult& r, const capture::Intrinsics& k,
                         const cv::Mat& fisheyeImage,
                         nlohmann::json* info = nullptr);
 

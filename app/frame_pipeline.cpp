@@ -66,19 +66,12 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
 FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int height, const FrameOptions& options)
     : setup_(std::move(setup)), options_(options) {
   if (!setup_) return;
-  lighting::PipelineConfig pc;
-  pc.width = width;
-  pc.height = height;
-  pc.technique = setup_->scene.technique;
-  pc.lpv = setup_->scene.lpv;
-  pc.val = setup_->scene.val;
-  if (lighting::usesVal(pc.technique) && pc.val.fusion) {
-    lighting::SurfelOptions so;
-    so.voxel = static_cast<float>(pc.val.voxel);
-    so.decay = static_cast<float>(pc.val.decay);
-    surfels_.emplace(so);
+  const lighting::PipelineConfig pc = lighting::pipelineConfig(setup_->scene, width, height);
+  if (options_.gpu) {
+    pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
+    needs_ = pipeline_->needs();
+    if (needs_.realVals && needs_.realValOptions.fusion) surfels_.emplace(needs_.realValOptions.surfels);
   }
-  if (options_.gpu) pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
   if (setup_->fisheye) fisheyeRays_ = reconstruction::fisheyeRays(*setup_->fisheye);
   reconstruction::DetectorOptions dopt;
   dopt.family = setup_->tagFamily;
@@ -233,27 +226,29 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     r.composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
     return;
   }
-  const bool val = lighting::usesVal(setup_->scene.technique);
+  const bool val = needs_.realVals;
   if (r.reusedSurface) {
     for (const char* stage : {"albedo", "mesh"}) r.info["skipped"].push_back(stage);
-    if (val) r.info["skipped"].push_back("val.real_vals");
+    if (val) r.info["skipped"].push_back("real_vals");
   } else {
     const RealSurface real = realSurface(frame, r, profiler);
     pipeline_->setRealMesh(real.vertices, real.indices);
     if (options_.reuse) surfaceCache_ = SurfaceCache{*r.T_marker_camera, thumbnail_.clone(), r.positions, r.normals};
   }
   if (val && !r.reusedSurface) {
-    // Real surfaces as VALs: the seen radiance of every stride-th filtered pixel, fused over frames when
-    // the scene asks for it (surfels out of view keep their light).
-    auto s = profiler.cpu("val.real_vals");
+    // Real surfaces as area lights: the seen radiance of every stride-th filtered pixel, fused over frames
+    // when the technique asks for it (surfels out of view keep their light).
+    auto s = profiler.cpu("real_vals");
     auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::decodeSrgb(rgbd.colour), rgbd.colourIntrinsics,
-                                       *r.T_marker_camera, setup_->scene.val.stride);
+                                       *r.T_marker_camera, needs_.realValOptions.stride);
     if (surfels_) {
       cv::Mat depth;
       cv::extractChannel(r.positions, depth, 2);
       surfels_->integrate(vals, depth, rgbd.colourIntrinsics, *r.T_marker_camera);
       vals = surfels_->vals();
     }
+    r.info["real_vals"] = vals.size();
+    if (surfels_) r.info["surfels"] = surfels_->size();
     pipeline_->setRealVals(std::move(vals));
   }
   lighting::CameraView view;
@@ -261,27 +256,8 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   view.T_world_camera = *r.T_marker_camera;
   pipeline_->run(view, setup_->lights, setup_->ambient, &profiler);
   for (const std::string& stage : pipeline_->skippedStages()) r.info["skipped"].push_back(stage);
-  if (val) {
-    // Flicker of the bounce light: frame-to-frame change of the sparse points' irradiance (model space,
-    // so a moving camera alone changes nothing), relative to its mean.
-    const auto& st = pipeline_->valStats();
-    nlohmann::json v = {{"real_vals", st.realVals}, {"virtual_vals", st.virtualVals}, {"receivers", st.receivers},
-                      {"shadowed_vals", st.shadowedVals}};
-    if (surfels_) v["surfels"] = surfels_->size();
-    std::vector<cv::Vec3f> E, S;
-    pipeline_->downloadValSums(E, S);
-    double sum = 0;
-    for (const auto& e : E) sum += capture::luminance(cv::Vec3d(e));
-    v["mean_irradiance"] = E.empty() ? 0.0 : sum / static_cast<double>(E.size());
-    if (!st.bruteForce && !prevValE_.empty() && prevValE_.size() == E.size() && sum > 0) {
-      double change = 0;
-      for (size_t i = 0; i < E.size(); ++i)
-        change += std::abs(capture::luminance(cv::Vec3d(E[i])) - capture::luminance(cv::Vec3d(prevValE_[i])));
-      v["flicker"] = change / sum;
-    }
-    prevValE_ = st.bruteForce ? std::vector<cv::Vec3f>() : E;
-    r.info["val"] = v;
-  }
+  // Each technique's facts of this frame (counts, flicker), under its name.
+  if (auto stats = pipeline_->stats(); !stats.empty()) r.info["techniques"] = std::move(stats);
   r.composite = compositor.composite(rgbd.colour, pipeline_->shade(), &profiler);
   r.lit = true;
 }

@@ -14,7 +14,7 @@
 #include "gl/profiler.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
-#include "lighting/val.h"
+#include "lighting/frame/real_scene.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
 
@@ -91,8 +91,8 @@ class FramePipeline {
   std::optional<reconstruction::FisheyeRays> fisheyeRays_;
   std::optional<reconstruction::TagDetector> detector_;
   reconstruction::MarkerTrack track_;
-  std::optional<lighting::SurfelMap> surfels_;  ///< Kinect-VAL fusion of real VALs over frames
-  std::vector<cv::Vec3f> prevValE_;             ///< last frame's sparse-point irradiance (flicker)
+  lighting::TechniqueNeeds needs_;              ///< what the scene's techniques need (real VALs)
+  std::optional<lighting::SurfelMap> surfels_;  ///< fusion of real VALs over frames, when asked for
   /// The frame the lighting pipeline's real surface was built from (FrameOptions::reuse).
   struct SurfaceCache {
     capture::Pose T_marker_camera;

@@ -1,6 +1,6 @@
 #include "app/reference_scene.h"
 
-#include "lighting/val.h"
+#include "lighting/material.h"
 
 namespace mrgi::app {
 

@@ -28,7 +28,7 @@ cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, cons
 Compositor::Compositor(int width, int height)
     : width_(width),
       height_(height),
-      program_(gl::Program::graphics("compositor/fullscreen.vert", "compositor/composite.frag")),
+      program_(gl::Program::graphics("lighting/gl/fullscreen.vert", "compositor/composite.frag")),
       background_(GL_TEXTURE_2D, GL_RGBA8, width, height),
       delta_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
       output_(GL_TEXTURE_2D, GL_RGBA8, width, height) {

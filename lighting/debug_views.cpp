@@ -9,7 +9,6 @@
 
 namespace mrgi::lighting {
 
-namespace {
 cv::Vec3b signedColour(double v, double scale) {
   const double t = std::clamp(std::abs(v) / scale, 0.0, 1.0);
   const auto u = static_cast<uchar>(std::lround(255 * std::sqrt(t)));  // sqrt: small values stay visible
@@ -22,7 +21,6 @@ double percentile99(std::vector<double>& v) {
   std::nth_element(v.begin(), v.begin() + k, v.end());
   return v[k] > 0 ? v[k] : 1.0;
 }
-}  // namespace
 
 cv::Mat signedImage(const cv::Mat& image, double& scale) {
   CV_Assert(image.depth() == CV_32F && image.channels() >= 3);
@@ -60,31 +58,6 @@ cv::Mat linearImage(const cv::Mat& image, double multiply) {
   else rgb = image.clone();
   rgb.convertTo(rgb, CV_32FC3, multiply);
   return capture::encodeSrgb(rgb);
-}
-
-cv::Mat volumeSlices(const LpvVolumeCpu& volume, int every, int cellPixels, double& scale) {
-  const int res = volume.resolution;
-  const int slices = (res + every - 1) / every;
-  std::vector<double> mags;
-  for (const auto& c : volume.cells) {
-    const double l = capture::luminance(cv::Vec3d(c[0][0], c[1][0], c[2][0]));
-    if (l != 0) mags.push_back(std::abs(l));
-  }
-  if (scale <= 0) scale = percentile99(mags);
-  const int gap = 2;
-  cv::Mat out(res * cellPixels, slices * (res * cellPixels + gap), CV_8UC3, cv::Scalar(40, 40, 80));
-  for (int s = 0; s < slices; ++s) {
-    const int k = s * every;
-    for (int j = 0; j < res; ++j)
-      for (int i = 0; i < res; ++i) {
-        const auto& c = volume.at(i, j, k);
-        const double l = capture::luminance(cv::Vec3d(c[0][0], c[1][0], c[2][0]));
-        const cv::Rect r(s * (res * cellPixels + gap) + i * cellPixels, (res - 1 - j) * cellPixels, cellPixels, cellPixels);
-        const cv::Vec3b colour = signedColour(l, scale);
-        out(r).setTo(cv::Scalar(colour[0], colour[1], colour[2]));
-      }
-  }
-  return out;
 }
 
 }  // namespace mrgi::lighting

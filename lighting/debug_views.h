@@ -3,7 +3,7 @@
 /// grey/white and negative ones in red, each with its scale printed by the caller.
 #include <opencv2/core.hpp>
 
-#include "lighting/lpv.h"
+#include <vector>
 
 namespace mrgi::lighting {
 
@@ -14,8 +14,9 @@ cv::Mat signedImage(const cv::Mat& image, double& scale);
 cv::Mat normalImage(const cv::Mat& normals);
 /// Linear RGB (CV_32FC3/4) -> sRGB RGB8, optionally multiplied first.
 cv::Mat linearImage(const cv::Mat& image, double multiply = 1.0);
-/// The volume's band-0 luminance as a row of slices along z (every `every`-th slice), signed colours,
-/// each cell `cellPixels` wide.
-cv::Mat volumeSlices(const LpvVolumeCpu& volume, int every, int cellPixels, double& scale);
+/// The colour signedImage gives value v at `scale`: grey = positive, red = negative (sqrt-scaled).
+cv::Vec3b signedColour(double v, double scale);
+/// 99th percentile of v (reordered); 1 when v is empty or the percentile is not positive.
+double percentile99(std::vector<double>& v);
 
 }  // namespace mrgi::lighting

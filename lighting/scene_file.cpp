@@ -13,6 +13,7 @@
 #include <opencv2/calib3d.hpp>
 
 #include "capture/types.h"
+#include "lighting/techniques/registry.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -77,24 +78,6 @@ Mesh loadMesh(const std::string& path) {
       throw SceneError(path, "model has a non-finite vertex position");
   mesh.computeBounds();
   return mesh;
-}
-
-Technique parseTechnique(const std::string& name) {
-  if (name == "dlpv") return Technique::Dlpv;
-  if (name == "lpv-diff") return Technique::LpvDiff;
-  if (name == "kinect-val") return Technique::KinectVal;
-  if (name == "dlpv+kinect-val") return Technique::DlpvKinectVal;
-  throw std::invalid_argument("unknown technique '" + name + "' (expected dlpv, lpv-diff, kinect-val or dlpv+kinect-val)");
-}
-
-const char* techniqueName(Technique t) {
-  switch (t) {
-    case Technique::Dlpv: return "dlpv";
-    case Technique::LpvDiff: return "lpv-diff";
-    case Technique::KinectVal: return "kinect-val";
-    case Technique::DlpvKinectVal: return "dlpv+kinect-val";
-  }
-  return "?";
 }
 
 namespace {
@@ -178,8 +161,12 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   } catch (const json::parse_error& e) {
     throw SceneError(path, std::string("not valid JSON: ") + e.what());
   }
-  r.allowOnly(doc, "", {"objects", "lights", "fisheye_light_count", "ambient_radiance", "technique", "lpv", "val"});
+  std::set<std::string> topLevel{"objects", "lights", "fisheye_light_count", "ambient_radiance", "technique"};
+  for (const KnobGroup* g : knobGroups()) topLevel.insert(g->key);
+  r.allowOnly(doc, "", topLevel);
   SceneDescription s;
+  completeKnobs(s.knobs);
+  s.technique = parseTechniqueChoice("dlpv", &s.knobs);
   s.path = path;
   const fs::path base = fs::path(path).parent_path();
 
@@ -280,36 +267,40 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
     s.ambientFromManifest = false;
   }
   if (doc.contains("technique")) {
+    // The technique first: an alias sets knobs that the knob sections below may still override.
+    const json& t = doc["technique"];
     try {
-      s.technique = parseTechnique(r.string(doc["technique"], "technique"));
+      if (t.is_string()) {
+        s.technique = parseTechniqueChoice(t.get<std::string>(), &s.knobs);
+      } else if (t.is_object()) {
+        r.allowOnly(t, "technique", {"real", "virtual"});
+        s.technique = parseTechniqueRoles(t.contains("real") ? r.string(t["real"], "technique.real") : "none",
+                                          t.contains("virtual") ? r.string(t["virtual"], "technique.virtual") : "none",
+                                          &s.knobs);
+      } else {
+        r.fail("technique", "must be a technique name or {\"real\": ..., \"virtual\": ...}");
+      }
     } catch (const std::invalid_argument& e) {
       r.fail("technique", e.what());
     }
   }
-  if (doc.contains("lpv")) {
-    const json& k = doc["lpv"];
-    r.allowOnly(k, "lpv", {"resolution", "steps", "rsm_size", "size_factor", "damping", "direct_steps"});
-    if (k.contains("resolution")) s.lpv.resolution = r.integer(k["resolution"], "lpv.resolution", 4, 128);
-    if (k.contains("steps")) s.lpv.steps = r.integer(k["steps"], "lpv.steps", 0, 256);
-    if (k.contains("rsm_size")) s.lpv.rsmSize = r.integer(k["rsm_size"], "lpv.rsm_size", 16, 4096);
-    if (k.contains("size_factor")) s.lpv.sizeFactor = r.number(k["size_factor"], "lpv.size_factor", 1.0, 64.0);
-    if (k.contains("damping")) s.lpv.damping = r.number(k["damping"], "lpv.damping", 0.0, 1.0);
-    if (k.contains("direct_steps")) s.lpv.directSteps = r.integer(k["direct_steps"], "lpv.direct_steps", 0, 256);
-  }
-  if (doc.contains("val")) {
-    const json& k = doc["val"];
-    r.allowOnly(k, "val", {"sparse_points", "k_cache", "occlusion", "stride", "rsm_stride", "fusion", "voxel", "decay",
-                           "brute_force"});
-    ValKnobs& v = s.val;
-    if (k.contains("sparse_points")) v.sparsePoints = r.integer(k["sparse_points"], "val.sparse_points", 16, 16384);
-    if (k.contains("k_cache")) v.kCache = r.integer(k["k_cache"], "val.k_cache", 16, 512);
-    if (k.contains("occlusion")) v.occlusion = r.boolean(k["occlusion"], "val.occlusion");
-    if (k.contains("stride")) v.stride = r.integer(k["stride"], "val.stride", 1, 64);
-    if (k.contains("rsm_stride")) v.rsmStride = r.integer(k["rsm_stride"], "val.rsm_stride", 1, 64);
-    if (k.contains("fusion")) v.fusion = r.boolean(k["fusion"], "val.fusion");
-    if (k.contains("voxel")) v.voxel = r.number(k["voxel"], "val.voxel", 1e-3, 1.0);
-    if (k.contains("decay")) v.decay = r.number(k["decay"], "val.decay", 0.0, 1.0);
-    if (k.contains("brute_force")) v.bruteForce = r.boolean(k["brute_force"], "val.brute_force");
+  // Knob sections, one per group (the shared "frame" and each technique's), every value checked against the
+  // group's table. The frame's knobs are also read inside a technique's section, where older files have them.
+  const KnobGroup& frame = *findKnobGroup("frame");
+  const KnobFail fail = [&r](const std::string& key, const std::string& problem) { r.fail(key, problem); };
+  for (const KnobGroup* g : knobGroups()) {
+    if (!doc.contains(g->key)) continue;
+    const json& section = doc[g->key];
+    std::set<std::string> allowed;
+    for (const KnobInfo& k : g->knobs) allowed.insert(k.name);
+    for (const KnobInfo& k : frame.knobs) allowed.insert(k.name);
+    r.allowOnly(section, g->key, allowed);
+    for (const auto& [name, value] : section.items()) {
+      const KnobInfo* k = g->find(name);
+      const KnobGroup& owner = k ? *g : frame;
+      if (!k) k = frame.find(name);
+      s.knobs[owner.key][name] = owner.read(*k, value, g->key + "." + name, fail);
+    }
   }
   return s;
 }

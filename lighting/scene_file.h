@@ -12,6 +12,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "lighting/knobs.h"
+
 namespace mrgi::lighting {
 
 /// Bad scene file or model: "path: key: problem".
@@ -65,42 +67,13 @@ struct SceneLight {
 /// estimated per fisheye frame of the session (solid-angle-weighted median cut -> directional lights).
 enum class LightSource { Scene, Manifest, Fisheye };
 
-/// dlpv: DLPV delta on real pixels, V^rho bounce on the virtual object. lpv-diff: the naive two-volume
-/// difference. kinect-val: Kinect-VAL bounce (real RGB-D pixels + virtual RSM texels as area lights) on the
-/// virtual object, and on real pixels only the direct shadow the object casts (no virtual->real bounce).
-/// dlpv+kinect-val: DLPV delta on real pixels, Kinect-VAL on the virtual object.
-enum class Technique { Dlpv, LpvDiff, KinectVal, DlpvKinectVal };
-/// "dlpv" | "lpv-diff" | "kinect-val" | "dlpv+kinect-val"; throws std::invalid_argument
-Technique parseTechnique(const std::string& name);
-const char* techniqueName(Technique t);
-/// The technique propagates a delta volume (real pixels' bounce and shadow).
-inline bool usesLpv(Technique t) { return t != Technique::KinectVal; }
-/// The virtual object's bounce light comes from Kinect-VAL.
-inline bool usesVal(Technique t) { return t == Technique::KinectVal || t == Technique::DlpvKinectVal; }
-
-/// DLPV knobs (shared by the naive two-volume variant).
-struct LpvKnobs {
-  int resolution = 32;      ///< cells per axis (8..128)
-  int steps = 16;           ///< propagation steps (0..256)
-  int rsmSize = 256;        ///< RSM texels per side (16..4096)
-  double sizeFactor = 4.0;  ///< volume side = sizeFactor x the object's largest bounding-box edge
-  double damping = 1.0;     ///< directional damping of lateral/backward propagation, [0, 1] (0 = off)
-  int directSteps = 2;      ///< propagation steps of the direct (shadow) delta, <= steps: its lobes enter the
-                            ///< volume this many steps before the end (more = softer shadows, darker centre)
-};
-
-/// Kinect-VAL knobs (scene key "val").
-struct ValKnobs {
-  int sparsePoints = 1024;  ///< sparse shading points per object (16..16384)
-  int kCache = 128;         ///< VALs per shared-memory tile of the gather (16..512)
-  bool occlusion = true;    ///< disc-occluder approximation (§3.3)
-  int stride = 4;           ///< RGB-D pixel stride of the real VALs (1..64)
-  int rsmStride = 2;        ///< RSM texel stride of the virtual VALs (1..64)
-  bool fusion = true;       ///< fuse real VALs over frames in a world-space surfel map (README: flicker 6 % -> 4 %)
-  double voxel = 0.02;      ///< surfel voxel, metres
-  double decay = 0.0;       ///< confidence a surfel keeps per frame that should have seen it but did not; above 0
-                            ///< the same surface quantised into neighbouring voxels counts twice (+15-20 % light)
-  bool bruteForce = false;  ///< reference: every VAL gathered at every visible virtual pixel (no occlusion)
+/// The lighting techniques of a scene by role (lighting/techniques/registry.h parses and lists them):
+/// "none" = no technique for that role (real pixels then get only the object's direct shadow, the object
+/// only its direct light and ambient).
+struct TechniqueChoice {
+  std::string real = "none", virtualObject = "none";
+  std::string name;  ///< how the scene spelled it ("dlpv+kinect-val"), or the canonical name of the roles
+  bool operator==(const TechniqueChoice& o) const { return real == o.real && virtualObject == o.virtualObject; }
 };
 
 struct SceneDescription {
@@ -111,9 +84,9 @@ struct SceneDescription {
   int fisheyeLightCount = 16;               ///< for LightSource::Fisheye: median-cut lights (1..16)
   cv::Vec3d ambientRadiance{0, 0, 0};       ///< uniform environment radiance lighting the virtual object (W/m^2/sr)
   bool ambientFromManifest = true;          ///< take ambient from the manifest when it has one
-  Technique technique = Technique::Dlpv;
-  LpvKnobs lpv;
-  ValKnobs val;
+  TechniqueChoice technique;  ///< default "dlpv"
+  /// Knob values by group ("frame" and each technique's section), every declared knob present.
+  KnobSet knobs;
 };
 
 /// Parses and validates a scene file; model paths are relative to the scene file. Throws SceneError.

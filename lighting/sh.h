@@ -14,6 +14,13 @@
 namespace mrgi::lighting::sh {
 
 constexpr int kMaxBands = 8;
+
+/// Band 0 and 1 constants (float, as the two-band volumes store them): y_00 = 1/(2 sqrt(pi)),
+/// y_1m = sqrt(3/(4 pi)) (y, z, x); the clamped cosine <n, w>+ projects to (sqrt(pi)/2, sqrt(pi/3) n).
+constexpr float kY00 = 0.282094792f;
+constexpr float kY1 = 0.488602512f;
+constexpr float kCosineBand0 = 0.886226925f;  // sqrt(pi) / 2
+constexpr float kCosineBand1 = 1.023326708f;  // sqrt(pi / 3)
 constexpr int coefficientCount(int bands) { return bands * bands; }
 constexpr int index(int l, int m) { return l * (l + 1) + m; }
 

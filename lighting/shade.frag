@@ -1,39 +1,28 @@
 #version 450 core
-// Per-pixel lighting for the compositor (algorithms.md §3, Algorithm 1), linear light:
+// The shared shading pass (algorithms.md §3, Algorithm 1), linear light. It knows nothing of techniques:
+// it does the direct light, the shadows and the ambient, then adds what the techniques handed out.
 //   real pixel:    rgb = E_delta * albedo / pi, a = 0   (the compositor adds it to the background)
-//                  E_delta from the delta volume (dlpv), V^rho - V^mu (lpv-diff), or only the direct light
-//                  the object blocks, sum_i E_i (vis_i(RSM^rho) - vis_i(RSM^mu)) (kinect-val alone)
-//   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient) * albedo / pi + indirect, a = 1
-//                  indirect = E_indirect(V^rho) * albedo / pi, or the Kinect-VAL radiance pass's output
+//                  E_delta = the real-role technique's delta, plus (when that technique does not already
+//                  account for it) the direct light the object blocks, sum_i E_i (vis_i(RSM^rho) - vis_i(RSM^mu))
+//   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_indirect) * albedo / pi + L_indirect, a = 1
+//                  E_indirect, L_indirect from the virtual-role technique
 //   no surface:    rgb = 0, a = 0
 // Output 1 (debug): rgb = E_delta (real) or E_indirect (virtual) in W/m^2, a = 1 where a surface was seen.
-#include "lighting/lpv.glsl"
 #define MAX_LIGHTS 16
+#define SHADE_PI 3.14159265358979
 
 layout(binding = 0) uniform sampler2D uGPosition;
 layout(binding = 1) uniform sampler2D uGNormal;
 layout(binding = 2) uniform sampler2D uGAlbedo;
-layout(binding = 3) uniform sampler3D uDeltaR;  // V^delta, or V^rho (direct + indirect) for lpv-diff
-layout(binding = 4) uniform sampler3D uDeltaG;
-layout(binding = 5) uniform sampler3D uDeltaB;
-layout(binding = 6) uniform sampler3D uMuR;     // lpv-diff only: V^mu, subtracted
-layout(binding = 7) uniform sampler3D uMuG;
-layout(binding = 8) uniform sampler3D uMuB;
-layout(binding = 9) uniform sampler3D uRhoR;    // V^rho, indirect only: bounce light on the virtual object
-layout(binding = 10) uniform sampler3D uRhoG;
-layout(binding = 11) uniform sampler3D uRhoB;
-layout(binding = 12) uniform sampler2DArray uShadow;  // per light: RSM^rho world positions (w = 1 where seen)
-layout(binding = 13) uniform sampler2DArray uShadowMu;  // kinect-val alone: RSM^mu world positions
-layout(binding = 14) uniform sampler2D uValRadiance;   // Kinect-VAL: indirect radiance of virtual pixels
-layout(binding = 15) uniform sampler2D uValIrradiance; // Kinect-VAL: its irradiance E (debug output)
+layout(binding = 3) uniform sampler2D uRealDelta;         // rgb: E_delta of the real-role technique (W/m^2)
+layout(binding = 4) uniform sampler2D uVirtualIrradiance; // rgb: indirect irradiance on the object (W/m^2)
+layout(binding = 5) uniform sampler2D uVirtualRadiance;   // rgb: indirect radiance of the object (W/m^2/sr)
+layout(binding = 12) uniform sampler2DArray uShadow;    // per light: RSM^rho world positions (w = 1 where seen)
+layout(binding = 13) uniform sampler2DArray uShadowMu;  // per light: RSM^mu world positions
 
-uniform vec3 uGridOrigin;
-uniform float uCellSize;
-uniform int uResolution;
-uniform int uRealMode;    // real pixels: 0 delta volume, 1 V^rho - V^mu, 2 direct shadow only
-uniform int uVirtualMode; // virtual pixels' bounce light: 0 V^rho, 1 Kinect-VAL
-uniform int uLighting; // 0: no virtual object in this frame (everything zero)
-uniform vec3 uAmbient; // radiance, W/m^2/sr
+uniform int uLighting;          // 0: no virtual object in this frame (everything zero)
+uniform int uAddDirectShadow;   // 1: the real-role technique leaves the object's direct shadow to this pass
+uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uLightCount;
 uniform int uLightType[MAX_LIGHTS];
 uniform vec3 uLightPosition[MAX_LIGHTS];
@@ -99,26 +88,15 @@ void main() {
     outIrradiance = vec4(0.0, 0.0, 0.0, 1.0);
     return;
   }
-  LpvGrid grid = LpvGrid(uGridOrigin, uCellSize, uResolution);
   if (isVirtual) {
-    vec3 e = directIrradiance(uShadow, pos.xyz, n) + LPV_PI * uAmbient;
-    if (uVirtualMode == 1) {
-      outShade = vec4(e * albedo.rgb / LPV_PI + texelFetch(uValRadiance, p, 0).rgb, 1.0);
-      outIrradiance = vec4(texelFetch(uValIrradiance, p, 0).rgb, 1.0);
-    } else {
-      vec3 indirect = max(lpvIrradiance(uRhoR, uRhoG, uRhoB, grid, pos.xyz, n), vec3(0.0));
-      outShade = vec4((e + indirect) * albedo.rgb / LPV_PI, 1.0);
-      outIrradiance = vec4(indirect, 1.0);
-    }
+    vec3 e = directIrradiance(uShadow, pos.xyz, n) + SHADE_PI * uAmbient;
+    vec3 indirect = texelFetch(uVirtualIrradiance, p, 0).rgb;
+    outShade = vec4((e + indirect) * albedo.rgb / SHADE_PI + texelFetch(uVirtualRadiance, p, 0).rgb, 1.0);
+    outIrradiance = vec4(indirect, 1.0);
   } else {
-    vec3 delta;
-    if (uRealMode == 2) {
-      delta = directIrradiance(uShadow, pos.xyz, n) - directIrradiance(uShadowMu, pos.xyz, n);
-    } else {
-      delta = lpvIrradiance(uDeltaR, uDeltaG, uDeltaB, grid, pos.xyz, n);
-      if (uRealMode == 1) delta -= lpvIrradiance(uMuR, uMuG, uMuB, grid, pos.xyz, n);
-    }
-    outShade = vec4(delta * albedo.rgb / LPV_PI, 0.0);
+    vec3 delta = texelFetch(uRealDelta, p, 0).rgb;
+    if (uAddDirectShadow == 1) delta += directIrradiance(uShadow, pos.xyz, n) - directIrradiance(uShadowMu, pos.xyz, n);
+    outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }
 }

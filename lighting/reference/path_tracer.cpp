@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "capture/colour.h"
-#include "lighting/val.h"
+#include "lighting/material.h"
 
 namespace mrgi::lighting::reference {
 namespace {

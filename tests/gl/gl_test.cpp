@@ -30,7 +30,7 @@ std::unique_ptr<gl::Context> makeContext(gl::Backend b, int w = 64, int h = 48) 
 /// Draws a full-screen pass of fragment shader `frag` into a w x h RGBA32F target and reads it back.
 cv::Mat drawFullscreen(const std::string& frag, const gl::Defines& defines, int w, int h,
                        const std::function<void(const gl::Program&)>& setUniforms = {}) {
-  gl::Program prog = gl::Program::graphics("compositor/fullscreen.vert", frag, defines);
+  gl::Program prog = gl::Program::graphics("lighting/gl/fullscreen.vert", frag, defines);
   gl::Texture target(GL_TEXTURE_2D, GL_RGBA32F, w, h);
   gl::Framebuffer fb;
   fb.attachColour(0, target);
@@ -86,7 +86,7 @@ TEST(GL, ShaderIncludeAndDefineVariants) {
 TEST(GL, CompileErrorNamesFileAndLine) {
   auto ctx = makeContext(gl::Backend::OSMesa);
   try {
-    gl::Program::graphics("compositor/fullscreen.vert", "gl/test_shaders/broken.frag");
+    gl::Program::graphics("lighting/gl/fullscreen.vert", "gl/test_shaders/broken.frag");
     FAIL() << "the broken shader compiled";
   } catch (const gl::GlError& e) {
     const std::string msg = e.what();
@@ -99,13 +99,13 @@ TEST(GL, CompileErrorNamesFileAndLine) {
   gl::registerShaderSource("gl/test_shaders/includer.frag",
                            "#version 450 core\n#include \"bad_include.glsl\"\nout vec4 c;\nvoid main() { c = vec4(f()); }\n");
   try {
-    gl::Program::graphics("compositor/fullscreen.vert", "gl/test_shaders/includer.frag");
+    gl::Program::graphics("lighting/gl/fullscreen.vert", "gl/test_shaders/includer.frag");
     FAIL();
   } catch (const gl::GlError& e) {
     EXPECT_NE(std::string(e.what()).find("gl/test_shaders/bad_include.glsl:2:"), std::string::npos) << e.what();
   }
   gl::registerShaderSource("gl/test_shaders/missing_include.frag", "#version 450 core\n#include \"nope.glsl\"\n");
-  EXPECT_THROW(gl::Program::graphics("compositor/fullscreen.vert", "gl/test_shaders/missing_include.frag"), gl::GlError);
+  EXPECT_THROW(gl::Program::graphics("lighting/gl/fullscreen.vert", "gl/test_shaders/missing_include.frag"), gl::GlError);
 }
 
 TEST(GL, ProfilerReportsNamedStages) {

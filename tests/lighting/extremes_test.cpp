@@ -8,10 +8,10 @@
 
 #include <gtest/gtest.h>
 
-#include "lighting/lpv.h"
+#include "lighting/techniques/dlpv/lpv.h"
 #include "lighting/reference/path_tracer.h"
 #include "lighting/sh.h"
-#include "lighting/val.h"
+#include "lighting/techniques/kinect_val/val.h"
 #include "test_scene.h"
 
 namespace mrgi::lighting {
@@ -137,15 +137,14 @@ gl::Context& context() {
 }
 
 /// The floor + cube test scene through the GPU pipeline with one light; shade and irradiance targets.
-Outputs pipelineRun(Technique technique, const SceneLight& light, cv::Vec3d cubeAt = {0.0, 0.0, 0.1},
+Outputs pipelineRun(const std::string& technique, const SceneLight& light, cv::Vec3d cubeAt = {0.0, 0.0, 0.1},
                     double cube = 0.2, double ambient = 0.0) {
   context();
   test::TestScene s = test::makeScene(true, cube, cubeAt);
-  PipelineConfig cfg = test::testConfig(48, 48, 16, 64);
-  cfg.technique = technique;
-  cfg.val.sparsePoints = 64;
+  PipelineConfig cfg = test::testConfig(48, 48, 16, 64, technique);
+  cfg.set("val", "sparse_points", 64);
   LightingPipeline pipe = test::makePipeline(cfg, s);
-  if (usesVal(technique)) {
+  if (pipe.needs().realVals) {
     std::vector<Val> vals;
     for (int i = 0; i < 64; ++i)
       vals.push_back(valAt({-0.5f, -0.9f + 0.028f * i, 0.3f}, {1, 0, 0}, 1e-3f,
@@ -254,11 +253,8 @@ std::vector<Extreme> cases() {
   c.push_back({"PathTracerSharpestLobeUnderASky", 1.0, [] { return planeImage({}, {1, 1, 1}, false, 0.5f, kMaxPhongExponent); }});
   // GPU pipeline, every technique: nothing lit -> exactly 0; 1e6 W; an α -> 0 spot; a grazing sun; an
   // object outside the camera's depth range; a scene without a virtual object.
-  for (Technique t : {Technique::Dlpv, Technique::LpvDiff, Technique::KinectVal, Technique::DlpvKinectVal}) {
-    const std::string n = std::string(techniqueName(t)) == "dlpv+kinect-val" ? "DlpvKinectVal"
-                          : std::string(techniqueName(t)) == "lpv-diff"      ? "LpvDiff"
-                          : std::string(techniqueName(t)) == "kinect-val"    ? "KinectVal"
-                                                                             : "Dlpv";
+  for (const std::string& t : test::allTechniqueSpellings()) {
+    const std::string n = "_" + test::testName(t) + "_";
     c.push_back({"GL" + n + "ZeroLightIsExactlyZero", 0.0, [t] {
                    SceneLight l = test::pointAbove();
                    l.intensity = {0, 0, 0};
@@ -279,7 +275,10 @@ std::vector<Extreme> cases() {
     c.push_back({"GL" + n + "NoVirtualObject", 1e3, [t] { return pipelineRun(t, test::pointAbove(), {0, 0, 0}, 0.0); },
                  [t](const Outputs& o) {
                    // Real pixels: without an object there is nothing to add or remove (every 4th value is alpha).
-                   if (t == Technique::LpvDiff) return;  // the naive difference keeps its two volumes' noise
+                   PipelineConfig cfg;
+                   cfg.technique = parseTechniqueChoice(t, &cfg.knobs);
+                   if (cfg.knobs["lpv"]["naive_difference"] != 0 && cfg.technique.real == "dlpv")
+                     return;  // the naive difference keeps its two volumes' noise
                    for (size_t i = 0; i + 3 < o.size() / 2; i += 4)
                      for (int ch = 0; ch < 3; ++ch) ASSERT_EQ(o[i + ch], 0.0) << "pixel " << i / 4;
                  }});

@@ -2,6 +2,8 @@
 // the file and the key.
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include "lighting/scene_file.h"
 
 using namespace mrgi::lighting;
@@ -76,29 +78,46 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   ASSERT_EQ(s.lights.size(), 2u);
   EXPECT_EQ(s.lights[1].type, LightType::Directional);
   EXPECT_NEAR(s.lights[1].direction[2], -1.0, 1e-12);  // normalised
-  EXPECT_EQ(s.technique, Technique::LpvDiff);
-  EXPECT_EQ(s.lpv.resolution, 16);
-  EXPECT_EQ(s.lpv.rsmSize, 128);
-  EXPECT_DOUBLE_EQ(s.lpv.damping, 0.25);
+  // "lpv-diff" is DLPV in both roles with its naive_difference variant knob; frame knobs read inside "lpv"
+  // (where older files have them) land in the frame group.
+  EXPECT_EQ(s.technique.real, "dlpv");
+  EXPECT_EQ(s.technique.virtualObject, "dlpv");
+  EXPECT_EQ(s.technique.name, "lpv-diff");
+  EXPECT_EQ(s.knobs.at("lpv").at("naive_difference"), 1.0);
+  EXPECT_EQ(s.knobs.at("lpv").at("resolution"), 16);
+  EXPECT_EQ(s.knobs.at("frame").at("rsm_size"), 128);
+  EXPECT_DOUBLE_EQ(s.knobs.at("lpv").at("damping"), 0.25);
   EXPECT_FALSE(s.ambientFromManifest);
   const SceneDescription val = parseScene(R"({"technique": "dlpv+kinect-val",
     "val": {"sparse_points": 2048, "k_cache": 64, "occlusion": false, "stride": 2, "rsm_stride": 4,
             "fusion": true, "voxel": 0.03, "decay": 0.8, "brute_force": true}})",
                                          kScenePath);
-  EXPECT_EQ(val.technique, Technique::DlpvKinectVal);
-  EXPECT_TRUE(usesLpv(val.technique) && usesVal(val.technique));
-  EXPECT_FALSE(usesLpv(Technique::KinectVal));
-  for (const char* name : {"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"})
-    EXPECT_STREQ(techniqueName(parseTechnique(name)), name);
-  EXPECT_EQ(val.val.sparsePoints, 2048);
-  EXPECT_EQ(val.val.kCache, 64);
-  EXPECT_FALSE(val.val.occlusion);
-  EXPECT_EQ(val.val.stride, 2);
-  EXPECT_EQ(val.val.rsmStride, 4);
-  EXPECT_TRUE(val.val.fusion);
-  EXPECT_DOUBLE_EQ(val.val.voxel, 0.03);
-  EXPECT_DOUBLE_EQ(val.val.decay, 0.8);
-  EXPECT_TRUE(val.val.bruteForce);
+  EXPECT_EQ(val.technique.real, "dlpv");
+  EXPECT_EQ(val.technique.virtualObject, "kinect-val");
+  const KnobValues& v = val.knobs.at("val");
+  EXPECT_EQ(v.at("sparse_points"), 2048);
+  EXPECT_EQ(v.at("k_cache"), 64);
+  EXPECT_EQ(v.at("occlusion"), 0.0);
+  EXPECT_EQ(v.at("stride"), 2);
+  EXPECT_EQ(v.at("rsm_stride"), 4);
+  EXPECT_EQ(v.at("fusion"), 1.0);
+  EXPECT_DOUBLE_EQ(v.at("voxel"), 0.03);
+  EXPECT_DOUBLE_EQ(v.at("decay"), 0.8);
+  EXPECT_EQ(v.at("brute_force"), 1.0);
+  // The bundled shorthands and their roles; roles as an object; defaults when nothing is given.
+  const std::map<std::string, std::pair<std::string, std::string>> roles = {
+      {"dlpv", {"dlpv", "dlpv"}}, {"lpv-diff", {"dlpv", "dlpv"}}, {"kinect-val", {"none", "kinect-val"}},
+      {"dlpv+kinect-val", {"dlpv", "kinect-val"}}};
+  for (const auto& [name, r] : roles) {
+    const SceneDescription d = parseScene("{\"technique\": \"" + name + "\"}", kScenePath);
+    EXPECT_EQ(d.technique.real, r.first) << name;
+    EXPECT_EQ(d.technique.virtualObject, r.second) << name;
+    EXPECT_EQ(d.technique.name, name);
+  }
+  const SceneDescription obj = parseScene(R"({"technique": {"real": "none", "virtual": "dlpv"}})", kScenePath);
+  EXPECT_EQ(obj.technique.real, "none");
+  EXPECT_EQ(obj.technique.virtualObject, "dlpv");
+  EXPECT_EQ(obj.technique.name, "none+dlpv");
   const SceneDescription empty = parseScene("{}", kScenePath);
   EXPECT_TRUE(empty.objects.empty());
   EXPECT_EQ(empty.lightSource, LightSource::Manifest);
@@ -130,6 +149,12 @@ TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
       {R"({"val": {"k_cache": 1024}})", "val.k_cache: value 1024 out of range"},
       {R"({"val": {"occlusion": 1}})", "val.occlusion: must be true or false"},
       {R"({"val": {"sparse": 100}})", "val.sparse: unknown key"},
+      {R"({"technique": {"real": "kinect-val"}})", "technique: technique 'kinect-val' cannot serve real pixels"},
+      {R"({"technique": {"real": "dlpv", "virtual": "rtx"}})", "technique: unknown technique 'rtx'"},
+      {R"({"technique": {"reals": "dlpv"}})", "technique.reals: unknown key"},
+      {R"({"technique": 3})", "technique: must be a technique name"},
+      {R"({"frame": {"rsm_size": 8}})", "frame.rsm_size: value 8 out of range"},
+      {R"({"lpv": {"rsm_size": 8}})", "lpv.rsm_size: value 8 out of range"},
   };
   for (const Case& c : cases) {
     const std::string e = errorOf(c.text);

@@ -10,7 +10,6 @@
 namespace mrgi::test {
 namespace {
 
-using lighting::Technique;
 using lighting::Val;
 
 std::vector<Val> wallVals(float exitance) {
@@ -41,31 +40,35 @@ cv::Mat fresh(const PipelineConfig& cfg, const Inputs& in) {
   TestScene s = makeScene(true, 0.15, {0, 0, 0.1});
   LightingPipeline pipe = makePipeline(cfg, s);
   pipe.setObjectTransform(0, capture::makePose(cv::Matx33d::eye(), in.at));
-  if (lighting::usesVal(cfg.technique)) pipe.setRealVals(wallVals(in.valExitance));
+  if (pipe.needs().realVals) pipe.setRealVals(wallVals(in.valExitance));
   pipe.run(in.camera, in.lights, in.ambient, nullptr);
   return pipe.downloadShade();
 }
 
 std::set<std::string> skipped(const LightingPipeline& p) { return {p.skippedStages().begin(), p.skippedStages().end()}; }
 
-class StageSkipping : public ::testing::TestWithParam<Technique> {};
+class StageSkipping : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChange) {
   auto ctx = makeContext();
-  PipelineConfig cfg = testConfig(64, 48, 16, 64);
-  cfg.technique = GetParam();
-  cfg.val.sparsePoints = 64;
-  const bool val = lighting::usesVal(cfg.technique);
+  PipelineConfig cfg = testConfig(64, 48, 16, 64, GetParam());
+  cfg.set("val", "sparse_points", 64);
   TestScene s = makeScene(true, 0.15, {0, 0, 0.1});
   LightingPipeline pipe = makePipeline(cfg, s);
+  const bool val = pipe.needs().realVals;
+  // Each technique's update reruns when one of the inputs it declares changed (or the lights / geometry did).
+  auto techniquesSkippedUnless = [&](unsigned changed) {
+    std::set<std::string> out;
+    for (const auto& t : pipe.techniques())
+      if (!(t->inputs() & changed)) out.insert(t->name());
+    return out;
+  };
   Inputs in;
   in.camera = topCamera(64, 48);
   in.lights = {pointAbove()};
   if (val) pipe.setRealVals(wallVals(in.valExitance));
-  auto check = [&](const std::set<std::string>& expectSkipped, const char* what) {
+  auto check = [&](std::set<std::string> expect, const char* what) {
     pipe.run(in.camera, in.lights, in.ambient, nullptr);
-    std::set<std::string> expect = expectSkipped;
-    if (!val) expect.erase("val");
     EXPECT_EQ(skipped(pipe), expect) << what;
     const cv::Mat got = pipe.downloadShade(), want = fresh(cfg, in);
     double peak = 0;
@@ -73,14 +76,20 @@ TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChan
     ASSERT_GT(peak, 0.0) << what;
     EXPECT_LE(cv::norm(got, want, cv::NORM_INF), 1e-5 * peak) << what;
   };
+  auto with = [](std::set<std::string> a, const std::set<std::string>& b) {
+    a.insert(b.begin(), b.end());
+    return a;
+  };
+  std::set<std::string> all{"gbuffer", "rsm", "shade"};
+  for (const auto& t : pipe.techniques()) all.insert(t->name());
   check({}, "first run");
-  check({"gbuffer", "rsm", "lpv", "val", "shade"}, "nothing changed");
+  check(all, "nothing changed");
   in.camera.T_world_camera = capture::lookAtPose({0.1, -0.3, 1.5}, {0, 0, 0});
-  check({"rsm", "lpv"}, "camera moved");  // Kinect-VAL shades the object from the camera: val runs
+  check(with({"rsm"}, techniquesSkippedUnless(lighting::kInputCamera)), "camera moved");
   in.lights = {sunDown(8.0)};
   check({"gbuffer"}, "new light");
   in.ambient = {0.05, 0.05, 0.05};
-  check({"gbuffer", "rsm", "lpv"}, "new ambient");
+  check(with({"gbuffer", "rsm"}, techniquesSkippedUnless(lighting::kInputAmbient)), "new ambient");
   in.at = {0.05, 0.0, 0.1};
   pipe.setObjectTransform(0, capture::makePose(cv::Matx33d::eye(), in.at));
   check({}, "object moved");
@@ -89,20 +98,14 @@ TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChan
   if (val) {
     in.valExitance = 4.f;
     pipe.setRealVals(wallVals(in.valExitance));
-    check({"gbuffer", "rsm", "lpv"}, "new real VALs");
+    check(with({"gbuffer", "rsm"}, techniquesSkippedUnless(lighting::kInputRealVals)), "new real VALs");
   }
   pipe.invalidate();
   check({}, "invalidated");
 }
 
-INSTANTIATE_TEST_SUITE_P(GL, StageSkipping,
-                         ::testing::Values(Technique::Dlpv, Technique::LpvDiff, Technique::KinectVal, Technique::DlpvKinectVal),
-                         [](const auto& info) {
-                           std::string n = lighting::techniqueName(info.param);
-                           for (char& c : n)
-                             if (c == '-' || c == '+') c = '_';
-                           return n;
-                         });
+INSTANTIATE_TEST_SUITE_P(GL, StageSkipping, ::testing::ValuesIn(allTechniqueSpellings()),
+                         [](const auto& info) { return testName(info.param); });
 
 }  // namespace
 }  // namespace mrgi::test

@@ -9,6 +9,7 @@
 #include "gl/context.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
+#include "lighting/techniques/registry.h"
 
 namespace mrgi::test {
 
@@ -66,14 +67,32 @@ inline TestScene makeScene(bool wall, double cube, cv::Vec3d at) {
   return s;
 }
 
-/// G-buffer size, volume resolution and RSM size of a test; the other knobs keep their defaults.
-inline PipelineConfig testConfig(int width, int height, int resolution, int rsmSize) {
+/// G-buffer size, volume resolution (the "lpv" group's) and RSM size of a test, with `technique`; the other
+/// knobs keep their defaults.
+inline PipelineConfig testConfig(int width, int height, int resolution, int rsmSize, const std::string& technique = "dlpv") {
   PipelineConfig cfg;
   cfg.width = width;
   cfg.height = height;
-  cfg.lpv.resolution = resolution;
-  cfg.lpv.rsmSize = rsmSize;
+  cfg.technique = lighting::parseTechniqueChoice(technique, &cfg.knobs);
+  cfg.set("lpv", "resolution", resolution);
+  cfg.set("frame", "rsm_size", rsmSize);
   return cfg;
+}
+
+/// Every technique spelling the registry knows: each name, each alias, each real + virtual pairing.
+inline std::vector<std::string> allTechniqueSpellings() {
+  std::vector<std::string> out = lighting::techniqueSpellings();
+  for (const auto& r : lighting::techniques())
+    for (const auto& v : lighting::techniques())
+      if (&r != &v && r.real && v.virtualObject) out.push_back(r.name + "+" + v.name);
+  return out;
+}
+
+/// A test-name-friendly spelling ("dlpv+kinect-val" -> "dlpv_kinect_val").
+inline std::string testName(std::string n) {
+  for (char& c : n)
+    if (c == '-' || c == '+') c = '_';
+  return n;
 }
 
 /// A pipeline over the scene's virtual objects with its real mesh set.

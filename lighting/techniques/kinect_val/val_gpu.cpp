@@ -1,4 +1,4 @@
-#include "lighting/val_gpu.h"
+#include "lighting/techniques/kinect_val/val_gpu.h"
 
 #include <algorithm>
 #include <stdexcept>
@@ -10,8 +10,8 @@ namespace mrgi::lighting {
 
 ValGpu::ValGpu(int kCache)
     : kCache_(kCache),
-      gather_(gl::Program::compute("lighting/val_gather.comp", {{"K_CACHE", std::to_string(kCache)}})),
-      occlude_(gl::Program::compute("lighting/val_occlude.comp")) {
+      gather_(gl::Program::compute("lighting/techniques/kinect_val/val_gather.comp", {{"K_CACHE", std::to_string(kCache)}})),
+      occlude_(gl::Program::compute("lighting/techniques/kinect_val/val_occlude.comp")) {
   if (kCache < 16 || kCache > 512) throw std::invalid_argument("K_cache must be in 16..512, got " + std::to_string(kCache));
 }
 

@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "lighting/frame/frame.h"
 #include "lighting/scene_file.h"
 
 namespace mrgi::lighting {
@@ -32,6 +33,8 @@ struct LpvGrid {
 /// A volume centred on the world-space box [lo, hi], side = sizeFactor x its largest edge (never below
 /// 1 mm), resolution cells per axis.
 LpvGrid fitGrid(const cv::Vec3d& lo, const cv::Vec3d& hi, double sizeFactor, int resolution);
+/// A volume filling a region with resolution cells per axis.
+LpvGrid gridIn(const Region& region, int resolution);
 
 /// SH coefficients of one cell: [channel][coefficient], coefficient order (y00, y1-1, y10, y11).
 using CellSh = std::array<std::array<float, 4>, 3>;
@@ -48,13 +51,6 @@ struct LpvVolumeCpu {
 std::array<float, 4> cosineLobe(const cv::Vec3f& n);
 /// SH basis (y00, y1-1, y10, y11) at unit direction d.
 std::array<float, 4> basis(const cv::Vec3f& d);
-
-/// RSM texels as read back from the GPU (CV_32FC4 each, size x size): world position (w = 1 where a surface
-/// was seen), normal facing the light (w = 1 on virtual surfaces), reflected flux (albedo x flux through the
-/// texel, W), incident flux through the texel (W).
-struct RsmTexels {
-  cv::Mat position, normal, flux, direct;
-};
 
 enum InjectMode : unsigned { kInjectIndirect = 1u, kInjectDirect = 2u };
 

@@ -1,17 +1,19 @@
-#include "lighting/lpv.h"
+#include "lighting/techniques/dlpv/lpv.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 
+#include "lighting/sh.h"
+
 namespace mrgi::lighting {
 
 namespace {
 constexpr float kPi = 3.14159265358979f;
-constexpr float kY00 = 0.282094792f;
-constexpr float kY1 = 0.488602512f;
-constexpr float kCos0 = 0.886226925f;  // sqrt(pi) / 2
-constexpr float kCos1 = 1.023326708f;  // sqrt(pi / 3)
+using sh::kY00;
+using sh::kY1;
+constexpr float kCos0 = sh::kCosineBand0;
+constexpr float kCos1 = sh::kCosineBand1;
 
 const cv::Vec3i kAxes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
 
@@ -43,6 +45,14 @@ LpvGrid fitGrid(const cv::Vec3d& lo, const cv::Vec3d& hi, double sizeFactor, int
   g.resolution = resolution;
   g.cellSize = edge * sizeFactor / resolution;
   g.origin = 0.5 * (lo + hi) - cv::Vec3d::all(0.5 * g.side());
+  return g;
+}
+
+LpvGrid gridIn(const Region& region, int resolution) {
+  LpvGrid g;
+  g.resolution = resolution;
+  g.cellSize = region.side / resolution;
+  g.origin = region.origin;
   return g;
 }
 

@@ -3,7 +3,7 @@
 // neighbour's intensity towards each of the receiving cell's 5 non-shared faces times the face's solid angle
 // is re-emitted as a clamped-cosine lobe along that face's normal. The step's result is also added to the
 // accumulation volume.
-#include "lighting/lpv.glsl"
+#include "lighting/techniques/dlpv/lpv.glsl"
 layout(local_size_x = 4, local_size_y = 4, local_size_z = 4) in;
 
 layout(binding = 0) uniform sampler3D uSrcR;

@@ -6,7 +6,8 @@
 #include <cmath>
 
 #include "lighting/pipeline.h"
-#include "lighting/val.h"
+#include "lighting/techniques/kinect_val/kinect_val.h"
+#include "lighting/techniques/kinect_val/val.h"
 #include "tests/lighting/test_scene.h"
 
 using namespace mrgi;
@@ -54,12 +55,16 @@ TestScene sphereScene(cv::Vec3d at, double r, float roughness = 1.0f, float spec
   return s;
 }
 
-PipelineConfig valConfig(Technique t, int sparse, bool bruteForce, bool occlusion = false) {
-  PipelineConfig cfg = testConfig(128, 96, 16, 128);
-  cfg.technique = t;
-  cfg.val.sparsePoints = sparse;
-  cfg.val.bruteForce = bruteForce;
-  cfg.val.occlusion = occlusion;
+/// The pipeline's Kinect-VAL instance.
+const KinectValTechnique& kval(const LightingPipeline& pipe) {
+  return dynamic_cast<const KinectValTechnique&>(*pipe.technique("kinect-val"));
+}
+
+PipelineConfig valConfig(const std::string& t, int sparse, bool bruteForce, bool occlusion = false) {
+  PipelineConfig cfg = testConfig(128, 96, 16, 128, t);
+  cfg.set("val", "sparse_points", sparse);
+  cfg.set("val", "brute_force", bruteForce);
+  cfg.set("val", "occlusion", occlusion);
   return cfg;
 }
 
@@ -100,11 +105,11 @@ TEST(GL, KinectValSparseConvergesToTheBruteForceOnTheVirtualObject) {
   auto ctx = makeContext();
   const TestScene s = sphereScene({-0.3, 0.0, 0.12}, 0.1);
   const auto vals = roomVals();
-  const cv::Mat brute = bounceOnly(valConfig(Technique::KinectVal, 256, true), s, vals);
+  const cv::Mat brute = bounceOnly(valConfig("kinect-val", 256, true), s, vals);
   int pixels = 0;
   double prev = 1e30;
   for (int sparse : {64, 256, 1024, 4096}) {
-    const cv::Mat sp = bounceOnly(valConfig(Technique::KinectVal, sparse, false), s, vals);
+    const cv::Mat sp = bounceOnly(valConfig("kinect-val", sparse, false), s, vals);
     const double err = relativeError(sp, brute, &pixels);
     std::printf("sparse points %5d: %.2f %% mean relative error vs brute force over %d pixels\n", sparse, 100 * err,
                 pixels);
@@ -128,7 +133,7 @@ TEST(GL, KinectValBruteForceMatchesTheCppReferencePerPixel) {
   auto ctx = makeContext();
   const TestScene s = sphereScene({-0.3, 0.0, 0.12}, 0.1, 0.3f, 0.3f);  // glossy: k = 2/0.09 - 2
   const auto vals = roomVals();
-  const PipelineConfig cfg = valConfig(Technique::KinectVal, 256, true);
+  const PipelineConfig cfg = valConfig("kinect-val", 256, true);
   LightingPipeline pipe = makePipeline(cfg, s);
   pipe.setRealVals(vals);
   const CameraView cam = sideCamera();
@@ -162,8 +167,7 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
   const double cube = 0.16;
   const cv::Vec3d centre(0.0, 0.0, 0.2);
   const TestScene s = makeScene(false, cube, centre);
-  PipelineConfig cfg = testConfig(160, 120, 16, 256);
-  cfg.technique = Technique::KinectVal;
+  PipelineConfig cfg = testConfig(160, 120, 16, 256, "kinect-val");
   LightingPipeline pipe = makePipeline(cfg, s);
   const std::vector<Val> original = roomVals();
   pipe.setRealVals(original);
@@ -172,8 +176,8 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
   const double ambient = 0.1;  // W/m^2/sr: pi * 0.1 W/m^2 still reach the shadow
   pipe.run(topCamera(160, 120), {sun}, cv::Vec3d::all(ambient), nullptr);
   // Real VALs in the shadow reflect only the ambient: exitance x pi a / (E cos + pi a); the rest unchanged.
-  const auto& used = pipe.vals();
-  ASSERT_EQ(used.size(), original.size() + pipe.valStats().virtualVals);
+  const auto& used = kval(pipe).vals();
+  ASSERT_EQ(used.size(), original.size() + kval(pipe).valStats().virtualVals);
   const double ratio = CV_PI * ambient / (8.0 + CV_PI * ambient);
   int dimmed = 0;
   for (size_t i = 0; i < original.size(); ++i) {
@@ -187,7 +191,7 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
     }
   }
   EXPECT_GT(dimmed, 20);
-  EXPECT_GE(pipe.valStats().shadowedVals, static_cast<size_t>(dimmed));
+  EXPECT_GE(kval(pipe).valStats().shadowedVals, static_cast<size_t>(dimmed));
   const cv::Mat shade = pipe.downloadShade(), pos = pipe.downloadGBuffer(0);
   // Exact loss in the shadow: E cos(theta) albedo / pi with E cos = 8 W/m^2 on the grey floor.
   const float lost = 8.0f * kFloorAlbedo[0] / static_cast<float>(CV_PI);
@@ -216,15 +220,16 @@ TEST(GL, DlpvPlusKinectValKeepsDlpvsRealPixelsAndReplacesTheObjectsBounce) {
   const TestScene s = sphereScene({-0.3, 0.0, 0.12}, 0.1);
   SceneLight sun = sunDown(10.0);
   sun.direction = {-0.6, 0.0, -0.8};  // from +x: the wall behind the sphere does not shade it
-  auto render = [&](Technique t) {
+  auto render = [&](const std::string& t) {
     PipelineConfig cfg = valConfig(t, 512, false, true);
     LightingPipeline pipe = makePipeline(cfg, s);
     pipe.setRealVals(roomVals());
     pipe.run(sideCamera(), {sun}, {0, 0, 0}, nullptr);
-    return std::pair{pipe.downloadShade(), pipe.valStats()};
+    const bool hasVal = pipe.technique("kinect-val") != nullptr;
+    return std::pair{pipe.downloadShade(), hasVal ? kval(pipe).valStats() : KinectValTechnique::Stats{}};
   };
-  const auto [dlpv, st0] = render(Technique::Dlpv);
-  const auto [both, st] = render(Technique::DlpvKinectVal);
+  const auto [dlpv, st0] = render("dlpv");
+  const auto [both, st] = render("dlpv+kinect-val");
   EXPECT_EQ(st.receivers, 512u);
   EXPECT_EQ(st.realVals, roomVals().size());
   EXPECT_GT(st.virtualVals, 10u);  // the sphere's lit texels of the RSM
@@ -264,7 +269,7 @@ TEST(GL, KinectValExtremesStayFiniteAndBounded) {
         vals = roomVals();
         for (auto& v : vals) v.flux = {0, 0, 0};
       }
-      const cv::Mat shade = bounceOnly(valConfig(Technique::KinectVal, 256, bruteForce, true), s, vals);
+      const cv::Mat shade = bounceOnly(valConfig("kinect-val", 256, bruteForce, true), s, vals);
       for (int i = 0; i < static_cast<int>(shade.total()); ++i) {
         const cv::Vec4f v = shade.at<cv::Vec4f>(i);
         for (int c = 0; c < 3; ++c) {
@@ -294,7 +299,7 @@ TEST(GL, KinectValPixelPassMatchesTheCppInterpolationAndEvaluation) {
   o.material.specular = 0.3f;
   o.T_marker_object = capture::makePose(cv::Matx33d::eye(), {-0.2, 0.0, 0.3});
   s.objects.push_back(o);
-  PipelineConfig cfg = valConfig(Technique::KinectVal, 64, false, true);
+  PipelineConfig cfg = valConfig("kinect-val", 64, false, true);
   LightingPipeline pipe = makePipeline(cfg, s);
   pipe.setRealVals(roomVals());
   CameraView cam;
@@ -302,7 +307,7 @@ TEST(GL, KinectValPixelPassMatchesTheCppInterpolationAndEvaluation) {
   cam.T_world_camera = capture::lookAtPose({-0.1, -0.2, 1.2}, {-0.2, 0.0, 0.3});
   pipe.run(cam, {}, {0, 0, 0}, nullptr);
   const cv::Mat shade = pipe.downloadShade(), pos = pipe.downloadGBuffer(0);
-  const auto vpls = pipe.downloadSparseVpls();
+  const auto vpls = kval(pipe).downloadSparseVpls();
   SparsePoints points = sampleSparsePoints(o.mesh, 64);
   const VertexWeights w = vertexWeights(o.mesh, points);
   ASSERT_EQ(vpls.size(), points.positions.size());

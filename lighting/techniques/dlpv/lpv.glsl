@@ -1,4 +1,4 @@
-// Light propagation volume math shared by injection, propagation and shading; C++ twin: lighting/lpv.h.
+// Light propagation volume math shared by injection, propagation and shading; C++ twin: lighting/techniques/dlpv/lpv.h.
 // Two SH bands per colour channel, coefficient order (y00, y1-1, y10, y11) = (1, y, z, x) directions.
 #define LPV_PI 3.14159265358979
 const float kLpvY00 = 0.282094792;

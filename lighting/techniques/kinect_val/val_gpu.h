@@ -6,7 +6,7 @@
 
 #include "gl/objects.h"
 #include "gl/program.h"
-#include "lighting/val.h"
+#include "lighting/techniques/kinect_val/val.h"
 
 namespace mrgi::lighting {
 

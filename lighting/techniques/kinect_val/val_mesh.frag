@@ -2,7 +2,7 @@
 // Kinect-VAL per-pixel evaluation (eq. 10) of the interpolated VPL pair on the virtual object:
 //   out 0: indirect radiance  albedo/pi * E + specular * (k+1)/(2 pi) * S, a = 1
 //   out 1: E (W/m^2), a = 1
-#include "lighting/val.glsl"
+#include "lighting/techniques/kinect_val/val.glsl"
 in vec3 vPosition;
 in vec3 vNormal;
 in vec3 vAlbedo;

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "lighting/val.h"
+#include "lighting/techniques/kinect_val/val.h"
 
 using namespace mrgi;
 using lighting::Val;
@@ -338,7 +338,7 @@ TEST(Val, SurfelFusionKeepsUnseenSurfacesAndAveragesNoise) {
 // ------------------------------------------------------------------------------------------- GPU twin
 
 #include "gl/context.h"
-#include "lighting/val_gpu.h"
+#include "lighting/techniques/kinect_val/val_gpu.h"
 
 namespace {
 std::unique_ptr<gl::Context> smallContext() {

@@ -1,6 +1,6 @@
 #version 450 core
 // Occlusion of each sparse point's VPLs by the other sparse points as discs (§3.3; val.cpp occlusion()).
-#include "lighting/val.glsl"
+#include "lighting/techniques/kinect_val/val.glsl"
 layout(local_size_x = 64) in;
 
 struct Occluder {

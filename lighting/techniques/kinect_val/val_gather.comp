@@ -6,7 +6,7 @@
 // Large VAL sets are gathered in chunks [uValBegin, uValEnd), one dispatch each, the running sums kept per
 // receiver in `partial` between them (llvmpipe cuts a shader invocation's loops after 65535 iterations, and
 // a bounded dispatch keeps a GPU's watchdog away); the last chunk renormalises.
-#include "lighting/val.glsl"
+#include "lighting/techniques/kinect_val/val.glsl"
 layout(local_size_x = 64) in;
 
 layout(std430, binding = 0) readonly buffer Vals { Val vals[]; };

@@ -11,8 +11,9 @@
 #include "capture/colour.h"
 #include "compositor/compositor.h"
 #include "gl/context.h"
-#include "lighting/lpv.h"
 #include "lighting/pipeline.h"
+#include "lighting/techniques/dlpv/dlpv.h"
+#include "lighting/techniques/dlpv/lpv.h"
 #include "lighting/scene_file.h"
 #include "tests/lighting/test_scene.h"
 
@@ -21,6 +22,12 @@ using namespace mrgi::lighting;
 using namespace mrgi::test;
 
 namespace {
+
+/// The pipeline's DLPV instance.
+const DlpvTechnique& dlpv(const LightingPipeline& pipe) { return dynamic_cast<const DlpvTechnique&>(*pipe.technique("dlpv")); }
+
+/// A region equal to fitGrid(lo, hi, factor, res)'s volume.
+Region regionOf(const LpvGrid& g) { return Region{g.origin, g.side()}; }
 
 float maxAbs(const LpvVolumeCpu& v) {
   float m = 0;
@@ -116,12 +123,12 @@ TEST(GL, DlpvWithoutVirtualObjectIsExactlyZero) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.0, {});
   PipelineConfig cfg = testConfig(96, 72, 16, 64);
-  cfg.lpv.steps = 8;
-  cfg.fixedGrid = fitGrid({-0.1, -0.1, 0.0}, {0.1, 0.1, 0.2}, 4.0, 16);
+  cfg.set("lpv", "steps", 8);
+  cfg.fixedRegion = regionOf(fitGrid({-0.1, -0.1, 0.0}, {0.1, 0.1, 0.2}, 4.0, 16));
   LightingPipeline pipe = makePipeline(cfg, s);
   pipe.run(topCamera(96, 72), {pointAbove(), sunDown()}, {0, 0, 0}, nullptr);
-  EXPECT_EQ(maxAbs(pipe.downloadVolume("delta")), 0.0f);
-  EXPECT_GT(maxAbs(pipe.downloadVolume("rho")), 0.0f);  // the real scene still bounces light
+  EXPECT_EQ(maxAbs(dlpv(pipe).downloadVolume("delta")), 0.0f);
+  EXPECT_GT(maxAbs(dlpv(pipe).downloadVolume("rho")), 0.0f);  // the real scene still bounces light
   const cv::Mat shade = pipe.downloadShade();
   double worst = 0;
   for (auto it = shade.begin<cv::Vec4f>(); it != shade.end<cv::Vec4f>(); ++it)
@@ -133,13 +140,13 @@ TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
   PipelineConfig cfg = testConfig(96, 72, 16, 64);
-  cfg.lpv.steps = 6;
-  cfg.lpv.directSteps = 2;
-  cfg.lpv.damping = 0.5;
+  cfg.set("lpv", "steps", 6);
+  cfg.set("lpv", "direct_steps", 2);
+  cfg.set("lpv", "damping", 0.5);
   for (const SceneLight& light : {pointAbove(), sunDown()}) {
     LightingPipeline pipe = makePipeline(cfg, s);
     pipe.run(topCamera(96, 72), {light}, {0, 0, 0}, nullptr);
-    const LpvGrid g = *pipe.grid();
+    const LpvGrid g = *dlpv(pipe).grid();
     const RsmTexels rho = pipe.downloadRsm(true), mu = pipe.downloadRsm(false);
     InjectParams ip;
     ip.lightType = light.type;
@@ -156,9 +163,9 @@ TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
     injectReference(g, mu, &rho, ip, direct);
     ip = InjectParams{1.0f, kInjectIndirect, false, light.type, cv::Vec3f(light.position), cv::Vec3f(light.direction)};
     injectReference(g, rho, nullptr, ip, rhoVol);
-    const LpvVolumeCpu deltaCpu = propagateReference(g, delta, cfg.lpv.steps, 0.5f, false, &direct, cfg.lpv.directSteps);
-    const LpvVolumeCpu rhoCpu = propagateReference(g, rhoVol, cfg.lpv.steps, 0.5f, true);
-    const LpvVolumeCpu deltaGpu = pipe.downloadVolume("delta"), rhoGpu = pipe.downloadVolume("rho");
+    const LpvVolumeCpu deltaCpu = propagateReference(g, delta, dlpv(pipe).knobs().steps, 0.5f, false, &direct, dlpv(pipe).knobs().directSteps);
+    const LpvVolumeCpu rhoCpu = propagateReference(g, rhoVol, dlpv(pipe).knobs().steps, 0.5f, true);
+    const LpvVolumeCpu deltaGpu = dlpv(pipe).downloadVolume("delta"), rhoGpu = dlpv(pipe).downloadVolume("rho");
     ASSERT_GT(maxAbs(deltaCpu), 0.0f);
     // Float sums in a different order (blending vs loop): 1e-4 of the volume's largest coefficient.
     EXPECT_LT(maxAbsDiff(deltaGpu, deltaCpu), 1e-4f * maxAbs(deltaCpu));
@@ -195,21 +202,21 @@ TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
   const cv::Vec3d centre(0.0, 0.0, 0.2);
   TestScene s = makeScene(false, cube, centre);
   PipelineConfig cfg = testConfig(160, 120, 32, 256);
-  cfg.lpv.steps = 8;
+  cfg.set("lpv", "steps", 8);
   const double E = 10.0;
   struct Result {
     double core, bleeding;
   };
   std::map<std::pair<double, int>, Result> results;
   for (auto [damping, directSteps] : {std::pair{0.0, 0}, {0.0, 1}, {0.0, 2}, {0.5, 1}, {0.5, 2}, {1.0, 1}, {1.0, 2}, {1.0, 4}}) {
-    cfg.lpv.damping = damping;
-    cfg.lpv.directSteps = directSteps;
+    cfg.set("lpv", "damping", damping);
+    cfg.set("lpv", "direct_steps", directSteps);
     LightingPipeline pipe = makePipeline(cfg, s);
     SceneLight sun = sunDown(E);
     sun.direction = {0.6, 0.0, -0.8};  // oblique, so the camera above sees the shadow beside the cube
     pipe.run(topCamera(160, 120), {sun}, {0, 0, 0}, nullptr);
     const cv::Mat pos = pipe.downloadGBuffer(0), alb = pipe.downloadGBuffer(2), irr = pipe.downloadIrradiance();
-    const LpvGrid g = *pipe.grid();
+    const LpvGrid g = *dlpv(pipe).grid();
     double coreSum = 0, outsideNeg = 0, insideNeg = 0;
     int core = 0, far = 0;
     for (int y = 0; y < pos.rows; ++y)
@@ -252,15 +259,15 @@ TEST(GL, WhiteObjectNextToRedWallReceivesRedBounce) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.2, {-0.3, 0.0, 0.1});  // its -x face 0.1 m from the red wall
   PipelineConfig cfg = testConfig(96, 72, 32, 128);
-  cfg.lpv.steps = 8;
+  cfg.set("lpv", "steps", 8);
   SceneLight light;  // above the gap between wall and cube, so the wall next to the cube is lit
   light.position = {-0.1, 0.0, 1.0};
   light.intensity = {4, 4, 4};
   LightingPipeline pipe = makePipeline(cfg, s);
   pipe.run(topCamera(96, 72), {light}, {0, 0, 0}, nullptr);
-  const LpvVolumeCpu rho = pipe.downloadVolume("rho");
-  const cv::Vec3f wallSide = irradianceReference(*pipe.grid(), rho, {-0.4f, 0.0f, 0.1f}, {-1, 0, 0});
-  const cv::Vec3f awaySide = irradianceReference(*pipe.grid(), rho, {-0.2f, 0.0f, 0.1f}, {1, 0, 0});
+  const LpvVolumeCpu rho = dlpv(pipe).downloadVolume("rho");
+  const cv::Vec3f wallSide = irradianceReference(*dlpv(pipe).grid(), rho, {-0.4f, 0.0f, 0.1f}, {-1, 0, 0});
+  const cv::Vec3f awaySide = irradianceReference(*dlpv(pipe).grid(), rho, {-0.2f, 0.0f, 0.1f}, {1, 0, 0});
   std::printf("indirect on the face towards the red wall: (%.3f, %.3f, %.3f) W/m^2\n", wallSide[0], wallSide[1], wallSide[2]);
   EXPECT_GT(wallSide[0], 0.0f);
   EXPECT_GT(wallSide[0], 3.0f * wallSide[1]);  // red wall albedo (0.8, 0.1, 0.1) -> clearly red bounce
@@ -273,16 +280,16 @@ TEST(GL, EveryFrameStartsFromAClearedVolume) {
   auto ctx = makeContext();
   TestScene s = makeScene(false, 0.2, {0.0, 0.0, 0.2});
   PipelineConfig cfg = testConfig(64, 48, 16, 64);
-  cfg.fixedGrid = fitGrid({-0.1, -0.1, 0.1}, {0.1, 0.1, 0.3}, 4.0, 16);
+  cfg.fixedRegion = regionOf(fitGrid({-0.1, -0.1, 0.1}, {0.1, 0.1, 0.3}, 4.0, 16));
   for (int steps : {0, 4}) {
-    cfg.lpv.steps = steps;
+    cfg.set("lpv", "steps", steps);
     LightingPipeline pipe = makePipeline(cfg, s);
     pipe.run(topCamera(64, 48), {sunDown()}, {0, 0, 0}, nullptr);
-    ASSERT_GT(maxAbs(pipe.downloadVolume("delta")), 0.0f);
+    ASSERT_GT(maxAbs(dlpv(pipe).downloadVolume("delta")), 0.0f);
     // The object leaves the light's view (far below the floor): the next frame must hold nothing.
     pipe.setObjectTransform(0, capture::makePose(cv::Matx33d::eye(), {0, 0, -50}));
     pipe.run(topCamera(64, 48), {sunDown()}, {0, 0, 0}, nullptr);
-    EXPECT_EQ(maxAbs(pipe.downloadVolume("delta")), 0.0f) << "steps " << steps;
+    EXPECT_EQ(maxAbs(dlpv(pipe).downloadVolume("delta")), 0.0f) << "steps " << steps;
   }
 }
 
@@ -319,12 +326,12 @@ TEST(GL, RsmCarriesTheLightsFlux) {
   auto ctx = makeContext();
   TestScene s = makeScene(false, 0.2, {0.0, 0.0, 0.1});
   PipelineConfig cfg = testConfig(32, 32, 16, 128);
-  cfg.lpv.sizeFactor = 2.0;
+  cfg.set("frame", "size_factor", 2.0);
   LightingPipeline pipe = makePipeline(cfg, s);
   {  // Directional: every texel sees floor or cube, sum of flux through texels = E x the map's area.
     pipe.run(topCamera(32, 32), {sunDown(10.0)}, {0, 0, 0}, nullptr);
     const RsmTexels r = pipe.downloadRsm(true);
-    const double side = 2.0 * 0.5 * std::sqrt(3.0) * pipe.grid()->side();
+    const double side = 2.0 * 0.5 * std::sqrt(3.0) * dlpv(pipe).grid()->side();
     double total = 0, reflected = 0;
     for (auto it = r.direct.begin<cv::Vec4f>(); it != r.direct.end<cv::Vec4f>(); ++it) total += (*it)[0];
     EXPECT_NEAR(total, 10.0 * side * side, 1e-4 * total);
@@ -336,7 +343,7 @@ TEST(GL, RsmCarriesTheLightsFlux) {
     SceneLight l = pointAbove();
     pipe.run(topCamera(32, 32), {l}, {0, 0, 0}, nullptr);
     const RsmTexels r = pipe.downloadRsm(false);
-    const LightView v = fitLightView(l, *pipe.grid(), 128);
+    const LightView v = fitLightView(l, *pipe.region(), 128);
     const double a = std::atan(64.0 / v.focalPixels);
     double omega = 0;
     for (auto it = r.direct.begin<cv::Vec4f>(); it != r.direct.end<cv::Vec4f>(); ++it) omega += (*it)[0] / 5.0;
@@ -381,7 +388,7 @@ TEST(GL, GoldenCompositeOfTheTestScene) {
   auto ctx = makeContext();
   TestScene s = makeScene(true, 0.2, {-0.25, 0.05, 0.1});
   PipelineConfig cfg = testConfig(96, 72, 16, 128);
-  cfg.lpv.steps = 8;
+  cfg.set("lpv", "steps", 8);
   LightingPipeline pipe = makePipeline(cfg, s);
   pipe.run(topCamera(96, 72), {pointAbove()}, {0.02, 0.02, 0.02}, nullptr);
   compositor::Compositor comp(96, 72);

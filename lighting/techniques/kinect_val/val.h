@@ -22,36 +22,19 @@
 #include <opencv2/core.hpp>
 
 #include "capture/types.h"
-#include "lighting/lpv.h"
+#include "lighting/frame/frame.h"
+#include "lighting/material.h"
 #include "lighting/scene_file.h"
 
 namespace mrgi::lighting {
 
-/// One virtual area light (GPU layout: 3 × vec4).
-struct Val {
-  cv::Vec3f position;  ///< disc centre, world
-  float area = 0;      ///< m²
-  cv::Vec3f normal;    ///< unit, the emitting side
-  float weight = 1;    ///< averaging weight: lum(φ_j) / mean lum(φ) × mean area (m²); see setValWeights
-  cv::Vec3f flux;      ///< W (RGB)
-  float pad = 0;
-};
-static_assert(sizeof(Val) == 48);
 
 /// Numerical guards shared by the CPU and GPU paths.
 constexpr float kValEpsilon = 1e-10f;   ///< ε of eq. 7 and 13
 constexpr float kValMinCos = 0.05f;     ///< smallest cos ϑ' dividing in eq. 11 (diffuse VPL)
 constexpr float kValMinLobe = 1e-3f;    ///< smallest cos^k γ' dividing in eq. 11 (glossy VPL)
 constexpr float kValMinDist2 = 1e-6f;   ///< (1 mm)²: smallest squared distance to an averaged VPL
-constexpr float kMaxPhongExponent = 1e4f;
 
-/// Phong exponent of a material: k = 2/r² − 2 (r = roughness), 0 at r = 1, clamped to [0, 10⁴].
-float phongExponent(float roughness);
-/// cos^k of the angle c to the mirror direction: 1 everywhere at k = 0 (also at c ≤ 0), 0 below the lobe
-/// otherwise; the GLSL twin is phongLobe() in val.glsl.
-float phongLobe(float c, float k);
-/// c_k = (k + 1) / (2π): the normalised Phong lobe.
-inline float phongNorm(float k) { return (k + 1.0f) / (2.0f * static_cast<float>(CV_PI)); }
 
 /// Disc form factor w_j (without the receiver cosine); 0 behind the disc, ≤ 1 for any distance.
 float discFormFactor(const Val& val, const cv::Vec3f& x);
@@ -124,51 +107,9 @@ SparseVpl interpolateVpl(const VertexWeights& w, size_t vertex, const std::vecto
 void occludeReference(const std::vector<cv::Vec3f>& positions, const std::vector<cv::Vec3f>& normals,
                       const std::vector<float>& discRadius, std::vector<SparseVpl>& vpls);
 
-/// VALs from an RGB-D frame: every stride-th valid pixel with a normal, position and normal moved into the
-/// world, area (z/fx)(z/fy) stride² cos α / <n, −view>+ (α off the optical axis, cos clamped at 0.1), radiance = the linear colour / π
-/// per unit albedo... i.e. a Lambertian emitter of the seen radiance: φ = π L a.
-std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, const cv::Mat& linearColour,
-                              const capture::Intrinsics& k, const capture::Pose& T_world_camera, int stride);
 /// VALs from the virtual texels of an RSM (normal.w = 1): flux = the reflected flux, area = the texel's
 /// footprint across the beam (direct flux / beam irradiance: E for a directional light, I/d² for a point or
 /// spot) over <n, l>+ (clamped at 0.1). stride > 1 takes every stride-th texel per axis, standing for its
 /// stride² block (area and flux × stride²).
 std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light, int stride = 1);
-/// Sets every VAL's averaging weight: its flux luminance over the set's mean (1 when that is 0) times the
-/// set's mean area, so that ε + weight · cos ϑ_j cos ϑ_i / (π d² + a_j) ∝ lum(E_j) is a form-factor-sized number.
-void setValWeights(std::vector<Val>& vals);
-
-/// Beyond the paper: real-surface VALs fused over frames in a world-space map keyed by voxel, so surfaces
-/// that left the view keep lighting the object and the light does not flicker with sensor noise.
-struct SurfelOptions {
-  float voxel = 0.02f;       ///< metres
-  float decay = 0.0f;        ///< confidence kept per frame by a surfel the frame should have seen but did not:
-                             ///< 0 drops it (the frame is authoritative for what it sees; otherwise a surface
-                             ///< quantised into a neighbouring voxel this time counts twice)
-  float minConfidence = 0.05f;
-  float maxConfidence = 10.f;
-};
-class SurfelMap {
- public:
-  explicit SurfelMap(const SurfelOptions& o = {}) : o_(o) {}
-  /// Integrates one frame's VALs (world frame). A surfel not observed decays only where the frame should
-  /// have seen it: it projects into the image (view: T_world_camera, k) and the frame's depth there is
-  /// valid and not in front of it by more than two voxels. Surfels out of view or hidden keep their light.
-  /// Without a view (depth empty) every unobserved surfel decays.
-  void integrate(const std::vector<Val>& vals, const cv::Mat& depth = cv::Mat(), const capture::Intrinsics& k = {},
-                 const capture::Pose& T_world_camera = capture::identityPose());
-  /// One VAL per surfel: confidence-weighted mean position, normal, radiance and area.
-  std::vector<Val> vals() const;
-  size_t size() const { return map_.size(); }
-  void clear() { map_.clear(); }
-
- private:
-  struct Surfel {
-    cv::Vec3f position{0, 0, 0}, normal{0, 0, 0}, exitance{0, 0, 0};  ///< running means (exitance = φ/a)
-    float area = 0, confidence = 0;
-  };
-  SurfelOptions o_;
-  std::unordered_map<uint64_t, Surfel> map_;
-};
-
 }  // namespace mrgi::lighting

@@ -2,7 +2,7 @@
 // Delta injection (algorithms.md §3; C++ twin: lpv.h injectReference). One vertex per RSM texel, instance 0
 // injects the indirect lobe, instance 1 the direct lobe. Texels bit-identical in the other RSM are skipped
 // when uSkipIdentical is set, so unchanged texels cancel exactly.
-#include "lighting/lpv.glsl"
+#include "lighting/techniques/dlpv/lpv.glsl"
 
 layout(binding = 0) uniform sampler2D uPosition;
 layout(binding = 1) uniform sampler2D uNormal;

@@ -2,7 +2,7 @@
 // Kinect-VAL per-vertex interpolation (eq. 12-13): each vertex blends the averaged VPL pairs of its 8
 // nearest sparse points (weights precomputed in model space). The same transform as mesh.vert, invariant,
 // so the pass depth-tests EQUAL-or-less against the G-buffer's depth and shades only visible fragments.
-#include "lighting/val.glsl"
+#include "lighting/techniques/kinect_val/val.glsl"
 invariant gl_Position;
 
 layout(location = 0) in vec3 inPosition;  // model frame, metres

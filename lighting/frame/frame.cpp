@@ -1,0 +1,401 @@
+#include "lighting/frame/frame.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "gl/error.h"
+
+namespace mrgi::lighting {
+
+// ---------------------------------------------------------------------------------------------- knobs
+
+const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable() {
+  static const std::vector<KnobBinding<FrameKnobs>> table = {
+      {{"rsm_size", KnobType::Int, 16, 4096, 256,
+        "RSM and shadow-map texels per side, per light (RSM^rho and RSM^mu)", {64, 128, 512}, {64}, true},
+       &FrameKnobs::rsmSize},
+      {{"size_factor", KnobType::Real, 1.0, 64.0, 4.0,
+        "side of the region around the virtual objects that light views and volumes cover, in units of the "
+        "objects' largest bounding-box edge",
+        {2.0, 3.0, 6.0}, {}, false},
+       &FrameKnobs::sizeFactor},
+  };
+  return table;
+}
+
+const KnobGroup& frameKnobGroup() {
+  static const KnobGroup g = groupOf("frame", frameKnobTable());
+  return g;
+}
+
+// ---------------------------------------------------------------------------------------------- meshes
+
+GpuMesh::GpuMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices)
+    : count_(static_cast<GLsizei>(indices.size())) {
+  if (indices.empty()) return;
+  static_assert(sizeof(MeshVertex) == 9 * sizeof(float));
+  vertices_ = gl::Buffer(static_cast<GLsizeiptr>(vertices.size() * sizeof(MeshVertex)), vertices.data(), 0);
+  indices_ = gl::Buffer(static_cast<GLsizeiptr>(indices.size() * sizeof(uint32_t)), indices.data(), 0);
+  vao_.attribute(0, vertices_, 0, sizeof(MeshVertex), 3);
+  vao_.attribute(1, vertices_, 3 * sizeof(float), sizeof(MeshVertex), 3);
+  vao_.attribute(2, vertices_, 6 * sizeof(float), sizeof(MeshVertex), 3);
+  vao_.elements(indices_);
+}
+
+void GpuMesh::draw() const {
+  if (count_ == 0) return;
+  vao_.bind();
+  glDrawElements(GL_TRIANGLES, count_, GL_UNSIGNED_INT, nullptr);
+}
+
+void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo, const capture::Pose& T_world_camera,
+                       std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices) {
+  const cv::Matx33d R = capture::rotationOf(T_world_camera);
+  // Vertices whose depth normal is unknown (isolated samples, edges) take the area-weighted normal of their
+  // triangles, turned towards the camera; a zero normal would shade as NaN.
+  std::vector<cv::Vec3f> normals = mesh.normals;
+  std::vector<cv::Vec3f> faceSum(mesh.positions.size(), cv::Vec3f(0, 0, 0));
+  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+    const uint32_t a = mesh.indices[t], b = mesh.indices[t + 1], c = mesh.indices[t + 2];
+    const cv::Vec3f f = (mesh.positions[b] - mesh.positions[a]).cross(mesh.positions[c] - mesh.positions[a]);
+    for (uint32_t i : {a, b, c}) faceSum[i] += f;
+  }
+  for (size_t i = 0; i < normals.size(); ++i) {
+    if (normals[i] != cv::Vec3f(0, 0, 0)) continue;
+    cv::Vec3f n = faceSum[i];
+    const float len = static_cast<float>(cv::norm(n));
+    if (!(len > 0)) n = -mesh.positions[i];  // no triangle: face the camera
+    n = cv::normalize(n);
+    if (n.dot(mesh.positions[i]) > 0) n = -n;
+    normals[i] = n;
+  }
+  vertices.resize(mesh.positions.size());
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    MeshVertex& v = vertices[i];
+    v.position = cv::Vec3f(capture::transformPoint(T_world_camera, cv::Vec3d(mesh.positions[i])));
+    v.normal = cv::Vec3f(R * cv::Vec3d(normals[i]));
+    v.albedo = {0.5f, 0.5f, 0.5f};
+    if (!albedo.empty()) {
+      const int x = std::clamp(static_cast<int>(std::lround(mesh.pixels[i][0])), 0, albedo.cols - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(mesh.pixels[i][1])), 0, albedo.rows - 1);
+      v.albedo = albedo.at<cv::Vec3f>(y, x);
+    }
+  }
+  indices = mesh.indices;
+}
+
+// ---------------------------------------------------------------------------------------------- cameras
+
+cv::Matx44d projectionFromIntrinsics(const capture::Intrinsics& k, double n, double f) {
+  const double W = k.width, H = k.height;
+  return {2 * k.fx / W, 0, 2 * (k.cx + 0.5) / W - 1, 0,  //
+          0, 2 * k.fy / H, 2 * (k.cy + 0.5) / H - 1, 0,  //
+          0, 0, (f + n) / (f - n), -2 * f * n / (f - n),  //
+          0, 0, 1, 0};
+}
+
+cv::Matx44d orthographicProjection(double h, double n, double f) {
+  return {1 / h, 0, 0, 0,  //
+          0, 1 / h, 0, 0,  //
+          0, 0, 2 / (f - n), -(f + n) / (f - n),  //
+          0, 0, 0, 1};
+}
+
+std::array<float, 16> toGl(const cv::Matx44d& m) {
+  std::array<float, 16> out;
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) out[c * 4 + r] = static_cast<float>(m(r, c));
+  return out;
+}
+
+cv::Matx33f normalMatrix(const cv::Matx44d& T) {
+  const cv::Matx33d R = capture::rotationOf(T);
+  return cv::Matx33f(R.inv().t());
+}
+
+void setMat3(const gl::Program& p, const std::string& name, const cv::Matx33f& m) {
+  float cm[9];
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) cm[c * 3 + r] = m(r, c);
+  glProgramUniformMatrix3fv(p.id(), p.location(name), 1, GL_FALSE, cm);
+}
+
+void setVec3(const gl::Program& p, const std::string& name, const cv::Vec3d& v) {
+  p.set(name, static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
+}
+
+int shaderLightType(LightType t) { return t == LightType::Point ? 0 : t == LightType::Spot ? 1 : 2; }
+
+std::optional<gl::Profiler::Scope> timed(gl::Profiler* profiler, const char* name, bool gpu) {
+  return profiler ? std::optional<gl::Profiler::Scope>(std::in_place, *profiler, name, gpu) : std::nullopt;
+}
+
+Region fitRegion(const cv::Vec3d& lo, const cv::Vec3d& hi, double sizeFactor) {
+  const cv::Vec3d extent = hi - lo;
+  const double edge = std::max({extent[0], extent[1], extent[2], 1e-3});
+  Region r;
+  r.side = edge * sizeFactor;
+  r.origin = 0.5 * (lo + hi) - cv::Vec3d::all(0.5 * r.side);
+  return r;
+}
+
+LightView fitLightView(const SceneLight& light, const Region& region, int size) {
+  LightView v;
+  const cv::Vec3d centre = region.centre();
+  const double radius = region.radius();
+  if (light.type == LightType::Directional) {
+    const double back = 4.0 * radius;  // room for occluders in front of the region
+    const cv::Vec3d eye = centre - light.direction * back;
+    v.viewProj = orthographicProjection(radius, 0.0, back + radius) *
+                 capture::inversePose(capture::lookAtPose(eye, centre));
+    const double texel = 2.0 * radius / size;
+    v.texelArea = texel * texel;
+    v.shadowBias = 2.0 * texel;
+  } else {
+    const double dist = cv::norm(centre - light.position);
+    if (dist < 1e-6) throw std::invalid_argument("a point light sits at the centre of the region around the objects");
+    const double half = std::asin(std::min(radius / dist, std::sin(80.0 * CV_PI / 180.0)));
+    v.focalPixels = 0.5 * size / std::tan(half);
+    capture::Intrinsics k;
+    k.width = k.height = size;
+    k.fx = k.fy = v.focalPixels;
+    k.cx = k.cy = 0.5 * size - 0.5;
+    v.viewProj = projectionFromIntrinsics(k, std::max(1e-3, 0.01 * dist), dist + radius) *
+                 capture::inversePose(capture::lookAtPose(light.position, centre));
+    v.shadowBias = 2.0 * (dist + radius) / v.focalPixels;
+  }
+  return v;
+}
+
+cv::Mat download4(const gl::Texture& t) {
+  cv::Mat m(t.height(), t.width(), CV_32FC4);
+  t.download(GL_RGBA, GL_FLOAT, m.ptr(), static_cast<GLsizei>(m.total() * m.elemSize()), 4);
+  return m;
+}
+
+// ---------------------------------------------------------------------------------------------- resources
+
+FrameResources::FrameResources(const FrameConfig& config, const std::vector<VirtualObject>& objects)
+    : config_(config),
+      gbufferProgram_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/gbuffer.frag")),
+      rsmProgram_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/rsm.frag")),
+      gPosition_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
+      gNormal_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
+      gAlbedo_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
+      gDepth_(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, config.width, config.height),
+      shadowRho_(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, config.knobs.rsmSize, config.knobs.rsmSize, kMaxLights) {
+  for (auto* t : {&gPosition_, &gNormal_, &gAlbedo_}) t->setFilter(GL_NEAREST, GL_NEAREST);
+  shadowRho_.setFilter(GL_NEAREST, GL_NEAREST);
+  gbufferFb_.attachColour(0, gPosition_);
+  gbufferFb_.attachColour(1, gNormal_);
+  gbufferFb_.attachColour(2, gAlbedo_);
+  gbufferFb_.attachDepth(gDepth_);
+  gbufferFb_.finalise(3);
+  rsmRho_ = makeRsm(config.knobs.rsmSize);
+  rsmMu_ = makeRsm(config.knobs.rsmSize);
+  objects_.reserve(objects.size());
+  for (const VirtualObject& o : objects) {
+    std::vector<MeshVertex> v(o.mesh.positions.size());
+    for (size_t i = 0; i < v.size(); ++i) v[i] = {o.mesh.positions[i], o.mesh.normals[i], o.material.albedo};
+    FrameObject fo;
+    fo.source = o;
+    fo.gpu = GpuMesh(v, o.mesh.indices);
+    fo.T_world_object = o.T_marker_object;
+    objects_.push_back(std::move(fo));
+  }
+}
+
+Rsm FrameResources::makeRsm(int size) const {
+  Rsm r{gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size), gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size), gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, size, size), gl::Framebuffer()};
+  for (auto* t : {&r.position, &r.normal, &r.flux, &r.direct}) t->setFilter(GL_NEAREST, GL_NEAREST);
+  r.fb.attachColour(0, r.position);
+  r.fb.attachColour(1, r.normal);
+  r.fb.attachColour(2, r.flux);
+  r.fb.attachColour(3, r.direct);
+  r.fb.attachDepth(r.depth);
+  r.fb.finalise(4);
+  return r;
+}
+
+void FrameResources::setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
+  realMesh_ = GpuMesh(vertices, indices);
+  geometryDirty_ = true;
+}
+
+void FrameResources::setObjectTransform(size_t i, const cv::Matx44d& T) { objects_.at(i).T_world_object = T; }
+
+void FrameResources::setRealVals(std::vector<Val> vals) {
+  realVals_ = std::move(vals);
+  realValsDirty_ = true;
+}
+
+void FrameResources::invalidate() {
+  seen_.reset();
+  geometryDirty_ = realValsDirty_ = true;
+}
+
+const FrameVersions& FrameResources::update(const CameraView& camera, const std::vector<SceneLight>& lights,
+                                            const cv::Vec3d& ambient) {
+  if (static_cast<int>(lights.size()) > kMaxLights)
+    throw std::invalid_argument("at most " + std::to_string(kMaxLights) + " lights are supported, got " +
+                                std::to_string(lights.size()));
+  // Exact comparison: any change counts.
+  Seen in;
+  in.camera = {camera.intrinsics.fx, camera.intrinsics.fy, camera.intrinsics.cx, camera.intrinsics.cy,
+               static_cast<double>(camera.intrinsics.width), static_cast<double>(camera.intrinsics.height),
+               camera.nearPlane, camera.farPlane};
+  for (int i = 0; i < 16; ++i) in.camera.push_back(camera.T_world_camera.val[i]);
+  for (const FrameObject& o : objects_) in.objects.insert(in.objects.end(), o.T_world_object.val, o.T_world_object.val + 16);
+  for (const SceneLight& l : lights) {
+    in.lights.insert(in.lights.end(), {static_cast<double>(l.type), l.spotHalfAngleDeg});
+    for (const cv::Vec3d* v : {&l.position, &l.direction, &l.intensity, &l.irradiance})
+      in.lights.insert(in.lights.end(), v->val, v->val + 3);
+  }
+  in.ambient = {ambient[0], ambient[1], ambient[2]};
+  const bool fresh = !seen_;
+  if (fresh || in.camera != seen_->camera) ++versions_.camera;
+  if (fresh || geometryDirty_ || in.objects != seen_->objects) ++versions_.geometry;
+  if (fresh || in.lights != seen_->lights) ++versions_.lights;
+  if (fresh || in.ambient != seen_->ambient) ++versions_.ambient;
+  if (fresh || realValsDirty_) ++versions_.realVals;
+  geometryDirty_ = realValsDirty_ = false;
+  seen_ = std::move(in);
+  camera_ = camera;
+  lights_ = lights;
+  ambient_ = ambient;
+  return versions_;
+}
+
+std::optional<std::pair<cv::Vec3d, cv::Vec3d>> FrameResources::objectBounds() const {
+  if (objects_.empty()) return std::nullopt;
+  cv::Vec3d lo = cv::Vec3d::all(1e30), hi = cv::Vec3d::all(-1e30);
+  for (const FrameObject& o : objects_) {
+    const cv::Vec3f& bmin = o.source.mesh.boundsMin;
+    const cv::Vec3f& bmax = o.source.mesh.boundsMax;
+    for (int c = 0; c < 8; ++c) {
+      const cv::Vec3d corner((c & 1) ? bmax[0] : bmin[0], (c & 2) ? bmax[1] : bmin[1], (c & 4) ? bmax[2] : bmin[2]);
+      const cv::Vec3d w = capture::transformPoint(o.T_world_object, corner);
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], w[k]);
+        hi[k] = std::max(hi[k], w[k]);
+      }
+    }
+  }
+  return std::pair{lo, hi};
+}
+
+void FrameResources::fitRegionToObjects() {
+  region_ = config_.fixedRegion;
+  if (region_) return;
+  if (const auto b = objectBounds()) region_ = fitRegion(b->first, b->second, config_.knobs.sizeFactor);
+}
+
+void FrameResources::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const {
+  program.use();
+  const auto vp = toGl(viewProj);
+  program.setMat4("uViewProj", vp.data());
+  const auto id = toGl(cv::Matx44d::eye());
+  program.setMat4("uModel", id.data());
+  setMat3(program, "uNormalModel", cv::Matx33f::eye());
+  program.set("uVirtual", 0.0f);
+  program.set("uObject", 0.0f);
+  realMesh_.draw();
+  if (!includeVirtual) return;
+  program.set("uVirtual", 1.0f);
+  for (size_t i = 0; i < objects_.size(); ++i) {
+    program.set("uObject", static_cast<float>(i + 1));
+    const auto m = toGl(objects_[i].T_world_object);
+    program.setMat4("uModel", m.data());
+    setMat3(program, "uNormalModel", normalMatrix(objects_[i].T_world_object));
+    objects_[i].gpu.draw();
+  }
+}
+
+void FrameResources::renderGBuffer() {
+  gbufferFb_.bind();
+  glViewport(0, 0, config_.width, config_.height);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  const float zero[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 3; ++i) glClearNamedFramebufferfv(gbufferFb_.id(), GL_COLOR, i, zero);
+  const float one = 1.0f;
+  glClearNamedFramebufferfv(gbufferFb_.id(), GL_DEPTH, 0, &one);
+  const cv::Matx44d view = capture::inversePose(camera_.T_world_camera);
+  setVec3(gbufferProgram_, "uEye", capture::translationOf(camera_.T_world_camera));
+  drawScene(gbufferProgram_, true, projectionFromIntrinsics(camera_.intrinsics, camera_.nearPlane, camera_.farPlane) * view);
+  glDisable(GL_DEPTH_TEST);
+}
+
+void FrameResources::renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual) {
+  const int size = rsmSize();
+  rsm.fb.bind();
+  glViewport(0, 0, size, size);
+  const float zero[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 4; ++i) glClearNamedFramebufferfv(rsm.fb.id(), GL_COLOR, i, zero);
+  const float one = 1.0f;
+  glClearNamedFramebufferfv(rsm.fb.id(), GL_DEPTH, 0, &one);
+  const gl::Program& p = rsmProgram_;
+  p.set("uLightType", shaderLightType(light.type));
+  setVec3(p, "uLightPosition", light.position);
+  setVec3(p, "uLightDirection", light.direction);
+  setVec3(p, "uLightPower", light.type == LightType::Directional ? light.irradiance : light.intensity);
+  p.set("uSpotCos", static_cast<float>(light.spotCos()));
+  p.set("uFocal", static_cast<float>(view.focalPixels));
+  p.set("uCentre", 0.5f * size);
+  p.set("uTexelArea", static_cast<float>(view.texelArea));
+  drawScene(p, includeVirtual, view.viewProj);
+}
+
+void FrameResources::renderLight(size_t i, bool keepMu) {
+  if (!region_) throw std::logic_error("FrameResources::renderLight(): no region (no virtual object placed)");
+  if (views_.size() != i) throw std::logic_error("FrameResources::renderLight(): lights must be rendered in order");
+  const SceneLight& light = lights_.at(i);
+  views_.push_back(fitLightView(light, *region_, rsmSize()));
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  renderRsm(rsmRho_, light, views_.back(), true);
+  renderRsm(rsmMu_, light, views_.back(), false);
+  glDisable(GL_DEPTH_TEST);
+  const int n = rsmSize();
+  glCopyImageSubData(rsmRho_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowRho_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
+                     static_cast<GLint>(i), n, n, 1);
+  if (keepMu) {
+    if (!shadowMu_.id()) {
+      shadowMu_ = gl::Texture(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, n, n, kMaxLights);
+      shadowMu_.setFilter(GL_NEAREST, GL_NEAREST);
+    }
+    glCopyImageSubData(rsmMu_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowMu_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
+                       static_cast<GLint>(i), n, n, 1);
+  }
+}
+
+RsmTexels FrameResources::downloadRsm(bool rho) const {
+  const Rsm& r = rho ? rsmRho_ : rsmMu_;
+  return {download4(r.position), download4(r.normal), download4(r.flux), download4(r.direct)};
+}
+
+const gl::Texture& FrameResources::zero() {
+  if (!zero_.id()) {
+    zero_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, config_.width, config_.height);
+    zero_.setFilter(GL_NEAREST, GL_NEAREST);
+    zero_.clear();
+  }
+  return zero_;
+}
+
+cv::Mat FrameResources::downloadGBuffer(int channel) const {
+  return download4(channel == 0 ? gPosition_ : channel == 1 ? gNormal_ : gAlbedo_);
+}
+
+size_t FrameResources::gpuBytes() const {
+  size_t sum = 0;
+  for (const gl::Texture* t : {&gPosition_, &gNormal_, &gAlbedo_, &gDepth_, &shadowRho_, &shadowMu_, &zero_}) sum += t->bytes();
+  for (const Rsm* r : {&rsmRho_, &rsmMu_})
+    for (const gl::Texture* t : {&r->position, &r->normal, &r->flux, &r->direct, &r->depth}) sum += t->bytes();
+  return sum;
+}
+
+}  // namespace mrgi::lighting

@@ -1,0 +1,237 @@
+#pragma once
+/// One frame's shared lighting resources, owned once and read by every technique: the camera and its
+/// G-buffer (real mesh + virtual objects, explicit mask, depth test both ways), the virtual objects, the real
+/// scene (mesh, real-surface area lights), the lights with their light views fitted to the region that
+/// matters, per light RSM^rho (real + virtual) and RSM^mu (real only), the shadow maps, and version counters
+/// that say what changed. Everything lives in the lighting world (for replay: the marker frame), metres,
+/// linear RGB. Techniques (lighting/techniques/) declare which versions their results depend on; the
+/// pipeline (lighting/pipeline.h) reruns a consumer only when one of them moved.
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "capture/types.h"
+#include "gl/objects.h"
+#include "gl/profiler.h"
+#include "gl/program.h"
+#include "lighting/frame/real_scene.h"
+#include "lighting/knobs.h"
+#include "lighting/scene_file.h"
+#include "reconstruction/depth_filter.h"
+
+namespace mrgi::lighting {
+
+constexpr int kMaxLights = 16;
+
+/// Interleaved vertex of every mesh the pipeline draws.
+struct MeshVertex {
+  cv::Vec3f position;  ///< model frame, metres
+  cv::Vec3f normal;    ///< unit
+  cv::Vec3f albedo;    ///< linear RGB
+};
+
+/// A mesh on the GPU (immutable; rebuilt when its vertices change).
+class GpuMesh {
+ public:
+  GpuMesh() = default;
+  GpuMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
+  void draw() const;
+  bool empty() const { return count_ == 0; }
+
+ private:
+  gl::Buffer vertices_, indices_;
+  gl::VertexArray vao_;
+  GLsizei count_ = 0;
+};
+
+/// The real-scene mesh in the lighting world: DepthMesh vertices (camera frame) moved by T_world_camera,
+/// each with the albedo estimated at its pixel (albedo CV_32FC3, linear; empty = 0.5 grey).
+void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo, const capture::Pose& T_world_camera,
+                       std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices);
+
+/// Camera matrices (OpenCV camera frame: x right, y down, z forward). Image row 0 maps to NDC y = -1, so
+/// framebuffer rows come back in cv::Mat order.
+cv::Matx44d projectionFromIntrinsics(const capture::Intrinsics& k, double nearPlane, double farPlane);
+cv::Matx44d orthographicProjection(double halfExtent, double nearPlane, double farPlane);
+std::array<float, 16> toGl(const cv::Matx44d& m);
+/// Inverse transpose of T's rotation part (normals).
+cv::Matx33f normalMatrix(const cv::Matx44d& T);
+void setMat3(const gl::Program& p, const std::string& name, const cv::Matx33f& m);
+void setVec3(const gl::Program& p, const std::string& name, const cv::Vec3d& v);
+/// uLightType of the shaders: 0 point, 1 spot, 2 directional.
+int shaderLightType(LightType t);
+/// A timed stage when there is a profiler (GPU timer queries too when `gpu`).
+std::optional<gl::Profiler::Scope> timed(gl::Profiler* profiler, const char* name, bool gpu = true);
+
+/// The region that matters for the virtual objects: an axis-aligned cube in the lighting world, centred on
+/// the objects' bounding box, side = size factor x its largest edge (never below 1 mm). Light views are
+/// fitted to it; volume techniques place their grids in it.
+struct Region {
+  cv::Vec3d origin{0, 0, 0};  ///< the corner with the smallest coordinates
+  double side = 1.0;
+  cv::Vec3d centre() const { return origin + cv::Vec3d::all(0.5 * side); }
+  /// Radius of the bounding sphere.
+  double radius() const { return 0.5 * std::sqrt(3.0) * side; }
+};
+Region fitRegion(const cv::Vec3d& lo, const cv::Vec3d& hi, double sizeFactor);
+
+/// How one light sees the region: perspective for point/spot lights (frustum around the region's bounding
+/// sphere), orthographic for directional ones (fitted to the region).
+struct LightView {
+  cv::Matx44d viewProj;
+  double focalPixels = 0;  ///< perspective
+  double texelArea = 0;    ///< orthographic, m^2
+  double shadowBias = 0;   ///< metres
+};
+LightView fitLightView(const SceneLight& light, const Region& region, int rsmSize);
+
+struct CameraView {
+  capture::Intrinsics intrinsics;
+  capture::Pose T_world_camera;
+  double nearPlane = 0.05, farPlane = 20.0;
+};
+
+/// RSM texels as read back from the GPU (CV_32FC4 each, size x size): world position (w = 1 where a surface
+/// was seen), normal facing the light (w = 1 on virtual surfaces), reflected flux (albedo x flux through the
+/// texel, W), incident flux through the texel (W).
+struct RsmTexels {
+  cv::Mat position, normal, flux, direct;
+};
+
+/// The GPU textures of one reflective shadow map (RGBA32F, size x size, nearest filtering).
+struct Rsm {
+  gl::Texture position, normal, flux, direct, depth;
+  gl::Framebuffer fb;
+};
+
+/// Knobs of the shared resources (scene key "frame").
+struct FrameKnobs {
+  int rsmSize = 0;          ///< RSM texels per side
+  double sizeFactor = 0;    ///< region side / the objects' largest bounding-box edge
+};
+/// The knob table of FrameKnobs (declared once: lighting/frame/frame.cpp).
+const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable();
+const KnobGroup& frameKnobGroup();
+
+struct FrameConfig {
+  int width = 640, height = 480;  ///< G-buffer / output size (camera colour resolution)
+  FrameKnobs knobs = knobsFrom(frameKnobTable(), {});
+  std::optional<Region> fixedRegion;  ///< overrides fitting the region to the virtual objects (tests)
+};
+
+/// Which inputs changed: counters bumped on every change, compared by consumers.
+struct FrameVersions {
+  uint64_t camera = 0, geometry = 0, lights = 0, ambient = 0, realVals = 0;
+};
+
+/// Inputs a consumer's results depend on (bit set).
+enum FrameInput : unsigned {
+  kInputCamera = 1u,     ///< intrinsics, pose, clip planes (the G-buffer)
+  kInputGeometry = 2u,   ///< real mesh and object placements (G-buffer, RSMs, region)
+  kInputLights = 4u,     ///< the lights (RSMs, shadow maps)
+  kInputAmbient = 8u,    ///< the ambient radiance
+  kInputRealVals = 16u,  ///< the real-surface area lights
+};
+
+/// A virtual object as the frame holds it: its mesh in model space (also on the GPU), material, placement.
+struct FrameObject {
+  VirtualObject source;  ///< mesh (model space, scaled) and material (a copy)
+  GpuMesh gpu;
+  cv::Matx44d T_world_object = cv::Matx44d::eye();
+};
+
+class FrameResources {
+ public:
+  /// Needs a current GL 4.5 context.
+  FrameResources(const FrameConfig& config, const std::vector<VirtualObject>& objects);
+
+  const FrameConfig& config() const { return config_; }
+  int width() const { return config_.width; }
+  int height() const { return config_.height; }
+  int rsmSize() const { return config_.knobs.rsmSize; }
+
+  // ---- inputs (set by the pipeline before a run)
+  void setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
+  void setObjectTransform(size_t i, const cv::Matx44d& T_world_object);
+  void setRealVals(std::vector<Val> vals);
+  /// Compares with the last run's inputs and bumps the versions of what changed. Returns the versions.
+  const FrameVersions& update(const CameraView& camera, const std::vector<SceneLight>& lights, const cv::Vec3d& ambient);
+  /// Everything counts as changed at the next update().
+  void invalidate();
+
+  const FrameVersions& versions() const { return versions_; }
+  const CameraView& camera() const { return camera_; }
+  const std::vector<SceneLight>& lights() const { return lights_; }
+  const cv::Vec3d& ambient() const { return ambient_; }
+  const std::vector<FrameObject>& objects() const { return objects_; }
+  const std::vector<Val>& realVals() const { return realVals_; }
+  /// World bounding box of the placed objects (nullopt without objects).
+  std::optional<std::pair<cv::Vec3d, cv::Vec3d>> objectBounds() const;
+  /// The region of the last run (nullopt when no object was placed and no fixed region is set).
+  const std::optional<Region>& region() const { return region_; }
+
+  // ---- stages (run by the pipeline)
+  void fitRegionToObjects();
+  void renderGBuffer();
+  /// Light i's view and RSMs (rho, mu); with `keepMu` its RSM^mu positions also go into the mu shadow array.
+  void renderLight(size_t i, bool keepMu);
+  void clearLightViews() { views_.clear(); }
+
+  /// Draws the real mesh (and the objects when includeVirtual) with `program` (uModel, uNormalModel,
+  /// uViewProj, uVirtual, uObject set here).
+  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const;
+
+  // ---- results
+  const gl::Texture& gPosition() const { return gPosition_; }  ///< xyz world, w = 1 where a surface was seen
+  const gl::Texture& gNormal() const { return gNormal_; }      ///< xyz unit normal towards the camera, w = object index + 1 (0 real)
+  const gl::Texture& gAlbedo() const { return gAlbedo_; }      ///< rgb albedo, a = 1 on virtual surfaces
+  const gl::Texture& gDepth() const { return gDepth_; }
+  /// Light views of the lights rendered so far this run (all of them after the RSM stage).
+  const std::vector<LightView>& lightViews() const { return views_; }
+  /// The RSMs of the light rendered last.
+  const Rsm& rsmRho() const { return rsmRho_; }
+  const Rsm& rsmMu() const { return rsmMu_; }
+  RsmTexels downloadRsm(bool rho) const;
+  /// Per light: RSM^rho / RSM^mu world positions (layer = light index).
+  const gl::Texture& shadowRho() const { return shadowRho_; }
+  const gl::Texture& shadowMu() const { return shadowMu_; }
+  /// A zeroed RGBA32F texture of the output size (stands in for an output no technique provides).
+  const gl::Texture& zero();
+  /// CV_32FC4 G-buffer channel: 0 position, 1 normal, 2 albedo (a = virtual).
+  cv::Mat downloadGBuffer(int channel) const;
+  size_t gpuBytes() const;
+
+ private:
+  Rsm makeRsm(int size) const;
+  void renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual);
+
+  FrameConfig config_;
+  std::vector<FrameObject> objects_;
+  GpuMesh realMesh_;
+  std::vector<Val> realVals_;
+  std::optional<Region> region_;
+  CameraView camera_;
+  std::vector<SceneLight> lights_;
+  cv::Vec3d ambient_{0, 0, 0};
+  FrameVersions versions_;
+  struct Seen {
+    std::vector<double> camera, objects, lights, ambient;
+  };
+  std::optional<Seen> seen_;
+  bool geometryDirty_ = true, realValsDirty_ = true;
+
+  gl::Program gbufferProgram_, rsmProgram_;
+  gl::Texture gPosition_, gNormal_, gAlbedo_, gDepth_;
+  gl::Framebuffer gbufferFb_;
+  Rsm rsmRho_, rsmMu_;
+  gl::Texture shadowRho_, shadowMu_, zero_;
+  std::vector<LightView> views_;
+};
+
+/// CV_32FC4 download of an RGBA32F 2D texture.
+cv::Mat download4(const gl::Texture& t);
+
+}  // namespace mrgi::lighting

@@ -1,0 +1,75 @@
+#pragma once
+/// The real scene as light sources: real-surface virtual area lights (Lambertian discs of the seen
+/// radiance) from RGB-D pixels, fused over frames in a world-space surfel map. Shared by every technique
+/// that lets real surfaces light the virtual object.
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "capture/types.h"
+
+namespace mrgi::lighting {
+
+/// One virtual area light (GPU layout: 3 × vec4).
+struct Val {
+  cv::Vec3f position;  ///< disc centre, world
+  float area = 0;      ///< m²
+  cv::Vec3f normal;    ///< unit, the emitting side
+  float weight = 1;    ///< averaging weight: lum(φ_j) / mean lum(φ) × mean area (m²); see setValWeights
+  cv::Vec3f flux;      ///< W (RGB)
+  float pad = 0;
+};
+static_assert(sizeof(Val) == 48);
+
+/// VALs from an RGB-D frame: every stride-th valid pixel with a normal, position and normal moved into the
+/// world, area (z/fx)(z/fy) stride² cos α / <n, −view>+ (α off the optical axis, cos clamped at 0.1), radiance = the linear colour / π
+/// per unit albedo... i.e. a Lambertian emitter of the seen radiance: φ = π L a.
+std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, const cv::Mat& linearColour,
+                              const capture::Intrinsics& k, const capture::Pose& T_world_camera, int stride);
+/// Sets every VAL's averaging weight: its flux luminance over the set's mean (1 when that is 0) times the
+/// set's mean area, so that ε + weight · cos ϑ_j cos ϑ_i / (π d² + a_j) ∝ lum(E_j) is a form-factor-sized number.
+void setValWeights(std::vector<Val>& vals);
+
+/// Beyond the paper: real-surface VALs fused over frames in a world-space map keyed by voxel, so surfaces
+/// that left the view keep lighting the object and the light does not flicker with sensor noise.
+struct SurfelOptions {
+  float voxel = 0.02f;       ///< metres
+  float decay = 0.0f;        ///< confidence kept per frame by a surfel the frame should have seen but did not:
+                             ///< 0 drops it (the frame is authoritative for what it sees; otherwise a surface
+                             ///< quantised into a neighbouring voxel this time counts twice)
+  float minConfidence = 0.05f;
+  float maxConfidence = 10.f;
+};
+/// How an application builds the real-surface area lights a technique asks for.
+struct RealValOptions {
+  int stride = 4;        ///< RGB-D pixel stride
+  bool fusion = true;    ///< fuse them over frames in a SurfelMap
+  SurfelOptions surfels;
+};
+
+class SurfelMap {
+ public:
+  explicit SurfelMap(const SurfelOptions& o = {}) : o_(o) {}
+  /// Integrates one frame's VALs (world frame). A surfel not observed decays only where the frame should
+  /// have seen it: it projects into the image (view: T_world_camera, k) and the frame's depth there is
+  /// valid and not in front of it by more than two voxels. Surfels out of view or hidden keep their light.
+  /// Without a view (depth empty) every unobserved surfel decays.
+  void integrate(const std::vector<Val>& vals, const cv::Mat& depth = cv::Mat(), const capture::Intrinsics& k = {},
+                 const capture::Pose& T_world_camera = capture::identityPose());
+  /// One VAL per surfel: confidence-weighted mean position, normal, radiance and area.
+  std::vector<Val> vals() const;
+  size_t size() const { return map_.size(); }
+  void clear() { map_.clear(); }
+
+ private:
+  struct Surfel {
+    cv::Vec3f position{0, 0, 0}, normal{0, 0, 0}, exitance{0, 0, 0};  ///< running means (exitance = φ/a)
+    float area = 0, confidence = 0;
+  };
+  SurfelOptions o_;
+  std::unordered_map<uint64_t, Surfel> map_;
+};
+
+}  // namespace mrgi::lighting

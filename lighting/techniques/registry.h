@@ -1,0 +1,77 @@
+#pragma once
+/// The registry of lighting techniques: one line per technique in registry.cpp, and the only place outside
+/// a technique's folder that names it. Scene files, replay/live --technique, the bench sweep, presets and
+/// the live window's panel enumerate techniques and their knob tables from here.
+///
+/// A scene chooses a technique per role: `"technique": {"real": "dlpv", "virtual": "kinect-val"}` ("none":
+/// only the shared pass's direct light, shadows and ambient). Shorthands: a technique's name alone takes
+/// every role it supports; "A+B" is {"real": A, "virtual": B}; a technique may declare aliases that set
+/// knobs (e.g. a variant).
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lighting/knobs.h"
+#include "lighting/techniques/technique.h"
+
+namespace mrgi::lighting {
+
+/// An alias: a name standing for the technique with some knobs set ("lpv-diff").
+struct TechniqueAlias {
+  std::string name;
+  KnobValues knobs;
+  std::string description;
+};
+
+struct TechniqueInfo {
+  std::string name;         ///< registry name, also the scene-file and CLI spelling
+  std::string description;  ///< one line
+  bool real = false, virtualObject = false;  ///< roles it can serve
+  std::vector<std::string> stagePrefixes;    ///< profiler stage names it times ("lpv." ...), for the bench's sums
+  KnobGroup knobs;                           ///< its scene-file section and knob table
+  std::vector<TechniqueAlias> aliases;
+  std::function<std::unique_ptr<Technique>(const TechniqueSetup&)> create;
+};
+
+/// Every registered technique, in registry order.
+const std::vector<TechniqueInfo>& techniques();
+/// nullptr when unknown.
+const TechniqueInfo* findTechnique(const std::string& name);
+/// Every knob group: the shared frame group first, then each technique's.
+std::vector<const KnobGroup*> knobGroups();
+const KnobGroup* findKnobGroup(const std::string& key);
+/// Every group of `knobs` completed with defaults (groups missing entirely are added).
+void completeKnobs(KnobSet& knobs);
+
+/// Parses a technique string (a name, an alias, "A+B") into roles; alias knobs are written into `knobs`.
+/// Throws std::invalid_argument naming the valid spellings.
+TechniqueChoice parseTechniqueChoice(const std::string& spelling, KnobSet* knobs);
+/// Parses {"real": ..., "virtual": ...} (either may be missing: "none").
+TechniqueChoice parseTechniqueRoles(const std::string& real, const std::string& virtualObject, KnobSet* knobs);
+/// The canonical spelling of roles: the technique's name when it serves every role it is given (and the
+/// other is "none" because it cannot serve it), else "real+virtual".
+std::string canonicalName(const TechniqueChoice& c);
+/// Every accepted spelling of a single technique string (names, aliases), for --help and errors.
+std::vector<std::string> techniqueSpellings();
+/// The scene-file JSON of a choice: the string when it is a plain spelling, else {"real", "virtual"}.
+nlohmann::json techniqueJson(const TechniqueChoice& c);
+
+/// The distinct techniques of a choice ("none" left out), each with the roles it serves.
+struct RoleAssignment {
+  const TechniqueInfo* info;
+  bool real = false, virtualObject = false;
+};
+std::vector<RoleAssignment> assignRoles(const TechniqueChoice& c);
+
+/// The knobs a choice uses as JSON: {"frame": {...}, <group of each technique in use>: {...}}.
+nlohmann::json usedKnobsJson(const TechniqueChoice& c, const KnobSet& knobs);
+/// Applies a knob JSON object of that shape to `knobs` (checked; unknown groups or knobs throw
+/// std::invalid_argument naming them). Older flat objects ({"resolution": 16, ...}) are accepted too: each
+/// name goes to the one group that declares it.
+void applyKnobsJson(const nlohmann::json& j, KnobSet& knobs);
+
+/// Whether a profiler stage belongs to the lighting (frame stages or a technique's).
+bool isLightingStage(const std::string& stage);
+
+}  // namespace mrgi::lighting

@@ -1,0 +1,88 @@
+#pragma once
+/// The one interface every lighting technique implements (DLPV, Kinect-VAL, and those to come). A technique
+/// reads the frame's shared resources (lighting/frame/frame.h), declares which of their versions its results
+/// depend on, and hands out GPU textures the shared shading pass adds: a real-pixel delta and/or the
+/// virtual object's indirect light. It never draws the direct light, shadows or ambient (the shading pass
+/// does), and nothing outside its folder names it except the registry (lighting/techniques/registry.cpp).
+///
+/// Per run the pipeline calls, only when the technique's declared inputs changed:
+///   beginLights()  -> light(i) for each light, right after the frame rendered light i's RSMs -> endLights()
+///   (only when the RSMs were re-rendered, i.e. lights or geometry changed), then update().
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "gl/objects.h"
+#include "gl/profiler.h"
+#include "lighting/frame/frame.h"
+#include "lighting/knobs.h"
+
+namespace mrgi::lighting {
+
+/// What a technique is asked to provide.
+enum class Role { Real, Virtual };
+
+/// What the technique needs from the frame besides the G-buffer and the RSMs.
+struct TechniqueNeeds {
+  bool realVals = false;  ///< real-surface area lights (FrameResources::setRealVals)
+  RealValOptions realValOptions;  ///< how the application should build them (stride, fusion)
+};
+
+/// Outputs, RGBA32F textures of the output size; nullptr = none (the shading pass reads zero).
+struct TechniqueOutputs {
+  /// Real pixels: rgb = E_delta (W/m^2), the irradiance the virtual objects add (or remove) on real surfaces.
+  const gl::Texture* realDelta = nullptr;
+  /// Virtual pixels: rgb = indirect irradiance (W/m^2), shaded with the albedo like the direct light.
+  const gl::Texture* virtualIrradiance = nullptr;
+  /// Virtual pixels: rgb = indirect radiance added as it is (W/m^2/sr; glossy reflection).
+  const gl::Texture* virtualRadiance = nullptr;
+};
+
+/// What a debug view may draw on.
+struct DebugContext {
+  cv::Mat composite;  ///< RGB8, the frame's composite
+  capture::Intrinsics intrinsics;
+  std::optional<capture::Pose> T_world_camera;
+};
+
+/// How a technique is built: its knob values (complete), the roles it serves in this pipeline, the frame.
+struct TechniqueSetup {
+  KnobValues knobs;
+  bool real = false, virtualObject = false;
+  const FrameResources* frame = nullptr;
+};
+
+class Technique {
+ public:
+  virtual ~Technique() = default;
+
+  /// Registry name ("dlpv").
+  virtual std::string name() const = 0;
+  /// The frame inputs update() depends on (FrameInput bits). Per-light work always depends on lights and
+  /// geometry.
+  virtual unsigned inputs() const = 0;
+  virtual TechniqueNeeds needs() const { return {}; }
+  /// Whether the real-pixel delta already contains the object's direct shadow on real surfaces (otherwise
+  /// the shading pass adds it from the shadow maps).
+  virtual bool accountsForDirectShadow() const { return false; }
+
+  virtual void beginLights(const FrameResources& frame, gl::Profiler* profiler) {}
+  virtual void light(const FrameResources& frame, size_t index, gl::Profiler* profiler) {}
+  virtual void endLights(const FrameResources& frame, gl::Profiler* profiler) {}
+  /// Computes the outputs from the frame (its G-buffer is current).
+  virtual void update(const FrameResources& frame, gl::Profiler* profiler) = 0;
+  virtual TechniqueOutputs outputs() const = 0;
+
+  /// Debug views ("dlpv_slices") and their images (RGB8; empty when there is nothing to show). `info`
+  /// receives the scales the image used.
+  virtual std::vector<std::string> debugViews() const { return {}; }
+  virtual cv::Mat debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const { return {}; }
+  /// Per-frame facts for summary.json (counts, flicker, ...), after update().
+  virtual nlohmann::json stats() const { return nlohmann::json::object(); }
+  /// GPU memory of the textures and buffers it holds, bytes.
+  virtual size_t gpuBytes() const = 0;
+};
+
+}  // namespace mrgi::lighting
