@@ -16,11 +16,12 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/quality.hpp>
 
-#include "app/bench.h"
+#include "evaluation/bench.h"
+#include "evaluation/metrics.h"
 #include "app/commands.h"
-#include "app/frame_pipeline.h"
+#include "runtime/frame_pipeline.h"
 #include "app/output.h"
-#include "app/reference_scene.h"
+#include "evaluation/reference_scene.h"
 #include "compositor/compositor.h"
 #include "capture/colour.h"
 #include "capture/error.h"
@@ -64,25 +65,6 @@ struct BenchOptions {
   std::string gl = "osmesa";
 };
 
-/// Stage times of one pipeline run (ms, the larger of CPU wall and GPU time per stage).
-std::map<std::string, double> stageMs(gl::Profiler& profiler) {
-  std::map<std::string, double> out;
-  for (const auto& [name, t] : profiler.resolve()) out[name] = std::max(t.cpuMs, t.gpuMs);
-  return out;
-}
-
-/// Best (per stage) over `repeats` full runs of the pipeline: each repeat starts from an invalidated pipeline,
-/// so no stage is skipped because its inputs did not change.
-std::map<std::string, double> bestStages(lighting::LightingPipeline& pipe, const lighting::CameraView& view, int repeats) {
-  gl::Profiler profiler;
-  std::map<std::string, double> best;
-  for (int i = 0; i < repeats; ++i) {
-    pipe.invalidate();
-    pipe.run(view, {}, {0, 0, 0}, &profiler);
-    for (const auto& [name, ms] : stageMs(profiler)) best[name] = best.count(name) ? std::min(best[name], ms) : ms;
-  }
-  return best;
-}
 
 int runBruteForce(const BenchOptions& o) {
   // The technique's sparse method against its own brute force (a "brute_force" knob): its real-surface area
@@ -229,128 +211,6 @@ int runBruteForce(const BenchOptions& o) {
   return 0;
 }
 
-/// The path-traced truth of one frame.
-struct Truth {
-  int frame = 0;
-  lighting::reference::DifferentialImages images;
-  cv::Mat delta, composite;  ///< the compositor's delta input; the reference composite (RGB8)
-};
-
-/// What one frame of a configuration left behind for the flicker of the next.
-struct FrameState {
-  cv::Mat shade, positions;  ///< RGBA32F: delta or virtual radiance (a = virtual); G-buffer positions (w = valid)
-  cv::Mat smooth;            ///< CV_32F: luminance of the real pixels' delta, averaged over a 5x5 window of real pixels
-  capture::Pose T_marker_camera;
-};
-
-double lum3(const cv::Vec4f& v) { return capture::luminance({v[0], v[1], v[2]}); }
-
-/// The frame's state; the delta's luminance is box-averaged over real, valid pixels (normalised convolution),
-/// so that a shadow edge landing one pixel over after reprojection does not count as flicker.
-FrameState frameState(cv::Mat shade, cv::Mat positions, const capture::Pose& T_marker_camera) {
-  cv::Mat lum(shade.size(), CV_32F, cv::Scalar(0)), weight(shade.size(), CV_32F, cv::Scalar(0));
-  for (int i = 0; i < static_cast<int>(shade.total()); ++i) {
-    const cv::Vec4f s = shade.at<cv::Vec4f>(i);
-    if (positions.at<cv::Vec4f>(i)[3] < 0.5f || s[3] > 0.5f) continue;
-    lum.at<float>(i) = static_cast<float>(lum3(s));
-    weight.at<float>(i) = 1.f;
-  }
-  cv::Mat num, den;
-  cv::boxFilter(lum, num, CV_32F, {5, 5}, {-1, -1}, false);
-  cv::boxFilter(weight, den, CV_32F, {5, 5}, {-1, -1}, false);
-  cv::Mat smooth = num / cv::max(den, 1.f);
-  return {std::move(shade), std::move(positions), std::move(smooth), T_marker_camera};
-}
-
-/// Frame-to-frame change of the real pixels' smoothed delta at the same marker-frame points (reprojected with
-/// the camera poses), relative to its magnitude: Σ|lum δ_t − lum δ_{t−1}| / Σ|lum δ_{t−1}| over matched pixels.
-std::pair<double, double> flickerSums(const FrameState& prev, const FrameState& cur, const capture::Intrinsics& k) {
-  const capture::Pose T_camera_marker = capture::inversePose(prev.T_marker_camera);
-  double num = 0, den = 0;
-  for (int y = 0; y < cur.positions.rows; ++y)
-    for (int x = 0; x < cur.positions.cols; ++x) {
-      const cv::Vec4f p = cur.positions.at<cv::Vec4f>(y, x);
-      const cv::Vec4f s = cur.shade.at<cv::Vec4f>(y, x);
-      if (p[3] < 0.5f || s[3] > 0.5f) continue;
-      const cv::Vec3d c = capture::transformPoint(T_camera_marker, {p[0], p[1], p[2]});
-      if (c[2] <= 0) continue;
-      const int u = static_cast<int>(std::lround(k.fx * c[0] / c[2] + k.cx)), v = static_cast<int>(std::lround(k.fy * c[1] / c[2] + k.cy));
-      if (u < 0 || v < 0 || u >= prev.positions.cols || v >= prev.positions.rows) continue;
-      const cv::Vec4f q = prev.positions.at<cv::Vec4f>(v, u);
-      const cv::Vec4f t = prev.shade.at<cv::Vec4f>(v, u);
-      if (q[3] < 0.5f || t[3] > 0.5f) continue;
-      if (cv::norm(cv::Vec3f(q[0] - p[0], q[1] - p[1], q[2] - p[2])) > 0.01) continue;  // not the same surface point
-      const double a = cur.smooth.at<float>(y, x), b = prev.smooth.at<float>(v, u);
-      num += std::abs(a - b);
-      den += std::abs(b);
-    }
-  return {num, den};
-}
-
-/// Error sums of one frame against its truth.
-struct ErrorSums {
-  double sq = 0, abs = 0, absRef = 0;
-  size_t real = 0;
-  double virtAbs = 0, virtRef = 0;
-  size_t mismatched = 0;  ///< pixels virtual in one image only (silhouette), left out
-  void add(const ErrorSums& e) {
-    sq += e.sq, abs += e.abs, absRef += e.absRef, real += e.real;
-    virtAbs += e.virtAbs, virtRef += e.virtRef, mismatched += e.mismatched;
-  }
-  double rmse() const { return real ? std::sqrt(sq / (3.0 * static_cast<double>(real))) : 0.0; }
-  double relDelta() const { return absRef > 0 ? abs / absRef : 0.0; }
-  double relVirtual() const { return virtRef > 0 ? virtAbs / virtRef : 0.0; }
-};
-
-ErrorSums errorSums(const cv::Mat& shade, const Truth& truth) {
-  ErrorSums e;
-  for (int y = 0; y < shade.rows; ++y)
-    for (int x = 0; x < shade.cols; ++x) {
-      const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
-      const cv::Vec3f r = truth.delta.at<cv::Vec3f>(y, x);
-      const bool virtRt = s[3] > 0.5f, virtRef = truth.images.mask.at<uchar>(y, x) != 0;
-      if (virtRt != virtRef) {
-        ++e.mismatched;
-        continue;
-      }
-      for (int c = 0; c < 3; ++c) {
-        const double d = s[c] - r[c];
-        if (virtRt) {
-          e.virtAbs += std::abs(d);
-          e.virtRef += std::abs(r[c]);
-        } else {
-          e.sq += d * d;
-          e.abs += std::abs(d);
-          e.absRef += std::abs(r[c]);
-        }
-      }
-      if (!virtRt) ++e.real;
-    }
-  return e;
-}
-
-/// |delta_rt − delta_ref| as a heat image (black = 0, white = `scale`), virtual pixels grey.
-cv::Mat errorImage(const cv::Mat& shade, const Truth& truth, double scale) {
-  cv::Mat out(shade.size(), CV_8UC3);
-  for (int y = 0; y < shade.rows; ++y)
-    for (int x = 0; x < shade.cols; ++x) {
-      const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
-      const cv::Vec3f r = truth.delta.at<cv::Vec3f>(y, x);
-      if (s[3] > 0.5f || truth.images.mask.at<uchar>(y, x)) {
-        out.at<cv::Vec3b>(y, x) = {90, 90, 90};
-        continue;
-      }
-      const double d = capture::luminance({s[0] - r[0], s[1] - r[1], s[2] - r[2]});
-      const auto v = cv::saturate_cast<uchar>(255.0 * std::abs(d) / scale);
-      out.at<cv::Vec3b>(y, x) = d < 0 ? cv::Vec3b(v, v / 4, v / 4) : cv::Vec3b(v / 4, v, v / 4);  // red: too dark
-    }
-  return out;
-}
-
-double ssimOf(const cv::Mat& a, const cv::Mat& b) {
-  const cv::Scalar s = cv::quality::QualitySSIM::compute(a, b, cv::noArray());
-  return (s[0] + s[1] + s[2]) / 3.0;
-}
 
 /// One session of the sweep: its frames, lighting setup and truths.
 struct BenchSession {
@@ -489,7 +349,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     if (!r.T_marker_camera) throw capture::CaptureError(path, "frame " + std::to_string(f) + ": no camera pose (marker not found)");
     const ReferenceScenes scenes = reconstructedScenes(*measurer.setup(), measurer.realSurface(frame, r, none),
                                                        frame.rgbd->colourIntrinsics, *r.T_marker_camera);
-    lighting::reference::PathTraceOptions po;
+    groundtruth::PathTraceOptions po;
     po.spp = o.refSpp;
     po.bounces = o.refBounces;
     ProgressBar bar(fs::path(path).filename().string() + ": reference frame " + std::to_string(f));
@@ -497,7 +357,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     const auto t0 = std::chrono::steady_clock::now();
     Truth t;
     t.frame = f;
-    t.images = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
+    t.images = groundtruth::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
     ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     t.delta = t.images.delta();
     t.composite = compositor::compositeReference(frame.rgbd->colour, t.delta, t.images.mask);
@@ -506,7 +366,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
       // the converged image, the floor under every technique's error.
       po.seed += 1;
       po.progress = nullptr;
-      const auto again = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
+      const auto again = groundtruth::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
       cv::Mat shadeLike(again.rho.size(), CV_32FC4);
       const cv::Mat d2 = again.delta();
       for (int i = 0; i < static_cast<int>(d2.total()); ++i) {

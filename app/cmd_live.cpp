@@ -10,11 +10,11 @@
 #include <imgui.h>
 #include <nlohmann/json.hpp>
 
-#include "app/bench.h"
+#include "runtime/presets.h"
 #include "app/commands.h"
 #include "lighting/techniques/registry.h"
-#include "app/debug_view.h"
-#include "app/frame_pipeline.h"
+#include "runtime/debug_view.h"
+#include "runtime/frame_pipeline.h"
 #include "app/live_source.h"
 #include "app/output.h"
 #include "app/window_ui.h"

@@ -8,9 +8,9 @@
 #include <nlohmann/json.hpp>
 
 #include "app/commands.h"
-#include "app/frame_pipeline.h"
+#include "runtime/frame_pipeline.h"
 #include "app/output.h"
-#include "app/reference_scene.h"
+#include "evaluation/reference_scene.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -60,7 +60,7 @@ int runReference(const ReferenceOptions& o) {
   const RealSurface real = frames.realSurface(*frame, r, profiler);
   const ReferenceScenes scenes = reconstructedScenes(*frames.setup(), real, k, *r.T_marker_camera);
 
-  lighting::reference::PathTraceOptions po;
+  groundtruth::PathTraceOptions po;
   po.spp = o.spp;
   po.bounces = o.bounces;
   po.seed = o.seed;
@@ -68,7 +68,7 @@ int runReference(const ReferenceOptions& o) {
   ProgressBar bar("reference frame " + std::to_string(o.frame));
   po.progress = [&bar](double f) { bar(f); };
   const auto t0 = std::chrono::steady_clock::now();
-  const auto images = lighting::reference::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
+  const auto images = groundtruth::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   const cv::Mat delta = images.delta();
 

@@ -8,10 +8,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "app/bench.h"
-#include "app/debug_view.h"
+#include "runtime/presets.h"
+#include "runtime/debug_view.h"
 #include "app/commands.h"
-#include "app/frame_pipeline.h"
+#include "runtime/frame_pipeline.h"
 #include "app/output.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"

@@ -17,7 +17,7 @@
 #include "app/output.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
-#include "app/reference_scene.h"
+#include "evaluation/reference_scene.h"
 #include "lighting/scene_file.h"
 
 namespace fs = std::filesystem;
@@ -25,8 +25,8 @@ namespace fs = std::filesystem;
 namespace mrgi::app {
 namespace {
 
-using lighting::reference::PathTracer;
-using lighting::reference::RayCaster;
+using groundtruth::PathTracer;
+using groundtruth::RayCaster;
 
 struct SynthOptions {
   std::string out;
@@ -46,7 +46,7 @@ struct SynthOptions {
 
 /// Loads an equirectangular EXR (linear RGB, 2:1) as the environment; scale 0 picks the exposure at which
 /// a white upward-facing surface under the open sky has radiance 0.6.
-std::shared_ptr<const lighting::reference::EnvironmentMap> loadEnvironment(const std::string& path, double& scale) {
+std::shared_ptr<const groundtruth::EnvironmentMap> loadEnvironment(const std::string& path, double& scale) {
   cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
   if (img.empty() || img.depth() != CV_32F || (img.channels() != 3 && img.channels() != 4) || img.cols != 2 * img.rows)
     throw capture::CaptureError(path, "cannot be read as an HDR environment (float EXR, equirectangular, width = 2 x height)");
@@ -55,7 +55,7 @@ std::shared_ptr<const lighting::reference::EnvironmentMap> loadEnvironment(const
   if (scale <= 0) {
     // Irradiance on an upward plane: sum of L cos(theta) over the upper half's texels (solid angle each),
     // from the map as the path tracer sees it (non-finite and negative texels cleared).
-    const lighting::reference::EnvironmentMap unscaled(img, 1.f);
+    const groundtruth::EnvironmentMap unscaled(img, 1.f);
     double E = 0;
     const int W = unscaled.width(), H = unscaled.height();
     for (int y = 0; y < H / 2; ++y) {
@@ -67,7 +67,7 @@ std::shared_ptr<const lighting::reference::EnvironmentMap> loadEnvironment(const
     if (!(E > 0)) throw capture::CaptureError(path, "is black above the horizon");
     scale = 0.6 * CV_PI / E;
   }
-  return std::make_shared<lighting::reference::EnvironmentMap>(img, static_cast<float>(scale));
+  return std::make_shared<groundtruth::EnvironmentMap>(img, static_cast<float>(scale));
 }
 
 cv::Vec3f toFloat(const cv::Vec3d& v) { return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])}; }
@@ -187,7 +187,7 @@ int runSynth(const SynthOptions& o) {
   Tabletop table = buildTabletop(tc);
   const bool pathTrace = o.render == "pathtrace";
   // The reference's virtual objects (marker frame) move into the room through the true marker pose.
-  lighting::reference::Scene augmented;
+  groundtruth::Scene augmented;
   if (!o.scene.empty()) {
     const lighting::SceneDescription desc = lighting::loadScene(o.scene);
     if (desc.objects.empty()) throw capture::CaptureError(o.scene, "has no virtual object to render a reference of");
@@ -208,7 +208,7 @@ int runSynth(const SynthOptions& o) {
                                       {"mask", "reference/mask_NNNNNN.png"},
                                       {"note", "the camera image of the room with the scene's objects, same noise"}};
   const RayCaster rc(table.scene);
-  lighting::reference::PathTraceOptions po;
+  groundtruth::PathTraceOptions po;
   po.spp = o.spp;
   po.bounces = o.bounces;
   po.jitter = true;
@@ -225,7 +225,7 @@ int runSynth(const SynthOptions& o) {
 
   cv::Mat fisheye;
   if (m.fisheye) {
-    lighting::reference::PathTraceOptions fo = po;
+    groundtruth::PathTraceOptions fo = po;
     fo.spp = std::max(4, o.spp / 4);
     const PathTracer fpt(rc, fo);
     fisheye = renderFisheye(rc, pathTrace ? &fpt : nullptr, *m.fisheye);
@@ -253,11 +253,11 @@ int runSynth(const SynthOptions& o) {
     rgbd.colourIntrinsics = rgbd.depthIntrinsics = m.colour;
     if (augmentedCaster) {
       // The ideal composite: the same camera (seed, noise) looking at the room with the objects in it.
-      const lighting::reference::PinholeCamera cam{m.colour, *frame.groundTruthT_world_camera};
-      lighting::reference::PathTraceOptions rhoOptions = po;
+      const groundtruth::PinholeCamera cam{m.colour, *frame.groundTruthT_world_camera};
+      groundtruth::PathTraceOptions rhoOptions = po;
       rhoOptions.progress = [&bar, i, &o](double x) { bar((i + 0.5 + 0.5 * x) / o.frames); };
       const cv::Mat rho = pathTrace ? PathTracer(*augmentedCaster, rhoOptions).render(cam) : r.radiance;
-      const cv::Mat mask = lighting::reference::virtualMask(*augmentedCaster, cam);
+      const cv::Mat mask = groundtruth::virtualMask(*augmentedCaster, cam);
       cv::Mat delta = rho - r.radiance;
       rho.copyTo(delta, mask);
       char name[64];

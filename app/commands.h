@@ -5,7 +5,14 @@
 
 #include <CLI/CLI.hpp>
 
+namespace mrgi::runtime {}
+namespace mrgi::evaluation {}
+
 namespace mrgi::app {
+
+// The subcommands use the shared per-frame work and the evaluation libraries unqualified.
+using namespace mrgi::runtime;
+using namespace mrgi::evaluation;
 
 using Action = std::function<int()>;
 

@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "capture/types.h"
-#include "lighting/reference/scene.h"
+#include "groundtruth/scene.h"
 
 namespace mrgi::app {
 
@@ -18,12 +18,12 @@ struct TabletopConfig {
   double tagSize = 0.16;  ///< black-square edge, metres
   uint64_t seed = 1;
   /// Outdoors: the table stands on open ground under this HDR environment (no room, no point light).
-  std::shared_ptr<const lighting::reference::EnvironmentMap> environment;
+  std::shared_ptr<const groundtruth::EnvironmentMap> environment;
   nlohmann::json environmentInfo;  ///< what the manifest records about it (file, scale)
 };
 
 struct Tabletop {
-  lighting::reference::Scene scene;
+  groundtruth::Scene scene;
   capture::Pose T_world_marker;
   nlohmann::json groundTruth;  ///< lights, materials, marker pose, as stored in the manifest
 };

@@ -344,17 +344,21 @@ TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
     EXPECT_GT(cv::countNonZero((diffGrey > 10) & (mask == 255)), 20);
     const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
     EXPECT_EQ(s["technique"], technique);
+    EXPECT_EQ(s["roles"]["virtual"], val ? "kinect-val" : "dlpv");
+    EXPECT_EQ(s["roles"]["real"], lpv ? "dlpv" : "none");
+    EXPECT_EQ(s["knobs"]["lpv"].contains("resolution"), lpv);
+    EXPECT_EQ(s["knobs"]["frame"]["rsm_size"], 128);
     EXPECT_EQ(s["stages_ms"].contains("lpv.inject"), lpv);
     if (val) {
       // Kinect-VAL: real VALs from the frame, virtual ones from the RSM, the default 1024 sparse points,
       // the real surfaces fused over the two frames, and the bounce light's frame-to-frame change.
-      const auto& f = s["per_frame"][1]["val"];
+      const auto& f = s["per_frame"][1]["techniques"]["kinect-val"];
       EXPECT_GT(f["real_vals"].get<int>(), 1000);
       EXPECT_GT(f["virtual_vals"].get<int>(), 10);
       EXPECT_EQ(f["receivers"].get<int>(), 1024);
-      EXPECT_GE(f["surfels"].get<int>(), f["real_vals"].get<int>());
+      EXPECT_GE(s["per_frame"][1]["surfels"].get<int>(), f["real_vals"].get<int>());
       EXPECT_GT(f["mean_irradiance"].get<double>(), 0.0);
-      const double flicker = s["val_flicker_mean"].get<double>();  // 2 frames far apart on the orbit
+      const double flicker = s["flicker_mean"]["kinect-val"].get<double>();  // 2 frames far apart on the orbit
       EXPECT_TRUE(flicker > 0.0 && flicker < 1.0) << flicker;
       EXPECT_EQ(s["knobs"]["val"]["sparse_points"], 1024);
     }
@@ -525,7 +529,7 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
   double mbDefault = 0, mbCoarse = 0;
   for (const auto& rec : doc["records"])
     if (rec["technique"] == "dlpv" && rec["varied"] == "") mbDefault = rec["gpu_mb"];
-    else if (rec["technique"] == "dlpv" && rec["varied"] == "resolution") mbCoarse = rec["gpu_mb"];
+    else if (rec["technique"] == "dlpv" && rec["varied"] == "lpv.resolution") mbCoarse = rec["gpu_mb"];
   EXPECT_LT(mbCoarse, mbDefault);
   EXPECT_EQ(lines(slurp(dir / "b.csv")), static_cast<int>(doc["records"].size()) + 1);
   const std::string html = slurp(dir / "b.html");
@@ -682,7 +686,7 @@ TEST(Cli, ReplaySkipsStagesWhoseInputsDidNotChange) {
   r = replay("reuse", "");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   auto summary = nlohmann::json::parse(slurp(dir / "reuse" / "summary.json"));
-  for (const char* stage : {"depth_filter", "normals", "albedo", "mesh", "gbuffer", "rsm", "lpv", "shade"})
+  for (const char* stage : {"depth_filter", "normals", "albedo", "mesh", "gbuffer", "rsm", "dlpv", "shade"})
     EXPECT_EQ(summary["skipped_frames"].value(stage, 0), 2) << stage;
   EXPECT_FALSE(summary["per_frame"][0].contains("skipped"));
   // The kept lighting is exactly the first frame's; the composites still follow the camera (new noise).

@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "lighting/techniques/dlpv/lpv.h"
-#include "lighting/reference/path_tracer.h"
+#include "groundtruth/path_tracer.h"
 #include "lighting/sh.h"
 #include "lighting/techniques/kinect_val/val.h"
 #include "test_scene.h"
@@ -102,28 +102,28 @@ Outputs gatherAndEvaluate(const Receiver& r, const std::vector<Val>& vals) {
 
 // --- Path tracer --------------------------------------------------------------------------------------
 /// A plane z = 0 (albedo 0.5) seen from above by a 12 x 9 camera, with the given lights and sky.
-Outputs planeImage(const std::vector<reference::Light>& lights, cv::Vec3f sky, bool emptyScene = false,
+Outputs planeImage(const std::vector<groundtruth::Light>& lights, cv::Vec3f sky, bool emptyScene = false,
                    float specular = 0, float exponent = 0) {
-  reference::Scene s;
-  reference::Material m{"plane", {0.5f, 0.5f, 0.5f}, -1, cv::Vec3f::all(specular), exponent};
+  groundtruth::Scene s;
+  groundtruth::Material m{"plane", {0.5f, 0.5f, 0.5f}, -1, cv::Vec3f::all(specular), exponent};
   const int id = s.addMaterial(m);
   if (!emptyScene) s.addQuad({-5, -5, 0}, {10, 0, 0}, {0, 10, 0}, id);
   s.lights = lights;
   s.environment = sky;
-  const reference::RayCaster rc(s);
-  reference::PathTraceOptions o;
+  const groundtruth::RayCaster rc(s);
+  groundtruth::PathTraceOptions o;
   o.spp = 4;
   o.bounces = 2;
-  reference::PinholeCamera cam;
+  groundtruth::PinholeCamera cam;
   cam.intrinsics = {12, 9, 10, 10, 5.5, 4};
   cam.T_world_camera = capture::Pose(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 1, 0, 0, 0, 1);
   Outputs out;
-  append(out, reference::PathTracer(rc, o).render(cam));
+  append(out, groundtruth::PathTracer(rc, o).render(cam));
   return out;
 }
 
-reference::Light pointLight(cv::Vec3f p, float intensity) {
-  reference::Light l;
+groundtruth::Light pointLight(cv::Vec3f p, float intensity) {
+  groundtruth::Light l;
   l.position = p;
   l.intensity = cv::Vec3f::all(intensity);
   l.radius = 0;
@@ -244,8 +244,8 @@ std::vector<Extreme> cases() {
                }});
   c.push_back({"PathTracerLightOnTheSurface", 1e-4, [] { return planeImage({pointLight({0, 0, 0}, 5.f)}, {0, 0, 0}); }});
   c.push_back({"PathTracerGrazingSunIsBlack", 0.0, [] {
-                 reference::Light sun;
-                 sun.type = reference::LightType::Directional;
+                 groundtruth::Light sun;
+                 sun.type = groundtruth::LightType::Directional;
                  sun.direction = {1, 0, 0};
                  sun.irradiance = {100, 100, 100};
                  return planeImage({sun}, {0, 0, 0});

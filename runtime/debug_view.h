@@ -7,9 +7,9 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
-#include "app/frame_pipeline.h"
+#include "runtime/frame_pipeline.h"
 
-namespace mrgi::app {
+namespace mrgi::runtime {
 
 /// A view by its file-name-friendly name: the shared ones below, and each technique's own (e.g. "dlpv_slices").
 using DebugView = std::string;
@@ -39,4 +39,4 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
 /// Draws the marker's axes (x red, y green, z blue, `length` metres) onto an RGB8 camera image.
 void drawMarkerAxes(cv::Mat& rgb, const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length);
 
-}  // namespace mrgi::app
+}  // namespace mrgi::runtime

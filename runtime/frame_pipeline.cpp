@@ -1,4 +1,4 @@
-#include "app/frame_pipeline.h"
+#include "runtime/frame_pipeline.h"
 
 #include <algorithm>
 
@@ -14,7 +14,7 @@
 
 using nlohmann::json;
 
-namespace mrgi::app {
+namespace mrgi::runtime {
 
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
                               const capture::FrameSource& source, const std::string& sourcePath,
@@ -262,4 +262,4 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   r.lit = true;
 }
 
-}  // namespace mrgi::app
+}  // namespace mrgi::runtime

@@ -1,4 +1,4 @@
-#include "app/debug_view.h"
+#include "runtime/debug_view.h"
 
 #include <algorithm>
 
@@ -9,7 +9,7 @@
 #include "lighting/debug_views.h"
 #include "reconstruction/light_estimation.h"
 
-namespace mrgi::app {
+namespace mrgi::runtime {
 
 std::vector<DebugView> debugViews(FramePipeline& frames) {
   std::vector<DebugView> out{Views::kComposite};
@@ -125,4 +125,4 @@ void drawMarkerAxes(cv::Mat& rgb, const capture::Intrinsics& k, const capture::P
   cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
 }
 
-}  // namespace mrgi::app
+}  // namespace mrgi::runtime

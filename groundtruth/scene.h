@@ -7,9 +7,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "lighting/reference/environment.h"
+#include "groundtruth/environment.h"
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 
 struct Material {
   std::string name;
@@ -62,4 +62,4 @@ struct Scene {
   void addBox(cv::Vec3f lo, cv::Vec3f hi, int material, bool inward = false);
 };
 
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

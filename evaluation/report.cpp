@@ -6,7 +6,7 @@
 #include <set>
 #include <sstream>
 
-#include "app/bench.h"
+#include "evaluation/bench.h"
 #include "lighting/techniques/registry.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
@@ -15,7 +15,7 @@
 
 using nlohmann::json;
 
-namespace mrgi::app {
+namespace mrgi::evaluation {
 
 json knobsJson(const BenchConfig& c) { return lighting::usedKnobsJson(c.technique, c.knobs); }
 
@@ -108,39 +108,6 @@ json choosePresets(const json& records) {
     if (score < bestScore) bestScore = score, balanced = i;
   }
   return {{"fast", records[fast]}, {"balanced", records[balanced]}, {"accurate", records[accurate]}};
-}
-
-void applyPreset(const json& preset, lighting::SceneDescription& scene) {
-  const json& t = preset.at("technique");
-  if (t.is_string())
-    scene.technique = lighting::parseTechniqueChoice(t.get<std::string>(), &scene.knobs);
-  else
-    scene.technique = lighting::parseTechniqueRoles(t.value("real", "none"), t.value("virtual", "none"), &scene.knobs);
-  lighting::applyKnobsJson(preset.at("knobs"), scene.knobs);
-}
-
-json loadPreset(const std::string& path, const std::string& name) {
-  std::ifstream in(path);
-  if (!in) throw capture::CaptureError(path, "cannot read the presets file");
-  json doc;
-  try {
-    doc = json::parse(in);
-  } catch (const json::exception& e) {
-    throw capture::CaptureError(path, std::string("not valid JSON: ") + e.what());
-  }
-  const json& presets = doc.contains("presets") ? doc["presets"] : doc;
-  if (!presets.is_object() || !presets.contains(name))
-    throw capture::CaptureError(path, "has no preset \"" + name + "\" (fast, balanced, accurate)");
-  const json& p = presets[name];
-  if (!p.contains("technique") || !p.contains("knobs") || !p["knobs"].is_object())
-    throw capture::CaptureError(path, "preset \"" + name + "\" lacks technique or knobs");
-  try {
-    lighting::SceneDescription probe;
-    applyPreset(p, probe);
-  } catch (const std::exception& e) {
-    throw capture::CaptureError(path, "preset \"" + name + "\": " + e.what());
-  }
-  return p;
 }
 
 void writeCsv(const std::string& path, const json& records) {
@@ -475,4 +442,4 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   capture::writeFileAtomically(path, h.str());
 }
 
-}  // namespace mrgi::app
+}  // namespace mrgi::evaluation

@@ -1,11 +1,11 @@
-#include "lighting/reference/environment.h"
+#include "groundtruth/environment.h"
 
 #include <algorithm>
 #include <cmath>
 
 #include "capture/colour.h"
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 namespace {
 constexpr float kPi = 3.14159265358979f;
 
@@ -108,4 +108,4 @@ float EnvironmentMap::pdf(const cv::Vec3f& d) const {
   return texelPdf_[static_cast<size_t>(y) * W + x] * static_cast<float>(W * H) / (2.f * kPi * kPi * sinTheta);
 }
 
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

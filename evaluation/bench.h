@@ -9,7 +9,7 @@
 
 #include "lighting/scene_file.h"
 
-namespace mrgi::app {
+namespace mrgi::evaluation {
 
 /// One configuration of the sweep: the techniques by role and every knob; `varied` names the knob this
 /// configuration moves away from the defaults ("group.knob"; "" = the defaults themselves), which the
@@ -35,11 +35,6 @@ std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, 
 /// Returns {"fast": record, "balanced": record, "accurate": record} (empty object without records).
 nlohmann::json choosePresets(const nlohmann::json& records);
 
-/// Applies a preset record's technique and knobs to a scene (knobs by group; older flat knob objects too).
-void applyPreset(const nlohmann::json& preset, lighting::SceneDescription& scene);
-/// Loads preset `name` from a presets file written by `mrgi bench --presets`; errors name the file.
-nlohmann::json loadPreset(const std::string& path, const std::string& name);
-
 /// Images the HTML report shows, PNG-encoded.
 struct ReportImage {
   std::string caption;
@@ -50,4 +45,4 @@ void writeCsv(const std::string& path, const nlohmann::json& records);
 /// doc: the bench's JSON document (records, presets, reference, renderer).
 void writeHtml(const std::string& path, const nlohmann::json& doc, const std::vector<ReportImage>& images);
 
-}  // namespace mrgi::app
+}  // namespace mrgi::evaluation

@@ -9,9 +9,9 @@
 #include <opencv2/core.hpp>
 
 #include "capture/types.h"
-#include "lighting/reference/raycaster.h"
+#include "groundtruth/raycaster.h"
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 
 struct PathTraceOptions {
   int spp = 64;         ///< samples (paths) per pixel
@@ -68,4 +68,4 @@ cv::Mat virtualMask(const RayCaster& caster, const PinholeCamera& camera);
 DifferentialImages renderDifferential(const Scene& withObjects, const Scene& realOnly, const PinholeCamera& camera,
                                       const PathTraceOptions& options);
 
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

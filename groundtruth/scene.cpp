@@ -1,6 +1,6 @@
-#include "lighting/reference/scene.h"
+#include "groundtruth/scene.h"
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 
 int Scene::addMaterial(Material m) {
   materials.push_back(std::move(m));
@@ -58,4 +58,4 @@ void Scene::addBox(cv::Vec3f lo, cv::Vec3f hi, int material, bool inward) {
   quad(lo + ez, ex, ey);         // +z
 }
 
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

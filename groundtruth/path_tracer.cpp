@@ -1,4 +1,4 @@
-#include "lighting/reference/path_tracer.h"
+#include "groundtruth/path_tracer.h"
 
 #include <algorithm>
 #include <atomic>
@@ -7,9 +7,9 @@
 #include <vector>
 
 #include "capture/colour.h"
-#include "lighting/material.h"
+#include "groundtruth/brdf.h"
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 namespace {
 constexpr float kPi = 3.14159265358979f;
 
@@ -92,12 +92,12 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng) const
     L += beta.mul(m.emission);
     const cv::Vec3f n = hit->shading, g = hit->normal, wo = -dir;
     const cv::Vec3f refl = 2.f * n.dot(wo) * n - wo;
-    const float k = m.exponent, ck = phongNorm(k);
+    const float k = m.exponent, ck = phongNormalisation(k);
     const bool glossy = lum(m.specular) > 0.f;
     // f(wi) cos(theta_i) of the real-time material: the glossy term carries no cosine (see Material).
     auto fcos = [&](cv::Vec3f wi, float cosI) -> cv::Vec3f {
       cv::Vec3f f = hit->albedo * (cosI / kPi);
-      if (glossy) f += m.specular * (ck * phongLobe(refl.dot(wi), k));
+      if (glossy) f += m.specular * (ck * phongPower(refl.dot(wi), k));
       return f;
     };
     for (size_t i = 0; i < scene.lights.size(); ++i) {
@@ -111,7 +111,7 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng) const
     const float pd = wd + ws > 0.f ? wd / (wd + ws) : 1.f;
     auto bsdfPdf = [&](cv::Vec3f wi, float cosI) {
       float p = pd * cosI / kPi;
-      if (ws > 0.f) p += (1.f - pd) * (k <= 0.f ? 1.f / (2.f * kPi) : ck * phongLobe(refl.dot(wi), k));
+      if (ws > 0.f) p += (1.f - pd) * (k <= 0.f ? 1.f / (2.f * kPi) : ck * phongPower(refl.dot(wi), k));
       return p;
     };
     const bool continues = depth < options_.bounces && wd + ws > 0.f;
@@ -200,4 +200,4 @@ DifferentialImages renderDifferential(const Scene& withObjects, const Scene& rea
   return out;
 }
 
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

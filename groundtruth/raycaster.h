@@ -2,12 +2,12 @@
 /// Ray queries against a Scene with Embree (libembree). Thread-safe for concurrent queries.
 #include <optional>
 
-#include "lighting/reference/scene.h"
+#include "groundtruth/scene.h"
 
 struct RTCDeviceTy;
 struct RTCSceneTy;
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 
 struct Hit {
   float t = 0;        ///< distance along the (unit) ray direction, metres
@@ -55,4 +55,4 @@ class RayCaster {
   RTCSceneTy* rtcScene_ = nullptr;
 };
 
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

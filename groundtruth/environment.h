@@ -9,7 +9,7 @@
 
 #include <opencv2/core.hpp>
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 
 class EnvironmentMap {
  public:
@@ -49,4 +49,4 @@ class EnvironmentMap {
   double integral_ = 0;
 };
 
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

@@ -18,7 +18,7 @@
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
 
-namespace mrgi::app {
+namespace mrgi::runtime {
 
 /// What the lighting path needs besides the frames: the scene, the marker and the lights.
 struct LightingSetup {
@@ -102,4 +102,4 @@ class FramePipeline {
   cv::Mat thumbnail_;  ///< of the frame being processed
 };
 
-}  // namespace mrgi::app
+}  // namespace mrgi::runtime

@@ -1,4 +1,4 @@
-#include "lighting/reference/raycaster.h"
+#include "groundtruth/raycaster.h"
 
 #include <embree3/rtcore.h>
 
@@ -6,7 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 namespace {
 constexpr float kPi = 3.14159265358979f;
 
@@ -165,4 +165,4 @@ cv::Vec3f RayCaster::shadeDirect(const Hit& hit) const {
   return hit.albedo.mul(e * (1.f / kPi) + scene_.ambient);
 }
 
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

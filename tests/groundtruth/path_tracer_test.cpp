@@ -7,15 +7,15 @@
 
 #include "capture/colour.h"
 #include "capture/session.h"
-#include "lighting/reference/path_tracer.h"
+#include "groundtruth/path_tracer.h"
 #include "lighting/scene_file.h"
 
-namespace mrgi::lighting::reference {
+namespace mrgi::groundtruth {
 namespace {
 
 constexpr double kPi = CV_PI;
 
-Mesh unitSphere() { return loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply"); }
+lighting::Mesh unitSphere() { return lighting::loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply"); }
 
 /// A camera at `eye` looking at `target` (OpenCV frame), w x h pixels, 60° horizontal field of view.
 PinholeCamera camera(cv::Vec3d eye, cv::Vec3d target, int w = 32, int h = 24) {
@@ -49,7 +49,7 @@ TEST(PathTracer, ClosedEmissiveSphereIsAGeometricSeries) {
   const float a = 0.8f;
   Scene s;
   const int m = s.addMaterial({"wall", {a, a, a}, -1, {0, 0, 0}, 0, {1.0f, 0.5f, 0.25f}});
-  const Mesh sphere = unitSphere();
+  const lighting::Mesh sphere = unitSphere();
   s.addMesh(sphere.positions, {}, sphere.indices, m);  // flat facets
   const RayCaster rc(s);
   for (int bounces : {0, 3, 12}) {
@@ -72,7 +72,7 @@ TEST(PathTracer, GlossyFurnaceConservesAlbedoPlusSpecular) {
   const float a = 0.45f, sp = 0.35f;
   Scene s;
   const int m = s.addMaterial({"wall", {a, a, a}, -1, {sp, sp, sp}, 0, {1, 1, 1}});
-  const Mesh sphere = unitSphere();
+  const lighting::Mesh sphere = unitSphere();
   s.addMesh(sphere.positions, {}, sphere.indices, m);
   const RayCaster rc(s);
   PathTraceOptions o;
@@ -95,7 +95,7 @@ TEST(PathTracer, WhiteConvexObjectInAUniformSkyIsInvisible) {
   // Albedo 1 under a uniform environment: every path off a convex object escapes, so L = L_env exactly.
   Scene s;
   const int m = s.addMaterial({"white", {1, 1, 1}});
-  const Mesh sphere = unitSphere();
+  const lighting::Mesh sphere = unitSphere();
   s.addMesh(sphere.positions, {}, sphere.indices, m, capture::makePose(cv::Matx33d::eye(), {0, 0, 3}));
   s.environment = {0.7f, 0.7f, 0.7f};
   const RayCaster rc(s);
@@ -274,7 +274,7 @@ TEST(PathTracer, DifferentialImagesShadowAndMaskTheVirtualObject) {
   Material v{"object", {0.8f, 0.2f, 0.2f}};
   v.isVirtual = true;
   const int obj = with.addMaterial(v);
-  const Mesh sphere = unitSphere();
+  const lighting::Mesh sphere = unitSphere();
   with.addMesh(sphere.positions, sphere.normals, sphere.indices, obj,
                capture::makePose(cv::Matx33d::eye() * 0.1, {0.0, 0.0, 0.3}));
   PathTraceOptions o;
@@ -401,4 +401,4 @@ TEST(PathTracer, PlaneUnderAnHdrSunMatchesItsTexelIrradianceWithLowNoise) {
 }
 
 }  // namespace
-}  // namespace mrgi::lighting::reference
+}  // namespace mrgi::groundtruth

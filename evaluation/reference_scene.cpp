@@ -1,10 +1,10 @@
-#include "app/reference_scene.h"
+#include "evaluation/reference_scene.h"
 
 #include "lighting/material.h"
 
-namespace mrgi::app {
+namespace mrgi::evaluation {
 
-namespace ref = lighting::reference;
+namespace ref = groundtruth;
 
 void addVirtualObjects(const std::vector<lighting::VirtualObject>& objects, const capture::Pose& T_world_marker,
                        ref::Scene& scene) {
@@ -37,7 +37,7 @@ std::vector<ref::Light> referenceLights(const std::vector<lighting::SceneLight>&
   return out;
 }
 
-ReferenceScenes reconstructedScenes(const LightingSetup& setup, const RealSurface& real,
+ReferenceScenes reconstructedScenes(const runtime::LightingSetup& setup, const runtime::RealSurface& real,
                                     const capture::Intrinsics& intrinsics, const capture::Pose& T_marker_camera) {
   ReferenceScenes out;
   ref::Scene& s = out.realOnly;
@@ -56,4 +56,4 @@ ReferenceScenes reconstructedScenes(const LightingSetup& setup, const RealSurfac
   return out;
 }
 
-}  // namespace mrgi::app
+}  // namespace mrgi::evaluation

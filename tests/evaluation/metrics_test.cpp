@@ -1,0 +1,112 @@
+// The bench's measures on hand-made inputs: error sums against a known truth, flicker of an unchanged and of
+// a changed delta, the Pareto front and presets, the sweep from the knob tables, and timing repeats that
+// are full runs.
+#include <gtest/gtest.h>
+
+#include "evaluation/bench.h"
+#include "evaluation/metrics.h"
+#include "lighting/techniques/registry.h"
+#include "tests/lighting/test_scene.h"
+
+namespace mrgi::evaluation {
+namespace {
+
+/// A truth of w x h pixels: delta `d` on real pixels, radiance `v` on the virtual left column.
+Truth truthOf(int w, int h, float d, float v) {
+  Truth t;
+  t.delta = cv::Mat(h, w, CV_32FC3, cv::Scalar::all(d));
+  t.images.mask = cv::Mat(h, w, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < h; ++y) {
+    t.delta.at<cv::Vec3f>(y, 0) = cv::Vec3f::all(v);
+    t.images.mask.at<uchar>(y, 0) = 255;
+  }
+  return t;
+}
+
+/// A shading result like the pipeline's: rgb, a = 1 on virtual pixels (the left column).
+cv::Mat shadeOf(int w, int h, float d, float v) {
+  cv::Mat s(h, w, CV_32FC4, cv::Scalar(d, d, d, 0));
+  for (int y = 0; y < h; ++y) s.at<cv::Vec4f>(y, 0) = {v, v, v, 1};
+  return s;
+}
+
+TEST(Metrics, ErrorSumsAgainstAKnownTruth) {
+  const Truth t = truthOf(8, 4, -0.2f, 0.5f);
+  const ErrorSums exact = errorSums(shadeOf(8, 4, -0.2f, 0.5f), t);
+  EXPECT_EQ(exact.relDelta(), 0.0);
+  EXPECT_EQ(exact.relVirtual(), 0.0);
+  EXPECT_EQ(exact.real, 28u);
+  // 25 % too dark on real pixels, 10 % too bright on the object.
+  const ErrorSums e = errorSums(shadeOf(8, 4, -0.25f, 0.55f), t);
+  EXPECT_NEAR(e.relDelta(), 0.25, 1e-6);
+  EXPECT_NEAR(e.relVirtual(), 0.1, 1e-6);
+  EXPECT_NEAR(e.rmse(), 0.05, 1e-6);
+  // A pixel virtual in one image only is left out and counted.
+  cv::Mat s = shadeOf(8, 4, -0.2f, 0.5f);
+  s.at<cv::Vec4f>(0, 3)[3] = 1;
+  EXPECT_EQ(errorSums(s, t).mismatched, 1u);
+}
+
+TEST(Metrics, FlickerIsZeroForAnUnchangedDeltaAndRelativeOtherwise) {
+  const int w = 16, h = 12;
+  cv::Mat positions(h, w, CV_32FC4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) positions.at<cv::Vec4f>(y, x) = {0.01f * (x - w / 2), 0.01f * (y - h / 2), 0.f, 1.f};
+  capture::Intrinsics k{w, h, 10.0, 10.0, w / 2.0, h / 2.0};
+  const capture::Pose T = capture::makePose(cv::Matx33d::eye(), {0, 0, -0.1});  // 10 cm in front of z = 0
+  const FrameState a = frameState(shadeOf(w, h, -0.2f, 0.f), positions, T);
+  const auto [n0, d0] = flickerSums(a, frameState(shadeOf(w, h, -0.2f, 0.f), positions, T), k);
+  EXPECT_EQ(n0, 0.0);
+  EXPECT_GT(d0, 0.0);
+  const auto [n1, d1] = flickerSums(a, frameState(shadeOf(w, h, -0.3f, 0.f), positions, T), k);
+  EXPECT_NEAR(n1 / d1, 0.5, 1e-5);  // |-0.3 - -0.2| / 0.2
+}
+
+TEST(Metrics, PresetsComeFromTheParetoFront) {
+  auto rec = [](const char* t, double ms, double err) {
+    return nlohmann::json{{"technique", t}, {"knobs", nlohmann::json::object()}, {"ms_lighting", ms},
+                          {"rel_error_delta", err}, {"rel_error_virtual", err}};
+  };
+  const nlohmann::json records = {rec("a", 10, 0.5), rec("b", 20, 0.2), rec("c", 40, 0.1), rec("d", 50, 0.3)};
+  const nlohmann::json p = choosePresets(records);
+  EXPECT_EQ(p["accurate"]["technique"], "c");  // least error
+  EXPECT_EQ(p["fast"]["technique"], "b");      // fastest within twice the least error
+  EXPECT_EQ(p["balanced"]["technique"], "b");  // least ms/ms_min x err/err_min: a 5, b 4, c 4 (ties: first)
+  EXPECT_TRUE(choosePresets(nlohmann::json::array()).empty());
+}
+
+TEST(Metrics, TheSweepComesFromTheKnobTables) {
+  lighting::KnobSet base;
+  lighting::completeKnobs(base);
+  const auto configs = sweepConfigs("", false, base);
+  // Every technique's defaults, and every declared sweep value of its knobs and of the frame's.
+  for (const auto& t : lighting::techniques()) {
+    size_t expected = 1;
+    for (const lighting::KnobGroup* g : {&lighting::frameKnobGroup(), &t.knobs})
+      for (const auto& k : g->knobs)
+        for (double v : k.sweep) expected += v != base.at(g->key).at(k.name);
+    size_t got = 0;
+    for (const auto& c : configs)
+      if (c.technique == lighting::parseTechniqueChoice(t.name, nullptr) && c.technique.name == t.name) ++got;
+    EXPECT_EQ(got, expected) << t.name;
+  }
+  for (const auto& c : configs) {
+    if (c.varied.empty()) continue;
+    const std::string group = c.varied.substr(0, c.varied.find('.')), knob = c.varied.substr(c.varied.find('.') + 1);
+    EXPECT_NE(c.knobs.at(group).at(knob), base.at(group).at(knob)) << c.varied;
+  }
+}
+
+TEST(GL, TimingRepeatsAreFullRuns) {
+  auto ctx = test::makeContext();
+  const test::TestScene s = test::makeScene(true, 0.15, {0, 0, 0.1});
+  lighting::LightingPipeline pipe = test::makePipeline(test::testConfig(32, 24, 8, 32), s);
+  std::map<std::string, int> runs;
+  bestStages(pipe, test::topCamera(32, 24), 3, &runs);
+  // Unchanged inputs would let every repeat after the first skip its stages; each must run every time.
+  for (const char* stage : {"gbuffer", "shade"}) EXPECT_EQ(runs[stage], 3) << stage;
+  for (const auto& [stage, n] : runs) EXPECT_EQ(n, 3) << stage;
+}
+
+}  // namespace
+}  // namespace mrgi::evaluation
