@@ -85,10 +85,9 @@ int runBruteForce(const BenchOptions& o) {
   // The camera pose in the object's world (marker frame with ground truth, else the camera frame).
   capture::Pose T_world_camera = capture::identityPose();
   bool onMarker = true;
-  if (const auto* s = dynamic_cast<const capture::SessionSource*>(source.get());
-      s && frame->groundTruthT_world_camera && s->manifest().groundTruth.contains("T_world_marker")) {
-    const auto T_world_marker = capture::poseFromJson(s->manifest().groundTruth["T_world_marker"], o.session, "ground_truth.T_world_marker");
-    T_world_camera = capture::inversePose(T_world_marker) * *frame->groundTruthT_world_camera;
+  if (const capture::SessionManifest* m = source->sessionManifest();
+      m && frame->groundTruthT_world_camera && m->truth.T_world_marker) {
+    T_world_camera = capture::inversePose(*m->truth.T_world_marker) * *frame->groundTruthT_world_camera;
   } else {
     onMarker = false;  // no marker frame: 1 m in front of the camera
   }
@@ -243,20 +242,16 @@ bool sameObjects(const lighting::SceneDescription& a, const lighting::SceneDescr
 /// The true reference composites a synthetic session carries (manifest ground_truth.reference, whose
 /// scene file is `referenceScene`) when `scene` places the same objects, for `frames` (keyed by position):
 /// composite, delta (rho - mu on real pixels, rho on virtual) and mask.
-std::map<int, Truth> loadTrueReferences(const std::string& session, const json& reference, const std::string& referenceScene,
-                                        const lighting::SceneDescription& scene, const std::vector<capture::Frame>& frames) {
+std::map<int, Truth> loadTrueReferences(const std::string& session, const capture::GroundTruthReference& reference,
+                                        const std::string& referenceScene, const lighting::SceneDescription& scene,
+                                        const std::vector<capture::Frame>& frames) {
   std::map<int, Truth> out;
   // The truth depends on the objects alone (the room and its lights are the session's): any scene placing
   // the same objects the same way can use it.
   if (referenceScene.empty() || !sameObjects(lighting::loadScene(referenceScene), scene)) return out;
   auto path = [&](const std::string& key, int64_t f) {
-    std::string pattern = reference.value(key, "");
-    const size_t at = pattern.find("NNNNNN");
-    if (at == std::string::npos) throw capture::CaptureError(session, "manifest ground_truth.reference." + key + " has no NNNNNN");
-    char idx[16];
-    std::snprintf(idx, sizeof idx, "%06lld", static_cast<long long>(f));
-    pattern.replace(at, 6, idx);
-    return (fs::path(session) / pattern).string();
+    const std::string& pattern = key == "composite" ? reference.composite : key == "delta" ? reference.delta : reference.mask;
+    return capture::GroundTruthReference::pathFor(session, pattern, f);
   };
   for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
     const int64_t index = frames[f].index;
@@ -315,11 +310,9 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   if (!info.hasRgbd) throw capture::CaptureError(path, "has no RGB-D frames");
   // A synthetic session names the scene its true references show (relative to the session); without
   // --scene that is the one measured.
-  const auto* session = dynamic_cast<const capture::SessionSource*>(source.get());
-  const json gt = session ? session->manifest().groundTruth : json();
-  const json reference = gt.is_object() && gt.contains("reference") ? gt["reference"] : json::object();
-  const std::string referenceScene =
-      reference.contains("scene") ? (fs::path(path) / reference["scene"].get<std::string>()).lexically_normal().string() : "";
+  const capture::SessionManifest* manifest = source->sessionManifest();
+  const std::optional<capture::GroundTruthReference> reference = manifest ? manifest->truth.reference : std::nullopt;
+  const std::string referenceScene = reference ? (fs::path(path) / reference->scene).lexically_normal().string() : "";
   bs.scene = !o.scene.empty() ? o.scene : !referenceScene.empty() ? referenceScene : "recordings/scenes/tabletop.json";
   bs.setup = prepareLighting(lighting::loadScene(bs.scene), bs.scene, *source, path, o.pose);
   if (bs.setup.scene.objects.empty()) throw capture::CaptureError(bs.scene, "has no virtual object to measure");
@@ -385,7 +378,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   std::printf("%s: reference %d frames, %d spp, %d bounces, %.1f s per frame\n", path.c_str(), refs, o.refSpp, o.refBounces,
               ms / refs / 1000);
   bs.refInfo["marker_pose_error"] = markerPoseError(bs, o);
-  bs.trueRefs = loadTrueReferences(path, reference, referenceScene, bs.setup.scene, bs.frames);
+  if (reference) bs.trueRefs = loadTrueReferences(path, *reference, referenceScene, bs.setup.scene, bs.frames);
   if (!bs.trueRefs.empty()) {
     bs.refInfo["true_reference_frames"] = bs.trueRefs.size();
     std::printf("%s: %zu true reference composites (whole-pipeline error)\n", path.c_str(), bs.trueRefs.size());

@@ -173,7 +173,7 @@ int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, j
 int runInsert(const InsertOptions& o) {
   auto source = capture::open(o.session);
   if (!source->info().hasRgbd) throw capture::CaptureError(o.session, "has no RGB-D frames");
-  const auto* session = dynamic_cast<const capture::SessionSource*>(source.get());
+  const capture::SessionManifest* manifest = source->sessionManifest();
 
   // The document to extend: --scene, else the existing --save file, else a new scene whose lights come from
   // the session (fisheye estimate or ground truth).
@@ -190,9 +190,9 @@ int runInsert(const InsertOptions& o) {
       }
   } else {
     doc = json::object();
-    if (session && session->manifest().fisheye)
+    if (manifest && manifest->fisheye)
       doc["lights"] = "fisheye";
-    else if (session && session->manifest().groundTruth.is_object() && session->manifest().groundTruth.contains("lights"))
+    else if (manifest && !manifest->truth.lights.empty())
       doc["lights"] = "manifest";
     else
       throw capture::CaptureError(o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights");

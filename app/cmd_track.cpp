@@ -76,8 +76,8 @@ int runTrack(const TrackOptions& o) {
   } else {
     source = capture::open(o.input);
     if (!source->info().hasRgbd) throw capture::CaptureError(o.input, "has no colour frames to track a marker in");
-    if (const auto* session = dynamic_cast<const capture::SessionSource*>(source.get()))
-      if (const auto& m = session->manifest().marker) {
+    if (const capture::SessionManifest* manifest = source->sessionManifest())
+      if (const auto& m = manifest->marker) {
         if (o.family.empty()) family = m->family;
         if (!(size > 0)) size = m->sizeMetres;
         if (wantedId < 0 && m->id >= 0) wantedId = m->id;

@@ -51,9 +51,10 @@ std::optional<capture::FisheyeCalibration> LiveSource::fisheyeCalibration() {
 }
 
 capture::SessionManifest manifestFor(const capture::FrameSource& source, const capture::Frame& first) {
-  if (const auto* s = dynamic_cast<const capture::SessionSource*>(&source)) {
-    capture::SessionManifest m = s->manifest();
+  if (const capture::SessionManifest* s = source.sessionManifest()) {
+    capture::SessionManifest m = *s;
     if (m.groundTruth.is_object()) m.groundTruth.erase("reference");  // its files are not copied
+    m.truth.reference.reset();
     return m;
   }
   capture::SessionManifest m;

@@ -8,6 +8,8 @@
 
 namespace mrgi::capture {
 
+struct SessionManifest;
+
 class FrameSource {
  public:
   virtual ~FrameSource() = default;
@@ -15,6 +17,9 @@ class FrameSource {
   /// The next frame, or std::nullopt at the end of a recording. Throws CaptureError for corrupt data
   /// or a lost device ("openni2://...: device lost"), never crashes.
   virtual std::optional<Frame> next() = 0;
+  /// A recorded session's manifest (marker, fisheye calibration, typed ground truth); nullptr for sources
+  /// without one.
+  virtual const SessionManifest* sessionManifest() const { return nullptr; }
 };
 
 struct OpenOptions {

@@ -172,7 +172,10 @@ SessionManifest SessionManifest::fromJson(const json& j, const std::string& file
     if (!(s.sizeMetres > 0)) throw CaptureError(file, "key 'marker.size_m' must be positive");
     m.marker = s;
   }
-  if (j.contains("ground_truth")) m.groundTruth = j["ground_truth"];
+  if (j.contains("ground_truth")) {
+    m.groundTruth = j["ground_truth"];
+    m.truth = GroundTruth::fromJson(m.groundTruth, file);
+  }
   return m;
 }
 

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "capture/frame_source.h"
+#include "capture/ground_truth.h"
 #include "capture/types.h"
 
 namespace mrgi::capture {
@@ -31,8 +32,10 @@ struct SessionManifest {
   Pose T_colour_depth = identityPose();
   std::optional<FisheyeCalibration> fisheye;
   std::optional<MarkerSpec> marker;
-  /// Optional ground truth: {"T_world_marker": [16], "lights": [...], "scene": {...}}; null if absent.
+  /// Optional ground truth as stored: {"T_world_marker": [16], "lights": [...], "scene": {...}}; null if absent.
   nlohmann::json groundTruth;
+  /// The same, typed and checked (filled by fromJson; what readers use).
+  GroundTruth truth;
 
   nlohmann::json toJson() const;
   /// Throws CaptureError("<file>: ...") naming the bad key.
@@ -69,6 +72,7 @@ class SessionSource final : public FrameSource {
   std::optional<Frame> next() override;
 
   const SessionManifest& manifest() const { return manifest_; }
+  const SessionManifest* sessionManifest() const override { return &manifest_; }
   /// Reads frame i (0-based) without moving the cursor.
   Frame read(int64_t i) const;
   int64_t frameCount() const { return static_cast<int64_t>(entries_.size()); }

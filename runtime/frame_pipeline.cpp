@@ -16,48 +16,55 @@ using nlohmann::json;
 
 namespace mrgi::runtime {
 
+std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
+                                                     const capture::Pose& T_world_marker) {
+  const capture::Pose T_marker_world = capture::inversePose(T_world_marker);
+  const cv::Matx33d R = capture::rotationOf(T_marker_world);
+  std::vector<lighting::SceneLight> out;
+  for (const capture::GroundTruthLight& l : lights) {
+    lighting::SceneLight s;
+    s.type = l.type == capture::GroundTruthLight::Type::Point ? lighting::LightType::Point
+             : l.type == capture::GroundTruthLight::Type::Spot ? lighting::LightType::Spot
+                                                                : lighting::LightType::Directional;
+    s.position = capture::transformPoint(T_marker_world, l.position);
+    s.direction = R * l.direction;
+    s.intensity = l.intensity;
+    s.irradiance = l.irradiance;
+    s.spotHalfAngleDeg = l.spotHalfAngleDeg;
+    out.push_back(s);
+  }
+  return out;
+}
+
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
                               const capture::FrameSource& source, const std::string& sourcePath,
                               const std::string& poseMode) {
   LightingSetup setup;
   setup.scene = std::move(scene);
-  const auto* session = dynamic_cast<const capture::SessionSource*>(&source);
-  const json* gt = session && session->manifest().groundTruth.is_object() ? &session->manifest().groundTruth : nullptr;
-  if (session && session->manifest().marker) {
-    setup.tagFamily = session->manifest().marker->family;
-    setup.tagSize = session->manifest().marker->sizeMetres;
-    setup.tagId = session->manifest().marker->id;
+  const capture::SessionManifest* manifest = source.sessionManifest();
+  const capture::GroundTruth* truth = manifest ? &manifest->truth : nullptr;
+  if (manifest && manifest->marker) {
+    setup.tagFamily = manifest->marker->family;
+    setup.tagSize = manifest->marker->sizeMetres;
+    setup.tagId = manifest->marker->id;
   }
-  if (gt && gt->contains("T_world_marker"))
-    setup.T_world_marker = capture::poseFromJson((*gt)["T_world_marker"], sourcePath, "ground_truth.T_world_marker");
+  if (truth) setup.T_world_marker = truth->T_world_marker;
   if (setup.scene.lightSource == lighting::LightSource::Scene) {
     setup.lights = setup.scene.lights;
   } else if (setup.scene.lightSource == lighting::LightSource::Fisheye) {
-    if (!session || !session->manifest().fisheye)
+    if (!manifest || !manifest->fisheye)
       throw capture::CaptureError(sceneFile, "lights: \"fisheye\" but " + sourcePath + " has no fisheye calibration");
-    setup.fisheye = session->manifest().fisheye;
+    setup.fisheye = manifest->fisheye;
     // Lights come from the environment image, which already holds all the room's light: no extra ambient.
     setup.scene.ambientFromManifest = false;
   } else {
-    if (!gt || !gt->contains("lights") || !setup.T_world_marker)
+    if (!truth || truth->lights.empty() || !setup.T_world_marker)
       throw capture::CaptureError(sceneFile, "lights: \"manifest\" but " + sourcePath +
                                                  " has no ground-truth lights; list the lights in the scene file");
-    const capture::Pose T_marker_world = capture::inversePose(*setup.T_world_marker);
-    for (const json& l : (*gt)["lights"]) {
-      if (l.value("type", "") != "point") continue;
-      lighting::SceneLight s;
-      s.type = lighting::LightType::Point;
-      const auto p = l.at("position"), i = l.at("intensity_w_sr");
-      s.position = capture::transformPoint(T_marker_world, {p[0].get<double>(), p[1].get<double>(), p[2].get<double>()});
-      s.intensity = {i[0].get<double>(), i[1].get<double>(), i[2].get<double>()};
-      setup.lights.push_back(s);
-    }
+    setup.lights = lightsInMarkerFrame(truth->lights, *setup.T_world_marker);
   }
   setup.ambient = setup.scene.ambientRadiance;
-  if (setup.scene.ambientFromManifest && gt && gt->contains("scene") && (*gt)["scene"].contains("ambient_radiance")) {
-    const auto a = (*gt)["scene"]["ambient_radiance"];
-    setup.ambient = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
-  }
+  if (setup.scene.ambientFromManifest && truth && truth->ambientRadiance) setup.ambient = *truth->ambientRadiance;
   if (poseMode == "ground-truth" && !setup.T_world_marker)
     throw capture::CaptureError(sourcePath, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
   return setup;

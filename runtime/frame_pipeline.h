@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "capture/frame_source.h"
+#include "capture/ground_truth.h"
 #include "compositor/compositor.h"
 #include "gl/profiler.h"
 #include "lighting/pipeline.h"
@@ -31,6 +32,10 @@ struct LightingSetup {
   std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
   std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
 };
+
+/// A session's ground-truth lights (world frame, every type) in the marker frame.
+std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
+                                                     const capture::Pose& T_world_marker);
 
 /// Resolves a loaded scene against a source (marker from the manifest, lights from the scene, the
 /// manifest's ground truth or its fisheye calibration). `sceneFile` and `sourcePath` name the culprit in

@@ -1,0 +1,92 @@
+#include "capture/ground_truth.h"
+
+#include <cmath>
+
+#include "capture/error.h"
+#include "capture/session.h"
+
+using nlohmann::json;
+
+namespace mrgi::capture {
+namespace {
+
+cv::Vec3d vec3(const json& j, const std::string& file, const std::string& key) {
+  if (!j.is_array() || j.size() != 3) throw CaptureError(file, key + " must be an array of 3 numbers");
+  cv::Vec3d v;
+  for (int i = 0; i < 3; ++i) {
+    if (!j[i].is_number() || !std::isfinite(j[i].get<double>())) throw CaptureError(file, key + " must hold finite numbers");
+    v[i] = j[i].get<double>();
+  }
+  return v;
+}
+
+const json& need(const json& j, const char* k, const std::string& file, const std::string& key) {
+  if (!j.contains(k)) throw CaptureError(file, key + "." + k + " is missing");
+  return j[k];
+}
+
+}  // namespace
+
+std::string GroundTruthReference::pathFor(const std::string& sessionDir, const std::string& pattern, int64_t index) {
+  std::string p = pattern;
+  const size_t at = p.find("NNNNNN");
+  if (at != std::string::npos) {
+    char idx[24];
+    std::snprintf(idx, sizeof idx, "%06lld", static_cast<long long>(index));
+    p.replace(at, 6, idx);
+  }
+  return sessionDir + "/" + p;
+}
+
+GroundTruth GroundTruth::fromJson(const json& j, const std::string& file) {
+  GroundTruth g;
+  if (j.is_null()) return g;
+  if (!j.is_object()) throw CaptureError(file, "ground_truth must be an object");
+  if (j.contains("T_world_marker")) g.T_world_marker = poseFromJson(j["T_world_marker"], file, "ground_truth.T_world_marker");
+  if (j.contains("lights")) {
+    if (!j["lights"].is_array()) throw CaptureError(file, "ground_truth.lights must be an array");
+    for (size_t i = 0; i < j["lights"].size(); ++i) {
+      const json& l = j["lights"][i];
+      const std::string key = "ground_truth.lights[" + std::to_string(i) + "]";
+      if (!l.is_object()) throw CaptureError(file, key + " must be an object");
+      GroundTruthLight light;
+      const std::string type = l.value("type", "");
+      if (type == "point" || type == "spot") {
+        light.type = type == "point" ? GroundTruthLight::Type::Point : GroundTruthLight::Type::Spot;
+        light.position = vec3(need(l, "position", file, key), file, key + ".position");
+        light.intensity = vec3(need(l, "intensity_w_sr", file, key), file, key + ".intensity_w_sr");
+        if (light.type == GroundTruthLight::Type::Spot) {
+          light.direction = cv::normalize(vec3(need(l, "direction", file, key), file, key + ".direction"));
+          if (l.contains("spot_half_angle_deg")) light.spotHalfAngleDeg = l["spot_half_angle_deg"].get<double>();
+        }
+      } else if (type == "directional") {
+        light.type = GroundTruthLight::Type::Directional;
+        light.direction = cv::normalize(vec3(need(l, "direction", file, key), file, key + ".direction"));
+        light.irradiance = vec3(need(l, "irradiance_w_m2", file, key), file, key + ".irradiance_w_m2");
+      } else {
+        throw CaptureError(file, key + ".type '" + type + "' is not point, spot or directional");
+      }
+      if (l.contains("radius_m")) light.radius = l["radius_m"].get<double>();
+      g.lights.push_back(light);
+    }
+  }
+  if (j.contains("scene") && j["scene"].is_object() && j["scene"].contains("ambient_radiance"))
+    g.ambientRadiance = vec3(j["scene"]["ambient_radiance"], file, "ground_truth.scene.ambient_radiance");
+  if (j.contains("reference")) {
+    const json& r = j["reference"];
+    if (!r.is_object()) throw CaptureError(file, "ground_truth.reference must be an object");
+    GroundTruthReference ref;
+    for (auto [k, out] : {std::pair{"scene", &ref.scene}, {"composite", &ref.composite}, {"delta", &ref.delta}, {"mask", &ref.mask}}) {
+      if (!r.contains(k) || !r[k].is_string()) throw CaptureError(file, std::string("ground_truth.reference.") + k + " must be a string");
+      *out = r[k].get<std::string>();
+    }
+    for (const std::string* p : {&ref.composite, &ref.delta, &ref.mask})
+      if (p->find("NNNNNN") == std::string::npos)
+        throw CaptureError(file, "ground_truth.reference: '" + *p + "' has no NNNNNN frame placeholder");
+    g.reference = ref;
+  }
+  if (j.contains("environment")) g.environment = j["environment"];
+  return g;
+}
+
+}  // namespace mrgi::capture
