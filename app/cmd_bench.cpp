@@ -31,6 +31,7 @@
 #include "capture/session.h"
 #include "gl/context.h"
 #include "gl/profiler.h"
+#include "lighting/debug_views.h"
 #include "lighting/pipeline.h"
 #include "lighting/techniques/registry.h"
 #include "reconstruction/depth.h"
@@ -487,15 +488,11 @@ int runSweep(const BenchOptions& o) {
   for (const auto& [f, t] : first.truths) images.push_back({"reference composite, frame " + std::to_string(f), t.composite});
   double errScale = 0;  // one error-image scale for all: the reference delta's 99th percentile magnitude
   {
-    std::vector<float> mags;
+    std::vector<double> mags;
     const Truth& t = first.truths.begin()->second;
     for (int i = 0; i < static_cast<int>(t.delta.total()); ++i)
-      if (!t.images.mask.at<uchar>(i)) {
-        const cv::Vec3f d = t.delta.at<cv::Vec3f>(i);
-        mags.push_back(static_cast<float>(std::abs(capture::luminance(cv::Vec3d(d)))));
-      }
-    std::sort(mags.begin(), mags.end());
-    errScale = mags.empty() ? 1.0 : std::max(1e-6, static_cast<double>(mags[mags.size() * 99 / 100]));
+      if (!t.images.mask.at<uchar>(i)) mags.push_back(std::abs(capture::luminance(cv::Vec3d(t.delta.at<cv::Vec3f>(i)))));
+    errScale = lighting::percentile99(mags);
   }
 
   json records = json::array();

@@ -11,6 +11,7 @@
 
 #include "app/commands.h"
 #include "app/tabletop.h"
+#include "reconstruction/light_estimation.h"
 #include "capture/sensor_model.h"
 #include "capture/session.h"
 #include "capture/colour.h"
@@ -106,19 +107,6 @@ RgbdRender renderRgbd(const RayCaster& rc, const PathTracer* pt, const capture::
   return r;
 }
 
-/// Inverts theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8) by Newton's method.
-double undistortTheta(double thetaD, const cv::Vec4d& D) {
-  double t = thetaD;
-  for (int i = 0; i < 20; ++i) {
-    const double t2 = t * t;
-    const double f = t * (1 + t2 * (D[0] + t2 * (D[1] + t2 * (D[2] + t2 * D[3])))) - thetaD;
-    const double df = 1 + t2 * (3 * D[0] + t2 * (5 * D[1] + t2 * (7 * D[2] + t2 * 9 * D[3])));
-    if (std::abs(df) < 1e-12) break;
-    t -= f / df;
-  }
-  return t;
-}
-
 cv::Mat renderFisheye(const RayCaster& rc, const PathTracer* pt, const capture::FisheyeCalibration& c) {
   cv::Mat img(c.height, c.width, CV_32FC3, cv::Scalar(0, 0, 0));
   const capture::Pose& T = *c.T_world_fisheye;
@@ -127,13 +115,10 @@ cv::Mat renderFisheye(const RayCaster& rc, const PathTracer* pt, const capture::
   cv::parallel_for_(cv::Range(0, c.height), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y)
       for (int x = 0; x < c.width; ++x) {
-        const double my = (y - c.K(1, 2)) / c.K(1, 1);
-        const double mx = (x - c.K(0, 2) - c.K(0, 1) * my) / c.K(0, 0);
-        const double thetaD = std::hypot(mx, my);
-        const double theta = undistortTheta(thetaD, c.D);
-        if (!(theta >= 0) || theta > CV_PI * 0.5 * 1.2) continue;  // outside the lens' field of view
-        const double s = thetaD > 1e-12 ? std::sin(theta) / thetaD : 1.0;
-        const cv::Vec3f d = cv::normalize(toFloat(R * cv::Vec3d(mx * s, my * s, std::cos(theta))));
+        cv::Vec3d ray;
+        if (!reconstruction::fisheyePixelToRay(c, x, y, ray)) continue;  // the lens model folds over: no ray
+        if (ray[2] < std::cos(CV_PI * 0.5 * 1.2)) continue;              // outside the lens' field of view
+        const cv::Vec3f d = cv::normalize(toFloat(R * ray));
         if (pt) {
           cv::RNG rng(static_cast<uint64_t>(y) * 100003u + static_cast<uint64_t>(x) + 1);
           cv::Vec3f sum(0, 0, 0);

@@ -5,7 +5,6 @@ find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs calib3d ximgpro
 find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(glfw3 3.3 REQUIRED)
-find_package(glm REQUIRED)
 find_package(embree 3 REQUIRED)
 find_package(assimp REQUIRED)
 find_package(Python3 REQUIRED COMPONENTS Interpreter)

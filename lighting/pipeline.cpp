@@ -170,7 +170,9 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   const std::vector<LightView>& views = frame_->lightViews();
   p.set("uLightCount", static_cast<int>(lights.size()));
   for (size_t i = 0; i < lights.size(); ++i) {
-    const std::string k = "[" + std::to_string(i) + "]";
+    std::string k(1, '[');  // "[i]", the uniform array index
+    k += std::to_string(i);
+    k += ']';
     const SceneLight& l = lights[i];
     p.set("uLightType" + k, shaderLightType(l.type));
     setVec3(p, "uLightPosition" + k, l.position);

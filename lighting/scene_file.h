@@ -12,15 +12,13 @@
 
 #include <opencv2/core.hpp>
 
+#include "capture/error.h"
 #include "lighting/knobs.h"
 
 namespace mrgi::lighting {
 
-/// Bad scene file or model: "path: key: problem".
-class SceneError : public std::runtime_error {
- public:
-  SceneError(const std::string& where, const std::string& problem) : std::runtime_error(where + ": " + problem) {}
-};
+/// Bad scene file or model: "path: key: problem" (the one input-error class, capture/error.h).
+using SceneError = capture::InputError;
 
 /// A triangle mesh in its model frame (metres after the scene's scale).
 struct Mesh {

@@ -37,10 +37,8 @@ cv::Mat toneMapped(const cv::Mat& image) {
   if (image.depth() == CV_8U) return image.clone();
   cv::Mat lum;
   cv::cvtColor(image, lum, cv::COLOR_RGB2GRAY);
-  std::vector<float> v(lum.begin<float>(), lum.end<float>());
-  std::nth_element(v.begin(), v.begin() + v.size() * 99 / 100, v.end());
-  const double p99 = std::max(1e-9, static_cast<double>(v[v.size() * 99 / 100]));
-  return lighting::linearImage(image, 1.0 / p99);
+  std::vector<double> v(lum.begin<float>(), lum.end<float>());
+  return lighting::linearImage(image, 1.0 / lighting::percentile99(v));
 }
 
 }  // namespace

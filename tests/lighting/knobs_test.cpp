@@ -46,9 +46,13 @@ TEST(Knobs, EveryDeclarationIsSane) {
       for (const auto* values : {&k.sweep, &k.quickSweep})
         for (double v : *values) {
           EXPECT_TRUE(v >= k.lo && v <= k.hi) << where << " sweep value " << v;
-          if (k.type != KnobType::Real) EXPECT_EQ(v, std::floor(v)) << where << " sweep value " << v;
+          if (k.type != KnobType::Real) {
+            EXPECT_EQ(v, std::floor(v)) << where << " sweep value " << v;
+          }
         }
-      if (k.type == KnobType::Bool) EXPECT_TRUE(k.lo == 0 && k.hi == 1) << where;
+      if (k.type == KnobType::Bool) {
+        EXPECT_TRUE(k.lo == 0 && k.hi == 1) << where;
+      }
     }
   }
   // The frame's knobs may appear inside a technique's section (older files): no technique may reuse them.
@@ -74,7 +78,9 @@ TEST(Knobs, EveryKnobRoundTripsThroughASceneFile) {
       // Every other knob of every group keeps its default.
       for (const KnobGroup* other : knobGroups())
         for (const KnobInfo& o : other->knobs)
-          if (other != g || o.name != k.name) EXPECT_EQ(s.knobs.at(other->key).at(o.name), o.def) << where << " moved " << o.name;
+          if (other != g || o.name != k.name) {
+            EXPECT_EQ(s.knobs.at(other->key).at(o.name), o.def) << where << " moved " << o.name;
+          }
       // Out of the JSON and back: the used-knobs JSON of a choice using the group restores the value.
       KnobSet back;
       completeKnobs(back);

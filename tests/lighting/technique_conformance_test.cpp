@@ -71,7 +71,9 @@ TEST_P(Conformance, UnlitIsExactlyZeroAndOutputsFollowTheRoles) {
     for (const auto& t : pipe.techniques()) {
       const lighting::TechniqueOutputs o = t->outputs();
       for (const gl::Texture* tex : {o.realDelta, o.virtualIrradiance, o.virtualRadiance})
-        if (tex) EXPECT_EQ(maxAbsRgb(lighting::download4(*tex)), 0.0) << t->name();
+        if (tex) {
+          EXPECT_EQ(maxAbsRgb(lighting::download4(*tex)), 0.0) << t->name();
+        }
     }
   }
 
@@ -106,7 +108,9 @@ TEST_P(Conformance, UnlitIsExactlyZeroAndOutputsFollowTheRoles) {
       for (int i = 0; i < static_cast<int>(v.total()); ++i)
         if (alb.at<cv::Vec4f>(i)[3] > 0.5f) onVirtual = std::max(onVirtual, cv::norm(cv::Vec3f(v.at<cv::Vec4f>(i)[0], v.at<cv::Vec4f>(i)[1], v.at<cv::Vec4f>(i)[2])));
     }
-    if (o.virtualIrradiance || o.virtualRadiance) EXPECT_GT(onVirtual, 0.0) << t->name() << ": no indirect light on the object";
+    if (o.virtualIrradiance || o.virtualRadiance) {
+      EXPECT_GT(onVirtual, 0.0) << t->name() << ": no indirect light on the object";
+    }
     EXPECT_TRUE(t->stats().is_object()) << t->name();
     lighting::DebugContext context;
     context.composite = cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(128));

@@ -12,8 +12,6 @@ namespace {
 
 constexpr float kPi = static_cast<float>(CV_PI);
 
-float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
-
 cv::Vec3f reflectView(const Receiver& r) { return 2.f * r.normal.dot(r.view) * r.normal - r.view; }
 
 }  // namespace
