@@ -192,7 +192,7 @@ int runInsert(const InsertOptions& o) {
     doc = json::object();
     if (manifest && manifest->fisheye)
       doc["lights"] = "fisheye";
-    else if (manifest && !manifest->truth.lights.empty())
+    else if (manifest && manifest->truth.listsLights)
       doc["lights"] = "manifest";
     else
       throw capture::CaptureError(o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights");

@@ -244,8 +244,8 @@ Action addReplay(CLI::App& app) {
   app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();
   app.add_flag("--dump-delta", o->dumpDelta, "also write delta_NNNN.exr (linear RGB added to real pixels) and mask_NNNN.png (255 = virtual)");
   app.add_flag("--debug", o->debug, "also write debug_NNNN_*.png: delta (red = negative), G-buffer albedo/normal/mask, "
-                                     "RSM flux/normal of the last light, DLPV z-slices, Kinect-VAL irradiance and sparse "
-                                     "points, the fisheye frame with its median-cut lights");
+                                     "RSM flux/normal of the last light, each technique's own views, the fisheye frame with its "
+                                     "median-cut lights");
   app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
   app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();

@@ -11,7 +11,7 @@
 #include "capture/image_io.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"mrgi: a mixed-reality compositor for RGB-D footage (differential rendering with DLPV lighting)"};
+  CLI::App app{"mrgi: a mixed-reality compositor for RGB-D footage (differential rendering with real-time global illumination)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "mrgi 0.1.0");
   std::map<CLI::App*, mrgi::app::Action> actions;

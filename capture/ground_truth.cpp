@@ -45,6 +45,7 @@ GroundTruth GroundTruth::fromJson(const json& j, const std::string& file) {
   if (j.contains("T_world_marker")) g.T_world_marker = poseFromJson(j["T_world_marker"], file, "ground_truth.T_world_marker");
   if (j.contains("lights")) {
     if (!j["lights"].is_array()) throw CaptureError(file, "ground_truth.lights must be an array");
+    g.listsLights = true;
     for (size_t i = 0; i < j["lights"].size(); ++i) {
       const json& l = j["lights"][i];
       const std::string key = "ground_truth.lights[" + std::to_string(i) + "]";

@@ -36,6 +36,7 @@ struct GroundTruthReference {
 struct GroundTruth {
   std::optional<Pose> T_world_marker;
   std::vector<GroundTruthLight> lights;
+  bool listsLights = false;  ///< the manifest lists its lights (possibly none: lit by an environment alone)
   std::optional<cv::Vec3d> ambientRadiance;  ///< W/m^2/sr
   std::optional<GroundTruthReference> reference;
   nlohmann::json environment;  ///< the environment map's description ({"file", "mapping", "scale"}), null if none

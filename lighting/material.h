@@ -10,7 +10,7 @@ constexpr float kMaxPhongExponent = 1e4f;
 /// Phong exponent of a material: k = 2/r² − 2 (r = roughness), 0 at r = 1, clamped to [0, 10⁴].
 float phongExponent(float roughness);
 /// cos^k of the angle c to the mirror direction: 1 everywhere at k = 0 (also at c ≤ 0), 0 below the lobe
-/// otherwise; the GLSL twin is phongLobe() in val.glsl.
+/// otherwise. A technique evaluating the lobe on the GPU keeps a GLSL twin held to this by a test.
 float phongLobe(float c, float k);
 /// c_k = (k + 1) / (2π): the normalised Phong lobe.
 inline float phongNorm(float k) { return (k + 1.0f) / (2.0f * static_cast<float>(CV_PI)); }

@@ -9,7 +9,7 @@ namespace mrgi::lighting {
 
 PipelineConfig::PipelineConfig() {
   completeKnobs(knobs);
-  technique = parseTechniqueChoice("dlpv", &knobs);
+  technique = parseTechniqueChoice(defaultTechniqueName(), &knobs);
 }
 
 PipelineConfig& PipelineConfig::set(const std::string& group, const std::string& knob, double value) {

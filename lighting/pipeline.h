@@ -30,7 +30,7 @@ namespace mrgi::lighting {
 struct PipelineConfig {
   PipelineConfig();
   int width = 640, height = 480;  ///< G-buffer / output size (camera colour resolution)
-  TechniqueChoice technique;      ///< default: "dlpv"
+  TechniqueChoice technique;      ///< default: the registry's first technique
   KnobSet knobs;                  ///< every group complete (defaults)
   std::optional<Region> fixedRegion;  ///< overrides fitting the region to the virtual objects (tests)
   /// The frame group's and the technique's knob values, set by name ("lpv", "resolution"); throws

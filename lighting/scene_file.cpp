@@ -166,7 +166,7 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   r.allowOnly(doc, "", topLevel);
   SceneDescription s;
   completeKnobs(s.knobs);
-  s.technique = parseTechniqueChoice("dlpv", &s.knobs);
+  s.technique = parseTechniqueChoice(defaultTechniqueName(), &s.knobs);
   s.path = path;
   const fs::path base = fs::path(path).parent_path();
 

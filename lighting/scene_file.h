@@ -82,7 +82,7 @@ struct SceneDescription {
   int fisheyeLightCount = 16;               ///< for LightSource::Fisheye: median-cut lights (1..16)
   cv::Vec3d ambientRadiance{0, 0, 0};       ///< uniform environment radiance lighting the virtual object (W/m^2/sr)
   bool ambientFromManifest = true;          ///< take ambient from the manifest when it has one
-  TechniqueChoice technique;  ///< default "dlpv"
+  TechniqueChoice technique;  ///< default: the registry's first technique
   /// Knob values by group ("frame" and each technique's section), every declared knob present.
   KnobSet knobs;
 };

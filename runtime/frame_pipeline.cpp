@@ -58,7 +58,7 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
     // Lights come from the environment image, which already holds all the room's light: no extra ambient.
     setup.scene.ambientFromManifest = false;
   } else {
-    if (!truth || truth->lights.empty() || !setup.T_world_marker)
+    if (!truth || !truth->listsLights || !setup.T_world_marker)
       throw capture::CaptureError(sceneFile, "lights: \"manifest\" but " + sourcePath +
                                                  " has no ground-truth lights; list the lights in the scene file");
     setup.lights = lightsInMarkerFrame(truth->lights, *setup.T_world_marker);

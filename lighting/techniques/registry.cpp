@@ -22,6 +22,8 @@ const TechniqueInfo* findTechnique(const std::string& name) {
   return nullptr;
 }
 
+const std::string& defaultTechniqueName() { return techniques().front().name; }
+
 std::vector<const KnobGroup*> knobGroups() {
   std::vector<const KnobGroup*> out{&frameKnobGroup()};
   for (const TechniqueInfo& t : techniques()) out.push_back(&t.knobs);
@@ -108,15 +110,6 @@ std::string canonicalName(const TechniqueChoice& c) {
   if (v && !r && !v->real) return v->name;
   if (!r && !v) return "none";
   return c.real + "+" + c.virtualObject;
-}
-
-nlohmann::json techniqueJson(const TechniqueChoice& c) {
-  // A plain spelling that parses back to the same roles is written as it is.
-  try {
-    if (!c.name.empty() && parseTechniqueChoice(c.name, nullptr) == c) return c.name;
-  } catch (const std::invalid_argument&) {
-  }
-  return {{"real", c.real}, {"virtual", c.virtualObject}};
 }
 
 std::vector<RoleAssignment> assignRoles(const TechniqueChoice& c) {

@@ -34,10 +34,12 @@ struct TechniqueInfo {
   std::function<std::unique_ptr<Technique>(const TechniqueSetup&)> create;
 };
 
-/// Every registered technique, in registry order.
+/// Every registered technique, in registry order; the first is the default of a scene that names none.
 const std::vector<TechniqueInfo>& techniques();
 /// nullptr when unknown.
 const TechniqueInfo* findTechnique(const std::string& name);
+/// The default technique's name (the registry's first line).
+const std::string& defaultTechniqueName();
 /// Every knob group: the shared frame group first, then each technique's.
 std::vector<const KnobGroup*> knobGroups();
 const KnobGroup* findKnobGroup(const std::string& key);
@@ -54,8 +56,6 @@ TechniqueChoice parseTechniqueRoles(const std::string& real, const std::string& 
 std::string canonicalName(const TechniqueChoice& c);
 /// Every accepted spelling of a single technique string (names, aliases), for --help and errors.
 std::vector<std::string> techniqueSpellings();
-/// The scene-file JSON of a choice: the string when it is a plain spelling, else {"real", "virtual"}.
-nlohmann::json techniqueJson(const TechniqueChoice& c);
 
 /// The distinct techniques of a choice ("none" left out), each with the roles it serves.
 struct RoleAssignment {

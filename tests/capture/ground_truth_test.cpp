@@ -40,7 +40,13 @@ TEST(GroundTruth, ReadsEveryLightTypeTheMarkerAmbientAndReferences) {
   ASSERT_TRUE(g.reference);
   EXPECT_EQ(GroundTruthReference::pathFor("/s", g.reference->delta, 12), "/s/reference/delta_000012.exr");
   EXPECT_EQ(g.environment["file"], "sky.exr");
+  EXPECT_TRUE(g.listsLights);
   EXPECT_TRUE(GroundTruth::fromJson(nullptr, kFile).lights.empty());
+  // Lit by an environment alone: the lights are listed, and there are none.
+  const GroundTruth outdoors = GroundTruth::fromJson(nlohmann::json::parse(R"({"lights": []})"), kFile);
+  EXPECT_TRUE(outdoors.listsLights);
+  EXPECT_TRUE(outdoors.lights.empty());
+  EXPECT_FALSE(GroundTruth::fromJson(nlohmann::json::parse(R"({"scene": {}})"), kFile).listsLights);
 }
 
 TEST(GroundTruth, BadEntriesAreOneLineErrorsNamingTheKey) {

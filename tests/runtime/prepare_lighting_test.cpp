@@ -49,6 +49,16 @@ TEST(PrepareLighting, GroundTruthLightsOfEveryTypeComeIntoTheMarkerFrame) {
   EXPECT_EQ(s.ambient, cv::Vec3d(0.07, 0.07, 0.07));
 }
 
+TEST(PrepareLighting, AnEnvironmentLitSessionHasNoDeltaLightsAndThatIsNoError) {
+  capture::SessionManifest m;
+  m.groundTruth = nlohmann::json::parse(R"({"T_world_marker": [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1], "lights": []})");
+  m.truth = capture::GroundTruth::fromJson(m.groundTruth, "manifest.json");
+  const ManifestOnly source(m);
+  lighting::SceneDescription scene;
+  scene.lightSource = lighting::LightSource::Manifest;
+  EXPECT_TRUE(prepareLighting(scene, "scene.json", source, "session", "marker").lights.empty());
+}
+
 TEST(PrepareLighting, ManifestLightsWithoutGroundTruthNameTheSceneAndTheSource) {
   const ManifestOnly source{capture::SessionManifest{}};
   lighting::SceneDescription scene;
