@@ -8,6 +8,7 @@
 
 #include "app/commands.h"
 #include "capture/error.h"
+#include "capture/json_io.h"
 #include "capture/image_io.h"
 #include "capture/npz.h"
 #include "capture/session.h"
@@ -27,11 +28,7 @@ struct ImportOptions {
 json readJson(const fs::path& p) {
   std::ifstream in(p);
   if (!in) throw capture::CaptureError(p.string(), "cannot open");
-  try {
-    return json::parse(in);
-  } catch (const json::exception& e) {
-    throw capture::CaptureError(p.string(), std::string("not valid JSON: ") + e.what());
-  }
+  return capture::parseJson(in, p.string());
 }
 
 int runImport(const ImportOptions& o) {

@@ -16,6 +16,7 @@
 #include "runtime/debug_view.h"
 #include "runtime/frame_pipeline.h"
 #include "capture/error.h"
+#include "capture/json_io.h"
 #include "capture/image_io.h"
 #include "capture/session.h"
 #include "gl/context.h"
@@ -53,7 +54,7 @@ json readJson(const std::string& path) {
   std::stringstream ss;
   ss << in.rdbuf();
   lighting::parseScene(ss.str(), path);  // validates with key-named errors
-  return json::parse(ss.str());
+  return capture::parseJson(ss.str(), path);
 }
 
 /// Euler angles (degrees) of R = Rz Ry Rx, the scene file's rotate_deg convention.

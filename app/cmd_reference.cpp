@@ -46,7 +46,7 @@ int runReference(const ReferenceOptions& o) {
     if (!frame) throw capture::CaptureError(o.source, "has no frame " + std::to_string(o.frame) + " (it ends after " + std::to_string(i) + ")");
   }
   if (!frame->rgbd) throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + " has no RGB-D image");
-  prepareOutputDirectory(o.out, "reference.json");  // after every input check: nothing is created on error
+  prepareOutputDirectory(o.out, "reference.json", "mrgi reference");  // after every input check: nothing is created on error
   const capture::Intrinsics k = frame->rgbd->colourIntrinsics;
   FrameOptions fo;
   fo.pose = o.pose;
@@ -78,7 +78,8 @@ int runReference(const ReferenceOptions& o) {
   writeExr((dir / "delta.exr").string(), delta);
   writePng((dir / "mask.png").string(), images.mask);
   writePng((dir / "composite.png").string(), compositor::compositeReference(frame->rgbd->colour, delta, images.mask));
-  json info = {{"source", o.source},     {"scene", o.scene},       {"frame", o.frame},
+  json info = {{"generated_by", "mrgi reference"},
+               {"source", o.source},     {"scene", o.scene},       {"frame", o.frame},
                {"spp", o.spp},           {"bounces", o.bounces},   {"seed", o.seed},
                {"pose", o.pose},         {"marker", r.info.value("marker", "")},
                {"triangles_real", real.indices.size() / 3},

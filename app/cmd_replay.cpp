@@ -61,7 +61,8 @@ int runReplay(const ReplayOptions& o) {
     if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
     setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose);
   }
-  prepareOutputDirectory(o.out, "summary.json");
+  if (!o.mp4.empty()) checkInsideOutput(o.mp4, "--mp4");
+  prepareOutputDirectory(o.out, "summary.json", "mrgi replay");
 
   gl::ContextConfig cfg;
   cfg.backend = backend;
@@ -186,6 +187,7 @@ int runReplay(const ReplayOptions& o) {
   if (video) videoFrames = video->close();
   const double wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   json summary;
+  summary["generated_by"] = "mrgi replay";  // how a later replay into --out recognises its own output
   summary["source"] = o.source;
   summary["frames"] = done;
   summary["resolution"] = {width, height};

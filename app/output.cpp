@@ -4,12 +4,14 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <unistd.h>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "capture/error.h"
+#include "capture/json_io.h"
 #include "capture/image_io.h"
 
 namespace fs = std::filesystem;
@@ -33,15 +35,34 @@ void createParentDirectory(const std::string& path) {
   if (!parent.empty()) fs::create_directories(parent);
 }
 
-void prepareOutputDirectory(const std::string& out, const std::string& marker) {
+void prepareOutputDirectory(const std::string& out, const std::string& marker, const std::string& generator) {
   std::error_code ec;
   if (fs::exists(out, ec)) {
     if (!fs::is_directory(out, ec)) throw capture::CaptureError(out, "exists and is not a directory");
-    if (!fs::is_empty(out, ec) && !fs::exists(fs::path(out) / marker, ec))
-      throw capture::CaptureError(out, "is not empty and holds no earlier mrgi output; refusing to overwrite");
+    if (!fs::is_empty(out, ec)) {
+      // Our own earlier output is recognised by what its marker says, not by its name alone.
+      bool ours = false;
+      const fs::path m = fs::path(out) / marker;
+      if (fs::is_regular_file(m, ec) && fs::file_size(m, ec) < (1u << 26)) {
+        std::ifstream in(m);
+        try {
+          const nlohmann::json j = capture::parseJson(in, m.string());
+          ours = j.is_object() && j.value("generated_by", std::string()) == generator;
+        } catch (const capture::InputError&) {
+        }
+      }
+      if (!ours)
+        throw capture::CaptureError(out, "is not empty and holds no earlier output of " + generator + "; refusing to overwrite");
+    }
   }
   fs::create_directories(out, ec);
   if (ec) throw capture::CaptureError(out, "cannot create output directory: " + ec.message());
+}
+
+void checkInsideOutput(const std::string& name, const std::string& flag) {
+  const fs::path p = fs::path(name).lexically_normal();
+  if (p.is_absolute() || p.empty() || *p.begin() == "..")
+    throw std::invalid_argument(flag + " " + name + ": must be a file name inside --out (nothing is written outside it)");
 }
 
 ProgressBar::ProgressBar(std::string label) : label_(std::move(label)), tty_(isatty(fileno(stderr))) {}

@@ -14,9 +14,12 @@ void writeExr(const std::string& path, const cv::Mat& rgb);
 void writePng(const std::string& path, const cv::Mat& rgb);
 /// Creates the folder a file is about to be written into (nothing for a bare file name).
 void createParentDirectory(const std::string& path);
-/// Creates `out`, or accepts it when empty or holding an earlier output of this command (it contains
-/// `marker`, e.g. summary.json); refuses any other folder so that nothing the user had is overwritten.
-void prepareOutputDirectory(const std::string& out, const std::string& marker);
+/// Creates `out`, or accepts it when empty or holding an earlier output of this command: its `marker` file
+/// (e.g. summary.json) is a JSON object whose "generated_by" is `generator` ("mrgi replay"). Refuses any
+/// other folder, so that nothing the user had is overwritten.
+void prepareOutputDirectory(const std::string& out, const std::string& marker, const std::string& generator);
+/// A file name for inside an output folder: relative, no ".." (nothing written outside the folder).
+void checkInsideOutput(const std::string& name, const std::string& flag);
 
 /// "label [#####.....]  45%" on stderr, redrawn in place when stderr is a terminal (silent otherwise).
 class ProgressBar {

@@ -3,9 +3,15 @@
 #include <OpenNI.h>
 
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <mutex>
 
+#include <opencv2/core.hpp>
+
 #include "capture/error.h"
+#include "capture/timestamp_pairing.h"
 
 namespace mrgi::capture {
 namespace {
@@ -27,17 +33,53 @@ void initialiseOnce() {
   if (status != openni::STATUS_OK) throw CaptureError("openni2://", "cannot initialise OpenNI2 (" + lastError() + ")");
 }
 
-Intrinsics intrinsicsOf(const openni::VideoStream& s) {
+/// A usable field of view: finite, in (0, pi).
+bool usableFov(double h, double v) { return std::isfinite(h) && std::isfinite(v) && h > 0 && v > 0 && h < CV_PI && v < CV_PI; }
+
+/// Intrinsics from a stream's fields of view (OpenNI2 reports no principal point: the image centre).
+/// A stream that reports no usable field of view (colour streams of OpenNI 1.x recordings report 0) takes
+/// `fallback`'s, with a warning; without one it fails in one line.
+Intrinsics intrinsicsOf(const openni::VideoStream& s, const std::string& uri, const char* name,
+                        const openni::VideoStream* fallback) {
   const openni::VideoMode mode = s.getVideoMode();
   Intrinsics k;
   k.width = mode.getResolutionX();
   k.height = mode.getResolutionY();
-  // OpenNI2 reports fields of view; the principal point is the image centre.
-  k.fx = k.width / (2.0 * std::tan(s.getHorizontalFieldOfView() / 2.0));
-  k.fy = k.height / (2.0 * std::tan(s.getVerticalFieldOfView() / 2.0));
+  double h = s.getHorizontalFieldOfView(), v = s.getVerticalFieldOfView();
+  if (!usableFov(h, v)) {
+    if (!fallback || !usableFov(fallback->getHorizontalFieldOfView(), fallback->getVerticalFieldOfView()))
+      throw CaptureError(uri, std::string("the ") + name + " stream reports no field of view (" + std::to_string(h) +
+                                  " x " + std::to_string(v) + " rad); its intrinsics are unknown");
+    h = fallback->getHorizontalFieldOfView();
+    v = fallback->getVerticalFieldOfView();
+    std::fprintf(stderr, "warning: %s: the %s stream reports no field of view; using the depth stream's (%.1f x %.1f deg)\n",
+                 uri.c_str(), name, h * 180 / CV_PI, v * 180 / CV_PI);
+  }
+  k.fx = k.width / (2.0 * std::tan(h / 2.0));
+  k.fy = k.height / (2.0 * std::tan(v / 2.0));
   k.cx = (k.width - 1) / 2.0;
   k.cy = (k.height - 1) / 2.0;
+  if (!k.valid()) throw CaptureError(uri, std::string("the ") + name + " stream reports an unusable video mode");
   return k;
+}
+
+/// What is known about a file OpenNI2 cannot open: its size and header.
+std::string describeOniFile(const std::string& path) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) return "cannot read the file";
+  std::ifstream in(path, std::ios::binary);
+  char magic[4] = {0, 0, 0, 0};
+  in.read(magic, 4);
+  const std::string m(magic, static_cast<size_t>(in.gcount()));
+  std::string what = std::to_string(size) + " bytes";
+  if (m == "NI10")
+    what += ", an OpenNI 1.x recording header";
+  else if (m.size() == 4 && m.compare(0, 2, "NI") == 0)
+    what += ", an ONI header ('" + m + "')";
+  else
+    what += ", no ONI header (not a recording)";
+  return what;
 }
 
 }  // namespace
@@ -51,6 +93,9 @@ struct OpenNI2Source::Impl {
   int64_t index = 0;
   int64_t fileFrames = -1;
   double lastTimestamp = -1.0;
+  int64_t colourFrames = -1, colourRead = 0;  ///< file playback: the colour stream's length, frames read
+  bool flipDepth = false, flipColour = false;  ///< recorded mirrored: un-mirror in software
+  std::optional<NearestInTime<openni::VideoFrameRef>> colourPairs;  ///< file playback: colour nearest in time
 };
 
 OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -60,7 +105,8 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
   initialiseOnce();
   if (d.device.open(deviceUri.empty() ? openni::ANY_DEVICE : deviceUri.c_str()) != openni::STATUS_OK)
     throw CaptureError(d.isFile ? deviceUri : d.uri,
-                       d.isFile ? "cannot open .oni file (" + lastError() + ")"
+                       d.isFile ? "cannot open .oni file (" + describeOniFile(deviceUri) + "; OpenNI2: " + lastError() +
+                                      "): truncated or corrupt"
                                 : deviceUri.empty() ? "no depth sensor connected" : "cannot open device (" + lastError() + ")");
   if (!d.device.hasSensor(openni::SENSOR_DEPTH) || d.depth.create(d.device, openni::SENSOR_DEPTH) != openni::STATUS_OK)
     throw CaptureError(d.uri, "device has no depth stream");
@@ -89,9 +135,18 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
     playback->setSpeed(-1.0f);  // manual stepping: every readFrame returns the next recorded frame
     playback->setRepeatEnabled(false);
     d.fileFrames = playback->getNumberOfFrames(d.depth);
+    // Pairs are made by timestamp; a pair needs a frame of each stream.
+    if (d.hasColour) {
+      d.colourFrames = playback->getNumberOfFrames(d.colour);
+      d.fileFrames = std::min(d.fileFrames, d.colourFrames);
+    }
   }
+  // Mirroring off. File playback cannot switch it (the recording's setting holds): such frames are
+  // un-mirrored in software.
   d.depth.setMirroringEnabled(false);
   if (d.hasColour) d.colour.setMirroringEnabled(false);
+  d.flipDepth = d.depth.getMirroringEnabled();
+  d.flipColour = d.hasColour && d.colour.getMirroringEnabled();
   if (d.depth.start() != openni::STATUS_OK) throw CaptureError(d.uri, "cannot start the depth stream (" + lastError() + ")");
   if (d.hasColour && d.colour.start() != openni::STATUS_OK)
     throw CaptureError(d.uri, "cannot start the colour stream (" + lastError() + ")");
@@ -99,8 +154,19 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
   info_.uri = d.uri;
   info_.kind = "openni2";
   if (d.fileFrames >= 0) info_.frameCount = d.fileFrames;
-  info_.depthIntrinsics = intrinsicsOf(d.depth);
-  info_.colourIntrinsics = d.hasColour ? intrinsicsOf(d.colour) : info_.depthIntrinsics;
+  info_.depthIntrinsics = intrinsicsOf(d.depth, d.uri, "depth", nullptr);
+  info_.colourIntrinsics = d.hasColour ? intrinsicsOf(d.colour, d.uri, "colour", &d.depth) : info_.depthIntrinsics;
+  if (d.hasColour)
+    d.colourPairs.emplace([&d]() -> std::optional<std::pair<openni::VideoFrameRef, double>> {
+      if (d.colourFrames >= 0 && d.colourRead >= d.colourFrames) return std::nullopt;  // its end: no need to wait
+      ++d.colourRead;
+      openni::VideoFrameRef c;
+      openni::VideoStream* streams[] = {&d.colour};
+      int ready = -1;
+      if (openni::OpenNI::waitForAnyStream(streams, 1, &ready, 2000) != openni::STATUS_OK) return std::nullopt;
+      if (d.colour.readFrame(&c) != openni::STATUS_OK || !c.isValid()) return std::nullopt;
+      return std::pair{c, static_cast<double>(c.getTimestamp()) * 1e-6};
+    });
   info_.hasRgbd = true;
   info_.fps = d.depth.getVideoMode().getFps();
 }
@@ -131,8 +197,12 @@ std::optional<Frame> OpenNI2Source::next() {
     if (d.isFile) return std::nullopt;  // end of the recording
     throw CaptureError(d.uri, "device lost (no depth frame for 2 s)");
   }
-  if (d.hasColour && !readOne(d.colour, colourFrame)) {
-    if (d.isFile) return std::nullopt;
+  if (d.hasColour && d.isFile) {
+    // Playback reads the streams independently: the colour frame nearest the depth frame's time.
+    const auto c = d.colourPairs->nearest(static_cast<double>(depthFrame.getTimestamp()) * 1e-6);
+    if (!c) return std::nullopt;
+    colourFrame = *c;
+  } else if (d.hasColour && !readOne(d.colour, colourFrame)) {
     throw CaptureError(d.uri, "device lost (no colour frame for 2 s)");
   }
 
@@ -148,10 +218,12 @@ std::optional<Frame> OpenNI2Source::next() {
   const double unit = fmt == openni::PIXEL_FORMAT_DEPTH_100_UM ? 1e-4 : 1e-3;
   const cv::Mat raw(dh, dw, CV_16UC1, const_cast<void*>(depthFrame.getData()), depthFrame.getStrideInBytes());
   raw.convertTo(r.depth, CV_32F, unit);
+  if (d.flipDepth) cv::flip(r.depth, r.depth, 1);
   if (d.hasColour) {
     const cv::Mat rgb(colourFrame.getHeight(), colourFrame.getWidth(), CV_8UC3, const_cast<void*>(colourFrame.getData()),
                       colourFrame.getStrideInBytes());
     r.colour = rgb.clone();
+    if (d.flipColour) cv::flip(r.colour, r.colour, 1);
   } else {
     r.colour = cv::Mat(dh, dw, CV_8UC3, cv::Scalar(128, 128, 128));
   }

@@ -1,5 +1,9 @@
 #include "capture/session.h"
 
+#include "capture/json_io.h"
+
+#include <limits>
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -42,7 +46,12 @@ double number(const json& j, const std::string& key, const std::string& file, co
 int integer(const json& j, const std::string& key, const std::string& file, const std::string& path) {
   const json& v = need(j, key, file, path);
   if (!v.is_number_integer()) throw CaptureError(file, "key '" + path + key + "' must be an integer");
-  return v.get<int>();
+  // Read as 64 bits and range-checked: 4294967297 must not wrap to 1.
+  const bool fits = v.is_number_unsigned() ? v.get<uint64_t>() <= static_cast<uint64_t>(std::numeric_limits<int>::max())
+                                           : v.get<int64_t>() >= std::numeric_limits<int>::min() &&
+                                                 v.get<int64_t>() <= std::numeric_limits<int>::max();
+  if (!fits) throw CaptureError(file, "key '" + path + key + "' is out of range (" + v.dump() + ")");
+  return static_cast<int>(v.get<int64_t>());
 }
 
 std::vector<double> numbers(const json& v, size_t n, const std::string& file, const std::string& key) {
@@ -70,6 +79,10 @@ Intrinsics intrinsicsFromJson(const json& j, const std::string& file, const std:
   k.cx = number(j, "cx", file, path);
   k.cy = number(j, "cy", file, path);
   if (!k.valid()) throw CaptureError(file, "key '" + path + "' holds non-positive size or focal length");
+  // Larger than any sensor: its frames could not be allocated, let alone lit.
+  if (k.width > kMaxImageSide || k.height > kMaxImageSide)
+    throw CaptureError(file, "key '" + path + "' holds an image of " + std::to_string(k.width) + "x" + std::to_string(k.height) +
+                                 " (at most " + std::to_string(kMaxImageSide) + " a side)");
   return k;
 }
 
@@ -266,11 +279,7 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
   json mj;
   {
     std::ifstream in(manifestPath);
-    try {
-      mj = json::parse(in);
-    } catch (const json::exception& e) {
-      throw CaptureError(manifestPath, std::string("malformed JSON (") + e.what() + ")");
-    }
+    mj = parseJson(in, manifestPath);
   }
   manifest_ = SessionManifest::fromJson(mj, manifestPath);
 
@@ -294,8 +303,8 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
     const std::string where = indexPath + ":" + std::to_string(lineNo);
     json j;
     try {
-      j = json::parse(line);
-    } catch (const json::exception&) {
+      j = parseJson(line, where);
+    } catch (const InputError&) {
       throw CaptureError(where, "malformed frame line");
     }
     Entry e;
@@ -322,7 +331,10 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
     if (e.colour.empty() && e.fisheye.empty()) throw CaptureError(where, "frame has no images");
     if (!e.fisheye.empty() && !manifest_.fisheye)
       throw CaptureError(where, "frame has a fisheye image but the manifest has no fisheye calibration");
-    if (j.contains("exposure")) e.exposure = number(j, "exposure", where, "");
+    if (j.contains("exposure")) {
+      e.exposure = number(j, "exposure", where, "");
+      if (!(e.exposure > 0)) throw CaptureError(where, "exposure " + std::to_string(e.exposure) + " must be positive");
+    }
     if (j.contains("T_world_camera")) e.pose = poseFromJson(j["T_world_camera"], where, "T_world_camera");
     entries_.push_back(std::move(e));
   }

@@ -16,6 +16,8 @@
 namespace mrgi::capture {
 
 inline constexpr int kSessionVersion = 1;
+/// The largest image side a session may declare (pixels).
+inline constexpr int kMaxImageSide = 16384;
 
 struct MarkerSpec {
   std::string family = "tag36h11";

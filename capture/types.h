@@ -1,6 +1,7 @@
 #pragma once
 /// Frame types produced by every capture source. Units: metres, seconds, pixels.
 /// Camera frame: OpenCV (x right, y down, z forward). Poses T_a_b map points from frame b to frame a.
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -14,7 +15,11 @@ namespace mrgi::capture {
 struct Intrinsics {
   int width = 0, height = 0;
   double fx = 0, fy = 0, cx = 0, cy = 0;
-  bool valid() const { return width > 0 && height > 0 && fx > 0 && fy > 0; }
+  /// Positive size, finite positive focal lengths, finite principal point.
+  bool valid() const {
+    return width > 0 && height > 0 && std::isfinite(fx) && std::isfinite(fy) && fx > 0 && fy > 0 && std::isfinite(cx) &&
+           std::isfinite(cy);
+  }
   bool operator==(const Intrinsics&) const = default;
 };
 

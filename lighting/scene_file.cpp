@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 
+#include "capture/json_io.h"
 #include "capture/types.h"
 #include "lighting/techniques/registry.h"
 
@@ -65,11 +66,32 @@ Mesh loadMesh(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw SceneError(path, "model file not found");
   Assimp::Importer importer;
-  const aiScene* scene =
-      importer.ReadFile(path, aiProcess_Triangulate | aiProcess_GenSmoothNormals | aiProcess_JoinIdenticalVertices |
-                                  aiProcess_SortByPType | aiProcess_PreTransformVertices);
+  // Two steps: the import with assimp's own validation only, then our index check, then the
+  // post-processing — which trusts its input (out-of-range or truncated faces crash or abort inside it).
+  const aiScene* scene = importer.ReadFile(path, aiProcess_ValidateDataStructure);
   if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
     throw SceneError(path, std::string("cannot read model: ") + importer.GetErrorString());
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* mesh = scene->mMeshes[m];
+    if (!mesh || !mesh->mVertices) throw SceneError(path, "model mesh " + std::to_string(m) + " has no vertices");
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices > 0 && !face.mIndices)
+        throw SceneError(path, "model mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no indices");
+      for (unsigned k = 0; k < face.mNumIndices; ++k)
+        if (face.mIndices[k] >= mesh->mNumVertices)
+          throw SceneError(path, "model mesh " + std::to_string(m) + " face " + std::to_string(f) + " refers to vertex " +
+                                     std::to_string(face.mIndices[k]) + " of " + std::to_string(mesh->mNumVertices));
+    }
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw SceneError(path, "model has a non-finite vertex position");
+    }
+  }
+  scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_GenSmoothNormals | aiProcess_JoinIdenticalVertices |
+                                       aiProcess_SortByPType | aiProcess_PreTransformVertices);
+  if (!scene || !scene->mRootNode) throw SceneError(path, std::string("cannot read model: ") + importer.GetErrorString());
   Mesh mesh;
   appendNode(scene, scene->mRootNode, aiMatrix4x4(), mesh);
   if (mesh.indices.empty()) throw SceneError(path, "model holds no triangles");
@@ -156,11 +178,7 @@ cv::Vec3d unit(const cv::Vec3d& v, const Reader& r, const std::string& key) {
 SceneDescription parseScene(const std::string& text, const std::string& path) {
   Reader r(path);
   json doc;
-  try {
-    doc = json::parse(text);
-  } catch (const json::parse_error& e) {
-    throw SceneError(path, std::string("not valid JSON: ") + e.what());
-  }
+  doc = capture::parseJson(text, path);
   std::set<std::string> topLevel{"objects", "lights", "fisheye_light_count", "ambient_radiance", "technique"};
   for (const KnobGroup* g : knobGroups()) topLevel.insert(g->key);
   r.allowOnly(doc, "", topLevel);

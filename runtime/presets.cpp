@@ -3,6 +3,7 @@
 #include <fstream>
 
 #include "capture/error.h"
+#include "capture/json_io.h"
 #include "lighting/techniques/registry.h"
 
 using nlohmann::json;
@@ -21,12 +22,7 @@ void applyPreset(const json& preset, lighting::SceneDescription& scene) {
 json loadPreset(const std::string& path, const std::string& name) {
   std::ifstream in(path);
   if (!in) throw capture::CaptureError(path, "cannot read the presets file");
-  json doc;
-  try {
-    doc = json::parse(in);
-  } catch (const json::exception& e) {
-    throw capture::CaptureError(path, std::string("not valid JSON: ") + e.what());
-  }
+  const json doc = capture::parseJson(in, path);
   const json& presets = doc.contains("presets") ? doc["presets"] : doc;
   if (!presets.is_object() || !presets.contains(name))
     throw capture::CaptureError(path, "has no preset \"" + name + "\" (fast, balanced, accurate)");

@@ -135,6 +135,20 @@ TEST(Cli, ReplayWritesFramesAndSummary) {
   std::ofstream(mine / "thesis.tex") << "precious";
   expectOneLineError(runMrgi("replay " + session().string() + " --out " + mine.string()), "refusing to overwrite");
   EXPECT_EQ(slurp(mine / "thesis.tex"), "precious");
+  // A file of the user's that merely bears our marker's name does not make the folder ours.
+  std::ofstream(mine / "summary.json") << "{\"my\": \"notes\"}";
+  std::ofstream(mine / "replay.mp4") << "my video";
+  expectOneLineError(runMrgi("replay " + session().string() + " --out " + mine.string()), "refusing to overwrite");
+  EXPECT_EQ(slurp(mine / "summary.json"), "{\"my\": \"notes\"}");
+  EXPECT_EQ(slurp(mine / "replay.mp4"), "my video");
+  EXPECT_FALSE(fs::exists(mine / "frame_0000.png"));
+  // The video goes inside --out only: an absolute path or one climbing out is refused, nothing written.
+  std::ofstream(out.string() + "_video.mp4") << "my other video";
+  for (const std::string mp4 : {out.string() + "_video.mp4", "../" + out.filename().string() + "_video.mp4"}) {
+    expectOneLineError(runMrgi("replay " + session().string() + " --frames 1 --out " + out.string() + " --mp4 " + mp4), "--mp4");
+    EXPECT_EQ(slurp(out.string() + "_video.mp4"), "my other video");
+  }
+  fs::remove(out.string() + "_video.mp4");
   fs::remove_all(out);
   fs::remove_all(mine);
 }
@@ -798,6 +812,33 @@ TEST(Cli, RecordCopiesFramesAndTheFisheyeCalibrationIntoANewSession) {
   }
   expectOneLineError(runMrgi("record --source " + rec.string() + " --frames 1 --out " + out.string()), out.string());  // never overwrites
   fs::remove_all(out);
+}
+
+TEST(Cli, RealOniRecordingReplaysAndRecordsIntoASessionThatReadsBack) {
+  // OpenNI 1.x Kinect recording: colour field of view 0, recorded mirrored (../shared/data/oni-kinect-3dj).
+  const std::string oni = std::string(MRGI_SHARED_DATA) + "/oni-kinect-3dj/test.oni";
+  const auto info = nlohmann::json::parse(runMrgi("info " + oni).out);
+  ASSERT_TRUE(info["colour_intrinsics"]["fx"].is_number()) << info.dump();
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_oni_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  // Replay with no scene reproduces its colour.
+  Result r = runMrgi("replay " + oni + " --frames 2 --mp4 \"\" --out " + (dir / "replay").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("using the depth stream's"), std::string::npos) << r.err;  // the one warning
+  // record writes a session that info and replay open, frame for frame the same colour.
+  r = runMrgi("record --source " + oni + " --frames 3 --out " + (dir / "session").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const Result i = runMrgi("info " + (dir / "session").string());
+  ASSERT_EQ(i.exitCode, 0) << i.err;
+  EXPECT_EQ(nlohmann::json::parse(i.out)["frame_count"], 3);
+  r = runMrgi("replay " + (dir / "session").string() + " --mp4 \"\" --out " + (dir / "replay2").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  for (const char* name : {"frame_0000.png", "frame_0001.png"}) {
+    const cv::Mat a = cv::imread((dir / "replay" / name).string()), b = cv::imread((dir / "replay2" / name).string());
+    ASSERT_FALSE(a.empty() || b.empty()) << name;
+    EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0) << name;
+  }
+  fs::remove_all(dir);
 }
 
 TEST(Cli, CtrlCDuringRecordKeepsEveryCompleteFrame) {

@@ -4,6 +4,7 @@
 
 #include "capture/error.h"
 #include "capture/ground_truth.h"
+#include "capture/json_io.h"
 #include "capture/session.h"
 
 namespace mrgi::capture {
@@ -58,6 +59,10 @@ TEST(GroundTruth, BadEntriesAreOneLineErrorsNamingTheKey) {
       {R"({"reference": {"scene": "s.json", "composite": "c.png", "delta": "d_NNNNNN.exr", "mask": "m_NNNNNN.png"}})",
        "has no NNNNNN"},
       {R"({"T_world_marker": [1, 2]})", "ground_truth.T_world_marker"},
+      {R"({"scene": {"ambient_radiance": []}})", "ground_truth.scene.ambient_radiance must be an array of 3"},
+      {R"({"lights": [{"type": "point", "position": [], "intensity_w_sr": [1, 1, 1]}]})", "ground_truth.lights[0].position"},
+      {R"({"lights": [{"type": "point", "position": [0, 0, 1], "intensity_w_sr": [1]}]})", "ground_truth.lights[0].intensity_w_sr"},
+      {R"({"lights": [{"type": "point", "position": [0, 0, "x"], "intensity_w_sr": [1, 1, 1]}]})", "must hold finite numbers"},
   };
   for (const auto& [text, expected] : cases) {
     try {
@@ -69,6 +74,27 @@ TEST(GroundTruth, BadEntriesAreOneLineErrorsNamingTheKey) {
       EXPECT_NE(what.find(expected), std::string::npos) << what;
       EXPECT_EQ(what.find('\n'), std::string::npos) << what;
     }
+  }
+}
+
+TEST(Json, DeepNestingIsRefusedInOneLineNotByTheStack) {
+  // 10^5 nested objects, 10^6 nested arrays: the recursion of parsing or copying them ran out of stack.
+  std::string objects, arrays(1000000, '[');
+  for (int i = 0; i < 100000; ++i) objects += "{\"a\":";
+  for (const std::string& text : {objects, arrays, std::string("{\"ground_truth\": ") + arrays}) {
+    try {
+      parseJson(text, kFile);
+      ADD_FAILURE() << "accepted";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), std::string(kFile) + ": not valid JSON: nested deeper than 64 levels");
+    }
+  }
+  EXPECT_EQ(parseJson(R"({"a": [[1, 2], {"b": null}]})", kFile)["a"][0][1], 2);
+  try {
+    parseJson("{\"x\": 1e400}", kFile);
+    ADD_FAILURE() << "accepted 1e400";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(std::string(kFile) + ": not valid JSON: ", 0), 0u) << e.what();
   }
 }
 

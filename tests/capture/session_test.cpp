@@ -241,7 +241,7 @@ TEST(Session, BadInputsGiveOneLineErrorsNamingTheFile) {
   EXPECT_NE(m.find("missing key 'colour.fx'"), std::string::npos) << m;
   // Malformed JSON.
   m = errorFor([&](const fs::path& dir) { std::ofstream(dir / "manifest.json", std::ios::trunc) << "{ nope"; });
-  EXPECT_NE(m.find("manifest.json: malformed JSON"), std::string::npos) << m;
+  EXPECT_NE(m.find("manifest.json: not valid JSON"), std::string::npos) << m;
   // Empty session.
   m = errorFor([&](const fs::path& dir) { std::ofstream(dir / "frames.jsonl", std::ios::trunc); });
   EXPECT_NE(m.find("no complete frame"), std::string::npos) << m;

@@ -2,6 +2,8 @@
 // the file and the key.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <map>
 
 #include "lighting/scene_file.h"
@@ -47,6 +49,56 @@ TEST(Models, BadModelFilesNameTheFile) {
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("FORMAT.md"), std::string::npos) << e.what();
   }
+}
+
+/// Writes a model file into the temp folder.
+std::string writeModel(const std::string& name, const std::string& bytes) {
+  const std::string path = (std::filesystem::temp_directory_path() / name).string();
+  std::ofstream(path, std::ios::binary) << bytes;
+  return path;
+}
+
+TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
+  const std::string header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                             "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string vertices = "0 0 0\n1 0 0\n0 1 0\n";
+  struct Case {
+    const char* name;
+    std::string bytes;
+  };
+  const Case cases[] = {
+      {"index_past_end.ply", header + vertices + "3 0 1 5\n"},
+      {"index_negative.ply", header + vertices + "3 0 1 -5\n"},
+      {"index_huge.ply", header + vertices + "3 0 1 2000000000\n"},
+      {"truncated_ascii.ply", header + "0 0 0\n1 0"},
+      {"truncated_faces.ply", header + vertices + "3 0"},
+      {"truncated_binary.ply", std::string("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+                                           "property float y\nproperty float z\nelement face 1\n"
+                                           "property list uchar int vertex_indices\nend_header\n") +
+                                   std::string(20, '\x01')},
+  };
+  for (const Case& c : cases) {
+    const std::string path = writeModel(std::string("mrgi_") + c.name, c.bytes);
+    try {
+      const Mesh m = loadMesh(path);
+      // Whatever assimp recovers must be sound.
+      for (uint32_t i : m.indices) EXPECT_LT(i, m.positions.size()) << c.name;
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+    }
+    std::filesystem::remove(path);
+  }
+  // An index past the vertex count is named.
+  const std::string path = writeModel("mrgi_named.ply", header + vertices + "3 0 1 9999\n");
+  try {
+    loadMesh(path);
+    ADD_FAILURE() << "accepted an index past the vertices";
+  } catch (const SceneError& e) {
+    const std::string what = e.what();
+    EXPECT_TRUE(what.find("vertex 9999 of 3") != std::string::npos || what.find("out of range") != std::string::npos) << what;
+  }
+  std::filesystem::remove(path);
 }
 
 TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
