@@ -23,6 +23,8 @@ PipelineConfig& PipelineConfig::set(const std::string& group, const std::string&
   return *this;
 }
 
+static FrameConfig frameConfigOf(const PipelineConfig& config);
+
 PipelineConfig pipelineConfig(const SceneDescription& scene, int width, int height) {
   PipelineConfig pc;
   pc.width = width;
@@ -31,6 +33,24 @@ PipelineConfig pipelineConfig(const SceneDescription& scene, int width, int heig
   pc.knobs = scene.knobs;
   completeKnobs(pc.knobs);
   return pc;
+}
+
+static FrameConfig frameConfigOf(const PipelineConfig& config) {
+  FrameConfig fc;
+  fc.width = config.width;
+  fc.height = config.height;
+  fc.knobs = knobsFrom(frameKnobTable(), config.knobs.at(frameKnobGroup().key));
+  fc.fixedRegion = config.fixedRegion;
+  return fc;
+}
+
+size_t estimateGpuBytes(const PipelineConfig& config, size_t lights) {
+  PipelineConfig c = config;
+  completeKnobs(c.knobs);
+  size_t sum = FrameResources::estimateBytes(frameConfigOf(c), lights) + 2 * 16 * static_cast<size_t>(c.width) * c.height;
+  for (const RoleAssignment& a : assignRoles(c.technique))
+    if (a.info->estimateBytes) sum += a.info->estimateBytes(c.knobs.at(a.info->knobs.key), a.real, a.virtualObject, c.width, c.height);
+  return sum;
 }
 
 namespace {
@@ -50,12 +70,7 @@ LightingPipeline::LightingPipeline(const PipelineConfig& config, const std::vect
       shade_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
       irradiance_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height) {
   completeKnobs(config_.knobs);
-  FrameConfig fc;
-  fc.width = config.width;
-  fc.height = config.height;
-  fc.knobs = knobsFrom(frameKnobTable(), config_.knobs.at(frameKnobGroup().key));
-  fc.fixedRegion = config.fixedRegion;
-  frame_ = std::make_unique<FrameResources>(fc, objects);
+  frame_ = std::make_unique<FrameResources>(frameConfigOf(config_), objects);
   for (auto* t : {&shade_, &irradiance_}) t->setFilter(GL_NEAREST, GL_NEAREST);
   shadeFb_.attachColour(0, shade_);
   shadeFb_.attachColour(1, irradiance_);

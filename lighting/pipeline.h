@@ -41,6 +41,10 @@ struct PipelineConfig {
 /// The config a scene asks for at an output size.
 PipelineConfig pipelineConfig(const SceneDescription& scene, int width, int height);
 
+/// The GPU memory a pipeline of this config will hold for `lights` lights (frame resources, techniques,
+/// shading targets), bytes, estimated before anything is allocated.
+size_t estimateGpuBytes(const PipelineConfig& config, size_t lights);
+
 class LightingPipeline {
  public:
   /// Needs a current GL 4.5 context.

@@ -1,6 +1,7 @@
 #include "runtime/frame_pipeline.h"
 
 #include <algorithm>
+#include <cstdlib>
 
 #include <opencv2/imgproc.hpp>
 
@@ -65,9 +66,23 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
   }
   setup.ambient = setup.scene.ambientRadiance;
   if (setup.scene.ambientFromManifest && truth && truth->ambientRadiance) setup.ambient = *truth->ambientRadiance;
+  if (setup.lights.size() > static_cast<size_t>(lighting::kMaxLights))
+    throw capture::CaptureError(setup.scene.lightSource == lighting::LightSource::Scene ? sceneFile : sourcePath,
+                                "lights: " + std::to_string(setup.lights.size()) + " lights, at most " +
+                                    std::to_string(lighting::kMaxLights) + " are supported");
   if (poseMode == "ground-truth" && !setup.T_world_marker)
     throw capture::CaptureError(sourcePath, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
   return setup;
+}
+
+size_t gpuBudgetBytes() {
+  size_t mb = 4096;
+  if (const char* env = std::getenv("MRGI_GPU_BUDGET_MB")) {
+    char* end = nullptr;
+    const unsigned long long v = std::strtoull(env, &end, 10);
+    if (end != env && *end == '\0' && v > 0) mb = static_cast<size_t>(v);
+  }
+  return mb << 20;
 }
 
 FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int height, const FrameOptions& options)
@@ -75,6 +90,16 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
   if (!setup_) return;
   const lighting::PipelineConfig pc = lighting::pipelineConfig(setup_->scene, width, height);
   if (options_.gpu) {
+    // Refuse what cannot fit before allocating any of it (a 4096² RSM per light is gigabytes).
+    const size_t lights = setup_->fisheye ? static_cast<size_t>(setup_->scene.fisheyeLightCount) : setup_->lights.size();
+    const size_t need = lighting::estimateGpuBytes(pc, lights), budget = gpuBudgetBytes();
+    if (need > budget)
+      throw capture::CaptureError(setup_->scene.path.empty() ? "scene" : setup_->scene.path,
+                                  "frame.rsm_size " + std::to_string(static_cast<int>(pc.knobs.at("frame").at("rsm_size"))) +
+                                      " with " + std::to_string(lights) + " lights at " + std::to_string(width) + "x" +
+                                      std::to_string(height) + " needs " + std::to_string(need >> 20) +
+                                      " MiB of GPU memory, more than the " + std::to_string(budget >> 20) +
+                                      " MiB budget (MRGI_GPU_BUDGET_MB)");
     pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
     needs_ = pipeline_->needs();
     if (needs_.realVals && needs_.realValOptions.fusion) surfels_.emplace(needs_.realValOptions.surfels);

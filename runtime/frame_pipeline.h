@@ -33,6 +33,9 @@ struct LightingSetup {
   std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
 };
 
+/// The GPU memory a frame pipeline may take: MRGI_GPU_BUDGET_MB (MiB) when set, else 4096 MiB.
+size_t gpuBudgetBytes();
+
 /// A session's ground-truth lights (world frame, every type) in the marker frame.
 std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
                                                      const capture::Pose& T_world_marker);

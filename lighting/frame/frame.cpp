@@ -183,10 +183,8 @@ FrameResources::FrameResources(const FrameConfig& config, const std::vector<Virt
       gPosition_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
       gNormal_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
       gAlbedo_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
-      gDepth_(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, config.width, config.height),
-      shadowRho_(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, config.knobs.rsmSize, config.knobs.rsmSize, kMaxLights) {
+      gDepth_(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, config.width, config.height) {
   for (auto* t : {&gPosition_, &gNormal_, &gAlbedo_}) t->setFilter(GL_NEAREST, GL_NEAREST);
-  shadowRho_.setFilter(GL_NEAREST, GL_NEAREST);
   gbufferFb_.attachColour(0, gPosition_);
   gbufferFb_.attachColour(1, gNormal_);
   gbufferFb_.attachColour(2, gAlbedo_);
@@ -360,13 +358,18 @@ void FrameResources::renderLight(size_t i, bool keepMu) {
   renderRsm(rsmMu_, light, views_.back(), false);
   glDisable(GL_DEPTH_TEST);
   const int n = rsmSize();
+  // Shadow maps: one layer per light of this run (RSM-sized, so they are allocated for the lights there are).
+  const int layers = static_cast<int>(lights_.size());
+  auto ensureLayers = [&](gl::Texture& t) {
+    if (t.id() && t.depth() >= layers) return;
+    t = gl::Texture(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, n, n, layers);
+    t.setFilter(GL_NEAREST, GL_NEAREST);
+  };
+  if (i == 0) ensureLayers(shadowRho_);
   glCopyImageSubData(rsmRho_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowRho_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
                      static_cast<GLint>(i), n, n, 1);
   if (keepMu) {
-    if (!shadowMu_.id()) {
-      shadowMu_ = gl::Texture(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, n, n, kMaxLights);
-      shadowMu_.setFilter(GL_NEAREST, GL_NEAREST);
-    }
+    if (i == 0) ensureLayers(shadowMu_);
     glCopyImageSubData(rsmMu_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowMu_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
                        static_cast<GLint>(i), n, n, 1);
   }
@@ -388,6 +391,16 @@ const gl::Texture& FrameResources::zero() {
 
 cv::Mat FrameResources::downloadGBuffer(int channel) const {
   return download4(channel == 0 ? gPosition_ : channel == 1 ? gNormal_ : gAlbedo_);
+}
+
+size_t FrameResources::estimateBytes(const FrameConfig& c, size_t lights) {
+  const size_t pixels = static_cast<size_t>(c.width) * static_cast<size_t>(c.height);
+  const size_t texels = static_cast<size_t>(c.knobs.rsmSize) * static_cast<size_t>(c.knobs.rsmSize);
+  const size_t rgba = 16, depth = 4;
+  const size_t gbuffer = pixels * (3 * rgba + depth) + pixels * rgba;  // + the zero stand-in
+  const size_t rsms = 2 * texels * (4 * rgba + depth);
+  const size_t shadows = 2 * std::max<size_t>(lights, 1) * texels * rgba;
+  return gbuffer + rsms + shadows;
 }
 
 size_t FrameResources::gpuBytes() const {

@@ -195,7 +195,7 @@ class FrameResources {
   const Rsm& rsmRho() const { return rsmRho_; }
   const Rsm& rsmMu() const { return rsmMu_; }
   RsmTexels downloadRsm(bool rho) const;
-  /// Per light: RSM^rho / RSM^mu world positions (layer = light index).
+  /// Per light: RSM^rho / RSM^mu world positions (layer = light index; allocated for the lights of the run).
   const gl::Texture& shadowRho() const { return shadowRho_; }
   const gl::Texture& shadowMu() const { return shadowMu_; }
   /// A zeroed RGBA32F texture of the output size (stands in for an output no technique provides).
@@ -203,6 +203,8 @@ class FrameResources {
   /// CV_32FC4 G-buffer channel: 0 position, 1 normal, 2 albedo (a = virtual).
   cv::Mat downloadGBuffer(int channel) const;
   size_t gpuBytes() const;
+  /// What these resources will hold on the GPU for `lights` lights, bytes (before allocating any).
+  static size_t estimateBytes(const FrameConfig& config, size_t lights);
 
  private:
   Rsm makeRsm(int size) const;

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <array>
+#include <chrono>
 #include <filesystem>
 #include <set>
 #include <fstream>
@@ -839,6 +840,26 @@ TEST(Cli, RealOniRecordingReplaysAndRecordsIntoASessionThatReadsBack) {
     EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0) << name;
   }
   fs::remove_all(dir);
+}
+
+TEST(Cli, ConfigurationsThatCannotFitAreRefusedBeforeAllocating) {
+  // 16 lights with 4096² RSMs need about 11 GB: refused in one line naming the scene and the knob, at once.
+  std::string lights;
+  for (int i = 0; i < 16; ++i)
+    lights += std::string(i ? ", " : "") + R"({"type": "point", "position": [0.)" + std::to_string(i) + R"(, 0, 1], "intensity": [1, 1, 1]})";
+  const fs::path scene = writeScene("huge_rsm.json", R"({"objects": [{"model": ")" + kModels + R"(sphere.ply", "scale": 0.06}],
+      "lights": [)" + lights + R"(], "frame": {"rsm_size": 4096}})");
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_huge_" + std::to_string(::getpid()));
+  const auto t0 = std::chrono::steady_clock::now();
+  expectOneLineError(runMrgi("replay " + session().string() + " --scene " + scene.string() + " --frames 1 --out " + out.string()),
+                     scene.string() + ": frame.rsm_size 4096 with 16 lights");
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 30.0);
+  // More lights than the pipeline carries: named too.
+  const fs::path many = writeScene("many_lights.json", R"({"objects": [{"model": ")" + kModels + R"(sphere.ply", "scale": 0.06}],
+      "lights": [)" + lights + ", " + lights + R"(]})");
+  expectOneLineError(runMrgi("replay " + session().string() + " --scene " + many.string() + " --frames 1 --out " + out.string()),
+                     many.string() + ": lights: 32 lights, at most 16 are supported");
+  fs::remove_all(out);
 }
 
 TEST(Cli, CtrlCDuringRecordKeepsEveryCompleteFrame) {

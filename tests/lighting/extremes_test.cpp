@@ -20,6 +20,8 @@ namespace {
 using Outputs = std::vector<double>;
 
 struct Extreme {
+  Extreme(std::string n, double b, std::function<Outputs()> r, std::function<void(const Outputs&)> e = {})
+      : name(std::move(n)), bound(b), run(std::move(r)), exact(std::move(e)) {}
   std::string name;
   double bound;                    ///< every output's magnitude is at most this
   std::function<Outputs()> run;

@@ -124,6 +124,10 @@ TEST_P(Conformance, UnlitIsExactlyZeroAndOutputsFollowTheRoles) {
     }
   }
   EXPECT_GE(pipe.gpuBytes(), sum);  // plus the shading targets
+  // The estimate made before allocating covers what was allocated (two lights), without inflating it.
+  const size_t estimate = lighting::estimateGpuBytes(cfg, 2);
+  EXPECT_GE(estimate, pipe.gpuBytes());
+  EXPECT_LE(estimate, pipe.gpuBytes() * 5 / 4);
 }
 
 INSTANTIATE_TEST_SUITE_P(GL, Conformance, ::testing::ValuesIn(roleSpellings()),
