@@ -11,6 +11,11 @@
 #include <fstream>
 #include <iterator>
 
+#include <png.h>
+
+#include <csetjmp>
+#include <cstdio>
+
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -35,10 +40,80 @@ std::vector<unsigned char> readBytes(const std::string& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+/// libpng errors and warnings go to our handlers, never to the terminal: an error ends the decode through
+/// longjmp with its message kept for our one line.
+struct PngErrors {
+  char message[256] = "";
+  std::jmp_buf jump;
+};
+[[noreturn]] void pngError(png_structp png, png_const_charp msg) {
+  auto* e = static_cast<PngErrors*>(png_get_error_ptr(png));
+  std::snprintf(e->message, sizeof e->message, "%s", msg ? msg : "unknown error");
+  std::longjmp(e->jump, 1);
+}
+void pngWarning(png_structp, png_const_charp) {}
+
+struct PngBytes {
+  const std::vector<unsigned char>* bytes;
+  size_t at = 0;
+};
+void pngRead(png_structp png, png_bytep out, png_size_t n) {
+  auto* r = static_cast<PngBytes*>(png_get_io_ptr(png));
+  if (n > r->bytes->size() - r->at) png_error(png, "file is truncated");
+  std::memcpy(out, r->bytes->data() + r->at, n);
+  r->at += n;
+}
+
+/// A PNG decoded by libpng with our own error handlers. colour: 8-bit BGR (as cv::IMREAD_COLOR); else the
+/// stored bit depth, grey as one channel and colour as BGR, alpha dropped (as IMREAD_ANYDEPTH|ANYCOLOR).
+cv::Mat decodePng(const std::vector<unsigned char>& bytes, bool colour, const std::string& path) {
+  PngErrors errors;
+  PngBytes reader{&bytes, 0};
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &errors, pngError, pngWarning);
+  if (!png) throw CaptureError(path, "cannot decode PNG (out of memory)");
+  png_infop info = png_create_info_struct(png);
+  auto fail = [&]() {
+    png_destroy_read_struct(&png, &info, nullptr);
+    throw CaptureError(path, std::string("cannot decode PNG (") + errors.message + ")");
+  };
+  if (!info || setjmp(errors.jump)) fail();
+  png_set_read_fn(png, &reader, pngRead);
+  png_read_info(png, info);
+  const png_uint_32 width = png_get_image_width(png, info), height = png_get_image_height(png, info);
+  if (width == 0 || height == 0 || width > 16384 || height > 16384) {
+    std::snprintf(errors.message, sizeof errors.message, "image of %ux%u, at most 16384 a side", width, height);
+    fail();
+  }
+  const int type = png_get_color_type(png, info), bits = png_get_bit_depth(png, info);
+  png_set_expand(png);  // palette -> RGB, grey below 8 bits -> 8, tRNS -> alpha
+  png_set_strip_alpha(png);
+  if (colour) {
+    png_set_strip_16(png);
+    png_set_gray_to_rgb(png);
+  } else if (bits == 16) {
+    png_set_swap(png);  // little-endian host
+  }
+  png_set_bgr(png);
+  png_read_update_info(png, info);
+  const int channels = png_get_channels(png, info), depth = png_get_bit_depth(png, info) == 16 ? CV_16U : CV_8U;
+  (void)type;
+  cv::Mat img(static_cast<int>(height), static_cast<int>(width), CV_MAKETYPE(depth, channels));
+  std::vector<png_bytep> rows(height);
+  for (png_uint_32 y = 0; y < height; ++y) rows[y] = img.ptr(static_cast<int>(y));
+  if (setjmp(errors.jump)) fail();
+  png_read_image(png, rows.data());
+  png_destroy_read_struct(&png, &info, nullptr);
+  return img;
+}
+
 cv::Mat decode(const std::string& path, int flags) {
   quietOpenCv();
   const std::vector<unsigned char> bytes = readBytes(path);
   if (bytes.empty()) throw CaptureError(path, "file is empty");
+  static const unsigned char kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  const bool png = bytes.size() >= 8 && std::memcmp(bytes.data(), kPngSignature, 8) == 0;
+  if (png && flags == cv::IMREAD_COLOR) return decodePng(bytes, true, path);
+  if (png && flags == (cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR)) return decodePng(bytes, false, path);
   cv::Mat img;
   try {
     img = cv::imdecode(bytes, flags);

@@ -7,6 +7,7 @@ find_package(CLI11 REQUIRED)
 find_package(glfw3 3.3 REQUIRED)
 find_package(embree 3 REQUIRED)
 find_package(assimp REQUIRED)
+find_package(PNG REQUIRED)  # capture decodes PNG frames with its own error handlers (no libpng messages on the terminal)
 find_package(Python3 REQUIRED COMPONENTS Interpreter)
 
 pkg_check_modules(OSMESA REQUIRED IMPORTED_TARGET osmesa)

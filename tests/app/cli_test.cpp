@@ -842,6 +842,36 @@ TEST(Cli, RealOniRecordingReplaysAndRecordsIntoASessionThatReadsBack) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, CorruptPngFramesAreOneLineWithNoLibraryMessages) {
+  // A recorded session whose frame PNGs are damaged: a CRC error in the image data, a truncated file, a
+  // header promising an image of 10^5 x 10^5. libpng's own "libpng error: ..." lines must not precede ours.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_png_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  Result r = runMrgi("record --source " + session().string() + " --frames 2 --out " + (dir / "s").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const fs::path png = dir / "s" / "colour" / "000001.png";
+  const std::string original = slurp(png);
+  ASSERT_GT(original.size(), 1000u);
+  auto replayWith = [&](const std::string& bytes) {
+    std::ofstream(png, std::ios::binary | std::ios::trunc) << bytes;
+    fs::remove_all(dir / "out");
+    return runMrgi("replay " + (dir / "s").string() + " --mp4 \"\" --out " + (dir / "out").string());
+  };
+  std::string crc = original;
+  crc[crc.size() / 2] = static_cast<char>(crc[crc.size() / 2] ^ 0x55);  // inside IDAT: its CRC no longer matches
+  expectOneLineError(replayWith(crc), png.string());
+  expectOneLineError(replayWith(original.substr(0, original.size() / 2)), png.string());
+  std::string huge = original;  // IHDR width and height (big-endian at bytes 16 and 20) = 100000
+  for (int at : {16, 20}) {
+    huge[at] = 0, huge[at + 1] = 0x01, huge[at + 2] = static_cast<char>(0x86), huge[at + 3] = static_cast<char>(0xA0);
+  }
+  expectOneLineError(replayWith(huge), png.string());
+  // The undamaged file still decodes to the same colour as before.
+  r = replayWith(original);
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, ConfigurationsThatCannotFitAreRefusedBeforeAllocating) {
   // 16 lights with 4096² RSMs need about 11 GB: refused in one line naming the scene and the knob, at once.
   std::string lights;
