@@ -101,6 +101,27 @@ TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
   std::filesystem::remove(path);
 }
 
+TEST(Models, GltfIndicesPastTheVerticesAreRefused) {
+  // Three vertices, a triangle (0, 1, N): N = 9999 and 0xFFFFFFF0 (embedded buffer, 32-bit indices).
+  const std::string head = R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "scene": 0, "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+    "buffers": [{"byteLength": 48, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAEAAAA)";
+  const std::string tail = R"("}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 12}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                  {"bufferView": 1, "componentType": 5125, "count": 3, "type": "SCALAR"}]})";
+  for (const char* last : {"PJwAA", "w////"}) {
+    const std::string path = writeModel("mrgi_bad_index.gltf", head + last + tail);
+    try {
+      const Mesh m = loadMesh(path);
+      ADD_FAILURE() << "accepted an index past the vertices (" << m.indices.size() << " indices)";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
+    std::filesystem::remove(path);
+  }
+}
+
 TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   const SceneDescription s = parseScene(R"({
     "objects": [{"model": "../models/cube.obj", "translate": [0, 0, 0.05], "rotate_deg": [0, 0, 90], "scale": 0.1,
