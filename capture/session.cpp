@@ -383,6 +383,17 @@ Frame SessionSource::read(int64_t i) const {
     FisheyeFrame ff;
     const std::string path = (dir / e.fisheye).string();
     ff.image = readAny(path);
+    if (ff.image.depth() == CV_32F) {
+      // An HDR environment image: radiance, finite and non-negative, and not all dark (the median cut would
+      // place its lights nowhere, and the object would render black).
+      double lo = 0, hi = 0;
+      const cv::Mat flat = ff.image.reshape(1);
+      if (cv::checkRange(flat, true, nullptr, -1e30, 1e30)) cv::minMaxLoc(flat, &lo, &hi);
+      else lo = hi = std::numeric_limits<double>::quiet_NaN();
+      if (!std::isfinite(lo) || !std::isfinite(hi)) throw CaptureError(path, "fisheye image holds non-finite values");
+      if (lo < 0) throw CaptureError(path, "fisheye image holds negative radiance (" + std::to_string(lo) + ")");
+      if (!(hi > 0)) throw CaptureError(path, "fisheye image is black everywhere: no light to estimate");
+    }
     ff.exposure = e.exposure;
     ff.calibration = *manifest_.fisheye;
     if (ff.image.cols != ff.calibration.width || ff.image.rows != ff.calibration.height)

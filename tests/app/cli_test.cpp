@@ -7,6 +7,7 @@
 #include <array>
 #include <chrono>
 #include <filesystem>
+#include <limits>
 #include <set>
 #include <fstream>
 #include <sstream>
@@ -869,6 +870,33 @@ TEST(Cli, CorruptPngFramesAreOneLineWithNoLibraryMessages) {
   // The undamaged file still decodes to the same colour as before.
   r = replayWith(original);
   EXPECT_EQ(r.exitCode, 0) << r.err;
+  fs::remove_all(dir);
+}
+
+TEST(Cli, FisheyeImagesOfNanNegativeOrNoLightAreRefused) {
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_fisheye_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const fs::path hdr = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-hdr";
+  Result r = runMrgi("record --source " + hdr.string() + " --frames 1 --out " + (dir / "s").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  fs::path exr;
+  for (const auto& e : fs::directory_iterator(dir / "s" / "fisheye")) exr = e.path();
+  ASSERT_EQ(exr.extension(), ".exr");
+  const cv::Mat original = cv::imread(exr.string(), cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(original.empty());
+  const std::string scene = (fs::path(MRGI_SOURCE_DIR) / "recordings/scenes/tabletop-fisheye.json").string();
+  const std::pair<float, const char*> cases[] = {{std::numeric_limits<float>::quiet_NaN(), "non-finite"},
+                                                 {-1.f, "negative radiance"},
+                                                 {0.f, "black everywhere"}};
+  for (const auto& [value, message] : cases) {
+    cv::imwrite(exr.string(), cv::Mat(original.size(), original.type(), cv::Scalar::all(value)));
+    fs::remove_all(dir / "out");
+    expectOneLineError(runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --mp4 \"\" --out " + (dir / "out").string()),
+                       exr.string() + ": fisheye image");
+    r = runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --mp4 \"\" --out " + (dir / "out2").string());
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+    fs::remove_all(dir / "out2");
+  }
   fs::remove_all(dir);
 }
 
