@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# The libFuzzer harness: every parser a user's file reaches (session manifests, scene files, presets, model
+# files, frame images, .npy arrays, TUM lists, fisheye calibrations), built with clang-15, AddressSanitizer
+# and UBSan in build-fuzz/ (apart from the normal build), seeded from the bundled files and ../shared/data.
+#   tools/fuzz.sh                 every target for 30 s (what CI runs)
+#   tools/fuzz.sh --seconds 600   longer
+#   tools/fuzz.sh --runs 100000 manifest_fuzz scene_fuzz
+# Exits non-zero on the first crash, leak, sanitizer report or time-out (the reproducer is in build-fuzz/).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds=30
+runs=0
+targets=()
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --seconds) seconds="$2"; shift 2 ;;
+    --runs) runs="$2"; seconds=0; shift 2 ;;
+    *) targets+=("$1"); shift ;;
+  esac
+done
+all=(manifest_fuzz scene_fuzz preset_fuzz model_fuzz image_fuzz npy_fuzz tum_fuzz fisheye_yaml_fuzz)
+[[ ${#targets[@]} -eq 0 ]] && targets=("${all[@]}")
+
+if [[ ! -f build-fuzz/build.ninja ]]; then
+  CC=clang-15 CXX=clang++-15 cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMRGI_FUZZ=ON \
+    -DMRGI_BUILD_TESTS=OFF -DMRGI_BUILD_BENCHMARKS=OFF > /dev/null
+fi
+cmake --build build-fuzz --target "${targets[@]}"
+
+# Seeds: the bundled files (targets whose first byte picks a mode get each seed with every prefix).
+seeds=build-fuzz/seeds
+rm -rf "$seeds"
+mkdir -p "$seeds"/{manifest_fuzz,scene_fuzz,preset_fuzz,model_fuzz,image_fuzz,npy_fuzz,tum_fuzz,fisheye_yaml_fuzz}
+i=0; for f in recordings/*/manifest.json; do cp "$f" "$seeds/manifest_fuzz/m$i.json"; i=$((i + 1)); done
+cp recordings/scenes/*.json "$seeds/scene_fuzz/"
+cp recordings/presets.json "$seeds/preset_fuzz/"
+i=0
+for f in recordings/models/*; do
+  for p in 0 1 2 3; do { printf "\\x0$p"; cat "$f"; } > "$seeds/model_fuzz/m$i-$p"; done
+  i=$((i + 1))
+done
+for p in 0 1; do
+  { printf "\\x0$p"; cat recordings/tabletop-pt/colour/000000.png; } > "$seeds/image_fuzz/colour-$p"
+  { printf "\\x0$p"; cat recordings/tabletop-pt/depth/000000.png; } > "$seeds/image_fuzz/depth-$p"
+done
+python3 - "$seeds/npy_fuzz" <<'PY'
+import sys, zipfile, glob
+for i, f in enumerate(sorted(glob.glob('../shared/data/rgbd-visp-apriltag/*.npz'))[:2]):
+    with zipfile.ZipFile(f) as z:
+        for n in z.namelist():
+            open(f"{sys.argv[1]}/a{i}-{n}", 'wb').write(z.read(n))
+PY
+printf '# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n1305031102.211214 rgb/1305031102.211214.png\n' > "$seeds/tum_fuzz/rgb.txt"
+printf '# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n' > "$seeds/tum_fuzz/groundtruth.txt"
+cp ../shared/data/fisheye-ros-calib/ost.yaml "$seeds/fisheye_yaml_fuzz/" 2>/dev/null || true
+
+status=0
+for t in "${targets[@]}"; do
+  corpus=build-fuzz/corpus/$t
+  mkdir -p "$corpus" build-fuzz/crashes
+  args=(-timeout=10 -rss_limit_mb=4096 -max_len=1048576 -artifact_prefix=build-fuzz/crashes/$t- -print_final_stats=1)
+  if [[ $runs -gt 0 ]]; then args+=(-runs="$runs"); else args+=(-max_total_time="$seconds"); fi
+  if ! build-fuzz/fuzz/$t "${args[@]}" "$corpus" "$seeds/$t" > build-fuzz/$t.log 2>&1; then
+    echo "$t: FAILED (see build-fuzz/$t.log)"
+    grep -m3 -E "ERROR|SUMMARY|==[0-9]+==" build-fuzz/$t.log || true
+    status=1
+  else
+    echo "$t: $(grep -m1 -E '^stat::number_of_executed_units' build-fuzz/$t.log | awk '{print $2}') executions, no crash"
+  fi
+done
+exit $status
