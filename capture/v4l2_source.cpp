@@ -109,7 +109,9 @@ FisheyeCalibration readFisheyeCalibration(const std::string& path) {
     std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     if (text.rfind("%YAML", 0) != 0) text = "%YAML:1.0\n---\n" + text;
     fsr.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
-  } catch (const cv::Exception&) {
+  } catch (const std::exception&) {
+    // cv::Exception, and std::length_error / bad_alloc from OpenCV's parser on malformed text (found by
+    // the fisheye_yaml fuzzer): all of them a file that cannot be parsed.
   }
   if (!fsr.isOpened()) throw CaptureError(path, "cannot parse calibration YAML");
   FisheyeCalibration c;
@@ -134,7 +136,7 @@ FisheyeCalibration readFisheyeCalibration(const std::string& path) {
     D = readMat("distortion_coefficients", "D");
     c.width = static_cast<int>(fsr["image_width"].empty() ? fsr["width"] : fsr["image_width"]);
     c.height = static_cast<int>(fsr["image_height"].empty() ? fsr["height"] : fsr["image_height"]);
-  } catch (const cv::Exception&) {
+  } catch (const std::exception&) {
     throw CaptureError(path, "calibration keys have the wrong type");
   }
   if (K.total() != 9) throw CaptureError(path, "missing or malformed 'camera_matrix' (3x3)");

@@ -62,9 +62,64 @@ void appendNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& par
 
 }  // namespace
 
+namespace {
+
+/// PLY headers are checked before assimp sees them: its reader loops forever on some malformed headers
+/// (an element line without a count, found by the model fuzzer). Accepts the header grammar only:
+/// "ply", one format line, comment/obj_info lines, "element NAME COUNT", "property TYPE NAME" or
+/// "property list TYPE TYPE NAME", "end_header".
+void checkPlyHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  auto bad = [&](std::string why) {
+    for (char& c : why)
+      if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';  // one printable line
+    throw SceneError(path, "malformed PLY header: " + why);
+  };
+  if (!std::getline(in, line) || (line != "ply" && line != "ply\r")) return;  // not a PLY file: assimp decides
+  static const std::set<std::string> kTypes{"char", "uchar", "short", "ushort", "int", "uint", "float", "double",
+                                            "int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"};
+  bool format = false, element = false;
+  for (int n = 0; n < 10000 && std::getline(in, line); ++n) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream words(line);
+    std::string word;
+    words >> word;
+    if (word == "end_header") {
+      if (!format) bad("no format line");
+      return;
+    }
+    if (word == "comment" || word == "obj_info") continue;
+    std::vector<std::string> rest;
+    for (std::string w; words >> w;) rest.push_back(w);
+    if (word == "format") {
+      if (rest.size() != 2 || (rest[0] != "ascii" && rest[0] != "binary_little_endian" && rest[0] != "binary_big_endian"))
+        bad("format line '" + line + "'");
+      format = true;
+    } else if (word == "element") {
+      if (rest.size() != 2 || rest[1].empty() || rest[1].find_first_not_of("0123456789") != std::string::npos ||
+          rest[1].size() > 10)
+        bad("element line '" + line + "' needs a name and a count");
+      element = true;
+    } else if (word == "property") {
+      if (!element) bad("a property before any element");
+      const bool list = !rest.empty() && rest[0] == "list";
+      if (list ? (rest.size() != 4 || !kTypes.count(rest[1]) || !kTypes.count(rest[2]))
+               : (rest.size() != 2 || !kTypes.count(rest[0])))
+        bad("property line '" + line + "'");
+    } else {
+      bad("unexpected line '" + line.substr(0, 40) + "'");
+    }
+  }
+  bad("no end_header");
+}
+
+}  // namespace
+
 Mesh loadMesh(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw SceneError(path, "model file not found");
+  checkPlyHeader(path);
   Assimp::Importer importer;
   // Two steps: the import with assimp's own validation only, then our index check, then the
   // post-processing — which trusts its input (out-of-range or truncated faces crash or abort inside it).
@@ -76,8 +131,9 @@ Mesh loadMesh(const std::string& path) {
     if (!mesh || !mesh->mVertices) throw SceneError(path, "model mesh " + std::to_string(m) + " has no vertices");
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
-      if (face.mNumIndices > 0 && !face.mIndices)
-        throw SceneError(path, "model mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no indices");
+      // A face of no vertex passes assimp's validation and aborts its triangulation (ai_assert).
+      if (face.mNumIndices == 0 || !face.mIndices)
+        throw SceneError(path, "model mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no vertices");
       for (unsigned k = 0; k < face.mNumIndices; ++k)
         if (face.mIndices[k] >= mesh->mNumVertices)
           throw SceneError(path, "model mesh " + std::to_string(m) + " face " + std::to_string(f) + " refers to vertex " +

@@ -54,6 +54,9 @@ printf '# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n13050
 printf '# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n' > "$seeds/tum_fuzz/groundtruth.txt"
 cp ../shared/data/fisheye-ros-calib/ost.yaml "$seeds/fisheye_yaml_fuzz/" 2>/dev/null || true
 
+export LSAN_OPTIONS="suppressions=$PWD/fuzz/lsan.supp:print_suppressions=0"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+[[ -x /usr/bin/llvm-symbolizer ]] && export ASAN_SYMBOLIZER_PATH=/usr/bin/llvm-symbolizer
 status=0
 for t in "${targets[@]}"; do
   corpus=build-fuzz/corpus/$t

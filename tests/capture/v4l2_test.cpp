@@ -97,3 +97,15 @@ TEST(V4l2, MissingDeviceIsAOneLineError) {
     EXPECT_NE(std::string(e.what()).find("v4l2:///dev/video-mrgi-none: cannot open camera"), std::string::npos) << e.what();
   }
 }
+
+TEST(FisheyeCalibration, MalformedYamlFoundByTheFuzzerIsAOneLineError) {
+  // OpenCV's YAML parser throws std::length_error on this input (not cv::Exception): it escaped as a
+  // message naming no file.
+  const std::string path = std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/fisheye_yaml_length_error.yaml";
+  try {
+    readFisheyeCalibration(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const CaptureError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0u) << e.what();
+  }
+}
