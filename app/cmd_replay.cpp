@@ -251,7 +251,8 @@ Action addReplay(CLI::App& app) {
   app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
   app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();
-  app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")->check(CLI::PositiveNumber);
+  app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")
+      ->check(CLI::Range(capture::kMinFrameRate, capture::kMaxFrameRate));
   app.add_flag("--recompute-all", o->recomputeAll, "run every stage on every frame (default: skip stages whose inputs did not change)");
   app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(CLI::Range(1, 16));
   return [o] { return runReplay(*o); };

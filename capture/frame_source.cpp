@@ -1,6 +1,7 @@
 #include "capture/frame_source.h"
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "capture/error.h"
@@ -19,7 +20,9 @@ double medianRate(const std::vector<double>& timestamps) {
     if (timestamps[i] > timestamps[i - 1]) dt.push_back(timestamps[i] - timestamps[i - 1]);
   if (dt.empty()) return 0.0;
   std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
-  return 1.0 / dt[dt.size() / 2];
+  const double rate = 1.0 / dt[dt.size() / 2];
+  // Timestamps 1e-300 or 1e308 apart are no frame rate: unknown rather than a rate nothing can encode.
+  return std::isfinite(rate) && rate >= kMinFrameRate && rate <= kMaxFrameRate ? rate : 0.0;
 }
 
 std::unique_ptr<FrameSource> open(const std::string& uri, const OpenOptions& options) {

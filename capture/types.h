@@ -99,7 +99,10 @@ struct SourceInfo {
   double fps = 0;  ///< nominal frame rate: a recording's median frame interval, a device's mode (0 = unknown)
 };
 
-/// 1 / the median interval of increasing timestamps (seconds); 0 with fewer than two.
+/// The frame rates a recording may have (Hz): outside them its timestamps say nothing usable about its pace.
+constexpr double kMinFrameRate = 0.1, kMaxFrameRate = 1000.0;
+/// 1 / the median interval of increasing timestamps (seconds); 0 (unknown) with fewer than two or when that
+/// rate lies outside [kMinFrameRate, kMaxFrameRate].
 double medianRate(const std::vector<double>& timestamps);
 
 }  // namespace mrgi::capture

@@ -900,6 +900,29 @@ TEST(Cli, FisheyeImagesOfNanNegativeOrNoLightAreRefused) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, AbsurdTimestampsStillGiveAVideoWithNothingOnStderr) {
+  // Frames 1e-300 s apart: no usable rate, so the video plays at 30 fps; FFmpeg printed its own error before.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_ts_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  Result r = runMrgi("record --source " + session().string() + " --frames 3 --out " + (dir / "s").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  std::istringstream lines(slurp(dir / "s" / "frames.jsonl"));
+  std::string out, line;
+  for (int i = 0; std::getline(lines, line); ++i) {
+    auto j = nlohmann::json::parse(line);
+    j["t"] = i * 1e-300;
+    out += j.dump() + "\n";
+  }
+  std::ofstream(dir / "s" / "frames.jsonl", std::ios::trunc) << out;
+  r = runMrgi("replay " + (dir / "s").string() + " --out " + (dir / "out").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err, "") << r.err;
+  const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
+  EXPECT_EQ(summary["video"]["fps"], 30.0);
+  EXPECT_EQ(summary["video"]["frames"], 3);
+  fs::remove_all(dir);
+}
+
 TEST(Cli, ConfigurationsThatCannotFitAreRefusedBeforeAllocating) {
   // 16 lights with 4096² RSMs need about 11 GB: refused in one line naming the scene and the knob, at once.
   std::string lights;

@@ -269,3 +269,11 @@ TEST(Session, WritingAFrameLeavesTheCallersImagesUntouched) {
   const cv::Mat back = cv::imdecode(bytes, cv::IMREAD_COLOR);
   EXPECT_EQ(back.at<cv::Vec3b>(0, 0), cv::Vec3b(30, 20, 10));  // BGR in the file, RGB in memory
 }
+
+TEST(Session, FrameRatesOutsideWhatCanBeEncodedAreUnknown) {
+  // Timestamps 1e-300 or 1e308 apart made FFmpeg print its own message before ours; no rate is known then.
+  EXPECT_NEAR(mrgi::capture::medianRate({0.0, 1.0 / 30, 2.0 / 30, 3.0 / 30}), 30.0, 1e-9);
+  EXPECT_EQ(mrgi::capture::medianRate({0.0, 1e-300, 2e-300}), 0.0);
+  EXPECT_EQ(mrgi::capture::medianRate({0.0, 1e308}), 0.0);
+  EXPECT_EQ(mrgi::capture::medianRate({5.0}), 0.0);
+}
