@@ -157,9 +157,7 @@ int runBruteForce(const BenchOptions& o) {
     const size_t pixels = brute->stats().value(info->name, nlohmann::json::object()).value("receivers", size_t(0));
     double msBrute = 0;  // the brute force's gather: its stages less the read-back staging
     for (const auto& [stage, ms] : bruteStages)
-      if (lighting::isLightingStage(stage) && stage.find("staging") == std::string::npos && stage != "gbuffer" &&
-          stage != "rsm" && stage != "shade")
-        msBrute += ms;
+      if (lighting::isTechniqueStage(stage) && stage.find("staging") == std::string::npos) msBrute += ms;
     double refSum = 0;
     for (int i = 0; i < static_cast<int>(reference.total()); ++i) {
       const cv::Vec4f v = reference.at<cv::Vec4f>(i);
@@ -182,7 +180,7 @@ int runBruteForce(const BenchOptions& o) {
         json msStages = json::object();
         double msSparse = 0;
         for (const auto& [stage, ms] : stages)
-          if (lighting::isLightingStage(stage) && stage != "gbuffer" && stage != "rsm" && stage != "shade") {
+          if (lighting::isTechniqueStage(stage)) {
             msStages[stage] = ms;
             msSparse += ms;
           }

@@ -84,7 +84,7 @@ cv::Mat decodePng(const std::vector<unsigned char>& bytes, bool colour, const st
     std::snprintf(errors.message, sizeof errors.message, "image of %ux%u, at most 16384 a side", width, height);
     fail();
   }
-  const int type = png_get_color_type(png, info), bits = png_get_bit_depth(png, info);
+  const int bits = png_get_bit_depth(png, info);
   png_set_expand(png);  // palette -> RGB, grey below 8 bits -> 8, tRNS -> alpha
   png_set_strip_alpha(png);
   if (colour) {
@@ -96,7 +96,6 @@ cv::Mat decodePng(const std::vector<unsigned char>& bytes, bool colour, const st
   png_set_bgr(png);
   png_read_update_info(png, info);
   const int channels = png_get_channels(png, info), depth = png_get_bit_depth(png, info) == 16 ? CV_16U : CV_8U;
-  (void)type;
   cv::Mat img(static_cast<int>(height), static_cast<int>(width), CV_MAKETYPE(depth, channels));
   std::vector<png_bytep> rows(height);
   for (png_uint_32 y = 0; y < height; ++y) rows[y] = img.ptr(static_cast<int>(y));

@@ -237,15 +237,17 @@ double logSlope(const std::vector<std::pair<double, double>>& xy) {
   return sxx > 0 ? sxy / sxx : NAN;
 }
 
-/// The value of a varied knob ("lpv.resolution") in a record's knobs, or null.
-json variedValue(const json& r) {
-  const std::string v = r.value("varied", "");
+/// The value of knob `v` ("lpv.resolution") in a record's knobs, or null.
+json knobValue(const json& r, const std::string& v) {
   const size_t dot = v.find('.');
   if (dot == std::string::npos) return nullptr;
   const json& k = r["knobs"];
   const std::string g = v.substr(0, dot), n = v.substr(dot + 1);
   return k.contains(g) && k[g].contains(n) ? k[g][n] : json(nullptr);
 }
+
+/// The value of the knob a record varies, or null.
+json variedValue(const json& r) { return knobValue(r, r.value("varied", "")); }
 
 /// "dlpv frame.rsm_size=64" or "dlpv defaults".
 std::string labelOf(const json& r) {
@@ -328,9 +330,7 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
     for (auto& [key, plot] : scaling) {
       if (key.rfind(r["technique"].get<std::string>() + ": ", 0) != 0) continue;
       const std::string knob = key.substr(key.find(": ") + 2);
-      json withKnob = r;
-      withKnob["varied"] = knob;
-      const json v = variedValue(withKnob);
+      const json v = knobValue(r, knob);
       if (!v.is_number() || v.get<double>() <= 0) continue;
       plot.points.push_back({v.get<double>(), msOf(r), r["technique"], tipOf(r)});
       scalingXY[key].push_back({v.get<double>(), msOf(r)});

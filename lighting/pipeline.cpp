@@ -23,7 +23,14 @@ PipelineConfig& PipelineConfig::set(const std::string& group, const std::string&
   return *this;
 }
 
-static FrameConfig frameConfigOf(const PipelineConfig& config);
+static FrameConfig frameConfigOf(const PipelineConfig& config) {
+  FrameConfig fc;
+  fc.width = config.width;
+  fc.height = config.height;
+  fc.knobs = knobsFrom(frameKnobTable(), config.knobs.at(frameKnobGroup().key));
+  fc.fixedRegion = config.fixedRegion;
+  return fc;
+}
 
 PipelineConfig pipelineConfig(const SceneDescription& scene, int width, int height) {
   PipelineConfig pc;
@@ -33,15 +40,6 @@ PipelineConfig pipelineConfig(const SceneDescription& scene, int width, int heig
   pc.knobs = scene.knobs;
   completeKnobs(pc.knobs);
   return pc;
-}
-
-static FrameConfig frameConfigOf(const PipelineConfig& config) {
-  FrameConfig fc;
-  fc.width = config.width;
-  fc.height = config.height;
-  fc.knobs = knobsFrom(frameKnobTable(), config.knobs.at(frameKnobGroup().key));
-  fc.fixedRegion = config.fixedRegion;
-  return fc;
 }
 
 size_t estimateGpuBytes(const PipelineConfig& config, size_t lights) {

@@ -167,12 +167,15 @@ void applyKnobsJson(const nlohmann::json& j, KnobSet& knobs) {
   }
 }
 
-bool isLightingStage(const std::string& n) {
-  if (n == "gbuffer" || n == "rsm" || n == "shade" || n == "real_vals") return true;
+bool isTechniqueStage(const std::string& n) {
   for (const TechniqueInfo& t : techniques())
     for (const std::string& p : t.stagePrefixes)
       if (n.rfind(p, 0) == 0) return true;
   return false;
+}
+
+bool isLightingStage(const std::string& n) {
+  return n == "gbuffer" || n == "rsm" || n == "shade" || n == "real_vals" || isTechniqueStage(n);
 }
 
 }  // namespace mrgi::lighting

@@ -73,6 +73,8 @@ nlohmann::json usedKnobsJson(const TechniqueChoice& c, const KnobSet& knobs);
 /// name goes to the one group that declares it.
 void applyKnobsJson(const nlohmann::json& j, KnobSet& knobs);
 
+/// Whether a profiler stage is a technique's own (one of its stage prefixes).
+bool isTechniqueStage(const std::string& stage);
 /// Whether a profiler stage belongs to the lighting (frame stages or a technique's).
 bool isLightingStage(const std::string& stage);
 

@@ -324,6 +324,17 @@ fs::path writeScene(const std::string& name, const std::string& text) {
   return dir / name;
 }
 const std::string kModels = std::string(MRGI_SOURCE_DIR) + "/recordings/models/";
+
+/// A fresh folder `dir` (under the temp directory, named after the test and the process) holding `frames`
+/// frames of `source` recorded into dir/s: a session the test may damage. Returns dir.
+fs::path scratchSession(const std::string& name, const fs::path& source, int frames) {
+  const fs::path dir = fs::temp_directory_path() / (name + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const Result r = runMrgi("record --source " + source.string() + " --frames " + std::to_string(frames) + " --out " +
+                           (dir / "s").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  return dir;
+}
 }  // namespace
 
 TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
@@ -846,10 +857,7 @@ TEST(Cli, RealOniRecordingReplaysAndRecordsIntoASessionThatReadsBack) {
 TEST(Cli, CorruptPngFramesAreOneLineWithNoLibraryMessages) {
   // A recorded session whose frame PNGs are damaged: a CRC error in the image data, a truncated file, a
   // header promising an image of 10^5 x 10^5. libpng's own "libpng error: ..." lines must not precede ours.
-  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_png_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  Result r = runMrgi("record --source " + session().string() + " --frames 2 --out " + (dir / "s").string());
-  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const fs::path dir = scratchSession("mrgi_cli_png_", session(), 2);
   const fs::path png = dir / "s" / "colour" / "000001.png";
   const std::string original = slurp(png);
   ASSERT_GT(original.size(), 1000u);
@@ -868,17 +876,13 @@ TEST(Cli, CorruptPngFramesAreOneLineWithNoLibraryMessages) {
   }
   expectOneLineError(replayWith(huge), png.string());
   // The undamaged file still decodes to the same colour as before.
-  r = replayWith(original);
-  EXPECT_EQ(r.exitCode, 0) << r.err;
+  const Result ok = replayWith(original);
+  EXPECT_EQ(ok.exitCode, 0) << ok.err;
   fs::remove_all(dir);
 }
 
 TEST(Cli, FisheyeImagesOfNanNegativeOrNoLightAreRefused) {
-  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_fisheye_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  const fs::path hdr = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-hdr";
-  Result r = runMrgi("record --source " + hdr.string() + " --frames 1 --out " + (dir / "s").string());
-  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const fs::path dir = scratchSession("mrgi_cli_fisheye_", fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-hdr", 1);
   fs::path exr;
   for (const auto& e : fs::directory_iterator(dir / "s" / "fisheye")) exr = e.path();
   ASSERT_EQ(exr.extension(), ".exr");
@@ -891,21 +895,16 @@ TEST(Cli, FisheyeImagesOfNanNegativeOrNoLightAreRefused) {
   for (const auto& [value, message] : cases) {
     cv::imwrite(exr.string(), cv::Mat(original.size(), original.type(), cv::Scalar::all(value)));
     fs::remove_all(dir / "out");
-    expectOneLineError(runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --mp4 \"\" --out " + (dir / "out").string()),
-                       exr.string() + ": fisheye image");
-    r = runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --mp4 \"\" --out " + (dir / "out2").string());
+    const Result r = runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --mp4 \"\" --out " + (dir / "out").string());
+    expectOneLineError(r, exr.string() + ": fisheye image");
     EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
-    fs::remove_all(dir / "out2");
   }
   fs::remove_all(dir);
 }
 
 TEST(Cli, AbsurdTimestampsStillGiveAVideoWithNothingOnStderr) {
   // Frames 1e-300 s apart: no usable rate, so the video plays at 30 fps; FFmpeg printed its own error before.
-  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_ts_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  Result r = runMrgi("record --source " + session().string() + " --frames 3 --out " + (dir / "s").string());
-  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const fs::path dir = scratchSession("mrgi_cli_ts_", session(), 3);
   std::istringstream lines(slurp(dir / "s" / "frames.jsonl"));
   std::string out, line;
   for (int i = 0; std::getline(lines, line); ++i) {
@@ -914,7 +913,7 @@ TEST(Cli, AbsurdTimestampsStillGiveAVideoWithNothingOnStderr) {
     out += j.dump() + "\n";
   }
   std::ofstream(dir / "s" / "frames.jsonl", std::ios::trunc) << out;
-  r = runMrgi("replay " + (dir / "s").string() + " --out " + (dir / "out").string());
+  const Result r = runMrgi("replay " + (dir / "s").string() + " --out " + (dir / "out").string());
   EXPECT_EQ(r.exitCode, 0) << r.err;
   EXPECT_EQ(r.err, "") << r.err;
   const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
