@@ -30,10 +30,10 @@ cv::Mat parseNpy(const std::string& b, const std::string& where) {
   const std::string header = b.substr(8 + lenBytes, headerLen);
   std::smatch m;
   if (!std::regex_search(header, m, std::regex(R"('descr'\s*:\s*'([<>|=])([uif])(\d+)')")))
-    throw CaptureError(where, "unsupported .npy dtype in header " + header);
+    throw CaptureError(where, "unsupported .npy dtype in its header");
   if (m[1] == ">") throw CaptureError(where, "big-endian .npy arrays are not supported");
   const char kind = m[2].str()[0];
-  const int size = std::stoi(m[3]);
+  const int size = m[3].length() <= 2 ? std::stoi(m[3]) : 0;  // 1, 2, 4 or 8; anything longer is refused below
   if (std::regex_search(header, std::regex(R"('fortran_order'\s*:\s*True)")))
     throw CaptureError(where, "Fortran-ordered .npy arrays are not supported");
   if (!std::regex_search(header, m, std::regex(R"('shape'\s*:\s*\(([^)]*)\))")))
@@ -41,8 +41,14 @@ cv::Mat parseNpy(const std::string& b, const std::string& where) {
   std::vector<int> shape;
   const std::string dims = m[1];
   const std::regex number(R"(\d+)");
-  for (std::sregex_iterator it(dims.begin(), dims.end(), number), end; it != end; ++it)
-    shape.push_back(std::stoi(it->str()));
+  for (std::sregex_iterator it(dims.begin(), dims.end(), number), end; it != end; ++it) {
+    // Each dimension 1..2^24 (found by the npy fuzzer: std::stoi threw out_of_range past int, and a zero
+    // dimension reached memcpy with no buffer).
+    const std::string digits = it->str();
+    const long long d = digits.size() <= 9 ? std::stoll(digits) : -1;
+    if (d < 1 || d > (1 << 24)) throw CaptureError(where, ".npy dimension " + digits.substr(0, 12) + " out of range [1, 16777216]");
+    shape.push_back(static_cast<int>(d));
+  }
   if (shape.empty() || shape.size() > 3) throw CaptureError(where, ".npy arrays of 1-3 dimensions only");
   int depth = -1;
   if (kind == 'u' && size == 1) depth = CV_8U;
@@ -55,9 +61,10 @@ cv::Mat parseNpy(const std::string& b, const std::string& where) {
   const int rows = shape.size() >= 2 ? shape[0] : 1, cols = shape.size() >= 2 ? shape[1] : shape[0];
   const int channels = shape.size() == 3 ? shape[2] : 1;
   if (channels < 1 || channels > CV_CN_MAX) throw CaptureError(where, "unsupported .npy channel count");
-  cv::Mat out(rows, cols, CV_MAKETYPE(depth, channels));
-  const size_t bytes = out.total() * out.elemSize();
+  // The data must be there before anything is allocated for it.
+  const unsigned long long bytes = static_cast<unsigned long long>(rows) * cols * channels * static_cast<unsigned long long>(size);
   if (b.size() - dataAt < bytes) throw CaptureError(where, "truncated .npy data");
+  cv::Mat out(rows, cols, CV_MAKETYPE(depth, channels));
   std::memcpy(out.data, b.data() + dataAt, bytes);
   return out;
 }

@@ -21,6 +21,12 @@ done
 all=(manifest_fuzz scene_fuzz preset_fuzz model_fuzz image_fuzz npy_fuzz tum_fuzz fisheye_yaml_fuzz)
 [[ ${#targets[@]} -eq 0 ]] && targets=("${all[@]}")
 
+# The fuzzing toolchain (not needed by the normal build or the tests).
+if ! command -v clang++-15 > /dev/null || [[ ! -d /usr/lib/llvm-15/lib/clang/15.0.6/lib/linux ]]; then
+  SUDO=""
+  [[ $(id -u) -ne 0 ]] && SUDO="sudo"
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends clang-15 libfuzzer-15-dev
+fi
 if [[ ! -f build-fuzz/build.ninja ]]; then
   CC=clang-15 CXX=clang++-15 cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMRGI_FUZZ=ON \
     -DMRGI_BUILD_TESTS=OFF -DMRGI_BUILD_BENCHMARKS=OFF > /dev/null
