@@ -256,14 +256,11 @@ std::map<int, Truth> loadTrueReferences(const std::string& session, const captur
     const int64_t index = frames[f].index;
     Truth t;
     t.frame = f;
-    const cv::Mat bgr = cv::imread(path("composite", index), cv::IMREAD_COLOR);
-    t.delta = cv::imread(path("delta", index), cv::IMREAD_UNCHANGED);
+    t.composite = capture::readColour(path("composite", index));  // RGB
+    t.delta = capture::readAny(path("delta", index));              // RGB float
     t.images.mask = cv::imread(path("mask", index), cv::IMREAD_GRAYSCALE);
-    if (bgr.empty() || t.delta.empty() || t.images.mask.empty())
-      throw capture::CaptureError(path("composite", index), "true reference of frame " + std::to_string(index) + " is missing or unreadable");
-    cv::cvtColor(bgr, t.composite, cv::COLOR_BGR2RGB);
-    if (t.delta.channels() == 4) cv::cvtColor(t.delta, t.delta, cv::COLOR_BGRA2BGR);
-    cv::cvtColor(t.delta, t.delta, cv::COLOR_BGR2RGB);  // EXR files hold BGR in OpenCV's order
+    if (t.images.mask.empty() || t.delta.depth() != CV_32F)
+      throw capture::CaptureError(path("mask", index), "true reference of frame " + std::to_string(index) + " is missing or unreadable");
     out[f] = std::move(t);
   }
   return out;

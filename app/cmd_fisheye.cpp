@@ -67,16 +67,7 @@ struct LightsOptions {
 int runLights(const LightsOptions& o) {
   const capture::FisheyeCalibration c = capture::readFisheyeCalibration(o.calib);
   if (!fs::is_regular_file(o.image)) throw capture::CaptureError(o.image, "image is missing");
-  capture::quietOpenCv();
-  cv::Mat img;
-  try {
-    img = cv::imread(o.image, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception&) {
-  }
-  if (img.empty()) throw capture::CaptureError(o.image, "cannot decode image");
-  if (img.channels() == 1) cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
-  if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2BGR);
-  cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
+  cv::Mat img = capture::readAny(o.image);  // RGB
   if (img.depth() == CV_16U) img.convertTo(img, CV_32F, 1.0 / 65535.0);
   if (img.cols != c.width || img.rows != c.height)
     throw capture::CaptureError(o.image, "is " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +

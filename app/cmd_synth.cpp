@@ -48,11 +48,15 @@ struct SynthOptions {
 /// Loads an equirectangular EXR (linear RGB, 2:1) as the environment; scale 0 picks the exposure at which
 /// a white upward-facing surface under the open sky has radiance 0.6.
 std::shared_ptr<const groundtruth::EnvironmentMap> loadEnvironment(const std::string& path, double& scale) {
-  cv::Mat img = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (img.empty() || img.depth() != CV_32F || (img.channels() != 3 && img.channels() != 4) || img.cols != 2 * img.rows)
-    throw capture::CaptureError(path, "cannot be read as an HDR environment (float EXR, equirectangular, width = 2 x height)");
-  if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2BGR);
-  cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
+  const std::string expected = "cannot be read as an HDR environment (float EXR, equirectangular, width = 2 x height)";
+  cv::Mat img;
+  try {
+    img = capture::readAny(path);  // RGB
+  } catch (const capture::InputError& e) {
+    const std::string why = e.what();
+    throw capture::CaptureError(path, expected + ": " + why.substr(std::min(why.size(), path.size() + 2)));
+  }
+  if (img.depth() != CV_32F || img.cols != 2 * img.rows) throw capture::CaptureError(path, expected);
   if (scale <= 0) {
     // Irradiance on an upward plane: sum of L cos(theta) over the upper half's texels (solid angle each),
     // from the map as the path tracer sees it (non-finite and negative texels cleared).

@@ -19,11 +19,7 @@ namespace fs = std::filesystem;
 namespace mrgi::app {
 
 void writeExr(const std::string& path, const cv::Mat& rgb) {
-  cv::Mat bgr;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  std::vector<uchar> bytes;
-  if (!cv::imencode(".exr", bgr, bytes)) throw capture::CaptureError(path, "cannot encode EXR");
-  capture::writeFileAtomically(path, bytes);
+  capture::writeFileAtomically(path, capture::encodeExr(rgb, false, path));
 }
 
 void writePng(const std::string& path, const cv::Mat& rgb) {

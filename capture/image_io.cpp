@@ -9,9 +9,21 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <iterator>
+#include <mutex>
 
+#include <jpeglib.h>
 #include <png.h>
+
+#include <Imath/half.h>
+#include <ImfChannelList.h>
+#include <ImfCheckFile.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfIO.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
 
 #include <csetjmp>
 #include <cstdio>
@@ -105,6 +117,171 @@ cv::Mat decodePng(const std::vector<unsigned char>& bytes, bool colour, const st
   return img;
 }
 
+/// OpenEXR reads from and writes to memory through these, so no temporary file is ever made (OpenCV's EXR
+/// codec goes through one in /tmp) and nothing is printed.
+class ExrMemoryIn final : public Imf::IStream {
+ public:
+  ExrMemoryIn(const std::vector<unsigned char>& bytes, const std::string& path) : Imf::IStream(path.c_str()), bytes_(bytes) {}
+  bool read(char c[], int n) override {
+    if (n < 0 || static_cast<uint64_t>(n) > bytes_.size() - std::min<uint64_t>(at_, bytes_.size()))
+      throw std::runtime_error("file is truncated");
+    std::memcpy(c, bytes_.data() + at_, static_cast<size_t>(n));
+    at_ += static_cast<uint64_t>(n);
+    return at_ < bytes_.size();
+  }
+  uint64_t tellg() override { return at_; }
+  void seekg(uint64_t pos) override { at_ = pos; }
+
+ private:
+  const std::vector<unsigned char>& bytes_;
+  uint64_t at_ = 0;
+};
+
+class ExrMemoryOut final : public Imf::OStream {
+ public:
+  explicit ExrMemoryOut(const std::string& path) : Imf::OStream(path.c_str()) {}
+  void write(const char c[], int n) override {
+    if (at_ + static_cast<uint64_t>(n) > bytes.size()) bytes.resize(at_ + static_cast<uint64_t>(n));
+    std::memcpy(bytes.data() + at_, c, static_cast<size_t>(n));
+    at_ += static_cast<uint64_t>(n);
+  }
+  uint64_t tellp() override { return at_; }
+  void seekp(uint64_t pos) override { at_ = pos; }
+  std::vector<unsigned char> bytes;
+
+ private:
+  uint64_t at_ = 0;
+};
+
+bool isExr(const std::vector<unsigned char>& bytes) {
+  return bytes.size() >= 4 && bytes[0] == 0x76 && bytes[1] == 0x2f && bytes[2] == 0x31 && bytes[3] == 0x01;
+}
+
+/// An EXR decoded by OpenEXR from memory as 32-bit float, BGR (or one channel for a luminance-only file),
+/// as cv::IMREAD_UNCHANGED gives. The file is first checked by OpenEXR's own validator, which bounds memory
+/// and time on damaged files (its stricter core check is off: it refuses sound files written by Blender).
+cv::Mat decodeExr(const std::vector<unsigned char>& bytes, const std::string& path) {
+  try {
+    if (Imf::checkOpenEXRFile(reinterpret_cast<const char*>(bytes.data()), bytes.size(), true, true, false))
+      throw CaptureError(path, "cannot decode EXR (corrupt or truncated)");
+    ExrMemoryIn in(bytes, path);
+    Imf::InputFile file(in, 1);
+    const Imath::Box2i window = file.header().dataWindow();
+    const int64_t width = int64_t(window.max.x) - window.min.x + 1, height = int64_t(window.max.y) - window.min.y + 1;
+    if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
+      throw CaptureError(path, "EXR image of " + std::to_string(width) + "x" + std::to_string(height) +
+                                   ", at most 16384 a side");
+    const Imf::ChannelList& channels = file.header().channels();
+    const bool rgb = channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B");
+    const bool grey = !rgb && channels.findChannel("Y");
+    if (!rgb && !grey) throw CaptureError(path, "EXR holds neither R, G, B nor Y channels");
+    cv::Mat img(static_cast<int>(height), static_cast<int>(width), rgb ? CV_32FC3 : CV_32FC1);
+    const size_t xStride = img.elemSize(), yStride = img.step;
+    Imf::FrameBuffer frame;
+    auto* base = reinterpret_cast<char*>(img.data);
+    if (rgb) {
+      frame.insert("B", Imf::Slice::Make(Imf::FLOAT, base, window, xStride, yStride));
+      frame.insert("G", Imf::Slice::Make(Imf::FLOAT, base + sizeof(float), window, xStride, yStride));
+      frame.insert("R", Imf::Slice::Make(Imf::FLOAT, base + 2 * sizeof(float), window, xStride, yStride));
+    } else {
+      frame.insert("Y", Imf::Slice::Make(Imf::FLOAT, base, window, xStride, yStride));
+    }
+    file.setFrameBuffer(frame);
+    file.readPixels(window.min.y, window.max.y);
+    return img;
+  } catch (const CaptureError&) {
+    throw;
+  } catch (const std::exception& e) {
+    std::string what = e.what();
+    if (const size_t nl = what.find('\n'); nl != std::string::npos) what.resize(nl);
+    throw CaptureError(path, "cannot decode EXR (" + what + ")");
+  }
+}
+
+/// libjpeg's errors and warnings go to our handlers: an error ends the decode through longjmp; a warning
+/// ("corrupt JPEG data: premature end of data segment", which libjpeg would print and then return a
+/// partly grey image for) makes the file count as corrupt too.
+struct JpegErrors {
+  jpeg_error_mgr mgr;
+  std::jmp_buf jump;
+  char message[JMSG_LENGTH_MAX] = "";
+  int warnings = 0;
+};
+[[noreturn]] void jpegError(j_common_ptr info) {
+  auto* e = reinterpret_cast<JpegErrors*>(info->err);
+  (*info->err->format_message)(info, e->message);
+  std::longjmp(e->jump, 1);
+}
+void jpegMessage(j_common_ptr info, int level) {
+  auto* e = reinterpret_cast<JpegErrors*>(info->err);
+  if (level < 0 && e->warnings++ == 0) (*info->err->format_message)(info, e->message);
+}
+void jpegSilent(j_common_ptr) {}
+/// A progressive JPEG can hold thousands of tiny scans that take minutes to decode; more than this many is
+/// refused.
+constexpr int kMaxJpegScans = 256;
+void jpegProgress(j_common_ptr info) {
+  auto* d = reinterpret_cast<j_decompress_ptr>(info);
+  if (d->input_scan_number > kMaxJpegScans) {
+    auto* e = reinterpret_cast<JpegErrors*>(info->err);
+    std::snprintf(e->message, sizeof e->message, "more than %d scans", kMaxJpegScans);
+    std::longjmp(e->jump, 1);
+  }
+}
+
+/// A JPEG decoded by libjpeg with our handlers: 8-bit BGR, or one grey channel where the file is grey and
+/// `colour` is false (as OpenCV's IMREAD_COLOR / IMREAD_UNCHANGED give).
+cv::Mat decodeJpeg(const std::vector<unsigned char>& bytes, bool colour, const std::string& path) {
+  jpeg_decompress_struct info{};
+  JpegErrors errors;
+  info.err = jpeg_std_error(&errors.mgr);
+  errors.mgr.error_exit = jpegError;
+  errors.mgr.emit_message = jpegMessage;
+  errors.mgr.output_message = jpegSilent;
+  jpeg_progress_mgr progress{};
+  progress.progress_monitor = jpegProgress;
+  cv::Mat img;
+  if (setjmp(errors.jump)) {
+    jpeg_destroy_decompress(&info);
+    throw CaptureError(path, std::string("cannot decode JPEG (") + errors.message + ")");
+  }
+  jpeg_create_decompress(&info);
+  info.progress = &progress;
+  jpeg_mem_src(&info, bytes.data(), static_cast<unsigned long>(bytes.size()));
+  jpeg_read_header(&info, TRUE);
+  if (info.image_width == 0 || info.image_height == 0 || info.image_width > 16384 || info.image_height > 16384) {
+    std::snprintf(errors.message, sizeof errors.message, "image of %ux%u, at most 16384 a side", info.image_width, info.image_height);
+    std::longjmp(errors.jump, 1);
+  }
+  const bool grey = !colour && info.num_components == 1;
+  info.out_color_space = grey ? JCS_GRAYSCALE : JCS_EXT_BGR;
+  jpeg_start_decompress(&info);
+  img.create(static_cast<int>(info.output_height), static_cast<int>(info.output_width), grey ? CV_8UC1 : CV_8UC3);
+  while (info.output_scanline < info.output_height) {
+    JSAMPROW row = img.ptr(static_cast<int>(info.output_scanline));
+    jpeg_read_scanlines(&info, &row, 1);
+  }
+  jpeg_finish_decompress(&info);
+  jpeg_destroy_decompress(&info);
+  if (errors.warnings > 0) throw CaptureError(path, std::string("cannot decode JPEG (") + errors.message + ")");
+  return img;
+}
+
+/// OpenCV's decoders print to std::cerr when a header throws; while they run, std::cerr goes nowhere.
+class SilenceCerr {
+ public:
+  SilenceCerr() : lock_(mutex()), saved_(std::cerr.rdbuf(nullptr)) {}
+  ~SilenceCerr() { std::cerr.rdbuf(saved_); }
+
+ private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  std::lock_guard<std::mutex> lock_;
+  std::streambuf* saved_;
+};
+
 cv::Mat decode(const std::string& path, int flags) {
   quietOpenCv();
   const std::vector<unsigned char> bytes = readBytes(path);
@@ -112,9 +289,20 @@ cv::Mat decode(const std::string& path, int flags) {
   static const unsigned char kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   const bool png = bytes.size() >= 8 && std::memcmp(bytes.data(), kPngSignature, 8) == 0;
   if (png && flags == cv::IMREAD_COLOR) return decodePng(bytes, true, path);
-  if (png && flags == (cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR)) return decodePng(bytes, false, path);
+  if (png) return decodePng(bytes, false, path);  // depth (ANYDEPTH|ANYCOLOR) and fisheye (UNCHANGED, alpha dropped)
+  if (isExr(bytes)) return decodeExr(bytes, path);
+  if (bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF)
+    return decodeJpeg(bytes, flags == cv::IMREAD_COLOR, path);
+  // Only formats we name reach OpenCV (BMP, PNM, TIFF): Debian's OpenCV also carries GDAL and GDCM
+  // (DICOM) decoders, which print to the terminal and abort on damaged input (found by the image fuzzer).
+  const bool bmp = bytes.size() >= 2 && bytes[0] == 'B' && bytes[1] == 'M';
+  const bool pnm = bytes.size() >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '6';
+  const bool tiff = bytes.size() >= 4 && ((bytes[0] == 'I' && bytes[1] == 'I' && bytes[2] == 42 && bytes[3] == 0) ||
+                                          (bytes[0] == 'M' && bytes[1] == 'M' && bytes[2] == 0 && bytes[3] == 42));
+  if (!bmp && !pnm && !tiff) throw CaptureError(path, "cannot decode image: not a supported format (PNG, JPEG, EXR, BMP, PNM, TIFF)");
   cv::Mat img;
   try {
+    const SilenceCerr quiet;
     img = cv::imdecode(bytes, flags);
   } catch (const cv::Exception&) {
     img.release();
@@ -217,6 +405,42 @@ cv::Mat depthToUnits(const cv::Mat& depthMetres, double unitsMetres) {
     }
   }
   return out;
+}
+
+std::vector<unsigned char> encodeExr(const cv::Mat& rgb, bool half, const std::string& nameForErrors) {
+  if (rgb.empty() || rgb.depth() != CV_32F || (rgb.channels() != 3 && rgb.channels() != 1))
+    throw CaptureError(nameForErrors, "cannot encode EXR (expects a 32-bit float RGB or grey image)");
+  const cv::Mat img = rgb.isContinuous() ? rgb : rgb.clone();
+  try {
+    Imf::Header header(img.cols, img.rows);
+    header.compression() = Imf::ZIP_COMPRESSION;
+    const Imf::PixelType stored = half ? Imf::HALF : Imf::FLOAT;
+    const char* names[3] = {"R", "G", "B"};
+    // OpenEXR writes only what the frame buffer holds in the stored type: half pixels are converted here.
+    const int n = img.channels();
+    std::vector<Imath::half> halves;
+    if (half) {
+      halves.resize(img.total() * static_cast<size_t>(n));
+      const auto* f = img.ptr<float>();
+      for (size_t i = 0; i < halves.size(); ++i) halves[i] = Imath::half(f[i]);
+    }
+    char* base = half ? reinterpret_cast<char*>(halves.data()) : reinterpret_cast<char*>(const_cast<unsigned char*>(img.data));
+    const size_t xStride = (half ? sizeof(Imath::half) : sizeof(float)) * static_cast<size_t>(n);
+    const size_t yStride = xStride * static_cast<size_t>(img.cols);
+    Imf::FrameBuffer frame;
+    for (int c = 0; c < n; ++c) {
+      const char* name = n == 3 ? names[c] : "Y";
+      header.channels().insert(name, Imf::Channel(stored));
+      frame.insert(name, Imf::Slice(stored, base + static_cast<size_t>(c) * xStride / static_cast<size_t>(n), xStride, yStride));
+    }
+    ExrMemoryOut out(nameForErrors);
+    Imf::OutputFile file(out, header, 1);
+    file.setFrameBuffer(frame);
+    file.writePixels(img.rows);
+    return std::move(out.bytes);
+  } catch (const std::exception& e) {
+    throw CaptureError(nameForErrors, std::string("cannot encode EXR (") + e.what() + ")");
+  }
 }
 
 std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors) {

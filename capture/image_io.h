@@ -14,13 +14,17 @@ cv::Mat readColour(const std::string& path);
 ///  16-bit PNG/PGM: value * unitsMetres (0 stays 0);  32-bit float (TIFF/EXR): metres as stored.
 /// NaN, inf or negative values in a float file are rejected as corrupt.
 cv::Mat readDepth(const std::string& path, double unitsMetres);
-/// Reads any image unchanged (fisheye frames: 8-bit RGB or float HDR), RGB channel order.
+/// Reads any image unchanged (fisheye frames: 8-bit RGB or float HDR), RGB channel order. EXR is decoded
+/// by OpenEXR from memory (validated first); PNG by libpng; others by OpenCV with its output silenced.
 cv::Mat readAny(const std::string& path);
 
 /// Depth in metres -> 16-bit units (rounded; 0 and values beyond 65535 units become 0 = invalid).
 cv::Mat depthToUnits(const cv::Mat& depthMetres, double unitsMetres);
 /// Encodes an RGB or grey image (8/16-bit) to PNG bytes; throws CaptureError on failure.
 std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors);
+
+/// Encodes a 32-bit float RGB (or grey) image to OpenEXR bytes in memory (ZIP; half or full float).
+std::vector<unsigned char> encodeExr(const cv::Mat& rgb, bool half, const std::string& nameForErrors);
 
 /// True for a path whose extension names an image format the readers decode (.png .jpg .jpeg .bmp .pgm
 /// .ppm .tif .tiff, any case).

@@ -242,9 +242,7 @@ void SessionWriter::append(const Frame& frame) {
     if (f.image.depth() == CV_8U) {
       bytes = encodePng(f.image, name);
     } else {
-      cv::Mat bgr;
-      cv::cvtColor(f.image, bgr, cv::COLOR_RGB2BGR);
-      if (!cv::imencode(".exr", bgr, bytes, {cv::IMWRITE_EXR_TYPE, cv::IMWRITE_EXR_TYPE_HALF})) throw CaptureError(name, "cannot encode EXR");
+      bytes = encodeExr(f.image, true, name);
     }
     writeFileAtomically(dir / name, bytes);
     line["fisheye"] = name;

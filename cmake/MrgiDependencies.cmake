@@ -8,11 +8,13 @@ find_package(glfw3 3.3 REQUIRED)
 find_package(embree 3 REQUIRED)
 find_package(assimp REQUIRED)
 find_package(PNG REQUIRED)  # capture decodes PNG frames with its own error handlers (no libpng messages on the terminal)
+find_package(JPEG REQUIRED)  # and JPEG the same way (libjpeg would print its warnings and return a partly grey image)
 find_package(Python3 REQUIRED COMPONENTS Interpreter)
 
 pkg_check_modules(OSMESA REQUIRED IMPORTED_TARGET osmesa)
 pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
 pkg_check_modules(OPENNI2 REQUIRED IMPORTED_TARGET libopenni2)
+pkg_check_modules(OPENEXR REQUIRED IMPORTED_TARGET OpenEXR)  # EXR from and to memory (no temporary files)
 pkg_check_modules(LIBV4L2 REQUIRED IMPORTED_TARGET libv4l2)
 pkg_check_modules(APRILTAG REQUIRED IMPORTED_TARGET apriltag)
 pkg_check_modules(IMGUI REQUIRED IMPORTED_TARGET imgui)  # Dear ImGui with its GLFW + OpenGL 3 backends

@@ -18,7 +18,7 @@ while [[ $# -gt 0 ]]; do
     *) targets+=("$1"); shift ;;
   esac
 done
-all=(manifest_fuzz scene_fuzz preset_fuzz model_fuzz image_fuzz npy_fuzz tum_fuzz fisheye_yaml_fuzz)
+all=(manifest_fuzz session_fuzz scene_fuzz preset_fuzz model_fuzz image_fuzz npy_fuzz tum_fuzz fisheye_yaml_fuzz)
 [[ ${#targets[@]} -eq 0 ]] && targets=("${all[@]}")
 
 # The fuzzing toolchain (not needed by the normal build or the tests).
@@ -36,7 +36,7 @@ cmake --build build-fuzz --target "${targets[@]}"
 # Seeds: the bundled files (targets whose first byte picks a mode get each seed with every prefix).
 seeds=build-fuzz/seeds
 rm -rf "$seeds"
-mkdir -p "$seeds"/{manifest_fuzz,scene_fuzz,preset_fuzz,model_fuzz,image_fuzz,npy_fuzz,tum_fuzz,fisheye_yaml_fuzz}
+mkdir -p "$seeds"/{manifest_fuzz,session_fuzz,scene_fuzz,preset_fuzz,model_fuzz,image_fuzz,npy_fuzz,tum_fuzz,fisheye_yaml_fuzz}
 i=0; for f in recordings/*/manifest.json; do cp "$f" "$seeds/manifest_fuzz/m$i.json"; i=$((i + 1)); done
 cp recordings/scenes/*.json "$seeds/scene_fuzz/"
 cp recordings/presets.json "$seeds/preset_fuzz/"
@@ -45,9 +45,14 @@ for f in recordings/models/*; do
   for p in 0 1 2 3; do { printf "\\x0$p"; cat "$f"; } > "$seeds/model_fuzz/m$i-$p"; done
   i=$((i + 1))
 done
-for p in 0 1; do
+for p in 0 1 2; do
   { printf "\\x0$p"; cat recordings/tabletop-pt/colour/000000.png; } > "$seeds/image_fuzz/colour-$p"
   { printf "\\x0$p"; cat recordings/tabletop-pt/depth/000000.png; } > "$seeds/image_fuzz/depth-$p"
+done
+# Small seeds of the other formats (fuzz/seeds/image: JPEG, progressive JPEG, BMP, PGM, TIFF, EXR), each read
+# by every reader.
+for f in fuzz/seeds/image/*; do
+  for p in 0 1 2; do { printf "\\x0$p"; cat "$f"; } > "$seeds/image_fuzz/$(basename "$f")-$p"; done
 done
 python3 - "$seeds/npy_fuzz" <<'PY'
 import sys, zipfile, glob
@@ -55,6 +60,25 @@ for i, f in enumerate(sorted(glob.glob('../shared/data/rgbd-visp-apriltag/*.npz'
     with zipfile.ZipFile(f) as z:
         for n in z.namelist():
             open(f"{sys.argv[1]}/a{i}-{n}", 'wb').write(z.read(n))
+PY
+python3 - "$seeds/session_fuzz" <<'PY'
+# The session reader's seeds: a manifest for 80x60 frames, a NUL, and the index of three frames (the target
+# writes the images); also the index alone.
+import sys, json
+out = sys.argv[1]
+m = json.load(open('recordings/tabletop-synth/manifest.json'))
+m.pop('fisheye', None)
+for k in ('colour', 'depth'):
+    m[k].update(width=80, height=60, fx=65.6, fy=65.6, cx=39.5, cy=29.5)
+lines = []
+for i, l in enumerate(open('recordings/tabletop-synth/frames.jsonl').read().splitlines()[:3]):
+    f = json.loads(l)
+    f.pop('fisheye', None)
+    f['colour'], f['depth'] = f"colour/{i:06d}.png", f"depth/{i:06d}.png"
+    lines.append(json.dumps(f))
+index = "\n".join(lines) + "\n"
+open(f"{out}/with_manifest", 'w').write(json.dumps(m) + "\0" + index)
+open(f"{out}/index_only", 'w').write(index)
 PY
 printf '# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n1305031102.211214 rgb/1305031102.211214.png\n' > "$seeds/tum_fuzz/rgb.txt"
 printf '# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n' > "$seeds/tum_fuzz/groundtruth.txt"

@@ -6,7 +6,7 @@ SUDO=""
 if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
 PACKAGES=(
   build-essential cmake ninja-build pkg-config python3 khronos-api
-  libopencv-dev libopencv-contrib-dev libpng-dev
+  libopencv-dev libopencv-contrib-dev libpng-dev libjpeg-dev libopenexr-dev
   libopenni2-dev libapriltag-dev libv4l-dev
   libglfw3-dev libosmesa6-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   libembree-dev libassimp-dev libimgui-dev libnanoflann-dev

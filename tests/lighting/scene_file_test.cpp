@@ -2,6 +2,7 @@
 // the file and the key.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -91,13 +92,23 @@ TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
   }
   // Found by the model fuzzer: a face line "# 83 312 559" gives a face of no vertex, which assimp's
   // validation lets through and its triangulation aborts on (SIGABRT before the check).
+  // The body check now refuses that line before assimp reads it; a face whose list length is 0 still
+  // reaches assimp and gives the same face of no vertex.
   const std::string fuzzed = std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/model_face_without_vertices.ply";
   try {
     loadMesh(fuzzed);
     ADD_FAILURE() << "accepted a face of no vertex";
   } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("face element 982 holds '#', not a number"), std::string::npos) << e.what();
+  }
+  const std::string empty = writeModel("mrgi_empty_face.ply", header + vertices + "0\n");
+  try {
+    loadMesh(empty);
+    ADD_FAILURE() << "accepted a face of no vertex";
+  } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("has no vertices"), std::string::npos) << e.what();
   }
+  std::filesystem::remove(empty);
   // Found by the model fuzzer: an element line without a count sends assimp's PLY reader into an endless
   // loop; the header is checked first.
   const std::string hang = std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/model_ply_header_hang.ply";
@@ -117,6 +128,49 @@ TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
     EXPECT_TRUE(what.find("vertex 9999 of 3") != std::string::npos || what.find("out of range") != std::string::npos) << what;
   }
   std::filesystem::remove(path);
+}
+
+TEST(Models, PlyBodiesShorterThanTheirHeaderAreRefusedAndWholeOnesLoad) {
+  // A tetrahedron: 4 vertices, 4 triangles, in ASCII, little- and big-endian binary. assimp alone reads a
+  // cut-off body as far as it goes and returns fewer faces without a word.
+  const std::string props = "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                            "element face 4\nproperty list uchar int vertex_indices\nend_header\n";
+  const float v[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  const int f[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+  auto binary = [&](bool big) {
+    std::string body;
+    auto put = [&](const void* p, size_t n) {
+      std::string b(static_cast<const char*>(p), n);
+      if (big) std::reverse(b.begin(), b.end());
+      body += b;
+    };
+    for (const auto& p : v)
+      for (float x : p) put(&x, 4);
+    for (const auto& t : f) {
+      body += '\x03';
+      for (int i : t) put(&i, 4);
+    }
+    return std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") + " 1.0\n" + props + body;
+  };
+  const std::string ascii = "ply\nformat ascii 1.0\n" + props + "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n";
+  for (const std::string& whole : {ascii, binary(false), binary(true)}) {
+    const std::string path = writeModel("mrgi_tetra.ply", whole);
+    EXPECT_EQ(loadMesh(path).triangleCount(), 4u);
+    // Cut inside the faces (ASCII: inside the last line, not just its newline): refused, naming the file
+    // and what the header promised.
+    const size_t last = whole == ascii ? 3 : 1;
+    for (size_t keep : {whole.size() - last, whole.size() - 6, whole.size() - 14}) {
+      const std::string cut = writeModel("mrgi_tetra_cut.ply", whole.substr(0, keep));
+      try {
+        const Mesh m = loadMesh(cut);
+        ADD_FAILURE() << "a PLY cut to " << keep << " of " << whole.size() << " bytes loaded with " << m.triangleCount() << " faces";
+      } catch (const SceneError& e) {
+        EXPECT_NE(std::string(e.what()).find(cut + ": PLY file is truncated: the header declares 4 face"), std::string::npos) << e.what();
+      }
+      std::filesystem::remove(cut);
+    }
+    std::filesystem::remove(path);
+  }
 }
 
 TEST(Models, GltfIndicesPastTheVerticesAreRefused) {

@@ -1,0 +1,182 @@
+// Image codecs that name the file in every error and print nothing themselves: EXR through OpenEXR from
+// memory (no temporary files), PNG through libpng with our handlers.
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/error.h"
+#include "capture/image_io.h"
+
+namespace fs = std::filesystem;
+using namespace mrgi::capture;
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_image_io_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir / name;
+}
+
+void writeBytes(const fs::path& p, const std::vector<unsigned char>& bytes) {
+  std::ofstream(p, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+cv::Mat ramp(int w, int h) {
+  cv::Mat img(h, w, CV_32FC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) img.at<cv::Vec3f>(y, x) = {0.01f * x, 1000.f * y, 0.5f + 1e-3f * (x + y)};
+  return img;
+}
+
+/// OpenCV puts the temporary files of codecs that cannot decode from memory in OPENCV_TEMP_PATH: a private
+/// folder here, so that other processes' files do not count.
+int opencvTempFiles() {
+  static const fs::path dir = [] {
+    const fs::path d = scratch("opencv_temp");
+    fs::create_directories(d);
+    ::setenv("OPENCV_TEMP_PATH", d.c_str(), 1);
+    return d;
+  }();
+  return static_cast<int>(std::distance(fs::directory_iterator(dir), fs::directory_iterator()));
+}
+
+/// Runs fn with std::cerr captured; returns what was printed.
+template <typename Fn>
+std::string cerrOf(Fn&& fn) {
+  std::stringstream captured;
+  std::streambuf* saved = std::cerr.rdbuf(captured.rdbuf());
+  try {
+    fn();
+  } catch (...) {
+    std::cerr.rdbuf(saved);
+    throw;
+  }
+  std::cerr.rdbuf(saved);
+  return captured.str();
+}
+
+}  // namespace
+
+TEST(ImageIo, ExrRoundTripsFullFloatExactlyAndHalfWithinItsPrecision) {
+  const cv::Mat img = ramp(37, 23);
+  const fs::path full = scratch("full.exr"), half = scratch("half.exr");
+  writeBytes(full, encodeExr(img, false, full.string()));
+  writeBytes(half, encodeExr(img, true, half.string()));
+  const cv::Mat a = readAny(full.string()), b = readAny(half.string());
+  ASSERT_EQ(a.type(), CV_32FC3);
+  ASSERT_EQ(a.size(), img.size());
+  EXPECT_EQ(cv::norm(a, img, cv::NORM_INF), 0.0);  // channel order kept: R stays R
+  ASSERT_EQ(b.size(), img.size());
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const float v = img.at<cv::Vec3f>(y, x)[c];
+        EXPECT_NEAR(b.at<cv::Vec3f>(y, x)[c], v, 1e-3 * std::abs(v) + 1e-7) << x << "," << y << "," << c;
+      }
+}
+
+TEST(ImageIo, GreyExrIsReadAsThreeEqualChannels) {
+  cv::Mat grey(5, 7, CV_32FC1, cv::Scalar(2.5f));
+  const fs::path p = scratch("grey.exr");
+  writeBytes(p, encodeExr(grey, false, p.string()));
+  const cv::Mat back = readAny(p.string());
+  ASSERT_EQ(back.type(), CV_32FC3);
+  EXPECT_EQ(cv::norm(back, cv::Mat(5, 7, CV_32FC3, cv::Scalar::all(2.5f)), cv::NORM_INF), 0.0);
+}
+
+TEST(ImageIo, DamagedExrIsOneErrorNamingTheFileWithNothingPrintedAndNoTemporaryFile) {
+  const fs::path p = scratch("bad.exr");
+  const std::vector<unsigned char> good = encodeExr(ramp(64, 48), true, p.string());
+  std::vector<std::vector<unsigned char>> damaged;
+  damaged.emplace_back(good.begin(), good.begin() + static_cast<long>(good.size() / 2));  // truncated
+  damaged.emplace_back(good.begin(), good.begin() + 12);                                   // header cut short
+  for (size_t at : {size_t(8), size_t(40), good.size() / 3, good.size() - 20}) {            // bit flips
+    std::vector<unsigned char> b = good;
+    b[at] ^= 0xA5;
+    damaged.push_back(b);
+  }
+  std::vector<unsigned char> huge = good;  // dataWindow max beyond 16384: find "dataWindow" and patch xMax
+  const std::string key = "dataWindow";
+  auto it = std::search(huge.begin(), huge.end(), key.begin(), key.end());
+  ASSERT_NE(it, huge.end());
+  const size_t xMaxAt = static_cast<size_t>(it - huge.begin()) + key.size() + 1 + 6 + 4 + 8;  // name\0 "box2i"\0 size xMin yMin
+  huge[xMaxAt + 1] = 0x7f;  // xMax = 0x7f00 + 63
+  damaged.push_back(huge);
+  const int tempsBefore = opencvTempFiles();
+  int refused = 0;
+  for (const auto& bytes : damaged) {
+    writeBytes(p, bytes);
+    const std::string printed = cerrOf([&] {
+      try {
+        (void)readAny(p.string());
+      } catch (const InputError& e) {
+        ++refused;
+        EXPECT_EQ(std::string(e.what()).rfind(p.string() + ": ", 0), 0u) << e.what();
+        EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+      }
+    });
+    EXPECT_EQ(printed, "");
+  }
+  // A bit flip inside compressed pixel data may decode to other values; everything else must be refused.
+  EXPECT_GE(refused, static_cast<int>(damaged.size()) - 1);
+  EXPECT_EQ(opencvTempFiles(), tempsBefore);
+  fs::remove_all(p.parent_path());
+}
+
+TEST(ImageIo, JpegDecodesAsOpenCvDoesAndDamagedJpegIsRefused) {
+  // A smooth colour image and its grey version, encoded by OpenCV (libjpeg-turbo) at quality 90.
+  cv::Mat bgr(60, 80, CV_8UC3);
+  for (int y = 0; y < bgr.rows; ++y)
+    for (int x = 0; x < bgr.cols; ++x) bgr.at<cv::Vec3b>(y, x) = cv::Vec3b(uchar(3 * x), uchar(4 * y), uchar(x + y));
+  cv::Mat grey;
+  cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
+  for (const cv::Mat& img : {bgr, grey}) {
+    std::vector<unsigned char> bytes;
+    ASSERT_TRUE(cv::imencode(".jpg", img, bytes, {cv::IMWRITE_JPEG_QUALITY, 90}));
+    const fs::path p = scratch("frame.jpg");
+    writeBytes(p, bytes);
+    // Parity with OpenCV's decoder (the same libjpeg underneath): identical pixels, RGB order for colour.
+    cv::Mat expected = cv::imdecode(bytes, cv::IMREAD_COLOR);
+    cv::cvtColor(expected, expected, cv::COLOR_BGR2RGB);
+    const cv::Mat colour = readColour(p.string());
+    ASSERT_EQ(colour.type(), CV_8UC3);
+    EXPECT_EQ(cv::norm(colour, expected, cv::NORM_INF), 0.0);
+    // Cut short: libjpeg warns ("premature end of data segment") and fills grey; that is refused, quietly.
+    writeBytes(p, std::vector<unsigned char>(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() * 2 / 3)));
+    const std::string printed = cerrOf([&] {
+      try {
+        (void)readColour(p.string());
+        ADD_FAILURE() << "a truncated JPEG decoded";
+      } catch (const InputError& e) {
+        EXPECT_EQ(std::string(e.what()).rfind(p.string() + ": cannot decode JPEG", 0), 0u) << e.what();
+      }
+    });
+    EXPECT_EQ(printed, "");
+  }
+}
+
+TEST(ImageIo, FormatsOutsideTheSupportedOnesNeverReachOpenCv) {
+  // Found by the image fuzzer: bytes that OpenCV hands to its DICOM decoder (GDCM), whose assertion
+  // aborts the process. Only PNG, JPEG, EXR, BMP, PNM and TIFF are decoded at all.
+  const std::string dicom = std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/image_dicom_gdcm_abort.bin";
+  for (bool depth : {false, true}) {
+    try {
+      if (depth)
+        (void)readDepth(dicom, 0.001);
+      else
+        (void)readColour(dicom);
+      ADD_FAILURE() << "decoded";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(dicom + ": cannot decode image: not a supported format"), std::string::npos) << e.what();
+    }
+  }
+}
