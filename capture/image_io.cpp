@@ -160,7 +160,49 @@ bool isExr(const std::vector<unsigned char>& bytes) {
 /// An EXR decoded by OpenEXR from memory as 32-bit float, BGR (or one channel for a luminance-only file),
 /// as cv::IMREAD_UNCHANGED gives. The file is first checked by OpenEXR's own validator, which bounds memory
 /// and time on damaged files (its stricter core check is off: it refuses sound files written by Blender).
+/// Walks the EXR header(s) before OpenEXR does: every attribute must fit in the file. OpenEXR allocates an
+/// attribute of the size the file declares before reading it, so a damaged size meant allocating up to
+/// 2 GB for a file of a few bytes (found by the image fuzzer as a time-out).
+void checkExrHeader(const std::vector<unsigned char>& bytes, const std::string& path) {
+  auto bad = [&](const std::string& why) { throw CaptureError(path, "cannot decode EXR (" + why + ")"); };
+  if (bytes.size() < 8) bad("file is truncated");
+  const bool multipart = (bytes[5] & 0x10) != 0;  // version field, flags byte: bit 12 of the 32-bit field
+  size_t at = 8;
+  auto readString = [&]() {
+    std::string out;
+    while (true) {
+      if (at >= bytes.size()) bad("header is truncated");
+      const char c = static_cast<char>(bytes[at++]);
+      if (c == '\0') return out;
+      if (out.size() >= 255) bad("header holds a name longer than 255 bytes");
+      out += c;
+    }
+  };
+  for (int headers = 0, attributes = 0;; ++headers) {
+    if (headers > 1000) bad("more than 1000 parts");
+    while (true) {
+      const std::string name = readString();
+      if (name.empty()) break;  // end of this header
+      if (++attributes > 100000) bad("more than 100000 header attributes");
+      readString();  // type
+      if (at + 4 > bytes.size()) bad("header is truncated");
+      const uint32_t size = uint32_t(bytes[at]) | uint32_t(bytes[at + 1]) << 8 | uint32_t(bytes[at + 2]) << 16 | uint32_t(bytes[at + 3]) << 24;
+      at += 4;
+      if (size > bytes.size() - at) {
+        std::string shown;
+        for (char c : name.substr(0, 40)) shown += c >= 0x20 && c < 0x7f ? c : '?';
+        bad("header attribute '" + shown + "' declares " + std::to_string(size) + " bytes, past the end of the file");
+      }
+      at += size;
+    }
+    if (!multipart) return;
+    if (at >= bytes.size()) bad("header is truncated");
+    if (bytes[at] == 0) return;  // an empty header ends the list of parts
+  }
+}
+
 cv::Mat decodeExr(const std::vector<unsigned char>& bytes, const std::string& path) {
+  checkExrHeader(bytes, path);
   try {
     if (Imf::checkOpenEXRFile(reinterpret_cast<const char*>(bytes.data()), bytes.size(), true, true, false))
       throw CaptureError(path, "cannot decode EXR (corrupt or truncated)");

@@ -79,7 +79,18 @@ void checkPly(const std::string& path) {
       if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';  // one printable line
     throw SceneError(path, "malformed PLY header: " + why);
   };
-  if (!std::getline(in, line) || (line != "ply" && line != "ply\r")) return;  // not a PLY file: assimp decides
+  // A PLY file is one named .ply or one starting with "ply" (assimp recognises it by either): its first line
+  // must then be exactly "ply" (a damaged one sent assimp's PLY reader into an endless loop of seeks; found
+  // by the model fuzzer). Anything else is left to assimp.
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  char magic[3] = {};
+  in.read(magic, 3);
+  const bool ply = ext == ".ply" || (in.gcount() == 3 && std::string(magic, 3) == "ply");
+  if (!ply) return;
+  in.clear();
+  in.seekg(0);
+  if (!std::getline(in, line) || (line != "ply" && line != "ply\r")) bad("the first line is not 'ply'");
   static const std::map<std::string, int> kTypes{{"char", 1},   {"uchar", 1},   {"short", 2},   {"ushort", 2},
                                                  {"int", 4},    {"uint", 4},    {"float", 4},   {"double", 8},
                                                  {"int8", 1},   {"uint8", 1},   {"int16", 2},   {"uint16", 2},
@@ -194,6 +205,12 @@ void checkPly(const std::string& path) {
 Mesh loadMesh(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw SceneError(path, "model file not found");
+  // The formats we name, by extension, so that assimp picks its reader by name and never by guessing
+  // from the content (its PLY reader claims any file with "ply" near the start).
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".obj" && ext != ".ply" && ext != ".gltf" && ext != ".glb")
+    throw SceneError(path, "model format must be OBJ, PLY or glTF (.obj, .ply, .gltf, .glb)");
   checkPly(path);
   Assimp::Importer importer;
   // Two steps: the import with assimp's own validation only, then our index check, then the

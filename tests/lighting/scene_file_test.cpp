@@ -118,6 +118,24 @@ TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("malformed PLY header: element line"), std::string::npos) << e.what();
   }
+  // Found by the model fuzzer: a file named .ply whose first line is "ply" and then garbage sent assimp's
+  // PLY reader into an endless loop of seeks.
+  const std::string loop = std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/model_ply_garbage_first_line.ply";
+  try {
+    loadMesh(loop);
+    ADD_FAILURE() << "accepted a PLY whose first line is not 'ply'";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("the first line is not 'ply'"), std::string::npos) << e.what();
+  }
+  // Other extensions are refused by name rather than left to assimp's guess from the content.
+  const std::string other = writeModel("mrgi_model.stl", "solid x\nendsolid x\n");
+  try {
+    loadMesh(other);
+    ADD_FAILURE() << "accepted a .stl";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("model format must be OBJ, PLY or glTF"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(other);
   // An index past the vertex count is named.
   const std::string path = writeModel("mrgi_named.ply", header + vertices + "3 0 1 9999\n");
   try {
