@@ -3,6 +3,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -147,6 +148,16 @@ TEST(Session, TruncatedIndexAtEveryByteReplaysCompleteFrames) {
 TEST(Session, WriterKilledAtRandomMomentsLeavesReplayableSession) {
   std::mt19937 rng(1234);
   int withFrames = 0;
+  // The kill moments scale with how long this build takes to write a session of 10 frames (a sanitizer
+  // build is several times slower): from before the manifest lands to well past the 10th frame.
+  const auto t0 = std::chrono::steady_clock::now();
+  {
+    const fs::path timing = freshDir("kill_timing");
+    SessionWriter w(timing.string(), smallManifest(64, 48));
+    for (int i = 0; i < 10; ++i) w.append(syntheticFrame(i, 64, 48));
+    fs::remove_all(timing);
+  }
+  const int tenFramesUs = static_cast<int>(std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0).count());
   for (int trial = 0; trial < 24; ++trial) {
     const fs::path dir = freshDir("kill" + std::to_string(trial));
     const pid_t pid = fork();
@@ -159,7 +170,7 @@ TEST(Session, WriterKilledAtRandomMomentsLeavesReplayableSession) {
       }
       _exit(0);
     }
-    usleep(std::uniform_int_distribution<int>(500, 60000)(rng));
+    usleep(static_cast<useconds_t>(std::uniform_int_distribution<int>(tenFramesUs / 20, tenFramesUs * 3)(rng)));
     kill(pid, SIGKILL);
     int status = 0;
     waitpid(pid, &status, 0);
