@@ -1,5 +1,7 @@
 #include "lighting/scene_file.h"
 
+#include "capture/ply_check.h"
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -63,145 +65,6 @@ void appendNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& par
 
 }  // namespace
 
-namespace {
-
-/// PLY files are checked before assimp sees them: its reader loops forever on some malformed headers (an
-/// element line without a count, found by the model fuzzer), and it accepts a body shorter than the header
-/// promises (a truncated file) by reading what is there. Accepts the header grammar only: "ply", one format
-/// line, comment/obj_info lines, "element NAME COUNT", "property TYPE NAME" or "property list TYPE TYPE
-/// NAME", "end_header"; then the body must hold every element the header declares (ASCII: one line each;
-/// binary: walked property by property, list lengths included).
-void checkPly(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line;
-  auto bad = [&](std::string why) {
-    for (char& c : why)
-      if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';  // one printable line
-    throw SceneError(path, "malformed PLY header: " + why);
-  };
-  // A PLY file is one named .ply or one starting with "ply" (assimp recognises it by either): its first line
-  // must then be exactly "ply" (a damaged one sent assimp's PLY reader into an endless loop of seeks; found
-  // by the model fuzzer). Anything else is left to assimp.
-  std::string ext = fs::path(path).extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  char magic[3] = {};
-  in.read(magic, 3);
-  const bool ply = ext == ".ply" || (in.gcount() == 3 && std::string(magic, 3) == "ply");
-  if (!ply) return;
-  in.clear();
-  in.seekg(0);
-  if (!std::getline(in, line) || (line != "ply" && line != "ply\r")) bad("the first line is not 'ply'");
-  static const std::map<std::string, int> kTypes{{"char", 1},   {"uchar", 1},   {"short", 2},   {"ushort", 2},
-                                                 {"int", 4},    {"uint", 4},    {"float", 4},   {"double", 8},
-                                                 {"int8", 1},   {"uint8", 1},   {"int16", 2},   {"uint16", 2},
-                                                 {"int32", 4},  {"uint32", 4},  {"float32", 4}, {"float64", 8}};
-  struct Property {
-    int countBytes = 0, itemBytes = 0;  // countBytes > 0: a list
-  };
-  struct Element {
-    std::string name;
-    uint64_t count = 0;
-    std::vector<Property> properties;
-  };
-  std::vector<Element> elements;
-  std::string format;
-  bool header = false;
-  for (int n = 0; n < 10000 && std::getline(in, line); ++n) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream words(line);
-    std::string word;
-    words >> word;
-    if (word == "end_header") {
-      if (format.empty()) bad("no format line");
-      header = true;
-      break;
-    }
-    if (word == "comment" || word == "obj_info") continue;
-    std::vector<std::string> rest;
-    for (std::string w; words >> w;) rest.push_back(w);
-    if (word == "format") {
-      if (rest.size() != 2 || (rest[0] != "ascii" && rest[0] != "binary_little_endian" && rest[0] != "binary_big_endian"))
-        bad("format line '" + line + "'");
-      format = rest[0];
-    } else if (word == "element") {
-      if (rest.size() != 2 || rest[1].empty() || rest[1].find_first_not_of("0123456789") != std::string::npos ||
-          rest[1].size() > 10)
-        bad("element line '" + line + "' needs a name and a count");
-      elements.push_back({rest[0], std::stoull(rest[1]), {}});
-    } else if (word == "property") {
-      if (elements.empty()) bad("a property before any element");
-      const bool list = !rest.empty() && rest[0] == "list";
-      if (list ? (rest.size() != 4 || !kTypes.count(rest[1]) || !kTypes.count(rest[2]))
-               : (rest.size() != 2 || !kTypes.count(rest[0])))
-        bad("property line '" + line + "'");
-      elements.back().properties.push_back(list ? Property{kTypes.at(rest[1]), kTypes.at(rest[2])} : Property{0, kTypes.at(rest[0])});
-    } else {
-      bad("unexpected line '" + line.substr(0, 40) + "'");
-    }
-  }
-  if (!header) bad("no end_header");
-
-  auto truncated = [&](const Element& e, uint64_t have) {
-    throw SceneError(path, "PLY file is truncated: the header declares " + std::to_string(e.count) + " " + e.name +
-                               " elements, the file holds " + std::to_string(have));
-  };
-  if (format == "ascii") {
-    for (const Element& e : elements) {
-      if (e.properties.empty()) continue;
-      for (uint64_t i = 0; i < e.count; ++i) {
-        do {
-          if (!std::getline(in, line)) truncated(e, i);
-        } while (line.find_first_not_of(" \t\r") == std::string::npos);
-        // The line must hold every property: one number each, a list its length and then that many.
-        std::istringstream words(line);
-        auto number = [&]() {
-          std::string word;
-          if (!(words >> word)) {
-            if (in.peek() == EOF) truncated(e, i);  // the last line, cut short
-            throw SceneError(path, "malformed PLY: " + e.name + " element " + std::to_string(i) + " has too few values");
-          }
-          char* end = nullptr;
-          const double value = std::strtod(word.c_str(), &end);
-          if (end == word.c_str() || *end != '\0' || !std::isfinite(value))
-            throw SceneError(path, "malformed PLY: " + e.name + " element " + std::to_string(i) + " holds '" +
-                                       word.substr(0, 20) + "', not a number");
-          return value;
-        };
-        for (const Property& p : e.properties) {
-          const double first = number();
-          if (p.countBytes > 0) {
-            if (!(first >= 0 && first <= 1e6 && first == std::floor(first)))
-              throw SceneError(path, "malformed PLY: " + e.name + " element " + std::to_string(i) + " has a list length of " + std::to_string(first));
-            for (int k = 0; k < static_cast<int>(first); ++k) number();
-          }
-        }
-      }
-    }
-    return;
-  }
-  const bool swap = format == "binary_big_endian";
-  const std::string body{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  uint64_t at = 0;
-  for (const Element& e : elements) {
-    if (e.properties.empty()) continue;
-    for (uint64_t i = 0; i < e.count; ++i)
-      for (const Property& p : e.properties) {
-        uint64_t items = 1;
-        if (p.countBytes > 0) {
-          if (at + static_cast<uint64_t>(p.countBytes) > body.size()) truncated(e, i);
-          items = 0;
-          for (int k = 0; k < p.countBytes; ++k)
-            items |= uint64_t(static_cast<unsigned char>(body[at + static_cast<uint64_t>(swap ? p.countBytes - 1 - k : k)])) << (8 * k);
-          at += static_cast<uint64_t>(p.countBytes);
-        }
-        if (items > body.size() || at + items * static_cast<uint64_t>(p.itemBytes) > body.size()) truncated(e, i);
-        at += items * static_cast<uint64_t>(p.itemBytes);
-      }
-  }
-}
-
-}  // namespace
-
 Mesh loadMesh(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw SceneError(path, "model file not found");
@@ -211,7 +74,7 @@ Mesh loadMesh(const std::string& path) {
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext != ".obj" && ext != ".ply" && ext != ".gltf" && ext != ".glb")
     throw SceneError(path, "model format must be OBJ, PLY or glTF (.obj, .ply, .gltf, .glb)");
-  checkPly(path);
+  capture::checkPlyFile(path);
   Assimp::Importer importer;
   // Two steps: the import with assimp's own validation only, then our index check, then the
   // post-processing — which trusts its input (out-of-range or truncated faces crash or abort inside it).
