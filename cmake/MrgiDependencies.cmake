@@ -9,6 +9,7 @@ find_package(embree 3 REQUIRED)
 find_package(assimp REQUIRED)
 find_package(PNG REQUIRED)  # capture decodes PNG frames with its own error handlers (no libpng messages on the terminal)
 find_package(JPEG REQUIRED)  # and JPEG the same way (libjpeg would print its warnings and return a partly grey image)
+find_package(Open3D REQUIRED)  # the room model: ScalableTSDFVolume fusion, marching cubes, PLY mesh I/O
 find_package(Python3 REQUIRED COMPONENTS Interpreter)
 
 pkg_check_modules(OSMESA REQUIRED IMPORTED_TARGET osmesa)

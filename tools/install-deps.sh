@@ -9,7 +9,7 @@ PACKAGES=(
   libopencv-dev libopencv-contrib-dev libpng-dev libjpeg-dev libopenexr-dev
   libopenni2-dev libapriltag-dev libv4l-dev
   libglfw3-dev libosmesa6-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
-  libembree-dev libassimp-dev libimgui-dev libnanoflann-dev
+  libembree-dev libassimp-dev libimgui-dev libnanoflann-dev libopen3d-dev
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
   xvfb xauth
 )

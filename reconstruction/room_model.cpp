@@ -1,0 +1,344 @@
+#include "reconstruction/room_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <unordered_set>
+
+#include <open3d/camera/PinholeCameraIntrinsic.h>
+#include <open3d/geometry/Image.h>
+#include <open3d/geometry/RGBDImage.h>
+#include <open3d/geometry/TriangleMesh.h>
+#include <open3d/io/TriangleMeshIO.h>
+#include <open3d/pipelines/integration/ScalableTSDFVolume.h>
+#include <open3d/pipelines/integration/UniformTSDFVolume.h>
+#include <open3d/utility/Logging.h>
+
+#include "capture/colour.h"
+#include "capture/error.h"
+#include "capture/image_io.h"
+#include "capture/json_io.h"
+#include "capture/ply_check.h"
+
+namespace fs = std::filesystem;
+namespace o3d = open3d;
+
+namespace mrgi::reconstruction {
+
+namespace {
+
+constexpr int kBlockResolution = 16;  // voxels per block edge (Open3D's volume unit)
+
+Eigen::Matrix4d toEigen(const capture::Pose& T) {
+  Eigen::Matrix4d m;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) m(r, c) = T(r, c);
+  return m;
+}
+
+Eigen::Vector3i floorDiv(const Eigen::Vector3i& a, int b) {
+  Eigen::Vector3i q;
+  for (int k = 0; k < 3; ++k) q[k] = static_cast<int>(std::floor(static_cast<double>(a[k]) / b));
+  return q;
+}
+
+struct Hash {
+  size_t operator()(const Eigen::Vector3i& v) const {
+    return (static_cast<size_t>(v[0]) * 73856093u) ^ (static_cast<size_t>(v[1]) * 19349663u) ^ (static_cast<size_t>(v[2]) * 83492791u);
+  }
+};
+
+/// Open3D prints its warnings through its own logger; ours is the one-line error.
+void quietOpen3d() {
+  static const bool once = [] {
+    o3d::utility::SetVerbosityLevel(o3d::utility::VerbosityLevel::Error);
+    return true;
+  }();
+  (void)once;
+}
+
+}  // namespace
+
+void RoomOptions::validate(const std::string& where) const {
+  auto check = [&](bool ok, const std::string& key, const std::string& range) {
+    if (!ok) throw capture::InputError(where, key + " must be " + range);
+  };
+  check(std::isfinite(voxelM) && voxelM >= 0.002 && voxelM <= 0.2, "voxel_m", "in [0.002, 0.2]");
+  check(std::isfinite(truncM) && truncM >= 2 * voxelM && truncM <= 1.0, "trunc_m", "at least 2 voxels and at most 1 m");
+  check(maxBlocks >= 1 && maxBlocks <= (1 << 20), "max_blocks", "in [1, 1048576]");
+  check(std::isfinite(maxDepthM) && maxDepthM > 0.1 && maxDepthM <= 20, "max_depth_m", "in (0.1, 20]");
+  check(std::isfinite(outlierM) && outlierM > 0 && outlierM <= 1, "outlier_m", "in (0, 1]");
+  check(std::isfinite(outlierFraction) && outlierFraction > 0 && outlierFraction <= 1, "outlier_fraction", "in (0, 1]");
+  check(std::isfinite(minOverlap) && minOverlap >= 0 && minOverlap <= 1, "min_overlap", "in [0, 1]");
+}
+
+struct RoomModel::Impl {
+  explicit Impl(const RoomOptions& o)
+      : volume(o.voxelM, o.truncM, o3d::pipelines::integration::TSDFVolumeColorType::RGB8, kBlockResolution, 4) {}
+  o3d::pipelines::integration::ScalableTSDFVolume volume;
+
+  const o3d::geometry::TSDFVoxel* voxel(const Eigen::Vector3i& global) const {
+    const Eigen::Vector3i block = floorDiv(global, kBlockResolution);
+    const auto it = volume.volume_units_.find(block);
+    if (it == volume.volume_units_.end() || !it->second.volume_) return nullptr;
+    const Eigen::Vector3i local = global - block * kBlockResolution;
+    return &it->second.volume_->voxels_[static_cast<size_t>(it->second.volume_->IndexOf(local))];
+  }
+
+  /// The blocks Open3D's integration touches for this depth: every block within the truncation distance of
+  /// a sampled point (the same rule and the same sampling stride as ScalableTSDFVolume::Integrate).
+  std::unordered_set<Eigen::Vector3i, Hash> touched(const cv::Mat& depth, const capture::Intrinsics& K, const capture::Pose& T,
+                                                   double trunc) const {
+    std::unordered_set<Eigen::Vector3i, Hash> out;
+    const double unit = volume.volume_unit_length_;
+    for (int y = 0; y < depth.rows; y += volume.depth_sampling_stride_)
+      for (int x = 0; x < depth.cols; x += volume.depth_sampling_stride_) {
+        const float d = depth.at<float>(y, x);
+        if (!(d > 0)) continue;
+        const cv::Vec3d pc((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d);
+        const cv::Vec3d p = capture::transformPoint(T, pc);
+        Eigen::Vector3i lo, hi;
+        for (int k = 0; k < 3; ++k) {
+          lo[k] = static_cast<int>(std::floor((p[k] - trunc) / unit));
+          hi[k] = static_cast<int>(std::floor((p[k] + trunc) / unit));
+        }
+        for (int i = lo[0]; i <= hi[0]; ++i)
+          for (int j = lo[1]; j <= hi[1]; ++j)
+            for (int k = lo[2]; k <= hi[2]; ++k) out.insert({i, j, k});
+      }
+    return out;
+  }
+};
+
+RoomModel::RoomModel(const RoomOptions& options) : options_(options) {
+  options_.validate("room model");
+  quietOpen3d();
+  impl_ = std::make_unique<Impl>(options_);
+}
+RoomModel::~RoomModel() = default;
+RoomModel::RoomModel(RoomModel&&) noexcept = default;
+RoomModel& RoomModel::operator=(RoomModel&&) noexcept = default;
+
+double RoomModel::signedDistance(const cv::Vec3d& p) const {
+  // Voxel centres sit at (i + 0.5) * voxel: trilinear over the 8 around p, all of them observed.
+  const double v = options_.voxelM;
+  const cv::Vec3d g(p[0] / v - 0.5, p[1] / v - 0.5, p[2] / v - 0.5);
+  const Eigen::Vector3i base(static_cast<int>(std::floor(g[0])), static_cast<int>(std::floor(g[1])), static_cast<int>(std::floor(g[2])));
+  const cv::Vec3d f(g[0] - base[0], g[1] - base[1], g[2] - base[2]);
+  double sum = 0;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3i o(c & 1, (c >> 1) & 1, (c >> 2) & 1);
+    const o3d::geometry::TSDFVoxel* vox = impl_->voxel(base + o);
+    if (!vox || vox->weight_ <= 0) return std::numeric_limits<double>::quiet_NaN();
+    const double w = (o[0] ? f[0] : 1 - f[0]) * (o[1] ? f[1] : 1 - f[1]) * (o[2] ? f[2] : 1 - f[2]);
+    sum += w * vox->tsdf_;
+  }
+  return sum * options_.truncM;
+}
+
+RoomIntegration RoomModel::checkPose(const cv::Mat& depth, const capture::Intrinsics& K, const capture::Pose& T_world_camera) const {
+  RoomIntegration r;
+  int valid = 0, observed = 0, far = 0;
+  for (int y = 0; y < depth.rows; y += 4)
+    for (int x = 0; x < depth.cols; x += 4) {
+      const float d = depth.at<float>(y, x);
+      if (!(d > 0) || d > options_.maxDepthM) continue;
+      ++valid;
+      const cv::Vec3d p = capture::transformPoint(T_world_camera, cv::Vec3d((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d));
+      const double s = signedDistance(p);
+      if (std::isnan(s)) continue;
+      ++observed;
+      if (std::abs(s) > options_.outlierM) ++far;
+    }
+  r.overlap = valid > 0 ? static_cast<double>(observed) / valid : 0.0;
+  r.inconsistent = observed > 0 ? static_cast<double>(far) / observed : 0.0;
+  if (valid == 0)
+    r.refused = "no valid depth";
+  else if (integrated_ > 0 && r.overlap >= options_.minOverlap && r.inconsistent > options_.outlierFraction)
+    r.refused = "pose disagrees with the model";
+  return r;
+}
+
+RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colour, const capture::Intrinsics& K,
+                                     const capture::Pose& T_world_camera) {
+  if (depthIn.type() != CV_32FC1 || colour.type() != CV_8UC3 || depthIn.size() != colour.size() ||
+      depthIn.cols != K.width || depthIn.rows != K.height || !K.valid())
+    throw std::invalid_argument("RoomModel::integrate: depth (CV_32FC1) and colour (CV_8UC3) must match the intrinsics");
+  // Depth past the range, and non-finite depth, is no observation.
+  cv::Mat depth = depthIn.clone();
+  for (int y = 0; y < depth.rows; ++y) {
+    float* row = depth.ptr<float>(y);
+    for (int x = 0; x < depth.cols; ++x)
+      if (!std::isfinite(row[x]) || row[x] <= 0 || row[x] > options_.maxDepthM) row[x] = 0;
+  }
+  RoomIntegration r = checkPose(depth, K, T_world_camera);
+  const auto touched = impl_->touched(depth, K, T_world_camera, options_.truncM);
+  for (const auto& b : touched)
+    if (!impl_->volume.volume_units_.count(b)) ++r.newBlocks;
+  if (r.refused.empty() && impl_->volume.volume_units_.size() + r.newBlocks > static_cast<size_t>(options_.maxBlocks))
+    r.refused = "memory budget (" + std::to_string(options_.maxBlocks) + " blocks) reached";
+  if (!r.refused.empty()) {
+    ++refused_;
+    return r;
+  }
+
+  o3d::geometry::Image d, c;
+  d.Prepare(depth.cols, depth.rows, 1, 4);
+  c.Prepare(colour.cols, colour.rows, 3, 1);
+  for (int y = 0; y < depth.rows; ++y) {
+    std::memcpy(d.PointerAt<float>(0, y), depth.ptr<float>(y), sizeof(float) * static_cast<size_t>(depth.cols));
+    std::memcpy(c.PointerAt<uint8_t>(0, y, 0), colour.ptr<uint8_t>(y), 3 * static_cast<size_t>(colour.cols));
+  }
+  const o3d::geometry::RGBDImage rgbd(c, d);
+  const o3d::camera::PinholeCameraIntrinsic intrinsic(K.width, K.height, K.fx, K.fy, K.cx, K.cy);
+  const Eigen::Matrix4d extrinsic = toEigen(capture::inversePose(T_world_camera));
+  impl_->volume.Integrate(rgbd, intrinsic, extrinsic);
+
+  // Carving: Open3D updates only the blocks near this frame's points. Blocks farther in front of what the
+  // camera now sees (a box that has moved away, taller than the truncation distance) would keep their old
+  // surface; every other block in view is integrated too, so free space seen through it clears it.
+  const double half = 0.5 * impl_->volume.volume_unit_length_;
+  for (auto& [index, unit] : impl_->volume.volume_units_) {
+    if (touched.count(index) || !unit.volume_) continue;
+    const cv::Vec3d centre((index[0] + 0.5) * 2 * half, (index[1] + 0.5) * 2 * half, (index[2] + 0.5) * 2 * half);
+    const cv::Vec3d pc = capture::transformPoint(capture::inversePose(T_world_camera), centre);
+    if (pc[2] <= half) continue;
+    const double u = K.fx * pc[0] / pc[2] + K.cx, v = K.fy * pc[1] / pc[2] + K.cy;
+    const double margin = K.fx * 1.8 * half / pc[2];
+    if (u < -margin || v < -margin || u > K.width + margin || v > K.height + margin) continue;
+    unit.volume_->Integrate(rgbd, intrinsic, extrinsic);
+  }
+  r.integrated = true;
+  ++integrated_;
+  return r;
+}
+
+RoomMesh RoomModel::mesh() const {
+  RoomMesh out;
+  auto m = const_cast<o3d::pipelines::integration::ScalableTSDFVolume&>(impl_->volume).ExtractTriangleMesh();
+  if (!m || m->vertices_.empty()) return out;
+  m->ComputeVertexNormals();
+  out.positions.reserve(m->vertices_.size());
+  for (size_t i = 0; i < m->vertices_.size(); ++i) {
+    const auto& p = m->vertices_[i];
+    const auto& n = m->vertex_normals_[i];
+    out.positions.emplace_back(static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2]));
+    out.normals.emplace_back(static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2]));
+    const Eigen::Vector3d col = m->HasVertexColors() ? m->vertex_colors_[i] : Eigen::Vector3d(0.5, 0.5, 0.5);
+    out.colours.emplace_back(static_cast<float>(capture::srgbToLinear(col[0])), static_cast<float>(capture::srgbToLinear(col[1])),
+                             static_cast<float>(capture::srgbToLinear(col[2])));
+  }
+  out.indices.reserve(m->triangles_.size() * 3);
+  for (const auto& t : m->triangles_)
+    for (int k = 0; k < 3; ++k) out.indices.push_back(static_cast<uint32_t>(t[k]));
+  return out;
+}
+
+size_t RoomModel::blocks() const { return impl_->volume.volume_units_.size(); }
+size_t RoomModel::bytes() const {
+  return blocks() * static_cast<size_t>(kBlockResolution * kBlockResolution * kBlockResolution) * sizeof(o3d::geometry::TSDFVoxel);
+}
+
+// ---- saved rooms --------------------------------------------------------------------------------------
+
+void saveRoom(const std::string& dir, const RoomMesh& mesh, const RoomInfo& info) {
+  quietOpen3d();
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw capture::InputError(dir, "cannot create: " + ec.message());
+  o3d::geometry::TriangleMesh m;
+  m.vertices_.reserve(mesh.positions.size());
+  cv::Vec3f lo(1e30f, 1e30f, 1e30f), hi(-1e30f, -1e30f, -1e30f);
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    const cv::Vec3f& p = mesh.positions[i];
+    m.vertices_.emplace_back(p[0], p[1], p[2]);
+    m.vertex_normals_.emplace_back(mesh.normals[i][0], mesh.normals[i][1], mesh.normals[i][2]);
+    const cv::Vec3f& c = mesh.colours[i];
+    m.vertex_colors_.emplace_back(capture::linearToSrgb(std::clamp(c[0], 0.f, 1.f)), capture::linearToSrgb(std::clamp(c[1], 0.f, 1.f)),
+                                  capture::linearToSrgb(std::clamp(c[2], 0.f, 1.f)));
+    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
+  }
+  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
+    m.triangles_.emplace_back(static_cast<int>(mesh.indices[t]), static_cast<int>(mesh.indices[t + 1]), static_cast<int>(mesh.indices[t + 2]));
+  // Written beside and renamed over: a reader sees the old room or the new one, never half of one.
+  const fs::path ply = fs::path(dir) / "room.ply", tmp = fs::path(dir) / ".room.partial.ply";
+  if (!o3d::io::WriteTriangleMesh(tmp.string(), m, false, false, true, true, false, false))
+    throw capture::InputError(ply.string(), "cannot write the room mesh");
+  fs::rename(tmp, ply, ec);
+  if (ec) throw capture::InputError(ply.string(), "cannot rename: " + ec.message());
+  nlohmann::json j = {{"format", "mrgi-room"},
+                      {"version", 1},
+                      {"generated_by", "mrgi room"},
+                      {"mesh", "room.ply"},
+                      {"voxel_m", info.options.voxelM},
+                      {"trunc_m", info.options.truncM},
+                      {"max_blocks", info.options.maxBlocks},
+                      {"frames_integrated", info.framesIntegrated},
+                      {"frames_refused", info.framesRefused},
+                      {"blocks", info.blocks},
+                      {"bytes", info.bytes},
+                      {"vertices", mesh.positions.size()},
+                      {"triangles", mesh.triangleCount()},
+                      {"session", info.session}};
+  if (!mesh.positions.empty()) j["bounds_m"] = {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
+  capture::writeFileAtomically(fs::path(dir) / "room.json", j.dump(2) + "\n");
+}
+
+RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
+  quietOpen3d();
+  const fs::path json = fs::path(dir) / "room.json", ply = fs::path(dir) / "room.ply";
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw capture::InputError(dir, "room folder is missing");
+  if (!fs::is_regular_file(json, ec)) throw capture::InputError(json.string(), "missing (not a room folder written by mrgi room)");
+  std::ifstream in(json);
+  const nlohmann::json j = capture::parseJson(in, json.string());
+  if (!j.is_object() || j.value("format", std::string()) != "mrgi-room")
+    throw capture::InputError(json.string(), "format: not \"mrgi-room\"");
+  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int64_t>() != 1)
+    throw capture::InputError(json.string(), "version: only version 1 is known");
+  RoomInfo ri;
+  try {
+    ri.options.voxelM = j.at("voxel_m").get<double>();
+    ri.options.truncM = j.at("trunc_m").get<double>();
+    ri.framesIntegrated = j.value("frames_integrated", 0);
+    ri.framesRefused = j.value("frames_refused", 0);
+    ri.session = j.value("session", std::string());
+  } catch (const nlohmann::json::exception&) {
+    throw capture::InputError(json.string(), "voxel_m, trunc_m, frames_* or session missing or of the wrong type");
+  }
+  ri.options.validate(json.string());
+  if (!fs::is_regular_file(ply, ec)) throw capture::InputError(ply.string(), "room mesh is missing");
+  capture::checkPlyFile(ply.string());
+  o3d::geometry::TriangleMesh m;
+  o3d::io::ReadTriangleMeshOptions options;
+  if (!o3d::io::ReadTriangleMesh(ply.string(), m, options)) throw capture::InputError(ply.string(), "cannot read the room mesh (malformed or empty PLY)");
+  if (m.vertices_.empty() || m.triangles_.empty()) throw capture::InputError(ply.string(), "room mesh is empty");
+  RoomMesh out;
+  const bool normals = m.HasVertexNormals(), colours = m.HasVertexColors();
+  if (!normals) m.ComputeVertexNormals();
+  for (size_t i = 0; i < m.vertices_.size(); ++i) {
+    const auto& p = m.vertices_[i];
+    const auto& n = m.vertex_normals_[i];
+    if (!p.allFinite() || !n.allFinite()) throw capture::InputError(ply.string(), "vertex " + std::to_string(i) + " is not finite");
+    out.positions.emplace_back(static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2]));
+    out.normals.emplace_back(static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2]));
+    const Eigen::Vector3d c = colours ? m.vertex_colors_[i] : Eigen::Vector3d(0.5, 0.5, 0.5);
+    out.colours.emplace_back(static_cast<float>(capture::srgbToLinear(std::clamp(c[0], 0.0, 1.0))),
+                             static_cast<float>(capture::srgbToLinear(std::clamp(c[1], 0.0, 1.0))),
+                             static_cast<float>(capture::srgbToLinear(std::clamp(c[2], 0.0, 1.0))));
+  }
+  for (size_t t = 0; t < m.triangles_.size(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const int i = m.triangles_[t][k];
+      if (i < 0 || static_cast<size_t>(i) >= m.vertices_.size())
+        throw capture::InputError(ply.string(), "triangle " + std::to_string(t) + " names vertex " + std::to_string(i) + " of " +
+                                                    std::to_string(m.vertices_.size()));
+      out.indices.push_back(static_cast<uint32_t>(i));
+    }
+  if (info) *info = ri;
+  return out;
+}
+
+}  // namespace mrgi::reconstruction

@@ -1,0 +1,94 @@
+#pragma once
+/// The persistent model of the real room: every frame's filtered depth fused with its pose into a truncated
+/// signed distance volume (Open3D's ScalableTSDFVolume: voxel blocks allocated where surfaces are seen), so
+/// that light from surfaces out of the current view is still there, and real objects that move are carved
+/// away by later observations. The lighting world is the marker frame.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "capture/types.h"
+
+namespace mrgi::reconstruction {
+
+struct RoomOptions {
+  double voxelM = 0.02;    ///< voxel edge (metres)
+  double truncM = 0.08;    ///< truncation distance of the signed distance (metres, at least 2 voxels)
+  int maxBlocks = 8192;    ///< memory budget in voxel blocks (16^3 voxels each); frames that would grow past it are not integrated
+  double maxDepthM = 4.0;  ///< depth beyond this is not integrated
+  /// A frame's pose is checked against the model before it is integrated: of its depth points that land in
+  /// observed space, more than `outlierFraction` lying farther than `outlierM` from the fused surface mean
+  /// the pose disagrees with the model, and the frame is not integrated (needs `minOverlap` of its points
+  /// in observed space to judge; less is a new view and is integrated).
+  double outlierM = 0.03;
+  double outlierFraction = 0.3;
+  double minOverlap = 0.25;
+  /// Throws InputError naming `where` if a value is out of range.
+  void validate(const std::string& where) const;
+};
+
+/// What one integrate() call did.
+struct RoomIntegration {
+  bool integrated = false;
+  std::string refused;          ///< why not: "pose disagrees with the model", "memory budget", "no valid depth"
+  double overlap = 0;           ///< fraction of the frame's sampled points in observed space
+  double inconsistent = 0;      ///< of those, the fraction farther than outlierM from the surface
+  size_t newBlocks = 0;         ///< blocks this frame allocated (or would have)
+};
+
+/// A triangle mesh of the model's surface in the lighting world, with the fused colour per vertex
+/// (linear RGB in [0, 1], averaged over observations).
+struct RoomMesh {
+  std::vector<cv::Vec3f> positions, normals, colours;
+  std::vector<uint32_t> indices;
+  size_t triangleCount() const { return indices.size() / 3; }
+};
+
+class RoomModel {
+ public:
+  explicit RoomModel(const RoomOptions& options = {});
+  ~RoomModel();
+  RoomModel(RoomModel&&) noexcept;
+  RoomModel& operator=(RoomModel&&) noexcept;
+
+  /// Fuses one frame: depth in metres (CV_32FC1, 0 = invalid) and its colour (CV_8UC3 RGB, sRGB) on the same
+  /// pixel grid with intrinsics K, seen from T_world_camera. The pose is checked first (see RoomOptions).
+  RoomIntegration integrate(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K,
+                            const capture::Pose& T_world_camera);
+  /// The pose check alone: the fractions integrate() would decide on, and whether it would refuse.
+  RoomIntegration checkPose(const cv::Mat& depth, const capture::Intrinsics& K, const capture::Pose& T_world_camera) const;
+  /// Signed distance to the fused surface at a point of the lighting world (metres, trilinear; positive in
+  /// free space), or NaN where the volume has not been observed. It is the fusion's projective distance
+  /// (along the viewing rays), at least the Euclidean one and at most the truncation distance.
+  double signedDistance(const cv::Vec3d& p) const;
+
+  RoomMesh mesh() const;
+  size_t blocks() const;
+  size_t bytes() const;  ///< voxel storage
+  int framesIntegrated() const { return integrated_; }
+  int framesRefused() const { return refused_; }
+  const RoomOptions& options() const { return options_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  RoomOptions options_;
+  int integrated_ = 0, refused_ = 0;
+};
+
+/// A saved room: ROOM/room.ply (binary PLY: positions, normals, 8-bit sRGB colour) and ROOM/room.json
+/// (format, version, options, frames, bounds, the session it came from).
+struct RoomInfo {
+  RoomOptions options;
+  int framesIntegrated = 0, framesRefused = 0;
+  size_t blocks = 0, bytes = 0;
+  std::string session;
+};
+void saveRoom(const std::string& dir, const RoomMesh& mesh, const RoomInfo& info);
+/// Loads a saved room; every problem (missing files, malformed JSON or PLY, indices out of range, an empty
+/// mesh) is an InputError naming the file.
+RoomMesh loadRoom(const std::string& dir, RoomInfo* info = nullptr);
+
+}  // namespace mrgi::reconstruction

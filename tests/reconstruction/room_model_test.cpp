@@ -1,0 +1,275 @@
+// The room model: fusion of depth from many poses (Open3D's ScalableTSDFVolume), carving of what moved,
+// refusal of poses that disagree with the model, the memory budget, and the saved room's round trip.
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "capture/colour.h"
+#include "capture/error.h"
+#include "reconstruction/room_model.h"
+
+namespace fs = std::filesystem;
+using namespace mrgi;
+using reconstruction::RoomMesh;
+using reconstruction::RoomModel;
+using reconstruction::RoomOptions;
+
+namespace {
+
+/// A scene of a floor (z = 0, the lighting world's up is +z), a wall (x = -0.9) and optionally a box.
+struct Scene {
+  bool box = false;
+  cv::Vec3d boxMin, boxMax;
+};
+
+const capture::Intrinsics kK{160, 120, 130.0, 130.0, 79.5, 59.5};
+
+/// Camera at `eye` looking at `target` (OpenCV axes: x right, y down, z forward), world up +z.
+capture::Pose lookAt(const cv::Vec3d& eye, const cv::Vec3d& target) {
+  const cv::Vec3d f = cv::normalize(target - eye);
+  const cv::Vec3d r = cv::normalize(f.cross(cv::Vec3d(0, 0, 1)));
+  const cv::Vec3d d = f.cross(r);
+  capture::Pose T = capture::Pose::eye();
+  for (int k = 0; k < 3; ++k) {
+    T(k, 0) = r[k];
+    T(k, 1) = d[k];
+    T(k, 2) = f[k];
+    T(k, 3) = eye[k];
+  }
+  return T;
+}
+
+/// Depth (metres along the optical axis) of the scene seen from T_world_camera, with Gaussian noise.
+cv::Mat renderDepth(const Scene& s, const capture::Pose& T, double noise, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, noise);
+  cv::Mat depth(kK.height, kK.width, CV_32FC1, cv::Scalar(0));
+  const cv::Vec3d o = capture::translationOf(T);
+  const cv::Matx33d R = capture::rotationOf(T);
+  for (int y = 0; y < kK.height; ++y)
+    for (int x = 0; x < kK.width; ++x) {
+      const cv::Vec3d dc((x - kK.cx) / kK.fx, (y - kK.cy) / kK.fy, 1.0);  // z = 1: t is the depth
+      const cv::Vec3d d = R * dc;
+      double t = 1e9;
+      if (d[2] < -1e-9) t = std::min(t, -o[2] / d[2]);                // floor
+      if (d[0] < -1e-9) t = std::min(t, (-0.9 - o[0]) / d[0]);       // wall
+      if (s.box) {
+        double t0 = -1e9, t1 = 1e9;
+        for (int k = 0; k < 3; ++k) {
+          if (std::abs(d[k]) < 1e-12) {
+            if (o[k] < s.boxMin[k] || o[k] > s.boxMax[k]) t0 = 1e9;
+            continue;
+          }
+          double a = (s.boxMin[k] - o[k]) / d[k], b = (s.boxMax[k] - o[k]) / d[k];
+          if (a > b) std::swap(a, b);
+          t0 = std::max(t0, a), t1 = std::min(t1, b);
+        }
+        if (t0 <= t1 && t0 > 0) t = std::min(t, t0);
+      }
+      if (t < 5.0) depth.at<float>(y, x) = static_cast<float>(t + n(rng));
+    }
+  return depth;
+}
+
+cv::Mat grey(uchar v) { return cv::Mat(kK.height, kK.width, CV_8UC3, cv::Scalar(v, v, v)); }
+
+std::vector<capture::Pose> orbit(int n, double radius, double height) {
+  std::vector<capture::Pose> out;
+  for (int i = 0; i < n; ++i) {
+    const double a = -0.6 + 1.2 * i / std::max(n - 1, 1);  // an arc on the +x side, the wall in view
+    out.push_back(lookAt({radius * std::cos(a), radius * std::sin(a), height}, {-0.2, 0, 0.05}));
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(RoomModel, APlaneSeenFromSeveralPosesFusesWithinItsNoise) {
+  RoomModel room;  // 2 cm voxels, 8 cm truncation
+  const Scene s;
+  int k = 0;
+  for (const auto& T : orbit(6, 1.2, 0.9)) EXPECT_TRUE(room.integrate(renderDepth(s, T, 0.002, k++), grey(128), kK, T).integrated);
+  EXPECT_EQ(room.framesIntegrated(), 6);
+  // The signed distance is 0 on the floor and positive above it (free space). It is projective (measured
+  // along the viewing rays, as the fusion measures it), so 4 cm above an obliquely seen floor reads more than
+  // 4 cm, up to the truncation distance.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.3, 0.3);
+  double worst = 0, squares = 0;
+  for (int i = 0; i < 200; ++i) {
+    const double x = u(rng), y = u(rng);
+    const double on = room.signedDistance({x, y, 0.0}), above = room.signedDistance({x, y, 0.04});
+    ASSERT_FALSE(std::isnan(on)) << x << "," << y;
+    worst = std::max(worst, std::abs(on));
+    squares += on * on;
+    EXPECT_GT(above, 0.036);
+    EXPECT_LE(above, 0.08 + 1e-6);
+  }
+  EXPECT_LT(std::sqrt(squares / 200), 0.002);  // the depth noise (2 mm per frame)
+  EXPECT_LT(worst, 0.004);
+  // The extracted surface lies on the floor there, normals up, colour the fused grey (sRGB 128, linear 0.216).
+  const RoomMesh m = room.mesh();
+  ASSERT_GT(m.triangleCount(), 100u);
+  int onFloor = 0;
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    const cv::Vec3f& p = m.positions[i];
+    if (std::abs(p[0]) > 0.3 || std::abs(p[1]) > 0.3) continue;
+    ++onFloor;
+    EXPECT_NEAR(p[2], 0.f, 0.003f);
+    EXPECT_GT(m.normals[i][2], 0.95f);
+    EXPECT_NEAR(m.colours[i][1], capture::srgbToLinear(128 / 255.f), 0.005f);
+  }
+  EXPECT_GT(onFloor, 100);
+}
+
+TEST(RoomModel, ABoxThatMovesIsCarvedAwayByLaterObservations) {
+  RoomModel room;
+  Scene s;
+  s.box = true;
+  // A cabinet 60 cm tall: its upper part lies in voxel blocks (32 cm) farther than the truncation distance
+  // from anything the camera sees after it moved, which the fusion alone never revisits.
+  s.boxMin = {0.1, 0.1, 0.0}, s.boxMax = {0.3, 0.3, 0.6};
+  const auto views = orbit(6, 1.2, 0.9);
+  auto topAt = [&](const RoomMesh& m, double cx, double cy) {
+    int n = 0;
+    for (const auto& p : m.positions)
+      if (std::abs(p[0] - cx) < 0.08 && std::abs(p[1] - cy) < 0.08 && p[2] > 0.05) ++n;
+    return n;
+  };
+  int k = 0;
+  for (const auto& T : views) room.integrate(renderDepth(s, T, 0.001, k++), grey(128), kK, T);
+  ASSERT_GT(topAt(room.mesh(), 0.2, 0.2), 20) << "the box is in the model";
+  s.boxMin = {0.1, -0.45, 0.0}, s.boxMax = {0.3, -0.25, 0.6};  // moved 55 cm
+  for (int pass = 0; pass < 3; ++pass)
+    for (const auto& T : views) {
+      const auto r = room.integrate(renderDepth(s, T, 0.001, k++), grey(128), kK, T);
+      EXPECT_TRUE(r.integrated) << r.refused;  // a moved object is a small part of the view, not a bad pose
+    }
+  const RoomMesh m = room.mesh();
+  EXPECT_EQ(topAt(m, 0.2, 0.2), 0) << "a ghost of the box is left where it was";
+  EXPECT_GT(topAt(m, 0.2, -0.35), 20) << "the box is where it went";
+  // Where it was, the floor is back: free space above it.
+  EXPECT_GT(room.signedDistance({0.2, 0.2, 0.04}), 0.035);
+}
+
+TEST(RoomModel, AFrameWhosePoseDisagreesWithTheModelChangesNothing) {
+  RoomModel room;
+  Scene s;
+  s.box = true;
+  s.boxMin = {0.1, 0.1, 0.0}, s.boxMax = {0.3, 0.3, 0.12};
+  const auto views = orbit(5, 1.2, 0.9);
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(room.integrate(renderDepth(s, views[i], 0.002, i), grey(128), kK, views[i]).integrated);
+  const size_t blocks = room.blocks();
+  std::vector<double> before;
+  for (double x = -0.5; x <= 0.5; x += 0.05)
+    for (double y = -0.5; y <= 0.5; y += 0.05) before.push_back(room.signedDistance({x, y, 0.02}));
+  // The last view's depth, reported with a pose off by 5 cm and 5 degrees.
+  const capture::Pose truth = views[4];
+  const cv::Matx33d tilt = capture::rotationOf(capture::makePose(
+      cv::Matx33d(1, 0, 0, 0, std::cos(5 * CV_PI / 180), -std::sin(5 * CV_PI / 180), 0, std::sin(5 * CV_PI / 180), std::cos(5 * CV_PI / 180)),
+      cv::Vec3d()));
+  const capture::Pose bad = capture::makePose(capture::rotationOf(truth) * tilt,
+                                                                 capture::translationOf(truth) + cv::Vec3d(0.03, -0.03, 0.028));
+  const cv::Mat depth = renderDepth(s, truth, 0.002, 99);
+  const auto r = room.integrate(depth, grey(128), kK, bad);
+  EXPECT_FALSE(r.integrated);
+  EXPECT_EQ(r.refused, "pose disagrees with the model");
+  EXPECT_EQ(room.framesRefused(), 1);
+  EXPECT_EQ(room.blocks(), blocks);
+  size_t i = 0;
+  for (double x = -0.5; x <= 0.5; x += 0.05)
+    for (double y = -0.5; y <= 0.5; y += 0.05, ++i) {
+      const double now = room.signedDistance({x, y, 0.02});
+      EXPECT_TRUE((std::isnan(now) && std::isnan(before[i])) || now == before[i]) << x << "," << y;
+    }
+  // The same depth with its true pose agrees and is integrated.
+  const auto good = room.integrate(depth, grey(128), kK, truth);
+  EXPECT_TRUE(good.integrated) << good.refused;
+  EXPECT_LT(good.inconsistent, 0.05);
+  EXPECT_GT(good.overlap, 0.5);
+}
+
+TEST(RoomModel, TheMemoryBudgetIsNeverExceeded) {
+  RoomOptions o;
+  o.maxBlocks = 40;
+  RoomModel room(o);
+  int refused = 0;
+  int k = 0;
+  for (const auto& T : orbit(6, 1.2, 0.9)) {
+    const auto r = room.integrate(renderDepth(Scene{}, T, 0.002, k++), grey(128), kK, T);
+    if (!r.integrated) {
+      ++refused;
+      EXPECT_NE(r.refused.find("memory budget"), std::string::npos) << r.refused;
+    }
+    EXPECT_LE(room.blocks(), 40u);
+  }
+  EXPECT_GT(refused, 0);
+  EXPECT_THROW(RoomModel(RoomOptions{0.02, 0.01}), capture::InputError);  // truncation below 2 voxels
+}
+
+TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
+  RoomModel room;
+  int k = 0;
+  for (const auto& T : orbit(4, 1.2, 0.9)) room.integrate(renderDepth(Scene{}, T, 0.002, k++), grey(200), kK, T);
+  const RoomMesh m = room.mesh();
+  ASSERT_GT(m.triangleCount(), 100u);
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_room_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  reconstruction::RoomInfo info;
+  info.options = room.options();
+  info.framesIntegrated = room.framesIntegrated();
+  info.session = "synthetic";
+  reconstruction::saveRoom(dir.string(), m, info);
+  reconstruction::RoomInfo back;
+  const RoomMesh l = reconstruction::loadRoom(dir.string(), &back);
+  ASSERT_EQ(l.positions.size(), m.positions.size());
+  ASSERT_EQ(l.indices, m.indices);
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    EXPECT_LT(cv::norm(l.positions[i] - m.positions[i]), 1e-6);
+    EXPECT_LT(cv::norm(l.colours[i] - m.colours[i]), 0.01);  // 8-bit sRGB in the file
+  }
+  EXPECT_EQ(back.framesIntegrated, 4);
+  EXPECT_EQ(back.session, "synthetic");
+
+  auto errorOf = [&](const fs::path& d) -> std::string {
+    try {
+      reconstruction::loadRoom(d.string());
+    } catch (const capture::InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const std::string ply = [&] {
+    std::ifstream in(dir / "room.ply", std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  const std::string json = [&] {
+    std::ifstream in(dir / "room.json");
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  auto with = [&](const std::string& p, const std::string& j) {
+    std::ofstream(dir / "room.ply", std::ios::binary | std::ios::trunc) << p;
+    std::ofstream(dir / "room.json", std::ios::trunc) << j;
+    return errorOf(dir);
+  };
+  EXPECT_NE(errorOf(dir / "nope").find("room folder is missing"), std::string::npos);
+  EXPECT_NE(with(ply.substr(0, ply.size() / 2), json).find((dir / "room.ply").string() + ": PLY file is truncated"), std::string::npos);
+  EXPECT_NE(with(ply, "{\"format\": \"mrgi-room\", \"version\": 2}").find("version"), std::string::npos);
+  EXPECT_NE(with(ply, "{\"format\": \"other\"}").find((dir / "room.json").string() + ": format"), std::string::npos);
+  EXPECT_NE(with(ply, "{nope").find((dir / "room.json").string()), std::string::npos);
+  const std::string empty = "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+                            "element face 0\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string emptyError = with(empty, json);
+  EXPECT_TRUE(emptyError.find((dir / "room.ply").string() + ": room mesh is empty") != std::string::npos ||
+              emptyError.find((dir / "room.ply").string() + ": cannot read the room mesh") != std::string::npos) << emptyError;
+  const std::string outOfRange = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                                 "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
+  const std::string e = with(outOfRange, json);
+  EXPECT_TRUE(e.find("names vertex 7 of 3") != std::string::npos || e.find("cannot read") != std::string::npos) << e;
+  for (const std::string& msg : {e}) EXPECT_EQ(msg.find('\n'), std::string::npos);
+  fs::remove_all(dir);
+}
