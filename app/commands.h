@@ -31,5 +31,6 @@ Action addBench(CLI::App& app);
 Action addReference(CLI::App& app);
 Action addLive(CLI::App& app);
 Action addRecord(CLI::App& app);
+Action addRoom(CLI::App& app);
 
 }  // namespace mrgi::app

@@ -38,6 +38,8 @@ int main(int argc, char** argv) {
       mrgi::app::addImportVisp);
   add("insert", "Place a virtual object relative to the marker (optionally snapped onto the table plane) and save it into a scene file",
       mrgi::app::addInsert);
+  add("room", "Build the model of the real room from a recording (depth fused over every frame's marker pose) and save it",
+      mrgi::app::addRoom);
   add("reference", "Path-trace the ground truth of one frame (rho, mu, delta EXR and the reference composite)",
       mrgi::app::addReference);
   add("bench", "Measure speed against accuracy of every technique's knobs against the path-traced reference; JSON, CSV, HTML, presets",

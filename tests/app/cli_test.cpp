@@ -21,6 +21,7 @@
 
 #include "capture/v4l2_source.h"
 #include "reconstruction/marker.h"
+#include "reconstruction/room_model.h"
 
 namespace fs = std::filesystem;
 
@@ -1073,4 +1074,47 @@ TEST(Cli, SynthPutsTheTableOutdoorsUnderAnHdrEnvironment) {
                      "--environment needs --render pathtrace");
   EXPECT_FALSE(fs::exists(out.string() + "2"));
   fs::remove_all(out);
+}
+
+TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_room_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const std::string session = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
+  const Result r = runMrgi("room " + session + " --out " + out.string() + " --pose ground-truth --frames 8 --json");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["frames"], 8);
+  EXPECT_EQ(summary["integrated"], 8);
+  EXPECT_GT(summary["triangles"].get<int>(), 10000);
+  // The table top is the marker frame's z = 0 plane: the fused surface lies on it around the tag.
+  mrgi::reconstruction::RoomInfo info;
+  const auto mesh = mrgi::reconstruction::loadRoom(out.string(), &info);
+  EXPECT_EQ(info.framesIntegrated, 8);
+  int onTable = 0;
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    const cv::Vec3f& p = mesh.positions[i];
+    if (std::abs(p[0]) > 0.12 || std::abs(p[1]) > 0.12 || std::abs(p[2]) > 0.05) continue;
+    ++onTable;
+    EXPECT_NEAR(p[2], 0.f, 0.006f);
+    EXPECT_GT(mesh.normals[i][2], 0.9f);
+  }
+  EXPECT_GT(onTable, 50);
+  // Writing again into its own output is fine; into someone else's folder is not, and nothing there changes.
+  EXPECT_EQ(runMrgi("room " + session + " --out " + out.string() + " --pose ground-truth --frames 2 --json").exitCode, 0);
+  const fs::path mine = out.string() + "_mine";
+  fs::create_directories(mine);
+  std::ofstream(mine / "notes.txt") << "mine";
+  expectOneLineError(runMrgi("room " + session + " --out " + mine.string() + " --frames 2"), mine.string());
+  EXPECT_EQ(slurp(mine / "notes.txt"), "mine");
+  EXPECT_FALSE(fs::exists(mine / "room.ply"));
+  // Bad options and a session without any marker pose are one line each.
+  expectOneLineError(runMrgi("room " + session + " --out " + out.string() + "_x --voxel 0.02 --trunc 0.01"), "trunc_m");
+  const fs::path noTag = scratchSession("mrgi_cli_room_notag_", ::session(), 2);
+  for (const auto& e : fs::directory_iterator(noTag / "s" / "colour"))  // flat grey frames: no tag to see
+    cv::imwrite(e.path().string(), cv::Mat(120, 160, CV_8UC3, cv::Scalar(90, 90, 90)));
+  expectOneLineError(runMrgi("room " + (noTag / "s").string() + " --out " + (noTag / "room").string()), "no frame has a marker pose");
+  fs::remove_all(noTag);
+  fs::remove_all(out);
+  fs::remove_all(mine);
 }

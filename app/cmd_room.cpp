@@ -1,0 +1,152 @@
+// mrgi room: builds the persistent model of the real room from a recording (every frame's filtered depth
+// fused with its marker pose) and saves it as ROOM/room.ply + ROOM/room.json.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+
+#include "app/commands.h"
+#include "app/output.h"
+#include "capture/error.h"
+#include "capture/frame_source.h"
+#include "capture/session.h"
+#include "lighting/gl/profiler.h"
+#include "reconstruction/room_model.h"
+#include "runtime/frame_pipeline.h"
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace mrgi::app {
+namespace {
+
+struct RoomCliOptions {
+  std::string source, out;
+  std::string pose = "marker";
+  int frames = 0;
+  int every = 1;
+  reconstruction::RoomOptions room;
+  bool json = false;
+};
+
+int runRoom(const RoomCliOptions& o) {
+  o.room.validate("mrgi room");
+  auto source = capture::open(o.source);
+  const capture::SourceInfo& info = source->info();
+  if (!info.hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames to build a room from");
+  LightingSetup setup;  // the marker only: no scene, no lights
+  const capture::SessionManifest* manifest = source->sessionManifest();
+  if (manifest && manifest->marker) {
+    setup.tagFamily = manifest->marker->family;
+    setup.tagSize = manifest->marker->sizeMetres;
+    setup.tagId = manifest->marker->id;
+  }
+  if (manifest) setup.T_world_marker = manifest->truth.T_world_marker;
+  if (o.pose == "ground-truth" && !setup.T_world_marker)
+    throw capture::CaptureError(o.source, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
+  prepareOutputDirectory(o.out, "room.json", "mrgi room");
+
+  FrameOptions fo;
+  fo.pose = o.pose;
+  fo.gpu = false;
+  fo.reuse = false;
+  FramePipeline frames(std::move(setup), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
+  reconstruction::RoomModel room(o.room);
+  gl::Profiler profiler;
+  ProgressBar bar("room");
+  const int64_t total = info.frameCount ? *info.frameCount : -1;
+  const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
+  int64_t seen = 0, posed = 0;
+  json perFrame = json::array();
+  std::vector<double> fuseMs;
+  while (limit < 0 || seen < limit) {
+    auto frame = source->next();
+    if (!frame) break;
+    const int64_t index = seen++;
+    if (index % o.every != 0 || !frame->rgbd) continue;
+    const FrameResult r = frames.measure(*frame, profiler);
+    json line = {{"frame", index}};
+    if (!r.T_marker_camera || r.positions.empty()) {
+      line["integrated"] = false;
+      line["refused"] = "no marker pose";
+    } else {
+      ++posed;
+      cv::Mat xyz[3];
+      cv::split(r.positions, xyz);
+      cv::Mat depth = xyz[2];
+      cv::patchNaNs(depth, 0.0);
+      const auto t0 = std::chrono::steady_clock::now();
+      const auto result = room.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, *r.T_marker_camera);
+      fuseMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      line["integrated"] = result.integrated;
+      if (!result.integrated) line["refused"] = result.refused;
+      line["overlap"] = result.overlap;
+      line["inconsistent"] = result.inconsistent;
+      line["new_blocks"] = result.newBlocks;
+      line["fuse_ms"] = fuseMs.back();
+    }
+    perFrame.push_back(line);
+    if (!o.json)
+      std::printf("frame %lld: %s%s, %zu blocks\n", static_cast<long long>(index),
+                  line["integrated"].get<bool>() ? "integrated" : "not integrated: ",
+                  line.contains("refused") ? line["refused"].get<std::string>().c_str() : "", room.blocks());
+    if (limit > 0) bar(static_cast<double>(seen) / static_cast<double>(limit));
+  }
+  if (room.framesIntegrated() == 0)
+    throw capture::CaptureError(o.source, posed == 0 ? "no frame has a marker pose: nothing to build a room from"
+                                                     : "no frame could be integrated (every pose disagreed or the budget was reached)");
+  const reconstruction::RoomMesh mesh = room.mesh();
+  if (mesh.positions.empty()) throw capture::CaptureError(o.source, "the fused room has no surface");
+  reconstruction::RoomInfo ri;
+  ri.options = room.options();
+  ri.framesIntegrated = room.framesIntegrated();
+  ri.framesRefused = room.framesRefused();
+  ri.blocks = room.blocks();
+  ri.bytes = room.bytes();
+  ri.session = fs::absolute(o.source).lexically_normal().string();
+  reconstruction::saveRoom(o.out, mesh, ri);
+  std::vector<double> sorted = fuseMs;
+  std::sort(sorted.begin(), sorted.end());
+  const json summary = {{"frames", seen},
+                        {"integrated", room.framesIntegrated()},
+                        {"refused", room.framesRefused()},
+                        {"blocks", room.blocks()},
+                        {"voxel_mib", static_cast<double>(room.bytes()) / (1 << 20)},
+                        {"vertices", mesh.positions.size()},
+                        {"triangles", mesh.triangleCount()},
+                        {"fuse_ms_median", sorted.empty() ? 0.0 : sorted[sorted.size() / 2]},
+                        {"per_frame", perFrame}};
+  if (o.json)
+    std::printf("%s\n", summary.dump().c_str());
+  else
+    std::printf("wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms median\n",
+                o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(),
+                static_cast<double>(room.bytes()) / (1 << 20), room.framesIntegrated(), static_cast<long long>(seen),
+                summary["fuse_ms_median"].get<double>());
+  return 0;
+}
+
+}  // namespace
+
+Action addRoom(CLI::App& app) {
+  auto o = std::make_shared<RoomCliOptions>();
+  app.add_option("source", o->source, "recording to build the room from (session, TUM sequence, .oni file)")->required();
+  app.add_option("--out", o->out, "room folder to write (room.ply, room.json)")->required();
+  app.add_option("--pose", o->pose, "camera pose per frame: marker (tracked tag) or ground-truth (the session's)")
+      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  app.add_option("--frames", o->frames, "read at most N frames (0 = all)")->check(CLI::NonNegativeNumber);
+  app.add_option("--every", o->every, "integrate every Nth frame")->check(CLI::PositiveNumber);
+  app.add_option("--voxel", o->room.voxelM, "voxel edge in metres")->capture_default_str();
+  app.add_option("--trunc", o->room.truncM, "truncation distance of the signed distance, metres (at least 2 voxels)")->capture_default_str();
+  app.add_option("--max-blocks", o->room.maxBlocks, "memory budget in voxel blocks of 16^3 voxels")->capture_default_str();
+  app.add_option("--max-depth", o->room.maxDepthM, "depth beyond this (metres) is not integrated")->capture_default_str();
+  app.add_option("--outlier", o->room.outlierM,
+                 "a frame is not integrated when more than 30 % of its points in observed space lie farther than this "
+                 "(metres) from the model (its pose disagrees)")
+      ->capture_default_str();
+  app.add_flag("--json", o->json, "print one JSON object (per-frame integration, blocks, timing) instead of lines");
+  return [o] { return runRoom(*o); };
+}
+
+}  // namespace mrgi::app
