@@ -39,7 +39,9 @@ void checkPlyFile(const std::string& path) {
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   char magic[3] = {};
   in.read(magic, 3);
-  const bool ply = ext == ".ply" || (in.gcount() == 3 && std::string(magic, 3) == "ply");
+  std::string first(magic, static_cast<size_t>(in.gcount()));
+  for (char& c : first) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const bool ply = ext == ".ply" || first == "ply";  // assimp matches the token in any case
   if (!ply) return;
   in.clear();
   in.seekg(0);

@@ -65,6 +65,41 @@ void appendNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& par
 
 }  // namespace
 
+namespace {
+
+/// The content must be what the extension says, in the way assimp's reader for that format recognises it:
+/// when that reader declines a file, assimp tries every other reader on it (its PLY reader claims any file
+/// with "ply" near the start, whatever the name, and loops forever on some; found by the model fuzzer).
+void checkModelContent(const std::string& path, const std::string& ext) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(4096, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<size_t>(in.gcount()));
+  std::string lower = head;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (lower.rfind("ply", 0) == 0 && ext != ".ply") throw SceneError(path, "holds a PLY file but is named " + ext);
+  if (ext == ".glb") {
+    if (head.size() < 12 || head.compare(0, 4, "glTF") != 0 || head[4] != 2 || head[5] != 0 || head[6] != 0 || head[7] != 0)
+      throw SceneError(path, "not a binary glTF 2 file (no 'glTF' header of version 2)");
+  } else if (ext == ".gltf") {
+    // Parsed here with our depth bound (assimp's JSON reader recurses without one), then its asset version.
+    std::ifstream whole(path, std::ios::binary);
+    const nlohmann::json j = capture::parseJson(whole, path);
+    if (!j.is_object() || !j.contains("asset") || !j["asset"].is_object() || !j["asset"].contains("version") ||
+        !j["asset"]["version"].is_string() || j["asset"]["version"].get<std::string>().rfind("2", 0) != 0)
+      throw SceneError(path, "not a glTF 2 file (asset.version \"2.x\" missing)");
+  } else if (ext == ".obj") {
+    // assimp's OBJ reader claims a file by one of these tokens in its first 200 bytes.
+    static const char* kTokens[] = {"mtllib", "usemtl", "v ", "vt ", "vn ", "o ", "g ", "s ", "f "};
+    const std::string first = lower.substr(0, 200);
+    bool found = false;
+    for (const char* t : kTokens) found |= first.find(t) != std::string::npos;
+    if (!found) throw SceneError(path, "not an OBJ file (no vertex, face or group statement near the start)");
+  }
+}
+
+}  // namespace
+
 Mesh loadMesh(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw SceneError(path, "model file not found");
@@ -74,6 +109,7 @@ Mesh loadMesh(const std::string& path) {
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext != ".obj" && ext != ".ply" && ext != ".gltf" && ext != ".glb")
     throw SceneError(path, "model format must be OBJ, PLY or glTF (.obj, .ply, .gltf, .glb)");
+  checkModelContent(path, ext);
   capture::checkPlyFile(path);
   Assimp::Importer importer;
   // Two steps: the import with assimp's own validation only, then our index check, then the

@@ -127,6 +127,31 @@ TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("the first line is not 'ply'"), std::string::npos) << e.what();
   }
+  // Found by the model fuzzer: a PLY (first line "Ply") named .glb: the glTF reader declined it, assimp
+  // then tried its other readers and the PLY one looped. Content must match the name.
+  const std::string glb = std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/model_ply_named_glb.glb";
+  try {
+    loadMesh(glb);
+    ADD_FAILURE() << "accepted a PLY named .glb";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("holds a PLY file but is named .glb"), std::string::npos) << e.what();
+  }
+  const std::pair<const char*, std::string> mismatched[] = {
+      {"mrgi_not.obj", "hello world\n"},
+      {"mrgi_not.gltf", "{\"asset\": {\"version\": \"1.0\"}}"},
+      {"mrgi_deep.gltf", std::string(5000, '[') + std::string(5000, ']')},
+      {"mrgi_not.glb", "glTF\x01\0\0\0\x0c\0\0\0"},
+  };
+  for (const auto& [name, bytes] : mismatched) {
+    const std::string path = writeModel(name, bytes);
+    try {
+      loadMesh(path);
+      ADD_FAILURE() << "accepted " << name;
+    } catch (const SceneError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0u) << e.what();
+    }
+    std::filesystem::remove(path);
+  }
   // Other extensions are refused by name rather than left to assimp's guess from the content.
   const std::string other = writeModel("mrgi_model.stl", "solid x\nendsolid x\n");
   try {
