@@ -7,6 +7,7 @@
 #include <limits>
 #include <unordered_set>
 
+#include <embree3/rtcore.h>
 #include <open3d/camera/PinholeCameraIntrinsic.h>
 #include <open3d/geometry/Image.h>
 #include <open3d/geometry/RGBDImage.h>
@@ -239,6 +240,144 @@ RoomMesh RoomModel::mesh() const {
 size_t RoomModel::blocks() const { return impl_->volume.volume_units_.size(); }
 size_t RoomModel::bytes() const {
   return blocks() * static_cast<size_t>(kBlockResolution * kBlockResolution * kBlockResolution) * sizeof(o3d::geometry::TSDFVoxel);
+}
+
+// ---- albedo ----------------------------------------------------------------------------------------
+
+RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, const AlbedoOptions& options) {
+  quietOpen3d();
+  const size_t n = mesh.positions.size();
+  RoomAlbedo out;
+  out.albedo.assign(n, cv::Vec3f(0.5f, 0.5f, 0.5f));
+  out.status.assign(n, AlbedoStatus::NoGeometry);
+  if (n == 0 || mesh.indices.empty()) return out;
+  // One shadow ray per vertex and light, from just off the surface (a voxel's worth) to the light, cast
+  // with Embree (Open3D's RaycastingScene, built on it too, finds no hits in the Debian package).
+  const size_t L = lights.points.size() + lights.distant.size();
+  std::vector<uint8_t> occluded(n * L, 0);
+  if (options.shadowTest && L > 0) {
+    RTCDevice device = rtcNewDevice(nullptr);
+    if (!device) throw std::runtime_error("estimateRoomAlbedo: cannot create an Embree device");
+    RTCScene scene = rtcNewScene(device);
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), n));
+    for (size_t i = 0; i < n; ++i)
+      for (int k = 0; k < 3; ++k) v[3 * i + k] = mesh.positions[i][k];
+    auto* idx = static_cast<unsigned*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), mesh.indices.size() / 3));
+    std::copy(mesh.indices.begin(), mesh.indices.end(), idx);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(scene);
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    for (size_t i = 0; i < n; ++i) {
+      const cv::Vec3d p = cv::Vec3d(mesh.positions[i]) + 0.02 * cv::Vec3d(mesh.normals[i]);
+      for (size_t l = 0; l < L; ++l) {
+        cv::Vec3d d;
+        double far;
+        if (l < lights.points.size()) {
+          d = lights.points[l].position - p;
+          far = cv::norm(d) * 0.999;
+          d /= std::max(cv::norm(d), 1e-12);
+        } else {
+          d = lights.distant[l - lights.points.size()].direction;
+          far = 1e4;
+        }
+        RTCRay ray{};
+        ray.org_x = static_cast<float>(p[0]), ray.org_y = static_cast<float>(p[1]), ray.org_z = static_cast<float>(p[2]);
+        ray.dir_x = static_cast<float>(d[0]), ray.dir_y = static_cast<float>(d[1]), ray.dir_z = static_cast<float>(d[2]);
+        ray.tnear = 0.f;
+        ray.tfar = static_cast<float>(far);
+        ray.mask = 0xffffffffu;
+        rtcOccluded1(scene, &ctx, &ray);
+        occluded[i * L + l] = ray.tfar < 0;  // Embree sets tfar = -inf on a hit
+      }
+    }
+    rtcReleaseScene(scene);
+    rtcReleaseDevice(device);
+  }
+  const double saturated = capture::srgbToLinear(options.saturationLevel / 255.f);
+  for (size_t i = 0; i < n; ++i) {
+    const cv::Vec3d p(mesh.positions[i]), nrm(mesh.normals[i]);
+    const cv::Vec3d Lr(mesh.colours[i]);
+    cv::Vec3d E = lights.ambientIrradiance, direct(0, 0, 0), normalSum(0, 0, 0), blocked(0, 0, 0);
+    for (size_t l = 0; l < L; ++l) {
+      cv::Vec3d e;
+      double c;
+      if (l < lights.points.size()) {
+        const cv::Vec3d d = lights.points[l].position - p;
+        const double r2 = std::max(d.dot(d), 1e-8);
+        e = lights.points[l].intensity * (1.0 / r2);
+        c = nrm.dot(d) / std::sqrt(r2);
+      } else {
+        const auto& dl = lights.distant[l - lights.points.size()];
+        e = dl.power;
+        c = nrm.dot(dl.direction);
+      }
+      normalSum += e;
+      if (c <= 0) continue;
+      if (occluded[i * L + l]) {
+        blocked += e * c;
+        continue;
+      }
+      direct += e * c;
+    }
+    E += direct;
+    const double sumN = normalSum[0] + normalSum[1] + normalSum[2], sumD = direct[0] + direct[1] + direct[2];
+    AlbedoStatus st = AlbedoStatus::Measured;
+    if (std::max({Lr[0], Lr[1], Lr[2]}) >= saturated)
+      st = AlbedoStatus::Saturated;
+    else if (blocked[0] + blocked[1] + blocked[2] > 0.2 * (sumD + blocked[0] + blocked[1] + blocked[2]))
+      st = AlbedoStatus::Shadowed;
+    else if (sumN > 0 && sumD < options.minEffectiveCos * sumN)
+      st = AlbedoStatus::Grazing;
+    else if (E[0] + E[1] + E[2] <= 1e-9)
+      st = AlbedoStatus::Unlit;
+    out.status[i] = st;
+    if (st == AlbedoStatus::Measured)
+      for (int k = 0; k < 3; ++k) out.albedo[i][k] = static_cast<float>(std::clamp(CV_PI * Lr[k] / std::max(E[k], 1e-9), 0.0, 1.0));
+  }
+  std::vector<std::vector<uint32_t>> neighbours(n);
+  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
+    for (int a = 0; a < 3; ++a) {
+      const uint32_t u = mesh.indices[t + a], v = mesh.indices[t + (a + 1) % 3];
+      neighbours[u].push_back(v), neighbours[v].push_back(u);
+    }
+  // A shadow's edge is blurred in the fused colour (voxels, and averaging over views): the two rings of
+  // vertices around a shadow are rejected with it, or their darker colour would read as a darker albedo.
+  for (int ring = 0; ring < 2; ++ring) {
+    std::vector<size_t> edge;
+    for (size_t i = 0; i < n; ++i)
+      if (out.status[i] == AlbedoStatus::Measured)
+        for (uint32_t j : neighbours[i])
+          if (out.status[j] == AlbedoStatus::Shadowed) {
+            edge.push_back(i);
+            break;
+          }
+    for (size_t i : edge) out.status[i] = AlbedoStatus::Shadowed;
+  }
+  // Rejected vertices take the mean of their measured (or already filled) neighbours, pass by pass.
+  if (options.fill) {
+    std::vector<uint8_t> known(n);
+    for (size_t i = 0; i < n; ++i) known[i] = out.status[i] == AlbedoStatus::Measured;
+    for (int pass = 0; pass < 64; ++pass) {
+      std::vector<size_t> filled;
+      std::vector<cv::Vec3f> values;
+      for (size_t i = 0; i < n; ++i) {
+        if (known[i]) continue;
+        cv::Vec3f sum(0, 0, 0);
+        int count = 0;
+        for (uint32_t j : neighbours[i])
+          if (known[j]) sum += out.albedo[j], ++count;
+        if (count > 0) filled.push_back(i), values.push_back(sum / static_cast<float>(count));
+      }
+      if (filled.empty()) break;
+      for (size_t k = 0; k < filled.size(); ++k) out.albedo[filled[k]] = values[k], known[filled[k]] = 1;
+    }
+  }
+  return out;
 }
 
 // ---- saved rooms --------------------------------------------------------------------------------------

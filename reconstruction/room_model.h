@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "capture/types.h"
+#include "reconstruction/albedo.h"
 
 namespace mrgi::reconstruction {
 
@@ -77,6 +78,16 @@ class RoomModel {
   RoomOptions options_;
   int integrated_ = 0, refused_ = 0;
 };
+
+/// Per-vertex albedo of the room under known lights (all in the lighting world), as estimateAlbedo does per
+/// pixel: k_d = pi * L / E with E the lights' direct irradiance (shadows ray-cast against the room itself)
+/// plus the ambient. Vertices in a light's shadow, saturated, grazing or unlit are rejected and filled from
+/// their mesh neighbours; the status says which (AlbedoStatus).
+struct RoomAlbedo {
+  std::vector<cv::Vec3f> albedo;
+  std::vector<AlbedoStatus> status;
+};
+RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld, const AlbedoOptions& options = {});
 
 /// A saved room: ROOM/room.ply (binary PLY: positions, normals, 8-bit sRGB colour) and ROOM/room.json
 /// (format, version, options, frames, bounds, the session it came from).
