@@ -27,6 +27,7 @@
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
+#include "runtime/room_fusion.h"
 #include "capture/registration.h"
 #include "capture/session.h"
 #include "gl/context.h"
@@ -53,6 +54,7 @@ struct BenchOptions {
   int refSpp = 64;
   int refBounces = 3;
   bool quick = false;
+  bool room = false;  ///< also light from each session's fused room model, side by side
   std::string pose = "ground-truth";
   std::vector<std::string> sessions{"recordings/tabletop-synth", "recordings/tabletop-pt", "recordings/tabletop-hdr"};
   std::string session = "recordings/tabletop-synth";  ///< bruteforce mode
@@ -218,6 +220,7 @@ struct BenchSession {
   int W = 0, H = 0;
   std::map<int, Truth> truths;    ///< path traced from the inputs the pipeline sees (measures the technique)
   std::map<int, Truth> trueRefs;  ///< the synthetic session's own reference composites (the whole pipeline)
+  std::shared_ptr<const reconstruction::RoomMesh> room;  ///< --room: the session fused over all its frames
   json refInfo;
   std::unique_ptr<compositor::Compositor> compositor;
 };
@@ -318,6 +321,26 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     if (f->rgbd) bs.frames.push_back(std::move(*f));
   }
   if (bs.frames.empty()) throw capture::CaptureError(path, "has no RGB-D frame");
+  if (o.room) {
+    // The whole recording fused (a scan of the room), with the poses the pipeline uses.
+    auto all = capture::open(path);
+    const auto t0 = std::chrono::steady_clock::now();
+    RoomFusion fusion = fuseRoom(*all, o.pose, reconstruction::RoomOptions{});
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (fusion.model.framesIntegrated() == 0) throw capture::CaptureError(path, "--room: no frame could be fused into a room");
+    bs.room = std::make_shared<const reconstruction::RoomMesh>(fusion.model.mesh());
+    std::vector<double> sorted = fusion.fuseMs;
+    std::sort(sorted.begin(), sorted.end());
+    bs.refInfo["room"] = {{"frames", fusion.model.framesIntegrated()},
+                          {"refused", fusion.model.framesRefused()},
+                          {"triangles", bs.room->triangleCount()},
+                          {"voxel_mib", static_cast<double>(fusion.model.bytes()) / (1 << 20)},
+                          {"fuse_ms_median", sorted.empty() ? 0.0 : sorted[sorted.size() / 2]},
+                          {"ms", ms}};
+    std::printf("%s: room fused from %d frames (%zu triangles, %.0f MiB of voxels, %.1f ms per frame median)\n", path.c_str(),
+                fusion.model.framesIntegrated(), bs.room->triangleCount(), static_cast<double>(fusion.model.bytes()) / (1 << 20),
+                bs.refInfo["room"]["fuse_ms_median"].get<double>());
+  }
   bs.W = info.colourIntrinsics.width, bs.H = info.colourIntrinsics.height;
   const int n = static_cast<int>(bs.frames.size());
   std::vector<int> refFrames;
@@ -438,6 +461,38 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     }
     prev = std::move(st);
   }
+  // --room: the same configuration lit from the fused room, against the same true references.
+  std::optional<json> roomRecord;
+  if (bs.room && !bs.trueRefs.empty()) {
+    FrameOptions ro = fo;
+    ro.room = bs.room;
+    FramePipeline rp(s, bs.W, bs.H, ro);
+    ErrorSums wholeRoom;
+    double ssimRoom = 0, msRoom = 0;
+    int framesRoom = 0, timedRoom = 0;
+    for (int f = 0; f < n; ++f) {
+      capture::Frame frame = bs.frames[f];
+      gl::Profiler profiler;
+      const FrameResult r = rp.process(frame, *bs.compositor, profiler);
+      double frameMs = 0;
+      for (const auto& [stage, t] : profiler.resolve())
+        if (stage != "read" && stage != "write") frameMs += std::max(t.cpuMs, t.gpuMs);
+      if (f > 0 || n == 1) msRoom += frameMs, ++timedRoom;
+      if (!r.lit) continue;
+      if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
+        const FrameState st = frameState(rp.lighting()->downloadShade(), rp.lighting()->downloadGBuffer(0), *r.T_marker_camera);
+        wholeRoom.add(errorSums(st.shade, it->second));
+        ssimRoom += ssimOf(r.composite, it->second.composite);
+        ++framesRoom;
+      }
+    }
+    if (framesRoom > 0)
+      roomRecord = json{{"frames", framesRoom},
+                        {"rel_error_delta", wholeRoom.relDelta()},
+                        {"rel_error_virtual", wholeRoom.relVirtual()},
+                        {"ssim", ssimRoom / framesRoom},
+                        {"ms_total", msRoom / std::max(timedRoom, 1)}};
+  }
   json msStages = json::object();
   double total = 0, lightingMs = 0;
   for (const auto& [stage, ms] : stageSum) {
@@ -464,6 +519,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
                            {"rel_error_virtual", whole.relVirtual()},
                            {"ssim", wholeSsim / wholeFrames},
                            {"silhouette_mismatch_pixels", whole.mismatched}};
+  if (roomRecord) r["whole_pipeline_room"] = *roomRecord;
   return r;
 }
 
@@ -520,6 +576,12 @@ int runSweep(const BenchOptions& o) {
                       fs::path(p["session"].get<std::string>()).filename().c_str(), p["whole_pipeline"]["rel_error_delta"].get<double>(),
                       p["whole_pipeline"]["rel_error_virtual"].get<double>(), p["whole_pipeline"]["ssim"].get<double>());
         wholeText += buf;
+        if (p.contains("whole_pipeline_room")) {
+          std::snprintf(buf, sizeof buf, "; from the room: delta %.3f virtual %.3f SSIM %.4f (%.0f ms)",
+                        p["whole_pipeline_room"]["rel_error_delta"].get<double>(), p["whole_pipeline_room"]["rel_error_virtual"].get<double>(),
+                        p["whole_pipeline_room"]["ssim"].get<double>(), p["whole_pipeline_room"]["ms_total"].get<double>());
+          wholeText += buf;
+        }
       }
     std::printf("[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker %.3f%s\n",
                 ci + 1, configs.size(), r["technique"].get<std::string>().c_str(), c.varied.c_str(), r["knobs"].dump().c_str(),
@@ -578,6 +640,9 @@ Action addBench(CLI::App& app) {
   app.add_option("--ref-spp", o->refSpp, "reference samples per pixel")->check(CLI::Range(1, 1 << 16));
   app.add_option("--ref-bounces", o->refBounces, "reference bounces")->check(CLI::Range(0, 64));
   app.add_flag("--quick", o->quick, "fewer knob values (small sessions, tests)");
+  app.add_flag("--room", o->room,
+               "also light each configuration from the session's fused room model (mrgi room over all its frames) and report "
+               "its whole-pipeline error beside the per-frame one");
   app.add_option("--pose", o->pose, "camera pose: ground-truth (default; needs a synthetic session) or marker")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
   app.add_option("--model", o->model, "bruteforce: virtual object, resting on the marker plane at its centre");

@@ -45,6 +45,7 @@ struct ReplayOptions {
   bool recomputeAll = false;
   std::string mp4 = "replay.mp4";  ///< inside --out; empty: none
   double fps = 0;                  ///< 0: from the source's timestamps
+  std::string room;                ///< mrgi room output: the real scene of the lighting
 };
 
 int runReplay(const ReplayOptions& o) {
@@ -60,6 +61,12 @@ int runReplay(const ReplayOptions& o) {
     if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
     if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
     setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose);
+  }
+  // A bad room stops here too.
+  std::shared_ptr<const reconstruction::RoomMesh> room;
+  if (!o.room.empty()) {
+    if (!setup) throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
+    room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   }
   if (!o.mp4.empty()) checkInsideOutput(o.mp4, "--mp4");
   prepareOutputDirectory(o.out, "summary.json", "mrgi replay");
@@ -77,6 +84,7 @@ int runReplay(const ReplayOptions& o) {
   fo.pose = o.pose;
   fo.meshStride = o.meshStride;
   fo.reuse = !o.recomputeAll;
+  fo.room = room;
   FramePipeline frames(std::move(setup), width, height, fo);
   lighting::LightingPipeline* pipeline = frames.lighting();
 
@@ -251,6 +259,7 @@ Action addReplay(CLI::App& app) {
   app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
   app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();
+  app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
   app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")
       ->check(CLI::Range(capture::kMinFrameRate, capture::kMaxFrameRate));
   app.add_flag("--recompute-all", o->recomputeAll, "run every stage on every frame (default: skip stages whose inputs did not change)");

@@ -1,6 +1,5 @@
 // mrgi room: builds the persistent model of the real room from a recording (every frame's filtered depth
 // fused with its marker pose) and saves it as ROOM/room.ply + ROOM/room.json.
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 
@@ -11,9 +10,8 @@
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/session.h"
-#include "lighting/gl/profiler.h"
 #include "reconstruction/room_model.h"
-#include "runtime/frame_pipeline.h"
+#include "runtime/room_fusion.h"
 
 using nlohmann::json;
 namespace fs = std::filesystem;
@@ -35,64 +33,25 @@ int runRoom(const RoomCliOptions& o) {
   auto source = capture::open(o.source);
   const capture::SourceInfo& info = source->info();
   if (!info.hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames to build a room from");
-  LightingSetup setup;  // the marker only: no scene, no lights
-  const capture::SessionManifest* manifest = source->sessionManifest();
-  if (manifest && manifest->marker) {
-    setup.tagFamily = manifest->marker->family;
-    setup.tagSize = manifest->marker->sizeMetres;
-    setup.tagId = manifest->marker->id;
-  }
-  if (manifest) setup.T_world_marker = manifest->truth.T_world_marker;
+  const LightingSetup setup = markerSetup(*source);
   if (o.pose == "ground-truth" && !setup.T_world_marker)
     throw capture::CaptureError(o.source, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
   prepareOutputDirectory(o.out, "room.json", "mrgi room");
 
-  FrameOptions fo;
-  fo.pose = o.pose;
-  fo.gpu = false;
-  fo.reuse = false;
-  FramePipeline frames(std::move(setup), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
-  reconstruction::RoomModel room(o.room);
-  gl::Profiler profiler;
   ProgressBar bar("room");
   const int64_t total = info.frameCount ? *info.frameCount : -1;
   const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
-  int64_t seen = 0, posed = 0;
-  json perFrame = json::array();
-  std::vector<double> fuseMs;
-  while (limit < 0 || seen < limit) {
-    auto frame = source->next();
-    if (!frame) break;
-    const int64_t index = seen++;
-    if (index % o.every != 0 || !frame->rgbd) continue;
-    const FrameResult r = frames.measure(*frame, profiler);
-    json line = {{"frame", index}};
-    if (!r.T_marker_camera || r.positions.empty()) {
-      line["integrated"] = false;
-      line["refused"] = "no marker pose";
-    } else {
-      ++posed;
-      cv::Mat xyz[3];
-      cv::split(r.positions, xyz);
-      cv::Mat depth = xyz[2];
-      cv::patchNaNs(depth, 0.0);
-      const auto t0 = std::chrono::steady_clock::now();
-      const auto result = room.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, *r.T_marker_camera);
-      fuseMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-      line["integrated"] = result.integrated;
-      if (!result.integrated) line["refused"] = result.refused;
-      line["overlap"] = result.overlap;
-      line["inconsistent"] = result.inconsistent;
-      line["new_blocks"] = result.newBlocks;
-      line["fuse_ms"] = fuseMs.back();
-    }
-    perFrame.push_back(line);
+  RoomFusion fusion = fuseRoom(*source, o.pose, o.room, limit, o.every, [&](const json& line, const reconstruction::RoomModel& model) {
     if (!o.json)
-      std::printf("frame %lld: %s%s, %zu blocks\n", static_cast<long long>(index),
+      std::printf("frame %lld: %s%s, %zu blocks\n", static_cast<long long>(line["frame"].get<int64_t>()),
                   line["integrated"].get<bool>() ? "integrated" : "not integrated: ",
-                  line.contains("refused") ? line["refused"].get<std::string>().c_str() : "", room.blocks());
-    if (limit > 0) bar(static_cast<double>(seen) / static_cast<double>(limit));
-  }
+                  line.contains("refused") ? line["refused"].get<std::string>().c_str() : "", model.blocks());
+    if (limit > 0) bar(static_cast<double>(line["frame"].get<int64_t>() + 1) / static_cast<double>(limit));
+  });
+  const reconstruction::RoomModel& room = fusion.model;
+  const int64_t seen = fusion.frames, posed = fusion.posed;
+  const json& perFrame = fusion.perFrame;
+  const std::vector<double>& fuseMs = fusion.fuseMs;
   if (room.framesIntegrated() == 0)
     throw capture::CaptureError(o.source, posed == 0 ? "no frame has a marker pose: nothing to build a room from"
                                                      : "no frame could be integrated (every pose disagreed or the budget was reached)");

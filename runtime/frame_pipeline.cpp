@@ -250,6 +250,46 @@ RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameR
   return out;
 }
 
+namespace {
+bool sameLights(const std::vector<lighting::SceneLight>& a, const std::vector<lighting::SceneLight>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (a[i].type != b[i].type || a[i].position != b[i].position || a[i].direction != b[i].direction ||
+        a[i].intensity != b[i].intensity || a[i].irradiance != b[i].irradiance)
+      return false;
+  return true;
+}
+}  // namespace
+
+void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
+  if (roomLights_ && sameLights(*roomLights_, setup_->lights)) {
+    info["skipped"].push_back("room_albedo");
+    return;
+  }
+  auto s = profiler.cpu("room_albedo");
+  const reconstruction::RoomMesh& room = *options_.room;
+  reconstruction::AlbedoLights al;  // the lighting world (marker frame), as the room
+  for (const auto& l : setup_->lights) {
+    if (l.type == lighting::LightType::Directional) {
+      reconstruction::EstimatedLight e;
+      e.direction = -l.direction;
+      e.power = l.irradiance;
+      al.distant.push_back(e);
+    } else {
+      al.points.push_back({l.position, l.intensity});
+    }
+  }
+  al.ambientIrradiance = CV_PI * setup_->ambient;
+  const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, al);
+  std::vector<lighting::MeshVertex> vertices(room.positions.size());
+  for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
+  pipeline_->setRealMesh(vertices, room.indices);
+  roomLights_ = setup_->lights;
+  size_t measured = 0;
+  for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
+  info["room"] = {{"vertices", vertices.size()}, {"albedo_measured", measured}};
+}
+
 void FramePipeline::render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor,
                            gl::Profiler& profiler) {
   const capture::RgbdFrame& rgbd = *frame.rgbd;
@@ -259,7 +299,9 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     return;
   }
   const bool val = needs_.realVals;
-  if (r.reusedSurface) {
+  if (options_.room) {
+    useRoom(r.info, profiler);
+  } else if (r.reusedSurface) {
     for (const char* stage : {"albedo", "mesh"}) r.info["skipped"].push_back(stage);
     if (val) r.info["skipped"].push_back("real_vals");
   } else {

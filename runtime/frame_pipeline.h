@@ -18,6 +18,7 @@
 #include "lighting/frame/real_scene.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
+#include "reconstruction/room_model.h"
 
 namespace mrgi::runtime {
 
@@ -56,6 +57,10 @@ struct FrameOptions {
   /// 32x24 thumbnail below 1 %), the real surface (filtered depth, normals, albedo, mesh, real VALs) is
   /// kept and the camera pose snaps to that frame's; the lighting pipeline skips its own unchanged stages.
   bool reuse = true;
+  /// The fused model of the room (mrgi room, in the marker frame): when set, it is the real scene of the
+  /// lighting (G-buffer, RSMs, shadows) instead of each frame's depth mesh, with its albedo estimated once
+  /// per set of lights; the per-frame albedo and depth mesh are not computed.
+  std::shared_ptr<const reconstruction::RoomMesh> room;
 };
 
 struct FrameResult {
@@ -107,6 +112,9 @@ class FramePipeline {
     cv::Mat thumbnail, positions, normals;
   };
   std::optional<SurfaceCache> surfaceCache_;
+  /// The lights the room's albedo was estimated under (FrameOptions::room): re-estimated when they change.
+  std::optional<std::vector<lighting::SceneLight>> roomLights_;
+  void useRoom(nlohmann::json& info, gl::Profiler& profiler);
   cv::Mat thumbnail_;  ///< of the frame being processed
 };
 

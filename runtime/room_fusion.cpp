@@ -1,0 +1,65 @@
+#include "runtime/room_fusion.h"
+
+#include <chrono>
+
+#include "capture/error.h"
+#include "capture/session.h"
+#include "lighting/gl/profiler.h"
+
+namespace mrgi::runtime {
+
+LightingSetup markerSetup(const capture::FrameSource& source) {
+  LightingSetup setup;
+  const capture::SessionManifest* manifest = source.sessionManifest();
+  if (manifest && manifest->marker) {
+    setup.tagFamily = manifest->marker->family;
+    setup.tagSize = manifest->marker->sizeMetres;
+    setup.tagId = manifest->marker->id;
+  }
+  if (manifest) setup.T_world_marker = manifest->truth.T_world_marker;
+  return setup;
+}
+
+RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const reconstruction::RoomOptions& options,
+                    int64_t limit, int every,
+                    const std::function<void(const nlohmann::json&, const reconstruction::RoomModel&)>& onFrame) {
+  const capture::SourceInfo& info = source.info();
+  FrameOptions fo;
+  fo.pose = pose;
+  fo.gpu = false;
+  fo.reuse = false;
+  FramePipeline frames(markerSetup(source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
+  RoomFusion out{reconstruction::RoomModel(options)};
+  gl::Profiler profiler;
+  while (limit < 0 || out.frames < limit) {
+    auto frame = source.next();
+    if (!frame) break;
+    const int64_t index = out.frames++;
+    if (index % every != 0 || !frame->rgbd) continue;
+    const FrameResult r = frames.measure(*frame, profiler);
+    nlohmann::json line = {{"frame", index}};
+    if (!r.T_marker_camera || r.positions.empty()) {
+      line["integrated"] = false;
+      line["refused"] = "no marker pose";
+    } else {
+      ++out.posed;
+      cv::Mat depth;
+      cv::extractChannel(r.positions, depth, 2);
+      cv::patchNaNs(depth, 0.0);
+      const auto t0 = std::chrono::steady_clock::now();
+      const auto result = out.model.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, *r.T_marker_camera);
+      out.fuseMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      line["integrated"] = result.integrated;
+      if (!result.integrated) line["refused"] = result.refused;
+      line["overlap"] = result.overlap;
+      line["inconsistent"] = result.inconsistent;
+      line["new_blocks"] = result.newBlocks;
+      line["fuse_ms"] = out.fuseMs.back();
+    }
+    if (onFrame) onFrame(line, out.model);
+    out.perFrame.push_back(std::move(line));
+  }
+  return out;
+}
+
+}  // namespace mrgi::runtime

@@ -1,0 +1,33 @@
+#pragma once
+// Fusing a recording into the room model (mrgi room, bench --room): every frame's filtered depth at its
+// camera pose (tracked marker or the session's ground truth) into a RoomModel in the marker frame.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "capture/frame_source.h"
+#include "reconstruction/room_model.h"
+#include "runtime/frame_pipeline.h"
+
+namespace mrgi::runtime {
+
+/// The marker of a source (family, size, id from its manifest) and its ground-truth T_world_marker: what
+/// the measuring half of a FramePipeline needs for camera poses, without a scene.
+LightingSetup markerSetup(const capture::FrameSource& source);
+
+struct RoomFusion {
+  reconstruction::RoomModel model;
+  int64_t frames = 0, posed = 0;
+  std::vector<double> fuseMs;                    ///< per integrated-or-refused frame with a pose
+  nlohmann::json perFrame = nlohmann::json::array();  ///< frame, integrated, refused, overlap, inconsistent, new_blocks, fuse_ms
+};
+
+/// Reads up to `limit` frames (< 0: all) of `source`, integrates every `every`-th. `onFrame` (optional) sees
+/// each frame's line as it is decided.
+RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const reconstruction::RoomOptions& options,
+                    int64_t limit = -1, int every = 1,
+                    const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
+
+}  // namespace mrgi::runtime
