@@ -54,6 +54,10 @@ class LightingPipeline {
   void setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
     frame_->setRealMesh(vertices, indices);
   }
+  /// The real surface as the camera sees it now, for the G-buffer only (FrameResources::setViewMesh).
+  void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
+    frame_->setViewMesh(vertices, indices);
+  }
   /// Where object i sits in the lighting world.
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) { frame_->setObjectTransform(i, T_world_object); }
   /// The real-surface area lights (lighting world) of the next runs, for techniques that need them.

@@ -1,5 +1,7 @@
 #include "runtime/frame_pipeline.h"
 
+#include <nanoflann.hpp>
+
 #include <algorithm>
 #include <cstdlib>
 
@@ -281,6 +283,7 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
   }
   al.ambientIrradiance = CV_PI * setup_->ambient;
   const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, al);
+  roomAlbedo_ = albedo.albedo;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
   for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
   pipeline_->setRealMesh(vertices, room.indices);
@@ -288,6 +291,35 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
   size_t measured = 0;
   for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
   info["room"] = {{"vertices", vertices.size()}, {"albedo_measured", measured}};
+}
+
+struct FramePipeline::RoomIndex {
+  struct Cloud {
+    const std::vector<cv::Vec3f>& p;
+    size_t kdtree_get_point_count() const { return p.size(); }
+    float kdtree_get_pt(size_t i, size_t d) const { return p[i][static_cast<int>(d)]; }
+    template <class B>
+    bool kdtree_get_bbox(B&) const { return false; }
+  };
+  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud>, Cloud, 3, uint32_t>;
+  explicit RoomIndex(const std::vector<cv::Vec3f>& positions) : cloud{positions}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
+  Cloud cloud;
+  Tree tree;
+};
+
+void FramePipeline::roomViewMesh(const FrameResult& r, gl::Profiler& profiler) {
+  auto s = profiler.cpu("view_mesh");
+  if (!roomIndex_) roomIndex_ = std::make_shared<RoomIndex>(options_.room->positions);
+  std::vector<lighting::MeshVertex> vertices;
+  std::vector<uint32_t> indices;
+  const auto mesh = reconstruction::buildDepthMesh(r.positions, r.normals, options_.meshStride);
+  lighting::buildRealVertices(mesh, cv::Mat(), *r.T_marker_camera, vertices, indices);
+  for (auto& v : vertices) {
+    uint32_t nearest = 0;
+    float d2 = 0;
+    if (roomIndex_->tree.knnSearch(&v.position[0], 1, &nearest, &d2) == 1) v.albedo = roomAlbedo_[nearest];
+  }
+  pipeline_->setViewMesh(vertices, indices);
 }
 
 void FramePipeline::render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor,
@@ -301,6 +333,7 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   const bool val = needs_.realVals;
   if (options_.room) {
     useRoom(r.info, profiler);
+    if (!r.reusedSurface) roomViewMesh(r, profiler);
   } else if (r.reusedSurface) {
     for (const char* stage : {"albedo", "mesh"}) r.info["skipped"].push_back(stage);
     if (val) r.info["skipped"].push_back("real_vals");

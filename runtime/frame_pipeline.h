@@ -114,7 +114,12 @@ class FramePipeline {
   std::optional<SurfaceCache> surfaceCache_;
   /// The lights the room's albedo was estimated under (FrameOptions::room): re-estimated when they change.
   std::optional<std::vector<lighting::SceneLight>> roomLights_;
+  std::vector<cv::Vec3f> roomAlbedo_;  ///< per room vertex, under roomLights_
+  struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)
+  std::shared_ptr<RoomIndex> roomIndex_;
   void useRoom(nlohmann::json& info, gl::Profiler& profiler);
+  /// The frame's depth mesh, each vertex with the albedo of the nearest room vertex: the G-buffer's real surface.
+  void roomViewMesh(const FrameResult& r, gl::Profiler& profiler);
   cv::Mat thumbnail_;  ///< of the frame being processed
 };
 

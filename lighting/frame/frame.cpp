@@ -223,6 +223,11 @@ void FrameResources::setRealMesh(const std::vector<MeshVertex>& vertices, const 
   geometryDirty_ = true;
 }
 
+void FrameResources::setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
+  viewMesh_ = GpuMesh(vertices, indices);
+  viewDirty_ = true;
+}
+
 void FrameResources::setObjectTransform(size_t i, const cv::Matx44d& T) { objects_.at(i).T_world_object = T; }
 
 void FrameResources::setRealVals(std::vector<Val> vals) {
@@ -254,7 +259,8 @@ const FrameVersions& FrameResources::update(const CameraView& camera, const std:
   }
   in.ambient = {ambient[0], ambient[1], ambient[2]};
   const bool fresh = !seen_;
-  if (fresh || in.camera != seen_->camera) ++versions_.camera;
+  if (fresh || viewDirty_ || in.camera != seen_->camera) ++versions_.camera;
+  viewDirty_ = false;
   if (fresh || geometryDirty_ || in.objects != seen_->objects) ++versions_.geometry;
   if (fresh || in.lights != seen_->lights) ++versions_.lights;
   if (fresh || in.ambient != seen_->ambient) ++versions_.ambient;
@@ -291,7 +297,7 @@ void FrameResources::fitRegionToObjects() {
   if (const auto b = objectBounds()) region_ = fitRegion(b->first, b->second, config_.knobs.sizeFactor);
 }
 
-void FrameResources::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const {
+void FrameResources::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj, bool cameraView) const {
   program.use();
   const auto vp = toGl(viewProj);
   program.setMat4("uViewProj", vp.data());
@@ -300,7 +306,10 @@ void FrameResources::drawScene(const gl::Program& program, bool includeVirtual, 
   setMat3(program, "uNormalModel", cv::Matx33f::eye());
   program.set("uVirtual", 0.0f);
   program.set("uObject", 0.0f);
-  realMesh_.draw();
+  if (cameraView && !viewMesh_.empty())
+    viewMesh_.draw();
+  else
+    realMesh_.draw();
   if (!includeVirtual) return;
   program.set("uVirtual", 1.0f);
   for (size_t i = 0; i < objects_.size(); ++i) {
@@ -323,7 +332,7 @@ void FrameResources::renderGBuffer() {
   glClearNamedFramebufferfv(gbufferFb_.id(), GL_DEPTH, 0, &one);
   const cv::Matx44d view = capture::inversePose(camera_.T_world_camera);
   setVec3(gbufferProgram_, "uEye", capture::translationOf(camera_.T_world_camera));
-  drawScene(gbufferProgram_, true, projectionFromIntrinsics(camera_.intrinsics, camera_.nearPlane, camera_.farPlane) * view);
+  drawScene(gbufferProgram_, true, projectionFromIntrinsics(camera_.intrinsics, camera_.nearPlane, camera_.farPlane) * view, true);
   glDisable(GL_DEPTH_TEST);
 }
 

@@ -155,6 +155,10 @@ class FrameResources {
 
   // ---- inputs (set by the pipeline before a run)
   void setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
+  /// The real surface as the camera sees it now (the frame's depth), drawn into the G-buffer instead of
+  /// the real mesh, which still casts the shadows and fills the RSMs (a fused room model). Sharper where
+  /// real surfaces occlude virtual ones. Empty: the real mesh everywhere. A change counts as a camera change.
+  void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object);
   void setRealVals(std::vector<Val> vals);
   /// Compares with the last run's inputs and bumps the versions of what changed. Returns the versions.
@@ -182,7 +186,7 @@ class FrameResources {
 
   /// Draws the real mesh (and the objects when includeVirtual) with `program` (uModel, uNormalModel,
   /// uViewProj, uVirtual, uObject set here).
-  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const;
+  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj, bool cameraView = false) const;
 
   // ---- results
   const gl::Texture& gPosition() const { return gPosition_; }  ///< xyz world, w = 1 where a surface was seen
@@ -212,7 +216,8 @@ class FrameResources {
 
   FrameConfig config_;
   std::vector<FrameObject> objects_;
-  GpuMesh realMesh_;
+  GpuMesh realMesh_, viewMesh_;
+  bool viewDirty_ = false;
   std::vector<Val> realVals_;
   std::optional<Region> region_;
   CameraView camera_;
