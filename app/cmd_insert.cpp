@@ -36,6 +36,7 @@ struct InsertOptions {
   double scale = 1.0;
   std::vector<double> albedo{0.8, 0.8, 0.8};
   std::string scene;  // base scene (lights, technique); default: --save if it exists
+  std::string room;   // mrgi room output: the real scene of the preview's lighting
   std::string save;
   int replace = -1;
   bool snap = false;
@@ -85,7 +86,7 @@ void saveScene(const std::string& path, const json& doc) { capture::writeFileAto
 /// The window: sliders move, turn and scale the object, the composite follows when a slider is let go;
 /// "snap" rests it on the table, "save" writes the scene file (so does closing after --frames N).
 int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, json& doc, size_t index,
-                const std::string& savePath, const LightingSetup& base, const capture::Frame& frame,
+                const std::string& savePath, const LightingSetup& base, const FrameOptions& frameOptions, const capture::Frame& frame,
                 const FrameResult& measured, const std::function<bool(std::string*)>& snap, json& report) {
   WindowUi ui(*context);
   const int width = frame.rgbd->colour.cols, height = frame.rgbd->colour.rows;
@@ -112,7 +113,7 @@ int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, j
       // Re-read the edited scene (scale is baked into the mesh) and render the measured frame again.
       LightingSetup setup = base;
       setup.scene = lighting::parseScene(doc.dump(), savePath);
-      FramePipeline fp(setup, width, height, FrameOptions{});
+      FramePipeline fp(setup, width, height, frameOptions);
       gl::Profiler profiler;
       FrameResult r = measured;
       fp.render(frame, r, compositor, profiler);
@@ -222,6 +223,8 @@ int runInsert(const InsertOptions& o) {
   const capture::SourceInfo& info = source->info();
   const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
   LightingSetup setup = prepareLighting(scene, savePath, *source, o.session, "marker");
+  FrameOptions frameOptions;
+  if (!o.room.empty()) frameOptions.room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   gl::ContextConfig cfg;
   cfg.backend = gl::parseBackend(o.gl);
   const bool window = cfg.backend == gl::Backend::Window;
@@ -232,7 +235,7 @@ int runInsert(const InsertOptions& o) {
   auto context = gl::createContext(cfg);
   compositor::Compositor compositor(width, height);
   gl::Profiler profiler;
-  FramePipeline frames(setup, width, height, FrameOptions{});
+  FramePipeline frames(setup, width, height, frameOptions);
   std::optional<capture::Frame> frame;
   FrameResult result;
   for (int64_t i = 0; i <= o.frame; ++i) {
@@ -302,7 +305,7 @@ int runInsert(const InsertOptions& o) {
   report["translate"] = doc["objects"][index]["translate"];
   report["rotate_deg"] = doc["objects"][index]["rotate_deg"];
 
-  if (window) return interactive(o, context, doc, index, savePath, *frames.setup(), *frame, result, snap, report);
+  if (window) return interactive(o, context, doc, index, savePath, *frames.setup(), frameOptions, *frame, result, snap, report);
   if (!o.preview.empty()) {
     frames.render(*frame, result, compositor, profiler);
     writePng(o.preview, result.composite);
@@ -325,6 +328,7 @@ Action addInsert(CLI::App& app) {
   app.add_option("--scale", o->scale, "uniform scale of the model")->check(CLI::PositiveNumber);
   app.add_option("--albedo", o->albedo, "r,g,b diffuse albedo in [0, 1]")->delimiter(',')->expected(3);
   app.add_option("--scene", o->scene, "base scene file (lights, technique, other objects); default: --save if it exists");
+  app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the preview's lighting");
   app.add_option("--save", o->save, "scene file to write (written atomically; existing objects are kept)")->required();
   app.add_option("--replace", o->replace, "replace object N of the base scene instead of appending")->check(CLI::NonNegativeNumber);
   app.add_option("--at", o->at, "u,v: put the object's origin on the surface seen at this pixel (overrides --translate)")

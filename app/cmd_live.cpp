@@ -45,6 +45,7 @@ struct LiveOptions {
   bool noLoop = false;
   std::string pose = "marker";
   std::string view = "composite";
+  std::string room;  ///< mrgi room output: the real scene of the lighting
 };
 
 std::string defaultRecordDir() {
@@ -125,6 +126,12 @@ int runLive(const LiveOptions& o) {
     }
   }
 
+  std::shared_ptr<const reconstruction::RoomMesh> room;
+  if (!o.room.empty()) {
+    if (!base) throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
+    room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
+  }
+
   const cv::Size win = WindowUi::windowSize(width, height);
   gl::ContextConfig cfg;
   cfg.backend = gl::parseBackend(o.gl);
@@ -145,6 +152,7 @@ int runLive(const LiveOptions& o) {
 
   FrameOptions fo;
   fo.pose = o.pose;
+  fo.room = room;
   std::unique_ptr<FramePipeline> frames;
   auto rebuild = [&] {
     std::optional<LightingSetup> s = base;
@@ -329,6 +337,7 @@ Action addLive(CLI::App& app) {
   app.add_option("--fisheye-calibration", o->in.fisheyeCalibration, "its calibration (YAML from mrgi calibrate-fisheye)");
   app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")->check(CLI::PositiveNumber);
   app.add_option("--scene", o->scene, "scene file: virtual objects relative to the marker, lights, technique, knobs");
+  app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
   app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")->check(techniqueValidator());
   app.add_option("--preset", o->preset, "measured preset (overrides the scene file's knobs)")
       ->check(CLI::IsMember({"fast", "balanced", "accurate"}));

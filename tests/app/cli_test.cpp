@@ -1100,6 +1100,24 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
     EXPECT_GT(mesh.normals[i][2], 0.9f);
   }
   EXPECT_GT(onTable, 50);
+  // Replay lit from the room: the room's albedo is estimated once (skipped on the next frame), the composite
+  // differs from the camera image where the sphere is.
+  const fs::path replayOut = out.string() + "_replay";
+  fs::remove_all(replayOut);
+  const std::string scene = (fs::path(MRGI_SOURCE_DIR) / "recordings/scenes/tabletop.json").string();
+  const Result rr = runMrgi("replay " + session + " --scene " + scene + " --room " + out.string() + " --out " + replayOut.string() +
+                            " --frames 2 --pose ground-truth --mp4 \"\"");
+  ASSERT_EQ(rr.exitCode, 0) << rr.err;
+  const auto replaySummary = nlohmann::json::parse(slurp(replayOut / "summary.json"));
+  const auto& frames = replaySummary["per_frame"];
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0]["room"]["vertices"].get<size_t>(), mesh.positions.size());
+  EXPECT_NE(frames[1]["skipped"].dump().find("room_albedo"), std::string::npos) << frames[1].dump();
+  // A bad room stops replay before anything is written.
+  fs::remove_all(replayOut);
+  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --room /nonexistent/room --out " + replayOut.string()),
+                     "/nonexistent/room");
+  EXPECT_FALSE(fs::exists(replayOut));
   // Writing again into its own output is fine; into someone else's folder is not, and nothing there changes.
   EXPECT_EQ(runMrgi("room " + session + " --out " + out.string() + " --pose ground-truth --frames 2 --json").exitCode, 0);
   const fs::path mine = out.string() + "_mine";
