@@ -62,6 +62,7 @@ struct LightsOptions {
   int count = 16;
   bool json = false, variance = false;
   double exposure = 1.0, maxThetaDeg = 108;
+  double ambientThreshold = 1.0;  ///< 0: every bit of light to the lights, no SH remainder
 };
 
 int runLights(const LightsOptions& o) {
@@ -76,10 +77,18 @@ int runLights(const LightsOptions& o) {
   cv::Mat saturated;
   const cv::Mat radiance = reconstruction::linearRadiance(img, o.exposure, &saturated);
   const auto rays = reconstruction::fisheyeRays(c, o.maxThetaDeg * CV_PI / 180);
-  reconstruction::MedianCutOptions mc;
-  mc.count = o.count;
-  mc.varianceSplit = o.variance;
-  const auto lights = reconstruction::medianCut(radiance, rays, mc);
+  // Lights for the part above the threshold, SH for the remainder (LightSplit); threshold 0: all lights.
+  reconstruction::LightSplitOptions so;
+  so.medianCut.count = o.count;
+  so.medianCut.varianceSplit = o.variance || o.ambientThreshold > 0;
+  so.threshold = o.ambientThreshold;
+  reconstruction::LightSplit split;
+  if (o.ambientThreshold > 0)
+    split = reconstruction::splitLights(radiance, rays, so);
+  else
+    split.lights = reconstruction::medianCut(radiance, rays, so.medianCut);
+  const auto& lights = split.lights;
+  const bool variance = so.medianCut.varianceSplit;
   const cv::Vec3d total = reconstruction::totalPower(radiance, rays);
   const double satFraction = static_cast<double>(cv::countNonZero(saturated)) / saturated.total();
   if (o.json) {
@@ -88,10 +97,14 @@ int runLights(const LightsOptions& o) {
       arr.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
                      {"power", {l.power[0], l.power[1], l.power[2]}},
                      {"solid_angle_sr", l.solidAngle}});
+    json sh = json::array();
+    for (const auto& c : split.ambientSh) sh.push_back({c[0], c[1], c[2]});
     std::printf("%s\n", json{{"lights", arr},
+                             {"ambient_sh", sh},
+                             {"ambient_threshold", o.ambientThreshold},
                              {"total_power", {total[0], total[1], total[2]}},
                              {"count", lights.size()},
-                             {"split", o.variance ? "variance" : "median"},
+                             {"split", variance ? "variance" : "median"},
                              {"solid_angle_sr", rays.totalSolidAngle},
                              {"saturated_fraction", satFraction},
                              {"frame", "fisheye camera (x right, y down, z forward)"}}
@@ -99,7 +112,9 @@ int runLights(const LightsOptions& o) {
                             .c_str());
   } else {
     std::printf("%zu lights (%s split), total power (%.4g, %.4g, %.4g), %.1f%% pixels saturated\n", lights.size(),
-                o.variance ? "variance" : "median", total[0], total[1], total[2], 100 * satFraction);
+                variance ? "variance" : "median", total[0], total[1], total[2], 100 * satFraction);
+    const cv::Vec3d dc = split.ambientSh[0] * (2 * std::sqrt(CV_PI));
+    std::printf("  remainder as SH bands 0-2: power (%.4g, %.4g, %.4g)\n", dc[0], dc[1], dc[2]);
     for (const auto& l : lights)
       std::printf("  dir (%+.3f %+.3f %+.3f)  power (%.4g, %.4g, %.4g)\n", l.direction[0], l.direction[1], l.direction[2],
                   l.power[0], l.power[1], l.power[2]);
@@ -128,7 +143,12 @@ Action addLights(CLI::App& app) {
   app.add_option("--count", o->count, "number of lights; 0 = choose by energy concentration")
       ->check(CLI::Range(0, 4096))
       ->capture_default_str();
-  app.add_flag("--variance", o->variance, "variance-minimising split instead of the energy median");
+  app.add_flag("--variance", o->variance, "variance-minimising split instead of the energy median (always with a remainder)");
+  app.add_option("--ambient-threshold", o->ambientThreshold,
+                 "light above this multiple of the mean luminance goes to the lights, the rest to ambient_sh (SH bands "
+                 "0-2); 0: all of it to the lights")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
   app.add_option("--exposure", o->exposure, "relative exposure: radiance = linear value / exposure")
       ->check(CLI::PositiveNumber);
   app.add_option("--max-theta", o->maxThetaDeg, "ignore pixels further than this from the optical axis (degrees)")

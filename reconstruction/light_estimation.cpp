@@ -342,3 +342,54 @@ cv::Mat renderFisheyeFromLatLong(const cv::Mat& latlong, const FisheyeRays& rays
 }
 
 }  // namespace mrgi::reconstruction
+
+namespace mrgi::reconstruction {
+
+std::array<double, 9> shBasis2(const cv::Vec3d& d) {
+  const double x = d[0], y = d[1], z = d[2];
+  return {0.282094791773878,       0.488602511902920 * y, 0.488602511902920 * z,
+          0.488602511902920 * x,   1.092548430592079 * x * y, 1.092548430592079 * y * z,
+          0.315391565252520 * (3 * z * z - 1), 1.092548430592079 * x * z, 0.546274215296040 * (x * x - y * y)};
+}
+
+LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const LightSplitOptions& o) {
+  CV_Assert(radiance.type() == CV_32FC3 && radiance.size() == rays.solidAngle.size());
+  LightSplit out;
+  // The threshold: a multiple of the mean luminance over the field.
+  double sumL = 0, sumW = 0;
+  for (int y = 0; y < radiance.rows; ++y)
+    for (int x = 0; x < radiance.cols; ++x) {
+      const double w = rays.solidAngle.at<double>(y, x);
+      if (w <= 0) continue;
+      sumL += w * std::max(0.0, capture::luminance(cv::Vec3d(radiance.at<cv::Vec3f>(y, x))));
+      sumW += w;
+    }
+  out.thresholdLuminance = sumW > 0 ? o.threshold * sumL / sumW : 0.0;
+  cv::Mat bright(radiance.size(), CV_32FC3, cv::Scalar::all(0));
+  for (int y = 0; y < radiance.rows; ++y)
+    for (int x = 0; x < radiance.cols; ++x) {
+      const double w = rays.solidAngle.at<double>(y, x);
+      if (w <= 0) continue;
+      const cv::Vec3d L(radiance.at<cv::Vec3f>(y, x));
+      const double lum = capture::luminance(L);
+      // Above T the pixel's colour is scaled down to luminance T; the excess goes to the lights.
+      const double keep = lum > out.thresholdLuminance && lum > 0 ? out.thresholdLuminance / lum : 1.0;
+      const cv::Vec3d rest = L * keep;
+      bright.at<cv::Vec3f>(y, x) = cv::Vec3f(L - rest);
+      const cv::Vec3f dir = rays.directions.at<cv::Vec3f>(y, x);
+      const auto b = shBasis2(cv::Vec3d(dir));
+      for (int k = 0; k < 9; ++k) out.ambientSh[k] += rest * (b[k] * w);
+    }
+  out.lights = medianCut(bright, rays, o.medianCut);
+  return out;
+}
+
+cv::Vec3d irradianceFromSplit(const LightSplit& split, const cv::Vec3d& n) {
+  cv::Vec3d E = irradianceFromLights(split.lights, n);
+  const auto b = shBasis2(n);
+  static const double A[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
+  for (int k = 0; k < 9; ++k) E += split.ambientSh[k] * (A[k] * b[k]);
+  return E;
+}
+
+}  // namespace mrgi::reconstruction

@@ -8,6 +8,7 @@
 /// Units: the image holds linear radiance L (any consistent unit); a light's `power` is the region's
 /// sum of L * dOmega per RGB channel, i.e. the irradiance it delivers at normal incidence, so that
 /// E(n) = sum_i power_i <n, direction_i>+ approximates the integral of L <n, w>+ dw over the view.
+#include <array>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -59,6 +60,36 @@ struct MedianCutOptions {
 /// image's total sum of L * dOmega (up to double round-off). Zero-energy regions still give a light
 /// (power 0, direction = the region's solid-angle centroid).
 std::vector<EstimatedLight> medianCut(const cv::Mat& radiance, const FisheyeRays& rays, const MedianCutOptions& options = {});
+
+/// Lights for what casts shadows, spherical harmonics for the rest. The radiance is split per pixel at a
+/// luminance threshold T = `threshold` x the image's solid-angle-weighted mean luminance (1 measured best
+/// over 0.5-8 on the five bundled environment maps): the part above T
+/// (lamps, windows, the sun: compact and bright) goes to the median cut's lights, the part up to T (the dim
+/// ceiling, walls, sky) is projected onto SH bands 0-2. Equal-energy median cut alone gives a whole dim
+/// region one light, which is far off for normals facing away from the bright parts.
+struct LightSplitOptions {
+  /// The bright part is cut with the variance-minimising split (equal energy leaves a large window to a few
+  /// lights at its centre, off for normals at grazing angles to it).
+  MedianCutOptions medianCut = [] {
+    MedianCutOptions m;
+    m.varianceSplit = true;
+    return m;
+  }();
+  double threshold = 1.0;
+};
+struct LightSplit {
+  std::vector<EstimatedLight> lights;
+  /// The remainder's radiance as SH, 9 RGB coefficients in the convention of lighting/sh.h (index l(l+1)+m,
+  /// no Condon-Shortley phase), directions in the fisheye camera frame; its irradiance at a normal is
+  /// sum_lm A_l c_lm y_lm(n) with A = (pi, 2 pi / 3, pi / 4). Lights and remainder hold the image's total.
+  std::array<cv::Vec3d, 9> ambientSh{};
+  double thresholdLuminance = 0;  ///< T
+};
+LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const LightSplitOptions& options = {});
+/// Irradiance at unit normal n from the split: the lights' sum plus the remainder's SH irradiance.
+cv::Vec3d irradianceFromSplit(const LightSplit& split, const cv::Vec3d& n);
+/// The 9 real SH basis values of bands 0-2 at unit direction d (lighting/sh.h's convention).
+std::array<double, 9> shBasis2(const cv::Vec3d& d);
 
 /// Sum of L * dOmega over the valid field (the reference total for medianCut).
 cv::Vec3d totalPower(const cv::Mat& radiance, const FisheyeRays& rays);

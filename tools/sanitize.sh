@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The unit tests once under AddressSanitizer + UBSan (clang-15), in the fuzzers' build directory
 # (build-fuzz/, the same instrumented libraries). CI runs it after the fuzzers.
-#   tools/sanitize.sh          the suite without the GL-only tests and the four slowest numerical ones
+#   tools/sanitize.sh          the suite without the GL-only tests and the slowest numerical ones
 #   tools/sanitize.sh --all    everything (about 7 minutes here instead of 4)
 # Leak checking is off here: Mesa's llvmpipe keeps allocations to process exit; the fuzzers check leaks.
 set -euo pipefail
@@ -20,8 +20,8 @@ export ASAN_OPTIONS="detect_leaks=0:abort_on_error=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 [[ -x /usr/bin/llvm-symbolizer ]] && export ASAN_SYMBOLIZER_PATH=/usr/bin/llvm-symbolizer
 # Skipped by default: GL-only tests (their work is Mesa's; the CLI tests still drive every GL path of ours
-# under ASan) and four numerical tests of a minute each under ASan.
-exclude="^GL[./]|^AllTechniques/|Window|^Lpv\.DirectionalLobe|^Cli\.InsertSnaps|^Cli\.SynthPathTraces|^MedianCut\.Irradiance"
+# under ASan) and the numerical tests of a minute or more each under ASan (sweeps, path tracing, HDR maps).
+exclude="^GL[./]|^AllTechniques/|Window|^Lpv\.DirectionalLobe|^Cli\.InsertSnaps|^Cli\.SynthPathTraces|^MedianCut\.Irradiance|^LightSplit\.Lights|^Cli\.Bench"
 if [[ $all -eq 1 ]]; then
   ctest --test-dir build-fuzz -j2 --output-on-failure --timeout 900 -E "Window"
 else

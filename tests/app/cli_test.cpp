@@ -301,7 +301,20 @@ TEST(Cli, LightsFromAnHdrFisheyeImage) {
     for (int k = 0; k < 3; ++k) sum[k] += l["power"][k].get<double>(), n += std::pow(l["direction"][k].get<double>(), 2);
     EXPECT_NEAR(n, 1.0, 1e-9);
   }
-  for (int k = 0; k < 3; ++k) EXPECT_NEAR(sum[k], j["total_power"][k].get<double>(), 1e-9 * sum[k]);
+  // The lights and the remainder's SH (band 0 times 2 sqrt(pi) is its sum of L dOmega) hold the total.
+  ASSERT_EQ(j["ambient_sh"].size(), 9u);
+  for (int k = 0; k < 3; ++k) {
+    const double rest = j["ambient_sh"][0][k].get<double>() * 2 * std::sqrt(CV_PI);
+    EXPECT_GT(rest, 0.0);
+    EXPECT_NEAR(sum[k] + rest, j["total_power"][k].get<double>(), 1e-7 * (sum[k] + rest));  // the lights' part is float
+  }
+  // Without a remainder every bit of light goes to the lights, as before.
+  const auto all = nlohmann::json::parse(runMrgi("lights " + rec.string() + " --calib " + calib + " --count 8 --json --ambient-threshold 0").out);
+  double allSum[3] = {0, 0, 0};
+  for (const auto& l : all["lights"])
+    for (int k = 0; k < 3; ++k) allSum[k] += l["power"][k].get<double>();
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(allSum[k], all["total_power"][k].get<double>(), 1e-9 * allSum[k]);
+  EXPECT_EQ(all["ambient_sh"][0][0].get<double>(), 0.0);
   // LDR input, automatic count, variance split.
   const fs::path png = fs::temp_directory_path() / ("mrgi_fish_" + std::to_string(::getpid()) + ".png");
   cv::Mat ldr(503, 800, CV_8UC3, cv::Scalar(40, 40, 40));
