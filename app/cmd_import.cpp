@@ -44,10 +44,15 @@ int runImport(const ImportOptions& o) {
   m.depth = m.colour;  // depth is already aligned to colour (depth_M_color = identity)
   m.depthUnitsMetres = 0.001;
   double tagSize = 0;
-  if (fs::exists(dir / "apriltag_data.json")) tagSize = readJson(dir / "apriltag_data.json").value("tag_size", 0.0);
+  if (fs::exists(dir / "apriltag_data.json")) {
+    const json tags = readJson(dir / "apriltag_data.json");
+    if (tags.is_object() && tags.contains("tag_size") && tags["tag_size"].is_number()) tagSize = tags["tag_size"].get<double>();
+  }
   if (!(tagSize > 0)) throw capture::CaptureError((dir / "apriltag_data.json").string(), "no tag_size");
   m.marker = capture::MarkerSpec{o.family, tagSize, o.tagId};
   capture::SessionWriter writer(o.out, m);
+  if (cam.contains("depthScale") && !cam["depthScale"].is_number())
+    throw capture::CaptureError((dir / "cam.json").string(), "depthScale must be a number");
   const double scale = cam.value("depthScale", 0.001);
   for (int i = 0;; ++i) {
     char name[64];

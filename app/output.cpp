@@ -43,7 +43,8 @@ void prepareOutputDirectory(const std::string& out, const std::string& marker, c
         std::ifstream in(m);
         try {
           const nlohmann::json j = capture::parseJson(in, m.string());
-          ours = j.is_object() && j.value("generated_by", std::string()) == generator;
+          ours = j.is_object() && j.contains("generated_by") && j["generated_by"].is_string() &&
+                 j["generated_by"].get<std::string>() == generator;
         } catch (const capture::InputError&) {
         }
       }

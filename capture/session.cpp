@@ -142,9 +142,34 @@ json SessionManifest::toJson() const {
   return j;
 }
 
+namespace {
+/// A key's value when present and of the right type, else the fallback; the wrong type names the key.
+template <typename T>
+T optionalKey(const json& j, const char* key, T fallback, const std::string& file, const std::string& prefix) {
+  if (!j.contains(key)) return fallback;
+  try {
+    return j[key].get<T>();
+  } catch (const json::exception&) {
+    throw CaptureError(file, "key '" + prefix + key + "' has the wrong type");
+  }
+}
+}  // namespace
+
 SessionManifest SessionManifest::fromJson(const json& j, const std::string& file) {
+  try {
+    return fromJsonChecked(j, file);
+  } catch (const json::exception& e) {
+    // Every key is checked on the way; a type mismatch that slipped past still names the file.
+    std::string what = e.what();
+    if (const size_t at = what.find("] "); at != std::string::npos) what = what.substr(at + 2);
+    throw CaptureError(file, "malformed manifest: " + what);
+  }
+}
+
+SessionManifest SessionManifest::fromJsonChecked(const json& j, const std::string& file) {
   if (!j.is_object()) throw CaptureError(file, "manifest is not a JSON object");
-  if (j.value("format", "") != "mrgi-session") throw CaptureError(file, "key 'format' must be \"mrgi-session\"");
+  if (optionalKey<std::string>(j, "format", "", file, "") != "mrgi-session")
+    throw CaptureError(file, "key 'format' must be \"mrgi-session\"");
   SessionManifest m;
   m.version = integer(j, "version", file, "");
   if (m.version != kSessionVersion)
@@ -155,7 +180,7 @@ SessionManifest SessionManifest::fromJson(const json& j, const std::string& file
   m.depth = intrinsicsFromJson(d, file, "depth.");
   m.depthUnitsMetres = number(d, "units_m", file, "depth.");
   if (!(m.depthUnitsMetres > 0)) throw CaptureError(file, "key 'depth.units_m' must be positive");
-  m.depthRegistered = d.value("registered", true);
+  m.depthRegistered = optionalKey<bool>(d, "registered", true, file, "depth.");
   if (d.contains("T_colour_depth")) m.T_colour_depth = poseFromJson(d["T_colour_depth"], file, "depth.T_colour_depth");
   if (m.depthRegistered && (m.depth.width != m.colour.width || m.depth.height != m.colour.height))
     throw CaptureError(file, "registered depth must match the colour resolution (depth " + std::to_string(m.depth.width) +
@@ -166,7 +191,7 @@ SessionManifest SessionManifest::fromJson(const json& j, const std::string& file
     FisheyeCalibration c;
     c.width = integer(f, "width", file, "fisheye.");
     c.height = integer(f, "height", file, "fisheye.");
-    c.model = f.value("model", "equidistant");
+    c.model = optionalKey<std::string>(f, "model", "equidistant", file, "fisheye.");
     if (c.model != "equidistant") throw CaptureError(file, "key 'fisheye.model' must be \"equidistant\"");
     const auto K = numbers(need(f, "K", file, "fisheye."), 9, file, "fisheye.K");
     for (int i = 0; i < 9; ++i) c.K(i / 3, i % 3) = K[i];

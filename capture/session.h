@@ -42,6 +42,9 @@ struct SessionManifest {
   nlohmann::json toJson() const;
   /// Throws CaptureError("<file>: ...") naming the bad key.
   static SessionManifest fromJson(const nlohmann::json& j, const std::string& fileForErrors);
+
+ private:
+  static SessionManifest fromJsonChecked(const nlohmann::json& j, const std::string& fileForErrors);
 };
 
 /// Appends frames to a new session directory. Never overwrites: the directory must not exist or be empty.

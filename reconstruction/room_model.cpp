@@ -433,7 +433,7 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   if (!fs::is_regular_file(json, ec)) throw capture::InputError(json.string(), "missing (not a room folder written by mrgi room)");
   std::ifstream in(json);
   const nlohmann::json j = capture::parseJson(in, json.string());
-  if (!j.is_object() || j.value("format", std::string()) != "mrgi-room")
+  if (!j.is_object() || !j.contains("format") || !j["format"].is_string() || j["format"].get<std::string>() != "mrgi-room")
     throw capture::InputError(json.string(), "format: not \"mrgi-room\"");
   if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int64_t>() != 1)
     throw capture::InputError(json.string(), "version: only version 1 is known");

@@ -18,7 +18,7 @@ while [[ $# -gt 0 ]]; do
     *) targets+=("$1"); shift ;;
   esac
 done
-all=(manifest_fuzz session_fuzz scene_fuzz preset_fuzz model_fuzz image_fuzz npy_fuzz tum_fuzz fisheye_yaml_fuzz)
+all=(manifest_fuzz session_fuzz scene_fuzz preset_fuzz model_fuzz image_fuzz npy_fuzz tum_fuzz fisheye_yaml_fuzz room_fuzz)
 [[ ${#targets[@]} -eq 0 ]] && targets=("${all[@]}")
 
 # The fuzzing toolchain (not needed by the normal build or the tests).
@@ -36,7 +36,7 @@ cmake --build build-fuzz --target "${targets[@]}"
 # Seeds: the bundled files (targets whose first byte picks a mode get each seed with every prefix).
 seeds=build-fuzz/seeds
 rm -rf "$seeds"
-mkdir -p "$seeds"/{manifest_fuzz,session_fuzz,scene_fuzz,preset_fuzz,model_fuzz,image_fuzz,npy_fuzz,tum_fuzz,fisheye_yaml_fuzz}
+mkdir -p "$seeds"/{manifest_fuzz,session_fuzz,scene_fuzz,preset_fuzz,model_fuzz,image_fuzz,npy_fuzz,tum_fuzz,fisheye_yaml_fuzz,room_fuzz}
 i=0; for f in recordings/*/manifest.json; do cp "$f" "$seeds/manifest_fuzz/m$i.json"; i=$((i + 1)); done
 cp recordings/scenes/*.json "$seeds/scene_fuzz/"
 cp recordings/presets.json "$seeds/preset_fuzz/"
@@ -55,11 +55,26 @@ for f in fuzz/seeds/image/*; do
   for p in 0 1 2; do { printf "\\x0$p"; cat "$f"; } > "$seeds/image_fuzz/$(basename "$f")-$p"; done
 done
 python3 - "$seeds/npy_fuzz" <<'PY'
-import sys, zipfile, glob
+# Bare arrays (first byte 0) from the ViSP archives, and small archives (first byte 1) of a 4x3 uint16
+# data.npy, stored and deflated.
+import sys, zipfile, glob, io, struct
+out = sys.argv[1]
 for i, f in enumerate(sorted(glob.glob('../shared/data/rgbd-visp-apriltag/*.npz'))[:2]):
     with zipfile.ZipFile(f) as z:
         for n in z.namelist():
-            open(f"{sys.argv[1]}/a{i}-{n}", 'wb').write(z.read(n))
+            data = z.read(n)
+            if len(data) < 65536:
+                open(f"{out}/a{i}-{n}", 'wb').write(b"\0" + data)
+header = "{'descr': '<u2', 'fortran_order': False, 'shape': (3, 4), }"
+header += " " * (63 - (10 + len(header)) % 64) + "\n"
+npy = b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header.encode() + struct.pack("<12H", *range(1000, 1012))
+open(f"{out}/small.npy", 'wb').write(b"\0" + npy)
+for name, method in (("stored", zipfile.ZIP_STORED), ("deflated", zipfile.ZIP_DEFLATED)):
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, 'w', method) as z:
+        z.writestr("width.npy", npy)
+        z.writestr("data.npy", npy)
+    open(f"{out}/{name}.npz", 'wb').write(b"\1" + buf.getvalue())
 PY
 python3 - "$seeds/session_fuzz" <<'PY'
 # The session reader's seeds: a manifest for 80x60 frames, a NUL, and the index of three frames (the target
@@ -79,6 +94,24 @@ for i, l in enumerate(open('recordings/tabletop-synth/frames.jsonl').read().spli
 index = "\n".join(lines) + "\n"
 open(f"{out}/with_manifest", 'w').write(json.dumps(m) + "\0" + index)
 open(f"{out}/index_only", 'w').write(index)
+PY
+python3 - "$seeds/room_fuzz" <<'PY'
+# A saved room: room.json, a NUL, room.ply (a binary tetrahedron with normals and colours as mrgi room
+# writes them, and an ASCII one).
+import sys, json, struct
+out = sys.argv[1]
+meta = json.dumps({"format": "mrgi-room", "version": 1, "generated_by": "mrgi room", "mesh": "room.ply", "voxel_m": 0.02,
+                   "trunc_m": 0.08, "max_blocks": 8192, "frames_integrated": 3, "frames_refused": 0, "session": "s"}).encode()
+v = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+f = [(0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)]
+head = ("ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty double x\nproperty double y\nproperty double z\n"
+        "property double nx\nproperty double ny\nproperty double nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+        "element face 4\nproperty list uchar uint vertex_indices\nend_header\n").encode()
+body = b"".join(struct.pack("<6d3B", *p, 0, 0, 1, 200, 100, 50) for p in v) + b"".join(struct.pack("<B3I", 3, *t) for t in f)
+open(f"{out}/binary", 'wb').write(meta + b"\0" + head + body)
+ascii_ = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
+ascii_ += "".join("%d %d %d\n" % p for p in v) + "".join("3 %d %d %d\n" % t for t in f)
+open(f"{out}/ascii", 'wb').write(meta + b"\0" + ascii_.encode())
 PY
 printf '# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n1305031102.211214 rgb/1305031102.211214.png\n' > "$seeds/tum_fuzz/rgb.txt"
 printf '# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n' > "$seeds/tum_fuzz/groundtruth.txt"

@@ -318,6 +318,7 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
   EXPECT_NE(with(ply.substr(0, ply.size() / 2), json).find((dir / "room.ply").string() + ": PLY file is truncated"), std::string::npos);
   EXPECT_NE(with(ply, "{\"format\": \"mrgi-room\", \"version\": 2}").find("version"), std::string::npos);
   EXPECT_NE(with(ply, "{\"format\": \"other\"}").find((dir / "room.json").string() + ": format"), std::string::npos);
+  EXPECT_NE(with(ply, "{\"format\": 5}").find((dir / "room.json").string() + ": format"), std::string::npos);  // (the room fuzzer)
   EXPECT_NE(with(ply, "{nope").find((dir / "room.json").string()), std::string::npos);
   const std::string empty = "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
                             "element face 0\nproperty list uchar int vertex_indices\nend_header\n";
