@@ -184,10 +184,24 @@ void checkExrHeader(const std::vector<unsigned char>& bytes, const std::string& 
       const std::string name = readString();
       if (name.empty()) break;  // end of this header
       if (++attributes > 100000) bad("more than 100000 header attributes");
-      readString();  // type
+      const std::string type = readString();
       if (at + 4 > bytes.size()) bad("header is truncated");
-      const uint32_t size = uint32_t(bytes[at]) | uint32_t(bytes[at + 1]) << 8 | uint32_t(bytes[at + 2]) << 16 | uint32_t(bytes[at + 3]) << 24;
+      auto int32At = [&](size_t i) {
+        return static_cast<int32_t>(uint32_t(bytes[i]) | uint32_t(bytes[i + 1]) << 8 | uint32_t(bytes[i + 2]) << 16 | uint32_t(bytes[i + 3]) << 24);
+      };
+      const uint32_t size = static_cast<uint32_t>(int32At(at));
       at += 4;
+      if (name == "dataWindow" && type == "box2i" && size == 16 && at + 16 <= bytes.size()) {
+        // The image size, checked before OpenEXR allocates line buffers for it (a 5-million-pixel-wide line
+        // in a 500-byte file was a time-out under the image fuzzer): at most 16384 a side, and no more
+        // pixels than any codec packs into the file (deflate tops out near 1000:1 on bytes).
+        const int64_t w = int64_t(int32At(at + 8)) - int32At(at) + 1, h = int64_t(int32At(at + 12)) - int32At(at + 4) + 1;
+        if (w <= 0 || h <= 0 || w > 16384 || h > 16384)
+          throw CaptureError(path, "EXR image of " + std::to_string(w) + "x" + std::to_string(h) + ", at most 16384 a side");
+        if (static_cast<double>(w) * static_cast<double>(h) > 4096.0 * static_cast<double>(bytes.size()) + 1048576.0)
+          throw CaptureError(path, "EXR image of " + std::to_string(w) + "x" + std::to_string(h) + " in a file of " +
+                                       std::to_string(bytes.size()) + " bytes: damaged");
+      }
       if (size > bytes.size() - at) {
         std::string shown;
         for (char c : name.substr(0, 40)) shown += c >= 0x20 && c < 0x7f ? c : '?';

@@ -191,6 +191,31 @@ TEST(ImageIo, ExrHeaderAttributesLongerThanTheFileAreRefusedBeforeAllocation) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("declares 1664937503 bytes, past the end of the file"), std::string::npos) << e.what();
   }
+  // Found by the image fuzzer (a time-out under ASan): a data window 5 million pixels wide; and a sound
+  // file's window raised to 10000 x 10000, more pixels than any codec packs into its 1 KB. Both refused
+  // from the header, before OpenEXR allocates line buffers.
+  try {
+    (void)readAny(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/image_exr_huge_data_window.exr");
+    ADD_FAILURE() << "decoded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("EXR image of 5046273x5, at most 16384 a side"), std::string::npos) << e.what();
+  }
+  {
+    const fs::path q = scratch("window.exr");
+    std::vector<unsigned char> big = encodeExr(ramp(8, 8), true, q.string());
+    const std::string key = "dataWindow";
+    const size_t box = static_cast<size_t>(std::search(big.begin(), big.end(), key.begin(), key.end()) - big.begin()) + key.size() + 1 + 6 + 4;
+    for (size_t k : {box + 8, box + 12}) {  // xMax, yMax = 9999
+      big[k] = 0x0f, big[k + 1] = 0x27, big[k + 2] = 0, big[k + 3] = 0;
+    }
+    writeBytes(q, big);
+    try {
+      (void)readAny(q.string());
+      ADD_FAILURE() << "decoded";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("EXR image of 10000x10000 in a file of"), std::string::npos) << e.what();
+    }
+  }
   // The same check on a sound file, every attribute size raised past the end one at a time: always refused.
   const fs::path p = scratch("attr.exr");
   const std::vector<unsigned char> good = encodeExr(ramp(8, 8), true, p.string());
