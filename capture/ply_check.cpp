@@ -52,6 +52,8 @@ void checkPlyFile(const std::string& path) {
                                                  {"int32", 4},  {"uint32", 4},  {"float32", 4}, {"float64", 8}};
   struct Property {
     int countBytes = 0, itemBytes = 0;  // countBytes > 0: a list
+    bool indices = false;               // a face's vertex index list: every index must name a vertex
+    bool signedItem = false;
   };
   struct Element {
     std::string name;
@@ -89,12 +91,33 @@ void checkPlyFile(const std::string& path) {
       if (list ? (rest.size() != 4 || !kTypes.count(rest[1]) || !kTypes.count(rest[2]))
                : (rest.size() != 2 || !kTypes.count(rest[0])))
         bad("property line '" + line + "'");
-      elements.back().properties.push_back(list ? Property{kTypes.at(rest[1]), kTypes.at(rest[2])} : Property{0, kTypes.at(rest[0])});
+      Property prop = list ? Property{kTypes.at(rest[1]), kTypes.at(rest[2])} : Property{0, kTypes.at(rest[0])};
+      if (list && elements.back().name == "face" && (rest[3] == "vertex_indices" || rest[3] == "vertex_index")) {
+        if (rest[2] == "float" || rest[2] == "double" || rest[2] == "float32" || rest[2] == "float64")
+          bad("face indices of type " + rest[2]);
+        prop.indices = true;
+        prop.signedItem = rest[2] == "char" || rest[2] == "short" || rest[2] == "int" || rest[2] == "int8" || rest[2] == "int16" ||
+                          rest[2] == "int32";
+      }
+      elements.back().properties.push_back(prop);
     } else {
       bad("unexpected line '" + line.substr(0, 40) + "'");
     }
   }
   if (!header) bad("no end_header");
+  uint64_t vertices = 0;
+  for (const Element& e : elements)
+    if (e.name == "vertex") vertices = e.count;
+  // Readers index their vertex arrays with these before checking them (Open3D's ear clipping, found by the
+  // room fuzzer; assimp's post-processing): every face has at least 3 indices, each naming a vertex.
+  auto badFace = [&](uint64_t i, const std::string& why) {
+    throw InputError(path, "malformed PLY: face " + std::to_string(i) + " " + why);
+  };
+  auto checkIndex = [&](uint64_t face, double v) {
+    if (!(v >= 0 && v < static_cast<double>(vertices) && v == std::floor(v)))
+      badFace(face, "names vertex " + (std::isfinite(v) ? std::to_string(static_cast<long long>(v)) : std::string("?")) + " of " +
+                        std::to_string(vertices));
+  };
 
   auto truncated = [&](const Element& e, uint64_t have) {
     throw InputError(path, "PLY file is truncated: the header declares " + std::to_string(e.count) + " " + e.name +
@@ -127,7 +150,11 @@ void checkPlyFile(const std::string& path) {
           if (p.countBytes > 0) {
             if (!(first >= 0 && first <= 1e6 && first == std::floor(first)))
               throw InputError(path, "malformed PLY: " + e.name + " element " + std::to_string(i) + " has a list length of " + std::to_string(first));
-            for (int k = 0; k < static_cast<int>(first); ++k) number();
+            if (p.indices && first < 3) badFace(i, "has " + std::to_string(static_cast<int>(first)) + " vertex indices (at least 3)");
+            for (int k = 0; k < static_cast<int>(first); ++k) {
+              const double v = number();
+              if (p.indices) checkIndex(i, v);
+            }
           }
         }
       }
@@ -150,6 +177,18 @@ void checkPlyFile(const std::string& path) {
           at += static_cast<uint64_t>(p.countBytes);
         }
         if (items > body.size() || at + items * static_cast<uint64_t>(p.itemBytes) > body.size()) truncated(e, i);
+        if (p.indices) {
+          if (items < 3) badFace(i, "has " + std::to_string(items) + " vertex indices (at least 3)");
+          for (uint64_t k = 0; k < items; ++k) {
+            uint64_t raw = 0;
+            for (int b = 0; b < p.itemBytes; ++b)
+              raw |= uint64_t(static_cast<unsigned char>(body[at + k * static_cast<uint64_t>(p.itemBytes) +
+                                                              static_cast<uint64_t>(swap ? p.itemBytes - 1 - b : b)])) << (8 * b);
+            double v = static_cast<double>(raw);
+            if (p.signedItem && (raw >> (8 * p.itemBytes - 1)) & 1) v -= std::ldexp(1.0, 8 * p.itemBytes);
+            checkIndex(i, v);
+          }
+        }
         at += items * static_cast<uint64_t>(p.itemBytes);
       }
   }

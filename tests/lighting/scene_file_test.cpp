@@ -106,7 +106,7 @@ TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
     loadMesh(empty);
     ADD_FAILURE() << "accepted a face of no vertex";
   } catch (const SceneError& e) {
-    EXPECT_NE(std::string(e.what()).find("has no vertices"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("face 0 has 0 vertex indices (at least 3)"), std::string::npos) << e.what();
   }
   std::filesystem::remove(empty);
   // Found by the model fuzzer: an element line without a count sends assimp's PLY reader into an endless
