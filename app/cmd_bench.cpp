@@ -329,17 +329,15 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (fusion.model.framesIntegrated() == 0) throw capture::CaptureError(path, "--room: no frame could be fused into a room");
     bs.room = std::make_shared<const reconstruction::RoomMesh>(fusion.model.mesh());
-    std::vector<double> sorted = fusion.fuseMs;
-    std::sort(sorted.begin(), sorted.end());
     bs.refInfo["room"] = {{"frames", fusion.model.framesIntegrated()},
                           {"refused", fusion.model.framesRefused()},
                           {"triangles", bs.room->triangleCount()},
                           {"voxel_mib", static_cast<double>(fusion.model.bytes()) / (1 << 20)},
-                          {"fuse_ms_median", sorted.empty() ? 0.0 : sorted[sorted.size() / 2]},
+                          {"fuse_ms_median", fusion.medianFuseMs()},
                           {"ms", ms}};
     std::printf("%s: room fused from %d frames (%zu triangles, %.0f MiB of voxels, %.1f ms per frame median)\n", path.c_str(),
                 fusion.model.framesIntegrated(), bs.room->triangleCount(), static_cast<double>(fusion.model.bytes()) / (1 << 20),
-                bs.refInfo["room"]["fuse_ms_median"].get<double>());
+                fusion.medianFuseMs());
   }
   bs.W = info.colourIntrinsics.width, bs.H = info.colourIntrinsics.height;
   const int n = static_cast<int>(bs.frames.size());

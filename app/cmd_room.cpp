@@ -49,11 +49,9 @@ int runRoom(const RoomCliOptions& o) {
     if (limit > 0) bar(static_cast<double>(line["frame"].get<int64_t>() + 1) / static_cast<double>(limit));
   });
   const reconstruction::RoomModel& room = fusion.model;
-  const int64_t seen = fusion.frames, posed = fusion.posed;
-  const json& perFrame = fusion.perFrame;
-  const std::vector<double>& fuseMs = fusion.fuseMs;
+  const int64_t seen = fusion.frames;
   if (room.framesIntegrated() == 0)
-    throw capture::CaptureError(o.source, posed == 0 ? "no frame has a marker pose: nothing to build a room from"
+    throw capture::CaptureError(o.source, fusion.posed == 0 ? "no frame has a marker pose: nothing to build a room from"
                                                      : "no frame could be integrated (every pose disagreed or the budget was reached)");
   const reconstruction::RoomMesh mesh = room.mesh();
   if (mesh.positions.empty()) throw capture::CaptureError(o.source, "the fused room has no surface");
@@ -65,8 +63,6 @@ int runRoom(const RoomCliOptions& o) {
   ri.bytes = room.bytes();
   ri.session = fs::absolute(o.source).lexically_normal().string();
   reconstruction::saveRoom(o.out, mesh, ri);
-  std::vector<double> sorted = fuseMs;
-  std::sort(sorted.begin(), sorted.end());
   const json summary = {{"frames", seen},
                         {"integrated", room.framesIntegrated()},
                         {"refused", room.framesRefused()},
@@ -74,15 +70,15 @@ int runRoom(const RoomCliOptions& o) {
                         {"voxel_mib", static_cast<double>(room.bytes()) / (1 << 20)},
                         {"vertices", mesh.positions.size()},
                         {"triangles", mesh.triangleCount()},
-                        {"fuse_ms_median", sorted.empty() ? 0.0 : sorted[sorted.size() / 2]},
-                        {"per_frame", perFrame}};
+                        {"fuse_ms_median", fusion.medianFuseMs()},
+                        {"per_frame", fusion.perFrame}};
   if (o.json)
     std::printf("%s\n", summary.dump().c_str());
   else
     std::printf("wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms median\n",
                 o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(),
                 static_cast<double>(room.bytes()) / (1 << 20), room.framesIntegrated(), static_cast<long long>(seen),
-                summary["fuse_ms_median"].get<double>());
+                fusion.medianFuseMs());
   return 0;
 }
 

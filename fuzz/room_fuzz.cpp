@@ -10,11 +10,7 @@
 namespace fs = std::filesystem;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static const fs::path dir = [] {
-    const fs::path d = fs::path(access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp") / ("mrgi_fuzz_room_" + std::to_string(getpid()));
-    fs::create_directories(d);
-    return d;
-  }();
+  static const fs::path dir = mrgi::fuzz::scratchDir("mrgi_fuzz_room");
   const auto* nul = static_cast<const uint8_t*>(std::memchr(data, 0, size));
   const size_t split = nul ? static_cast<size_t>(nul - data) : size;
   std::ofstream(dir / "room.json", std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(split));

@@ -16,7 +16,7 @@ namespace {
 /// The session folder of this process: colour and depth PNGs of three 80x60 frames (a gradient, a plane).
 const fs::path& sessionDir() {
   static const fs::path dir = [] {
-    const fs::path d = fs::path(access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp") / ("mrgi_fuzz_session_" + std::to_string(getpid()));
+    const fs::path d = mrgi::fuzz::scratchDir("mrgi_fuzz_session");
     fs::create_directories(d / "colour");
     fs::create_directories(d / "depth");
     for (int i = 0; i < 3; ++i) {

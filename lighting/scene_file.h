@@ -59,6 +59,7 @@ struct SceneLight {
   cv::Vec3d irradiance{0, 0, 0}; ///< directional: irradiance at normal incidence, W/m^2 per channel
   double spotHalfAngleDeg = 45;  ///< spot: cone half angle
   double spotCos() const { return std::cos(spotHalfAngleDeg * CV_PI / 180.0); }
+  bool operator==(const SceneLight&) const = default;
 };
 
 /// Where lights come from: listed in the scene file, the ground truth stored in a session's manifest, or

@@ -194,7 +194,8 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
   }
   const o3d::geometry::RGBDImage rgbd(c, d);
   const o3d::camera::PinholeCameraIntrinsic intrinsic(K.width, K.height, K.fx, K.fy, K.cx, K.cy);
-  const Eigen::Matrix4d extrinsic = toEigen(capture::inversePose(T_world_camera));
+  const capture::Pose T_camera_world = capture::inversePose(T_world_camera);
+  const Eigen::Matrix4d extrinsic = toEigen(T_camera_world);
   impl_->volume.Integrate(rgbd, intrinsic, extrinsic);
 
   // Carving: Open3D updates only the blocks near this frame's points. Blocks farther in front of what the
@@ -204,7 +205,7 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
   for (auto& [index, unit] : impl_->volume.volume_units_) {
     if (touched.count(index) || !unit.volume_) continue;
     const cv::Vec3d centre((index[0] + 0.5) * 2 * half, (index[1] + 0.5) * 2 * half, (index[2] + 0.5) * 2 * half);
-    const cv::Vec3d pc = capture::transformPoint(capture::inversePose(T_world_camera), centre);
+    const cv::Vec3d pc = capture::transformPoint(T_camera_world, centre);
     if (pc[2] <= half) continue;
     const double u = K.fx * pc[0] / pc[2] + K.cx, v = K.fy * pc[1] / pc[2] + K.cy;
     const double margin = K.fx * 1.8 * half / pc[2];

@@ -1,6 +1,6 @@
 #include "runtime/frame_pipeline.h"
 
-#include <nanoflann.hpp>
+#include "lighting/point_index.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -224,25 +224,31 @@ FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler
   return r;
 }
 
+reconstruction::AlbedoLights FramePipeline::albedoLights(const capture::Pose& T_frame_marker) const {
+  reconstruction::AlbedoLights al;
+  for (const auto& l : setup_->lights) {
+    if (l.type == lighting::LightType::Directional) {
+      reconstruction::EstimatedLight e;
+      e.direction = -(capture::rotationOf(T_frame_marker) * l.direction);
+      e.power = l.irradiance;
+      al.distant.push_back(e);
+    } else {
+      al.points.push_back({capture::transformPoint(T_frame_marker, l.position), l.intensity});
+    }
+  }
+  al.ambientIrradiance = CV_PI * setup_->ambient;
+  return al;
+}
+
 RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameResult& r, gl::Profiler& profiler) const {
   RealSurface out;
   const capture::Pose T_camera_marker = capture::inversePose(*r.T_marker_camera);
   cv::Mat albedo;
   {
     auto s = profiler.cpu("albedo");
-    reconstruction::AlbedoLights al;
-    for (const auto& l : setup_->lights) {
-      if (l.type == lighting::LightType::Directional) {
-        reconstruction::EstimatedLight e;
-        e.direction = -(capture::rotationOf(T_camera_marker) * l.direction);
-        e.power = l.irradiance;
-        al.distant.push_back(e);
-      } else {
-        al.points.push_back({capture::transformPoint(T_camera_marker, l.position), l.intensity});
-      }
-    }
-    al.ambientIrradiance = CV_PI * setup_->ambient;
-    albedo = reconstruction::estimateAlbedo(frame.rgbd->colour, r.positions, r.normals, frame.rgbd->colourIntrinsics, al).albedo;
+    albedo = reconstruction::estimateAlbedo(frame.rgbd->colour, r.positions, r.normals, frame.rgbd->colourIntrinsics,
+                                            albedoLights(T_camera_marker))
+                 .albedo;
   }
   {
     auto s = profiler.cpu("mesh");
@@ -252,37 +258,16 @@ RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameR
   return out;
 }
 
-namespace {
-bool sameLights(const std::vector<lighting::SceneLight>& a, const std::vector<lighting::SceneLight>& b) {
-  if (a.size() != b.size()) return false;
-  for (size_t i = 0; i < a.size(); ++i)
-    if (a[i].type != b[i].type || a[i].position != b[i].position || a[i].direction != b[i].direction ||
-        a[i].intensity != b[i].intensity || a[i].irradiance != b[i].irradiance)
-      return false;
-  return true;
-}
-}  // namespace
 
 void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
-  if (roomLights_ && sameLights(*roomLights_, setup_->lights)) {
+  if (roomLights_ && *roomLights_ == setup_->lights) {
     info["skipped"].push_back("room_albedo");
     return;
   }
   auto s = profiler.cpu("room_albedo");
   const reconstruction::RoomMesh& room = *options_.room;
-  reconstruction::AlbedoLights al;  // the lighting world (marker frame), as the room
-  for (const auto& l : setup_->lights) {
-    if (l.type == lighting::LightType::Directional) {
-      reconstruction::EstimatedLight e;
-      e.direction = -l.direction;
-      e.power = l.irradiance;
-      al.distant.push_back(e);
-    } else {
-      al.points.push_back({l.position, l.intensity});
-    }
-  }
-  al.ambientIrradiance = CV_PI * setup_->ambient;
-  const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, al);
+  // The lighting world (marker frame), as the room.
+  const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose()));
   roomAlbedo_ = albedo.albedo;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
   for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
@@ -294,17 +279,9 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
 }
 
 struct FramePipeline::RoomIndex {
-  struct Cloud {
-    const std::vector<cv::Vec3f>& p;
-    size_t kdtree_get_point_count() const { return p.size(); }
-    float kdtree_get_pt(size_t i, size_t d) const { return p[i][static_cast<int>(d)]; }
-    template <class B>
-    bool kdtree_get_bbox(B&) const { return false; }
-  };
-  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud>, Cloud, 3, uint32_t>;
   explicit RoomIndex(const std::vector<cv::Vec3f>& positions) : cloud{positions}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
-  Cloud cloud;
-  Tree tree;
+  lighting::PointCloudAdaptor cloud;
+  lighting::PointKdTree tree;
 };
 
 void FramePipeline::roomViewMesh(const FrameResult& r, gl::Profiler& profiler) {

@@ -118,6 +118,9 @@ class FramePipeline {
   struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)
   std::shared_ptr<RoomIndex> roomIndex_;
   void useRoom(nlohmann::json& info, gl::Profiler& profiler);
+  /// The setup's lights and ambient as the albedo estimate takes them, in the frame T_frame_marker maps to
+  /// (the camera for a frame's pixels, the marker frame itself for the room).
+  reconstruction::AlbedoLights albedoLights(const capture::Pose& T_frame_marker) const;
   /// The frame's depth mesh, each vertex with the albedo of the nearest room vertex: the G-buffer's real surface.
   void roomViewMesh(const FrameResult& r, gl::Profiler& profiler);
   cv::Mat thumbnail_;  ///< of the frame being processed

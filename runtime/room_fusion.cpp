@@ -1,5 +1,6 @@
 #include "runtime/room_fusion.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "capture/error.h"
@@ -18,6 +19,13 @@ LightingSetup markerSetup(const capture::FrameSource& source) {
   }
   if (manifest) setup.T_world_marker = manifest->truth.T_world_marker;
   return setup;
+}
+
+double RoomFusion::medianFuseMs() const {
+  if (fuseMs.empty()) return 0.0;
+  std::vector<double> sorted = fuseMs;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
+  return sorted[sorted.size() / 2];
 }
 
 RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const reconstruction::RoomOptions& options,

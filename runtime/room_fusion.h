@@ -22,6 +22,8 @@ struct RoomFusion {
   int64_t frames = 0, posed = 0;
   std::vector<double> fuseMs;                    ///< per integrated-or-refused frame with a pose
   nlohmann::json perFrame = nlohmann::json::array();  ///< frame, integrated, refused, overlap, inconsistent, new_blocks, fuse_ms
+  /// Median of fuseMs (0 without any).
+  double medianFuseMs() const;
 };
 
 /// Reads up to `limit` frames (< 0: all) of `source`, integrates every `every`-th. `onFrame` (optional) sees

@@ -43,38 +43,6 @@ capture::Pose lookAt(const cv::Vec3d& eye, const cv::Vec3d& target) {
   return T;
 }
 
-/// Depth (metres along the optical axis) of the scene seen from T_world_camera, with Gaussian noise.
-cv::Mat renderDepth(const Scene& s, const capture::Pose& T, double noise, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> n(0.0, noise);
-  cv::Mat depth(kK.height, kK.width, CV_32FC1, cv::Scalar(0));
-  const cv::Vec3d o = capture::translationOf(T);
-  const cv::Matx33d R = capture::rotationOf(T);
-  for (int y = 0; y < kK.height; ++y)
-    for (int x = 0; x < kK.width; ++x) {
-      const cv::Vec3d dc((x - kK.cx) / kK.fx, (y - kK.cy) / kK.fy, 1.0);  // z = 1: t is the depth
-      const cv::Vec3d d = R * dc;
-      double t = 1e9;
-      if (d[2] < -1e-9) t = std::min(t, -o[2] / d[2]);                // floor
-      if (d[0] < -1e-9) t = std::min(t, (-0.9 - o[0]) / d[0]);       // wall
-      if (s.box) {
-        double t0 = -1e9, t1 = 1e9;
-        for (int k = 0; k < 3; ++k) {
-          if (std::abs(d[k]) < 1e-12) {
-            if (o[k] < s.boxMin[k] || o[k] > s.boxMax[k]) t0 = 1e9;
-            continue;
-          }
-          double a = (s.boxMin[k] - o[k]) / d[k], b = (s.boxMax[k] - o[k]) / d[k];
-          if (a > b) std::swap(a, b);
-          t0 = std::max(t0, a), t1 = std::min(t1, b);
-        }
-        if (t0 <= t1 && t0 > 0) t = std::min(t, t0);
-      }
-      if (t < 5.0) depth.at<float>(y, x) = static_cast<float>(t + n(rng));
-    }
-  return depth;
-}
-
 /// Where a camera ray first meets the scene (floor, wall, box), or t = inf.
 struct Hit {
   double t = 1e18;
@@ -104,6 +72,22 @@ Hit trace(const Scene& s, const cv::Vec3d& o, const cv::Vec3d& d) {
     }
   }
   return h;
+}
+
+/// Depth (metres along the optical axis) of the scene seen from T_world_camera, with Gaussian noise: rays
+/// with z = 1 in the camera frame, so the hit distance is the depth.
+cv::Mat renderDepth(const Scene& s, const capture::Pose& T, double noise, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, noise);
+  cv::Mat depth(kK.height, kK.width, CV_32FC1, cv::Scalar(0));
+  const cv::Vec3d o = capture::translationOf(T);
+  const cv::Matx33d R = capture::rotationOf(T);
+  for (int y = 0; y < kK.height; ++y)
+    for (int x = 0; x < kK.width; ++x) {
+      const double t = trace(s, o, R * cv::Vec3d((x - kK.cx) / kK.fx, (y - kK.cy) / kK.fy, 1.0)).t;
+      if (t < 5.0) depth.at<float>(y, x) = static_cast<float>(t + n(rng));
+    }
+  return depth;
 }
 
 /// The colour a camera sees of a Lambertian scene of one albedo lit by point lights (shadows included),

@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include <nanoflann.hpp>
 
 #include "capture/colour.h"
+#include "lighting/point_index.h"
 
 namespace mrgi::lighting {
 namespace {
@@ -130,16 +130,6 @@ SparsePoints sampleSparsePoints(const Mesh& mesh, int count) {
   return out;
 }
 
-namespace {
-struct PointCloud {
-  const std::vector<cv::Vec3f>& p;
-  size_t kdtree_get_point_count() const { return p.size(); }
-  float kdtree_get_pt(size_t i, size_t d) const { return p[i][static_cast<int>(d)]; }
-  template <class B>
-  bool kdtree_get_bbox(B&) const { return false; }
-};
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointCloud>, PointCloud, 3, uint32_t>;
-}  // namespace
 
 VertexWeights vertexWeights(const Mesh& mesh, SparsePoints& points) {
   constexpr int K = VertexWeights::kNeighbours;
@@ -148,8 +138,8 @@ VertexWeights vertexWeights(const Mesh& mesh, SparsePoints& points) {
   w.index.assign(nv * K, -1);
   w.weight.assign(nv * K, 0.f);
   if (points.positions.empty()) return w;
-  const PointCloud cloud{points.positions};
-  const KdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  const PointCloudAdaptor cloud{points.positions};
+  const PointKdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   const int k = static_cast<int>(std::min<size_t>(K, points.positions.size()));
   const float diag = static_cast<float>(cv::norm(mesh.boundsMax - mesh.boundsMin));
   const float coincide = 1e-6f * std::max(diag, 1e-6f);
