@@ -35,12 +35,9 @@ int runImport(const ImportOptions& o) {
   const fs::path dir(o.input);
   const json cam = readJson(dir / "cam.json");
   capture::SessionManifest m;
-  try {
-    m.colour = {cam.at("w").get<int>(), cam.at("h").get<int>(), cam.at("px").get<double>(), cam.at("py").get<double>(),
-                cam.at("u0").get<double>(), cam.at("v0").get<double>()};
-  } catch (const json::exception& e) {
-    throw capture::CaptureError((dir / "cam.json").string(), std::string("missing intrinsics: ") + e.what());
-  }
+  const std::string camFile = (dir / "cam.json").string();
+  m.colour = {capture::jsonInt(cam, "w", camFile), capture::jsonInt(cam, "h", camFile), capture::jsonNumber(cam, "px", camFile),
+              capture::jsonNumber(cam, "py", camFile), capture::jsonNumber(cam, "u0", camFile), capture::jsonNumber(cam, "v0", camFile)};
   m.depth = m.colour;  // depth is already aligned to colour (depth_M_color = identity)
   m.depthUnitsMetres = 0.001;
   double tagSize = 0;
@@ -51,9 +48,7 @@ int runImport(const ImportOptions& o) {
   if (!(tagSize > 0)) throw capture::CaptureError((dir / "apriltag_data.json").string(), "no tag_size");
   m.marker = capture::MarkerSpec{o.family, tagSize, o.tagId};
   capture::SessionWriter writer(o.out, m);
-  if (cam.contains("depthScale") && !cam["depthScale"].is_number())
-    throw capture::CaptureError((dir / "cam.json").string(), "depthScale must be a number");
-  const double scale = cam.value("depthScale", 0.001);
+  const double scale = capture::jsonNumberOr(cam, "depthScale", 0.001, camFile);
   for (int i = 0;; ++i) {
     char name[64];
     std::snprintf(name, sizeof name, "color_image_%04d.png", i);

@@ -1,5 +1,7 @@
 #include "capture/json_io.h"
 
+#include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "capture/error.h"
@@ -28,6 +30,48 @@ nlohmann::json parseJson(std::istream& in, const std::string& file) {
   std::stringstream ss;
   ss << in.rdbuf();
   return parseJson(ss.str(), file);
+}
+
+const nlohmann::json& jsonKey(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path) {
+  if (!j.is_object() || !j.contains(key)) throw InputError(file, "missing key '" + path + key + "'");
+  return j.at(key);
+}
+
+double jsonNumber(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path) {
+  const nlohmann::json& v = jsonKey(j, key, file, path);
+  if (!v.is_number() || !std::isfinite(v.get<double>()))
+    throw InputError(file, "key '" + path + key + "' must be a finite number");
+  return v.get<double>();
+}
+
+int jsonInt(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path) {
+  const nlohmann::json& v = jsonKey(j, key, file, path);
+  if (!v.is_number_integer()) throw InputError(file, "key '" + path + key + "' must be an integer");
+  // Read as 64 bits and range-checked: 4294967297 must not wrap to 1.
+  const bool fits = v.is_number_unsigned() ? v.get<uint64_t>() <= static_cast<uint64_t>(std::numeric_limits<int>::max())
+                                           : v.get<int64_t>() >= std::numeric_limits<int>::min() &&
+                                                 v.get<int64_t>() <= std::numeric_limits<int>::max();
+  if (!fits) throw InputError(file, "key '" + path + key + "' is out of range (" + v.dump() + ")");
+  return static_cast<int>(v.get<int64_t>());
+}
+
+std::string jsonString(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path) {
+  const nlohmann::json& v = jsonKey(j, key, file, path);
+  if (!v.is_string()) throw InputError(file, "key '" + path + key + "' must be a string");
+  return v.get<std::string>();
+}
+
+double jsonNumberOr(const nlohmann::json& j, const std::string& key, double fallback, const std::string& file, const std::string& path) {
+  return j.is_object() && j.contains(key) ? jsonNumber(j, key, file, path) : fallback;
+}
+
+int jsonIntOr(const nlohmann::json& j, const std::string& key, int fallback, const std::string& file, const std::string& path) {
+  return j.is_object() && j.contains(key) ? jsonInt(j, key, file, path) : fallback;
+}
+
+std::string jsonStringOr(const nlohmann::json& j, const std::string& key, const std::string& fallback, const std::string& file,
+                       const std::string& path) {
+  return j.is_object() && j.contains(key) ? jsonString(j, key, file, path) : fallback;
 }
 
 }  // namespace mrgi::capture

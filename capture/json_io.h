@@ -15,4 +15,19 @@ constexpr int kMaxJsonDepth = 64;
 nlohmann::json parseJson(const std::string& text, const std::string& fileForErrors);
 nlohmann::json parseJson(std::istream& in, const std::string& fileForErrors);
 
+/// Typed access to one key of an object, every error naming the file and the key's path:
+/// "<file>: missing key 'colour.fx'", "...: key 'colour.fx' must be a finite number",
+/// "...: key 'frames' must be an integer", "...: key 'frames' is out of range (1e30)".
+/// `path` is the prefix of the key in messages ("colour."). Never converts a number that does not fit
+/// (nlohmann's get<int>() of 1e30 is undefined behaviour).
+const nlohmann::json& jsonKey(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path = "");
+double jsonNumber(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path = "");
+int jsonInt(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path = "");
+std::string jsonString(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path = "");
+/// The same, with `fallback` when the key is absent (a key present with the wrong type is still an error).
+double jsonNumberOr(const nlohmann::json& j, const std::string& key, double fallback, const std::string& file, const std::string& path = "");
+int jsonIntOr(const nlohmann::json& j, const std::string& key, int fallback, const std::string& file, const std::string& path = "");
+std::string jsonStringOr(const nlohmann::json& j, const std::string& key, const std::string& fallback, const std::string& file,
+                       const std::string& path = "");
+
 }  // namespace mrgi::capture

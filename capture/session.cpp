@@ -29,29 +29,15 @@ namespace {
 constexpr const char* kManifest = "manifest.json";
 constexpr const char* kIndex = "frames.jsonl";
 
-// --- JSON field access that names the key in every error ---------------------------------------------
-
+// JSON field access that names the key in every error: capture/json_io.h.
 const json& need(const json& j, const std::string& key, const std::string& file, const std::string& path) {
-  if (!j.is_object() || !j.contains(key)) throw CaptureError(file, "missing key '" + path + key + "'");
-  return j.at(key);
+  return jsonKey(j, key, file, path);
 }
-
 double number(const json& j, const std::string& key, const std::string& file, const std::string& path) {
-  const json& v = need(j, key, file, path);
-  if (!v.is_number() || !std::isfinite(v.get<double>()))
-    throw CaptureError(file, "key '" + path + key + "' must be a finite number");
-  return v.get<double>();
+  return jsonNumber(j, key, file, path);
 }
-
 int integer(const json& j, const std::string& key, const std::string& file, const std::string& path) {
-  const json& v = need(j, key, file, path);
-  if (!v.is_number_integer()) throw CaptureError(file, "key '" + path + key + "' must be an integer");
-  // Read as 64 bits and range-checked: 4294967297 must not wrap to 1.
-  const bool fits = v.is_number_unsigned() ? v.get<uint64_t>() <= static_cast<uint64_t>(std::numeric_limits<int>::max())
-                                           : v.get<int64_t>() >= std::numeric_limits<int>::min() &&
-                                                 v.get<int64_t>() <= std::numeric_limits<int>::max();
-  if (!fits) throw CaptureError(file, "key '" + path + key + "' is out of range (" + v.dump() + ")");
-  return static_cast<int>(v.get<int64_t>());
+  return jsonInt(j, key, file, path);
 }
 
 std::vector<double> numbers(const json& v, size_t n, const std::string& file, const std::string& key) {

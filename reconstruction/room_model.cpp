@@ -439,15 +439,11 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int64_t>() != 1)
     throw capture::InputError(json.string(), "version: only version 1 is known");
   RoomInfo ri;
-  try {
-    ri.options.voxelM = j.at("voxel_m").get<double>();
-    ri.options.truncM = j.at("trunc_m").get<double>();
-    ri.framesIntegrated = j.value("frames_integrated", 0);
-    ri.framesRefused = j.value("frames_refused", 0);
-    ri.session = j.value("session", std::string());
-  } catch (const nlohmann::json::exception&) {
-    throw capture::InputError(json.string(), "voxel_m, trunc_m, frames_* or session missing or of the wrong type");
-  }
+  ri.options.voxelM = capture::jsonNumber(j, "voxel_m", json.string());
+  ri.options.truncM = capture::jsonNumber(j, "trunc_m", json.string());
+  ri.framesIntegrated = capture::jsonIntOr(j, "frames_integrated", 0, json.string());
+  ri.framesRefused = capture::jsonIntOr(j, "frames_refused", 0, json.string());
+  ri.session = capture::jsonStringOr(j, "session", std::string(), json.string());
   ri.options.validate(json.string());
   if (!fs::is_regular_file(ply, ec)) throw capture::InputError(ply.string(), "room mesh is missing");
   capture::checkPlyFile(ply.string());

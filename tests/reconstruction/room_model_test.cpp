@@ -318,6 +318,19 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
     return std::string(std::istreambuf_iterator<char>(in), {});
   }();
   EXPECT_NE(with(clipped, json).find((dir / "room.ply").string() + ": malformed PLY: face"), std::string::npos) << with(clipped, json);
+  // Found by the room fuzzer under UBSan: a count of 1e30 converted to int (undefined behaviour); typed keys
+  // refuse it in one line.
+  const std::string overflow = [&] {
+    std::ifstream in(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/room_json_frames_overflow.json");
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  EXPECT_NE(with(ply, overflow).find((dir / "room.json").string() + ": key 'frames_integrated' must be an integer"), std::string::npos)
+      << with(ply, overflow);
+  EXPECT_NE(with(ply, R"({"format": "mrgi-room", "version": 1, "voxel_m": 0.02, "trunc_m": 0.08, "frames_refused": 4294967297})")
+                .find("key 'frames_refused' is out of range (4294967297)"),
+            std::string::npos);
+  EXPECT_NE(with(ply, R"({"format": "mrgi-room", "version": 1, "voxel_m": "a", "trunc_m": 0.08})").find("key 'voxel_m' must be a finite number"),
+            std::string::npos);
   const std::string e = with(outOfRange, json);
   EXPECT_NE(e.find("malformed PLY: face 0 names vertex 7 of 3"), std::string::npos) << e;
   for (const std::string& msg : {e}) EXPECT_EQ(msg.find('\n'), std::string::npos);
