@@ -61,6 +61,7 @@ int runRoom(const RoomCliOptions& o) {
   ri.framesRefused = room.framesRefused();
   ri.blocks = room.blocks();
   ri.bytes = room.bytes();
+  ri.appearanceBytes = room.appearanceBytes();
   ri.session = fs::absolute(o.source).lexically_normal().string();
   reconstruction::saveRoom(o.out, mesh, ri);
   const json summary = {{"frames", seen},
@@ -68,6 +69,8 @@ int runRoom(const RoomCliOptions& o) {
                         {"refused", room.framesRefused()},
                         {"blocks", room.blocks()},
                         {"voxel_mib", static_cast<double>(room.bytes()) / (1 << 20)},
+                        {"appearance_mib", static_cast<double>(room.appearanceBytes()) / (1 << 20)},
+                        {"saturated_vertices", std::count(mesh.saturated.begin(), mesh.saturated.end(), 1)},
                         {"vertices", mesh.positions.size()},
                         {"triangles", mesh.triangleCount()},
                         {"fuse_ms_median", fusion.medianFuseMs()},
@@ -87,7 +90,7 @@ int runRoom(const RoomCliOptions& o) {
 Action addRoom(CLI::App& app) {
   auto o = std::make_shared<RoomCliOptions>();
   app.add_option("source", o->source, "recording to build the room from (session, TUM sequence, .oni file)")->required();
-  app.add_option("--out", o->out, "room folder to write (room.ply, room.json)")->required();
+  app.add_option("--out", o->out, "room folder to write (room.ply, room_appearance.npy, room.json)")->required();
   app.add_option("--pose", o->pose, "camera pose per frame: marker (tracked tag) or ground-truth (the session's)")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
   app.add_option("--frames", o->frames, "read at most N frames (0 = all)")->check(CLI::NonNegativeNumber);

@@ -244,6 +244,8 @@ void SessionWriter::append(const Frame& frame) {
     writeFileAtomically(dir / depthName, encodePng(depthToUnits(f.depth, manifest_.depthUnitsMetres), depthName));
     line["colour"] = colourName;
     line["depth"] = depthName;
+    if (!(f.exposure > 0) || !std::isfinite(f.exposure)) throw CaptureError(dir_, "colour exposure must be positive and finite");
+    if (f.exposure != 1.0) line["colour_exposure"] = f.exposure;
   }
   if (frame.fisheye) {
     if (!manifest_.fisheye) throw CaptureError(dir_, "fisheye frame given but the manifest has no fisheye calibration");
@@ -344,6 +346,10 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
       e.exposure = number(j, "exposure", where, "");
       if (!(e.exposure > 0)) throw CaptureError(where, "exposure " + std::to_string(e.exposure) + " must be positive");
     }
+    if (j.contains("colour_exposure")) {
+      e.colourExposure = number(j, "colour_exposure", where, "");
+      if (!(e.colourExposure > 0)) throw CaptureError(where, "colour_exposure " + std::to_string(e.colourExposure) + " must be positive");
+    }
     if (j.contains("T_world_camera")) e.pose = poseFromJson(j["T_world_camera"], where, "T_world_camera");
     entries_.push_back(std::move(e));
   }
@@ -386,6 +392,7 @@ Frame SessionSource::read(int64_t i) const {
     r.depthIntrinsics = manifest_.depth;
     r.depthRegistered = manifest_.depthRegistered;
     r.T_colour_depth = manifest_.T_colour_depth;
+    r.exposure = e.colourExposure;
     f.rgbd = std::move(r);
   }
   if (!e.fisheye.empty()) {

@@ -89,7 +89,7 @@ class SessionSource final : public FrameSource {
     int64_t index;
     double t;
     std::string colour, depth, fisheye;
-    double exposure = 1.0;
+    double exposure = 1.0, colourExposure = 1.0;
     std::optional<Pose> pose;
   };
   std::string dir_;

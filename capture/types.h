@@ -71,6 +71,9 @@ struct RgbdFrame {
   /// camera (same size, same intrinsics) and this is the identity.
   Pose T_colour_depth = identityPose();
   bool depthRegistered = true;
+  /// Relative exposure of the colour image: linear radiance = decoded value / exposure (1 unless the
+  /// recording says otherwise: frames.jsonl's "colour_exposure").
+  double exposure = 1.0;
 };
 
 struct FisheyeFrame {

@@ -1,8 +1,10 @@
-// Saved room models (mrgi room): room.json and room.ply from the input, split at the first NUL byte, then
-// loaded as replay --room does (our PLY check, then Open3D's PLY reader, then every index checked).
+// Saved room models (mrgi room): room.json, room.ply and room_appearance.npy from the input, split at the
+// first two NUL bytes, then loaded as replay --room does (our PLY check, then Open3D's PLY reader, every
+// index checked, then the appearance array against the mesh).
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <string_view>
 
 #include "fuzz/fuzz_common.h"
 #include "reconstruction/room_model.h"
@@ -11,12 +13,13 @@ namespace fs = std::filesystem;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const fs::path dir = mrgi::fuzz::scratchDir("mrgi_fuzz_room");
-  const auto* nul = static_cast<const uint8_t*>(std::memchr(data, 0, size));
-  const size_t split = nul ? static_cast<size_t>(nul - data) : size;
-  std::ofstream(dir / "room.json", std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(split));
-  const size_t rest = nul ? size - split - 1 : 0;
-  std::ofstream(dir / "room.ply", std::ios::binary | std::ios::trunc)
-      .write(reinterpret_cast<const char*>(data) + split + (nul ? 1 : 0), static_cast<std::streamsize>(rest));
+  std::string_view rest(reinterpret_cast<const char*>(data), size);
+  for (const char* name : {"room.json", "room.ply", "room_appearance.npy"}) {
+    const size_t nul = std::string(name) == "room_appearance.npy" ? std::string_view::npos : rest.find('\0');
+    const std::string_view part = rest.substr(0, nul);
+    std::ofstream(dir / name, std::ios::binary | std::ios::trunc).write(part.data(), static_cast<std::streamsize>(part.size()));
+    rest = nul == std::string_view::npos ? std::string_view() : rest.substr(nul + 1);
+  }
   mrgi::fuzz::expectInputErrorOnly([&] { mrgi::reconstruction::loadRoom(dir.string()); });
   return 0;
 }

@@ -21,6 +21,7 @@
 #include "capture/error.h"
 #include "capture/image_io.h"
 #include "capture/json_io.h"
+#include "capture/npz.h"
 #include "capture/ply_check.h"
 
 namespace fs = std::filesystem;
@@ -73,12 +74,101 @@ void RoomOptions::validate(const std::string& where) const {
   check(std::isfinite(outlierM) && outlierM > 0 && outlierM <= 1, "outlier_m", "in (0, 1]");
   check(std::isfinite(outlierFraction) && outlierFraction > 0 && outlierFraction <= 1, "outlier_fraction", "in (0, 1]");
   check(std::isfinite(minOverlap) && minOverlap >= 0 && minOverlap <= 1, "min_overlap", "in [0, 1]");
+  check(appearanceStride >= 1 && appearanceStride <= 64, "appearance_stride", "in [1, 64]");
+  check(std::isfinite(grazingCos) && grazingCos >= 0 && grazingCos < 1, "grazing_cos", "in [0, 1)");
+  check(clipLevel >= 1 && clipLevel <= 256, "clip_level", "in [1, 256]");
+  check(appearanceMemory >= 1 && appearanceMemory <= 65535, "appearance_memory", "in [1, 65535]");
 }
 
 struct RoomModel::Impl {
   explicit Impl(const RoomOptions& o)
       : volume(o.voxelM, o.truncM, o3d::pipelines::integration::TSDFVolumeColorType::RGB8, kBlockResolution, 4) {}
   o3d::pipelines::integration::ScalableTSDFVolume volume;
+
+  /// Fused appearance per voxel (key: floor(p / voxel), as the TSDF's voxels): confidence-weighted sum of
+  /// accepted observations' radiance, and for clipped ones a lower bound.
+  struct Appearance {
+    float sum[3] = {0, 0, 0};
+    float weight = 0;
+    float lower[3] = {0, 0, 0};
+    uint16_t count = 0, clipped = 0;
+  };
+  std::unordered_map<Eigen::Vector3i, Appearance, Hash> appearance;
+
+  void observe(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K, const capture::Pose& T, double exposure,
+               const RoomOptions& o) {
+    float lut[256];
+    for (int i = 0; i < 256; ++i) lut[i] = static_cast<float>(capture::srgbToLinear(i / 255.f) / exposure);
+    const int s = o.appearanceStride;
+    const double inv = 1.0 / o.voxelM;
+    const float fade = static_cast<float>(o.appearanceMemory - 1) / static_cast<float>(o.appearanceMemory);
+    auto point = [&](int x, int y, float d) { return cv::Vec3d((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d); };
+    for (int y = s; y + s < depth.rows; y += s)
+      for (int x = s; x + s < depth.cols; x += s) {
+        const float d = depth.at<float>(y, x);
+        if (!(d > 0)) continue;
+        const float l = depth.at<float>(y, x - s), r = depth.at<float>(y, x + s), u = depth.at<float>(y - s, x),
+                    b = depth.at<float>(y + s, x);
+        // A depth edge mixes two surfaces' colours: no observation of either.
+        const float tol = 0.05f * d;
+        if (!(l > 0 && r > 0 && u > 0 && b > 0) || std::abs(l - d) > tol || std::abs(r - d) > tol || std::abs(u - d) > tol ||
+            std::abs(b - d) > tol)
+          continue;
+        const cv::Vec3d pc = point(x, y, d);
+        cv::Vec3d n = (point(x + s, y, r) - point(x - s, y, l)).cross(point(x, y + s, b) - point(x, y - s, u));
+        const double nn = cv::norm(n);
+        if (!(nn > 0)) continue;
+        const double cosView = std::abs(n.dot(pc)) / (nn * cv::norm(pc));
+        if (cosView < o.grazingCos) continue;
+        const cv::Vec3d p = capture::transformPoint(T, pc);
+        const Eigen::Vector3i key(static_cast<int>(std::floor(p[0] * inv)), static_cast<int>(std::floor(p[1] * inv)),
+                                  static_cast<int>(std::floor(p[2] * inv)));
+        Appearance& a = appearance[key];
+        const cv::Vec3b c = colour.at<cv::Vec3b>(y, x);
+        if (std::max({c[0], c[1], c[2]}) >= o.clipLevel) {
+          for (int k = 0; k < 3; ++k) a.lower[k] = std::max(a.lower[k], lut[c[k]]);
+          if (a.clipped < 65535) ++a.clipped;
+          continue;
+        }
+        const float w = static_cast<float>(cosView / (static_cast<double>(d) * d));
+        if (a.count >= o.appearanceMemory) {
+          for (float& v : a.sum) v *= fade;
+          a.weight *= fade;
+        } else {
+          ++a.count;
+        }
+        for (int k = 0; k < 3; ++k) a.sum[k] += w * lut[c[k]];
+        a.weight += w;
+      }
+  }
+
+  /// Confidence-weighted average of the 27 voxels around p with a tent kernel 1.5 voxels wide per axis
+  /// (every one of them counts: a vertex on a voxel's centre plane still sees its neighbours' observations,
+  /// which sparse sampling may have put only there): radiance, confidence, saturated.
+  bool lookup(const Eigen::Vector3d& p, double voxel, cv::Vec3f& radiance, float& confidence, bool& saturated) const {
+    const Eigen::Vector3d g = p / voxel;
+    const Eigen::Vector3i centre(static_cast<int>(std::floor(g[0])), static_cast<int>(std::floor(g[1])), static_cast<int>(std::floor(g[2])));
+    double sum[3] = {0, 0, 0}, weight = 0;
+    float lower[3] = {0, 0, 0};
+    bool any = false;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const Eigen::Vector3i key = centre + Eigen::Vector3i(dx, dy, dz);
+          const auto it = appearance.find(key);
+          if (it == appearance.end()) continue;
+          any = true;
+          double t = 1;
+          for (int k = 0; k < 3; ++k) t *= 1.5 - std::abs(g[k] - (key[k] + 0.5));
+          for (int k = 0; k < 3; ++k) sum[k] += t * it->second.sum[k], lower[k] = std::max(lower[k], it->second.lower[k]);
+          weight += t * it->second.weight;
+        }
+    if (!any) return false;
+    saturated = !(weight > 0);
+    confidence = static_cast<float>(weight);
+    for (int k = 0; k < 3; ++k) radiance[k] = saturated ? lower[k] : static_cast<float>(sum[k] / weight);
+    return true;
+  }
 
   const o3d::geometry::TSDFVoxel* voxel(const Eigen::Vector3i& global) const {
     const Eigen::Vector3i block = floorDiv(global, kBlockResolution);
@@ -163,7 +253,8 @@ RoomIntegration RoomModel::checkPose(const cv::Mat& depth, const capture::Intrin
 }
 
 RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colour, const capture::Intrinsics& K,
-                                     const capture::Pose& T_world_camera) {
+                                     const capture::Pose& T_world_camera, double exposure) {
+  if (!(exposure > 0) || !std::isfinite(exposure)) throw std::invalid_argument("RoomModel::integrate: exposure must be positive");
   if (depthIn.type() != CV_32FC1 || colour.type() != CV_8UC3 || depthIn.size() != colour.size() ||
       depthIn.cols != K.width || depthIn.rows != K.height || !K.valid())
     throw std::invalid_argument("RoomModel::integrate: depth (CV_32FC1) and colour (CV_8UC3) must match the intrinsics");
@@ -212,6 +303,7 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
     if (u < -margin || v < -margin || u > K.width + margin || v > K.height + margin) continue;
     unit.volume_->Integrate(rgbd, intrinsic, extrinsic);
   }
+  impl_->observe(depth, colour, K, T_world_camera, exposure, options_);
   r.integrated = true;
   ++integrated_;
   return r;
@@ -228,9 +320,18 @@ RoomMesh RoomModel::mesh() const {
     const auto& n = m->vertex_normals_[i];
     out.positions.emplace_back(static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2]));
     out.normals.emplace_back(static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2]));
-    const Eigen::Vector3d col = m->HasVertexColors() ? m->vertex_colors_[i] : Eigen::Vector3d(0.5, 0.5, 0.5);
-    out.colours.emplace_back(static_cast<float>(capture::srgbToLinear(col[0])), static_cast<float>(capture::srgbToLinear(col[1])),
-                             static_cast<float>(capture::srgbToLinear(col[2])));
+    cv::Vec3f L;
+    float confidence = 0;
+    bool saturated = false;
+    if (!impl_->lookup(p, options_.voxelM, L, confidence, saturated)) {
+      // No accepted or clipped observation near the vertex (every one grazing or on an edge): Open3D's
+      // running average of the colours it integrated, at exposure 1.
+      const Eigen::Vector3d col = m->HasVertexColors() ? m->vertex_colors_[i] : Eigen::Vector3d(0.5, 0.5, 0.5);
+      for (int k = 0; k < 3; ++k) L[k] = static_cast<float>(capture::srgbToLinear(static_cast<float>(col[k])));
+    }
+    out.radiance.push_back(L);
+    out.confidence.push_back(confidence);
+    out.saturated.push_back(saturated ? 1 : 0);
   }
   out.indices.reserve(m->triangles_.size() * 3);
   for (const auto& t : m->triangles_)
@@ -239,6 +340,12 @@ RoomMesh RoomModel::mesh() const {
 }
 
 size_t RoomModel::blocks() const { return impl_->volume.volume_units_.size(); }
+size_t RoomModel::appearanceBytes() const {
+  // Entries plus the hash table's node and bucket overhead (libstdc++: a node holds the pair and a next
+  // pointer and the cached hash; a bucket is a pointer).
+  const size_t node = sizeof(std::pair<const Eigen::Vector3i, Impl::Appearance>) + 2 * sizeof(void*);
+  return impl_->appearance.size() * node + impl_->appearance.bucket_count() * sizeof(void*);
+}
 size_t RoomModel::bytes() const {
   return blocks() * static_cast<size_t>(kBlockResolution * kBlockResolution * kBlockResolution) * sizeof(o3d::geometry::TSDFVoxel);
 }
@@ -302,7 +409,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   const double saturated = capture::srgbToLinear(options.saturationLevel / 255.f);
   for (size_t i = 0; i < n; ++i) {
     const cv::Vec3d p(mesh.positions[i]), nrm(mesh.normals[i]);
-    const cv::Vec3d Lr(mesh.colours[i]);
+    const cv::Vec3d Lr(mesh.radiance[i]);
     cv::Vec3d E = lights.ambientIrradiance, direct(0, 0, 0), normalSum(0, 0, 0), blocked(0, 0, 0);
     for (size_t l = 0; l < L; ++l) {
       cv::Vec3d e;
@@ -328,7 +435,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
     E += direct;
     const double sumN = normalSum[0] + normalSum[1] + normalSum[2], sumD = direct[0] + direct[1] + direct[2];
     AlbedoStatus st = AlbedoStatus::Measured;
-    if (std::max({Lr[0], Lr[1], Lr[2]}) >= saturated)
+    if (i < mesh.saturated.size() ? mesh.saturated[i] != 0 : std::max({Lr[0], Lr[1], Lr[2]}) >= saturated)
       st = AlbedoStatus::Saturated;
     else if (blocked[0] + blocked[1] + blocked[2] > 0.2 * (sumD + blocked[0] + blocked[1] + blocked[2]))
       st = AlbedoStatus::Shadowed;
@@ -383,11 +490,43 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
 
 // ---- saved rooms --------------------------------------------------------------------------------------
 
+namespace {
+
+constexpr int kAppearanceColumns = 5;  // r, g, b, confidence, saturated
+
+/// ROOM/room_appearance.npy: float32 little-endian, C order, (vertices, 5).
+std::string appearanceNpy(const RoomMesh& mesh) {
+  const size_t n = mesh.positions.size();
+  std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(n) + ", " +
+                       std::to_string(kAppearanceColumns) + "), }";
+  // Magic, version 1.0, header length; the whole preamble padded with spaces to a multiple of 64, ending in '\n'.
+  const size_t preamble = 10;
+  while ((preamble + header.size() + 1) % 64 != 0) header += ' ';
+  header += '\n';
+  std::string out("\x93NUMPY\x01\x00", 8);
+  out += static_cast<char>(header.size() & 0xff);
+  out += static_cast<char>(header.size() >> 8);
+  out += header;
+  std::vector<float> rows(n * kAppearanceColumns);
+  for (size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) rows[i * kAppearanceColumns + k] = mesh.radiance[i][k];
+    rows[i * kAppearanceColumns + 3] = i < mesh.confidence.size() ? mesh.confidence[i] : 0.f;
+    rows[i * kAppearanceColumns + 4] = i < mesh.saturated.size() && mesh.saturated[i] ? 1.f : 0.f;
+  }
+  out.append(reinterpret_cast<const char*>(rows.data()), rows.size() * sizeof(float));
+  return out;
+}
+
+}  // namespace
+
 void saveRoom(const std::string& dir, const RoomMesh& mesh, const RoomInfo& info) {
   quietOpen3d();
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw capture::InputError(dir, "cannot create: " + ec.message());
+  // The appearance first and room.json last: a room cut short by a crash has files that disagree on the
+  // vertex count, which loadRoom refuses, rather than a mix that loads.
+  capture::writeFileAtomically(fs::path(dir) / "room_appearance.npy", appearanceNpy(mesh));
   o3d::geometry::TriangleMesh m;
   m.vertices_.reserve(mesh.positions.size());
   cv::Vec3f lo(1e30f, 1e30f, 1e30f), hi(-1e30f, -1e30f, -1e30f);
@@ -395,7 +534,7 @@ void saveRoom(const std::string& dir, const RoomMesh& mesh, const RoomInfo& info
     const cv::Vec3f& p = mesh.positions[i];
     m.vertices_.emplace_back(p[0], p[1], p[2]);
     m.vertex_normals_.emplace_back(mesh.normals[i][0], mesh.normals[i][1], mesh.normals[i][2]);
-    const cv::Vec3f& c = mesh.colours[i];
+    const cv::Vec3f& c = mesh.radiance[i];
     m.vertex_colors_.emplace_back(capture::linearToSrgb(std::clamp(c[0], 0.f, 1.f)), capture::linearToSrgb(std::clamp(c[1], 0.f, 1.f)),
                                   capture::linearToSrgb(std::clamp(c[2], 0.f, 1.f)));
     for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
@@ -409,7 +548,9 @@ void saveRoom(const std::string& dir, const RoomMesh& mesh, const RoomInfo& info
   fs::rename(tmp, ply, ec);
   if (ec) throw capture::InputError(ply.string(), "cannot rename: " + ec.message());
   nlohmann::json j = {{"format", "mrgi-room"},
-                      {"version", 1},
+                      {"version", 2},
+                      {"appearance", "room_appearance.npy"},
+                      {"appearance_bytes", info.appearanceBytes},
                       {"generated_by", "mrgi room"},
                       {"mesh", "room.ply"},
                       {"voxel_m", info.options.voxelM},
@@ -436,8 +577,9 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   const nlohmann::json j = capture::parseJson(in, json.string());
   if (!j.is_object() || !j.contains("format") || !j["format"].is_string() || j["format"].get<std::string>() != "mrgi-room")
     throw capture::InputError(json.string(), "format: not \"mrgi-room\"");
-  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int64_t>() != 1)
-    throw capture::InputError(json.string(), "version: only version 1 is known");
+  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int64_t>() < 1 || j["version"].get<int64_t>() > 2)
+    throw capture::InputError(json.string(), "version: only versions 1 and 2 are known");
+  const int version = static_cast<int>(j["version"].get<int64_t>());
   RoomInfo ri;
   ri.options.voxelM = capture::jsonNumber(j, "voxel_m", json.string());
   ri.options.truncM = capture::jsonNumber(j, "trunc_m", json.string());
@@ -461,9 +603,9 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
     out.positions.emplace_back(static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2]));
     out.normals.emplace_back(static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2]));
     const Eigen::Vector3d c = colours ? m.vertex_colors_[i] : Eigen::Vector3d(0.5, 0.5, 0.5);
-    out.colours.emplace_back(static_cast<float>(capture::srgbToLinear(std::clamp(c[0], 0.0, 1.0))),
-                             static_cast<float>(capture::srgbToLinear(std::clamp(c[1], 0.0, 1.0))),
-                             static_cast<float>(capture::srgbToLinear(std::clamp(c[2], 0.0, 1.0))));
+    out.radiance.emplace_back(static_cast<float>(capture::srgbToLinear(std::clamp(c[0], 0.0, 1.0))),
+                              static_cast<float>(capture::srgbToLinear(std::clamp(c[1], 0.0, 1.0))),
+                              static_cast<float>(capture::srgbToLinear(std::clamp(c[2], 0.0, 1.0))));
   }
   for (size_t t = 0; t < m.triangles_.size(); ++t)
     for (int k = 0; k < 3; ++k) {
@@ -473,6 +615,33 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
                                                     std::to_string(m.vertices_.size()));
       out.indices.push_back(static_cast<uint32_t>(i));
     }
+  const size_t n = out.positions.size();
+  if (version >= 2) {
+    const fs::path npy = fs::path(dir) / "room_appearance.npy";
+    if (!fs::is_regular_file(npy, ec)) throw capture::InputError(npy.string(), "room appearance is missing");
+    std::ifstream a(npy, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(a)), std::istreambuf_iterator<char>());
+    const cv::Mat rows = capture::parseNpy(bytes, npy.string());
+    if (rows.type() != CV_32FC1 || rows.cols != kAppearanceColumns || static_cast<size_t>(rows.rows) != n)
+      throw capture::InputError(npy.string(), "expected float32 (" + std::to_string(n) + ", " + std::to_string(kAppearanceColumns) +
+                                                  ") for the " + std::to_string(n) + " vertices of room.ply");
+    for (size_t i = 0; i < n; ++i) {
+      const float* r = rows.ptr<float>(static_cast<int>(i));
+      for (int k = 0; k < kAppearanceColumns; ++k)
+        if (!std::isfinite(r[k]) || r[k] < 0)
+          throw capture::InputError(npy.string(), "row " + std::to_string(i) + " holds a negative or non-finite value");
+      out.radiance[i] = cv::Vec3f(r[0], r[1], r[2]);
+      out.confidence.push_back(r[3]);
+      out.saturated.push_back(r[4] > 0.5f ? 1 : 0);
+    }
+  } else {
+    // Version 1: the PLY colour is all there is (8-bit, so clipped where it reads 250 or more).
+    const float clip = static_cast<float>(capture::srgbToLinear(250 / 255.f));
+    for (size_t i = 0; i < n; ++i) {
+      out.confidence.push_back(1.f);
+      out.saturated.push_back(std::max({out.radiance[i][0], out.radiance[i][1], out.radiance[i][2]}) >= clip ? 1 : 0);
+    }
+  }
   if (info) *info = ri;
   return out;
 }

@@ -26,6 +26,17 @@ struct RoomOptions {
   double outlierM = 0.03;
   double outlierFraction = 0.3;
   double minOverlap = 0.25;
+  /// Fused appearance: every `appearanceStride`-th pixel's colour is an observation of the surface it sees,
+  /// as linear radiance at exposure 1 (decoded sRGB / the frame's exposure). Observations at grazing angles
+  /// (|cos| < grazingCos between the depth normal and the view ray), on depth edges, or with a channel at or
+  /// above `clipLevel` (8-bit) are not averaged in; clipped ones only bound the radiance from below. The
+  /// rest are weighted by confidence cos / z^2 (the sensor's noise grows with z^2, its footprint with
+  /// 1 / cos); after `appearanceMemory` observations of a voxel older ones fade, so a surface whose light
+  /// changes follows.
+  int appearanceStride = 2;
+  double grazingCos = 0.26;
+  int clipLevel = 250;
+  int appearanceMemory = 64;
   /// Throws InputError naming `where` if a value is out of range.
   void validate(const std::string& where) const;
 };
@@ -39,10 +50,14 @@ struct RoomIntegration {
   size_t newBlocks = 0;         ///< blocks this frame allocated (or would have)
 };
 
-/// A triangle mesh of the model's surface in the lighting world, with the fused colour per vertex
-/// (linear RGB in [0, 1], averaged over observations).
+/// A triangle mesh of the model's surface in the lighting world, with the fused appearance per vertex.
 struct RoomMesh {
-  std::vector<cv::Vec3f> positions, normals, colours;
+  std::vector<cv::Vec3f> positions, normals;
+  /// Linear radiance at exposure 1 (RoomOptions: confidence-weighted over the accepted observations);
+  /// for a saturated vertex a lower bound (the clip level over the exposure).
+  std::vector<cv::Vec3f> radiance;
+  std::vector<float> confidence;   ///< summed observation weight (0: only Open3D's colour average was there)
+  std::vector<uint8_t> saturated;  ///< 1: every observation was clipped (a lamp, a window)
   std::vector<uint32_t> indices;
   size_t triangleCount() const { return indices.size() / 3; }
 };
@@ -56,8 +71,10 @@ class RoomModel {
 
   /// Fuses one frame: depth in metres (CV_32FC1, 0 = invalid) and its colour (CV_8UC3 RGB, sRGB) on the same
   /// pixel grid with intrinsics K, seen from T_world_camera. The pose is checked first (see RoomOptions).
+  /// The colour's linear radiance is its decoded value / `exposure`. Only this frame's observations are
+  /// touched: the cost is bounded by the frame, not the model.
   RoomIntegration integrate(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K,
-                            const capture::Pose& T_world_camera);
+                            const capture::Pose& T_world_camera, double exposure = 1.0);
   /// The pose check alone: the fractions integrate() would decide on, and whether it would refuse.
   RoomIntegration checkPose(const cv::Mat& depth, const capture::Intrinsics& K, const capture::Pose& T_world_camera) const;
   /// Signed distance to the fused surface at a point of the lighting world (metres, trilinear; positive in
@@ -68,6 +85,7 @@ class RoomModel {
   RoomMesh mesh() const;
   size_t blocks() const;
   size_t bytes() const;  ///< voxel storage
+  size_t appearanceBytes() const;  ///< fused appearance storage (voxels with observations)
   int framesIntegrated() const { return integrated_; }
   int framesRefused() const { return refused_; }
   const RoomOptions& options() const { return options_; }
@@ -89,12 +107,14 @@ struct RoomAlbedo {
 };
 RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld, const AlbedoOptions& options = {});
 
-/// A saved room: ROOM/room.ply (binary PLY: positions, normals, 8-bit sRGB colour) and ROOM/room.json
-/// (format, version, options, frames, bounds, the session it came from).
+/// A saved room: ROOM/room.ply (binary PLY: positions, normals, 8-bit sRGB colour for viewers),
+/// ROOM/room_appearance.npy (float32, one row per vertex: linear radiance r, g, b, confidence, saturated)
+/// and ROOM/room.json (format, version 2, options, frames, bounds, the session it came from). Version 1
+/// rooms (no appearance file) load with the PLY colour as radiance.
 struct RoomInfo {
   RoomOptions options;
   int framesIntegrated = 0, framesRefused = 0;
-  size_t blocks = 0, bytes = 0;
+  size_t blocks = 0, bytes = 0, appearanceBytes = 0;
   std::string session;
 };
 void saveRoom(const std::string& dir, const RoomMesh& mesh, const RoomInfo& info);

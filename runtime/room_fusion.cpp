@@ -55,7 +55,8 @@ RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const
       cv::extractChannel(r.positions, depth, 2);
       cv::patchNaNs(depth, 0.0);
       const auto t0 = std::chrono::steady_clock::now();
-      const auto result = out.model.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, *r.T_marker_camera);
+      const auto result = out.model.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, *r.T_marker_camera,
+                                                 frame->rgbd->exposure);
       out.fuseMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
       line["integrated"] = result.integrated;
       if (!result.integrated) line["refused"] = result.refused;

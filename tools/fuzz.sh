@@ -97,7 +97,7 @@ open(f"{out}/index_only", 'w').write(index)
 PY
 python3 - "$seeds/room_fuzz" <<'PY'
 # A saved room: room.json, a NUL, room.ply (a binary tetrahedron with normals and colours as mrgi room
-# writes them, and an ASCII one).
+# writes them, and an ASCII one), and for version 2 a NUL and room_appearance.npy (4 rows of 5 float32).
 import sys, json, struct
 out = sys.argv[1]
 meta = json.dumps({"format": "mrgi-room", "version": 1, "generated_by": "mrgi room", "mesh": "room.ply", "voxel_m": 0.02,
@@ -112,6 +112,13 @@ open(f"{out}/binary", 'wb').write(meta + b"\0" + head + body)
 ascii_ = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
 ascii_ += "".join("%d %d %d\n" % p for p in v) + "".join("3 %d %d %d\n" % t for t in f)
 open(f"{out}/ascii", 'wb').write(meta + b"\0" + ascii_.encode())
+meta2 = json.loads(meta)
+meta2["version"] = 2
+meta2["appearance"] = "room_appearance.npy"
+hdr = "{'descr': '<f4', 'fortran_order': False, 'shape': (4, 5), }"
+hdr += " " * ((64 - (10 + len(hdr) + 1) % 64) % 64) + "\n"
+npy = b"\x93NUMPY\x01\x00" + struct.pack("<H", len(hdr)) + hdr.encode() + struct.pack("<20f", *([0.2, 0.1, 0.05, 3.0, 0.0] * 4))
+open(f"{out}/binary_v2", 'wb').write(json.dumps(meta2).encode() + b"\0" + head + body + b"\0" + npy)
 PY
 printf '# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n1305031102.211214 rgb/1305031102.211214.png\n' > "$seeds/tum_fuzz/rgb.txt"
 printf '# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n' > "$seeds/tum_fuzz/groundtruth.txt"

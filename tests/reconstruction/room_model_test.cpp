@@ -2,11 +2,13 @@
 // refusal of poses that disagree with the model, the memory budget, and the saved room's round trip.
 #include <unistd.h>
 
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "capture/colour.h"
 #include "capture/error.h"
@@ -163,7 +165,7 @@ TEST(RoomModel, APlaneSeenFromSeveralPosesFusesWithinItsNoise) {
     ++onFloor;
     EXPECT_NEAR(p[2], 0.f, 0.003f);
     EXPECT_GT(m.normals[i][2], 0.95f);
-    EXPECT_NEAR(m.colours[i][1], capture::srgbToLinear(128 / 255.f), 0.005f);
+    EXPECT_NEAR(m.radiance[i][1], capture::srgbToLinear(128 / 255.f), 0.005f) << m.confidence[i] << " " << int(m.saturated[i]);
   }
   EXPECT_GT(onFloor, 100);
 }
@@ -272,7 +274,9 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
   ASSERT_EQ(l.indices, m.indices);
   for (size_t i = 0; i < m.positions.size(); ++i) {
     EXPECT_LT(cv::norm(l.positions[i] - m.positions[i]), 1e-6);
-    EXPECT_LT(cv::norm(l.colours[i] - m.colours[i]), 0.01);  // 8-bit sRGB in the file
+    EXPECT_EQ(l.radiance[i], m.radiance[i]);  // float32 in room_appearance.npy
+    EXPECT_EQ(l.confidence[i], m.confidence[i]);
+    EXPECT_EQ(l.saturated[i], m.saturated[i]);
   }
   EXPECT_EQ(back.framesIntegrated, 4);
   EXPECT_EQ(back.session, "synthetic");
@@ -300,7 +304,45 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
   };
   EXPECT_NE(errorOf(dir / "nope").find("room folder is missing"), std::string::npos);
   EXPECT_NE(with(ply.substr(0, ply.size() / 2), json).find((dir / "room.ply").string() + ": PLY file is truncated"), std::string::npos);
-  EXPECT_NE(with(ply, "{\"format\": \"mrgi-room\", \"version\": 2}").find("version"), std::string::npos);
+  EXPECT_NE(with(ply, "{\"format\": \"mrgi-room\", \"version\": 3}").find("version"), std::string::npos);
+  // The appearance file: missing, cut short, for another mesh, holding a negative radiance.
+  const fs::path npy = dir / "room_appearance.npy";
+  const std::string appearance = [&] {
+    std::ifstream in(npy, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  auto withAppearance = [&](const std::string& bytes) {
+    std::ofstream(npy, std::ios::binary | std::ios::trunc) << bytes;
+    return with(ply, json);
+  };
+  EXPECT_EQ(withAppearance(appearance), "");
+  EXPECT_NE(withAppearance(appearance.substr(0, appearance.size() - 4)).find(npy.string() + ": "), std::string::npos);
+  {
+    std::string fewer = appearance;
+    const size_t at = fewer.find("'shape': (") + 10;
+    fewer.replace(at, fewer.find(',', at) - at, std::to_string(m.positions.size() - 1));
+    fewer.resize(fewer.size() - 5 * sizeof(float));
+    EXPECT_NE(withAppearance(fewer).find(npy.string() + ": expected float32 (" + std::to_string(m.positions.size()) + ", 5)"),
+              std::string::npos)
+        << withAppearance(fewer);
+    std::string negative = appearance;
+    const float minus = -1.f;
+    std::memcpy(&negative[negative.size() - sizeof(float) * 3], &minus, sizeof(float));
+    EXPECT_NE(withAppearance(negative).find(npy.string() + ": row " + std::to_string(m.positions.size() - 1)), std::string::npos)
+        << withAppearance(negative);
+  }
+  fs::remove(npy);
+  EXPECT_NE(with(ply, json).find(npy.string() + ": room appearance is missing"), std::string::npos);
+  {
+    // A version 1 room (before the appearance file): the PLY colour is the radiance.
+    nlohmann::json v1 = nlohmann::json::parse(json);
+    v1["version"] = 1;
+    EXPECT_EQ(with(ply, v1.dump()), "");
+    const RoomMesh old = reconstruction::loadRoom(dir.string());
+    ASSERT_EQ(old.radiance.size(), m.positions.size());
+    for (size_t i = 0; i < m.positions.size(); i += 97) EXPECT_LT(cv::norm(old.radiance[i] - m.radiance[i]), 0.01);  // 8-bit sRGB
+  }
+  std::ofstream(npy, std::ios::binary) << appearance;
   EXPECT_NE(with(ply, "{\"format\": \"other\"}").find((dir / "room.json").string() + ": format"), std::string::npos);
   EXPECT_NE(with(ply, "{\"format\": 5}").find((dir / "room.json").string() + ": format"), std::string::npos);  // (the room fuzzer)
   EXPECT_NE(with(ply, "{nope").find((dir / "room.json").string()), std::string::npos);
@@ -335,6 +377,56 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
   EXPECT_NE(e.find("malformed PLY: face 0 names vertex 7 of 3"), std::string::npos) << e;
   for (const std::string& msg : {e}) EXPECT_EQ(msg.find('\n'), std::string::npos);
   fs::remove_all(dir);
+}
+
+TEST(RoomModel, AppearanceIsRadianceAtExposureOneAndClippedObservationsOnlyBoundIt) {
+  // The floor and wall (radiance 0.2) seen at exposures 1 and 2: the camera's bytes differ, the fused
+  // radiance is 0.2 (a running mean of the bytes, as Open3D keeps, reads 0.3).
+  auto bytesOf = [](double linear) { return static_cast<uchar>(std::lround(255 * capture::linearToSrgb(static_cast<float>(linear)))); };
+  const Scene s;
+  const auto views = orbit(4, 1.2, 0.9);
+  RoomModel room;
+  for (int i = 0; i < 4; ++i) {
+    const double exposure = i % 2 ? 2.0 : 1.0;
+    ASSERT_TRUE(room.integrate(renderDepth(s, views[i], 0.001, i), grey(bytesOf(0.2 * exposure)), kK, views[i], exposure).integrated);
+  }
+  auto floorMean = [](const RoomMesh& m, float* confidence = nullptr) {
+    cv::Vec3d sum(0, 0, 0);
+    double c = 0;
+    int n = 0;
+    for (size_t i = 0; i < m.positions.size(); ++i) {
+      const cv::Vec3f& p = m.positions[i];
+      if (std::abs(p[0]) > 0.3 || std::abs(p[1]) > 0.3 || std::abs(p[2]) > 0.01) continue;
+      EXPECT_EQ(m.saturated[i], 0);
+      EXPECT_NEAR(m.radiance[i][0], 0.2f, 0.2f * 0.015f);  // 8-bit quantisation
+      sum += cv::Vec3d(m.radiance[i]), c += m.confidence[i], ++n;
+    }
+    EXPECT_GT(n, 100);
+    if (confidence) *confidence = static_cast<float>(c / std::max(n, 1));
+    return sum / std::max(n, 1);
+  };
+  float confidence = 0, confidenceAfter = 0;
+  const cv::Vec3d before = floorMean(room.mesh(), &confidence);
+  EXPECT_GT(confidence, 0.f);
+  // A frame clipped everywhere (an over-exposed camera) adds geometry but no radiance.
+  ASSERT_TRUE(room.integrate(renderDepth(s, views[1], 0.001, 9), grey(255), kK, views[1], 1.0).integrated);
+  const cv::Vec3d after = floorMean(room.mesh(), &confidenceAfter);
+  EXPECT_LT(cv::norm(after - before), 1e-3);
+  EXPECT_NEAR(confidenceAfter, confidence, 0.02f * confidence);
+
+  // A surface seen only clipped is flagged saturated, its radiance the lower bound: clip level / exposure.
+  RoomModel lamp;
+  ASSERT_TRUE(lamp.integrate(renderDepth(s, views[0], 0.001, 0), grey(255), kK, views[0], 0.5).integrated);
+  const RoomMesh m = lamp.mesh();
+  int flagged = 0;
+  for (size_t i = 0; i < m.positions.size(); ++i)
+    if (m.saturated[i]) {
+      ++flagged;
+      EXPECT_FLOAT_EQ(m.radiance[i][1], 2.f);
+      EXPECT_EQ(m.confidence[i], 0.f);
+    }
+  EXPECT_GT(flagged, static_cast<int>(m.positions.size()) * 8 / 10);  // the rest: edges and grazing views, no observation
+  EXPECT_GT(lamp.appearanceBytes(), 0u);
 }
 
 TEST(RoomModel, AlbedoIsRecoveredUnderTwoLightsAndShadowsDoNotLowerIt) {
