@@ -226,7 +226,8 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   Reader r(path);
   json doc;
   doc = capture::parseJson(text, path);
-  std::set<std::string> topLevel{"objects", "lights", "fisheye_light_count", "ambient_radiance", "technique"};
+  std::set<std::string> topLevel{"objects", "lights", "fisheye_light_count", "room_light_count", "room_saturated_gain",
+                                 "room_white_albedo", "ambient_radiance", "technique"};
   for (const KnobGroup* g : knobGroups()) topLevel.insert(g->key);
   r.allowOnly(doc, "", topLevel);
   SceneDescription s;
@@ -288,8 +289,9 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
     const json& l = doc["lights"];
     if (l.is_string()) {
       const std::string v = l.get<std::string>();
-      if (v != "manifest" && v != "fisheye") r.fail("lights", "must be \"manifest\", \"fisheye\" or an array of lights");
-      s.lightSource = v == "manifest" ? LightSource::Manifest : LightSource::Fisheye;
+      if (v != "manifest" && v != "fisheye" && v != "room")
+        r.fail("lights", "must be \"manifest\", \"fisheye\", \"room\" or an array of lights");
+      s.lightSource = v == "manifest" ? LightSource::Manifest : v == "fisheye" ? LightSource::Fisheye : LightSource::Room;
     } else if (l.is_array()) {
       s.lightSource = LightSource::Scene;
       for (size_t i = 0; i < l.size(); ++i) {
@@ -322,9 +324,12 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
         s.lights.push_back(light);
       }
     } else {
-      r.fail("lights", "must be \"manifest\", \"fisheye\" or an array of lights");
+      r.fail("lights", "must be \"manifest\", \"fisheye\", \"room\" or an array of lights");
     }
   }
+  if (doc.contains("room_light_count")) s.roomLightCount = r.integer(doc["room_light_count"], "room_light_count", 1, 16);
+  if (doc.contains("room_saturated_gain")) s.roomSaturatedGain = r.number(doc["room_saturated_gain"], "room_saturated_gain", 0, 1e4);
+  if (doc.contains("room_white_albedo")) s.roomWhiteAlbedo = r.number(doc["room_white_albedo"], "room_white_albedo", 0.05, 1);
   if (doc.contains("fisheye_light_count"))
     s.fisheyeLightCount = r.integer(doc["fisheye_light_count"], "fisheye_light_count", 1, 16);
   if (doc.contains("ambient_radiance")) {

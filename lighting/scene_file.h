@@ -64,7 +64,8 @@ struct SceneLight {
 
 /// Where lights come from: listed in the scene file, the ground truth stored in a session's manifest, or
 /// estimated per fisheye frame of the session (solid-angle-weighted median cut -> directional lights).
-enum class LightSource { Scene, Manifest, Fisheye };
+/// or estimated from the room model (--room) as seen from the virtual objects (reconstruction/room_lights.h).
+enum class LightSource { Scene, Manifest, Fisheye, Room };
 
 /// The lighting techniques of a scene by role (lighting/techniques/registry.h parses and lists them):
 /// "none" = no technique for that role (real pixels then get only the object's direct shadow, the object
@@ -81,6 +82,11 @@ struct SceneDescription {
   LightSource lightSource = LightSource::Manifest;
   std::vector<SceneLight> lights;           ///< for LightSource::Scene
   int fisheyeLightCount = 16;               ///< for LightSource::Fisheye: median-cut lights (1..16)
+  /// For LightSource::Room: lights from the split (1..16), the gain on saturated radiance (0 = estimated
+  /// with the white-patch assumption) and that assumption's albedo.
+  int roomLightCount = 4;
+  double roomSaturatedGain = 0;
+  double roomWhiteAlbedo = 0.8;
   cv::Vec3d ambientRadiance{0, 0, 0};       ///< uniform environment radiance lighting the virtual object (W/m^2/sr)
   bool ambientFromManifest = true;          ///< take ambient from the manifest when it has one
   TechniqueChoice technique;  ///< default: the registry's first technique

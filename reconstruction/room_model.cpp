@@ -7,7 +7,6 @@
 #include <limits>
 #include <unordered_set>
 
-#include <embree3/rtcore.h>
 #include <open3d/camera/PinholeCameraIntrinsic.h>
 #include <open3d/geometry/Image.h>
 #include <open3d/geometry/RGBDImage.h>
@@ -23,6 +22,7 @@
 #include "capture/json_io.h"
 #include "capture/npz.h"
 #include "capture/ply_check.h"
+#include "reconstruction/mesh_rays.h"
 
 namespace fs = std::filesystem;
 namespace o3d = open3d;
@@ -364,22 +364,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   const size_t L = lights.points.size() + lights.distant.size();
   std::vector<uint8_t> occluded(n * L, 0);
   if (options.shadowTest && L > 0) {
-    RTCDevice device = rtcNewDevice(nullptr);
-    if (!device) throw std::runtime_error("estimateRoomAlbedo: cannot create an Embree device");
-    RTCScene scene = rtcNewScene(device);
-    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), n));
-    for (size_t i = 0; i < n; ++i)
-      for (int k = 0; k < 3; ++k) v[3 * i + k] = mesh.positions[i][k];
-    auto* idx = static_cast<unsigned*>(
-        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), mesh.indices.size() / 3));
-    std::copy(mesh.indices.begin(), mesh.indices.end(), idx);
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(scene, g);
-    rtcReleaseGeometry(g);
-    rtcCommitScene(scene);
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
+    const MeshRays rays(mesh.positions, mesh.indices);
     for (size_t i = 0; i < n; ++i) {
       const cv::Vec3d p = cv::Vec3d(mesh.positions[i]) + 0.02 * cv::Vec3d(mesh.normals[i]);
       for (size_t l = 0; l < L; ++l) {
@@ -393,18 +378,9 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
           d = lights.distant[l - lights.points.size()].direction;
           far = 1e4;
         }
-        RTCRay ray{};
-        ray.org_x = static_cast<float>(p[0]), ray.org_y = static_cast<float>(p[1]), ray.org_z = static_cast<float>(p[2]);
-        ray.dir_x = static_cast<float>(d[0]), ray.dir_y = static_cast<float>(d[1]), ray.dir_z = static_cast<float>(d[2]);
-        ray.tnear = 0.f;
-        ray.tfar = static_cast<float>(far);
-        ray.mask = 0xffffffffu;
-        rtcOccluded1(scene, &ctx, &ray);
-        occluded[i * L + l] = ray.tfar < 0;  // Embree sets tfar = -inf on a hit
+        occluded[i * L + l] = rays.occluded(p, d, far);
       }
     }
-    rtcReleaseScene(scene);
-    rtcReleaseDevice(device);
   }
   const double saturated = capture::srgbToLinear(options.saturationLevel / 255.f);
   for (size_t i = 0; i < n; ++i) {

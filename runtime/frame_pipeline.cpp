@@ -60,6 +60,9 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
     setup.fisheye = manifest->fisheye;
     // Lights come from the environment image, which already holds all the room's light: no extra ambient.
     setup.scene.ambientFromManifest = false;
+  } else if (setup.scene.lightSource == lighting::LightSource::Room) {
+    // Estimated by the frame pipeline from its room model; the room's radiance holds all the light.
+    setup.scene.ambientFromManifest = false;
   } else {
     if (!truth || !truth->listsLights || !setup.T_world_marker)
       throw capture::CaptureError(sceneFile, "lights: \"manifest\" but " + sourcePath +
@@ -107,6 +110,12 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
     if (needs_.realVals && needs_.realValOptions.fusion) surfels_.emplace(needs_.realValOptions.surfels);
   }
   if (setup_->fisheye) fisheyeRays_ = reconstruction::fisheyeRays(*setup_->fisheye);
+  if (setup_->scene.lightSource == lighting::LightSource::Room) {
+    if (!options_.room)
+      throw capture::CaptureError(setup_->scene.path.empty() ? "scene" : setup_->scene.path,
+                                  "lights: \"room\" needs a room model (--room ROOM, built by mrgi room)");
+    estimateRoomLights();
+  }
   reconstruction::DetectorOptions dopt;
   dopt.family = setup_->tagFamily;
   detector_.emplace(dopt);
@@ -132,6 +141,36 @@ void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, 
     setup_->lights.push_back(sl);
   }
   r.info["lights_estimated"] = setup_->lights.size();
+}
+
+void FramePipeline::estimateRoomLights() {
+  // Seen from the virtual objects' centre (the mean of their bounding boxes' centres in the marker frame).
+  cv::Vec3d centre(0, 0, 0);
+  for (const auto& o : setup_->scene.objects) {
+    const cv::Vec3d c = 0.5 * (cv::Vec3d(o.mesh.boundsMin) + cv::Vec3d(o.mesh.boundsMax));
+    centre += capture::transformPoint(capture::Pose(o.T_marker_object), c);
+  }
+  if (!setup_->scene.objects.empty()) centre /= static_cast<double>(setup_->scene.objects.size());
+  reconstruction::RoomLightOptions ro;
+  ro.split.medianCut.count = setup_->scene.roomLightCount;
+  ro.saturatedGain = setup_->scene.roomSaturatedGain;
+  ro.whiteAlbedo = setup_->scene.roomWhiteAlbedo;
+  roomLightEstimate_ = std::make_shared<reconstruction::RoomLights>(reconstruction::estimateRoomLights(*options_.room, centre, ro));
+  setup_->lights.clear();
+  for (const reconstruction::RoomLight& l : roomLightEstimate_->lights) {
+    lighting::SceneLight sl;
+    if (l.point) {
+      sl.type = lighting::LightType::Point;
+      sl.position = l.position;
+      sl.intensity = l.intensity;
+    } else {
+      sl.type = lighting::LightType::Directional;
+      sl.direction = -l.direction;
+      sl.irradiance = l.irradiance;
+    }
+    setup_->lights.push_back(sl);
+  }
+  setup_->ambient = roomLightEstimate_->ambientRadiance;
 }
 
 std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& frame, FrameResult& r,
@@ -276,6 +315,16 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
   size_t measured = 0;
   for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
   info["room"] = {{"vertices", vertices.size()}, {"albedo_measured", measured}};
+  if (roomLightEstimate_)
+    info["room"]["lights"] = {{"count", roomLightEstimate_->lights.size()},
+                              {"saturated_gain", roomLightEstimate_->gain},
+                              {"gain_estimated", roomLightEstimate_->gainEstimated},
+                              {"gain_samples", roomLightEstimate_->gainSamples},
+                              {"saturated_fraction", roomLightEstimate_->saturatedFraction},
+                              {"over_exposed", roomLightEstimate_->overExposed},
+                              {"coverage", roomLightEstimate_->coverage},
+                              {"ambient_radiance", {roomLightEstimate_->ambientRadiance[0], roomLightEstimate_->ambientRadiance[1],
+                                                    roomLightEstimate_->ambientRadiance[2]}}};
 }
 
 struct FramePipeline::RoomIndex {

@@ -18,6 +18,7 @@
 #include "lighting/frame/real_scene.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
+#include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
 
 namespace mrgi::runtime {
@@ -118,6 +119,9 @@ class FramePipeline {
   struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)
   std::shared_ptr<RoomIndex> roomIndex_;
   void useRoom(nlohmann::json& info, gl::Profiler& profiler);
+  /// "lights": "room": the lights and ambient from the room model, once (the room is static).
+  void estimateRoomLights();
+  std::shared_ptr<const reconstruction::RoomLights> roomLightEstimate_;
   /// The setup's lights and ambient as the albedo estimate takes them, in the frame T_frame_marker maps to
   /// (the camera for a frame's pixels, the marker frame itself for the room).
   reconstruction::AlbedoLights albedoLights(const capture::Pose& T_frame_marker) const;

@@ -311,6 +311,18 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   EXPECT_EQ(empty.lightSource, LightSource::Manifest);
 }
 
+TEST(SceneFile, LightsFromTheRoomAndTheirKnobs) {
+  const SceneDescription d = parseScene(R"({"lights": "room"})", kScenePath);
+  EXPECT_EQ(d.lightSource, LightSource::Room);
+  EXPECT_EQ(d.roomLightCount, 4);
+  EXPECT_EQ(d.roomSaturatedGain, 0.0);  // estimated
+  const SceneDescription s =
+      parseScene(R"({"lights": "room", "room_light_count": 8, "room_saturated_gain": 30, "room_white_albedo": 0.7})", kScenePath);
+  EXPECT_EQ(s.roomLightCount, 8);
+  EXPECT_EQ(s.roomSaturatedGain, 30.0);
+  EXPECT_EQ(s.roomWhiteAlbedo, 0.7);
+}
+
 TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
   struct Case {
     const char* text;
@@ -343,6 +355,9 @@ TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
       {R"({"technique": 3})", "technique: must be a technique name"},
       {R"({"frame": {"rsm_size": 8}})", "frame.rsm_size: value 8 out of range"},
       {R"({"lpv": {"rsm_size": 8}})", "lpv.rsm_size: value 8 out of range"},
+      {R"({"room_light_count": 0})", "room_light_count: value 0 out of range"},
+      {R"({"room_saturated_gain": -1})", "room_saturated_gain: value -1 out of range"},
+      {R"({"room_white_albedo": 2})", "room_white_albedo: value 2 out of range"},
   };
   for (const Case& c : cases) {
     const std::string e = errorOf(c.text);

@@ -1,0 +1,198 @@
+#include "reconstruction/room_lights.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+#include "capture/colour.h"
+#include "reconstruction/mesh_rays.h"
+
+namespace mrgi::reconstruction {
+
+FisheyeRays latLongRays(int width) {
+  if (width < 8 || width % 2) throw std::invalid_argument("latLongRays: width must be even and at least 8");
+  const int height = width / 2;
+  FisheyeRays r;
+  r.directions.create(height, width, CV_32FC3);
+  r.solidAngle.create(height, width, CV_64FC1);
+  const double dPhi = 2 * CV_PI / width;
+  for (int v = 0; v < height; ++v) {
+    const double t0 = CV_PI * v / height, t1 = CV_PI * (v + 1) / height, t = 0.5 * (t0 + t1);
+    const double omega = dPhi * (std::cos(t0) - std::cos(t1));
+    for (int u = 0; u < width; ++u) {
+      const double phi = dPhi * (u + 0.5);
+      r.directions.at<cv::Vec3f>(v, u) =
+          cv::Vec3f(static_cast<float>(std::sin(t) * std::cos(phi)), static_cast<float>(std::sin(t) * std::sin(phi)),
+                    static_cast<float>(std::cos(t)));
+      r.solidAngle.at<double>(v, u) = omega;
+      r.totalSolidAngle += omega;
+    }
+  }
+  return r;
+}
+
+namespace {
+
+constexpr double kA[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
+
+cv::Vec3d shIrradiance(const std::array<cv::Vec3d, 9>& sh, const cv::Vec3d& n) {
+  const auto b = shBasis2(n);
+  cv::Vec3d E(0, 0, 0);
+  for (int k = 0; k < 9; ++k) E += sh[k] * (kA[k] * b[k]);
+  return E;
+}
+
+}  // namespace
+
+RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o) {
+  if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");
+  if (room.radiance.size() != room.positions.size()) throw std::invalid_argument("estimateRoomLights: no radiance per vertex");
+  if (!(o.saturatedGain >= 0) || !(o.whiteAlbedo > 0 && o.whiteAlbedo <= 1) || !(o.maxGain >= 1) || !(o.estimateRadius > 0) ||
+      !(o.maxSaturatedFraction >= 0 && o.maxSaturatedFraction <= 1))
+    throw std::invalid_argument("estimateRoomLights: options out of range");
+  const FisheyeRays rays = latLongRays(o.mapWidth);
+  const MeshRays mesh(room.positions, room.indices);
+  const int W = rays.directions.cols, H = rays.directions.rows;
+  cv::Mat L(H, W, CV_32FC3, cv::Scalar::all(0)), hitPos(H, W, CV_32FC3, cv::Scalar::all(0));
+  cv::Mat saturated(H, W, CV_8UC1, cv::Scalar(0)), hit(H, W, CV_8UC1, cv::Scalar(0));
+  double covered = 0, unsatOmega = 0, satOmega = 0;
+  cv::Vec3d unsatSum(0, 0, 0);
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      const cv::Vec3d d(rays.directions.at<cv::Vec3f>(v, u));
+      const MeshRays::Hit h = mesh.intersect(centre, d);
+      if (!h.hit) continue;
+      const uint32_t a = room.indices[3 * h.triangle], b = room.indices[3 * h.triangle + 1], c = room.indices[3 * h.triangle + 2];
+      const double wa = 1 - h.u - h.v;
+      const cv::Vec3d rad = wa * cv::Vec3d(room.radiance[a]) + h.u * cv::Vec3d(room.radiance[b]) + h.v * cv::Vec3d(room.radiance[c]);
+      auto sat = [&](uint32_t i) { return i < room.saturated.size() && room.saturated[i]; };
+      L.at<cv::Vec3f>(v, u) = cv::Vec3f(rad);
+      hitPos.at<cv::Vec3f>(v, u) = cv::Vec3f(centre + d * h.t);
+      hit.at<uchar>(v, u) = 255;
+      saturated.at<uchar>(v, u) = sat(a) || sat(b) || sat(c) ? 255 : 0;
+      const double omega = rays.solidAngle.at<double>(v, u);
+      covered += omega;
+      if (!saturated.at<uchar>(v, u))
+        unsatSum += rad * omega, unsatOmega += omega;
+      else
+        satOmega += omega;
+    }
+  RoomLights out;
+  out.coverage = covered / (4 * CV_PI);
+  // Directions the room does not cover (never scanned) take the mean unsaturated radiance: unknown, not dark.
+  const cv::Vec3f fill = unsatOmega > 0 ? cv::Vec3f(unsatSum / unsatOmega) : cv::Vec3f(0, 0, 0);
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u)
+      if (!hit.at<uchar>(v, u)) L.at<cv::Vec3f>(v, u) = fill;
+
+  out.saturatedFraction = covered > 0 ? satOmega / covered : 0.0;
+  out.overExposed = out.saturatedFraction > o.maxSaturatedFraction;
+  out.gain = o.saturatedGain > 0 ? o.saturatedGain : 1.0;
+  if (o.saturatedGain <= 0 && satOmega > 0 && !out.overExposed) {
+    out.gainEstimated = true;
+    // The unsaturated environment as SH (for E_rest at any normal) ...
+    std::array<cv::Vec3d, 9> restSh{};
+    for (int v = 0; v < H; ++v)
+      for (int u = 0; u < W; ++u) {
+        if (saturated.at<uchar>(v, u)) continue;
+        const auto b = shBasis2(cv::Vec3d(rays.directions.at<cv::Vec3f>(v, u)));
+        const cv::Vec3d Lw = cv::Vec3d(L.at<cv::Vec3f>(v, u)) * rays.solidAngle.at<double>(v, u);
+        for (int k = 0; k < 9; ++k) restSh[k] += Lw * b[k];
+      }
+    // ... and the saturated texels grouped into 5 cm cells of their hit positions: each a small source of
+    // intensity (luminance) sum(L dOmega) d_centre^2 at its power-weighted position.
+    struct Source {
+      cv::Vec3d position{0, 0, 0};
+      double intensity = 0, weight = 0;
+    };
+    std::map<std::array<int, 3>, Source> cells;
+    for (int v = 0; v < H; ++v)
+      for (int u = 0; u < W; ++u) {
+        if (!saturated.at<uchar>(v, u)) continue;
+        const cv::Vec3d p(hitPos.at<cv::Vec3f>(v, u));
+        const double power = capture::luminance(cv::Vec3d(L.at<cv::Vec3f>(v, u))) * rays.solidAngle.at<double>(v, u);
+        const double d2 = (p - centre).dot(p - centre);
+        Source& s = cells[{static_cast<int>(std::floor(p[0] / 0.05)), static_cast<int>(std::floor(p[1] / 0.05)),
+                           static_cast<int>(std::floor(p[2] / 0.05))}];
+        s.position += p * power, s.weight += power, s.intensity += power * d2;
+      }
+    std::vector<Source> sources;
+    for (auto& [key, s] : cells)
+      if (s.weight > 0) s.position /= s.weight, sources.push_back(s);
+    // Vertices near the centre, at most ~4000 of them.
+    std::vector<size_t> near;
+    for (size_t i = 0; i < room.positions.size(); ++i)
+      if (!(i < room.saturated.size() && room.saturated[i]) && cv::norm(cv::Vec3d(room.positions[i]) - centre) <= o.estimateRadius)
+        near.push_back(i);
+    const size_t step = std::max<size_t>(1, near.size() / 4000);
+    std::vector<double> gains;
+    for (size_t k = 0; k < near.size(); k += step) {
+      const size_t i = near[k];
+      const cv::Vec3d p(room.positions[i]), n(room.normals[i]);
+      double Ebound = 0;
+      for (const Source& s : sources) {
+        cv::Vec3d d = s.position - p;
+        const double r = cv::norm(d);
+        if (r < 1e-6) continue;
+        d /= r;
+        const double c = n.dot(d);
+        if (c <= 0.2) continue;  // grazing: the estimate would divide by little
+        if (mesh.occluded(p + 0.01 * n, d, r * 0.98)) continue;
+        Ebound += s.intensity * c / (r * r);
+      }
+      // Vertices the saturated regions do not light (shadowed, facing away) tell nothing about them, nor do
+      // ones darker than the rest of the room alone would make a white surface.
+      const double Erest = capture::luminance(shIrradiance(restSh, n));
+      const double excess = CV_PI * capture::luminance(cv::Vec3d(room.radiance[i])) / o.whiteAlbedo - Erest;
+      if (Ebound <= 0 || excess <= 0) continue;
+      gains.push_back(excess / Ebound);
+    }
+    out.gainSamples = static_cast<int>(gains.size());
+    if (!gains.empty()) {
+      const size_t q = std::min(gains.size() - 1, static_cast<size_t>(0.95 * static_cast<double>(gains.size())));
+      std::nth_element(gains.begin(), gains.begin() + static_cast<std::ptrdiff_t>(q), gains.end());
+      out.gain = std::clamp(gains[q], 1.0, o.maxGain);
+    }
+  }
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u)
+      if (saturated.at<uchar>(v, u)) L.at<cv::Vec3f>(v, u) *= static_cast<float>(out.gain);
+  out.environment = L;
+
+  // The split, and each light placed at its region's bright-energy-weighted hit position.
+  out.split = splitLights(L, rays, o.split);
+  out.ambientSh = out.split.ambientSh;
+  out.ambientRadiance = out.ambientSh[0] * 0.28209479177387814;  // Y_00
+  const double T = out.split.thresholdLuminance;
+  for (const EstimatedLight& e : out.split.lights) {
+    RoomLight l;
+    l.direction = e.direction;
+    l.irradiance = e.power;
+    cv::Vec3d pos(0, 0, 0);
+    double w = 0, wHit = 0, wSat = 0;
+    for (int v = e.region.y; v < e.region.y + e.region.height; ++v)
+      for (int u = e.region.x; u < e.region.x + e.region.width; ++u) {
+        const double lum = capture::luminance(cv::Vec3d(L.at<cv::Vec3f>(v, u)));
+        const double excess = std::max(0.0, lum - T) * rays.solidAngle.at<double>(v, u);
+        w += excess;
+        if (saturated.at<uchar>(v, u)) wSat += excess;
+        if (!hit.at<uchar>(v, u)) continue;
+        pos += cv::Vec3d(hitPos.at<cv::Vec3f>(v, u)) * excess, wHit += excess;
+      }
+    l.saturatedFraction = w > 0 ? wSat / w : 0.0;
+    if (wHit > 0.5 * w && wHit > 0) {
+      l.point = true;
+      l.position = pos / wHit;
+      const double d = cv::norm(l.position - centre);
+      l.intensity = e.power * (d * d);
+      if (d > 1e-9) l.direction = (l.position - centre) / d;
+    } else {
+      l.point = false;
+    }
+    out.lights.push_back(l);
+  }
+  return out;
+}
+
+}  // namespace mrgi::reconstruction

@@ -1,0 +1,70 @@
+#pragma once
+/// Lights from the room model: the fused radiance as seen from a point (the virtual objects' centre), split
+/// into a few lights for what casts shadows and spherical harmonics for the rest (splitLights, the same
+/// split as the fisheye path). Lights sit where the room's surfaces are (point lights at the bright
+/// regions' radiance-weighted hit positions), so their shadows and falloff are right across the object.
+///
+/// Saturated surfaces (lamps, windows: every observation clipped) carry only a lower bound of their
+/// radiance. Their radiance is that bound times a gain: set by the user, or estimated with the white-patch
+/// assumption: the brightest surfaces the lamps light near the centre have albedo `whiteAlbedo`, i.e. the
+/// 95th percentile over lit, unsaturated vertices of g_i = (pi L_i / whiteAlbedo - E_rest(n_i)) /
+/// E_bound_i(n_i), where E_rest is the unsaturated environment's irradiance and E_bound the saturated
+/// regions' at the bound. Never below 1: the clip level is a true lower bound.
+#include <array>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "reconstruction/light_estimation.h"
+#include "reconstruction/room_model.h"
+
+namespace mrgi::reconstruction {
+
+struct RoomLightOptions {
+  int mapWidth = 256;          ///< lat-long environment map width (height = width / 2)
+  LightSplitOptions split = [] {
+    LightSplitOptions s;
+    s.medianCut.count = 4;
+    return s;
+  }();
+  double saturatedGain = 0;    ///< > 0: the gain on saturated radiance; 0: estimated (white patch)
+  double whiteAlbedo = 0.8;    ///< the white patch's albedo for the estimate
+  double estimateRadius = 1.0; ///< metres around the centre whose vertices inform the estimate
+  double maxGain = 1e4;        ///< the estimate's ceiling
+  /// Lamps and windows are compact: when saturated surfaces cover more than this fraction of the solid
+  /// angle the room covers, they are lit surfaces clipped by an over-exposed camera, not emitters; the gain
+  /// stays 1 (the bound) and `overExposed` says so.
+  double maxSaturatedFraction = 0.05;
+};
+
+struct RoomLight {
+  bool point = true;           ///< false: no surface was hit in its region (directional)
+  cv::Vec3d position{0, 0, 0}; ///< lighting world (point)
+  cv::Vec3d direction{0, 0, 0};///< unit, from the centre towards the light
+  cv::Vec3d intensity{0, 0, 0};///< W/sr (point): power x distance^2
+  cv::Vec3d irradiance{0, 0, 0};///< at the centre, normal incidence (the split's power)
+  double saturatedFraction = 0;///< of its energy, from saturated surfaces
+};
+
+struct RoomLights {
+  std::vector<RoomLight> lights;
+  std::array<cv::Vec3d, 9> ambientSh{};  ///< remainder, lighting/sh.h convention, world directions
+  cv::Vec3d ambientRadiance{0, 0, 0};    ///< the remainder's mean radiance (SH band 0)
+  double gain = 1;                       ///< applied to saturated radiance
+  bool gainEstimated = false;
+  int gainSamples = 0;                   ///< vertices the estimate used
+  double saturatedFraction = 0;          ///< of the covered solid angle, saturated
+  bool overExposed = false;              ///< saturatedFraction > maxSaturatedFraction: no estimate
+  double coverage = 0;                   ///< solid-angle fraction of the sphere that hit the room
+  cv::Mat environment;                   ///< CV_32FC3 lat-long radiance after the gain (row 0: +z)
+  LightSplit split;                      ///< the split itself (its lights' directions are world)
+};
+
+/// The room's lat-long directions and pixel solid angles (row v: polar angle from +z; column u: azimuth
+/// from +x towards +y), in the FisheyeRays form splitLights takes.
+FisheyeRays latLongRays(int width);
+
+/// Throws std::invalid_argument for an empty mesh or options out of range.
+RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& options = {});
+
+}  // namespace mrgi::reconstruction

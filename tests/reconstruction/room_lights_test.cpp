@@ -1,0 +1,137 @@
+// Lights from the room model: a synthetic room (3 x 3 x 2.5 m) with one ceiling lamp whose every
+// observation clipped, a white floor lit by it, grey walls.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "capture/colour.h"
+#include "reconstruction/room_lights.h"
+
+using namespace mrgi;
+using reconstruction::RoomMesh;
+
+namespace {
+
+constexpr double kLampRadiance = 40.0, kBound = 1.0, kWall = 0.05, kFloorAlbedo = 0.8;
+const cv::Vec3d kLamp(0.6, 0.4, 2.49);
+constexpr double kLampSide = 0.2;
+
+/// A grid quad: origin + i/n * a + j/n * b, normal n, radiance from f(position).
+template <class F>
+void addQuad(RoomMesh& m, const cv::Vec3d& origin, const cv::Vec3d& a, const cv::Vec3d& b, const cv::Vec3d& normal, int n, F radiance,
+             bool saturated) {
+  const uint32_t base = static_cast<uint32_t>(m.positions.size());
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      const cv::Vec3d p = origin + a * (static_cast<double>(i) / n) + b * (static_cast<double>(j) / n);
+      m.positions.emplace_back(p);
+      m.normals.emplace_back(normal);
+      m.radiance.emplace_back(radiance(p));
+      m.confidence.push_back(saturated ? 0.f : 1.f);
+      m.saturated.push_back(saturated ? 1 : 0);
+    }
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const uint32_t v = base + static_cast<uint32_t>(j * (n + 1) + i);
+      for (uint32_t k : {v, v + 1, v + static_cast<uint32_t>(n + 1), v + 1, v + static_cast<uint32_t>(n + 2), v + static_cast<uint32_t>(n + 1)})
+        m.indices.push_back(k);
+    }
+}
+
+/// The lamp's irradiance at a floor point (normal up), by summing 20 x 20 patches of the lamp.
+double lampIrradiance(const cv::Vec3d& p) {
+  double E = 0;
+  const int n = 20;
+  const double dA = (kLampSide / n) * (kLampSide / n);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const cv::Vec3d q = kLamp + cv::Vec3d(-kLampSide / 2 + (i + 0.5) * kLampSide / n, -kLampSide / 2 + (j + 0.5) * kLampSide / n, 0);
+      const cv::Vec3d d = q - p;
+      const double r2 = d.dot(d), r = std::sqrt(r2);
+      E += kLampRadiance * dA * (d[2] / r) * (d[2] / r) / r2;  // cos at the floor x cos at the lamp (both vertical)
+    }
+  return E;
+}
+
+RoomMesh lampRoom() {
+  RoomMesh m;
+  const auto grey = [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kWall)); };
+  // Floor: white, lit by the lamp and by the walls' and ceiling's radiance (a uniform upper hemisphere).
+  addQuad(m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 3, 0}, {0, 0, 1}, 40,
+          [](const cv::Vec3d& p) { return cv::Vec3f::all(static_cast<float>(kFloorAlbedo / CV_PI * (lampIrradiance(p) + CV_PI * kWall))); },
+          false);
+  addQuad(m, {-1.5, -1.5, 2.5}, {3, 0, 0}, {0, 3, 0}, {0, 0, -1}, 20, grey, false);
+  addQuad(m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 0, 2.5}, {0, 1, 0}, 20, grey, false);
+  addQuad(m, {-1.5, 1.5, 0}, {3, 0, 0}, {0, 0, 2.5}, {0, -1, 0}, 20, grey, false);
+  addQuad(m, {-1.5, -1.5, 0}, {0, 3, 0}, {0, 0, 2.5}, {1, 0, 0}, 20, grey, false);
+  addQuad(m, {1.5, -1.5, 0}, {0, 3, 0}, {0, 0, 2.5}, {-1, 0, 0}, 20, grey, false);
+  // The lamp: seen only clipped, its radiance the bound.
+  addQuad(m, kLamp - cv::Vec3d(kLampSide / 2, kLampSide / 2, 0), {kLampSide, 0, 0}, {0, kLampSide, 0}, {0, 0, -1}, 4,
+          [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kBound)); }, true);
+  return m;
+}
+
+}  // namespace
+
+TEST(RoomLights, OneLampGivesADominantLightWithin5DegreesAndItsIntensityFromTheWhiteFloor) {
+  const RoomMesh room = lampRoom();
+  const cv::Vec3d centre(0, 0, 0.3);
+  const reconstruction::RoomLights lights = reconstruction::estimateRoomLights(room, centre);
+  EXPECT_GT(lights.coverage, 0.99);
+  // The white-patch estimate of the lamp's gain over its clip bound: the floor's brightest lit vertices have
+  // albedo 0.8, so the gain is the lamp's true radiance over the bound.
+  EXPECT_TRUE(lights.gainEstimated);
+  EXPECT_FALSE(lights.overExposed);
+  EXPECT_LT(lights.saturatedFraction, 0.01);
+  EXPECT_GT(lights.gainSamples, 100);
+  EXPECT_NEAR(lights.gain, kLampRadiance / kBound, 0.1 * kLampRadiance / kBound);
+  ASSERT_FALSE(lights.lights.empty());
+  const reconstruction::RoomLight* dominant = &lights.lights[0];
+  for (const auto& l : lights.lights)
+    if (capture::luminance(l.irradiance) > capture::luminance(dominant->irradiance)) dominant = &l;
+  const cv::Vec3d truth = cv::normalize(kLamp - centre);
+  const double angle = std::acos(std::clamp(dominant->direction.dot(truth), -1.0, 1.0)) * 180 / CV_PI;
+  EXPECT_LT(angle, 5.0);
+  ASSERT_TRUE(dominant->point);
+  EXPECT_LT(cv::norm(dominant->position - kLamp), 0.05);
+  EXPECT_GT(dominant->saturatedFraction, 0.9);
+  // Its intensity: the lamp's radiance x area (x cos, about 1 towards the centre) within 10 %.
+  const double I = kLampRadiance * kLampSide * kLampSide * truth[2];
+  EXPECT_NEAR(capture::luminance(dominant->intensity), I, 0.1 * I);
+  // The rest is ambient: the grey walls' radiance, about the 0.05 they hold (the lit floor adds some).
+  EXPECT_GT(lights.ambientRadiance[1], 0.8 * kWall);
+  EXPECT_LT(lights.ambientRadiance[1], 3 * kWall);
+  // Lights and ambient still hold the map's power.
+  cv::Vec3d total(0, 0, 0);
+  const auto rays = reconstruction::latLongRays(lights.environment.cols);
+  total = reconstruction::totalPower(lights.environment, rays);
+  cv::Vec3d split = lights.split.ambientSh[0] * (4 * CV_PI * 0.28209479177387814);
+  for (const auto& l : lights.lights) split += l.irradiance;
+  EXPECT_NEAR(split[1], total[1], 1e-3 * total[1]);
+}
+
+TEST(RoomLights, AGivenGainIsUsedAndAnUnscannedRoomStaysFinite) {
+  reconstruction::RoomLightOptions o;
+  o.saturatedGain = 10;
+  const auto lights = reconstruction::estimateRoomLights(lampRoom(), {0, 0, 0.3}, o);
+  EXPECT_FALSE(lights.gainEstimated);
+  EXPECT_EQ(lights.gain, 10);
+  // Only a floor: most directions miss (never scanned) and take the floor's mean radiance.
+  RoomMesh floor;
+  addQuad(floor, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(0.1f); }, false);
+  const auto f = reconstruction::estimateRoomLights(floor, {0, 0, 0.3});
+  EXPECT_LT(f.coverage, 0.5);
+  EXPECT_FALSE(f.gainEstimated);
+  for (const auto& l : f.lights)
+    for (int k = 0; k < 3; ++k) EXPECT_TRUE(std::isfinite(l.irradiance[k]) && std::isfinite(l.intensity[k]));
+  EXPECT_NEAR(f.ambientRadiance[0] + 0 * f.lights.size(), 0.1, 0.05);
+  EXPECT_THROW(reconstruction::estimateRoomLights(RoomMesh{}, {0, 0, 0}), std::invalid_argument);
+  // An over-exposed recording: the whole floor clipped. Not a lamp: no gain is estimated, the bound stays.
+  RoomMesh clipped;
+  addQuad(clipped, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(1.f); }, true);
+  addQuad(clipped, {-1, -1, 2}, {2, 0, 0}, {0, 2, 0}, {0, 0, -1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(0.1f); }, false);
+  const auto c = reconstruction::estimateRoomLights(clipped, {0, 0, 0.3});
+  EXPECT_TRUE(c.overExposed);
+  EXPECT_FALSE(c.gainEstimated);
+  EXPECT_EQ(c.gain, 1.0);
+}
