@@ -96,7 +96,7 @@ int runBruteForce(const BenchOptions& o) {
   }
   const cv::Mat positions = reconstruction::backProject(rgbd.depth, rgbd.colourIntrinsics);
   const cv::Mat normals = reconstruction::computeNormals(positions);
-  const auto all = lighting::valsFromRgbd(positions, normals, capture::decodeSrgb(rgbd.colour), rgbd.colourIntrinsics,
+  const auto all = lighting::valsFromRgbd(positions, normals, capture::radianceOf(rgbd.colour, rgbd.exposure), rgbd.colourIntrinsics,
                                           T_world_camera, 1);
   if (all.empty()) throw capture::CaptureError(o.session, "frame 0 has no valid depth to make VALs from");
 

@@ -1,15 +1,19 @@
 // mrgi room: builds the persistent model of the real room from a recording (every frame's filtered depth
 // fused with its marker pose) and saves it as ROOM/room.ply + ROOM/room.json.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "app/commands.h"
 #include "app/output.h"
+#include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/session.h"
+#include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
 #include "runtime/room_fusion.h"
 
@@ -85,7 +89,100 @@ int runRoom(const RoomCliOptions& o) {
   return 0;
 }
 
+struct RoomLightsCliOptions {
+  std::string room;
+  std::vector<double> at{0, 0, 0.06};
+  int count = 4;
+  double gain = 0, whiteAlbedo = 0.8;
+  std::string map;
+  bool json = false;
+};
+
+/// The lat-long map (row 0 = +z) tone-mapped for viewing, the lights circled: sRGB of radiance scaled so
+/// that the 99th percentile reads 0.8.
+cv::Mat roomLightsView(const reconstruction::RoomLights& l) {
+  cv::Mat view = l.environment.clone();
+  std::vector<float> lum;
+  for (int i = 0; i < static_cast<int>(view.total()); ++i) lum.push_back(static_cast<float>(capture::luminance(cv::Vec3d(view.at<cv::Vec3f>(i)))));
+  const size_t q = lum.size() * 99 / 100;
+  std::nth_element(lum.begin(), lum.begin() + static_cast<std::ptrdiff_t>(q), lum.end());
+  if (lum[q] > 0) view *= 0.8 / lum[q];
+  cv::Mat out = capture::encodeSrgb(view);
+  for (const auto& light : l.lights) {
+    const cv::Vec3d d = light.direction;
+    const double theta = std::acos(std::clamp(d[2], -1.0, 1.0)), phi = std::atan2(d[1], d[0]);
+    const int u = static_cast<int>(std::fmod(phi + 2 * CV_PI, 2 * CV_PI) / (2 * CV_PI) * out.cols);
+    const int v = static_cast<int>(theta / CV_PI * out.rows);
+    cv::circle(out, {u, v}, 6, light.saturatedFraction > 0.5 ? cv::Scalar(255, 64, 0) : cv::Scalar(0, 200, 255), 2);
+  }
+  return out;
+}
+
+int runRoomLights(const RoomLightsCliOptions& o) {
+  const reconstruction::RoomMesh room = reconstruction::loadRoom(o.room);
+  reconstruction::RoomLightOptions ro;
+  ro.split.medianCut.count = o.count;
+  ro.saturatedGain = o.gain;
+  ro.whiteAlbedo = o.whiteAlbedo;
+  const cv::Vec3d at(o.at[0], o.at[1], o.at[2]);
+  const reconstruction::RoomLights l = reconstruction::estimateRoomLights(room, at, ro);
+  json lights = json::array();
+  for (const auto& x : l.lights) {
+    json j = {{"direction", {x.direction[0], x.direction[1], x.direction[2]}},
+              {"irradiance", {x.irradiance[0], x.irradiance[1], x.irradiance[2]}},
+              {"saturated_fraction", x.saturatedFraction}};
+    if (x.point) {
+      j["type"] = "point";
+      j["position"] = {x.position[0], x.position[1], x.position[2]};
+      j["intensity"] = {x.intensity[0], x.intensity[1], x.intensity[2]};
+    } else {
+      j["type"] = "directional";
+    }
+    lights.push_back(j);
+  }
+  json sh = json::array();
+  for (const auto& c : l.ambientSh) sh.push_back({c[0], c[1], c[2]});
+  const json out = {{"at", o.at},
+                    {"lights", lights},
+                    {"ambient_radiance", {l.ambientRadiance[0], l.ambientRadiance[1], l.ambientRadiance[2]}},
+                    {"ambient_sh", sh},
+                    {"saturated_gain", l.gain},
+                    {"gain_estimated", l.gainEstimated},
+                    {"gain_samples", l.gainSamples},
+                    {"saturated_fraction", l.saturatedFraction},
+                    {"over_exposed", l.overExposed},
+                    {"coverage", l.coverage}};
+  if (!o.map.empty()) writePng(o.map, roomLightsView(l));
+  if (o.json) {
+    std::printf("%s\n", out.dump().c_str());
+  } else {
+    std::printf("%zu lights at (%.3f, %.3f, %.3f); saturated gain %.3g (%s); room covers %.0f %% of the view\n", l.lights.size(), at[0],
+                at[1], at[2], l.gain, l.gainEstimated ? "estimated" : l.overExposed ? "over-exposed: not estimated" : "given",
+                100 * l.coverage);
+    for (const auto& x : l.lights)
+      std::printf("  %s at (%.3f, %.3f, %.3f), irradiance %.4g\n", x.point ? "point" : "directional", x.position[0], x.position[1],
+                  x.position[2], capture::luminance(x.irradiance));
+  }
+  return 0;
+}
+
 }  // namespace
+
+Action addRoomLights(CLI::App& app) {
+  auto o = std::make_shared<RoomLightsCliOptions>();
+  app.add_option("room", o->room, "room folder (mrgi room)")->required();
+  app.add_option("--at", o->at, "where the virtual object will be, marker frame (metres)")->expected(3)->capture_default_str();
+  app.add_option("--count", o->count, "lights from the split")->check(CLI::Range(1, 16))->capture_default_str();
+  app.add_option("--gain", o->gain, "gain on saturated radiance (0 = estimate from the white-patch assumption)")
+      ->check(CLI::Range(0.0, 1e4))
+      ->capture_default_str();
+  app.add_option("--white-albedo", o->whiteAlbedo, "the white patch's albedo for the estimate")
+      ->check(CLI::Range(0.05, 1.0))
+      ->capture_default_str();
+  app.add_option("--map", o->map, "write the room's environment at that point (lat-long PNG, lights circled)");
+  app.add_flag("--json", o->json, "print one JSON object");
+  return [o] { return runRoomLights(*o); };
+}
 
 Action addRoom(CLI::App& app) {
   auto o = std::make_shared<RoomCliOptions>();

@@ -43,7 +43,38 @@ struct SynthOptions {
   std::string scene;  ///< virtual objects whose path-traced reference composite each frame gets
   std::string environment;        ///< HDR equirect EXR: outdoors under it instead of the room
   double environmentScale = 0;    ///< 0: a white upward surface in the open reads 0.6
+  int scan = 0;                   ///< look-around frames after the orbit (walls, ceiling, the lamp)
+  std::string exposure = "1";     ///< "auto" (at most 1 % of pixels clip) or a fixed relative exposure
 };
+
+/// The look-around: standing at the table's front edge, the camera turns a full circle twice, once
+/// looking 35 degrees up (walls, ceiling, the lamp) and once 20 degrees down (the floor, the table's far
+/// side and the box's back).
+capture::Pose scanCamera(int i, int n) {
+  const cv::Vec3d eye(0.0, 1.35, 0.95);
+  const int half = std::max(1, n / 2);
+  const bool up = i < half;
+  const int k = up ? i : i - half, m = up ? half : std::max(1, n - half);
+  const double yaw = -CV_PI + 2 * CV_PI * (k + 0.5) / m, pitch = (up ? 35.0 : -20.0) * CV_PI / 180;
+  const cv::Vec3d dir(std::cos(pitch) * std::sin(yaw), std::sin(pitch), -std::cos(pitch) * std::cos(yaw));
+  return capture::lookAtPose(eye, eye + dir);
+}
+
+/// The exposure at which at most 1 % of the pixels have a channel at or above the 8-bit level 250 (the
+/// sensor's noise aside), never above 1; "1" or a number: that exposure.
+double pickExposure(const std::string& mode, const cv::Mat& radiance) {
+  if (mode != "auto") return std::stod(mode);
+  std::vector<float> peak(radiance.total());
+  for (size_t i = 0; i < peak.size(); ++i) {
+    const cv::Vec3f v = radiance.at<cv::Vec3f>(static_cast<int>(i));
+    peak[i] = std::max({v[0], v[1], v[2]});
+  }
+  const size_t q = peak.size() * 99 / 100;
+  std::nth_element(peak.begin(), peak.begin() + static_cast<std::ptrdiff_t>(q), peak.end());
+  // Level 245 leaves room for the sensor noise (sigma 1.2 levels) below the clip detector's 250.
+  const double limit = capture::srgbToLinear(245.f / 255.f);
+  return peak[q] > limit ? limit / peak[q] : 1.0;
+}
 
 /// Loads an equirectangular EXR (linear RGB, 2:1) as the environment; scale 0 picks the exposure at which
 /// a white upward-facing surface under the open sky has radiance 0.6.
@@ -102,7 +133,8 @@ RgbdRender renderRgbd(const RayCaster& rc, const PathTracer* pt, const capture::
         // Depth and normal at the pixel centre, as a depth camera measures them.
         const cv::Vec3d dc((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0);
         const cv::Vec3f d = cv::normalize(toFloat(R * dc));
-        const auto h = rc.intersect(origin, d, 1e-4f, 1e30f, false);
+        // The lamp is a solid object to the depth sensor too.
+        const auto h = rc.intersect(origin, d, 1e-4f, 1e30f, true);
         r.depth.at<float>(y, x) = h ? static_cast<float>(h->t / cv::norm(dc)) : 0.f;
         r.normals.at<cv::Vec3f>(y, x) = h ? toFloat(Rt * cv::Vec3d(h->normal)) : cv::Vec3f(0, 0, 0);
       }
@@ -223,28 +255,32 @@ int runSynth(const SynthOptions& o) {
   if (!o.scene.empty()) augmentedCaster.emplace(augmented);
   const capture::DepthNoiseModel noise;
   ProgressBar bar("synth");
-  for (int i = 0; i < o.frames; ++i) {
+  const int total = o.frames + o.scan;
+  for (int i = 0; i < total; ++i) {
+    const bool scanning = i >= o.frames;
     capture::Frame frame;
     frame.index = i;
     frame.timestamp = i / 30.0;
-    frame.groundTruthT_world_camera = orbitCamera(o.staticCamera ? 0 : i, o.frames);
+    frame.groundTruthT_world_camera = scanning ? scanCamera(i - o.frames, o.scan) : orbitCamera(o.staticCamera ? 0 : i, o.frames);
     po.seed = o.seed * 1000003u + static_cast<uint64_t>(i);
     // With a reference the frame's two renders share its step of the bar.
-    const double share = augmentedCaster && pathTrace ? 0.5 : 1.0;
-    po.progress = [&bar, i, share, &o](double x) { bar((i + share * x) / o.frames); };
+    const double share = augmentedCaster && pathTrace && !scanning ? 0.5 : 1.0;
+    po.progress = [&bar, i, share, total](double x) { bar((i + share * x) / total); };
     const PathTracer pt(rc, po);
     const RgbdRender r = renderRgbd(rc, pathTrace ? &pt : nullptr, m.colour, *frame.groundTruthT_world_camera);
     capture::RgbdFrame rgbd;
     const uint64_t noiseSeed = o.seed * 7919 + static_cast<uint64_t>(i);
-    rgbd.colour = cameraImage(r.radiance, noiseSeed);
+    const double exposure = pickExposure(o.exposure, r.radiance);
+    rgbd.colour = cameraImage(exposure == 1.0 ? r.radiance : cv::Mat(r.radiance * exposure), noiseSeed);
+    rgbd.exposure = exposure;
     rgbd.depth = capture::applyDepthNoise(r.depth, r.normals, m.colour.fx, m.colour.fy, m.colour.cx, m.colour.cy, noise,
                                           o.seed * 104729 + static_cast<uint64_t>(i));
     rgbd.colourIntrinsics = rgbd.depthIntrinsics = m.colour;
-    if (augmentedCaster) {
+    if (augmentedCaster && !scanning) {
       // The ideal composite: the same camera (seed, noise) looking at the room with the objects in it.
       const groundtruth::PinholeCamera cam{m.colour, *frame.groundTruthT_world_camera};
       groundtruth::PathTraceOptions rhoOptions = po;
-      rhoOptions.progress = [&bar, i, &o](double x) { bar((i + 0.5 + 0.5 * x) / o.frames); };
+      rhoOptions.progress = [&bar, i, total](double x) { bar((i + 0.5 + 0.5 * x) / total); };
       const cv::Mat rho = pathTrace ? PathTracer(*augmentedCaster, rhoOptions).render(cam) : r.radiance;
       const cv::Mat mask = groundtruth::virtualMask(*augmentedCaster, cam);
       cv::Mat delta = rho - r.radiance;
@@ -253,7 +289,7 @@ int runSynth(const SynthOptions& o) {
       const fs::path dir = fs::path(o.out) / "reference";
       fs::create_directories(dir);
       std::snprintf(name, sizeof name, "%06d.png", i);
-      writePng((dir / name).string(), cameraImage(rho, noiseSeed));
+      writePng((dir / name).string(), cameraImage(exposure == 1.0 ? rho : cv::Mat(rho * exposure), noiseSeed));
       std::snprintf(name, sizeof name, "delta_%06d.exr", i);
       writeExr((dir / name).string(), delta);
       std::snprintf(name, sizeof name, "mask_%06d.png", i);
@@ -269,7 +305,7 @@ int runSynth(const SynthOptions& o) {
     }
     writer.append(frame);
   }
-  std::printf("wrote %d frames to %s\n", o.frames, o.out.c_str());
+  std::printf("wrote %d frames to %s\n", total, o.out.c_str());
   return 0;
 }
 
@@ -293,6 +329,19 @@ Action addSynth(CLI::App& app) {
   app.add_option("--spp", o->spp, "path-traced samples per pixel")->check(CLI::Range(1, 1 << 16));
   app.add_option("--bounces", o->bounces, "path-traced bounces")->check(CLI::Range(0, 64));
   app.add_option("--scene", o->scene, "also write each frame's reference composite with this scene's objects (reference/)");
+  app.add_option("--scan", o->scan, "append N look-around frames (walls, ceiling, the lamp; no marker in view, no reference)")
+      ->check(CLI::Range(0, 100000));
+  app.add_option("--exposure", o->exposure, "auto (at most 1 % of pixels clip; recorded per frame) or a relative exposure")
+      ->check([](const std::string& v) -> std::string {
+        if (v == "auto") return "";
+        try {
+          size_t used = 0;
+          const double e = std::stod(v, &used);
+          if (used == v.size() && e > 0 && e <= 1e6) return "";
+        } catch (const std::exception&) {
+        }
+        return "must be auto or a positive number";
+      });
   app.add_option("--fisheye-every", o->fisheyeEvery, "store a fisheye HDR frame every N frames (0 = no fisheye)")
       ->check(CLI::NonNegativeNumber);
   return [o] { return runSynth(*o); };

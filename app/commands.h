@@ -32,5 +32,6 @@ Action addReference(CLI::App& app);
 Action addLive(CLI::App& app);
 Action addRecord(CLI::App& app);
 Action addRoom(CLI::App& app);
+Action addRoomLights(CLI::App& app);
 
 }  // namespace mrgi::app

@@ -40,6 +40,8 @@ int main(int argc, char** argv) {
       mrgi::app::addInsert);
   add("room", "Build the model of the real room from a recording (depth fused over every frame's marker pose) and save it",
       mrgi::app::addRoom);
+  add("room-lights", "Lights from a room model as seen from a point: a few point lights and an SH remainder; the map as PNG",
+      mrgi::app::addRoomLights);
   add("reference", "Path-trace the ground truth of one frame (rho, mu, delta EXR and the reference composite)",
       mrgi::app::addReference);
   add("bench", "Measure speed against accuracy of every technique's knobs against the path-traced reference; JSON, CSV, HTML, presets",

@@ -30,6 +30,12 @@ inline double luminance(const cv::Vec3d& rgb) { return 0.2126 * rgb[0] + 0.7152 
 namespace mrgi::capture {
 /// RGB8 sRGB image (CV_8UC3) -> linear CV_32FC3.
 cv::Mat decodeSrgb(const cv::Mat& rgb8);
+/// Scene radiance from a camera's 8-bit sRGB image taken at `exposure` (linear value per unit radiance).
+inline cv::Mat radianceOf(const cv::Mat& rgb8, double exposure) {
+  cv::Mat linear = decodeSrgb(rgb8);
+  if (exposure != 1.0) linear *= 1.0 / exposure;
+  return linear;
+}
 /// Linear CV_32FC3 -> RGB8 sRGB (rounded to nearest; clamped; NaN -> 0).
 cv::Mat encodeSrgb(const cv::Mat& linear);
 }  // namespace mrgi::capture

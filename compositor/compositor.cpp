@@ -10,7 +10,7 @@
 
 namespace mrgi::compositor {
 
-cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask) {
+cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask, double exposure) {
   CV_Assert(background.type() == CV_8UC3);
   cv::Mat linear = capture::decodeSrgb(background);
   if (!delta.empty()) {
@@ -19,7 +19,8 @@ cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, cons
       auto* l = linear.ptr<cv::Vec3f>(y);
       const auto* d = delta.ptr<cv::Vec3f>(y);
       const uchar* m = virtualMask.empty() ? nullptr : virtualMask.ptr<uchar>(y);
-      for (int x = 0; x < linear.cols; ++x) l[x] = (m && m[x] > 127) ? d[x] : l[x] + d[x];
+      const float e = static_cast<float>(exposure);
+      for (int x = 0; x < linear.cols; ++x) l[x] = (m && m[x] > 127) ? d[x] * e : l[x] + d[x] * e;
     }
   }
   return capture::encodeSrgb(linear);
@@ -37,6 +38,8 @@ Compositor::Compositor(int width, int height)
   framebuffer_.attachColour(0, output_);
   framebuffer_.finalise(1);
 }
+
+void Compositor::setExposure(double exposure) { program_.set("uExposure", static_cast<float>(exposure)); }
 
 cv::Mat Compositor::composite(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask,
                               gl::Profiler* profiler) {

@@ -12,7 +12,9 @@ namespace mrgi::compositor {
 
 /// CPU reference of the GPU merge (same math): background RGB8 sRGB; delta CV_32FC3 linear (empty = 0);
 /// virtualMask CV_8UC1, 255 on virtual pixels (empty = none), whose radiance is taken from delta.
-cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask);
+/// `exposure`: the camera image's linear value per unit scene radiance (capture::RgbdFrame::exposure);
+/// delta and virtual radiance are scene radiance and are scaled by it.
+cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask, double exposure = 1.0);
 
 class Compositor {
  public:
@@ -25,6 +27,9 @@ class Compositor {
   /// Same merge with the delta already on the GPU: RGBA32F, rgb = delta or virtual radiance, a = 1 on
   /// virtual pixels (lighting::LightingPipeline::shade()).
   cv::Mat composite(const cv::Mat& background, const gl::Texture& delta, gl::Profiler* profiler);
+
+  /// The camera exposure of the frames that follow (compositeReference's `exposure`); 1 by default.
+  void setExposure(double exposure);
 
   const gl::Texture& output() const { return output_; }
   /// Draws the last composite into the default framebuffer (window backend), scaled to width x height.

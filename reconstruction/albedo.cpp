@@ -42,7 +42,8 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
   CV_Assert(colour.size() == positions.size() && normals.size() == positions.size());
   CV_Assert(positions.type() == CV_32FC3 && normals.type() == CV_32FC3);
   CV_Assert(colour.type() == CV_8UC3 || colour.type() == CV_32FC3);
-  const cv::Mat linear = colour.type() == CV_8UC3 ? capture::decodeSrgb(colour) : colour;
+  CV_Assert(o.exposure > 0);
+  const cv::Mat linear = colour.type() == CV_8UC3 ? cv::Mat(capture::decodeSrgb(colour) * (1.0 / o.exposure)) : colour;
   AlbedoResult out;
   out.albedo.create(colour.size(), CV_32FC3);
   out.status.create(colour.size(), CV_8UC1);

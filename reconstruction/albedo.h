@@ -35,6 +35,7 @@ struct AlbedoOptions {
   double shadowTolerance = 0.005; ///< relative depth: a surface must be this much in front of a sample to occlude it
   double distantRayLength = 2.0;  ///< metres marched towards distant lights
   bool fill = true;               ///< fill rejected pixels from their neighbours (cv::inpaint)
+  double exposure = 1.0;          ///< an 8-bit colour's linear value per unit radiance (RgbdFrame::exposure)
 };
 
 struct AlbedoResult {

@@ -29,7 +29,7 @@ struct RoomLightOptions {
   }();
   double saturatedGain = 0;    ///< > 0: the gain on saturated radiance; 0: estimated (white patch)
   double whiteAlbedo = 0.8;    ///< the white patch's albedo for the estimate
-  double estimateRadius = 1.0; ///< metres around the centre whose vertices inform the estimate
+  double estimateRadius = 5.0; ///< metres around the centre whose vertices inform the estimate (5: a room; its whitest lit surfaces are the white patch)
   double maxGain = 1e4;        ///< the estimate's ceiling
   /// Lamps and windows are compact: when saturated surfaces cover more than this fraction of the solid
   /// angle the room covers, they are lit surfaces clipped by an over-exposed camera, not emitters; the gain

@@ -285,8 +285,10 @@ RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameR
   cv::Mat albedo;
   {
     auto s = profiler.cpu("albedo");
+    reconstruction::AlbedoOptions ao;
+    ao.exposure = frame.rgbd->exposure;
     albedo = reconstruction::estimateAlbedo(frame.rgbd->colour, r.positions, r.normals, frame.rgbd->colourIntrinsics,
-                                            albedoLights(T_camera_marker))
+                                            albedoLights(T_camera_marker), ao)
                  .albedo;
   }
   {
@@ -353,6 +355,7 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   const capture::RgbdFrame& rgbd = *frame.rgbd;
   if (!setup_ || !r.T_marker_camera) {
     // No scene, or marker lost: nothing can be placed; the frame is the background.
+    compositor.setExposure(rgbd.exposure);
     r.composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
     return;
   }
@@ -372,7 +375,7 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     // Real surfaces as area lights: the seen radiance of every stride-th filtered pixel, fused over frames
     // when the technique asks for it (surfels out of view keep their light).
     auto s = profiler.cpu("real_vals");
-    auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::decodeSrgb(rgbd.colour), rgbd.colourIntrinsics,
+    auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::radianceOf(rgbd.colour, rgbd.exposure), rgbd.colourIntrinsics,
                                        *r.T_marker_camera, needs_.realValOptions.stride);
     if (surfels_) {
       cv::Mat depth;
@@ -391,6 +394,7 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   for (const std::string& stage : pipeline_->skippedStages()) r.info["skipped"].push_back(stage);
   // Each technique's facts of this frame (counts, flicker), under its name.
   if (auto stats = pipeline_->stats(); !stats.empty()) r.info["techniques"] = std::move(stats);
+  compositor.setExposure(rgbd.exposure);
   r.composite = compositor.composite(rgbd.colour, pipeline_->shade(), &profiler);
   r.lit = true;
 }

@@ -64,3 +64,27 @@ TEST_F(CompositorTest, GpuMatchesCpuReference) {
   const cv::Mat virt = comp.composite(background, half, all, nullptr);
   EXPECT_EQ(virt.at<cv::Vec3b>(5, 5), cv::Vec3b(128, 128, 128));
 }
+
+TEST_F(CompositorTest, TheCameraExposureScalesDeltaAndVirtualRadianceOnGpuAndCpu) {
+  // A camera at exposure 0.5 records half the scene radiance: a virtual pixel of radiance 2 x level128
+  // reads 128, and a real pixel's delta counts half.
+  const float level128 = capture::srgbToLinear(128.f / 255.f);
+  cv::Mat radiance(kH, kW, CV_32FC3, cv::Scalar::all(2 * level128));
+  cv::Mat mask(kH, kW, CV_8UC1, cv::Scalar(0));
+  mask(cv::Rect(0, 0, kW / 2, kH)).setTo(255);
+  compositor::Compositor comp(kW, kH);
+  comp.setExposure(0.5);
+  const cv::Mat gpu = comp.composite(background, radiance, mask, nullptr);
+  const cv::Mat cpu = compositor::compositeReference(background, radiance, mask, 0.5);
+  EXPECT_LE(cv::norm(gpu, cpu, cv::NORM_INF), 1.0);
+  EXPECT_EQ(gpu.at<cv::Vec3b>(5, 5), cv::Vec3b(128, 128, 128));
+  EXPECT_EQ(cpu.at<cv::Vec3b>(5, 5), cv::Vec3b(128, 128, 128));
+  // Real half: background + 0.5 x delta.
+  const int x = kW - 3, y = 5;
+  const cv::Vec3b b = background.at<cv::Vec3b>(y, x);
+  const float expected = capture::linearToSrgb(capture::srgbToLinear(b[0] / 255.f) + level128) * 255.f;
+  EXPECT_NEAR(gpu.at<cv::Vec3b>(y, x)[0], expected, 1.0);
+  comp.setExposure(1.0);
+  EXPECT_EQ(comp.composite(background, radiance, mask, nullptr).at<cv::Vec3b>(5, 5)[0],
+            std::lround(capture::linearToSrgb(2 * level128) * 255.f));
+}
