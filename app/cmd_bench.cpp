@@ -403,6 +403,112 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   return bs;
 }
 
+/// The virtual object's mean sRGB level in the composite against the truth's, over the truth's virtual
+/// pixels: what a viewer sees as "too dark" (ratio - 1 < 0) or "too bright".
+struct BrightnessSums {
+  double ours = 0, truth = 0;
+  void add(const cv::Mat& composite, const Truth& t) {
+    for (int y = 0; y < composite.rows; ++y)
+      for (int x = 0; x < composite.cols; ++x) {
+        if (!t.images.mask.at<uchar>(y, x)) continue;
+        const cv::Vec3b a = composite.at<cv::Vec3b>(y, x), b = t.composite.at<cv::Vec3b>(y, x);
+        ours += a[0] + a[1] + a[2], truth += b[0] + b[1] + b[2];
+      }
+  }
+  double ratio() const { return truth > 0 ? ours / truth : 0.0; }
+};
+
+/// Irradiance at `p` for normal n from a set of lights (shadows aside) plus a uniform ambient.
+cv::Vec3d irradianceAt(const std::vector<lighting::SceneLight>& lights, const cv::Vec3d& ambient, const cv::Vec3d& p, const cv::Vec3d& n) {
+  cv::Vec3d E = ambient * CV_PI;
+  for (const auto& l : lights) {
+    if (l.type == lighting::LightType::Directional) {
+      E += l.irradiance * std::max(0.0, -n.dot(l.direction));
+      continue;
+    }
+    cv::Vec3d d = l.position - p;
+    const double r2 = std::max(d.dot(d), 1e-8);
+    d /= std::sqrt(r2);
+    double spot = 1;
+    if (l.type == lighting::LightType::Spot && -d.dot(l.direction) < l.spotCos()) spot = 0;
+    E += l.intensity * (spot * std::max(0.0, n.dot(d)) / r2);
+  }
+  return E;
+}
+
+/// Lights estimated from the room against the true ones, at the virtual objects' centre: the angle between
+/// the strongest lights' directions, and the irradiance for the six axis normals (mean |ratio - 1|).
+json lightsAgainstTruth(const LightingSetup& est, const LightingSetup& truth) {
+  cv::Vec3d c(0, 0, 0);
+  for (const auto& o : truth.scene.objects)
+    c += capture::transformPoint(capture::Pose(o.T_marker_object), 0.5 * (cv::Vec3d(o.mesh.boundsMin) + cv::Vec3d(o.mesh.boundsMax)));
+  if (!truth.scene.objects.empty()) c /= static_cast<double>(truth.scene.objects.size());
+  auto strongest = [&](const std::vector<lighting::SceneLight>& ls) {
+    cv::Vec3d dir(0, 0, 0);
+    double best = -1;
+    for (const auto& l : ls) {
+      const cv::Vec3d toLight = l.type == lighting::LightType::Directional ? -l.direction : cv::normalize(l.position - c);
+      const double e = capture::luminance(l.type == lighting::LightType::Directional ? l.irradiance
+                                                                                     : l.intensity * (1.0 / std::max((l.position - c).dot(l.position - c), 1e-8)));
+      if (e > best) best = e, dir = toLight;
+    }
+    return dir;
+  };
+  const cv::Vec3d a = strongest(est.lights), b = strongest(truth.lights);
+  double ratioErr = 0, worst = 0;
+  const cv::Vec3d normals[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  json perNormal = json::array();
+  for (const auto& n : normals) {
+    const double e = capture::luminance(irradianceAt(est.lights, est.ambient, c, n));
+    const double t = capture::luminance(irradianceAt(truth.lights, truth.ambient, c, n));
+    const double r = t > 0 ? e / t : 0.0;
+    perNormal.push_back(r);
+    ratioErr += std::abs(r - 1) / 6, worst = std::max(worst, std::abs(r - 1));
+  }
+  return {{"dominant_angle_deg", std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / CV_PI},
+          {"irradiance_ratio_by_axis", perNormal},
+          {"irradiance_error_mean", ratioErr},
+          {"irradiance_error_max", worst},
+          {"lights", est.lights.size()}};
+}
+
+/// The whole pipeline (a session's true reference composites) with these frame options: errors, SSIM,
+/// the object's brightness, time. `truth` (lights from the room): also the lights against the true ones.
+std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo, BenchSession& bs, const LightingSetup* truth = nullptr) {
+  FramePipeline rp(s, bs.W, bs.H, fo);
+  ErrorSums whole;
+  BrightnessSums brightness;
+  double ssim = 0, ms = 0;
+  int frames = 0, timed = 0;
+  const int n = static_cast<int>(bs.frames.size());
+  for (int f = 0; f < n; ++f) {
+    capture::Frame frame = bs.frames[f];
+    gl::Profiler profiler;
+    const FrameResult r = rp.process(frame, *bs.compositor, profiler);
+    double frameMs = 0;
+    for (const auto& [stage, t] : profiler.resolve())
+      if (stage != "read" && stage != "write") frameMs += std::max(t.cpuMs, t.gpuMs);
+    if (f > 0 || n == 1) ms += frameMs, ++timed;
+    if (!r.lit) continue;
+    if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
+      const FrameState st = frameState(rp.lighting()->downloadShade(), rp.lighting()->downloadGBuffer(0), *r.T_marker_camera);
+      whole.add(errorSums(st.shade, it->second));
+      ssim += ssimOf(r.composite, it->second.composite);
+      brightness.add(r.composite, it->second);
+      ++frames;
+    }
+  }
+  if (frames == 0) return std::nullopt;
+  json out = {{"frames", frames},
+              {"rel_error_delta", whole.relDelta()},
+              {"rel_error_virtual", whole.relVirtual()},
+              {"ssim", ssim / frames},
+              {"virtual_brightness", brightness.ratio()},
+              {"ms_total", ms / std::max(timed, 1)}};
+  if (truth && rp.setup()) out["lights_vs_truth"] = lightsAgainstTruth(*rp.setup(), *truth);
+  return out;
+}
+
 /// A configuration's measurements on one session.
 json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o, double errScale,
                    std::vector<ReportImage>* images) {
@@ -417,6 +523,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   std::map<std::string, double> stageSum;
   int timed = 0;
   ErrorSums err, whole;
+  BrightnessSums brightness;
   double ssimSum = 0, wholeSsim = 0, flickNum = 0, flickDen = 0;
   int wholeFrames = 0;
   size_t gpuBytes = 0;
@@ -455,41 +562,25 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
       whole.add(errorSums(st.shade, it->second));
       wholeSsim += ssimOf(r.composite, it->second.composite);
+      brightness.add(r.composite, it->second);
       ++wholeFrames;
     }
     prev = std::move(st);
   }
-  // --room: the same configuration lit from the fused room, against the same true references.
-  std::optional<json> roomRecord;
+  // --room: the same configuration lit from the fused room, against the same true references; and once more
+  // with the lights estimated from the room instead of the session's true ones.
+  std::optional<json> roomRecord, roomLightsRecord;
   if (bs.room && !bs.trueRefs.empty()) {
     FrameOptions ro = fo;
     ro.room = bs.room;
-    FramePipeline rp(s, bs.W, bs.H, ro);
-    ErrorSums wholeRoom;
-    double ssimRoom = 0, msRoom = 0;
-    int framesRoom = 0, timedRoom = 0;
-    for (int f = 0; f < n; ++f) {
-      capture::Frame frame = bs.frames[f];
-      gl::Profiler profiler;
-      const FrameResult r = rp.process(frame, *bs.compositor, profiler);
-      double frameMs = 0;
-      for (const auto& [stage, t] : profiler.resolve())
-        if (stage != "read" && stage != "write") frameMs += std::max(t.cpuMs, t.gpuMs);
-      if (f > 0 || n == 1) msRoom += frameMs, ++timedRoom;
-      if (!r.lit) continue;
-      if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
-        const FrameState st = frameState(rp.lighting()->downloadShade(), rp.lighting()->downloadGBuffer(0), *r.T_marker_camera);
-        wholeRoom.add(errorSums(st.shade, it->second));
-        ssimRoom += ssimOf(r.composite, it->second.composite);
-        ++framesRoom;
-      }
+    roomRecord = wholePipeline(s, ro, bs);
+    if (s.scene.lightSource != lighting::LightSource::Room) {
+      LightingSetup rl = s;
+      rl.scene.lightSource = lighting::LightSource::Room;
+      rl.lights.clear();
+      rl.ambient = {0, 0, 0};
+      roomLightsRecord = wholePipeline(rl, ro, bs, &s);
     }
-    if (framesRoom > 0)
-      roomRecord = json{{"frames", framesRoom},
-                        {"rel_error_delta", wholeRoom.relDelta()},
-                        {"rel_error_virtual", wholeRoom.relVirtual()},
-                        {"ssim", ssimRoom / framesRoom},
-                        {"ms_total", msRoom / std::max(timedRoom, 1)}};
   }
   json msStages = json::object();
   double total = 0, lightingMs = 0;
@@ -516,8 +607,10 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
                            {"rel_error_delta", whole.relDelta()},
                            {"rel_error_virtual", whole.relVirtual()},
                            {"ssim", wholeSsim / wholeFrames},
+                           {"virtual_brightness", brightness.ratio()},
                            {"silhouette_mismatch_pixels", whole.mismatched}};
   if (roomRecord) r["whole_pipeline_room"] = *roomRecord;
+  if (roomLightsRecord) r["whole_pipeline_room_lights"] = *roomLightsRecord;
   return r;
 }
 

@@ -180,6 +180,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   p.set("uLighting", lit ? 1 : 0);
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
   setVec3(p, "uAmbient", ambientRadiance);
+  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
   const std::vector<LightView>& views = frame_->lightViews();
   p.set("uLightCount", static_cast<int>(lights.size()));
   for (size_t i = 0; i < lights.size(); ++i) {

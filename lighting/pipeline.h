@@ -9,6 +9,7 @@
 /// technique's per-light work when the lights or geometry changed; a technique's update when one of the
 /// inputs it declares changed; the shading when anything did. A skipped stage's results are the last run's,
 /// which equal what it would compute again.
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -60,6 +61,14 @@ class LightingPipeline {
   }
   /// Where object i sits in the lighting world.
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) { frame_->setObjectTransform(i, T_world_object); }
+  /// The ambient's directional part for the next runs: radiance as SH bands 0-2 (index l(l+1)+m, the basis
+  /// of reconstruction::shBasis2), lighting world; the virtual object gets its clamped-cosine irradiance
+  /// on top of the uniform ambient. Zero (the default) adds nothing. A change reruns the shading pass.
+  void setAmbientSh(const std::array<cv::Vec3d, 9>& sh) {
+    if (sh == ambientSh_) return;
+    ambientSh_ = sh;
+    shadeAt_.reset();
+  }
   /// The real-surface area lights (lighting world) of the next runs, for techniques that need them.
   void setRealVals(std::vector<Val> vals) { frame_->setRealVals(std::move(vals)); }
   /// What the techniques need from the application (real VALs and how to build them).
@@ -112,6 +121,7 @@ class LightingPipeline {
   gl::VertexArray emptyVao_;
   /// What each consumer last computed from.
   std::optional<FrameVersions> gbufferAt_, lightsAt_, shadeAt_;
+  std::array<cv::Vec3d, 9> ambientSh_{};
   std::vector<std::optional<FrameVersions>> techniqueAt_;
   std::vector<std::string> skipped_;
 };

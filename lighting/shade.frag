@@ -4,7 +4,8 @@
 //   real pixel:    rgb = E_delta * albedo / pi, a = 0   (the compositor adds it to the background)
 //                  E_delta = the real-role technique's delta, plus (when that technique does not already
 //                  account for it) the direct light the object blocks, sum_i E_i (vis_i(RSM^rho) - vis_i(RSM^mu))
-//   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_indirect) * albedo / pi + L_indirect, a = 1
+//   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
+//                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
 //                  E_indirect, L_indirect from the virtual-role technique
 //   no surface:    rgb = 0, a = 0
 // Output 1 (debug): rgb = E_delta (real) or E_indirect (virtual) in W/m^2, a = 1 where a surface was seen.
@@ -23,6 +24,7 @@ layout(binding = 13) uniform sampler2DArray uShadowMu;  // per light: RSM^mu wor
 uniform int uLighting;          // 0: no virtual object in this frame (everything zero)
 uniform int uAddDirectShadow;   // 1: the real-role technique leaves the object's direct shadow to this pass
 uniform vec3 uAmbient;          // radiance, W/m^2/sr
+uniform vec3 uAmbientSh[9];     // radiance as SH bands 0-2, lighting world (reconstruction::shBasis2's basis); 0 = none
 uniform int uLightCount;
 uniform int uLightType[MAX_LIGHTS];
 uniform vec3 uLightPosition[MAX_LIGHTS];
@@ -31,6 +33,19 @@ uniform vec3 uLightPower[MAX_LIGHTS];
 uniform float uSpotCos[MAX_LIGHTS];
 uniform mat4 uLightViewProj[MAX_LIGHTS];
 uniform float uShadowBias[MAX_LIGHTS];  // metres, distance tolerance of the shadow test
+
+/// Irradiance of the SH ambient at unit normal n (reconstruction::ambientShIrradiance is its C++ twin):
+/// sum_lm A_l c_lm y_lm(n), A = (pi, 2 pi / 3, pi / 4), clamped at 0.
+vec3 shAmbientIrradiance(vec3 n) {
+  const float b[9] = float[9](0.282094791773878, 0.488602511902920 * n.y, 0.488602511902920 * n.z, 0.488602511902920 * n.x,
+                              1.092548430592079 * n.x * n.y, 1.092548430592079 * n.y * n.z,
+                              0.315391565252520 * (3.0 * n.z * n.z - 1.0), 1.092548430592079 * n.x * n.z,
+                              0.546274215296040 * (n.x * n.x - n.y * n.y));
+  vec3 e = SHADE_PI * b[0] * uAmbientSh[0];
+  for (int k = 1; k < 4; ++k) e += (2.0 * SHADE_PI / 3.0) * b[k] * uAmbientSh[k];
+  for (int k = 4; k < 9; ++k) e += (SHADE_PI / 4.0) * b[k] * uAmbientSh[k];
+  return max(e, vec3(0.0));
+}
 
 layout(location = 0) out vec4 outShade;
 layout(location = 1) out vec4 outIrradiance;
@@ -89,7 +104,7 @@ void main() {
     return;
   }
   if (isVirtual) {
-    vec3 e = directIrradiance(uShadow, pos.xyz, n) + SHADE_PI * uAmbient;
+    vec3 e = directIrradiance(uShadow, pos.xyz, n) + SHADE_PI * uAmbient + shAmbientIrradiance(n);
     vec3 indirect = texelFetch(uVirtualIrradiance, p, 0).rgb;
     outShade = vec4((e + indirect) * albedo.rgb / SHADE_PI + texelFetch(uVirtualRadiance, p, 0).rgb, 1.0);
     outIrradiance = vec4(indirect, 1.0);

@@ -49,7 +49,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");
   if (room.radiance.size() != room.positions.size()) throw std::invalid_argument("estimateRoomLights: no radiance per vertex");
   if (!(o.saturatedGain >= 0) || !(o.whiteAlbedo > 0 && o.whiteAlbedo <= 1) || !(o.maxGain >= 1) || !(o.estimateRadius > 0) ||
-      !(o.maxSaturatedFraction >= 0 && o.maxSaturatedFraction <= 1))
+      !(o.maxSaturatedFraction >= 0 && o.maxSaturatedFraction <= 1) || !(o.minPointDistance >= 0))
     throw std::invalid_argument("estimateRoomLights: options out of range");
   const FisheyeRays rays = latLongRays(o.mapWidth);
   const MeshRays mesh(room.positions, room.indices);
@@ -181,14 +181,16 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
         pos += cv::Vec3d(hitPos.at<cv::Vec3f>(v, u)) * excess, wHit += excess;
       }
     l.saturatedFraction = w > 0 ? wSat / w : 0.0;
+    l.point = false;
     if (wHit > 0.5 * w && wHit > 0) {
-      l.point = true;
-      l.position = pos / wHit;
-      const double d = cv::norm(l.position - centre);
-      l.intensity = e.power * (d * d);
-      if (d > 1e-9) l.direction = (l.position - centre) / d;
-    } else {
-      l.point = false;
+      const cv::Vec3d p = pos / wHit;
+      const double d = cv::norm(p - centre);
+      if (d >= o.minPointDistance) {
+        l.point = true;
+        l.position = p;
+        l.intensity = e.power * (d * d);
+        l.direction = (p - centre) / d;
+      }
     }
     out.lights.push_back(l);
   }

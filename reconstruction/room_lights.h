@@ -35,6 +35,9 @@ struct RoomLightOptions {
   /// angle the room covers, they are lit surfaces clipped by an over-exposed camera, not emitters; the gain
   /// stays 1 (the bound) and `overExposed` says so.
   double maxSaturatedFraction = 0.05;
+  /// A light whose region lies nearer than this to the centre (the surface the object stands on, lit) is
+  /// kept as a directional light: a point light there would sit inside or against the object.
+  double minPointDistance = 0.25;
 };
 
 struct RoomLight {

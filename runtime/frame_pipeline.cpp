@@ -122,24 +122,36 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
 }
 
 void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler) {
-  // A new environment image: re-estimate the lights (kept on frames without one).
+  // A new environment image: re-estimate the lights (kept on frames without one). The split of the
+  // fisheye path: lights for the part above the image's mean luminance, SH bands 0-2 for the rest, with
+  // the rays turned into the lighting world so that the SH is too.
   auto s = profiler.cpu("lights");
-  reconstruction::MedianCutOptions mo;
-  mo.count = setup_->scene.fisheyeLightCount;
-  mo.varianceSplit = true;
-  auto lights = reconstruction::medianCut(reconstruction::linearRadiance(frame.fisheye->image), *fisheyeRays_, mo);
-  const capture::Pose T_world_fisheye = setup_->fisheye->T_world_fisheye.value_or(capture::identityPose());
-  const capture::Pose T_marker_world =
-      setup_->T_world_marker ? capture::inversePose(*setup_->T_world_marker) : capture::identityPose();
-  lights = reconstruction::lightsToWorld(lights, T_marker_world * T_world_fisheye);
+  if (!worldFisheyeRays_) {
+    const capture::Pose T_world_fisheye = setup_->fisheye->T_world_fisheye.value_or(capture::identityPose());
+    const capture::Pose T_marker_world =
+        setup_->T_world_marker ? capture::inversePose(*setup_->T_world_marker) : capture::identityPose();
+    const cv::Matx33d R = capture::rotationOf(T_marker_world * T_world_fisheye);
+    worldFisheyeRays_ = *fisheyeRays_;
+    worldFisheyeRays_->directions = fisheyeRays_->directions.clone();
+    worldFisheyeRays_->directions.forEach<cv::Vec3f>([&R](cv::Vec3f& d, const int*) { d = cv::Vec3f(R * cv::Vec3d(d)); });
+  }
+  reconstruction::LightSplitOptions so;
+  so.medianCut.count = setup_->scene.fisheyeLightCount;
+  const reconstruction::LightSplit split =
+      reconstruction::splitLights(reconstruction::linearRadiance(frame.fisheye->image, frame.fisheye->exposure), *worldFisheyeRays_, so);
   setup_->lights.clear();
-  for (const auto& l : lights) {
+  for (const auto& l : split.lights) {
     lighting::SceneLight sl;
     sl.type = lighting::LightType::Directional;
     sl.direction = -l.direction;  // from the light into the scene
     sl.irradiance = l.power;
     setup_->lights.push_back(sl);
   }
+  // The remainder's uniform part is the ambient (the techniques see it too); bands 1-2 shade the object.
+  setup_->ambient = split.ambientSh[0] * 0.28209479177387814;
+  std::array<cv::Vec3d, 9> directional = split.ambientSh;
+  directional[0] = {0, 0, 0};
+  if (pipeline_) pipeline_->setAmbientSh(directional);
   r.info["lights_estimated"] = setup_->lights.size();
 }
 
@@ -170,7 +182,12 @@ void FramePipeline::estimateRoomLights() {
     }
     setup_->lights.push_back(sl);
   }
+  // The remainder: its uniform part (band 0) is the ambient the techniques see too; bands 1-2 go to the
+  // shading pass's directional ambient.
   setup_->ambient = roomLightEstimate_->ambientRadiance;
+  std::array<cv::Vec3d, 9> directional = roomLightEstimate_->ambientSh;
+  directional[0] = {0, 0, 0};
+  if (pipeline_) pipeline_->setAmbientSh(directional);
 }
 
 std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& frame, FrameResult& r,
@@ -312,11 +329,30 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
   roomAlbedo_ = albedo.albedo;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
   for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
-  pipeline_->setRealMesh(vertices, room.indices);
+  // A lamp the sensor saw is part of the room: its surface would enclose the light's own position and
+  // shadow everything from it. Triangles within kLightClearance of a point or spot light are left out.
+  constexpr double kLightClearance = 0.1;
+  std::vector<uint32_t> indices;
+  indices.reserve(room.indices.size());
+  size_t cleared = 0;
+  for (size_t t = 0; t + 2 < room.indices.size(); t += 3) {
+    bool nearLight = false;
+    for (const auto& l : setup_->lights) {
+      if (l.type == lighting::LightType::Directional) continue;
+      for (int k = 0; k < 3 && !nearLight; ++k)
+        nearLight = cv::norm(cv::Vec3d(room.positions[room.indices[t + k]]) - l.position) < kLightClearance;
+    }
+    if (nearLight) {
+      ++cleared;
+      continue;
+    }
+    indices.insert(indices.end(), room.indices.begin() + static_cast<std::ptrdiff_t>(t), room.indices.begin() + static_cast<std::ptrdiff_t>(t + 3));
+  }
+  pipeline_->setRealMesh(vertices, indices);
   roomLights_ = setup_->lights;
   size_t measured = 0;
   for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
-  info["room"] = {{"vertices", vertices.size()}, {"albedo_measured", measured}};
+  info["room"] = {{"vertices", vertices.size()}, {"albedo_measured", measured}, {"triangles_near_lights", cleared}};
   if (roomLightEstimate_)
     info["room"]["lights"] = {{"count", roomLightEstimate_->lights.size()},
                               {"saturated_gain", roomLightEstimate_->gain},

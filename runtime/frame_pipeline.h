@@ -103,6 +103,7 @@ class FramePipeline {
   FrameOptions options_;
   std::unique_ptr<lighting::LightingPipeline> pipeline_;
   std::optional<reconstruction::FisheyeRays> fisheyeRays_;
+  std::optional<reconstruction::FisheyeRays> worldFisheyeRays_;  ///< the same rays in the lighting world
   std::optional<reconstruction::TagDetector> detector_;
   reconstruction::MarkerTrack track_;
   lighting::TechniqueNeeds needs_;              ///< what the scene's techniques need (real VALs)
