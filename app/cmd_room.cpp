@@ -5,7 +5,6 @@
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "app/commands.h"
 #include "app/output.h"
@@ -15,6 +14,7 @@
 #include "capture/session.h"
 #include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
+#include "runtime/debug_view.h"
 #include "runtime/room_fusion.h"
 
 using nlohmann::json;
@@ -98,26 +98,6 @@ struct RoomLightsCliOptions {
   bool json = false;
 };
 
-/// The lat-long map (row 0 = +z) tone-mapped for viewing, the lights circled: sRGB of radiance scaled so
-/// that the 99th percentile reads 0.8.
-cv::Mat roomLightsView(const reconstruction::RoomLights& l) {
-  cv::Mat view = l.environment.clone();
-  std::vector<float> lum;
-  for (int i = 0; i < static_cast<int>(view.total()); ++i) lum.push_back(static_cast<float>(capture::luminance(cv::Vec3d(view.at<cv::Vec3f>(i)))));
-  const size_t q = lum.size() * 99 / 100;
-  std::nth_element(lum.begin(), lum.begin() + static_cast<std::ptrdiff_t>(q), lum.end());
-  if (lum[q] > 0) view *= 0.8 / lum[q];
-  cv::Mat out = capture::encodeSrgb(view);
-  for (const auto& light : l.lights) {
-    const cv::Vec3d d = light.direction;
-    const double theta = std::acos(std::clamp(d[2], -1.0, 1.0)), phi = std::atan2(d[1], d[0]);
-    const int u = static_cast<int>(std::fmod(phi + 2 * CV_PI, 2 * CV_PI) / (2 * CV_PI) * out.cols);
-    const int v = static_cast<int>(theta / CV_PI * out.rows);
-    cv::circle(out, {u, v}, 6, light.saturatedFraction > 0.5 ? cv::Scalar(255, 64, 0) : cv::Scalar(0, 200, 255), 2);
-  }
-  return out;
-}
-
 int runRoomLights(const RoomLightsCliOptions& o) {
   const reconstruction::RoomMesh room = reconstruction::loadRoom(o.room);
   reconstruction::RoomLightOptions ro;
@@ -152,7 +132,7 @@ int runRoomLights(const RoomLightsCliOptions& o) {
                     {"saturated_fraction", l.saturatedFraction},
                     {"over_exposed", l.overExposed},
                     {"coverage", l.coverage}};
-  if (!o.map.empty()) writePng(o.map, roomLightsView(l));
+  if (!o.map.empty()) writePng(o.map, runtime::roomLightsImage(l));
   if (o.json) {
     std::printf("%s\n", out.dump().c_str());
   } else {

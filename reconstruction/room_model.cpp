@@ -74,7 +74,7 @@ void RoomOptions::validate(const std::string& where) const {
   check(std::isfinite(outlierM) && outlierM > 0 && outlierM <= 1, "outlier_m", "in (0, 1]");
   check(std::isfinite(outlierFraction) && outlierFraction > 0 && outlierFraction <= 1, "outlier_fraction", "in (0, 1]");
   check(std::isfinite(minOverlap) && minOverlap >= 0 && minOverlap <= 1, "min_overlap", "in [0, 1]");
-  check(appearanceStride >= 1 && appearanceStride <= 64, "appearance_stride", "in [1, 64]");
+  check(appearanceStride >= 0 && appearanceStride <= 64, "appearance_stride", "in [0, 64]");
   check(std::isfinite(grazingCos) && grazingCos >= 0 && grazingCos < 1, "grazing_cos", "in [0, 1)");
   check(clipLevel >= 1 && clipLevel <= 256, "clip_level", "in [1, 256]");
   check(appearanceMemory >= 1 && appearanceMemory <= 65535, "appearance_memory", "in [1, 65535]");
@@ -99,7 +99,7 @@ struct RoomModel::Impl {
                const RoomOptions& o) {
     float lut[256];
     for (int i = 0; i < 256; ++i) lut[i] = static_cast<float>(capture::srgbToLinear(i / 255.f) / exposure);
-    const int s = o.appearanceStride;
+    const int s = o.appearanceStride > 0 ? o.appearanceStride : std::max(1, static_cast<int>(std::lround(K.fx / 131.0)));
     const double inv = 1.0 / o.voxelM;
     const float fade = static_cast<float>(o.appearanceMemory - 1) / static_cast<float>(o.appearanceMemory);
     auto point = [&](int x, int y, float d) { return cv::Vec3d((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d); };

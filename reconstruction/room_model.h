@@ -26,14 +26,15 @@ struct RoomOptions {
   double outlierM = 0.03;
   double outlierFraction = 0.3;
   double minOverlap = 0.25;
-  /// Fused appearance: every `appearanceStride`-th pixel's colour is an observation of the surface it sees,
+  /// Fused appearance: every `appearanceStride`-th pixel's colour (0: chosen from the focal length, one
+  /// sample per 2 mrad, i.e. 2 at 320x240 and 4 at 640x480 for a Kinect-like lens) is an observation of the surface it sees,
   /// as linear radiance at exposure 1 (decoded sRGB / the frame's exposure). Observations at grazing angles
   /// (|cos| < grazingCos between the depth normal and the view ray), on depth edges, or with a channel at or
   /// above `clipLevel` (8-bit) are not averaged in; clipped ones only bound the radiance from below. The
   /// rest are weighted by confidence cos / z^2 (the sensor's noise grows with z^2, its footprint with
   /// 1 / cos); after `appearanceMemory` observations of a voxel older ones fade, so a surface whose light
   /// changes follows.
-  int appearanceStride = 2;
+  int appearanceStride = 0;
   double grazingCos = 0.26;
   int clipLevel = 250;
   int appearanceMemory = 64;

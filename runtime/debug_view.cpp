@@ -1,6 +1,7 @@
 #include "runtime/debug_view.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -20,6 +21,24 @@ std::vector<DebugView> debugViews(FramePipeline& frames) {
     for (const auto& t : pipe->techniques())
       for (const std::string& v : t->debugViews()) out.push_back(v);
   if (setup->fisheye) out.push_back(Views::kFisheye);
+  if (frames.roomLights()) out.push_back(Views::kRoomLights);
+  return out;
+}
+
+cv::Mat roomLightsImage(const reconstruction::RoomLights& l) {
+  cv::Mat view = l.environment.clone();
+  std::vector<double> lum;
+  for (int i = 0; i < static_cast<int>(view.total()); ++i) lum.push_back(capture::luminance(cv::Vec3d(view.at<cv::Vec3f>(i))));
+  const double p99 = lighting::percentile99(lum);
+  if (p99 > 0) view *= 0.8 / p99;
+  cv::Mat out = capture::encodeSrgb(view);
+  for (const auto& light : l.lights) {
+    const cv::Vec3d d = light.direction;
+    const double theta = std::acos(std::clamp(d[2], -1.0, 1.0)), phi = std::atan2(d[1], d[0]);
+    const int u = static_cast<int>(std::fmod(phi + 2 * CV_PI, 2 * CV_PI) / (2 * CV_PI) * out.cols);
+    const int v = static_cast<int>(theta / CV_PI * out.rows);
+    cv::circle(out, {u, v}, 6, light.saturatedFraction > 0.5 ? cv::Scalar(255, 128, 0) : cv::Scalar(0, 200, 255), 2, cv::LINE_AA);
+  }
   return out;
 }
 
@@ -77,6 +96,7 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
     out["debug_fisheye_lights"] = dirs.size();
     return img;
   }
+  if (v == Views::kRoomLights) return frames.roomLights() ? roomLightsImage(*frames.roomLights()) : cv::Mat();
   lighting::LightingPipeline* pipe = frames.lighting();
   if (!r.lit || !pipe) return {};
   if (v == Views::kDelta) {

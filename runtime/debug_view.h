@@ -22,6 +22,7 @@ static inline const DebugView kMask = "gbuffer_mask";       ///< G-buffer virtua
 static inline const DebugView kRsmFlux = "rsm_flux";        ///< the last light's RSM^rho flux
 static inline const DebugView kRsmNormal = "rsm_normal";    ///< the last light's RSM^rho normals
 static inline const DebugView kFisheye = "fisheye_lights";  ///< the last fisheye frame, tone-mapped, with the median-cut lights
+static inline const DebugView kRoomLights = "room_lights";  ///< the room's fused radiance seen from the object, with its lights
 };
 
 inline const char* debugViewName(const DebugView& v) { return v.c_str(); }
@@ -35,6 +36,10 @@ std::vector<DebugView> debugViews(FramePipeline& frames);
 cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameResult& r, const capture::Intrinsics& k,
                         const cv::Mat& fisheyeImage,
                         nlohmann::json* info = nullptr);
+
+/// The room's environment at the object (lat-long, row 0 = +z of the marker frame, column 0 = +x), tone-mapped
+/// so that the 99th percentile reads 0.8, its lights circled (orange: mostly saturated surfaces).
+cv::Mat roomLightsImage(const reconstruction::RoomLights& lights);
 
 /// Draws the marker's axes (x red, y green, z blue, `length` metres) onto an RGB8 camera image.
 void drawMarkerAxes(cv::Mat& rgb, const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length);

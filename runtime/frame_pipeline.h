@@ -94,6 +94,8 @@ class FramePipeline {
   RealSurface realSurface(const capture::Frame& frame, const FrameResult& r, gl::Profiler& profiler) const;
   lighting::LightingPipeline* lighting() { return pipeline_.get(); }
   const LightingSetup* setup() const { return setup_ ? &*setup_ : nullptr; }
+  /// The lights estimated from the room ("lights": "room"), else null.
+  const reconstruction::RoomLights* roomLights() const { return roomLightEstimate_.get(); }
 
  private:
   void estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);

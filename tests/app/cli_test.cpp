@@ -1126,6 +1126,31 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
   ASSERT_EQ(frames.size(), 2u);
   EXPECT_EQ(frames[0]["room"]["vertices"].get<size_t>(), mesh.positions.size());
   EXPECT_NE(frames[1]["skipped"].dump().find("room_albedo"), std::string::npos) << frames[1].dump();
+  // Lights from the room: replay with "lights": "room" and --debug shows the room's environment with its
+  // lights; mrgi room-lights prints them as JSON (SH remainder of 9 RGB triples) and writes the same map.
+  {
+    const fs::path lit = out.string() + "_lit";
+    fs::remove_all(lit);
+    const std::string roomScene = (fs::path(MRGI_SOURCE_DIR) / "recordings/scenes/tabletop-room.json").string();
+    const Result rl = runMrgi("replay " + session + " --scene " + roomScene + " --room " + out.string() + " --out " + lit.string() +
+                              " --frames 1 --pose ground-truth --debug --mp4 \"\"");
+    ASSERT_EQ(rl.exitCode, 0) << rl.err;
+    const auto s = nlohmann::json::parse(slurp(lit / "summary.json"));
+    EXPECT_EQ(s["per_frame"][0]["room"]["lights"]["count"], 4) << s["per_frame"][0].dump();
+    const cv::Mat map = cv::imread((lit / "debug_0000_room_lights.png").string());
+    EXPECT_EQ(map.cols, 256);
+    EXPECT_EQ(map.rows, 128);
+    const fs::path png = lit / "map.png";
+    const Result j = runMrgi("room-lights " + out.string() + " --at 0 0 0.06 --json --map " + png.string());
+    ASSERT_EQ(j.exitCode, 0) << j.err;
+    const auto lights = nlohmann::json::parse(j.out);
+    EXPECT_EQ(lights["lights"].size(), 4u);
+    EXPECT_EQ(lights["ambient_sh"].size(), 9u);
+    EXPECT_GT(lights["coverage"].get<double>(), 0.2);
+    EXPECT_TRUE(fs::exists(png));
+    expectOneLineError(runMrgi("room-lights /nonexistent/room"), "/nonexistent/room");
+    fs::remove_all(lit);
+  }
   // A bad room stops replay before anything is written.
   fs::remove_all(replayOut);
   expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --room /nonexistent/room --out " + replayOut.string()),
