@@ -323,32 +323,35 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
     return;
   }
   auto s = profiler.cpu("room_albedo");
-  const reconstruction::RoomMesh& room = *options_.room;
+  // A lamp the sensor saw is part of the room: its surface would enclose the light's own position, shadow
+  // every shadow ray to it (the albedo) and every RSM texel. Triangles within kLightClearance of a point or
+  // spot light are left out of the room the lighting sees.
+  constexpr double kLightClearance = 0.1;
+  reconstruction::RoomMesh room;
+  {
+    const reconstruction::RoomMesh& full = *options_.room;
+    room.positions = full.positions, room.normals = full.normals, room.radiance = full.radiance;
+    room.confidence = full.confidence, room.saturated = full.saturated;
+    room.indices.reserve(full.indices.size());
+    for (size_t t = 0; t + 2 < full.indices.size(); t += 3) {
+      bool nearLight = false;
+      for (const auto& l : setup_->lights) {
+        if (l.type == lighting::LightType::Directional) continue;
+        for (int k = 0; k < 3 && !nearLight; ++k)
+          nearLight = cv::norm(cv::Vec3d(full.positions[full.indices[t + k]]) - l.position) < kLightClearance;
+      }
+      if (!nearLight)
+        room.indices.insert(room.indices.end(), full.indices.begin() + static_cast<std::ptrdiff_t>(t),
+                            full.indices.begin() + static_cast<std::ptrdiff_t>(t + 3));
+    }
+  }
+  const size_t cleared = (options_.room->indices.size() - room.indices.size()) / 3;
   // The lighting world (marker frame), as the room.
   const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose()));
   roomAlbedo_ = albedo.albedo;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
   for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
-  // A lamp the sensor saw is part of the room: its surface would enclose the light's own position and
-  // shadow everything from it. Triangles within kLightClearance of a point or spot light are left out.
-  constexpr double kLightClearance = 0.1;
-  std::vector<uint32_t> indices;
-  indices.reserve(room.indices.size());
-  size_t cleared = 0;
-  for (size_t t = 0; t + 2 < room.indices.size(); t += 3) {
-    bool nearLight = false;
-    for (const auto& l : setup_->lights) {
-      if (l.type == lighting::LightType::Directional) continue;
-      for (int k = 0; k < 3 && !nearLight; ++k)
-        nearLight = cv::norm(cv::Vec3d(room.positions[room.indices[t + k]]) - l.position) < kLightClearance;
-    }
-    if (nearLight) {
-      ++cleared;
-      continue;
-    }
-    indices.insert(indices.end(), room.indices.begin() + static_cast<std::ptrdiff_t>(t), room.indices.begin() + static_cast<std::ptrdiff_t>(t + 3));
-  }
-  pipeline_->setRealMesh(vertices, indices);
+  pipeline_->setRealMesh(vertices, room.indices);
   roomLights_ = setup_->lights;
   size_t measured = 0;
   for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
