@@ -196,8 +196,10 @@ int runInsert(const InsertOptions& o) {
       doc["lights"] = "fisheye";
     else if (manifest && manifest->truth.listsLights)
       doc["lights"] = "manifest";
+    else if (!o.room.empty())
+      doc["lights"] = "room";
     else
-      throw capture::CaptureError(o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights");
+      throw capture::CaptureError(o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights or --room");
   }
   if (!doc.contains("objects")) doc["objects"] = json::array();
   if (o.replace >= static_cast<int>(doc["objects"].size()))
@@ -222,7 +224,7 @@ int runInsert(const InsertOptions& o) {
   // The frame to measure and preview on.
   const capture::SourceInfo& info = source->info();
   const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
-  LightingSetup setup = prepareLighting(scene, savePath, *source, o.session, "marker");
+  LightingSetup setup = prepareLighting(scene, savePath, *source, o.session, "marker", !o.room.empty());
   FrameOptions frameOptions;
   if (!o.room.empty()) frameOptions.room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   gl::ContextConfig cfg;

@@ -122,7 +122,7 @@ int runLive(const LiveOptions& o) {
       if (!base->fisheye) throw capture::CaptureError(o.in.fisheye, "delivered no fisheye frame");
       base->scene.ambientFromManifest = false;
     } else {
-      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose);
+      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose, !o.room.empty());
     }
   }
 

@@ -60,7 +60,7 @@ int runReplay(const ReplayOptions& o) {
     lighting::SceneDescription scene = lighting::loadScene(o.scene);
     if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
     if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
-    setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose);
+    setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose, !o.room.empty());
   }
   // A bad room stops here too.
   std::shared_ptr<const reconstruction::RoomMesh> room;

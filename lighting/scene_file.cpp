@@ -286,6 +286,7 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   }
 
   if (doc.contains("lights")) {
+    s.lightsGiven = true;
     const json& l = doc["lights"];
     if (l.is_string()) {
       const std::string v = l.get<std::string>();

@@ -80,6 +80,7 @@ struct SceneDescription {
   std::string path;
   std::vector<VirtualObject> objects;
   LightSource lightSource = LightSource::Manifest;
+  bool lightsGiven = false;  ///< the file says where lights come from ("lights"); else the source decides
   std::vector<SceneLight> lights;           ///< for LightSource::Scene
   int fisheyeLightCount = 16;               ///< for LightSource::Fisheye: median-cut lights (1..16)
   /// For LightSource::Room: lights from the split (1..16), the gain on saturated radiance (0 = estimated

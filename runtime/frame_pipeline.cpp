@@ -41,11 +41,14 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
 
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
                               const capture::FrameSource& source, const std::string& sourcePath,
-                              const std::string& poseMode) {
+                              const std::string& poseMode, bool roomGiven) {
   LightingSetup setup;
   setup.scene = std::move(scene);
   const capture::SessionManifest* manifest = source.sessionManifest();
   const capture::GroundTruth* truth = manifest ? &manifest->truth : nullptr;
+  // Neither listed lights nor a fisheye, and a room: the lights come from the room.
+  if (!setup.scene.lightsGiven && roomGiven && !(truth && truth->listsLights) && !(manifest && manifest->fisheye))
+    setup.scene.lightSource = lighting::LightSource::Room;
   if (manifest && manifest->marker) {
     setup.tagFamily = manifest->marker->family;
     setup.tagSize = manifest->marker->sizeMetres;

@@ -45,9 +45,11 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
 /// Resolves a loaded scene against a source (marker from the manifest, lights from the scene, the
 /// manifest's ground truth or its fisheye calibration). `sceneFile` and `sourcePath` name the culprit in
 /// errors; poseMode "ground-truth" needs the manifest's T_world_marker.
+/// `roomGiven`: a room model will light the frames; a scene that does not say where its lights come from
+/// then takes them from the room when the source lists none and has no fisheye.
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
                               const capture::FrameSource& source, const std::string& sourcePath,
-                              const std::string& poseMode);
+                              const std::string& poseMode, bool roomGiven = false);
 
 struct FrameOptions {
   std::string pose = "marker";  ///< marker | ground-truth

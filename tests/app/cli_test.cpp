@@ -1151,6 +1151,37 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
     expectOneLineError(runMrgi("room-lights /nonexistent/room"), "/nonexistent/room");
     fs::remove_all(lit);
   }
+  // A session with neither listed lights nor a fisheye, a scene that does not say where lights come from,
+  // and a room: the lights come from the room (without the room, the usual one-line error).
+  {
+    const fs::path bare = out.string() + "_bare";
+    fs::remove_all(bare);
+    fs::copy(session, bare, fs::copy_options::recursive);
+    auto manifest = nlohmann::json::parse(slurp(bare / "manifest.json"));
+    manifest.erase("fisheye");
+    manifest["ground_truth"].erase("lights");
+    std::ofstream(bare / "manifest.json", std::ios::trunc) << manifest.dump(2);
+    std::string index;
+    std::istringstream lines(slurp(bare / "frames.jsonl"));
+    for (std::string line; std::getline(lines, line);) {
+      auto j = nlohmann::json::parse(line);
+      j.erase("fisheye");
+      j.erase("exposure");
+      index += j.dump() + "\n";
+    }
+    std::ofstream(bare / "frames.jsonl", std::ios::trunc) << index;
+    const fs::path noLights = bare / "scene.json";
+    std::ofstream(noLights) << R"({"objects": [{"model": ")" << MRGI_SOURCE_DIR
+                            << R"(/recordings/models/sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}]})";
+    const Result d = runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --room " + out.string() + " --out " +
+                             (bare / "out").string() + " --frames 1 --pose ground-truth --mp4 \"\"");
+    ASSERT_EQ(d.exitCode, 0) << d.err;
+    const auto ds = nlohmann::json::parse(slurp(bare / "out" / "summary.json"));
+    EXPECT_EQ(ds["per_frame"][0]["room"]["lights"]["count"], 4) << ds["per_frame"][0].dump();
+    expectOneLineError(runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --out " + (bare / "out2").string()),
+                       "no ground-truth lights");
+    fs::remove_all(bare);
+  }
   // A bad room stops replay before anything is written.
   fs::remove_all(replayOut);
   expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --room /nonexistent/room --out " + replayOut.string()),
