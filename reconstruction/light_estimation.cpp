@@ -384,21 +384,22 @@ LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const L
   return out;
 }
 
-cv::Vec3d ambientShIrradiance(const std::array<cv::Vec3d, 9>& sh, const cv::Vec3d& n) {
+cv::Vec3d shIrradiance(const std::array<cv::Vec3d, 9>& sh, const cv::Vec3d& n) {
   const auto b = shBasis2(n);
   static const double A[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
   cv::Vec3d E(0, 0, 0);
   for (int k = 0; k < 9; ++k) E += sh[k] * (A[k] * b[k]);
+  return E;
+}
+
+cv::Vec3d ambientShIrradiance(const std::array<cv::Vec3d, 9>& sh, const cv::Vec3d& n) {
+  cv::Vec3d E = shIrradiance(sh, n);
   for (int c = 0; c < 3; ++c) E[c] = std::max(E[c], 0.0);
   return E;
 }
 
 cv::Vec3d irradianceFromSplit(const LightSplit& split, const cv::Vec3d& n) {
-  cv::Vec3d E = irradianceFromLights(split.lights, n);
-  const auto b = shBasis2(n);
-  static const double A[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
-  for (int k = 0; k < 9; ++k) E += split.ambientSh[k] * (A[k] * b[k]);
-  return E;
+  return irradianceFromLights(split.lights, n) + shIrradiance(split.ambientSh, n);
 }
 
 }  // namespace mrgi::reconstruction

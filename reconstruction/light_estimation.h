@@ -90,8 +90,10 @@ LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const L
 cv::Vec3d irradianceFromSplit(const LightSplit& split, const cv::Vec3d& n);
 /// The 9 real SH basis values of bands 0-2 at unit direction d (lighting/sh.h's convention).
 std::array<double, 9> shBasis2(const cv::Vec3d& d);
-/// Irradiance at unit normal n of a radiance given as SH bands 0-2: sum_lm A_l c_lm y_lm(n), each channel
-/// clamped at 0 (the shading pass's shAmbientIrradiance is its GPU twin).
+/// Irradiance at unit normal n of a radiance given as SH bands 0-2: sum_lm A_l c_lm y_lm(n),
+/// A = (pi, 2 pi / 3, pi / 4).
+cv::Vec3d shIrradiance(const std::array<cv::Vec3d, 9>& sh, const cv::Vec3d& n);
+/// The same, each channel clamped at 0 (the shading pass's shAmbientIrradiance is its GPU twin).
 cv::Vec3d ambientShIrradiance(const std::array<cv::Vec3d, 9>& sh, const cv::Vec3d& n);
 
 /// Sum of L * dOmega over the valid field (the reference total for medianCut).

@@ -32,18 +32,6 @@ FisheyeRays latLongRays(int width) {
   return r;
 }
 
-namespace {
-
-constexpr double kA[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
-
-cv::Vec3d shIrradiance(const std::array<cv::Vec3d, 9>& sh, const cv::Vec3d& n) {
-  const auto b = shBasis2(n);
-  cv::Vec3d E(0, 0, 0);
-  for (int k = 0; k < 9; ++k) E += sh[k] * (kA[k] * b[k]);
-  return E;
-}
-
-}  // namespace
 
 RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o) {
   if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");

@@ -150,12 +150,17 @@ void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, 
     sl.irradiance = l.power;
     setup_->lights.push_back(sl);
   }
-  // The remainder's uniform part is the ambient (the techniques see it too); bands 1-2 shade the object.
-  setup_->ambient = split.ambientSh[0] * 0.28209479177387814;
-  std::array<cv::Vec3d, 9> directional = split.ambientSh;
+  useAmbientSh(split.ambientSh);
+  r.info["lights_estimated"] = setup_->lights.size();
+}
+
+void FramePipeline::useAmbientSh(const std::array<cv::Vec3d, 9>& sh) {
+  // The remainder's uniform part (band 0, as radiance) is the ambient the techniques see too; bands 1-2 go
+  // to the shading pass's directional ambient.
+  setup_->ambient = sh[0] * 0.28209479177387814;  // Y_00
+  std::array<cv::Vec3d, 9> directional = sh;
   directional[0] = {0, 0, 0};
   if (pipeline_) pipeline_->setAmbientSh(directional);
-  r.info["lights_estimated"] = setup_->lights.size();
 }
 
 void FramePipeline::estimateRoomLights() {
@@ -185,12 +190,7 @@ void FramePipeline::estimateRoomLights() {
     }
     setup_->lights.push_back(sl);
   }
-  // The remainder: its uniform part (band 0) is the ambient the techniques see too; bands 1-2 go to the
-  // shading pass's directional ambient.
-  setup_->ambient = roomLightEstimate_->ambientRadiance;
-  std::array<cv::Vec3d, 9> directional = roomLightEstimate_->ambientSh;
-  directional[0] = {0, 0, 0};
-  if (pipeline_) pipeline_->setAmbientSh(directional);
+  useAmbientSh(roomLightEstimate_->ambientSh);
 }
 
 std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& frame, FrameResult& r,

@@ -126,6 +126,8 @@ class FramePipeline {
   void useRoom(nlohmann::json& info, gl::Profiler& profiler);
   /// "lights": "room": the lights and ambient from the room model, once (the room is static).
   void estimateRoomLights();
+  /// An SH remainder of estimated lights as this pipeline's ambient: band 0 uniform, bands 1-2 directional.
+  void useAmbientSh(const std::array<cv::Vec3d, 9>& sh);
   std::shared_ptr<const reconstruction::RoomLights> roomLightEstimate_;
   /// The setup's lights and ambient as the albedo estimate takes them, in the frame T_frame_marker maps to
   /// (the camera for a frame's pixels, the marker frame itself for the room).
