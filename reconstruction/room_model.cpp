@@ -352,6 +352,15 @@ size_t RoomModel::bytes() const {
 
 // ---- albedo ----------------------------------------------------------------------------------------
 
+cv::Vec3f albedoDetail(const cv::Vec3b& rgb8, const cv::Vec3f& pixelRadiance, const cv::Vec3f& roomRadiance) {
+  constexpr float kClip = 250, kDark = 1e-3f, kMin = 0.25f, kMax = 4.0f;
+  for (int c = 0; c < 3; ++c)
+    if (rgb8[c] >= kClip || !(roomRadiance[c] >= kDark) || !std::isfinite(pixelRadiance[c])) return {1, 1, 1};
+  cv::Vec3f detail;
+  for (int c = 0; c < 3; ++c) detail[c] = std::clamp(pixelRadiance[c] / roomRadiance[c], kMin, kMax);
+  return detail;
+}
+
 RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, const AlbedoOptions& options) {
   quietOpen3d();
   const size_t n = mesh.positions.size();

@@ -108,6 +108,13 @@ struct RoomAlbedo {
 };
 RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld, const AlbedoOptions& options = {});
 
+/// The texture the fused room blurs over its voxels, recovered from a frame: the ratio of the radiance a pixel
+/// observes (rgb8 its 8-bit value, pixelRadiance the same at exposure 1) to the fused radiance of the room
+/// vertex it sees, per channel, clamped to [1/4, 4]. The room vertex's albedo times it is π L_pixel / E, the
+/// pixel's own albedo under the room's irradiance. 1 where a channel of the pixel is clipped (>= 250) or the
+/// room's radiance is too dark to divide by (< 1e-3).
+cv::Vec3f albedoDetail(const cv::Vec3b& rgb8, const cv::Vec3f& pixelRadiance, const cv::Vec3f& roomRadiance);
+
 /// A saved room: ROOM/room.ply (binary PLY: positions, normals, 8-bit sRGB colour for viewers),
 /// ROOM/room_appearance.npy (float32, one row per vertex: linear radiance r, g, b, confidence, saturated)
 /// and ROOM/room.json (format, version 2, options, frames, bounds, the session it came from). Version 1

@@ -352,6 +352,7 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
   // The lighting world (marker frame), as the room.
   const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose()));
   roomAlbedo_ = albedo.albedo;
+  roomAlbedoStatus_ = albedo.status;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
   for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
   pipeline_->setRealMesh(vertices, room.indices);
@@ -377,18 +378,31 @@ struct FramePipeline::RoomIndex {
   lighting::PointKdTree tree;
 };
 
-void FramePipeline::roomViewMesh(const FrameResult& r, gl::Profiler& profiler) {
+void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler) {
   auto s = profiler.cpu("view_mesh");
   if (!roomIndex_) roomIndex_ = std::make_shared<RoomIndex>(options_.room->positions);
   std::vector<lighting::MeshVertex> vertices;
   std::vector<uint32_t> indices;
   const auto mesh = reconstruction::buildDepthMesh(r.positions, r.normals, options_.meshStride);
   lighting::buildRealVertices(mesh, cv::Mat(), *r.T_marker_camera, vertices, indices);
-  for (auto& v : vertices) {
+  const cv::Mat radiance = capture::radianceOf(rgbd.colour, rgbd.exposure);
+  size_t detailed = 0;
+  for (size_t i = 0; i < vertices.size(); ++i) {
+    auto& v = vertices[i];
     uint32_t nearest = 0;
     float d2 = 0;
-    if (roomIndex_->tree.knnSearch(&v.position[0], 1, &nearest, &d2) == 1) v.albedo = roomAlbedo_[nearest];
+    if (roomIndex_->tree.knnSearch(&v.position[0], 1, &nearest, &d2) != 1) continue;
+    v.albedo = roomAlbedo_[nearest];
+    if (i < mesh.pixels.size() && roomAlbedoStatus_[nearest] == reconstruction::AlbedoStatus::Measured) {
+      const cv::Point px(cvRound(mesh.pixels[i][0]), cvRound(mesh.pixels[i][1]));
+      if (!cv::Rect(0, 0, radiance.cols, radiance.rows).contains(px)) continue;
+      const cv::Vec3f detail = reconstruction::albedoDetail(rgbd.colour.at<cv::Vec3b>(px), radiance.at<cv::Vec3f>(px),
+                                                            options_.room->radiance[nearest]);
+      if (detail != cv::Vec3f(1, 1, 1)) ++detailed;
+      for (int c = 0; c < 3; ++c) v.albedo[c] = std::min(1.0f, v.albedo[c] * detail[c]);
+    }
   }
+  r.info["view_mesh_detailed"] = detailed;
   pipeline_->setViewMesh(vertices, indices);
 }
 
@@ -404,7 +418,7 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   const bool val = needs_.realVals;
   if (options_.room) {
     useRoom(r.info, profiler);
-    if (!r.reusedSurface) roomViewMesh(r, profiler);
+    if (!r.reusedSurface) roomViewMesh(rgbd, r, profiler);
   } else if (r.reusedSurface) {
     for (const char* stage : {"albedo", "mesh"}) r.info["skipped"].push_back(stage);
     if (val) r.info["skipped"].push_back("real_vals");

@@ -121,6 +121,7 @@ class FramePipeline {
   /// The lights the room's albedo was estimated under (FrameOptions::room): re-estimated when they change.
   std::optional<std::vector<lighting::SceneLight>> roomLights_;
   std::vector<cv::Vec3f> roomAlbedo_;  ///< per room vertex, under roomLights_
+  std::vector<reconstruction::AlbedoStatus> roomAlbedoStatus_;
   struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)
   std::shared_ptr<RoomIndex> roomIndex_;
   void useRoom(nlohmann::json& info, gl::Profiler& profiler);
@@ -133,7 +134,7 @@ class FramePipeline {
   /// (the camera for a frame's pixels, the marker frame itself for the room).
   reconstruction::AlbedoLights albedoLights(const capture::Pose& T_frame_marker) const;
   /// The frame's depth mesh, each vertex with the albedo of the nearest room vertex: the G-buffer's real surface.
-  void roomViewMesh(const FrameResult& r, gl::Profiler& profiler);
+  void roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
   cv::Mat thumbnail_;  ///< of the frame being processed
 };
 

@@ -1126,6 +1126,8 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
   ASSERT_EQ(frames.size(), 2u);
   EXPECT_EQ(frames[0]["room"]["vertices"].get<size_t>(), mesh.positions.size());
   EXPECT_NE(frames[1]["skipped"].dump().find("room_albedo"), std::string::npos) << frames[1].dump();
+  // The view mesh takes the frame's texture over the room's albedo (the room blurs it over its voxels).
+  EXPECT_GT(frames[0]["view_mesh_detailed"].get<size_t>(), 1000u) << frames[0].dump();
   // Lights from the room: replay with "lights": "room" and --debug shows the room's environment with its
   // lights; mrgi room-lights prints them as JSON (SH remainder of 9 RGB triples) and writes the same map.
   {
