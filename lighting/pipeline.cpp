@@ -86,9 +86,12 @@ LightingPipeline::LightingPipeline(const PipelineConfig& config, const std::vect
   techniqueAt_.resize(techniques_.size());
 }
 
+bool LightingPipeline::idle(const Technique& t) const { return environment_ && &t == virtual_ && &t != real_; }
+
 TechniqueNeeds LightingPipeline::needs() const {
   TechniqueNeeds out;
   for (const auto& t : techniques_) {
+    if (idle(*t)) continue;
     const TechniqueNeeds n = t->needs();
     if (n.realVals) out = n;
   }
@@ -133,7 +136,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   if (!needLights) skipped_.push_back("rsm");
   std::vector<bool> needTechnique(techniques_.size());
   for (size_t i = 0; i < techniques_.size(); ++i) {
-    needTechnique[i] = needLights || changed(techniqueAt_[i], now, techniques_[i]->inputs());
+    needTechnique[i] = (needLights || changed(techniqueAt_[i], now, techniques_[i]->inputs())) && !idle(*techniques_[i]);
     if (!needTechnique[i]) skipped_.push_back(techniques_[i]->name());
   }
   if (!changed(shadeAt_, now, kAllInputs)) {
@@ -180,6 +183,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   p.set("uLighting", lit ? 1 : 0);
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
   setVec3(p, "uAmbient", ambientRadiance);
+  p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
   for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
   const std::vector<LightView>& views = frame_->lightViews();
   p.set("uLightCount", static_cast<int>(lights.size()));

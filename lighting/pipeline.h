@@ -69,6 +69,17 @@ class LightingPipeline {
     ambientSh_ = sh;
     shadeAt_.reset();
   }
+  /// Whether the ambient (uniform and SH) is an environment seen at the virtual objects — the room's fused
+  /// radiance or a fisheye image — which already holds the light real surfaces bounce onto them. Then the
+  /// shading pass does not add the virtual-role technique's bounce again, and a technique that serves only
+  /// the virtual role is not run (nor asks for real VALs). Off by default (listed lights and ambient).
+  void setEnvironment(bool holdsRealBounce) {
+    if (holdsRealBounce == environment_) return;
+    environment_ = holdsRealBounce;
+    shadeAt_.reset();
+    for (auto& at : techniqueAt_) at.reset();
+  }
+  bool environment() const { return environment_; }
   /// The real-surface area lights (lighting world) of the next runs, for techniques that need them.
   void setRealVals(std::vector<Val> vals) { frame_->setRealVals(std::move(vals)); }
   /// What the techniques need from the application (real VALs and how to build them).
@@ -122,6 +133,9 @@ class LightingPipeline {
   /// What each consumer last computed from.
   std::optional<FrameVersions> gbufferAt_, lightsAt_, shadeAt_;
   std::array<cv::Vec3d, 9> ambientSh_{};
+  bool environment_ = false;
+  /// A technique with nothing to do: it serves only the virtual role and the environment holds its bounce.
+  bool idle(const Technique& t) const;
   std::vector<std::optional<FrameVersions>> techniqueAt_;
   std::vector<std::string> skipped_;
 };

@@ -6,7 +6,8 @@
 //                  account for it) the direct light the object blocks, sum_i E_i (vis_i(RSM^rho) - vis_i(RSM^mu))
 //   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
-//                  E_indirect, L_indirect from the virtual-role technique
+//                  E_indirect, L_indirect from the virtual-role technique; none when the ambient is an
+//                  environment seen at the object (uEnvironmentHoldsBounce: it holds the real surfaces' bounce)
 //   no surface:    rgb = 0, a = 0
 // Output 1 (debug): rgb = E_delta (real) or E_indirect (virtual) in W/m^2, a = 1 where a surface was seen.
 #define MAX_LIGHTS 16
@@ -24,6 +25,7 @@ layout(binding = 13) uniform sampler2DArray uShadowMu;  // per light: RSM^mu wor
 uniform int uLighting;          // 0: no virtual object in this frame (everything zero)
 uniform int uAddDirectShadow;   // 1: the real-role technique leaves the object's direct shadow to this pass
 uniform vec3 uAmbient;          // radiance, W/m^2/sr
+uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
 uniform vec3 uAmbientSh[9];     // radiance as SH bands 0-2, lighting world (reconstruction::shBasis2's basis); 0 = none
 uniform int uLightCount;
 uniform int uLightType[MAX_LIGHTS];
@@ -105,8 +107,9 @@ void main() {
   }
   if (isVirtual) {
     vec3 e = directIrradiance(uShadow, pos.xyz, n) + SHADE_PI * uAmbient + shAmbientIrradiance(n);
-    vec3 indirect = texelFetch(uVirtualIrradiance, p, 0).rgb;
-    outShade = vec4((e + indirect) * albedo.rgb / SHADE_PI + texelFetch(uVirtualRadiance, p, 0).rgb, 1.0);
+    vec3 indirect = uEnvironmentHoldsBounce == 1 ? vec3(0.0) : texelFetch(uVirtualIrradiance, p, 0).rgb;
+    vec3 radiance = uEnvironmentHoldsBounce == 1 ? vec3(0.0) : texelFetch(uVirtualRadiance, p, 0).rgb;
+    outShade = vec4((e + indirect) * albedo.rgb / SHADE_PI + radiance, 1.0);
     outIrradiance = vec4(indirect, 1.0);
   } else {
     vec3 delta = texelFetch(uRealDelta, p, 0).rgb;

@@ -109,6 +109,10 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
                                       " MiB of GPU memory, more than the " + std::to_string(budget >> 20) +
                                       " MiB budget (MRGI_GPU_BUDGET_MB)");
     pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
+    // The room's environment is ray cast from the objects' centre over the whole sphere: it holds what every
+    // real surface sends them, bounce included. (A fisheye's hemisphere looks up from elsewhere and misses
+    // the surfaces below the object; there the virtual-role technique's bounce stays.)
+    pipeline_->setEnvironment(setup_->scene.lightSource == lighting::LightSource::Room);
     needs_ = pipeline_->needs();
     if (needs_.realVals && needs_.realValOptions.fusion) surfels_.emplace(needs_.realValOptions.surfels);
   }

@@ -1,5 +1,7 @@
 // The shading pass's directional ambient (SH bands 0-2) against its C++ twin, per pixel of a virtual cube
 // seen from above: top and side faces, every channel.
+#include <algorithm>
+
 #include <gtest/gtest.h>
 
 #include "reconstruction/light_estimation.h"
@@ -45,6 +47,45 @@ TEST(AmbientSh, ShadingPassMatchesTheCppIrradiancePerPixel) {
   const cv::Mat dark = pipe.downloadShade();
   for (int i = 0; i < static_cast<int>(dark.total()); ++i)
     for (int c = 0; c < 3; ++c) ASSERT_EQ(dark.at<cv::Vec4f>(i)[c], 0.f);
+}
+
+TEST(AmbientSh, AnEnvironmentHoldingTheRealBounceIsNotAddedToAgain) {
+  // A white cube beside a red wall under a point light: DLPV's bounce reddens the cube. When the ambient is
+  // an environment seen at the object (the room's), that bounce is already in it: the cube is then shaded
+  // by the direct light and the ambient alone, exactly as with no virtual-role technique, and a technique
+  // serving only the virtual role is not run.
+  auto ctx = test::makeContext();
+  const test::TestScene s = test::makeScene(true, 0.3, {-0.25, 0.0, 0.15});
+  const CameraView camera = test::topCamera(64, 64);
+  const std::vector<SceneLight> lights = {test::pointAbove()};
+  const auto virtualShade = [&](const std::string& technique, bool environment, std::vector<std::string>* skipped) {
+    LightingPipeline pipe = test::makePipeline(test::testConfig(64, 64, 16, 64, technique), s);
+    pipe.setEnvironment(environment);
+    pipe.run(camera, lights, {0.1, 0.1, 0.1}, nullptr);
+    if (skipped) *skipped = pipe.skippedStages();
+    return pipe.downloadShade();
+  };
+  const cv::Mat bounce = virtualShade("dlpv", false, nullptr), held = virtualShade("dlpv", true, nullptr),
+                none = virtualShade("dlpv+none", false, nullptr);
+  int virtualPixels = 0;
+  double added = 0;
+  for (int i = 0; i < static_cast<int>(bounce.total()); ++i) {
+    const cv::Vec4f b = bounce.at<cv::Vec4f>(i), h = held.at<cv::Vec4f>(i), n = none.at<cv::Vec4f>(i);
+    if (b[3] < 0.5f) {
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(h[c], b[c]) << "real pixels keep their delta";
+      continue;
+    }
+    ++virtualPixels;
+    added += b[0] - h[0];
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(h[c], n[c]);
+  }
+  EXPECT_GT(virtualPixels, 50);
+  EXPECT_GT(added / virtualPixels, 1e-3) << "the wall's bounce reaches the cube when the ambient does not hold it";
+  std::vector<std::string> skipped;
+  virtualShade("none+kinect-val", true, &skipped);
+  EXPECT_NE(std::find(skipped.begin(), skipped.end(), "kinect-val"), skipped.end());
+  virtualShade("none+kinect-val", false, &skipped);
+  EXPECT_EQ(std::find(skipped.begin(), skipped.end(), "kinect-val"), skipped.end());
 }
 
 }  // namespace
