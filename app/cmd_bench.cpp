@@ -336,10 +336,13 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
                 {"voxel_mib", static_cast<double>(fusion.model.bytes()) / (1 << 20)},
                 {"appearance_mib", static_cast<double>(fusion.model.appearanceBytes()) / (1 << 20)},
                 {"fuse_ms_median", fusion.medianFuseMs()},
+                {"surface_ms_median", fusion.medianSurfaceMs()},
                 {"ms", ms}};
-    std::printf("%s: room fused from %d frames (%zu triangles, %.0f MiB of voxels, %.1f ms per frame median)\n", path.c_str(),
-                fusion.model.framesIntegrated(), bs.room->triangleCount(), static_cast<double>(fusion.model.bytes()) / (1 << 20),
-                fusion.medianFuseMs());
+    std::printf(
+        "%s: room fused from %d frames (%zu triangles, %.0f MiB of voxels, %.1f ms per frame median, %.1f ms with the "
+        "depth filter)\n",
+        path.c_str(), fusion.model.framesIntegrated(), bs.room->triangleCount(),
+        static_cast<double>(fusion.model.bytes()) / (1 << 20), fusion.medianFuseMs(), fusion.medianSurfaceMs());
   }
   bs.W = info.colourIntrinsics.width, bs.H = info.colourIntrinsics.height;
   const int n = static_cast<int>(bs.frames.size());

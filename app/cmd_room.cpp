@@ -78,14 +78,17 @@ int runRoom(const RoomCliOptions& o) {
                         {"vertices", mesh.positions.size()},
                         {"triangles", mesh.triangleCount()},
                         {"fuse_ms_median", fusion.medianFuseMs()},
+                        {"surface_ms_median", fusion.medianSurfaceMs()},
                         {"per_frame", fusion.perFrame}};
   if (o.json)
     std::printf("%s\n", summary.dump().c_str());
   else
-    std::printf("wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms median\n",
-                o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(),
-                static_cast<double>(room.bytes()) / (1 << 20), room.framesIntegrated(), static_cast<long long>(seen),
-                fusion.medianFuseMs());
+    std::printf(
+        "wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms "
+        "median, %.1f ms with the depth filter\n",
+        o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(),
+        static_cast<double>(room.bytes()) / (1 << 20), room.framesIntegrated(), static_cast<long long>(seen),
+        fusion.medianFuseMs(), fusion.medianSurfaceMs());
   return 0;
 }
 

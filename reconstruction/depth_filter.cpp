@@ -2,7 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 namespace mrgi::reconstruction {
@@ -15,6 +15,15 @@ cv::Mat boxMean(const cv::Mat& m, int r) {
   cv::Mat out;
   cv::boxFilter(m, out, CV_32F, cv::Size(2 * r + 1, 2 * r + 1), cv::Point(-1, -1), true, kBorder);
   return out;
+}
+
+/// Rows 0..h-1, split over OpenCV's workers; every row is independent and written by one worker only, so
+/// the result is the same as one after the other.
+template <typename F>
+void forRows(int h, const F& row) {
+  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) row(y);
+  });
 }
 
 }  // namespace
@@ -76,7 +85,7 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
 
   // Weighted window statistics; weight = validity, so invalid samples contribute nothing.
   cv::Mat s0(h, w, CV_32FC4), s1(h, w, CV_32FC4), s2(h, w, CV_32FC4), s3(h, w, CV_32FC4);
-  for (int y = 0; y < h; ++y) {
+  forRows(h, [&](int y) {
     const float* d = p.ptr<float>(y);
     const auto* g = guide.ptr<cv::Vec3f>(y);
     auto *a0 = s0.ptr<cv::Vec4f>(y), *a1 = s1.ptr<cv::Vec4f>(y), *a2 = s2.ptr<cv::Vec4f>(y), *a3 = s3.ptr<cv::Vec4f>(y);
@@ -88,13 +97,13 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
       a2[x] = {I[0] * g[x][0], I[0] * g[x][1], I[0] * g[x][2], I[1] * g[x][1]};
       a3[x] = {I[1] * g[x][2], I[2] * g[x][2], z * z, 0.f};
     }
-  }
-  const cv::Mat m0 = boxMean(s0, r), m1 = boxMean(s1, r), m2 = boxMean(s2, r), m3 = boxMean(s3, r);
+  });
+  const cv::Mat m0 = boxMean(s0, r), m1 = boxMean(s1, r), m2 = boxMean(s2, r), m3 = boxMean(s3, r);  // parallel inside
 
   // Per-window linear model q = a . I + b, solved with the regularised guide covariance.
   cv::Mat coef(h, w, CV_32FC4), weight(h, w, CV_32FC1), spread(h, w, CV_32FC1), meanP(h, w, CV_32FC1);
   const double eps = o.eps;
-  for (int y = 0; y < h; ++y) {
+  forRows(h, [&](int y) {
     const auto *b0 = m0.ptr<cv::Vec4f>(y), *b1 = m1.ptr<cv::Vec4f>(y), *b2 = m2.ptr<cv::Vec4f>(y), *b3 = m3.ptr<cv::Vec4f>(y);
     auto* c = coef.ptr<cv::Vec4f>(y);
     float *wt = weight.ptr<float>(y), *sp = spread.ptr<float>(y), *mp = meanP.ptr<float>(y);
@@ -131,12 +140,12 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
       sp[x] = static_cast<float>(std::sqrt(std::max(0.0, b3[x][2] * inv - mz * mz)));
       mp[x] = static_cast<float>(mz);
     }
-  }
+  });
   // Average the models of every window covering a pixel, each weighted by its share of valid samples.
   const cv::Mat mc = boxMean(coef, r), mw = boxMean(weight, r);
 
   cv::Mat out(h, w, CV_32FC1, cv::Scalar(0));
-  for (int y = 0; y < h; ++y) {
+  forRows(h, [&](int y) {
     const float* d = p.ptr<float>(y);
     const auto* g = guide.ptr<cv::Vec3f>(y);
     const auto* c = mc.ptr<cv::Vec4f>(y);
@@ -152,7 +161,7 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
         q[x] = v;
       }
     }
-  }
+  });
   return out;
 }
 

@@ -21,12 +21,16 @@ LightingSetup markerSetup(const capture::FrameSource& source) {
   return setup;
 }
 
-double RoomFusion::medianFuseMs() const {
-  if (fuseMs.empty()) return 0.0;
-  std::vector<double> sorted = fuseMs;
+namespace {
+double median(std::vector<double> sorted) {
+  if (sorted.empty()) return 0.0;
   std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
   return sorted[sorted.size() / 2];
 }
+}  // namespace
+
+double RoomFusion::medianFuseMs() const { return median(fuseMs); }
+double RoomFusion::medianSurfaceMs() const { return median(surfaceMs); }
 
 RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const reconstruction::RoomOptions& options,
                     int64_t limit, int every,
@@ -45,6 +49,10 @@ RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const
     const int64_t index = out.frames++;
     if (index % every != 0 || !frame->rgbd) continue;
     const FrameResult r = frames.measure(*frame, profiler);
+    // What the frame's depth cost before fusion: the guided filter and the normals.
+    double filterMs = 0;
+    for (const auto& [stage, t] : profiler.resolve())
+      if (stage == "depth_filter" || stage == "normals") filterMs += t.cpuMs;
     nlohmann::json line = {{"frame", index}};
     if (!r.T_marker_camera || r.positions.empty()) {
       line["integrated"] = false;
@@ -58,12 +66,14 @@ RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const
       const auto result = out.model.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, *r.T_marker_camera,
                                                  frame->rgbd->exposure);
       out.fuseMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      out.surfaceMs.push_back(filterMs + out.fuseMs.back());
       line["integrated"] = result.integrated;
       if (!result.integrated) line["refused"] = result.refused;
       line["overlap"] = result.overlap;
       line["inconsistent"] = result.inconsistent;
       line["new_blocks"] = result.newBlocks;
       line["fuse_ms"] = out.fuseMs.back();
+      line["filter_ms"] = filterMs;
     }
     if (onFrame) onFrame(line, out.model);
     out.perFrame.push_back(std::move(line));

@@ -21,9 +21,12 @@ struct RoomFusion {
   reconstruction::RoomModel model;
   int64_t frames = 0, posed = 0;
   std::vector<double> fuseMs;                    ///< per integrated-or-refused frame with a pose
+  std::vector<double> surfaceMs;                 ///< the same frames: depth filter and normals + fusion
   nlohmann::json perFrame = nlohmann::json::array();  ///< frame, integrated, refused, overlap, inconsistent, new_blocks, fuse_ms
   /// Median of fuseMs (0 without any).
   double medianFuseMs() const;
+  /// Median of surfaceMs: a frame's whole real-surface cost (filter, normals, fusion, appearance).
+  double medianSurfaceMs() const;
 };
 
 /// Reads up to `limit` frames (< 0: all) of `source`, integrates every `every`-th. `onFrame` (optional) sees
