@@ -255,7 +255,8 @@ Action addReplay(CLI::App& app) {
   app.add_flag("--dump-delta", o->dumpDelta, "also write delta_NNNN.exr (linear RGB added to real pixels) and mask_NNNN.png (255 = virtual)");
   app.add_flag("--debug", o->debug, "also write debug_NNNN_*.png: delta (red = negative), G-buffer albedo/normal/mask, "
                                      "RSM flux/normal of the last light, each technique's own views, the fisheye frame with its "
-                                     "median-cut lights");
+                                     "median-cut lights; with --room the fused room seen from the camera (radiance, albedo) "
+                                     "and, lit from the room, its environment at the object with its lights");
   app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
       ->check(CLI::IsMember({"marker", "ground-truth"}));
   app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();

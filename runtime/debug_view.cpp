@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include <opencv2/calib3d.hpp>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
@@ -22,6 +23,29 @@ std::vector<DebugView> debugViews(FramePipeline& frames) {
       for (const std::string& v : t->debugViews()) out.push_back(v);
   if (setup->fisheye) out.push_back(Views::kFisheye);
   if (frames.roomLights()) out.push_back(Views::kRoomLights);
+  if (frames.room()) out.insert(out.end(), {Views::kRoomRadiance, Views::kRoomAlbedo});
+  return out;
+}
+
+cv::Mat roomSeenFrom(const reconstruction::MeshRays& rays, const reconstruction::RoomMesh& room, const std::vector<cv::Vec3f>& values,
+                     const capture::Intrinsics& k, const capture::Pose& T_world_camera, cv::Mat* hitMask) {
+  CV_Assert(values.size() == room.positions.size());
+  cv::Mat out(k.height, k.width, CV_32FC3, cv::Scalar::all(0)), mask(k.height, k.width, CV_8U, cv::Scalar(0));
+  const cv::Vec3d o = capture::translationOf(T_world_camera);
+  const cv::Matx33d R = capture::rotationOf(T_world_camera);
+  cv::parallel_for_(cv::Range(0, k.height), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < k.width; ++x) {
+        const cv::Vec3d d = cv::normalize(R * cv::Vec3d((x + 0.0 - k.cx) / k.fx, (y + 0.0 - k.cy) / k.fy, 1.0));
+        const reconstruction::MeshRays::Hit h = rays.intersect(o, d);
+        if (!h.hit) continue;
+        const uint32_t* t = &room.indices[3 * static_cast<size_t>(h.triangle)];
+        const float u = static_cast<float>(h.u), v = static_cast<float>(h.v);
+        out.at<cv::Vec3f>(y, x) = (1 - u - v) * values[t[0]] + u * values[t[1]] + v * values[t[2]];
+        mask.at<uchar>(y, x) = 255;
+      }
+  });
+  if (hitMask) *hitMask = mask;
   return out;
 }
 
@@ -97,6 +121,20 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
     return img;
   }
   if (v == Views::kRoomLights) return frames.roomLights() ? roomLightsImage(*frames.roomLights()) : cv::Mat();
+  if (v == Views::kRoomRadiance || v == Views::kRoomAlbedo) {
+    // What the room holds where this camera looks; unscanned directions dark blue.
+    const reconstruction::RoomMesh* room = frames.room();
+    if (!room || !r.T_marker_camera) return {};
+    const bool radiance = v == Views::kRoomRadiance;
+    if (!radiance && frames.roomAlbedo().size() != room->positions.size()) return {};
+    cv::Mat hit;
+    cv::Mat linear = roomSeenFrom(frames.roomRays(), *room, radiance ? room->radiance : frames.roomAlbedo(), k, *r.T_marker_camera, &hit);
+    if (radiance) linear *= r.exposure;
+    cv::Mat img = capture::encodeSrgb(linear);
+    img.setTo(cv::Scalar(30, 30, 70), ~hit);
+    out[radiance ? "debug_room_radiance_coverage" : "debug_room_albedo_coverage"] = cv::countNonZero(hit) / static_cast<double>(hit.total());
+    return img;
+  }
   lighting::LightingPipeline* pipe = frames.lighting();
   if (!r.lit || !pipe) return {};
   if (v == Views::kDelta) {

@@ -23,6 +23,8 @@ static inline const DebugView kRsmFlux = "rsm_flux";        ///< the last light'
 static inline const DebugView kRsmNormal = "rsm_normal";    ///< the last light's RSM^rho normals
 static inline const DebugView kFisheye = "fisheye_lights";  ///< the last fisheye frame, tone-mapped, with the median-cut lights
 static inline const DebugView kRoomLights = "room_lights";  ///< the room's fused radiance seen from the object, with its lights
+static inline const DebugView kRoomRadiance = "room_radiance";  ///< the fused room seen from the camera: its radiance at the frame's exposure
+static inline const DebugView kRoomAlbedo = "room_albedo";      ///< the fused room seen from the camera: its albedo under the current lights
 };
 
 inline const char* debugViewName(const DebugView& v) { return v.c_str(); }
@@ -40,6 +42,12 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
 /// The room's environment at the object (lat-long, row 0 = +z of the marker frame, column 0 = +x), tone-mapped
 /// so that the 99th percentile reads 0.8, its lights circled (orange: mostly saturated surfaces).
 cv::Mat roomLightsImage(const reconstruction::RoomLights& lights);
+
+/// The room seen from a camera: per pixel the first room triangle its ray meets (rays: the room's), `values`
+/// (one per room vertex) interpolated with the hit's barycentrics; CV_32FC3, (0, 0, 0) where the ray meets
+/// nothing, and `hitMask` (CV_8U, optional) 255 where it meets the room.
+cv::Mat roomSeenFrom(const reconstruction::MeshRays& rays, const reconstruction::RoomMesh& room, const std::vector<cv::Vec3f>& values,
+                     const capture::Intrinsics& k, const capture::Pose& T_world_camera, cv::Mat* hitMask = nullptr);
 
 /// Draws the marker's axes (x red, y green, z blue, `length` metres) onto an RGB8 camera image.
 void drawMarkerAxes(cv::Mat& rgb, const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length);

@@ -244,6 +244,7 @@ FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor
 FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler) {
   FrameResult r;
   capture::RgbdFrame& rgbd = *frame.rgbd;
+  r.exposure = rgbd.exposure;
   if (!rgbd.depthRegistered) {
     auto s = profiler.cpu("register");
     capture::ensureRegistered(rgbd);
@@ -374,6 +375,12 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
                               {"coverage", roomLightEstimate_->coverage},
                               {"ambient_radiance", {roomLightEstimate_->ambientRadiance[0], roomLightEstimate_->ambientRadiance[1],
                                                     roomLightEstimate_->ambientRadiance[2]}}};
+}
+
+const reconstruction::MeshRays& FramePipeline::roomRays() {
+  if (!options_.room) throw std::logic_error("FramePipeline::roomRays: no room");
+  if (!roomRays_) roomRays_ = std::make_shared<reconstruction::MeshRays>(options_.room->positions, options_.room->indices);
+  return *roomRays_;
 }
 
 struct FramePipeline::RoomIndex {

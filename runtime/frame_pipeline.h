@@ -18,6 +18,7 @@
 #include "lighting/frame/real_scene.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
+#include "reconstruction/mesh_rays.h"
 #include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
 
@@ -72,6 +73,7 @@ struct FrameResult {
   cv::Mat positions, normals;  ///< camera frame, from the filtered depth (empty without a scene)
   bool lit = false;            ///< the lighting pipeline ran (a scene and a marker pose)
   bool reusedSurface = false;  ///< static camera: the last frame's real surface was kept (FrameOptions::reuse)
+  double exposure = 1.0;       ///< the colour image's exposure (capture::RgbdFrame::exposure)
   nlohmann::json info = nlohmann::json::object();  ///< per-frame facts for the stats (marker status, lights)
 };
 
@@ -98,6 +100,11 @@ class FramePipeline {
   const LightingSetup* setup() const { return setup_ ? &*setup_ : nullptr; }
   /// The lights estimated from the room ("lights": "room"), else null.
   const reconstruction::RoomLights* roomLights() const { return roomLightEstimate_.get(); }
+  /// The room model (FrameOptions::room), else null; its albedo per vertex under the current lights (empty
+  /// until a frame has been lit from the room); rays against the whole room (built on first use).
+  const reconstruction::RoomMesh* room() const { return options_.room.get(); }
+  const std::vector<cv::Vec3f>& roomAlbedo() const { return roomAlbedo_; }
+  const reconstruction::MeshRays& roomRays();
 
  private:
   void estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);
@@ -124,6 +131,7 @@ class FramePipeline {
   std::vector<reconstruction::AlbedoStatus> roomAlbedoStatus_;
   struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)
   std::shared_ptr<RoomIndex> roomIndex_;
+  std::shared_ptr<reconstruction::MeshRays> roomRays_;
   void useRoom(nlohmann::json& info, gl::Profiler& profiler);
   /// "lights": "room": the lights and ambient from the room model, once (the room is static).
   void estimateRoomLights();

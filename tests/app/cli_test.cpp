@@ -1142,6 +1142,28 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
     const cv::Mat map = cv::imread((lit / "debug_0000_room_lights.png").string());
     EXPECT_EQ(map.cols, 256);
     EXPECT_EQ(map.rows, 128);
+    // The fused room seen from the camera: its radiance at the frame's exposure reads as the camera image
+    // (blurred over the voxels) wherever the room was scanned and the object is not; its albedo is shown too.
+    {
+      const cv::Mat seen = cv::imread((lit / "debug_0000_room_radiance.png").string()),
+                    camera = cv::imread((lit / "frame_0000.png").string()),
+                    object = cv::imread((lit / "debug_0000_gbuffer_mask.png").string(), cv::IMREAD_GRAYSCALE);
+      ASSERT_FALSE(seen.empty() || camera.empty() || object.empty());
+      EXPECT_TRUE(fs::exists(lit / "debug_0000_room_albedo.png"));
+      double seenSum = 0, cameraSum = 0, diff = 0;
+      int n = 0;
+      for (int y = 0; y < seen.rows; ++y)
+        for (int x = 0; x < seen.cols; ++x) {
+          const cv::Vec3b a = seen.at<cv::Vec3b>(y, x), b = camera.at<cv::Vec3b>(y, x);
+          if (object.at<uchar>(y, x) > 127 || a == cv::Vec3b(70, 30, 30)) continue;  // the object; unscanned (BGR)
+          for (int c = 0; c < 3; ++c) seenSum += a[c], cameraSum += b[c], diff += std::abs(a[c] - b[c]);
+          ++n;
+        }
+      ASSERT_GT(n, static_cast<int>(seen.total() / 2));
+      EXPECT_NEAR(seenSum / cameraSum, 1.0, 0.05);
+      EXPECT_LT(diff / (3.0 * n), 15.0);
+      EXPECT_GT(s["per_frame"][0]["debug_room_radiance_coverage"].get<double>(), 0.5) << s["per_frame"][0].dump();
+    }
     const fs::path png = lit / "map.png";
     const Result j = runMrgi("room-lights " + out.string() + " --at 0 0 0.06 --json --map " + png.string());
     ASSERT_EQ(j.exitCode, 0) << j.err;
