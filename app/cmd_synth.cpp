@@ -45,6 +45,7 @@ struct SynthOptions {
   double environmentScale = 0;    ///< 0: a white upward surface in the open reads 0.6
   int scan = 0;                   ///< look-around frames after the orbit (walls, ceiling, the lamp)
   std::string exposure = "1";     ///< "auto" (at most 1 % of pixels clip) or a fixed relative exposure
+  bool moveBox = false;           ///< the box moves to the front of the table a third of the way through (carving)
 };
 
 /// The look-around: standing at the table's front edge, the camera turns a full circle twice, once
@@ -229,6 +230,22 @@ int runSynth(const SynthOptions& o) {
                                       {"mask", "reference/mask_NNNNNN.png"},
                                       {"note", "the camera image of the room with the scene's objects, same noise"}};
   const RayCaster rc(table.scene);
+  // --move-box: from frame `moveAt` on, the room is the same but for the box, moved to the front of the table.
+  std::optional<Tabletop> movedTable;  // outlives its ray caster, which refers to its scene
+  std::optional<RayCaster> moved;
+  const int moveAt = (o.frames + o.scan) / 3;
+  if (o.moveBox) {
+    if (!o.scene.empty()) throw std::invalid_argument("--move-box cannot be combined with --scene (references of a changing room)");
+    TabletopConfig mc = tc;
+    mc.boxOffset = movedBoxOffset();
+    movedTable = buildTabletop(mc);
+    moved.emplace(movedTable->scene);
+    const auto [lo, hi] = tabletopBox();
+    const cv::Vec3f d = movedBoxOffset();
+    table.groundTruth["scene"]["box_moves"] = {{"at_frame", moveAt},
+                                               {"min", {lo[0] + d[0], lo[1] + d[1], lo[2] + d[2]}},
+                                               {"max", {hi[0] + d[0], hi[1] + d[1], hi[2] + d[2]}}};
+  }
   groundtruth::PathTraceOptions po;
   po.spp = o.spp;
   po.bounces = o.bounces;
@@ -266,8 +283,9 @@ int runSynth(const SynthOptions& o) {
     // With a reference the frame's two renders share its step of the bar.
     const double share = augmentedCaster && pathTrace && !scanning ? 0.5 : 1.0;
     po.progress = [&bar, i, share, total](double x) { bar((i + share * x) / total); };
-    const PathTracer pt(rc, po);
-    const RgbdRender r = renderRgbd(rc, pathTrace ? &pt : nullptr, m.colour, *frame.groundTruthT_world_camera);
+    const RayCaster& room = moved && i >= moveAt ? *moved : rc;
+    const PathTracer pt(room, po);
+    const RgbdRender r = renderRgbd(room, pathTrace ? &pt : nullptr, m.colour, *frame.groundTruthT_world_camera);
     capture::RgbdFrame rgbd;
     const uint64_t noiseSeed = o.seed * 7919 + static_cast<uint64_t>(i);
     const double exposure = pickExposure(o.exposure, r.radiance);
@@ -331,6 +349,7 @@ Action addSynth(CLI::App& app) {
   app.add_option("--scene", o->scene, "also write each frame's reference composite with this scene's objects (reference/)");
   app.add_option("--scan", o->scan, "append N look-around frames (walls, ceiling, the lamp; no marker in view, no reference)")
       ->check(CLI::Range(0, 100000));
+  app.add_flag("--move-box", o->moveBox, "the box moves to the front of the table a third of the way through (a room that changes: carving)");
   app.add_option("--exposure", o->exposure, "auto (at most 1 % of pixels clip; recorded per frame) or a relative exposure")
       ->check([](const std::string& v) -> std::string {
         if (v == "auto") return "";

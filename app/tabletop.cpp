@@ -42,7 +42,8 @@ Tabletop buildTabletop(const TabletopConfig& c) {
   for (float x : {-0.55f, 0.52f})
     for (float z : {-0.35f, 0.32f}) s.addBox({x, 0, z}, {x + 0.03f, kTableTop - 0.03f, z + 0.03f}, tableM);
   // A box on the table.
-  s.addBox({0.22f, kTableTop, -0.26f}, {0.37f, kTableTop + 0.15f, -0.11f}, boxM);
+  const auto [boxLo, boxHi] = tabletopBox();
+  s.addBox(boxLo + c.boxOffset, boxHi + c.boxOffset, boxM);
 
   // The AprilTag lies flat at the table centre, slightly above the top to avoid z-fighting.
   reconstruction::TagLayout layout{};
@@ -82,6 +83,8 @@ Tabletop buildTabletop(const TabletopConfig& c) {
   gt["scene"]["seed"] = c.seed;
   gt["scene"]["ambient_radiance"] = {s.ambient[0], s.ambient[1], s.ambient[2]};
   if (c.environment) gt["environment"] = c.environmentInfo;
+  gt["scene"]["box"] = {{"min", {boxLo[0] + c.boxOffset[0], boxLo[1] + c.boxOffset[1], boxLo[2] + c.boxOffset[2]}},
+                        {"max", {boxHi[0] + c.boxOffset[0], boxHi[1] + c.boxOffset[1], boxHi[2] + c.boxOffset[2]}}};
   gt["scene"]["materials"] = nlohmann::json::array();
   for (const auto& m : s.materials)
     gt["scene"]["materials"].push_back({{"name", m.name}, {"albedo", {m.albedo[0], m.albedo[1], m.albedo[2]}}});

@@ -20,7 +20,14 @@ struct TabletopConfig {
   /// Outdoors: the table stands on open ground under this HDR environment (no room, no point light).
   std::shared_ptr<const groundtruth::EnvironmentMap> environment;
   nlohmann::json environmentInfo;  ///< what the manifest records about it (file, scale)
+  cv::Vec3f boxOffset{0, 0, 0};    ///< the box's displacement on the table (world, metres)
 };
+
+/// Where the box stands on the table, lower and upper corner (world: y up), before any offset.
+inline std::pair<cv::Vec3f, cv::Vec3f> tabletopBox() { return {{0.22f, 0.75f, -0.26f}, {0.37f, 0.90f, -0.11f}}; }
+/// Where `mrgi synth --move-box` moves it halfway through: to the front of the table (towards the
+/// orbit's second half), clear of the tag.
+inline cv::Vec3f movedBoxOffset() { return {0.0f, 0.0f, 0.36f}; }
 
 struct Tabletop {
   groundtruth::Scene scene;

@@ -15,6 +15,8 @@
 #include <open3d/pipelines/integration/ScalableTSDFVolume.h>
 #include <open3d/pipelines/integration/UniformTSDFVolume.h>
 #include <open3d/utility/Logging.h>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
 #include "capture/error.h"
@@ -255,6 +257,54 @@ RoomIntegration RoomModel::checkPose(const cv::Mat& depth, const capture::Intrin
   return r;
 }
 
+namespace {
+
+/// Space carving. A running average forgets slowly: an object seen for n frames and then gone needs about
+/// n frames of free space before its surface's zero crossing leaves (half-carved, it stays as a ghost
+/// surface in the middle of where it was). A voxel the model holds inside a surface (tsdf < 0) that this
+/// frame sees in front of its surface — all the depth around its pixel (5 x 5, at least half of it valid)
+/// lies more than two voxels beyond it — contradicts the model: what was there has gone, and the voxel
+/// restarts from this observation (weight 1). Within two voxels of the surface seen, noise could be the
+/// cause, and the running average decides. Requiring the whole window keeps silhouettes, where a voxel's
+/// pixel may see past an object's edge, from eroding objects that stay.
+void carveFreeSpace(const std::vector<o3d::pipelines::integration::UniformTSDFVolume*>& blocks, const cv::Mat& depth,
+                    const capture::Intrinsics& K, const capture::Pose& T_camera_world, double trunc) {
+  // The smallest valid depth of each 5 x 5 window; 0 where fewer than half of it is valid.
+  cv::Mat valid = depth > 0, lifted = depth.clone(), nearest, share;
+  lifted.setTo(std::numeric_limits<float>::max(), ~valid);
+  cv::erode(lifted, nearest, cv::Mat::ones(5, 5, CV_8U), cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::boxFilter(valid, share, CV_32F, cv::Size(5, 5), cv::Point(-1, -1), true, cv::BORDER_CONSTANT);
+  nearest.setTo(0, share < 0.5 * 255);
+  const cv::Matx33d R = capture::rotationOf(T_camera_world);
+  const cv::Vec3d t = capture::translationOf(T_camera_world);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(blocks.size())), [&](const cv::Range& range) {
+    for (int b = range.start; b < range.end; ++b) {
+      auto& v = *blocks[static_cast<size_t>(b)];
+      const int n = v.resolution_;
+      const double voxel = v.length_ / n;
+      for (int x = 0; x < n; ++x)
+        for (int y = 0; y < n; ++y)
+          for (int z = 0; z < n; ++z) {
+            auto& voxelData = v.voxels_[static_cast<size_t>(v.IndexOf(x, y, z))];
+            if (!(voxelData.weight_ > 0) || !(voxelData.tsdf_ < 0)) continue;
+            const cv::Vec3d p(v.origin_(0) + (x + 0.5) * voxel, v.origin_(1) + (y + 0.5) * voxel, v.origin_(2) + (z + 0.5) * voxel);
+            const cv::Vec3d pc = R * p + t;
+            if (pc[2] <= 0) continue;
+            const int u = static_cast<int>(std::lround(K.fx * pc[0] / pc[2] + K.cx)),
+                      w = static_cast<int>(std::lround(K.fy * pc[1] / pc[2] + K.cy));
+            if (u < 0 || w < 0 || u >= nearest.cols || w >= nearest.rows) continue;
+            const float d = nearest.at<float>(w, u);
+            if (d > 0 && pc[2] < d - trunc) {
+              voxelData.tsdf_ = 1;
+              voxelData.weight_ = 1;
+            }
+          }
+    }
+  });
+}
+
+}  // namespace
+
 RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colour, const capture::Intrinsics& K,
                                      const capture::Pose& T_world_camera, double exposure) {
   if (!(exposure > 0) || !std::isfinite(exposure)) throw std::invalid_argument("RoomModel::integrate: exposure must be positive");
@@ -308,8 +358,13 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
     for (int x = 0; x < depth.cols; ++x) t[x / kTile] = std::max(t[x / kTile], row[x]);
   }
   const double half = 0.5 * impl_->volume.volume_unit_length_;
+  std::vector<o3d::pipelines::integration::UniformTSDFVolume*> inView;
   for (auto& [index, unit] : impl_->volume.volume_units_) {
-    if (touched.count(index) || !unit.volume_) continue;
+    if (!unit.volume_) continue;
+    if (touched.count(index)) {
+      inView.push_back(unit.volume_.get());
+      continue;
+    }
     const cv::Vec3d centre((index[0] + 0.5) * 2 * half, (index[1] + 0.5) * 2 * half, (index[2] + 0.5) * 2 * half);
     const cv::Vec3d pc = capture::transformPoint(T_camera_world, centre);
     if (pc[2] <= half) continue;
@@ -325,7 +380,9 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
       for (int tx = x0; tx <= x1; ++tx) seen = std::max(seen, static_cast<double>(tileMax.at<float>(ty, tx)));
     if (!(seen > 0) || pc[2] - 1.8 * half > seen + options_.truncM) continue;
     unit.volume_->Integrate(rgbd, intrinsic, extrinsic);
+    inView.push_back(unit.volume_.get());
   }
+  carveFreeSpace(inView, depth, K, T_camera_world, options_.truncM);
   impl_->observe(depth, colour, K, T_world_camera, exposure, options_);
   r.integrated = true;
   ++integrated_;
