@@ -9,6 +9,8 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 
 #include <nlohmann/json.hpp>
 
@@ -28,6 +30,11 @@
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
 #include "runtime/room_fusion.h"
+#include "app/tabletop.h"
+#include "groundtruth/path_tracer.h"
+#include "groundtruth/raycaster.h"
+#include "reconstruction/room_lights.h"
+#include "capture/json_io.h"
 #include "capture/registration.h"
 #include "capture/session.h"
 #include "gl/context.h"
@@ -221,6 +228,9 @@ struct BenchSession {
   std::map<int, Truth> truths;    ///< path traced from the inputs the pipeline sees (measures the technique)
   std::map<int, Truth> trueRefs;  ///< the synthetic session's own reference composites (the whole pipeline)
   std::shared_ptr<const reconstruction::RoomMesh> room;  ///< --room: the session fused over all its frames
+  /// The true irradiance at the objects' centre for the six axis normals (marker frame), path traced in the
+  /// synthetic room the session was made in; empty when the session is not one (computed on first use).
+  std::optional<std::optional<std::array<cv::Vec3d, 6>>> trueIrradiance;
   json refInfo;
   std::unique_ptr<compositor::Compositor> compositor;
 };
@@ -442,11 +452,62 @@ cv::Vec3d irradianceAt(const std::vector<lighting::SceneLight>& lights, const cv
   return E;
 }
 
-/// Lights estimated from the room against the session's listed ones, at the virtual objects' centre: the
-/// angle between the strongest lights' directions, and the irradiance for the six axis normals against the
-/// listed lights plus the listed ambient (which leave out the room's bounce light: a ratio above 1 there
-/// is mostly that bounce, which the path-traced truth has and the listed lights lack).
-json lightsAgainstTruth(const LightingSetup& est, const LightingSetup& truth) {
+const cv::Vec3d kAxes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+
+/// The irradiance at point c (marker frame) for the six axis normals in the room a synthetic session was
+/// made in (mrgi synth's tabletop, rebuilt from the manifest's seed and marker; not for outdoor sessions):
+/// the lamp's direct light exactly (its sphere, with shadows), plus the bounce light path traced with
+/// `samples` cosine-weighted rays per normal (3 bounces) that do not see the lamp's sphere itself.
+std::optional<std::array<cv::Vec3d, 6>> trueIrradianceAt(const std::string& session, const cv::Vec3d& c, int samples = 8192) {
+  std::ifstream file(fs::path(session) / "manifest.json");
+  if (!file) return std::nullopt;
+  const json manifest = capture::parseJson(file, (fs::path(session) / "manifest.json").string());
+  const json& gt = manifest.value("ground_truth", json::object());
+  if (!gt.contains("scene") || gt.contains("environment") || !manifest.contains("marker") ||
+      gt["scene"].value("generator", std::string()).rfind("mrgi synth", 0) != 0)
+    return std::nullopt;
+  TabletopConfig tc;
+  tc.tagId = capture::jsonInt(manifest["marker"], "id", "manifest.json");
+  tc.tagSize = capture::jsonNumber(manifest["marker"], "size_m", "manifest.json");
+  tc.seed = static_cast<uint64_t>(capture::jsonIntOr(gt["scene"], "seed", 1, "manifest.json"));
+  const Tabletop table = buildTabletop(tc);
+  const groundtruth::RayCaster caster(table.scene);
+  groundtruth::PathTraceOptions po;
+  po.bounces = 3;
+  const groundtruth::PathTracer tracer(caster, po);
+  const cv::Vec3d p = capture::transformPoint(table.T_world_marker, c);
+  const cv::Matx33d R = capture::rotationOf(table.T_world_marker);
+  std::array<cv::Vec3d, 6> out;
+  for (int a = 0; a < 6; ++a) {
+    const cv::Vec3d n = R * kAxes[a];
+    cv::Vec3d E(0, 0, 0);
+    for (size_t i = 0; i < table.scene.lights.size(); ++i) {
+      const auto in = caster.incident(i, cv::Vec3f(p), cv::Vec3f(n));
+      E += cv::Vec3d(in.irradiance) * std::max(0.0, n.dot(cv::Vec3d(in.direction)));
+    }
+    // Cosine-weighted directions about n: E = pi x mean radiance.
+    cv::Vec3d t = std::abs(n[0]) < 0.9 ? cv::Vec3d(1, 0, 0) : cv::Vec3d(0, 1, 0);
+    t = cv::normalize(t - n * n.dot(t));
+    const cv::Vec3d b = n.cross(t);
+    cv::RNG rng(0x5eed + static_cast<uint64_t>(a));
+    cv::Vec3d sum(0, 0, 0);
+    for (int k = 0; k < samples; ++k) {
+      const double u1 = rng.uniform(0.0, 1.0), u2 = rng.uniform(0.0, 1.0);
+      const double r = std::sqrt(u1), phi = 2 * CV_PI * u2;
+      const cv::Vec3d d = r * std::cos(phi) * t + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - u1)) * n;
+      sum += cv::Vec3d(tracer.trace(cv::Vec3f(p), cv::Vec3f(d), rng, false));
+    }
+    out[static_cast<size_t>(a)] = E + sum * (CV_PI / samples);
+  }
+  return out;
+}
+
+/// Lights estimated from the room against the truth at the virtual objects' centre: the angle between the
+/// strongest lights' directions; the irradiance for the six axis normals against the path-traced truth of
+/// the session's room (when it is a synthetic one: `trueE`), the estimate being its lights plus its SH
+/// ambient; and against the listed lights plus the listed ambient (which leave out the room's bounce light:
+/// a ratio above 1 there is mostly that bounce).
+json lightsAgainstTruth(const LightingSetup& est, const reconstruction::RoomLights* room, const LightingSetup& truth, BenchSession& bs) {
   cv::Vec3d c(0, 0, 0);
   for (const auto& o : truth.scene.objects)
     c += capture::transformPoint(capture::Pose(o.T_marker_object), 0.5 * (cv::Vec3d(o.mesh.boundsMin) + cv::Vec3d(o.mesh.boundsMax)));
@@ -463,21 +524,36 @@ json lightsAgainstTruth(const LightingSetup& est, const LightingSetup& truth) {
     return dir;
   };
   const cv::Vec3d a = strongest(est.lights), b = strongest(truth.lights);
-  double ratioErr = 0, worst = 0;
-  const cv::Vec3d normals[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-  json perNormal = json::array();
-  for (const auto& n : normals) {
-    const double e = capture::luminance(irradianceAt(est.lights, est.ambient, c, n));
-    const double t = capture::luminance(irradianceAt(truth.lights, truth.ambient, c, n));
-    const double r = t > 0 ? e / t : 0.0;
-    perNormal.push_back(r);
-    ratioErr += std::abs(r - 1) / 6, worst = std::max(worst, std::abs(r - 1));
+  // The estimate's irradiance: its lights, and its ambient as the shading pass sees it (the room's whole SH
+  // remainder, clamped; else the uniform ambient).
+  auto estimated = [&](const cv::Vec3d& n) {
+    if (!room) return irradianceAt(est.lights, est.ambient, c, n);
+    return irradianceAt(est.lights, {0, 0, 0}, c, n) + reconstruction::ambientShIrradiance(room->ambientSh, n);
+  };
+  auto compare = [&](const std::string& against, const std::function<cv::Vec3d(int)>& reference, json& out) {
+    double ratioErr = 0, worst = 0;
+    json perNormal = json::array();
+    for (int k = 0; k < 6; ++k) {
+      const double e = capture::luminance(estimated(kAxes[k])), t = capture::luminance(reference(k));
+      const double r = t > 0 ? e / t : 0.0;
+      perNormal.push_back(r);
+      ratioErr += std::abs(r - 1) / 6, worst = std::max(worst, std::abs(r - 1));
+    }
+    out["irradiance_ratio_to_" + against + "_by_axis"] = perNormal;
+    out["irradiance_ratio_to_" + against + "_error_mean"] = ratioErr;
+    out["irradiance_ratio_to_" + against + "_error_max"] = worst;
+  };
+  json out = {{"dominant_angle_deg", std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / CV_PI}, {"lights", est.lights.size()}};
+  compare("listed", [&](int k) { return irradianceAt(truth.lights, truth.ambient, c, kAxes[k]); }, out);
+  if (!bs.trueIrradiance) bs.trueIrradiance = trueIrradianceAt(bs.path, c);
+  if (*bs.trueIrradiance) {
+    const auto& E = **bs.trueIrradiance;
+    compare("true", [&](int k) { return E[static_cast<size_t>(k)]; }, out);
+    json axes = json::array();
+    for (const auto& e : E) axes.push_back(capture::luminance(e));
+    out["true_irradiance_by_axis"] = axes;
   }
-  return {{"dominant_angle_deg", std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / CV_PI},
-          {"irradiance_ratio_to_listed_by_axis", perNormal},
-          {"irradiance_ratio_to_listed_error_mean", ratioErr},
-          {"irradiance_ratio_to_listed_error_max", worst},
-          {"lights", est.lights.size()}};
+  return out;
 }
 
 /// The whole pipeline (a session's true reference composites) with these frame options: errors, SSIM,
@@ -513,7 +589,7 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
               {"ssim", ssim / frames},
               {"virtual_brightness", brightness.ratio()},
               {"ms_total", ms / std::max(timed, 1)}};
-  if (truth && rp.setup()) out["lights_vs_truth"] = lightsAgainstTruth(*rp.setup(), *truth);
+  if (truth && rp.setup()) out["lights_vs_truth"] = lightsAgainstTruth(*rp.setup(), rp.roomLights(), *truth, bs);
   return out;
 }
 

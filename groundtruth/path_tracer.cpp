@@ -67,14 +67,14 @@ void cameraRay(const PinholeCamera& c, double x, double y, cv::Vec3f& origin, cv
 
 PathTracer::PathTracer(const RayCaster& caster, PathTraceOptions options) : caster_(caster), options_(std::move(options)) {}
 
-cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng) const {
+cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng, bool seeLights) const {
   const Scene& scene = caster_.scene();
   const EnvironmentMap* env = scene.environmentMap.get();
   cv::Vec3f L(0, 0, 0), beta(1, 1, 1);
   float lastPdf = 0;  // pdf of the BRDF-sampled direction that led here (0: a camera ray)
   auto mis = [](float a, float b) { return a * a / (a * a + b * b); };  // power heuristic
   for (int depth = 0;; ++depth) {
-    const auto hit = caster_.intersect(origin, dir, 1e-4f, 1e30f, depth == 0);
+    const auto hit = caster_.intersect(origin, dir, 1e-4f, 1e30f, depth == 0 && seeLights);
     if (!hit) {
       L += beta.mul(scene.environment);
       if (env) {

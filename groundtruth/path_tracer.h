@@ -35,8 +35,9 @@ class PathTracer {
  public:
   PathTracer(const RayCaster& caster, PathTraceOptions options);
 
-  /// One path's radiance estimate along the ray (camera rays see the lights' spheres).
-  cv::Vec3f trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng) const;
+  /// One path's radiance estimate along the ray (camera rays see the lights' spheres; seeLights = false:
+  /// the ray does not, for estimates whose direct light is counted apart).
+  cv::Vec3f trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng, bool seeLights = true) const;
 
   /// Mean radiance per pixel, CV_32FC3 linear RGB. Sample s of pixel (x, y) draws from its own random
   /// stream seeded by (seed, x, y, s): the image does not depend on the thread count, and two scenes

@@ -93,6 +93,11 @@ struct RoomModel::Impl {
     float sum[3] = {0, 0, 0};
     float weight = 0;
     float lower[3] = {0, 0, 0};
+    /// Clipped observations next to unclipped pixels (at the sampling stride) in their frame: brighter texture
+    /// among darker (a tag's white cells among its black ones), finer than the voxels. Their confidence
+    /// (faded with the rest) and largest bound.
+    float mixedWeight = 0;
+    float mixedLower[3] = {0, 0, 0};
     uint16_t count = 0, clipped = 0;
   };
   std::unordered_map<Eigen::Vector3i, Appearance, Hash> appearance;
@@ -105,6 +110,10 @@ struct RoomModel::Impl {
     const double inv = 1.0 / o.voxelM;
     const float fade = static_cast<float>(o.appearanceMemory - 1) / static_cast<float>(o.appearanceMemory);
     auto point = [&](int x, int y, float d) { return cv::Vec3d((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d); };
+    auto clippedAt = [&](int x, int y) {
+      const cv::Vec3b c = colour.at<cv::Vec3b>(y, x);
+      return std::max({c[0], c[1], c[2]}) >= o.clipLevel;
+    };
     for (int y = s; y + s < depth.rows; y += s)
       for (int x = s; x + s < depth.cols; x += s) {
         const float d = depth.at<float>(y, x);
@@ -127,17 +136,24 @@ struct RoomModel::Impl {
                                   static_cast<int>(std::floor(p[2] * inv)));
         Appearance& a = appearance[key];
         const cv::Vec3b c = colour.at<cv::Vec3b>(y, x);
-        if (std::max({c[0], c[1], c[2]}) >= o.clipLevel) {
-          for (int k = 0; k < 3; ++k) a.lower[k] = std::max(a.lower[k], lut[c[k]]);
-          if (a.clipped < 65535) ++a.clipped;
-          continue;
-        }
         const float w = static_cast<float>(cosView / (static_cast<double>(d) * d));
         if (a.count >= o.appearanceMemory) {
           for (float& v : a.sum) v *= fade;
           a.weight *= fade;
+          a.mixedWeight *= fade;
         } else {
           ++a.count;
+        }
+        if (std::max({c[0], c[1], c[2]}) >= o.clipLevel) {
+          for (int k = 0; k < 3; ++k) a.lower[k] = std::max(a.lower[k], lut[c[k]]);
+          if (a.clipped < 65535) ++a.clipped;
+          // Clipped pixels carry no radiance of their own; next to unclipped ones they are the brighter part
+          // of a texture, and their bound keeps the neighbourhood's mean from darkening (lookup()).
+          if (!clippedAt(x - s, y) || !clippedAt(x + s, y) || !clippedAt(x, y - s) || !clippedAt(x, y + s)) {
+            a.mixedWeight += w;
+            for (int k = 0; k < 3; ++k) a.mixedLower[k] = std::max(a.mixedLower[k], lut[c[k]]);
+          }
+          continue;
         }
         for (int k = 0; k < 3; ++k) a.sum[k] += w * lut[c[k]];
         a.weight += w;
@@ -150,7 +166,11 @@ struct RoomModel::Impl {
   bool lookup(const Eigen::Vector3d& p, double voxel, cv::Vec3f& radiance, float& confidence, bool& saturated) const {
     const Eigen::Vector3d g = p / voxel;
     const Eigen::Vector3i centre(static_cast<int>(std::floor(g[0])), static_cast<int>(std::floor(g[1])), static_cast<int>(std::floor(g[2])));
-    double sum[3] = {0, 0, 0}, weight = 0;
+    // Per voxel its radiance and confidence: the unclipped mean, with the clipped observations that lay
+    // next to unclipped pixels (brighter texture finer than the voxels) counted at max(their bound, that
+    // mean); a voxel with only such clipped observations, at their bound. Clipped pixels among clipped ones
+    // (a lamp, an over-exposed frame) count for nothing here: a voxel seen only so is saturated.
+    double sum[3] = {0, 0, 0}, weight = 0, unclipped = 0;
     float lower[3] = {0, 0, 0};
     bool any = false;
     for (int dz = -1; dz <= 1; ++dz)
@@ -160,14 +180,25 @@ struct RoomModel::Impl {
           const auto it = appearance.find(key);
           if (it == appearance.end()) continue;
           any = true;
+          const Appearance& a = it->second;
           double t = 1;
           for (int k = 0; k < 3; ++k) t *= 1.5 - std::abs(g[k] - (key[k] + 0.5));
-          for (int k = 0; k < 3; ++k) sum[k] += t * it->second.sum[k], lower[k] = std::max(lower[k], it->second.lower[k]);
-          weight += t * it->second.weight;
+          for (int k = 0; k < 3; ++k) lower[k] = std::max(lower[k], a.lower[k]);
+          if (a.weight > 0) {
+            for (int k = 0; k < 3; ++k) {
+              const double mean = a.sum[k] / a.weight;
+              sum[k] += t * (a.sum[k] + a.mixedWeight * std::max<double>(a.mixedLower[k], mean));
+            }
+            weight += t * (a.weight + a.mixedWeight);
+            unclipped += t * a.weight;
+          } else if (a.mixedWeight > 0) {
+            for (int k = 0; k < 3; ++k) sum[k] += t * a.mixedWeight * a.mixedLower[k];
+            weight += t * a.mixedWeight;
+          }
         }
     if (!any) return false;
-    saturated = !(weight > 0);
-    confidence = static_cast<float>(weight);
+    saturated = !(unclipped > 0);
+    confidence = static_cast<float>(unclipped);
     for (int k = 0; k < 3; ++k) radiance[k] = saturated ? lower[k] : static_cast<float>(sum[k] / weight);
     return true;
   }
