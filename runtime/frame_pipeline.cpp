@@ -354,6 +354,8 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
     }
   }
   const size_t cleared = (options_.room->indices.size() - room.indices.size()) / 3;
+  roomIndices_ = room.indices;
+  roomValsSet_ = false;
   // The lighting world (marker frame), as the room.
   const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose()));
   roomAlbedo_ = albedo.albedo;
@@ -438,7 +440,19 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     pipeline_->setRealMesh(real.vertices, real.indices);
     if (options_.reuse) surfaceCache_ = SurfaceCache{*r.T_marker_camera, thumbnail_.clone(), r.positions, r.normals};
   }
-  if (val && !r.reusedSurface) {
+  if (val && options_.room) {
+    // Real surfaces as area lights from the room: every surface it holds, in view or not, once per room
+    // (again when the lights, and so the triangles cleared around them, change).
+    if (!roomValsSet_) {
+      auto s = profiler.cpu("real_vals");
+      auto vals = lighting::valsFromRoom(*options_.room, 0.04f, 16384, &roomIndices_);
+      r.info["real_vals"] = vals.size();
+      pipeline_->setRealVals(std::move(vals));
+      roomValsSet_ = true;
+    } else {
+      r.info["skipped"].push_back("real_vals");
+    }
+  } else if (val && !r.reusedSurface) {
     // Real surfaces as area lights: the seen radiance of every stride-th filtered pixel, fused over frames
     // when the technique asks for it (surfels out of view keep their light).
     auto s = profiler.cpu("real_vals");

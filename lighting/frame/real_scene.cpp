@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
+#include <unordered_map>
 
 namespace mrgi::lighting {
 namespace {
@@ -10,6 +12,13 @@ constexpr float kPi = static_cast<float>(CV_PI);
 
 float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 
+}  // namespace
+
+namespace {
+uint64_t voxelKey(const cv::Vec3f& p, float voxel) {
+  auto c = [&](float v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v / voxel)) + (1 << 20)) & 0x1fffff; };
+  return c(p[0]) | (c(p[1]) << 21) | (c(p[2]) << 42);
+}
 }  // namespace
 
 std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, const cv::Mat& linearColour,
@@ -39,6 +48,54 @@ std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, 
   return out;
 }
 
+std::vector<Val> valsFromRoom(const reconstruction::RoomMesh& room, float cell, size_t maxVals, const std::vector<uint32_t>* indicesIn) {
+  const std::vector<uint32_t>& indices = indicesIn ? *indicesIn : room.indices;
+  // Each vertex's share of the surface: a third of the area of every triangle it belongs to.
+  std::vector<float> area(room.positions.size(), 0.f);
+  for (size_t t = 0; t + 2 < indices.size(); t += 3) {
+    const cv::Vec3f &a = room.positions[indices[t]], &b = room.positions[indices[t + 1]], &c = room.positions[indices[t + 2]];
+    const float third = static_cast<float>(cv::norm((b - a).cross(c - a))) / 6.f;
+    for (int k = 0; k < 3; ++k) area[indices[t + static_cast<size_t>(k)]] += third;
+  }
+  std::vector<Val> out;
+  for (cell = std::max(cell, 1e-3f);; cell *= 2) {
+    struct Sum {
+      cv::Vec3d position{0, 0, 0}, normal{0, 0, 0}, flux{0, 0, 0};
+      double area = 0;
+    };
+    std::unordered_map<uint64_t, Sum> cells;
+    for (size_t i = 0; i < room.positions.size(); ++i) {
+      if (!(area[i] > 0) || (i < room.saturated.size() && room.saturated[i])) continue;
+      Sum& s = cells[voxelKey(room.positions[i], cell)];
+      const double a = area[i];
+      s.position += a * cv::Vec3d(room.positions[i]);
+      s.normal += a * cv::Vec3d(room.normals[i]);
+      s.flux += (kPi * a) * cv::Vec3d(room.radiance[i]);
+      s.area += a;
+    }
+    if (cells.size() > maxVals) continue;
+    out.clear();
+    out.reserve(cells.size());
+    for (const auto& [key, s] : cells) {
+      const double n = cv::norm(s.normal);
+      if (!(n > 0.5 * s.area)) continue;  // the normals cancel
+      Val v;
+      v.position = cv::Vec3f(s.position / s.area);
+      v.normal = cv::Vec3f(s.normal / n);
+      v.area = static_cast<float>(s.area);
+      v.flux = cv::Vec3f(s.flux);
+      out.push_back(v);
+    }
+    break;
+  }
+  // A fixed order (the cells' hash order is not).
+  std::sort(out.begin(), out.end(), [](const Val& a, const Val& b) {
+    return std::tie(a.position[0], a.position[1], a.position[2]) < std::tie(b.position[0], b.position[1], b.position[2]);
+  });
+  setValWeights(out);
+  return out;
+}
+
 void setValWeights(std::vector<Val>& vals) {
   double sum = 0, area = 0;
   for (const Val& v : vals) sum += lum(v.flux), area += v.area;
@@ -47,12 +104,6 @@ void setValWeights(std::vector<Val>& vals) {
   for (Val& v : vals) v.weight = static_cast<float>((mean > 0 ? lum(v.flux) / mean : 1.0) * meanArea);
 }
 
-namespace {
-uint64_t voxelKey(const cv::Vec3f& p, float voxel) {
-  auto c = [&](float v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v / voxel)) + (1 << 20)) & 0x1fffff; };
-  return c(p[0]) | (c(p[1]) << 21) | (c(p[2]) << 42);
-}
-}  // namespace
 
 void SurfelMap::integrate(const std::vector<Val>& vals, const cv::Mat& depth, const capture::Intrinsics& k,
                           const capture::Pose& T_world_camera) {

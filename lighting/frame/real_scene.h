@@ -9,6 +9,7 @@
 #include <opencv2/core.hpp>
 
 #include "capture/types.h"
+#include "reconstruction/room_model.h"
 
 namespace mrgi::lighting {
 
@@ -28,6 +29,16 @@ static_assert(sizeof(Val) == 48);
 /// per unit albedo... i.e. a Lambertian emitter of the seen radiance: φ = π L a.
 std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, const cv::Mat& linearColour,
                               const capture::Intrinsics& k, const capture::Pose& T_world_camera, int stride);
+/// VALs from the fused room (reconstruction::RoomMesh, lighting world): the mesh's area gathered into cells
+/// of `cell` metres (each vertex a third of its triangles' area), per cell the area-weighted mean position
+/// and normal and the flux π L A of its vertices' fused radiance (exposure 1) — the Lambertian emitter of
+/// what the camera saw, over every surface the room holds, not only those in view. Saturated vertices
+/// (lamps: only a lower bound, and a light of their own) and triangles in `skipTriangles` (cleared around
+/// lights) give none. The cell doubles until there are at most maxVals; cells whose normals cancel (a
+/// thin object's two sides) are dropped.
+std::vector<Val> valsFromRoom(const reconstruction::RoomMesh& room, float cell = 0.04f, size_t maxVals = 16384,
+                              const std::vector<uint32_t>* indices = nullptr);
+
 /// Sets every VAL's averaging weight: its flux luminance over the set's mean (1 when that is 0) times the
 /// set's mean area, so that ε + weight · cos ϑ_j cos ϑ_i / (π d² + a_j) ∝ lum(E_j) is a form-factor-sized number.
 void setValWeights(std::vector<Val>& vals);

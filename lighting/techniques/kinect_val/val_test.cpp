@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "lighting/frame/real_scene.h"
 #include "lighting/techniques/kinect_val/val.h"
 
 using namespace mrgi;
@@ -208,6 +209,56 @@ TEST(Val, WallOfPixelVALsGivesPiTimesRadiance) {
   const auto g4 = lighting::gatherReference(receiver({0, 0, 0.8f}, {0, 0, 1}), sparse);
   const auto g1 = lighting::gatherReference(receiver({0, 0, 0.8f}, {0, 0, 1}), vals);
   EXPECT_NEAR(g4.E[0] / g1.E[0], 1.0, 0.02);  // 5 cm VALs 20 cm away
+}
+
+TEST(Val, TheRoomsValsCarryItsFluxAndLightAReceiverAsTheWallDoes) {
+  // The fused room as a wall 4 m x 3 m (a 2 cm grid mesh at z = 1, normals towards -z) of radiance L, with
+  // a saturated patch (a lamp): the room's VALs (4 cm cells) hold π L A of the rest, and light a receiver
+  // 20 cm in front of the wall's centre as the wall does (E = π L F).
+  reconstruction::RoomMesh room;
+  const int nx = 200, ny = 150;
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) {
+      room.positions.emplace_back(-2.f + 0.02f * i, -1.5f + 0.02f * j, 1.f);
+      room.normals.emplace_back(0.f, 0.f, -1.f);
+      room.radiance.emplace_back(0.2f, 0.1f, 0.05f);
+      room.confidence.push_back(1.f);
+      const bool lamp = i >= 180 && j >= 130;  // a corner 40 cm x 40 cm, seen only clipped
+      room.saturated.push_back(lamp ? 1 : 0);
+      if (lamp) room.radiance.back() = {5.f, 5.f, 5.f};
+    }
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const uint32_t a = static_cast<uint32_t>(j * (nx + 1) + i), b = a + 1, c = a + nx + 2, d = a + nx + 1;
+      room.indices.insert(room.indices.end(), {a, c, b, a, d, c});
+    }
+  const auto vals = lighting::valsFromRoom(room);
+  double area = 0;
+  cv::Vec3d flux(0, 0, 0);
+  for (const auto& v : vals) {
+    area += v.area, flux += cv::Vec3d(v.flux);
+    ASSERT_NEAR(v.normal[2], -1.f, 1e-5f);
+  }
+  // The saturated vertices and half the area of the triangles touching them are left out.
+  EXPECT_LT(area, 12.0 - 0.38 * 0.38);
+  EXPECT_GT(area, 12.0 - 0.42 * 0.42);
+  EXPECT_NEAR(flux[0] / (CV_PI * 0.2 * area), 1.0, 1e-4);
+  EXPECT_NEAR(flux[2] / flux[0], 0.25, 1e-5);
+  const auto g = lighting::gatherReference(receiver({0, 0, 0.8f}, {0, 0, 1}), vals);
+  const double a = 2.0 / 0.2, b = 1.5 / 0.2;
+  const double F = 4 * (a / std::sqrt(1 + a * a) * std::atan(b / std::sqrt(1 + a * a)) +
+                        b / std::sqrt(1 + b * b) * std::atan(a / std::sqrt(1 + b * b))) / (2 * CV_PI);
+  EXPECT_NEAR(g.E[0] / (CV_PI * 0.2 * F), 1.0, 0.02);  // the lamp corner is 2 m off, a sliver of F
+  // At most maxVals: the cells grow; the flux stays.
+  const auto few = lighting::valsFromRoom(room, 0.04f, 100);
+  EXPECT_LE(few.size(), 100u);
+  cv::Vec3d fewFlux(0, 0, 0);
+  for (const auto& v : few) fewFlux += cv::Vec3d(v.flux);
+  EXPECT_NEAR(fewFlux[0] / flux[0], 1.0, 1e-4);
+  // Triangles cleared around a light give none; an empty room gives none.
+  const std::vector<uint32_t> none;
+  EXPECT_TRUE(lighting::valsFromRoom(room, 0.04f, 16384, &none).empty());
+  EXPECT_TRUE(lighting::valsFromRoom(reconstruction::RoomMesh{}).empty());
 }
 
 TEST(Val, SparsePointsAreAreaUniformOnTheSurface) {
