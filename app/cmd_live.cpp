@@ -15,6 +15,7 @@
 #include "lighting/techniques/registry.h"
 #include "runtime/debug_view.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/room_fusion.h"
 #include "app/live_source.h"
 #include "app/output.h"
 #include "app/window_ui.h"
@@ -46,6 +47,9 @@ struct LiveOptions {
   std::string pose = "marker";
   std::string view = "composite";
   std::string room;  ///< mrgi room output: the real scene of the lighting
+  bool fuseRoom = false;  ///< build the room from the frames as they come
+  int fuseRefresh = 30;
+  std::string saveRoom;   ///< with fuseRoom: the room at the end, as mrgi room writes it
 };
 
 std::string defaultRecordDir() {
@@ -122,7 +126,7 @@ int runLive(const LiveOptions& o) {
       if (!base->fisheye) throw capture::CaptureError(o.in.fisheye, "delivered no fisheye frame");
       base->scene.ambientFromManifest = false;
     } else {
-      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose, !o.room.empty());
+      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose, !o.room.empty() || o.fuseRoom);
     }
   }
 
@@ -131,6 +135,10 @@ int runLive(const LiveOptions& o) {
     if (!base) throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
     room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   }
+  if (o.fuseRoom && !o.room.empty()) throw std::invalid_argument("--fuse-room builds a new room; --room " + o.room + " uses a saved one: pass one");
+  if (o.fuseRoom && !base) throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
+  if (!o.saveRoom.empty() && !o.fuseRoom) throw std::invalid_argument("--save-room " + o.saveRoom + " needs --fuse-room");
+  if (!o.saveRoom.empty()) prepareOutputDirectory(o.saveRoom, "room.json", "mrgi room");
 
   const cv::Size win = WindowUi::windowSize(width, height);
   gl::ContextConfig cfg;
@@ -153,6 +161,8 @@ int runLive(const LiveOptions& o) {
   FrameOptions fo;
   fo.pose = o.pose;
   fo.room = room;
+  if (o.fuseRoom) fo.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds of the pipeline
+  fo.fuseRefresh = o.fuseRefresh;
   std::unique_ptr<FramePipeline> frames;
   auto rebuild = [&] {
     std::optional<LightingSetup> s = base;
@@ -323,6 +333,11 @@ int runLive(const LiveOptions& o) {
                   {"renderer", context->renderer()}};
   if (!o.screenshot.empty() && o.frames > 0 && (processed >= o.frames || ended)) summary["screenshot"] = o.screenshot;
   if (recorder) summary["recorded"] = {{"session", recordDir}, {"frames", recorder->framesWritten()}};
+  if (fo.fuse) {
+    summary["room"] = {{"integrated", fo.fuse->framesIntegrated()}, {"refused", fo.fuse->framesRefused()}, {"blocks", fo.fuse->blocks()}};
+    if (!o.saveRoom.empty() && fo.fuse->framesIntegrated() > 0 && !runtime::saveRoomModel(o.saveRoom, *fo.fuse, live.name()).positions.empty())
+      summary["room"]["saved"] = o.saveRoom;
+  }
   std::printf("%s\n", summary.dump().c_str());
   return InterruptGuard::interrupted() ? 130 : 0;
 }
@@ -338,6 +353,9 @@ Action addLive(CLI::App& app) {
   app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")->check(CLI::PositiveNumber);
   app.add_option("--scene", o->scene, "scene file: virtual objects relative to the marker, lights, technique, knobs");
   app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
+  app.add_flag("--fuse-room", o->fuseRoom, "build the room model from the frames as they come (every frame with a pose fused; its surface lights the scene from the first such frame, refreshed every --fuse-refresh frames)");
+  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")->check(CLI::Range(1, 100000))->capture_default_str();
+  app.add_option("--save-room", o->saveRoom, "with --fuse-room: write the room when the demo ends (as mrgi room --out does)");
   app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")->check(techniqueValidator());
   app.add_option("--preset", o->preset, "measured preset (overrides the scene file's knobs)")
       ->check(CLI::IsMember({"fast", "balanced", "accurate"}));

@@ -12,6 +12,7 @@
 #include "runtime/debug_view.h"
 #include "app/commands.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/room_fusion.h"
 #include "app/output.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -46,6 +47,9 @@ struct ReplayOptions {
   std::string mp4 = "replay.mp4";  ///< inside --out; empty: none
   double fps = 0;                  ///< 0: from the source's timestamps
   std::string room;                ///< mrgi room output: the real scene of the lighting
+  bool fuseRoom = false;           ///< build the room from the frames as they come
+  int fuseRefresh = 30;
+  std::string saveRoom;            ///< with fuseRoom: the room at the end, as mrgi room writes it
 };
 
 int runReplay(const ReplayOptions& o) {
@@ -60,7 +64,7 @@ int runReplay(const ReplayOptions& o) {
     lighting::SceneDescription scene = lighting::loadScene(o.scene);
     if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
     if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
-    setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose, !o.room.empty());
+    setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose, !o.room.empty() || o.fuseRoom);
   }
   // A bad room stops here too.
   std::shared_ptr<const reconstruction::RoomMesh> room;
@@ -68,7 +72,11 @@ int runReplay(const ReplayOptions& o) {
     if (!setup) throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
     room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   }
+  if (o.fuseRoom && !o.room.empty()) throw std::invalid_argument("--fuse-room builds a new room; --room " + o.room + " uses a saved one: pass one");
+  if (o.fuseRoom && !setup) throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
+  if (!o.saveRoom.empty() && !o.fuseRoom) throw std::invalid_argument("--save-room " + o.saveRoom + " needs --fuse-room");
   if (!o.mp4.empty()) checkInsideOutput(o.mp4, "--mp4");
+  if (!o.saveRoom.empty()) prepareOutputDirectory(o.saveRoom, "room.json", "mrgi room");
   prepareOutputDirectory(o.out, "summary.json", "mrgi replay");
 
   gl::ContextConfig cfg;
@@ -85,6 +93,8 @@ int runReplay(const ReplayOptions& o) {
   fo.meshStride = o.meshStride;
   fo.reuse = !o.recomputeAll;
   fo.room = room;
+  if (o.fuseRoom) fo.fuse = std::make_shared<reconstruction::RoomModel>();
+  fo.fuseRefresh = o.fuseRefresh;
   FramePipeline frames(std::move(setup), width, height, fo);
   lighting::LightingPipeline* pipeline = frames.lighting();
 
@@ -228,6 +238,11 @@ int runReplay(const ReplayOptions& o) {
   if (video) summary["video"] = {{"file", o.mp4}, {"frames", videoFrames}, {"fps", fps}};
   summary["per_frame"] = perFrame;
   summary["frames_with_pose"] = posed;
+  if (const reconstruction::RoomModel* live = frames.liveRoom()) {
+    summary["room"] = {{"integrated", live->framesIntegrated()}, {"refused", live->framesRefused()}, {"blocks", live->blocks()}};
+    if (!o.saveRoom.empty() && live->framesIntegrated() > 0 && !runtime::saveRoomModel(o.saveRoom, *live, o.source).positions.empty())
+      summary["room"]["saved"] = o.saveRoom;
+  }
   capture::writeFileAtomically(fs::path(o.out) / "summary.json", summary.dump(2) + "\n");
   if (const LightingSetup* setup = frames.setup(); setup && posed == 0 && done > 0 && !interrupted)
     // The frames are written (the camera images), but nothing could be placed: say so and fail.
@@ -261,6 +276,9 @@ Action addReplay(CLI::App& app) {
       ->check(CLI::IsMember({"marker", "ground-truth"}));
   app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();
   app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
+  app.add_flag("--fuse-room", o->fuseRoom, "build the room model from the frames as they come (every frame with a pose fused; its surface lights the scene from the first such frame, refreshed every --fuse-refresh frames)");
+  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")->check(CLI::Range(1, 100000))->capture_default_str();
+  app.add_option("--save-room", o->saveRoom, "with --fuse-room: write the room at the end (as mrgi room --out does)");
   app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")
       ->check(CLI::Range(capture::kMinFrameRate, capture::kMaxFrameRate));
   app.add_flag("--recompute-all", o->recomputeAll, "run every stage on every frame (default: skip stages whose inputs did not change)");

@@ -57,17 +57,8 @@ int runRoom(const RoomCliOptions& o) {
   if (room.framesIntegrated() == 0)
     throw capture::CaptureError(o.source, fusion.posed == 0 ? "no frame has a marker pose: nothing to build a room from"
                                                      : "no frame could be integrated (every pose disagreed or the budget was reached)");
-  const reconstruction::RoomMesh mesh = room.mesh();
+  const reconstruction::RoomMesh mesh = runtime::saveRoomModel(o.out, room, o.source);
   if (mesh.positions.empty()) throw capture::CaptureError(o.source, "the fused room has no surface");
-  reconstruction::RoomInfo ri;
-  ri.options = room.options();
-  ri.framesIntegrated = room.framesIntegrated();
-  ri.framesRefused = room.framesRefused();
-  ri.blocks = room.blocks();
-  ri.bytes = room.bytes();
-  ri.appearanceBytes = room.appearanceBytes();
-  ri.session = fs::absolute(o.source).lexically_normal().string();
-  reconstruction::saveRoom(o.out, mesh, ri);
   const json summary = {{"frames", seen},
                         {"integrated", room.framesIntegrated()},
                         {"refused", room.framesRefused()},

@@ -22,8 +22,9 @@ std::vector<DebugView> debugViews(FramePipeline& frames) {
     for (const auto& t : pipe->techniques())
       for (const std::string& v : t->debugViews()) out.push_back(v);
   if (setup->fisheye) out.push_back(Views::kFisheye);
-  if (frames.roomLights()) out.push_back(Views::kRoomLights);
-  if (frames.room()) out.insert(out.end(), {Views::kRoomRadiance, Views::kRoomAlbedo});
+  // A room being fused has its views before its first surface (they show nothing until then).
+  if (frames.roomLights() || setup->scene.lightSource == lighting::LightSource::Room) out.push_back(Views::kRoomLights);
+  if (frames.room() || frames.liveRoom()) out.insert(out.end(), {Views::kRoomRadiance, Views::kRoomAlbedo});
   return out;
 }
 

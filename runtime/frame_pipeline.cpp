@@ -117,7 +117,7 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
     if (needs_.realVals && needs_.realValOptions.fusion) surfels_.emplace(needs_.realValOptions.surfels);
   }
   if (setup_->fisheye) fisheyeRays_ = reconstruction::fisheyeRays(*setup_->fisheye);
-  if (setup_->scene.lightSource == lighting::LightSource::Room) {
+  if (setup_->scene.lightSource == lighting::LightSource::Room && !options_.fuse) {
     if (!options_.room)
       throw capture::CaptureError(setup_->scene.path.empty() ? "scene" : setup_->scene.path,
                                   "lights: \"room\" needs a room model (--room ROOM, built by mrgi room)");
@@ -237,8 +237,38 @@ double relativeChange(const cv::Mat& a, const cv::Mat& b) {
 
 FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler) {
   FrameResult r = measure(frame, profiler);
+  if (options_.fuse) fuseFrame(*frame.rgbd, r, profiler);
   render(frame, r, compositor, profiler);
   return r;
+}
+
+void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler) {
+  if (!r.T_marker_camera || r.positions.empty() || r.reusedSurface) return;
+  reconstruction::RoomIntegration in;
+  {
+    auto s = profiler.cpu("room_fusion");
+    cv::Mat depth;
+    cv::extractChannel(r.positions, depth, 2);
+    cv::patchNaNs(depth, 0.0);
+    in = options_.fuse->integrate(depth, rgbd.colour, rgbd.colourIntrinsics, *r.T_marker_camera, rgbd.exposure);
+  }
+  r.info["room_fusion"] = {{"integrated", in.integrated}, {"blocks", options_.fuse->blocks()}};
+  if (!in.integrated) r.info["room_fusion"]["refused"] = in.refused;
+  ++framesSinceRefresh_;
+  if (!in.integrated || (options_.room && framesSinceRefresh_ < std::max(options_.fuseRefresh, 1))) return;
+  auto s = profiler.cpu("room_mesh");
+  auto mesh = std::make_shared<const reconstruction::RoomMesh>(options_.fuse->mesh());
+  if (mesh->positions.empty()) return;
+  // Everything derived from the room follows its new surface: its albedo (useRoom), the nearest-vertex
+  // index of the view mesh, the rays of the debug views, the real VALs, and lights from the room.
+  options_.room = std::move(mesh);
+  roomLights_.reset();
+  roomIndex_.reset();
+  roomRays_.reset();
+  roomValsSet_ = false;
+  framesSinceRefresh_ = 0;
+  if (setup_ && setup_->scene.lightSource == lighting::LightSource::Room) estimateRoomLights();
+  r.info["room_fusion"]["refreshed"] = options_.room->positions.size();
 }
 
 FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler) {

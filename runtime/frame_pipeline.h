@@ -65,6 +65,12 @@ struct FrameOptions {
   /// lighting (G-buffer, RSMs, shadows) instead of each frame's depth mesh, with its albedo estimated once
   /// per set of lights; the per-frame albedo and depth mesh are not computed.
   std::shared_ptr<const reconstruction::RoomMesh> room;
+  /// Build the room as the frames arrive (live, replay --fuse-room): every frame with a pose is fused into
+  /// this model (shared: a pipeline rebuilt with new knobs keeps fusing into it), and its surface becomes
+  /// `room` on the pipeline's first such frame and then every `fuseRefresh` frames (the albedo, the lights
+  /// from the room and the room's VALs follow). Null: none.
+  std::shared_ptr<reconstruction::RoomModel> fuse;
+  int fuseRefresh = 30;
 };
 
 struct FrameResult {
@@ -105,6 +111,8 @@ class FramePipeline {
   const reconstruction::RoomMesh* room() const { return options_.room.get(); }
   const std::vector<cv::Vec3f>& roomAlbedo() const { return roomAlbedo_; }
   const reconstruction::MeshRays& roomRays();
+  /// The room being fused (FrameOptions::fuse), else null.
+  const reconstruction::RoomModel* liveRoom() const { return options_.fuse.get(); }
 
  private:
   void estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);
@@ -134,6 +142,9 @@ class FramePipeline {
   struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)
   std::shared_ptr<RoomIndex> roomIndex_;
   std::shared_ptr<reconstruction::MeshRays> roomRays_;
+  int framesSinceRefresh_ = 0;
+  /// FrameOptions::fuse: the measured frame into the live room, and the room's surface refreshed when due.
+  void fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
   void useRoom(nlohmann::json& info, gl::Profiler& profiler);
   /// "lights": "room": the lights and ambient from the room model, once (the room is static).
   void estimateRoomLights();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 
 #include "capture/error.h"
 #include "capture/session.h"
@@ -79,6 +80,21 @@ RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const
     out.perFrame.push_back(std::move(line));
   }
   return out;
+}
+
+reconstruction::RoomMesh saveRoomModel(const std::string& dir, const reconstruction::RoomModel& room, const std::string& session) {
+  reconstruction::RoomMesh mesh = room.mesh();
+  if (mesh.positions.empty()) return mesh;
+  reconstruction::RoomInfo ri;
+  ri.options = room.options();
+  ri.framesIntegrated = room.framesIntegrated();
+  ri.framesRefused = room.framesRefused();
+  ri.blocks = room.blocks();
+  ri.bytes = room.bytes();
+  ri.appearanceBytes = room.appearanceBytes();
+  ri.session = std::filesystem::absolute(session).lexically_normal().string();
+  reconstruction::saveRoom(dir, mesh, ri);
+  return mesh;
 }
 
 }  // namespace mrgi::runtime

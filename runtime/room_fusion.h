@@ -35,4 +35,8 @@ RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const
                     int64_t limit = -1, int every = 1,
                     const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
 
+/// Writes a fused room as mrgi room does (room.ply, room_appearance.npy, room.json naming `session`); the
+/// mesh is returned (empty, and nothing written, when the room has no surface).
+reconstruction::RoomMesh saveRoomModel(const std::string& dir, const reconstruction::RoomModel& room, const std::string& session);
+
 }  // namespace mrgi::runtime

@@ -1012,6 +1012,42 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
 }
 
 // Needs a display: run by CTest under Xvfb (Window.LiveShowsCompositeUnderXvfb).
+TEST(LiveWindow, DISABLED_BuildsTheRoomAsItGoesAndShowsIt) {
+  // live --fuse-room: the demo fuses the room from the frames it shows, lights the object from it, shows
+  // the fused room's radiance in the view (--view room_radiance), and saves the room when it ends.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_live_room_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string rec = std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-scan";
+  const std::string scene = std::string(MRGI_SOURCE_DIR) + "/recordings/scenes/tabletop-room.json";
+  const Result r = runMrgi("live --source " + rec + " --scene " + scene + " --pose ground-truth --gl window --frames 4 --fuse-room"
+                           " --fuse-refresh 2 --view room_radiance --save-room " + (dir / "room").string() +
+                           " --screenshot " + (dir / "live.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["room"]["integrated"], 4);
+  EXPECT_EQ(summary["room"]["saved"], (dir / "room").string());
+  EXPECT_GT(mrgi::reconstruction::loadRoom((dir / "room").string()).positions.size(), 1000u);
+  // The view is the fused room seen from the camera, as headless replay --debug draws it after the same
+  // four frames (at 2x), not the composite.
+  const cv::Mat shot = cv::imread((dir / "live.png").string());
+  ASSERT_FALSE(shot.empty());
+  ASSERT_EQ(runMrgi("replay " + rec + " --scene " + scene + " --pose ground-truth --frames 4 --fuse-room --fuse-refresh 2 --debug"
+                    " --mp4 '' --out " + (dir / "replay").string()).exitCode, 0);
+  for (const char* name : {"debug_0003_room_radiance.png", "frame_0003.png"}) {
+    cv::Mat expected = cv::imread((dir / "replay" / name).string()), diff;
+    ASSERT_FALSE(expected.empty()) << name;
+    cv::resize(expected, expected, {640, 480}, 0, 0, cv::INTER_NEAREST);
+    cv::absdiff(shot(cv::Rect(0, 0, 640, 480)), expected, diff);
+    cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
+    if (std::string(name).find("room") != std::string::npos)
+      EXPECT_GT(cv::countNonZero(diff <= 2), static_cast<int>(0.95 * diff.total())) << "the room's radiance";
+    else
+      EXPECT_LT(cv::countNonZero(diff <= 2), static_cast<int>(0.9 * diff.total())) << "not the composite";
+  }
+  fs::remove_all(dir);
+}
+
+// Needs a display: run by CTest under Xvfb (Window.LiveShowsCompositeUnderXvfb).
 TEST(InsertWindow, DISABLED_PreviewsThePlacementAndSavesIt) {
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_insert_win_" + std::to_string(::getpid()));
   fs::remove_all(dir);
@@ -1121,6 +1157,42 @@ TEST(Cli, ABoxThatMovesInTheCarvingSessionLeavesNoGhost) {
   EXPECT_EQ(count(b, gt["box_moves"]), 0);
   EXPECT_EQ(count(a, gt["box"]), 0) << "a ghost of the box where it stood";
   EXPECT_GT(count(a, gt["box_moves"]), 100) << "the box where it went";
+  fs::remove_all(base);
+}
+
+TEST(Cli, ReplayBuildsTheRoomAsTheFramesComeAndLightsFromIt) {
+  // replay --fuse-room: no saved room; every frame with a pose is fused, the room's surface is the real
+  // scene from the first frame on and refreshed every 4 frames, the lights come from it, and --save-room
+  // writes it as mrgi room does.
+  const std::string session = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-scan").string();
+  const std::string scene = (fs::path(MRGI_SOURCE_DIR) / "recordings/scenes/tabletop-room.json").string();
+  const fs::path base = fs::temp_directory_path() / ("mrgi_cli_fuse_" + std::to_string(::getpid()));
+  fs::remove_all(base);
+  const fs::path out = base / "replay", saved = base / "room";
+  const Result r = runMrgi("replay " + session + " --scene " + scene + " --fuse-room --fuse-refresh 4 --save-room " + saved.string() +
+                           " --out " + out.string() + " --frames 9 --pose ground-truth --mp4 \"\"");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
+  EXPECT_EQ(s["room"]["integrated"], 9);
+  const auto& frames = s["per_frame"];
+  ASSERT_EQ(frames.size(), 9u);
+  std::vector<int> refreshed;
+  for (int i = 0; i < 9; ++i)
+    if (frames[i]["room_fusion"].contains("refreshed")) refreshed.push_back(i);
+  EXPECT_EQ(refreshed, (std::vector<int>{0, 4, 8}));
+  EXPECT_LT(frames[0]["room_fusion"]["refreshed"].get<size_t>(), frames[8]["room_fusion"]["refreshed"].get<size_t>()) << "the room grows";
+  EXPECT_EQ(frames[0]["room"]["lights"]["count"], 4) << frames[0].dump();
+  EXPECT_TRUE(frames[0].contains("view_mesh_detailed")) << "lit from the room on the first frame: " << frames[0].dump();
+  const auto saved9 = mrgi::reconstruction::loadRoom(saved.string());
+  EXPECT_GT(saved9.positions.size(), frames[8]["room_fusion"]["refreshed"].get<size_t>() / 2);
+  // A saved room and a new one at once, or a room to save that is not being built: one-line errors.
+  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --fuse-room --room " + saved.string() + " --out " +
+                             (base / "x").string()),
+                     "--fuse-room");
+  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --save-room " + (base / "y").string() + " --out " +
+                             (base / "x").string()),
+                     "--save-room");
+  EXPECT_FALSE(fs::exists(base / "x"));
   fs::remove_all(base);
 }
 
