@@ -1,6 +1,4 @@
 // mrgi: inserts virtual objects into live or recorded RGB-D footage with consistent lighting.
-#include <malloc.h>
-
 #include <csignal>
 #include <cstdio>
 #include <exception>
@@ -11,23 +9,10 @@
 
 #include "app/commands.h"
 #include "capture/image_io.h"
-
-namespace {
-
-/// Every frame allocates and frees the same large images (a 640 x 480 four-channel float image is 4.9 MB).
-/// glibc serves blocks that large with mmap and unmaps them on free, so every frame page-faults its images
-/// in again: the depth filter alone took 130 ms of a 640 x 480 frame that way, 18 ms from reused memory.
-/// Blocks up to 32 MiB (glibc's ceiling) come from the heap, which is not trimmed below 512 MiB of free
-/// space; memory stays mapped for the next frame, and the process's footprint is its largest frame's.
-void keepFrameMemory() {
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 512 << 20);
-}
-
-}  // namespace
+#include "capture/memory.h"
 
 int main(int argc, char** argv) {
-  keepFrameMemory();
+  mrgi::capture::keepFrameMemory();
   CLI::App app{"mrgi: a mixed-reality compositor for RGB-D footage (differential rendering with real-time global illumination)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "mrgi 0.1.0");

@@ -101,6 +101,9 @@ struct RoomModel::Impl {
     uint16_t count = 0, clipped = 0;
   };
   std::unordered_map<Eigen::Vector3i, Appearance, Hash> appearance;
+  /// Per pixel, the ray length per unit depth of the intrinsics multiplierK (Open3D's carving integration).
+  std::shared_ptr<o3d::geometry::Image> multiplier;
+  cv::Vec4d multiplierK;
 
   void observe(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K, const capture::Pose& T, double exposure,
                const RoomOptions& o) {
@@ -410,7 +413,12 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
     for (int ty = y0; ty <= y1; ++ty)
       for (int tx = x0; tx <= x1; ++tx) seen = std::max(seen, static_cast<double>(tileMax.at<float>(ty, tx)));
     if (!(seen > 0) || pc[2] - 1.8 * half > seen + options_.truncM) continue;
-    unit.volume_->Integrate(rgbd, intrinsic, extrinsic);
+    // UniformTSDFVolume::Integrate would rebuild the image of ray-length factors for every block.
+    if (!impl_->multiplier || impl_->multiplier->width_ != K.width || impl_->multiplier->height_ != K.height ||
+        impl_->multiplierK != cv::Vec4d(K.fx, K.fy, K.cx, K.cy))
+      impl_->multiplier = o3d::geometry::Image::CreateDepthToCameraDistanceMultiplierFloatImage(intrinsic),
+      impl_->multiplierK = cv::Vec4d(K.fx, K.fy, K.cx, K.cy);
+    unit.volume_->IntegrateWithDepthToCameraDistanceMultiplier(rgbd, intrinsic, extrinsic, *impl_->multiplier);
     inView.push_back(unit.volume_.get());
   }
   carveFreeSpace(inView, depth, K, T_camera_world, options_.truncM);
