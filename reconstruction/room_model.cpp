@@ -443,10 +443,9 @@ RoomMesh RoomModel::mesh() const {
     float confidence = 0;
     bool saturated = false;
     if (!impl_->lookup(p, options_.voxelM, L, confidence, saturated)) {
-      // No accepted or clipped observation near the vertex (every one grazing or on an edge): Open3D's
-      // running average of the colours it integrated, at exposure 1.
-      const Eigen::Vector3d col = m->HasVertexColors() ? m->vertex_colors_[i] : Eigen::Vector3d(0.5, 0.5, 0.5);
-      for (int k = 0; k < 3; ++k) L[k] = static_cast<float>(capture::srgbToLinear(static_cast<float>(col[k])));
+      // No accepted or clipped observation near the vertex (every one grazing or on an edge): its radiance
+      // is unknown; a mid grey with no confidence (Open3D integrates no colour of its own).
+      for (int k = 0; k < 3; ++k) L[k] = static_cast<float>(capture::srgbToLinear(0.5f));
     }
     out.radiance.push_back(L);
     out.confidence.push_back(confidence);
