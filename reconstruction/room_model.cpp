@@ -297,10 +297,10 @@ namespace {
 /// n frames of free space before its surface's zero crossing leaves (half-carved, it stays as a ghost
 /// surface in the middle of where it was). A voxel the model holds inside a surface (tsdf < 0) that this
 /// frame sees in front of its surface — all the depth around its pixel (5 x 5, at least half of it valid)
-/// lies more than two voxels beyond it — contradicts the model: what was there has gone, and the voxel
-/// restarts from this observation (weight 1). Within two voxels of the surface seen, noise could be the
-/// cause, and the running average decides. Requiring the whole window keeps silhouettes, where a voxel's
-/// pixel may see past an object's edge, from eroding objects that stay.
+/// lies more than the truncation distance beyond it — contradicts the model: what was there has gone, and
+/// the voxel restarts as free space (tsdf 1, weight 1). Within the truncation distance of the surface seen,
+/// the running average decides. Requiring the whole window keeps silhouettes, where a voxel's pixel may see
+/// past an object's edge, from eroding objects that stay.
 void carveFreeSpace(const std::vector<o3d::pipelines::integration::UniformTSDFVolume*>& blocks, const cv::Mat& depth,
                     const capture::Intrinsics& K, const capture::Pose& T_camera_world, double trunc) {
   // The smallest valid depth of each 5 x 5 window; 0 where fewer than half of it is valid.

@@ -235,6 +235,13 @@ double relativeChange(const cv::Mat& a, const cv::Mat& b) {
 }
 }  // namespace
 
+cv::Mat measuredDepth(const FrameResult& r) {
+  cv::Mat depth;
+  cv::extractChannel(r.positions, depth, 2);
+  cv::patchNaNs(depth, 0.0);
+  return depth;
+}
+
 FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler) {
   FrameResult r = measure(frame, profiler);
   if (options_.fuse) fuseFrame(*frame.rgbd, r, profiler);
@@ -247,10 +254,7 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl
   reconstruction::RoomIntegration in;
   {
     auto s = profiler.cpu("room_fusion");
-    cv::Mat depth;
-    cv::extractChannel(r.positions, depth, 2);
-    cv::patchNaNs(depth, 0.0);
-    in = options_.fuse->integrate(depth, rgbd.colour, rgbd.colourIntrinsics, *r.T_marker_camera, rgbd.exposure);
+    in = options_.fuse->integrate(measuredDepth(r), rgbd.colour, rgbd.colourIntrinsics, *r.T_marker_camera, rgbd.exposure);
   }
   r.info["room_fusion"] = {{"integrated", in.integrated}, {"blocks", options_.fuse->blocks()}};
   if (!in.integrated) r.info["room_fusion"]["refused"] = in.refused;
@@ -259,13 +263,12 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl
   auto s = profiler.cpu("room_mesh");
   auto mesh = std::make_shared<const reconstruction::RoomMesh>(options_.fuse->mesh());
   if (mesh->positions.empty()) return;
-  // Everything derived from the room follows its new surface: its albedo (useRoom), the nearest-vertex
-  // index of the view mesh, the rays of the debug views, the real VALs, and lights from the room.
+  // Everything derived from the room follows its new surface: its albedo and real VALs (useRoom), the
+  // nearest-vertex index of the view mesh, the rays of the debug views, and lights from the room.
   options_.room = std::move(mesh);
-  roomLights_.reset();
+  roomLights_.reset();  // useRoom() re-estimates the albedo and re-sets the VALs
   roomIndex_.reset();
   roomRays_.reset();
-  roomValsSet_ = false;
   framesSinceRefresh_ = 0;
   if (setup_ && setup_->scene.lightSource == lighting::LightSource::Room) estimateRoomLights();
   r.info["room_fusion"]["refreshed"] = options_.room->positions.size();

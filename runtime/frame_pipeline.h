@@ -83,6 +83,10 @@ struct FrameResult {
   nlohmann::json info = nlohmann::json::object();  ///< per-frame facts for the stats (marker status, lights)
 };
 
+/// A measured frame's filtered depth (metres, the z of its positions; 0 where none), as the room model
+/// fuses it.
+cv::Mat measuredDepth(const FrameResult& r);
+
 /// The real scene as the lighting sees it: the filtered depth's mesh in the marker frame, each vertex
 /// with the albedo estimated at its pixel under the setup's lights.
 struct RealSurface {

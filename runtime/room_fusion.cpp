@@ -60,9 +60,7 @@ RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const
       line["refused"] = "no marker pose";
     } else {
       ++out.posed;
-      cv::Mat depth;
-      cv::extractChannel(r.positions, depth, 2);
-      cv::patchNaNs(depth, 0.0);
+      const cv::Mat depth = measuredDepth(r);
       const auto t0 = std::chrono::steady_clock::now();
       const auto result = out.model.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, *r.T_marker_camera,
                                                  frame->rgbd->exposure);

@@ -12,13 +12,11 @@ constexpr float kPi = static_cast<float>(CV_PI);
 
 float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 
-}  // namespace
-
-namespace {
 uint64_t voxelKey(const cv::Vec3f& p, float voxel) {
   auto c = [&](float v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v / voxel)) + (1 << 20)) & 0x1fffff; };
   return c(p[0]) | (c(p[1]) << 21) | (c(p[2]) << 42);
 }
+
 }  // namespace
 
 std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, const cv::Mat& linearColour,
@@ -103,7 +101,6 @@ void setValWeights(std::vector<Val>& vals) {
   const double mean = sum / n, meanArea = area / n;
   for (Val& v : vals) v.weight = static_cast<float>((mean > 0 ? lum(v.flux) / mean : 1.0) * meanArea);
 }
-
 
 void SurfelMap::integrate(const std::vector<Val>& vals, const cv::Mat& depth, const capture::Intrinsics& k,
                           const capture::Pose& T_world_camera) {

@@ -32,9 +32,9 @@ std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, 
 /// VALs from the fused room (reconstruction::RoomMesh, lighting world): the mesh's area gathered into cells
 /// of `cell` metres (each vertex a third of its triangles' area), per cell the area-weighted mean position
 /// and normal and the flux π L A of its vertices' fused radiance (exposure 1) — the Lambertian emitter of
-/// what the camera saw, over every surface the room holds, not only those in view. Saturated vertices
-/// (lamps: only a lower bound, and a light of their own) and triangles in `skipTriangles` (cleared around
-/// lights) give none. The cell doubles until there are at most maxVals; cells whose normals cancel (a
+/// what the camera saw, over every surface the room holds, not only those in view. `indices`: the triangles
+/// to take (default: all the room's; the frame pipeline passes those left after clearing around lights).
+/// Saturated vertices (lamps: only a lower bound, and a light of their own) give none. The cell doubles until there are at most maxVals; cells whose normals cancel (a
 /// thin object's two sides) are dropped.
 std::vector<Val> valsFromRoom(const reconstruction::RoomMesh& room, float cell = 0.04f, size_t maxVals = 16384,
                               const std::vector<uint32_t>* indices = nullptr);

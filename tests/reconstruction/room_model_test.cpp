@@ -128,6 +128,14 @@ cv::Mat renderColour(const Scene& s, const capture::Pose& T, double albedo, cons
 
 cv::Mat grey(uchar v) { return cv::Mat(kK.height, kK.width, CV_8UC3, cv::Scalar(v, v, v)); }
 
+/// Vertices within 8 cm of (cx, cy) horizontally and higher than `height` above the floor: a box's surface.
+int verticesAbove(const RoomMesh& m, double cx, double cy, double height) {
+  int n = 0;
+  for (const auto& p : m.positions)
+    if (std::abs(p[0] - cx) < 0.08 && std::abs(p[1] - cy) < 0.08 && p[2] > height) ++n;
+  return n;
+}
+
 std::vector<capture::Pose> orbit(int n, double radius, double height) {
   std::vector<capture::Pose> out;
   for (int i = 0; i < n; ++i) {
@@ -185,12 +193,7 @@ TEST(RoomModel, ABoxThatMovesIsCarvedAwayByLaterObservations) {
   // from anything the camera sees after it moved, which the fusion alone never revisits.
   s.boxMin = {0.1, 0.1, 0.0}, s.boxMax = {0.3, 0.3, 0.6};
   const auto views = orbit(6, 1.2, 0.9);
-  auto topAt = [&](const RoomMesh& m, double cx, double cy) {
-    int n = 0;
-    for (const auto& p : m.positions)
-      if (std::abs(p[0] - cx) < 0.08 && std::abs(p[1] - cy) < 0.08 && p[2] > 0.05) ++n;
-    return n;
-  };
+  auto topAt = [](const RoomMesh& m, double cx, double cy) { return verticesAbove(m, cx, cy, 0.05); };
   int k = 0;
   for (const auto& T : views) room.integrate(renderDepth(s, T, 0.001, k++), grey(128), kK, T);
   ASSERT_GT(topAt(room.mesh(), 0.2, 0.2), 20) << "the box is in the model";
@@ -210,21 +213,16 @@ TEST(RoomModel, ABoxThatMovesIsCarvedAwayByLaterObservations) {
 TEST(RoomModel, AnObjectSeenLongIsCarvedAwayByAFewViewsThatSeeThroughIt) {
   // The box is seen from 18 views, then moves, and 6 views see through where it stood. A running average
   // alone would still hold its surface there (18 observations inside against 6 of free space); the views
-  // contradict the model beyond doubt (free space more than two voxels in front of what they see), so the
-  // voxels restart from them.
+  // contradict the model beyond doubt (free space more than the truncation distance in front of what they
+  // see), so the voxels restart as free space.
   RoomModel room;
   Scene s;
   s.box = true;
   s.boxMin = {0.1, 0.1, 0.0}, s.boxMax = {0.3, 0.3, 0.25};
   const auto views = orbit(6, 1.2, 0.9);
-  // Surface more than 8 cm above the floor (below, the floor seen behind is within the two voxels and the
-  // 5 x 5 window's slope of the free-space test, and the running average decides).
-  auto topAt = [&](const RoomMesh& m, double cx, double cy) {
-    int n = 0;
-    for (const auto& p : m.positions)
-      if (std::abs(p[0] - cx) < 0.08 && std::abs(p[1] - cy) < 0.08 && p[2] > 0.08) ++n;
-    return n;
-  };
+  // Surface more than 8 cm above the floor (below, the floor seen behind lies within the truncation distance
+  // and the 5 x 5 window's slope, and the running average decides).
+  auto topAt = [](const RoomMesh& m, double cx, double cy) { return verticesAbove(m, cx, cy, 0.08); };
   int k = 0;
   for (int pass = 0; pass < 3; ++pass)
     for (const auto& T : views) room.integrate(renderDepth(s, T, 0.001, k++), grey(128), kK, T);
