@@ -468,6 +468,174 @@ size_t RoomModel::bytes() const {
   return blocks() * static_cast<size_t>(kBlockResolution * kBlockResolution * kBlockResolution) * sizeof(o3d::geometry::TSDFVoxel);
 }
 
+// ---- shadow rays kept between meshes ---------------------------------------------------------------------
+
+namespace {
+
+/// The voxel edge a marching-cubes vertex lies on: the vertex sits between two voxel centres ((i + 1/2) voxels)
+/// along one axis and on the centres' grid along the other two. 20 bits per axis (21 km at 2 cm), 2 for the
+/// edge's axis.
+uint64_t edgeKey(const cv::Vec3f& p, double voxel) {
+  double q[3], off[3];
+  int axis = 0;
+  for (int k = 0; k < 3; ++k) {
+    q[k] = p[k] / voxel - 0.5;
+    off[k] = std::abs(q[k] - std::round(q[k]));
+    if (off[k] > off[axis]) axis = k;
+  }
+  uint64_t key = static_cast<uint64_t>(axis);
+  for (int k = 0; k < 3; ++k) {
+    const int64_t c = k == axis ? static_cast<int64_t>(std::floor(q[k])) : static_cast<int64_t>(std::llround(q[k]));
+    key = (key << 20) | (static_cast<uint64_t>(c + (int64_t{1} << 19)) & ((uint64_t{1} << 20) - 1));
+  }
+  return key;
+}
+
+/// Cells of a uniform grid holding points, for "is any point within r of x" (cell edge >= r).
+class PointGrid {
+ public:
+  explicit PointGrid(double cell) : cell_(cell) {}
+  void add(const cv::Vec3f& p) { cells_[keyOf(cellOf(p))].push_back(p); }
+  bool empty() const { return cells_.empty(); }
+  bool anyWithin(const cv::Vec3d& x, double r) const {
+    const cv::Vec3i c = cellOf(x);
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const auto it = cells_.find(keyOf(c + cv::Vec3i(dx, dy, dz)));
+          if (it == cells_.end()) continue;
+          for (const auto& p : it->second)
+            if (cv::norm(cv::Vec3d(p) - x) <= r) return true;
+        }
+    return false;
+  }
+
+ private:
+  template <typename V>
+  cv::Vec3i cellOf(const V& p) const {
+    return {static_cast<int>(std::floor(p[0] / cell_)), static_cast<int>(std::floor(p[1] / cell_)), static_cast<int>(std::floor(p[2] / cell_))};
+  }
+  static uint64_t keyOf(const cv::Vec3i& c) {
+    const auto u = [](int v) { return static_cast<uint64_t>(static_cast<int64_t>(v) + (int64_t{1} << 20)) & ((uint64_t{1} << 21) - 1); };
+    return (u(c[0]) << 42) | (u(c[1]) << 21) | u(c[2]);
+  }
+  double cell_;
+  std::unordered_map<uint64_t, std::vector<cv::Vec3f>> cells_;
+};
+
+}  // namespace
+
+RoomAlbedoCache::RoomAlbedoCache(double voxelM) : voxelM_(voxelM > 0 ? voxelM : RoomOptions{}.voxelM) {}
+
+std::vector<uint8_t> RoomAlbedoCache::shadows(const RoomMesh& mesh, const AlbedoLights& lights) {
+  const size_t n = mesh.positions.size(), P = lights.points.size(), L = P + lights.distant.size();
+  // The segment of a vertex's shadow ray to light l: origin a voxel's worth off the surface, unit direction, length.
+  struct Ray {
+    cv::Vec3d o, d;
+    double far;
+  };
+  const auto rayOf = [&](size_t i, size_t l) {
+    Ray r;
+    r.o = cv::Vec3d(mesh.positions[i]) + 0.02 * cv::Vec3d(mesh.normals[i]);
+    if (l < P) {
+      r.d = lights.points[l].position - r.o;
+      const double len = cv::norm(r.d);
+      r.far = len * 0.999;
+      r.d /= std::max(len, 1e-12);
+    } else {
+      r.d = lights.distant[l - P].direction;
+      r.far = 1e4;
+    }
+    return r;
+  };
+  // Do the lights shadow as the cached ones did?
+  std::vector<cv::Vec3d> keys(L);
+  std::vector<uint8_t> distant(L);
+  for (size_t l = 0; l < L; ++l) {
+    keys[l] = l < P ? lights.points[l].position : cv::normalize(lights.distant[l - P].direction);
+    distant[l] = l >= P;
+  }
+  bool same = keys.size() == lightKeys_.size() && distant == lightDistant_ && !entries_.empty();
+  for (size_t l = 0; same && l < L; ++l)
+    same = cv::norm(keys[l] - lightKeys_[l]) <= (distant[l] ? 0.005 : 0.5 * voxelM_);
+  if (!same) entries_.clear();
+  stats_ = {};
+  stats_.vertices = n;
+  stats_.full = !same;
+
+  // Which vertices are as they were; the rest, and every earlier vertex not kept, mark what changed.
+  std::vector<uint64_t> key(n);
+  std::vector<const Entry*> kept(n, nullptr);
+  const float moved = static_cast<float>(0.25 * voxelM_);
+  std::unordered_map<uint64_t, uint8_t> keptKeys;
+  for (size_t i = 0; i < n; ++i) {
+    key[i] = edgeKey(mesh.positions[i], voxelM_);
+    const auto it = entries_.find(key[i]);
+    if (it != entries_.end() && it->second.blockedAt.size() == L && cv::norm(it->second.position - mesh.positions[i]) <= moved) {
+      kept[i] = &it->second;
+      keptKeys[key[i]] = 1;
+    }
+  }
+  PointGrid gone(1.5 * voxelM_);
+  for (const auto& [k, e] : entries_)
+    if (!keptKeys.count(k)) gone.add(e.position);
+  std::vector<uint32_t> changedTriangles;
+  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
+    if (!kept[mesh.indices[t]] || !kept[mesh.indices[t + 1]] || !kept[mesh.indices[t + 2]])
+      changedTriangles.insert(changedTriangles.end(), mesh.indices.begin() + static_cast<std::ptrdiff_t>(t),
+                              mesh.indices.begin() + static_cast<std::ptrdiff_t>(t + 3));
+  // Rays against the whole mesh and against what changed in it, cast with Embree (Open3D's
+  // RaycastingScene, built on it too, finds no hits in the Debian package); each built when first needed.
+  std::unique_ptr<MeshRays> all, fresh;
+  const auto whole = [&]() -> const MeshRays& {
+    if (!all) all = std::make_unique<MeshRays>(mesh.positions, mesh.indices);
+    return *all;
+  };
+  if (!changedTriangles.empty() && same) fresh = std::make_unique<MeshRays>(mesh.positions, changedTriangles);
+
+  std::vector<uint8_t> blocked(n * L, 0);
+  std::unordered_map<uint64_t, Entry> next;
+  next.reserve(n);
+  for (size_t i = 0; i < n; ++i) {
+    Entry e{mesh.positions[i], std::vector<float>(L, -1.f)};
+    for (size_t l = 0; l < L; ++l) {
+      const Ray r = rayOf(i, l);
+      float at = -1.f;
+      bool cast = !kept[i];
+      if (!cast) {
+        at = kept[i]->blockedAt[l];
+        if (at < 0) {
+          // Free before: blocked now only by something new or moved.
+          if (fresh) {
+            const auto h = fresh->intersect(r.o, r.d, r.far);
+            ++stats_.raysRechecked;
+            if (h.hit) at = static_cast<float>(h.t);
+          } else {
+            ++stats_.raysReused;
+          }
+        } else if (!gone.empty() && gone.anyWithin(r.o + static_cast<double>(at) * r.d, 1.5 * voxelM_)) {
+          cast = true;  // what blocked it moved or went
+        }
+      }
+      if (cast) {
+        const auto h = whole().intersect(r.o, r.d, r.far);
+        ++stats_.raysCast;
+        at = h.hit ? static_cast<float>(h.t) : -1.f;
+      } else if (at >= 0) {
+        ++stats_.raysReused;
+      }
+      e.blockedAt[l] = at;
+      blocked[i * L + l] = at >= 0;
+    }
+    if (!kept[i]) ++stats_.changedVertices;
+    next.emplace(key[i], std::move(e));
+  }
+  entries_ = std::move(next);
+  lightKeys_ = std::move(keys);
+  lightDistant_ = std::move(distant);
+  return blocked;
+}
+
 // ---- albedo ----------------------------------------------------------------------------------------
 
 cv::Vec3f albedoDetail(const cv::Vec3b& rgb8, const cv::Vec3f& pixelRadiance, const cv::Vec3f& roomRadiance) {
@@ -479,35 +647,19 @@ cv::Vec3f albedoDetail(const cv::Vec3b& rgb8, const cv::Vec3f& pixelRadiance, co
   return detail;
 }
 
-RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, const AlbedoOptions& options) {
+RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, const AlbedoOptions& options,
+                              RoomAlbedoCache* cache) {
   quietOpen3d();
   const size_t n = mesh.positions.size();
   RoomAlbedo out;
   out.albedo.assign(n, cv::Vec3f(0.5f, 0.5f, 0.5f));
   out.status.assign(n, AlbedoStatus::NoGeometry);
   if (n == 0 || mesh.indices.empty()) return out;
-  // One shadow ray per vertex and light, from just off the surface (a voxel's worth) to the light, cast
-  // with Embree (Open3D's RaycastingScene, built on it too, finds no hits in the Debian package).
   const size_t L = lights.points.size() + lights.distant.size();
   std::vector<uint8_t> occluded(n * L, 0);
   if (options.shadowTest && L > 0) {
-    const MeshRays rays(mesh.positions, mesh.indices);
-    for (size_t i = 0; i < n; ++i) {
-      const cv::Vec3d p = cv::Vec3d(mesh.positions[i]) + 0.02 * cv::Vec3d(mesh.normals[i]);
-      for (size_t l = 0; l < L; ++l) {
-        cv::Vec3d d;
-        double far;
-        if (l < lights.points.size()) {
-          d = lights.points[l].position - p;
-          far = cv::norm(d) * 0.999;
-          d /= std::max(cv::norm(d), 1e-12);
-        } else {
-          d = lights.distant[l - lights.points.size()].direction;
-          far = 1e4;
-        }
-        occluded[i * L + l] = rays.occluded(p, d, far);
-      }
-    }
+    RoomAlbedoCache once;
+    occluded = (cache ? *cache : once).shadows(mesh, lights);
   }
   const double saturated = capture::srgbToLinear(options.saturationLevel / 255.f);
   for (size_t i = 0; i < n; ++i) {

@@ -5,6 +5,7 @@
 /// away by later observations. The lighting world is the marker frame.
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -106,7 +107,46 @@ struct RoomAlbedo {
   std::vector<cv::Vec3f> albedo;
   std::vector<AlbedoStatus> status;
 };
-RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld, const AlbedoOptions& options = {});
+
+/// What estimateRoomAlbedo keeps between calls on successive meshes of one room (a live fusion's refreshes),
+/// so that a refreshed room costs what changed in it, not the whole room: every vertex's shadow rays, keyed by
+/// the voxel edge the vertex lies on (marching cubes puts one vertex on an edge between two voxel centres).
+/// A later mesh re-casts only what its change can affect: the rays of vertices that are new or moved more than
+/// a quarter voxel; rays of the other vertices that a new or moved triangle now crosses; and rays whose
+/// occluder moved or went (a vertex of the earlier mesh within 1.5 voxels of where the ray was blocked). The
+/// radiance, the irradiance and the status are then recomputed for every vertex (no rays: cheap). The lights'
+/// positions and directions key the shadows (their intensities do not move any): lights that moved (more than
+/// half a voxel, or 0.3 degrees for a distant one) or a different count re-cast everything.
+class RoomAlbedoCache {
+ public:
+  explicit RoomAlbedoCache(double voxelM = RoomOptions{}.voxelM);
+  struct Stats {
+    size_t vertices = 0, changedVertices = 0;  ///< of the last mesh: all, and new or moved
+    size_t raysCast = 0;       ///< shadow rays cast against the whole mesh
+    size_t raysRechecked = 0;  ///< rays that were free, cast again against the changed triangles only
+    size_t raysReused = 0;     ///< rays kept with no ray cast
+    bool full = true;                          ///< everything was cast (first mesh, or the lights moved)
+  };
+  const Stats& lastStats() const { return stats_; }
+  /// One flag per vertex and light (row-major, vertex-major): 1 where something blocks the segment from just
+  /// off the vertex (2 cm along its normal) to the light; updates the cache to `mesh`.
+  std::vector<uint8_t> shadows(const RoomMesh& mesh, const AlbedoLights& lights);
+
+ private:
+  struct Entry {
+    cv::Vec3f position;
+    std::vector<float> blockedAt;  ///< per light: distance along the ray to what blocks it, < 0 when free
+  };
+  double voxelM_;
+  std::vector<cv::Vec3d> lightKeys_;
+  std::vector<uint8_t> lightDistant_;
+  std::unordered_map<uint64_t, Entry> entries_;
+  Stats stats_;
+};
+/// With a cache, the shadow rays of vertices and lights the change since the cache's last mesh cannot affect
+/// are not cast again (RoomAlbedoCache).
+RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld, const AlbedoOptions& options = {},
+                              RoomAlbedoCache* cache = nullptr);
 
 /// The texture the fused room blurs over its voxels, recovered from a frame: the ratio of the radiance a pixel
 /// observes (rgb8 its 8-bit value, pixelRadiance the same at exposure 1) to the fused radiance of the room

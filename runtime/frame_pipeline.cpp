@@ -390,7 +390,12 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
   roomIndices_ = room.indices;
   roomValsSet_ = false;
   // The lighting world (marker frame), as the room.
-  const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose()));
+  if (!roomAlbedoCache_)
+    roomAlbedoCache_ = std::make_shared<reconstruction::RoomAlbedoCache>(options_.fuse ? options_.fuse->options().voxelM
+                                                                                      : reconstruction::RoomOptions{}.voxelM);
+  const reconstruction::RoomAlbedo albedo =
+      reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose()), {}, roomAlbedoCache_.get());
+  const auto& rays = roomAlbedoCache_->lastStats();
   roomAlbedo_ = albedo.albedo;
   roomAlbedoStatus_ = albedo.status;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
@@ -399,7 +404,9 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
   roomLights_ = setup_->lights;
   size_t measured = 0;
   for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
-  info["room"] = {{"vertices", vertices.size()}, {"albedo_measured", measured}, {"triangles_near_lights", cleared}};
+  info["room"] = {{"vertices", vertices.size()}, {"albedo_measured", measured}, {"triangles_near_lights", cleared},
+                  {"albedo_rays", {{"cast", rays.raysCast}, {"rechecked", rays.raysRechecked}, {"reused", rays.raysReused},
+                                   {"changed_vertices", rays.changedVertices}}}};
   if (roomLightEstimate_)
     info["room"]["lights"] = {{"count", roomLightEstimate_->lights.size()},
                               {"saturated_gain", roomLightEstimate_->gain},

@@ -141,6 +141,8 @@ class FramePipeline {
   std::optional<std::vector<lighting::SceneLight>> roomLights_;
   std::vector<cv::Vec3f> roomAlbedo_;  ///< per room vertex, under roomLights_
   std::vector<reconstruction::AlbedoStatus> roomAlbedoStatus_;
+  /// The room albedo's shadow rays kept between refreshes of a fused room: a refresh casts what changed.
+  std::shared_ptr<reconstruction::RoomAlbedoCache> roomAlbedoCache_;
   std::vector<uint32_t> roomIndices_;  ///< the room's triangles the lighting sees (none around point lights)
   bool roomValsSet_ = false;           ///< the lighting has the room's real VALs for roomIndices_
   struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)

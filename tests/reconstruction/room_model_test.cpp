@@ -495,6 +495,75 @@ TEST(RoomModel, AlbedoIsRecoveredUnderTwoLightsAndShadowsDoNotLowerIt) {
   EXPECT_GT(good, static_cast<int>(0.95 * checked)) << good << " of " << checked;
 }
 
+TEST(RoomModel, ARefreshedRoomsAlbedoCastsOnlyWhatChangedAndEqualsTheFullEstimate) {
+  // A live fusion refreshes its room every few frames. The albedo under unchanged lights must cost what
+  // changed, and be what estimating the new room from scratch gives: a box casts a shadow from the lamp,
+  // moves, and its old shadow must be lit again and its new one shadowed.
+  Scene s;
+  s.box = true;
+  s.boxMin = {0.1, 0.1, 0.0}, s.boxMax = {0.3, 0.3, 0.3};
+  const std::vector<std::pair<cv::Vec3d, double>> lamps = {{{0.9, 0.0, 1.0}, 3.6}};
+  reconstruction::AlbedoLights lights;
+  lights.points.push_back({lamps[0].first, cv::Vec3d::all(lamps[0].second)});
+  const auto views = orbit(6, 1.2, 0.9);
+  RoomModel room;
+  reconstruction::RoomAlbedoCache cache(room.options().voxelM);
+  int k = 0;
+  const auto fuse = [&](int passes) {
+    for (int pass = 0; pass < passes; ++pass)
+      for (const auto& T : views) room.integrate(renderDepth(s, T, 0.001, k++), renderColour(s, T, 0.6, lamps), kK, T);
+  };
+  // Refreshed albedo against the full estimate: statuses that differ (a moved vertex keeps rays cast from a
+  // quarter voxel away: the odd vertex on a shadow's edge), and the cache's counts.
+  const auto refresh = [&](const RoomMesh& m) {
+    const auto incremental = reconstruction::estimateRoomAlbedo(m, lights, {}, &cache);
+    const auto full = reconstruction::estimateRoomAlbedo(m, lights);
+    int differ = 0;
+    for (size_t i = 0; i < m.positions.size(); ++i)
+      differ += incremental.status[i] != full.status[i] || cv::norm(incremental.albedo[i] - full.albedo[i]) > 1e-3;
+    return differ;
+  };
+  // Shadowed floor vertices behind a box at (cx, cy) from the lamp (+x side): the floor at x in [cx-0.4, cx-0.2].
+  const auto shadowedBehind = [&](const RoomMesh& m, double cy) {
+    const auto a = reconstruction::estimateRoomAlbedo(m, lights, {}, &cache);
+    int n = 0;
+    for (size_t i = 0; i < m.positions.size(); ++i) {
+      const cv::Vec3f& p = m.positions[i];
+      if (std::abs(p[2]) < 0.01 && p[0] > -0.2 && p[0] < 0.0 && std::abs(p[1] - cy) < 0.06)
+        n += a.status[i] == reconstruction::AlbedoStatus::Shadowed;
+    }
+    return n;
+  };
+  fuse(1);
+  RoomMesh m = room.mesh();
+  EXPECT_EQ(refresh(m), 0);
+  EXPECT_TRUE(cache.lastStats().full);
+  const size_t rays = m.positions.size();
+  ASSERT_GT(shadowedBehind(m, 0.2), 10) << "the box shadows the floor behind it";
+  // The same mesh again: not a ray.
+  EXPECT_EQ(refresh(m), 0);
+  EXPECT_FALSE(cache.lastStats().full);
+  EXPECT_EQ(cache.lastStats().raysCast + cache.lastStats().raysRechecked, 0u);
+  EXPECT_EQ(cache.lastStats().raysReused, rays);
+  // One more view of the unchanged room: the fused surface settles, a few vertices move or appear.
+  room.integrate(renderDepth(s, views[2], 0.001, k++), renderColour(s, views[2], 0.6, lamps), kK, views[2]);
+  m = room.mesh();
+  EXPECT_LE(refresh(m), static_cast<int>(m.positions.size() / 100));
+  EXPECT_LT(cache.lastStats().raysCast, m.positions.size() / 4) << "a view of an unchanged room re-cast most rays";
+  // The box moves 55 cm: its old shadow is lit again, the new one shadowed, as from scratch.
+  s.boxMin = {0.1, -0.45, 0.0}, s.boxMax = {0.3, -0.25, 0.3};
+  fuse(3);
+  m = room.mesh();
+  EXPECT_LE(refresh(m), static_cast<int>(m.positions.size() / 100));
+  EXPECT_FALSE(cache.lastStats().full);
+  EXPECT_EQ(shadowedBehind(m, 0.2), 0) << "the shadow of the box where it stood is kept";
+  EXPECT_GT(shadowedBehind(m, -0.35), 10) << "the box's new shadow is missing";
+  // Lights that move re-cast everything.
+  lights.points[0].position += cv::Vec3d(0.2, 0, 0);
+  EXPECT_EQ(refresh(m), 0);
+  EXPECT_TRUE(cache.lastStats().full);
+}
+
 TEST(RoomModel, AFramesPixelsRestoreTheTextureTheRoomBlurs) {
   // A floor striped in 2 cm bands of albedo 0.3 and 0.8 (finer than the 2 cm voxels and their 3-voxel
   // kernel) under one lamp. The room's albedo is the stripes' blur; times the detail of a frame's pixel
