@@ -1,0 +1,327 @@
+#include "lighting/techniques/imperfect_volumes/iv.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "lighting/sh.h"
+
+namespace mrgi::lighting::iv {
+
+bool Grid::voxelOf(const cv::Vec3d& p, cv::Vec3i& v) const {
+  for (int a = 0; a < 3; ++a) {
+    const double u = (p[a] - origin[a]) / voxel;
+    if (!(u >= 0.0) || u >= resolution) return false;  // NaN-safe
+    v[a] = std::min(static_cast<int>(u), resolution - 1);
+  }
+  return true;
+}
+
+cv::Vec3f trianglePoint(const cv::Vec3f& a, const cv::Vec3f& b, const cv::Vec3f& c, float r1, float r2) {
+  const float s = std::sqrt(std::clamp(r1, 0.0f, 1.0f));
+  return (1.0f - s) * a + (1.0f - r2) * s * b + r2 * s * c;
+}
+
+namespace {
+
+float radicalInverse(uint32_t i, uint32_t base) {
+  float f = 1.0f, r = 0.0f;
+  while (i > 0) {
+    f /= static_cast<float>(base);
+    r += f * static_cast<float>(i % base);
+    i /= base;
+  }
+  return r;
+}
+
+/// An integer hash (the GLSL twin uses the same constants).
+uint32_t hash(uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7feb352dU;
+  x ^= x >> 15;
+  x *= 0x846ca68bU;
+  x ^= x >> 16;
+  return x;
+}
+
+}  // namespace
+
+cv::Vec2f sampleOf(uint32_t triangle, int j) {
+  const uint32_t h = hash(triangle);
+  const float o1 = static_cast<float>(h & 0xffffu) / 65536.0f, o2 = static_cast<float>(h >> 16) / 65536.0f;
+  const float r1 = radicalInverse(static_cast<uint32_t>(j) + 1u, 2) + o1, r2 = radicalInverse(static_cast<uint32_t>(j) + 1u, 3) + o2;
+  return {r1 - std::floor(r1), r2 - std::floor(r2)};
+}
+
+std::vector<cv::Vec3f> rayDirections(int n) {
+  n = std::max(n, 1);
+  std::vector<cv::Vec3f> out(static_cast<size_t>(n));
+  const double golden = CV_PI * (3.0 - std::sqrt(5.0));
+  for (int j = 0; j < n; ++j) {
+    const double z = 1.0 - (2.0 * j + 1.0) / n, r = std::sqrt(std::max(0.0, 1.0 - z * z)), phi = golden * j;
+    out[static_cast<size_t>(j)] = cv::Vec3f(static_cast<float>(r * std::cos(phi)), static_cast<float>(r * std::sin(phi)), static_cast<float>(z));
+  }
+  return out;
+}
+
+Volume::Volume(const Grid& g)
+    : grid(g),
+      occupancy(g.count(), kEmpty),
+      exitantRho(g.count(), cv::Vec4f::all(0)),
+      exitantMu(g.count(), cv::Vec4f::all(0)),
+      normalRho(g.count(), cv::Vec4f::all(0)),
+      normalMu(g.count(), cv::Vec4f::all(0)),
+      albedoRho(g.count(), cv::Vec3f::all(0)),
+      albedoMu(g.count(), cv::Vec3f::all(0)) {}
+
+Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
+  Volume v(grid);
+  for (const Point& p : points) {
+    cv::Vec3i c;
+    if (!grid.voxelOf(cv::Vec3d(p.position), c)) continue;
+    const size_t i = grid.index(c[0], c[1], c[2]);
+    v.occupancy[i] |= p.isVirtual ? kVirtual : kReal;
+    const auto add = [&](std::vector<cv::Vec4f>& ex, std::vector<cv::Vec4f>& nr, std::vector<cv::Vec3f>& al, const cv::Vec3f& L) {
+      ex[i] += cv::Vec4f(L[0], L[1], L[2], 1.0f);
+      nr[i] += cv::Vec4f(p.normal[0], p.normal[1], p.normal[2], 0.0f);
+      al[i] += p.albedo;
+    };
+    add(v.exitantRho, v.normalRho, v.albedoRho, p.radianceRho);
+    if (!p.isVirtual) add(v.exitantMu, v.normalMu, v.albedoMu, p.radianceMu);
+  }
+  const auto mean = [](std::vector<cv::Vec4f>& ex, std::vector<cv::Vec3f>& al) {
+    for (size_t i = 0; i < ex.size(); ++i)
+      if (ex[i][3] > 0) {
+        const float inv = 1.0f / ex[i][3];
+        for (int k = 0; k < 3; ++k) ex[i][k] *= inv;
+        al[i] *= inv;
+      }
+  };
+  mean(v.exitantRho, v.albedoRho);
+  mean(v.exitantMu, v.albedoMu);
+  return v;
+}
+
+cv::Vec3f Ambient::radiance(const cv::Vec3f& w) const {
+  double y[9];
+  sh::evaluate(cv::Vec3d(w), 3, y);
+  cv::Vec3f L = uniform;
+  for (int i = 0; i < 9; ++i) L += static_cast<float>(y[i]) * sh[static_cast<size_t>(i)];
+  return L;
+}
+
+cv::Vec3f unoccludedAmbient(const Ambient& ambient, const cv::Vec3f& n) {
+  // As the shading pass: pi * uniform + max(0, sum_l A_l c_lm y_lm(n)), A = (pi, 2 pi / 3, pi / 4).
+  double y[9];
+  sh::evaluate(cv::Vec3d(n), 3, y);
+  constexpr double A[3] = {CV_PI, 2.0 * CV_PI / 3.0, CV_PI / 4.0};
+  cv::Vec3f e(0, 0, 0);
+  for (int l = 0; l < 3; ++l)
+    for (int m = -l; m <= l; ++m) e += static_cast<float>(A[l] * y[sh::index(l, m)]) * ambient.sh[static_cast<size_t>(sh::index(l, m))];
+  for (int k = 0; k < 3; ++k) e[k] = std::max(e[k], 0.0f);
+  return static_cast<float>(CV_PI) * ambient.uniform + e;
+}
+
+std::vector<uint8_t> neededVoxels(const Volume& volume) {
+  const Grid& g = volume.grid;
+  const int R = g.resolution;
+  std::vector<uint8_t> need(g.count(), 0);
+  for (int k = 0; k < R; ++k)
+    for (int j = 0; j < R; ++j)
+      for (int i = 0; i < R; ++i) {
+        if (volume.occupancy[g.index(i, j, k)] == kEmpty) continue;
+        for (int dk = -1; dk <= 1; ++dk)
+          for (int dj = -1; dj <= 1; ++dj)
+            for (int di = -1; di <= 1; ++di) {
+              const int a = i + di, b = j + dj, c = k + dk;
+              if (a >= 0 && b >= 0 && c >= 0 && a < R && b < R && c < R) need[g.index(a, b, c)] = 1;
+            }
+      }
+  return need;
+}
+
+int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction, float* distance) {
+  const Grid& g = volume.grid;
+  const float s = static_cast<float>(g.voxel);
+  const cv::Vec3f o = cv::Vec3f(g.centre(from[0], from[1], from[2]));
+  // Start past the voxel's bounding sphere, then one voxel per step.
+  const float start = 0.5f * std::sqrt(3.0f) * s;
+  const int maxSteps = static_cast<int>(std::ceil(std::sqrt(3.0f) * g.resolution)) + 1;
+  for (int step = 0; step <= maxSteps; ++step) {
+    const float t = start + static_cast<float>(step) * s;
+    const cv::Vec3f p = o + t * direction;
+    cv::Vec3i c;
+    if (!g.voxelOf(cv::Vec3d(p), c)) return -1;
+    const size_t v = g.index(c[0], c[1], c[2]);
+    if (volume.occupied(v, rho)) {
+      if (distance) *distance = t;
+      return static_cast<int64_t>(v);
+    }
+  }
+  return -1;
+}
+
+namespace {
+
+/// Radiance the voxel's surface sends towards direction `towards` (unit): its exitant radiance where that
+/// direction lies in front of its mean normal, else 0 (its back).
+cv::Vec3f exitantTowards(const cv::Vec4f& exitant, const cv::Vec4f& normalSum, const cv::Vec3f& towards) {
+  const cv::Vec3f n(normalSum[0], normalSum[1], normalSum[2]);
+  if (n.dot(towards) <= 0.0f) return {0, 0, 0};
+  return {exitant[0], exitant[1], exitant[2]};
+}
+
+/// One gather: per needed voxel, L(w) = exitant[hit] towards the origin for hits within range, else the
+/// ambient (when `withAmbient`), projected to SH; adds into `out`.
+void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient* ambient, const std::vector<cv::Vec4f>& exitant,
+                const std::vector<cv::Vec3f>& dirs, Incident& out, bool countOcclusion) {
+  const Grid& g = volume.grid;
+  const int B = out.bands, C = B * B, R = g.resolution;
+  const auto& normals = rho ? volume.normalRho : volume.normalMu;
+  std::vector<std::vector<double>> basis(dirs.size());
+  for (size_t j = 0; j < dirs.size(); ++j) basis[j] = sh::evaluate(cv::Vec3d(dirs[j]), B);
+  const double w = 4.0 * CV_PI / static_cast<double>(dirs.size());
+  for (int k = 0; k < R; ++k)
+    for (int jj = 0; jj < R; ++jj)
+      for (int i = 0; i < R; ++i) {
+        const size_t v = g.index(i, jj, k);
+        if (!out.computed[v]) continue;
+        std::vector<double> acc(static_cast<size_t>(3 * C), 0.0);
+        int hits = 0;
+        for (size_t j = 0; j < dirs.size(); ++j) {
+          float t = 0;
+          const int64_t h = march(volume, rho, {i, jj, k}, dirs[j], &t);
+          cv::Vec3f L(0, 0, 0);
+          if (h >= 0 && t <= o.range) {
+            ++hits;
+            L = exitantTowards(exitant[static_cast<size_t>(h)], normals[static_cast<size_t>(h)], -dirs[j]);
+          } else if (ambient) {
+            L = ambient->radiance(dirs[j]);
+          }
+          for (int c = 0; c < 3; ++c)
+            if (L[c] != 0.0f)
+              for (int q = 0; q < C; ++q) acc[static_cast<size_t>(c * C + q)] += L[c] * basis[j][static_cast<size_t>(q)];
+        }
+        float* dst = out.sh.data() + v * static_cast<size_t>(3 * C);
+        for (int q = 0; q < 3 * C; ++q) dst[q] += static_cast<float>(w * acc[static_cast<size_t>(q)]);
+        if (countOcclusion) out.occlusion[v] = static_cast<float>(hits) / static_cast<float>(dirs.size());
+      }
+}
+
+/// Irradiance about unit n of incident SH c (3 x B^2): sum_l pi s_l(1) c_lm y_lm(n).
+cv::Vec3f shIrradiance(const float* c, int B, const cv::Vec3f& n) {
+  const std::vector<double> s = sh::phongLobeFactors(1.0, B);
+  std::vector<double> y(static_cast<size_t>(B * B));
+  sh::evaluate(cv::Vec3d(n), B, y.data());
+  cv::Vec3f e(0, 0, 0);
+  for (int l = 0; l < B; ++l)
+    for (int m = -l; m <= l; ++m) {
+      const int q = sh::index(l, m);
+      const double f = CV_PI * s[static_cast<size_t>(l)] * y[static_cast<size_t>(q)];
+      for (int ch = 0; ch < 3; ++ch) e[ch] += static_cast<float>(f * c[ch * B * B + q]);
+    }
+  return e;
+}
+
+}  // namespace
+
+Incident gather(const Volume& volume, bool rho, const Options& options, const Ambient& ambient) {
+  Options o = options;
+  o.rays = std::clamp(o.rays, 1, 1024);
+  o.bands = std::clamp(o.bands, 1, sh::kMaxBands);
+  o.bounces = std::clamp(o.bounces, 0, 3);
+  const Grid& g = volume.grid;
+  Incident out;
+  out.bands = o.bands;
+  const int C = o.bands * o.bands;
+  out.computed = o.everyVoxel ? std::vector<uint8_t>(g.count(), 1) : neededVoxels(volume);
+  out.sh.assign(g.count() * static_cast<size_t>(3 * C), 0.0f);
+  out.occlusion.assign(g.count(), 0.0f);
+  const std::vector<cv::Vec3f> dirs = rayDirections(o.rays);
+  // Bounce 0: the ambient where no surface is hit within range (and ambient occlusion).
+  const std::vector<cv::Vec4f> dark(g.count(), cv::Vec4f::all(0));
+  gatherPass(volume, rho, o, &ambient, o.bounces > 0 ? (rho ? volume.exitantRho : volume.exitantMu) : dark, dirs, out, true);
+  // Further bounces: occupied voxels reflect what the previous bounce brought them (no ambient: the
+  // ambient stands for light from beyond the volume, already counted).
+  if (o.bounces > 1) {
+    // The first pass mixed ambient into the incident light; the bounce light alone is the pass without it.
+    Incident bounce;
+    bounce.bands = o.bands;
+    bounce.computed = out.computed;
+    bounce.sh.assign(out.sh.size(), 0.0f);
+    bounce.occlusion.assign(g.count(), 0.0f);
+    gatherPass(volume, rho, o, nullptr, rho ? volume.exitantRho : volume.exitantMu, dirs, bounce, false);
+    const auto& normals = rho ? volume.normalRho : volume.normalMu;
+    const auto& albedo = rho ? volume.albedoRho : volume.albedoMu;
+    for (int b = 1; b < o.bounces; ++b) {
+      std::vector<cv::Vec4f> reflected(g.count(), cv::Vec4f::all(0));
+      for (size_t v = 0; v < g.count(); ++v) {
+        if (!volume.occupied(v, rho) || !bounce.computed[v]) continue;
+        const cv::Vec3f n(normals[v][0], normals[v][1], normals[v][2]);
+        const double len = cv::norm(n);
+        if (len <= 0) continue;
+        const cv::Vec3f E = shIrradiance(bounce.at(v), o.bands, n * static_cast<float>(1.0 / len));
+        for (int c = 0; c < 3; ++c) reflected[v][c] = std::max(0.0f, albedo[v][c] / static_cast<float>(CV_PI) * E[c]);
+        reflected[v][3] = 1.0f;
+      }
+      Incident next;
+      next.bands = o.bands;
+      next.computed = out.computed;
+      next.sh.assign(out.sh.size(), 0.0f);
+      next.occlusion.assign(g.count(), 0.0f);
+      gatherPass(volume, rho, o, nullptr, reflected, dirs, next, false);
+      for (size_t q = 0; q < out.sh.size(); ++q) out.sh[q] += next.sh[q];
+      bounce = std::move(next);
+    }
+  }
+  return out;
+}
+
+cv::Vec3f irradiance(const Volume& volume, const Incident& incident, const cv::Vec3f& x, const cv::Vec3f& n) {
+  const Grid& g = volume.grid;
+  if (incident.bands <= 0 || incident.sh.empty()) return {0, 0, 0};
+  const float s = static_cast<float>(g.voxel);
+  const cv::Vec3f p = x + 0.5f * s * n;
+  cv::Vec3i own(-1, -1, -1), centre;
+  g.voxelOf(cv::Vec3d(x), own);
+  if (!g.voxelOf(cv::Vec3d(p), centre)) return {0, 0, 0};
+  struct Candidate {
+    float d2, w;
+    size_t v;
+    bool occupied;
+  };
+  std::vector<Candidate> cands;
+  for (int dk = -1; dk <= 1; ++dk)
+    for (int dj = -1; dj <= 1; ++dj)
+      for (int di = -1; di <= 1; ++di) {
+        const cv::Vec3i c = centre + cv::Vec3i(di, dj, dk);
+        if (c == own) continue;
+        if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] >= g.resolution || c[1] >= g.resolution || c[2] >= g.resolution) continue;
+        const size_t v = g.index(c[0], c[1], c[2]);
+        if (!incident.computed[v]) continue;
+        const cv::Vec3f q = cv::Vec3f(g.centre(c[0], c[1], c[2]));
+        const cv::Vec3f to = q - x;
+        const float len = static_cast<float>(cv::norm(to));
+        const float cosT = len > 0 ? n.dot(to) / len : 0.0f;
+        if (!(cosT > 0.0f)) continue;
+        const cv::Vec3f dp = q - p;
+        cands.push_back({dp.dot(dp), cosT, v, volume.occupancy[v] != kEmpty});
+      }
+  if (std::any_of(cands.begin(), cands.end(), [](const Candidate& c) { return !c.occupied; }))
+    cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return c.occupied; }), cands.end());
+  if (cands.empty()) return {0, 0, 0};
+  const size_t keep = std::min<size_t>(6, cands.size());
+  std::partial_sort(cands.begin(), cands.begin() + static_cast<std::ptrdiff_t>(keep), cands.end(),
+                    [](const Candidate& a, const Candidate& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.v < b.v); });
+  const int B = incident.bands, C = B * B;
+  std::vector<float> c(static_cast<size_t>(3 * C), 0.0f);
+  float wsum = 0;
+  for (size_t k = 0; k < keep; ++k) {
+    const float* src = incident.at(cands[k].v);
+    for (int q = 0; q < 3 * C; ++q) c[static_cast<size_t>(q)] += cands[k].w * src[q];
+    wsum += cands[k].w;
+  }
+  for (float& v : c) v /= wsum;
+  return shIrradiance(c.data(), B, n);
+}
+
+}  // namespace mrgi::lighting::iv

@@ -1,0 +1,127 @@
+#pragma once
+/// Imperfect volumes (shared/papers/004; algorithms.md §7) for mixed reality: the plain C++ reference of the
+/// GPU passes (iv_voxelise.comp, iv_gather.comp, iv_readout.frag).
+///
+/// Points on the scene's surfaces (N random points per triangle, uniform barycentric) mark the voxels of a
+/// grid around the virtual objects occupied, in two versions: rho (real + virtual) and mu (real only), as DLPV
+/// does. Each occupied voxel keeps the light its surface sends out: the mean reflected direct radiance of its
+/// points and their summed normal — a Lambertian surface element, seen from its front at the same radiance
+/// from every direction. (Two SH bands, as the paper stores it, make the same surface 25 % too bright seen
+/// head-on and leak 7 % of its flux backwards.)
+///
+/// Per voxel near a surface, N rays over the sphere (a spherical Fibonacci set, the same for every voxel)
+/// start past the voxel's own bounding sphere ((sqrt 3 / 2) voxel) and march one voxel per step to the first
+/// occupied voxel or the border. A hit within `range` returns that voxel's exitant radiance towards the ray's
+/// origin; everything else returns the ambient radiance of the ray's direction (the room or the sky beyond
+/// what the volume holds). The incident radiance is stored as SH of `bands` bands per colour channel
+/// (convention of lighting/sh.h): c_i = 4 pi / N sum_j L(w_j) y_i(w_j). Further bounces: occupied voxels
+/// reflect the previous bounce's incident light (albedo / pi times its irradiance about their normal) and the
+/// rays are cast again; the bounces add up.
+///
+/// Reconstruction at a surface point x with normal n: p = x + n voxel / 2; of the 27 voxels around p, the
+/// six nearest to p whose centre lies in front of x (cos theta > 0, theta between n and centre - x), other
+/// than the voxel holding x and other occupied voxels (their rays start inside the surface and see past it:
+/// under a lid they would see the sky above it), weighted by cos theta; E(n) = sum_l pi s_l(1) c_lm y_lm(n)
+/// (the clamped cosine). Occupied voxels are used only when no free one qualifies.
+///
+/// The real-pixel delta is E^rho - E^mu (what the object adds: bounce, and the ambient it hides); the virtual
+/// object's is E^rho minus the unoccluded ambient the shading pass already adds.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace mrgi::lighting::iv {
+
+/// Axis-aligned in the lighting world; voxel (i, j, k) spans origin + voxel * [i, i+1] x [j, j+1] x [k, k+1].
+struct Grid {
+  cv::Vec3d origin{0, 0, 0};
+  double voxel = 1.0;
+  int resolution = 32;
+  size_t count() const { return size_t(resolution) * resolution * resolution; }
+  size_t index(int i, int j, int k) const { return (size_t(k) * resolution + j) * resolution + i; }
+  cv::Vec3d centre(int i, int j, int k) const { return origin + voxel * cv::Vec3d(i + 0.5, j + 0.5, k + 0.5); }
+  /// The voxel holding p; false outside the grid.
+  bool voxelOf(const cv::Vec3d& p, cv::Vec3i& v) const;
+};
+
+/// A point on a surface: its reflected direct radiance in both versions of the scene (mu: without the
+/// virtual objects, which may shadow it in rho).
+struct Point {
+  cv::Vec3f position, normal;          ///< lighting world, unit normal
+  cv::Vec3f albedo{0.5f, 0.5f, 0.5f};  ///< linear
+  cv::Vec3f radianceRho{0, 0, 0}, radianceMu{0, 0, 0};  ///< W/m^2/sr, Lambertian
+  bool isVirtual = false;
+};
+
+/// Uniform point in the triangle (a, b, c) for r1, r2 in [0, 1): (1 - sqrt r1) a + (1 - r2) sqrt r1 b + r2 sqrt r1 c.
+cv::Vec3f trianglePoint(const cv::Vec3f& a, const cv::Vec3f& b, const cv::Vec3f& c, float r1, float r2);
+/// The j-th of n sample pairs (r1, r2) of a triangle: a 2D Halton set (bases 2, 3) offset per triangle by
+/// a hash of its index, so neighbouring triangles do not repeat one pattern. Deterministic (GPU twin).
+cv::Vec2f sampleOf(uint32_t triangle, int j);
+
+/// N unit directions over the sphere: the spherical Fibonacci set (equal areas, stratified).
+std::vector<cv::Vec3f> rayDirections(int n);
+
+enum Occupancy : uint8_t { kEmpty = 0, kReal = 1, kVirtual = 2 };
+
+/// Occupied voxels and the light their surfaces send out.
+struct Volume {
+  Grid grid;
+  std::vector<uint8_t> occupancy;  ///< Occupancy bits per voxel
+  /// Per voxel, rgb = mean exitant radiance of its points (W/m^2/sr), w = their count; normals = the sum of
+  /// their unit normals (xyz). Rho over all points, mu over the real ones.
+  std::vector<cv::Vec4f> exitantRho, exitantMu, normalRho, normalMu;
+  std::vector<cv::Vec3f> albedoRho, albedoMu;  ///< mean albedo of the points
+  explicit Volume(const Grid& g = {});
+  bool occupied(size_t v, bool rho) const { return rho ? occupancy[v] != kEmpty : (occupancy[v] & kReal) != 0; }
+};
+
+/// Marks each point's voxel (points outside the grid are dropped) and accumulates its light.
+Volume voxelise(const Grid& grid, const std::vector<Point>& points);
+
+/// Radiance of direction w (towards the scene) that the volume does not hold: uniform + SH bands 0-2.
+struct Ambient {
+  cv::Vec3f uniform{0, 0, 0};
+  std::array<cv::Vec3f, 9> sh{};  ///< lighting/sh.h convention; zero = none
+  cv::Vec3f radiance(const cv::Vec3f& w) const;
+};
+
+struct Options {
+  int rays = 64;        ///< per voxel, 1..1024
+  int bands = 3;        ///< SH bands of the incident radiance, 1..8
+  double range = 0.3;   ///< metres: a hit farther than this returns the ambient
+  int bounces = 1;      ///< 0: ambient occlusion only (no light from the volume's surfaces), up to 3
+  bool everyVoxel = false;  ///< cast from every voxel, not only near surfaces (debug slices, tests)
+};
+
+/// The gathered light of one scene version.
+struct Incident {
+  int bands = 0;
+  std::vector<uint8_t> computed;  ///< voxels whose rays were cast (near a surface)
+  std::vector<float> sh;          ///< voxels x 3 channels x bands^2: incident radiance (ambient + bounces)
+  std::vector<float> occlusion;   ///< voxels: fraction of rays that hit within range (ambient occlusion)
+  const float* at(size_t v) const { return sh.data() + v * 3 * size_t(bands) * bands; }
+};
+
+/// Voxels whose rays are needed: those within one voxel (26-neighbourhood) of an occupied voxel of either
+/// version (where reconstruction reads).
+std::vector<uint8_t> neededVoxels(const Volume& volume);
+
+/// Casts the rays of every needed voxel for the rho (all occupied voxels) or mu (real only) scene.
+Incident gather(const Volume& volume, bool rho, const Options& options, const Ambient& ambient);
+
+/// The first occupied voxel along a ray from voxel centre `from` (past its bounding sphere, one voxel per
+/// step); -1 when the ray leaves the grid. `distance` gets the march distance of the hit.
+int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction, float* distance = nullptr);
+
+/// Irradiance (W/m^2) at surface point x with unit normal n from the incident SH (reconstruction above).
+/// Zero where no voxel qualifies.
+cv::Vec3f irradiance(const Volume& volume, const Incident& incident, const cv::Vec3f& x, const cv::Vec3f& n);
+
+/// The ambient's irradiance with nothing occluding it, sum_l pi s_l(1) c_lm y_lm(n) over its bands 0-2 plus
+/// pi times the uniform part.
+cv::Vec3f unoccludedAmbient(const Ambient& ambient, const cv::Vec3f& n);
+
+}  // namespace mrgi::lighting::iv
