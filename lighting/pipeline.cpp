@@ -185,26 +185,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   setVec3(p, "uAmbient", ambientRadiance);
   p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
   for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
-  const std::vector<LightView>& views = frame_->lightViews();
-  p.set("uLightCount", static_cast<int>(lights.size()));
-  for (size_t i = 0; i < lights.size(); ++i) {
-    std::string k(1, '[');  // "[i]", the uniform array index
-    k += std::to_string(i);
-    k += ']';
-    const SceneLight& l = lights[i];
-    p.set("uLightType" + k, shaderLightType(l.type));
-    setVec3(p, "uLightPosition" + k, l.position);
-    setVec3(p, "uLightDirection" + k, l.direction);
-    setVec3(p, "uLightPower" + k, l.type == LightType::Directional ? l.irradiance : l.intensity);
-    p.set("uSpotCos" + k, static_cast<float>(l.spotCos()));
-    if (i < views.size()) {
-      const auto m = toGl(views[i].viewProj);
-      p.setMat4("uLightViewProj" + k, m.data());
-      p.set("uShadowBias" + k, static_cast<float>(views[i].shadowBias));
-    } else {
-      p.set("uShadowBias" + k, -1e30f);  // no map: nothing occludes
-    }
-  }
+  setLightUniforms(p, lights, frame_->lightViews());
   frame_->gPosition().bind(0);
   frame_->gNormal().bind(1);
   frame_->gAlbedo().bind(2);

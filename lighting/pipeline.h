@@ -67,6 +67,7 @@ class LightingPipeline {
   void setAmbientSh(const std::array<cv::Vec3d, 9>& sh) {
     if (sh == ambientSh_) return;
     ambientSh_ = sh;
+    frame_->setAmbientSh(sh);
     shadeAt_.reset();
   }
   /// Whether the ambient (uniform and SH) is an environment seen at the virtual objects — the room's fused

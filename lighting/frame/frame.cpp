@@ -220,6 +220,8 @@ Rsm FrameResources::makeRsm(int size) const {
 
 void FrameResources::setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
   realMesh_ = GpuMesh(vertices, indices);
+  realVertices_ = vertices;
+  realIndices_ = indices;
   geometryDirty_ = true;
 }
 
@@ -240,6 +242,28 @@ void FrameResources::invalidate() {
   geometryDirty_ = realValsDirty_ = true;
 }
 
+void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& lights, const std::vector<LightView>& views) {
+  p.set("uLightCount", static_cast<int>(lights.size()));
+  for (size_t i = 0; i < lights.size(); ++i) {
+    std::string k(1, '[');  // "[i]", the uniform array index
+    k += std::to_string(i);
+    k += ']';
+    const SceneLight& l = lights[i];
+    p.set("uLightType" + k, shaderLightType(l.type));
+    setVec3(p, "uLightPosition" + k, l.position);
+    setVec3(p, "uLightDirection" + k, l.direction);
+    setVec3(p, "uLightPower" + k, l.type == LightType::Directional ? l.irradiance : l.intensity);
+    p.set("uSpotCos" + k, static_cast<float>(l.spotCos()));
+    if (i < views.size()) {
+      const auto m = toGl(views[i].viewProj);
+      p.setMat4("uLightViewProj" + k, m.data());
+      p.set("uShadowBias" + k, static_cast<float>(views[i].shadowBias));
+    } else {
+      p.set("uShadowBias" + k, -1e30f);  // no map: nothing occludes
+    }
+  }
+}
+
 const FrameVersions& FrameResources::update(const CameraView& camera, const std::vector<SceneLight>& lights,
                                             const cv::Vec3d& ambient) {
   if (static_cast<int>(lights.size()) > kMaxLights)
@@ -258,6 +282,7 @@ const FrameVersions& FrameResources::update(const CameraView& camera, const std:
       in.lights.insert(in.lights.end(), v->val, v->val + 3);
   }
   in.ambient = {ambient[0], ambient[1], ambient[2]};
+  for (const cv::Vec3d& c : ambientSh_) in.ambient.insert(in.ambient.end(), c.val, c.val + 3);
   const bool fresh = !seen_;
   if (fresh || viewDirty_ || in.camera != seen_->camera) ++versions_.camera;
   viewDirty_ = false;

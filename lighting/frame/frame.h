@@ -160,6 +160,9 @@ class FrameResources {
   /// real surfaces occlude virtual ones. Empty: the real mesh everywhere. A change counts as a camera change.
   void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object);
+  /// The ambient's directional part (radiance as SH bands 0-2, lighting world; LightingPipeline::setAmbientSh);
+  /// a change counts as an ambient change at the next update().
+  void setAmbientSh(const std::array<cv::Vec3d, 9>& sh) { ambientSh_ = sh; }
   void setRealVals(std::vector<Val> vals);
   /// Compares with the last run's inputs and bumps the versions of what changed. Returns the versions.
   const FrameVersions& update(const CameraView& camera, const std::vector<SceneLight>& lights, const cv::Vec3d& ambient);
@@ -170,6 +173,10 @@ class FrameResources {
   const CameraView& camera() const { return camera_; }
   const std::vector<SceneLight>& lights() const { return lights_; }
   const cv::Vec3d& ambient() const { return ambient_; }
+  const std::array<cv::Vec3d, 9>& ambientSh() const { return ambientSh_; }
+  /// The real mesh as last set (CPU copy, lighting world).
+  const std::vector<MeshVertex>& realVertices() const { return realVertices_; }
+  const std::vector<uint32_t>& realIndices() const { return realIndices_; }
   const std::vector<FrameObject>& objects() const { return objects_; }
   const std::vector<Val>& realVals() const { return realVals_; }
   /// World bounding box of the placed objects (nullopt without objects).
@@ -223,6 +230,9 @@ class FrameResources {
   CameraView camera_;
   std::vector<SceneLight> lights_;
   cv::Vec3d ambient_{0, 0, 0};
+  std::array<cv::Vec3d, 9> ambientSh_{};
+  std::vector<MeshVertex> realVertices_;
+  std::vector<uint32_t> realIndices_;
   FrameVersions versions_;
   struct Seen {
     std::vector<double> camera, objects, lights, ambient;
@@ -237,6 +247,10 @@ class FrameResources {
   gl::Texture shadowRho_, shadowMu_, zero_;
   std::vector<LightView> views_;
 };
+
+/// The uniforms of lighting/direct_light.glsl (uLightCount, uLightType[i], ...) for `lights` seen through
+/// `views` (a light without a view: nothing occludes it).
+void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& lights, const std::vector<LightView>& views);
 
 /// CV_32FC4 download of an RGBA32F 2D texture.
 cv::Mat download4(const gl::Texture& t);
