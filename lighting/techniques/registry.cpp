@@ -7,11 +7,13 @@ namespace mrgi::lighting {
 // Each technique's folder defines its entry; these lines are the registry.
 TechniqueInfo dlpvTechniqueInfo();       // lighting/techniques/dlpv/
 TechniqueInfo kinectValTechniqueInfo();  // lighting/techniques/kinect_val/
+TechniqueInfo imperfectVolumesTechniqueInfo();  // lighting/techniques/imperfect_volumes/
 
 const std::vector<TechniqueInfo>& techniques() {
   static const std::vector<TechniqueInfo> all = {
       dlpvTechniqueInfo(),
       kinectValTechniqueInfo(),
+      imperfectVolumesTechniqueInfo(),
   };
   return all;
 }

@@ -8,9 +8,10 @@
 namespace mrgi::lighting::iv {
 
 bool Grid::voxelOf(const cv::Vec3d& p, cv::Vec3i& v) const {
+  // In float, as the GLSL twin does: a surface lying on a voxel boundary falls on the same side in both.
   for (int a = 0; a < 3; ++a) {
-    const double u = (p[a] - origin[a]) / voxel;
-    if (!(u >= 0.0) || u >= resolution) return false;  // NaN-safe
+    const float u = (static_cast<float>(p[a]) - static_cast<float>(origin[a])) / static_cast<float>(voxel);
+    if (!(u >= 0.0f) || u >= static_cast<float>(resolution)) return false;  // NaN-safe
     v[a] = std::min(static_cast<int>(u), resolution - 1);
   }
   return true;

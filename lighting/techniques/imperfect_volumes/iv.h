@@ -42,7 +42,7 @@ struct Grid {
   size_t count() const { return size_t(resolution) * resolution * resolution; }
   size_t index(int i, int j, int k) const { return (size_t(k) * resolution + j) * resolution + i; }
   cv::Vec3d centre(int i, int j, int k) const { return origin + voxel * cv::Vec3d(i + 0.5, j + 0.5, k + 0.5); }
-  /// The voxel holding p; false outside the grid.
+  /// The voxel holding p; false outside the grid. Computed in float, as the GPU passes do.
   bool voxelOf(const cv::Vec3d& p, cv::Vec3i& v) const;
 };
 

@@ -1,0 +1,421 @@
+#include "lighting/techniques/imperfect_volumes/imperfect_volumes.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "capture/colour.h"
+#include "gl/error.h"
+#include "lighting/debug_views.h"
+#include "lighting/sh.h"
+#include "lighting/techniques/registry.h"
+
+namespace mrgi::lighting {
+
+const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable() {
+  static const std::vector<KnobBinding<ImperfectVolumesKnobs>> table = {
+      {{"resolution", KnobType::Int, 1, 128, 32, "voxels per axis of the grid over the region", {16, 48}, {16}, true},
+       &ImperfectVolumesKnobs::resolution},
+      {{"points", KnobType::Int, 3, 19, 8, "points per triangle (virtual objects and the real mesh)", {3, 19}, {}, false},
+       &ImperfectVolumesKnobs::points},
+      {{"rays", KnobType::Int, 16, 256, 64, "rays per voxel", {16, 256}, {16}, true}, &ImperfectVolumesKnobs::rays},
+      {{"bands", KnobType::Int, 1, 8, 3, "SH bands of the incident radiance", {2, 4}, {}, false}, &ImperfectVolumesKnobs::bands},
+      {{"range", KnobType::Real, 0.001, 10.0, 0.25, "metres: a surface farther along a ray than this leaves the ambient",
+        {0.1, 0.5}, {}, true},
+       &ImperfectVolumesKnobs::range},
+      {{"bounces", KnobType::Int, 0, 3, 1, "light bounces off the volume's surfaces (0: ambient occlusion only)", {0, 2}, {0}, false},
+       &ImperfectVolumesKnobs::bounces},
+  };
+  return table;
+}
+
+namespace {
+
+/// The per-voxel buffers: records, incident SH and occlusion per scene version (mu only for real pixels), the
+/// bounce and reflected scratch (more than one bounce), computed flags and point offsets; and the points,
+/// which depend on the scene: budgeted as three surfaces across the grid at 4 points (48 bytes each) per voxel.
+size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real) {
+  const size_t r = static_cast<size_t>(k.resolution), n = r * r * r;
+  const size_t c = static_cast<size_t>(k.bands) * k.bands;
+  const size_t versions = real ? 2 : 1;
+  return n * (6 * 16 + versions * (3 * c * 4 + 4) + (k.bounces > 1 ? 3 * c * 4 + 16 : 0) + 4 + 4) + 3 * r * r * 4 * 48;
+}
+
+}  // namespace
+
+TechniqueInfo imperfectVolumesTechniqueInfo() {
+  TechniqueInfo t;
+  t.name = "imperfect-volumes";
+  t.description = "Imperfect volumes: ambient occlusion and bounce light ray-marched through a voxelised point cloud, on real pixels and the object";
+  t.real = true;
+  t.virtualObject = true;
+  t.stagePrefixes = {"iv."};
+  t.knobs = groupOf("iv", imperfectVolumesKnobTable());
+  t.create = [](const TechniqueSetup& s) { return std::make_unique<ImperfectVolumesTechnique>(s); };
+  t.estimateBytes = [](const KnobValues& values, bool real, bool, int w, int h) {
+    const ImperfectVolumesKnobs k = knobsFrom(imperfectVolumesKnobTable(), values);
+    return voxelBytes(k, real) + 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
+  };
+  return t;
+}
+
+IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle) {
+  perTriangle = std::clamp(perTriangle, 1, 64);
+  const cv::Vec3f lo(grid.origin), hi = lo + cv::Vec3f::all(static_cast<float>(grid.voxel * grid.resolution));
+  struct P {
+    cv::Vec4f position, normal, albedo;
+    uint32_t voxel;
+  };
+  std::vector<P> pts;
+  IvPoints out;
+  uint32_t triangleId = 0;
+  const auto addTriangle = [&](const cv::Vec3f* x, const cv::Vec3f* n, const cv::Vec3f* albedo, bool isVirtual) {
+    const uint32_t id = triangleId++;
+    cv::Vec3f tlo = x[0], thi = x[0];
+    for (int k = 1; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) tlo[a] = std::min(tlo[a], x[k][a]), thi[a] = std::max(thi[a], x[k][a]);
+    for (int a = 0; a < 3; ++a)
+      if (!(thi[a] >= lo[a] && tlo[a] < hi[a])) return false;  // outside the grid (or NaN)
+    // N points, and on a triangle larger than a voxel at least 4 per voxel of its area, so that it leaves
+    // no hole (a depth mesh's triangles are far smaller than a voxel; a cube's faces are not).
+    const double area = 0.5 * cv::norm((x[1] - x[0]).cross(x[2] - x[0]));
+    const int count = static_cast<int>(std::min(65536.0, std::max<double>(perTriangle, std::ceil(4.0 * area / (grid.voxel * grid.voxel)))));
+    for (int j = 0; j < count; ++j) {
+      const cv::Vec2f r = iv::sampleOf(id, j);
+      const float s = std::sqrt(r[0]);
+      const float wa = 1.0f - s, wb = (1.0f - r[1]) * s, wc = r[1] * s;
+      const cv::Vec3f p = wa * x[0] + wb * x[1] + wc * x[2];
+      cv::Vec3i v;
+      if (!grid.voxelOf(cv::Vec3d(p), v)) continue;
+      cv::Vec3f nn = wa * n[0] + wb * n[1] + wc * n[2];
+      const float len = static_cast<float>(cv::norm(nn));
+      nn = len > 1e-12f ? nn / len : cv::Vec3f(0, 0, 0);
+      const cv::Vec3f al = wa * albedo[0] + wb * albedo[1] + wc * albedo[2];
+      pts.push_back({cv::Vec4f(p[0], p[1], p[2], isVirtual ? 1.0f : 0.0f), cv::Vec4f(nn[0], nn[1], nn[2], 0.0f),
+                     cv::Vec4f(al[0], al[1], al[2], 1.0f), static_cast<uint32_t>(grid.index(v[0], v[1], v[2]))});
+    }
+    return true;
+  };
+  for (const FrameObject& o : frame.objects()) {
+    const Mesh& m = o.source.mesh;
+    const cv::Matx33f N = normalMatrix(o.T_world_object);
+    const cv::Matx44d& T = o.T_world_object;
+    for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+      cv::Vec3f x[3], n[3], al[3];
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t i = m.indices[t + static_cast<size_t>(k)];
+        const cv::Vec4d w = T * cv::Vec4d(m.positions[i][0], m.positions[i][1], m.positions[i][2], 1.0);
+        x[k] = cv::Vec3f(static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2]));
+        n[k] = N * m.normals[i];
+        al[k] = o.source.material.albedo;
+      }
+      out.virtualTriangles += addTriangle(x, n, al, true);
+    }
+  }
+  const auto& rv = frame.realVertices();
+  const auto& ri = frame.realIndices();
+  for (size_t t = 0; t + 2 < ri.size(); t += 3) {
+    cv::Vec3f x[3], n[3], al[3];
+    for (int k = 0; k < 3; ++k) {
+      const MeshVertex& v = rv[ri[t + static_cast<size_t>(k)]];
+      x[k] = v.position, n[k] = v.normal, al[k] = v.albedo;
+    }
+    out.realTriangles += addTriangle(x, n, al, false);
+  }
+  // Counting sort by voxel: each voxel's points contiguous.
+  out.offsets.assign(grid.count() + 1, 0);
+  for (const P& p : pts) ++out.offsets[p.voxel + 1];
+  for (size_t v = 0; v < grid.count(); ++v) out.offsets[v + 1] += out.offsets[v];
+  std::vector<uint32_t> at(out.offsets.begin(), out.offsets.end() - 1);
+  out.position.resize(pts.size()), out.normal.resize(pts.size()), out.albedo.resize(pts.size());
+  for (const P& p : pts) {
+    const uint32_t k = at[p.voxel]++;
+    out.position[k] = p.position, out.normal[k] = p.normal, out.albedo[k] = p.albedo;
+  }
+  return out;
+}
+
+ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup)
+    : knobs_(knobsFrom(imperfectVolumesKnobTable(), setup.knobs)),
+      real_(setup.real),
+      virtual_(setup.virtualObject),
+      injectProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_inject.comp")),
+      gatherProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_gather.comp",
+                                          {{"SH_BANDS", std::to_string(knobs_.bands)}})),
+      reflectProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_reflect.comp",
+                                           {{"SH_BANDS", std::to_string(knobs_.bands)}})),
+      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/imperfect_volumes/iv_readout.frag",
+                                            {{"SH_BANDS", std::to_string(knobs_.bands)}})) {
+  const int w = setup.frame->width(), h = setup.frame->height();
+  realDelta_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
+  virtualIrradiance_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
+  realDelta_.setFilter(GL_NEAREST, GL_NEAREST);
+  virtualIrradiance_.setFilter(GL_NEAREST, GL_NEAREST);
+  outFb_.attachColour(0, realDelta_);
+  outFb_.attachColour(1, virtualIrradiance_);
+  outFb_.finalise(2);
+}
+
+namespace {
+
+/// A buffer holding `bytes` (at least 16: GL buffers are never empty), filled from data or zero.
+gl::Buffer bufferOf(size_t bytes, const void* data = nullptr) {
+  const size_t size = std::max<size_t>(bytes, 16);
+  if (data && bytes >= size) return gl::Buffer(static_cast<GLsizeiptr>(size), data);
+  std::vector<uint8_t> zero(size, 0);
+  if (data) std::copy_n(static_cast<const uint8_t*>(data), bytes, zero.begin());
+  return gl::Buffer(static_cast<GLsizeiptr>(size), zero.data());
+}
+
+void clearBuffer(const gl::Buffer& b) { glClearNamedBufferData(b.id(), GL_R32F, GL_RED, GL_FLOAT, nullptr); }
+
+}  // namespace
+
+void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler* profiler) {
+  const Region& region = *frame.region();
+  iv::Grid g;
+  g.resolution = knobs_.resolution;
+  g.origin = region.origin;
+  g.voxel = region.side / knobs_.resolution;
+  const bool regrid = !grid_ || grid_->resolution != g.resolution;
+  grid_ = g;
+  const size_t count = g.count();
+  const int C = knobs_.bands * knobs_.bands;
+  IvPoints pts;
+  std::vector<uint32_t> needed, computed(count, 0);
+  {
+    auto s = timed(profiler, "iv.points", false);
+    pts = ivScenePoints(frame, g, knobs_.points);
+    pointCount_ = pts.position.size();
+    // Voxels near a surface (the 26-neighbourhood of every occupied voxel): where reconstruction reads.
+    const int R = g.resolution;
+    for (int k = 0; k < R; ++k)
+      for (int j = 0; j < R; ++j)
+        for (int i = 0; i < R; ++i) {
+          const size_t v = g.index(i, j, k);
+          if (pts.offsets[v + 1] == pts.offsets[v]) continue;
+          for (int dk = -1; dk <= 1; ++dk)
+            for (int dj = -1; dj <= 1; ++dj)
+              for (int di = -1; di <= 1; ++di) {
+                const int a = i + di, b = j + dj, c = k + dk;
+                if (a >= 0 && b >= 0 && c >= 0 && a < R && b < R && c < R) computed[g.index(a, b, c)] = 1;
+              }
+        }
+    for (size_t v = 0; v < count; ++v)
+      if (computed[v]) needed.push_back(static_cast<uint32_t>(v));
+    neededCount_ = needed.size();
+    std::vector<cv::Vec4f> interleaved;
+    interleaved.reserve(3 * pts.position.size());
+    for (size_t k = 0; k < pts.position.size(); ++k) interleaved.insert(interleaved.end(), {pts.position[k], pts.normal[k], pts.albedo[k]});
+    points_ = bufferOf(interleaved.size() * sizeof(cv::Vec4f), interleaved.data());
+    offsets_ = bufferOf(pts.offsets.size() * sizeof(uint32_t), pts.offsets.data());
+    needed_ = bufferOf(needed.size() * sizeof(uint32_t), needed.data());
+    computed_ = bufferOf(computed.size() * sizeof(uint32_t), computed.data());
+    if (regrid || !directions_.id()) {
+      std::vector<cv::Vec4f> dirs;
+      for (const cv::Vec3f& d : iv::rayDirections(knobs_.rays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
+      directions_ = bufferOf(dirs.size() * sizeof(cv::Vec4f), dirs.data());
+      voxels_ = bufferOf(count * 6 * sizeof(cv::Vec4f));
+      incidentRho_ = bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float));
+      incidentMu_ = real_ ? bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float)) : gl::Buffer();
+      bounce_ = bufferOf(knobs_.bounces > 1 ? count * 3 * static_cast<size_t>(C) * sizeof(float) : 0);
+      reflected_ = bufferOf(knobs_.bounces > 1 ? count * sizeof(cv::Vec4f) : 0);
+      occlusionRho_ = bufferOf(count * sizeof(float));
+      occlusionMu_ = real_ ? bufferOf(count * sizeof(float)) : gl::Buffer();
+    }
+  }
+  {
+    auto s = timed(profiler, "iv.inject");
+    const gl::Program& p = injectProgram_;
+    p.use();
+    setLightUniforms(p, frame.lights(), frame.lightViews());
+    const bool mu = real_ && frame.shadowMu().id() != 0;
+    p.set("uLightMu", mu ? 1 : 0);
+    p.set("uVoxelCount", static_cast<int>(count));
+    setVec3(p, "uGridOrigin", g.origin);
+    p.set("uVoxel", static_cast<float>(g.voxel));
+    p.set("uResolution", g.resolution);
+    frame.shadowRho().bind(12);
+    (mu ? frame.shadowMu() : frame.shadowRho()).bind(13);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, points_.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, offsets_.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
+    glDispatchCompute(static_cast<GLuint>((count + 63) / 64), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  {
+    auto s = timed(profiler, "iv.gather");
+    gather(true);
+    if (real_) gather(false);
+  }
+  gl::checkGlError("ImperfectVolumesTechnique::build()");
+  stats_ = {{"points", pointCount_},          {"voxels_gathered", neededCount_}, {"voxel_m", g.voxel},
+            {"real_triangles", pts.realTriangles}, {"virtual_triangles", pts.virtualTriangles}};
+}
+
+void ImperfectVolumesTechnique::gather(bool rho) {
+  const iv::Grid& g = *grid_;
+  const gl::Buffer& incident = rho ? incidentRho_ : incidentMu_;
+  const gl::Buffer& occlusion = rho ? occlusionRho_ : occlusionMu_;
+  clearBuffer(incident);
+  clearBuffer(occlusion);
+  const GLuint groups = static_cast<GLuint>(std::max<size_t>((neededCount_ + 31) / 32, 1));
+  const auto common = [&](const gl::Program& p) {
+    p.use();
+    setVec3(p, "uGridOrigin", g.origin);
+    p.set("uVoxel", static_cast<float>(g.voxel));
+    p.set("uResolution", g.resolution);
+    p.set("uNeededCount", static_cast<int>(neededCount_));
+    p.set("uRho", rho ? 1 : 0);
+  };
+  const gl::Program& p = gatherProgram_;
+  common(p);
+  p.set("uRays", knobs_.rays);
+  p.set("uRange", static_cast<float>(knobs_.range));
+  setVec3(p, "uAmbient", ambient_);
+  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, incident.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, occlusion.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, reflected_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 8, bounce_.id());
+  // The first gather: ambient where nothing is hit within range, the surfaces' direct light where something is.
+  p.set("uAmbientOn", 1);
+  p.set("uOcclusionOn", 1);
+  p.set("uBounceLight", knobs_.bounces > 0 ? 1 : 0);
+  p.set("uExitantFromBuffer", 0);
+  p.set("uWriteBounce", knobs_.bounces > 1 ? 1 : 0);
+  glDispatchCompute(groups, 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  for (int b = 1; b < knobs_.bounces; ++b) {
+    const gl::Program& r = reflectProgram_;
+    common(r);
+    glDispatchCompute(groups, 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    p.use();
+    p.set("uAmbientOn", 0);
+    p.set("uOcclusionOn", 0);
+    p.set("uBounceLight", 1);
+    p.set("uExitantFromBuffer", 1);
+    p.set("uWriteBounce", b + 1 < knobs_.bounces ? 1 : 0);
+    glDispatchCompute(groups, 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+}
+
+void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
+  if (!frame.region()) return;
+  const FrameVersions& v = frame.versions();
+  const std::array<uint64_t, 3> from{v.geometry, v.lights, v.ambient};
+  if (!builtFrom_ || *builtFrom_ != from) {
+    ambient_ = frame.ambient();
+    ambientSh_ = frame.ambientSh();
+    build(frame, profiler);
+    builtFrom_ = from;
+  }
+  auto s = timed(profiler, "iv.readout");
+  outFb_.bind();
+  glViewport(0, 0, frame.width(), frame.height());
+  glDisable(GL_DEPTH_TEST);
+  const gl::Program& p = readoutProgram_;
+  p.use();
+  const iv::Grid& g = *grid_;
+  setVec3(p, "uGridOrigin", g.origin);
+  p.set("uVoxel", static_cast<float>(g.voxel));
+  p.set("uResolution", g.resolution);
+  p.set("uReal", real_ ? 1 : 0);
+  p.set("uVirtual", virtual_ ? 1 : 0);
+  setVec3(p, "uAmbient", ambient_);
+  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
+  frame.gPosition().bind(0);
+  frame.gNormal().bind(1);
+  frame.gAlbedo().bind(2);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, incidentRho_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 9, (real_ ? incidentMu_ : incidentRho_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 10, computed_.id());
+  emptyVao_.bind();
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  gl::checkGlError("ImperfectVolumesTechnique::update()");
+}
+
+TechniqueOutputs ImperfectVolumesTechnique::outputs() const {
+  TechniqueOutputs o;
+  if (real_) o.realDelta = &realDelta_;
+  if (virtual_) o.virtualIrradiance = &virtualIrradiance_;
+  return o;
+}
+
+iv::Volume ImperfectVolumesTechnique::downloadVolume() const {
+  if (!grid_) return iv::Volume(iv::Grid{cv::Vec3d(0, 0, 0), 1.0, 0});
+  iv::Volume v(*grid_);
+  const size_t n = grid_->count();
+  std::vector<cv::Vec4f> rec(n * 6);
+  voxels_.download(0, static_cast<GLsizeiptr>(rec.size() * sizeof(cv::Vec4f)), rec.data());
+  for (size_t i = 0; i < n; ++i) {
+    const cv::Vec4f* r = &rec[i * 6];
+    v.exitantRho[i] = r[0], v.exitantMu[i] = r[1], v.normalRho[i] = r[2], v.normalMu[i] = r[3];
+    v.albedoRho[i] = cv::Vec3f(r[4][0], r[4][1], r[4][2]);
+    v.albedoMu[i] = cv::Vec3f(r[5][0], r[5][1], r[5][2]);
+    v.occupancy[i] = static_cast<uint8_t>((r[1][3] > 0 ? iv::kReal : 0) | (r[0][3] > r[1][3] ? iv::kVirtual : 0));
+  }
+  return v;
+}
+
+iv::Incident ImperfectVolumesTechnique::downloadIncident(bool rho) const {
+  iv::Incident in;
+  if (!grid_ || (!rho && !real_)) return in;
+  const size_t n = grid_->count();
+  in.bands = knobs_.bands;
+  in.sh.resize(n * 3 * static_cast<size_t>(knobs_.bands * knobs_.bands));
+  (rho ? incidentRho_ : incidentMu_).download(0, static_cast<GLsizeiptr>(in.sh.size() * sizeof(float)), in.sh.data());
+  in.occlusion.resize(n);
+  (rho ? occlusionRho_ : occlusionMu_).download(0, static_cast<GLsizeiptr>(n * sizeof(float)), in.occlusion.data());
+  std::vector<uint32_t> c(n);
+  computed_.download(0, static_cast<GLsizeiptr>(n * sizeof(uint32_t)), c.data());
+  in.computed.assign(c.begin(), c.end());
+  return in;
+}
+
+cv::Mat ImperfectVolumesTechnique::debugImage(const std::string& view, const DebugContext&, nlohmann::json& info) const {
+  if (view != "iv_slices" || !grid_) return {};
+  // Two rows of slices along z (every 4th): occupancy (real grey, virtual yellow, empty dark blue) and the
+  // ambient occlusion of the rho scene where rays were cast (white = open, black = enclosed; others dark red).
+  const iv::Volume v = downloadVolume();
+  const iv::Incident in = downloadIncident(true);
+  const int res = grid_->resolution, every = std::max(1, res / 8), cell = std::max(1, 128 / res), gap = 2;
+  const int slices = (res + every - 1) / every;
+  cv::Mat out(2 * res * cell + gap, slices * (res * cell + gap), CV_8UC3, cv::Scalar(30, 30, 30));
+  for (int s = 0; s < slices; ++s) {
+    const int k = s * every;
+    for (int j = 0; j < res; ++j)
+      for (int i = 0; i < res; ++i) {
+        const size_t idx = grid_->index(i, j, k);
+        const int x = s * (res * cell + gap) + i * cell, y = (res - 1 - j) * cell;
+        const uint8_t o = v.occupancy[idx];
+        const cv::Scalar occ = (o & iv::kVirtual) ? cv::Scalar(240, 200, 40) : (o & iv::kReal) ? cv::Scalar(160, 160, 160) : cv::Scalar(30, 30, 70);
+        out(cv::Rect(x, y, cell, cell)).setTo(occ);
+        cv::Scalar ao(70, 10, 10);
+        if (!in.computed.empty() && in.computed[idx]) {
+          const double open = 255.0 * (1.0 - in.occlusion[idx]);
+          ao = cv::Scalar(open, open, open);
+        }
+        out(cv::Rect(x, y + res * cell + gap, cell, cell)).setTo(ao);
+      }
+  }
+  info["debug_iv_slices_every"] = every;
+  return out;
+}
+
+nlohmann::json ImperfectVolumesTechnique::stats() const { return stats_; }
+
+size_t ImperfectVolumesTechnique::gpuBytes() const {
+  size_t sum = realDelta_.bytes() + virtualIrradiance_.bytes();
+  for (const gl::Buffer* b : {&points_, &offsets_, &voxels_, &needed_, &directions_, &incidentRho_, &incidentMu_, &occlusionRho_,
+                              &occlusionMu_, &reflected_, &bounce_, &computed_})
+    sum += static_cast<size_t>(b->id() ? b->size() : 0);
+  return sum;
+}
+
+}  // namespace mrgi::lighting

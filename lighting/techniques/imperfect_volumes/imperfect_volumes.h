@@ -1,0 +1,82 @@
+#pragma once
+/// Imperfect volumes (shared/papers/004; algorithms.md §7) as a technique module: the virtual objects'
+/// triangles and the real mesh (the fused room, or the frame's depth mesh) become points, N per triangle,
+/// voxelised into a grid over the region around the objects in two versions (rho: real + virtual, mu: real
+/// only), each voxel lit by the scene's lights through the frame's shadow maps; per voxel near a surface, rays
+/// march the grid and gather the incident radiance as SH — the ambient where nothing is hit within range,
+/// the surfaces' reflected light where something is, and further bounces. Outputs: on real pixels the
+/// change the objects make (the ambient they hide, their bounce), E^rho - E^mu; on the object, its ambient
+/// occlusion by real geometry and the bounce it receives (E^rho minus the unoccluded ambient the shading
+/// pass adds). Reference math: iv.h.
+#include <optional>
+
+#include "gl/objects.h"
+#include "gl/program.h"
+#include "lighting/techniques/imperfect_volumes/iv.h"
+#include "lighting/techniques/technique.h"
+
+namespace mrgi::lighting {
+
+struct ImperfectVolumesKnobs {
+  int resolution = 0;   ///< voxels per axis of the grid over the region
+  int points = 0;       ///< points per triangle (3-19)
+  int rays = 0;         ///< rays per voxel
+  int bands = 0;        ///< SH bands of the incident radiance
+  double range = 0;     ///< metres: a hit farther than this returns the ambient
+  int bounces = 0;      ///< 0: ambient occlusion only
+};
+const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable();
+
+/// The points of a frame's scene for the volume (CPU): N per triangle of every virtual object and of the
+/// real mesh (at least 4 per voxel of a triangle's area, so that a triangle larger than a voxel leaves no
+/// hole), on triangles that reach into the grid, with their interpolated normal and albedo; the points of
+/// each voxel contiguous (offsets: voxels + 1 entries). Shared by the technique and its tests.
+struct IvPoints {
+  std::vector<cv::Vec4f> position;  ///< w = 1 virtual
+  std::vector<cv::Vec4f> normal, albedo;
+  std::vector<uint32_t> offsets;
+  size_t realTriangles = 0, virtualTriangles = 0;
+};
+IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle);
+
+class ImperfectVolumesTechnique final : public Technique {
+ public:
+  explicit ImperfectVolumesTechnique(const TechniqueSetup& setup);
+
+  std::string name() const override { return "imperfect-volumes"; }
+  unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights | kInputAmbient; }
+  void update(const FrameResources& frame, gl::Profiler* profiler) override;
+  TechniqueOutputs outputs() const override;
+  std::vector<std::string> debugViews() const override { return {"iv_slices"}; }
+  cv::Mat debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const override;
+  nlohmann::json stats() const override;
+  size_t gpuBytes() const override;
+
+  const ImperfectVolumesKnobs& knobs() const { return knobs_; }
+  const std::optional<iv::Grid>& grid() const { return grid_; }
+  /// The last run's volume and gathered light as the reference math holds them (GPU download).
+  iv::Volume downloadVolume() const;
+  iv::Incident downloadIncident(bool rho) const;
+
+ private:
+  void build(const FrameResources& frame, gl::Profiler* profiler);
+  void gather(bool rho);
+
+  ImperfectVolumesKnobs knobs_;
+  bool real_ = false, virtual_ = false;
+  gl::Program injectProgram_, gatherProgram_, reflectProgram_, readoutProgram_;
+  std::optional<iv::Grid> grid_;
+  /// The frame versions the volume was built from (geometry, lights, ambient).
+  std::optional<std::array<uint64_t, 3>> builtFrom_;
+  gl::Buffer points_, offsets_, voxels_, needed_, directions_, incidentRho_, incidentMu_, occlusionRho_, occlusionMu_,
+      reflected_, bounce_, computed_;
+  size_t neededCount_ = 0, pointCount_ = 0;
+  cv::Vec3d ambient_{0, 0, 0};
+  std::array<cv::Vec3d, 9> ambientSh_{};
+  gl::Texture realDelta_, virtualIrradiance_;
+  gl::Framebuffer outFb_;
+  gl::VertexArray emptyVao_;
+  nlohmann::json stats_ = nlohmann::json::object();
+};
+
+}  // namespace mrgi::lighting

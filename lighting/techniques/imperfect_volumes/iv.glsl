@@ -1,0 +1,41 @@
+// Imperfect volumes: the GLSL twin of iv.h (grid, voxel records, march, reconstruction). Define SH_BANDS
+// (1..8) before including.
+#include "lighting/sh.glsl"
+
+// One voxel's record (std430; iv.h Volume): rgb = mean exitant radiance of its points, w = their count
+// (rho: all points, mu: the real ones); normals: xyz = the sum of their unit normals; albedo: rgb mean.
+struct IvVoxel {
+  vec4 exitantRho;
+  vec4 exitantMu;
+  vec4 normalRho;
+  vec4 normalMu;
+  vec4 albedoRho;
+  vec4 albedoMu;
+};
+
+uniform vec3 uGridOrigin;
+uniform float uVoxel;
+uniform int uResolution;
+
+int ivIndex(ivec3 v) { return (v.z * uResolution + v.y) * uResolution + v.x; }
+vec3 ivCentre(ivec3 v) { return uGridOrigin + uVoxel * (vec3(v) + 0.5); }
+ivec3 ivCoords(int index) { return ivec3(index % uResolution, (index / uResolution) % uResolution, index / (uResolution * uResolution)); }
+bool ivVoxelOf(vec3 p, out ivec3 v) {
+  vec3 u = (p - uGridOrigin) / uVoxel;
+  v = ivec3(0);
+  if (any(lessThan(u, vec3(0.0))) || any(greaterThanEqual(u, vec3(float(uResolution))))) return false;
+  v = min(ivec3(u), ivec3(uResolution - 1));
+  return true;
+}
+
+// Irradiance about unit n of incident SH c: sum_l pi s_l(1) c_lm y_lm(n) (one channel).
+float ivShIrradiance(float c[SH_COEFFS], vec3 n) {
+  float y[SH_COEFFS];
+  shEvaluate(n, y);
+  float e = 0.0;
+  for (int l = 0; l < SH_BANDS; ++l) {
+    float f = SH_PI * shPhongFactor(1.0, l);
+    for (int m = -l; m <= l; ++m) e += f * c[l * (l + 1) + m] * y[l * (l + 1) + m];
+  }
+  return e;
+}

@@ -1,0 +1,103 @@
+#version 450 core
+// Imperfect volumes, gather (iv.h gather): per voxel near a surface, N rays (the same directions for every
+// voxel) march one voxel per step from past the voxel's bounding sphere to the first occupied voxel or the
+// border. A hit within range returns the hit voxel's exitant radiance towards the origin (when it faces it);
+// otherwise the ambient of the ray's direction (uAmbientOn). The incident radiance is projected to SH and
+// added into the output (3 x SH_COEFFS floats per voxel, channel-major), with the fraction of rays that hit
+// within range (ambient occlusion) when uOcclusionOn.
+#include "lighting/techniques/imperfect_volumes/iv.glsl"
+
+layout(local_size_x = 32) in;
+
+layout(std430, binding = 2) readonly buffer Voxels { IvVoxel voxels[]; };
+layout(std430, binding = 3) readonly buffer Needed { uint needed[]; };
+layout(std430, binding = 4) readonly buffer Directions { vec4 directions[]; };
+layout(std430, binding = 5) buffer Incident { float incident[]; };
+layout(std430, binding = 6) buffer Occlusion { float occlusion[]; };
+// Exitant radiance per voxel of a later bounce (rgb; uExitantFromBuffer): what the voxel reflects.
+layout(std430, binding = 7) readonly buffer Reflected { vec4 reflected[]; };
+// The light of surfaces alone (no ambient), written when uWriteBounce: what the next bounce reflects.
+layout(std430, binding = 8) writeonly buffer Bounce { float bounce[]; };
+
+uniform int uNeededCount;
+uniform int uRays;
+uniform float uRange;
+uniform int uRho;                // 1: rho (every occupied voxel), 0: mu (real ones)
+uniform int uAmbientOn;
+uniform int uOcclusionOn;
+uniform int uExitantFromBuffer;  // 1: exitant radiance from Reflected, 0: the voxels' direct light
+uniform int uBounceLight;        // 0: surfaces send nothing (ambient occlusion only)
+uniform int uWriteBounce;
+uniform vec3 uAmbient;           // uniform radiance
+uniform vec3 uAmbientSh[9];      // SH bands 0-2 of the ambient radiance
+
+bool occupiedAt(int v) { return (uRho == 1 ? voxels[v].exitantRho.w : voxels[v].exitantMu.w) > 0.0; }
+
+vec3 ambientRadiance(vec3 w) {
+  float b[9] = float[9](0.282094791773878, 0.488602511902920 * w.y, 0.488602511902920 * w.z, 0.488602511902920 * w.x,
+                        1.092548430592079 * w.x * w.y, 1.092548430592079 * w.y * w.z,
+                        0.315391565252520 * (3.0 * w.z * w.z - 1.0), 1.092548430592079 * w.x * w.z,
+                        0.546274215296040 * (w.x * w.x - w.y * w.y));
+  vec3 L = uAmbient;
+  for (int k = 0; k < 9; ++k) L += b[k] * uAmbientSh[k];
+  return L;
+}
+
+void main() {
+  int slot = int(gl_GlobalInvocationID.x);
+  if (slot >= uNeededCount) return;
+  int v = int(needed[slot]);
+  ivec3 from = ivCoords(v);
+  vec3 o = ivCentre(from);
+  float start = 0.5 * sqrt(3.0) * uVoxel;
+  int maxSteps = int(ceil(sqrt(3.0) * float(uResolution))) + 1;
+  float acc[3 * SH_COEFFS], accBounce[3 * SH_COEFFS];
+  for (int q = 0; q < 3 * SH_COEFFS; ++q) acc[q] = accBounce[q] = 0.0;
+  int hits = 0;
+  for (int j = 0; j < uRays; ++j) {
+    vec3 d = directions[j].xyz;
+    int hit = -1;
+    float t = 0.0;
+    for (int step = 0; step <= maxSteps; ++step) {
+      t = start + float(step) * uVoxel;
+      ivec3 c;
+      if (!ivVoxelOf(o + t * d, c)) break;
+      int u = ivIndex(c);
+      if (occupiedAt(u)) {
+        hit = u;
+        break;
+      }
+    }
+    vec3 L = vec3(0.0);
+    bool fromSurface = false;
+    if (hit >= 0 && t <= uRange) {
+      ++hits;
+      vec3 nSum = uRho == 1 ? voxels[hit].normalRho.xyz : voxels[hit].normalMu.xyz;
+      fromSurface = true;
+      if (uBounceLight == 1 && dot(nSum, -d) > 0.0)
+        L = uExitantFromBuffer == 1 ? reflected[hit].rgb : (uRho == 1 ? voxels[hit].exitantRho.rgb : voxels[hit].exitantMu.rgb);
+    } else if (uAmbientOn == 1) {
+      L = ambientRadiance(d);
+    }
+    if (L == vec3(0.0)) continue;
+    float y[SH_COEFFS];
+    shEvaluate(d, y);
+    for (int q = 0; q < SH_COEFFS; ++q) {
+      acc[q] += L.r * y[q];
+      acc[SH_COEFFS + q] += L.g * y[q];
+      acc[2 * SH_COEFFS + q] += L.b * y[q];
+    }
+    if (fromSurface)
+      for (int q = 0; q < SH_COEFFS; ++q) {
+        accBounce[q] += L.r * y[q];
+        accBounce[SH_COEFFS + q] += L.g * y[q];
+        accBounce[2 * SH_COEFFS + q] += L.b * y[q];
+      }
+  }
+  float w = 4.0 * SH_PI / float(uRays);
+  int base = v * 3 * SH_COEFFS;
+  for (int q = 0; q < 3 * SH_COEFFS; ++q) incident[base + q] += w * acc[q];
+  if (uWriteBounce == 1)
+    for (int q = 0; q < 3 * SH_COEFFS; ++q) bounce[base + q] = w * accBounce[q];
+  if (uOcclusionOn == 1) occlusion[v] = float(hits) / float(uRays);
+}

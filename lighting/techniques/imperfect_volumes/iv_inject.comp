@@ -1,0 +1,54 @@
+#version 450 core
+// Imperfect volumes, voxelisation (iv.h voxelise): per voxel, the points that fall in it (sorted on the CPU)
+// are lit by the scene's lights with the shadow maps of both scene versions (rho: the objects cast shadows,
+// mu: they are not there), and their mean reflected radiance, normal sum and albedo are written.
+#define SH_BANDS 1
+#include "lighting/techniques/imperfect_volumes/iv.glsl"
+
+layout(local_size_x = 64) in;
+
+layout(binding = 12) uniform sampler2DArray uShadow;    // per light: RSM^rho world positions
+layout(binding = 13) uniform sampler2DArray uShadowMu;  // per light: RSM^mu world positions
+#include "lighting/direct_light.glsl"
+
+struct IvPoint {
+  vec4 position;  // w = 1 on a virtual object
+  vec4 normal;
+  vec4 albedo;
+};
+layout(std430, binding = 0) readonly buffer Points { IvPoint points[]; };
+layout(std430, binding = 1) readonly buffer Offsets { uint offsets[]; };  // voxel v's points: [offsets[v], offsets[v + 1])
+layout(std430, binding = 2) writeonly buffer Voxels { IvVoxel voxels[]; };
+
+uniform int uVoxelCount;
+uniform int uLightMu;  // 1: the mu shadow maps exist (else mu is lit like rho)
+
+void main() {
+  int v = int(gl_GlobalInvocationID.x);
+  if (v >= uVoxelCount) return;
+  IvVoxel r;
+  r.exitantRho = r.exitantMu = r.normalRho = r.normalMu = r.albedoRho = r.albedoMu = vec4(0.0);
+  for (uint k = offsets[v]; k < offsets[v + 1]; ++k) {
+    IvPoint p = points[k];
+    vec3 x = p.position.xyz, n = p.normal.xyz;
+    vec3 eRho = directIrradiance(uShadow, x, n);
+    r.exitantRho += vec4(p.albedo.rgb / SH_PI * eRho, 1.0);
+    r.normalRho.xyz += n;
+    r.albedoRho.rgb += p.albedo.rgb;
+    if (p.position.w < 0.5) {
+      vec3 eMu = uLightMu == 1 ? directIrradiance(uShadowMu, x, n) : eRho;
+      r.exitantMu += vec4(p.albedo.rgb / SH_PI * eMu, 1.0);
+      r.normalMu.xyz += n;
+      r.albedoMu.rgb += p.albedo.rgb;
+    }
+  }
+  if (r.exitantRho.w > 0.0) {
+    r.exitantRho.rgb /= r.exitantRho.w;
+    r.albedoRho.rgb /= r.exitantRho.w;
+  }
+  if (r.exitantMu.w > 0.0) {
+    r.exitantMu.rgb /= r.exitantMu.w;
+    r.albedoMu.rgb /= r.exitantMu.w;
+  }
+  voxels[v] = r;
+}

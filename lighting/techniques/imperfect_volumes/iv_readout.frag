@@ -1,0 +1,125 @@
+#version 450 core
+// Imperfect volumes' outputs for the shared shading pass (iv.h irradiance, the reconstruction): per G-buffer
+// pixel at x with normal n, p = x + n voxel / 2; of the 27 voxels around p the six nearest to p that were
+// gathered, lie in front of x (cos theta > 0) and are not x's own voxel, free ones only when there are any,
+// weighted by cos theta; the irradiance of the weighted incident SH about n.
+//   out 0, real pixels (uReal):       E_delta = E^rho - E^mu
+//   out 1, virtual pixels (uVirtual): E^rho minus the unoccluded ambient the shading pass adds itself
+#include "lighting/techniques/imperfect_volumes/iv.glsl"
+
+layout(binding = 0) uniform sampler2D uGPosition;
+layout(binding = 1) uniform sampler2D uGNormal;
+layout(binding = 2) uniform sampler2D uGAlbedo;
+
+layout(std430, binding = 2) readonly buffer Voxels { IvVoxel voxels[]; };
+layout(std430, binding = 5) readonly buffer IncidentRho { float incidentRho[]; };
+layout(std430, binding = 9) readonly buffer IncidentMu { float incidentMu[]; };
+layout(std430, binding = 10) readonly buffer Computed { uint computed[]; };  // 1 per voxel whose rays were cast
+
+uniform int uReal;
+uniform int uVirtual;
+uniform vec3 uAmbient;
+uniform vec3 uAmbientSh[9];
+
+layout(location = 0) out vec4 outRealDelta;
+layout(location = 1) out vec4 outVirtualIrradiance;
+
+// The shading pass's unoccluded ambient: pi * uniform + max(0, sum_lm A_l c_lm y_lm(n)).
+vec3 unoccludedAmbient(vec3 n) {
+  const float b[9] = float[9](0.282094791773878, 0.488602511902920 * n.y, 0.488602511902920 * n.z, 0.488602511902920 * n.x,
+                              1.092548430592079 * n.x * n.y, 1.092548430592079 * n.y * n.z,
+                              0.315391565252520 * (3.0 * n.z * n.z - 1.0), 1.092548430592079 * n.x * n.z,
+                              0.546274215296040 * (n.x * n.x - n.y * n.y));
+  vec3 e = SH_PI * b[0] * uAmbientSh[0];
+  for (int k = 1; k < 4; ++k) e += (2.0 * SH_PI / 3.0) * b[k] * uAmbientSh[k];
+  for (int k = 4; k < 9; ++k) e += (SH_PI / 4.0) * b[k] * uAmbientSh[k];
+  return SH_PI * uAmbient + max(e, vec3(0.0));
+}
+
+// The voxels reconstruction reads and their weights (count 0: none qualifies).
+int chosen[6];
+float weight[6];
+int chooseVoxels(vec3 x, vec3 n) {
+  vec3 p = x + 0.5 * uVoxel * n;
+  ivec3 own = ivec3(-1), centre;
+  ivVoxelOf(x, own);
+  if (!ivVoxelOf(p, centre)) return 0;
+  bool anyFree = false;
+  for (int pass = 0; pass < 2; ++pass) {
+    // Pass 0 looks for a free candidate; pass 1 keeps the six nearest (free ones only if any).
+    int count = 0;
+    float d2s[6];
+    for (int dk = -1; dk <= 1; ++dk)
+      for (int dj = -1; dj <= 1; ++dj)
+        for (int di = -1; di <= 1; ++di) {
+          ivec3 c = centre + ivec3(di, dj, dk);
+          if (c == own || any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(uResolution)))) continue;
+          int v = ivIndex(c);
+          if (computed[v] == 0u) continue;
+          vec3 q = ivCentre(c);
+          vec3 to = q - x;
+          float len = length(to);
+          float cosT = len > 0.0 ? dot(n, to) / len : 0.0;
+          if (!(cosT > 0.0)) continue;
+          bool occupied = voxels[v].exitantRho.w > 0.0;
+          if (pass == 0) {
+            anyFree = anyFree || !occupied;
+            continue;
+          }
+          if (anyFree && occupied) continue;
+          float d2 = dot(q - p, q - p);
+          // Insert into the sorted six (by distance, then index, as the C++ partial sort).
+          int at = count < 6 ? count : 6;
+          while (at > 0 && (d2s[at - 1] > d2 || (d2s[at - 1] == d2 && chosen[at - 1] > v))) {
+            if (at < 6) {
+              d2s[at] = d2s[at - 1];
+              chosen[at] = chosen[at - 1];
+              weight[at] = weight[at - 1];
+            }
+            --at;
+          }
+          if (at < 6) {
+            d2s[at] = d2;
+            chosen[at] = v;
+            weight[at] = cosT;
+            count = min(count + 1, 6);
+          }
+        }
+    if (pass == 1) return count;
+  }
+  return 0;
+}
+
+vec3 reconstruct(int count, vec3 n, bool rho) {
+  float wsum = 0.0;
+  for (int k = 0; k < count; ++k) wsum += weight[k];
+  vec3 e = vec3(0.0);
+  for (int ch = 0; ch < 3; ++ch) {
+    float c[SH_COEFFS];
+    for (int q = 0; q < SH_COEFFS; ++q) c[q] = 0.0;
+    for (int k = 0; k < count; ++k) {
+      int base = (chosen[k] * 3 + ch) * SH_COEFFS;
+      for (int q = 0; q < SH_COEFFS; ++q) c[q] += weight[k] * (rho ? incidentRho[base + q] : incidentMu[base + q]);
+    }
+    for (int q = 0; q < SH_COEFFS; ++q) c[q] /= wsum;
+    e[ch] = ivShIrradiance(c, n);
+  }
+  return e;
+}
+
+void main() {
+  ivec2 px = ivec2(gl_FragCoord.xy);
+  outRealDelta = vec4(0.0);
+  outVirtualIrradiance = vec4(0.0);
+  vec4 pos = texelFetch(uGPosition, px, 0);
+  if (pos.w < 0.5) return;
+  vec3 n = texelFetch(uGNormal, px, 0).xyz;
+  bool isVirtual = texelFetch(uGAlbedo, px, 0).a > 0.5;
+  int count = chooseVoxels(pos.xyz, n);
+  if (count == 0) return;
+  if (isVirtual) {
+    if (uVirtual == 1) outVirtualIrradiance = vec4(reconstruct(count, n, true) - unoccludedAmbient(n), 0.0);
+  } else if (uReal == 1) {
+    outRealDelta = vec4(reconstruct(count, n, true) - reconstruct(count, n, false), 0.0);
+  }
+}

@@ -1,0 +1,35 @@
+#version 450 core
+// Imperfect volumes, a further bounce (iv.h gather, bounces > 1): each occupied voxel reflects the light its
+// surfaces received in the previous bounce, albedo / pi times the irradiance of that bounce's SH about the
+// voxel's mean normal (never negative).
+#include "lighting/techniques/imperfect_volumes/iv.glsl"
+
+layout(local_size_x = 64) in;
+
+layout(std430, binding = 2) readonly buffer Voxels { IvVoxel voxels[]; };
+layout(std430, binding = 3) readonly buffer Needed { uint needed[]; };
+layout(std430, binding = 7) writeonly buffer Reflected { vec4 reflected[]; };
+layout(std430, binding = 8) readonly buffer Bounce { float bounce[]; };
+
+uniform int uNeededCount;
+uniform int uRho;
+
+void main() {
+  int slot = int(gl_GlobalInvocationID.x);
+  if (slot >= uNeededCount) return;
+  int v = int(needed[slot]);
+  IvVoxel r = voxels[v];
+  float count = uRho == 1 ? r.exitantRho.w : r.exitantMu.w;
+  vec3 nSum = uRho == 1 ? r.normalRho.xyz : r.normalMu.xyz;
+  vec3 albedo = uRho == 1 ? r.albedoRho.rgb : r.albedoMu.rgb;
+  reflected[v] = vec4(0.0);
+  if (count <= 0.0 || dot(nSum, nSum) <= 0.0) return;
+  vec3 n = normalize(nSum);
+  vec3 e;
+  for (int ch = 0; ch < 3; ++ch) {
+    float c[SH_COEFFS];
+    for (int q = 0; q < SH_COEFFS; ++q) c[q] = bounce[(v * 3 + ch) * SH_COEFFS + q];
+    e[ch] = ivShIrradiance(c, n);
+  }
+  reflected[v] = vec4(max(albedo / SH_PI * e, vec3(0.0)), 1.0);
+}
