@@ -1,6 +1,11 @@
 #include "evaluation/reference_scene.h"
 
+#include <algorithm>
+#include <memory>
+
+#include "groundtruth/environment.h"
 #include "lighting/material.h"
+#include "lighting/sh.h"
 
 namespace mrgi::evaluation {
 
@@ -48,6 +53,22 @@ ReferenceScenes reconstructedScenes(const runtime::LightingSetup& setup, const r
   for (size_t i = 0; i < real.vertices.size(); ++i) s.vertexAlbedo[i] = real.vertices[i].albedo;
   s.lights = referenceLights(setup.lights);
   s.environment = cv::Vec3f(setup.ambient);
+  if (std::any_of(setup.ambientSh.begin(), setup.ambientSh.end(), [](const cv::Vec3d& c) { return c != cv::Vec3d(0, 0, 0); })) {
+    // A directional ambient (a fisheye's or the room's remainder) as the shading pass adds it: the uniform
+    // part and SH bands 1-2 as one environment map (clamped at 0: radiance is never negative).
+    cv::Mat map(64, 128, CV_32FC3);
+    for (int y = 0; y < map.rows; ++y)
+      for (int x = 0; x < map.cols; ++x) {
+        const cv::Vec3f d = ref::EnvironmentMap::directionOf((x + 0.5f) / map.cols, (y + 0.5f) / map.rows);
+        double basis[9];
+        lighting::sh::evaluate(cv::Vec3d(d), 3, basis);
+        cv::Vec3d L = setup.ambient;
+        for (int k = 1; k < 9; ++k) L += basis[k] * setup.ambientSh[static_cast<size_t>(k)];
+        map.at<cv::Vec3f>(y, x) = cv::Vec3f(L);
+      }
+    s.environment = {0, 0, 0};
+    s.environmentMap = std::make_shared<const ref::EnvironmentMap>(map);
+  }
 
   out.withObjects = s;
   addVirtualObjects(setup.scene.objects, capture::identityPose(), out.withObjects);

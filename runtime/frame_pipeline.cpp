@@ -164,6 +164,7 @@ void FramePipeline::useAmbientSh(const std::array<cv::Vec3d, 9>& sh) {
   setup_->ambient = sh[0] * 0.28209479177387814;  // Y_00
   std::array<cv::Vec3d, 9> directional = sh;
   directional[0] = {0, 0, 0};
+  setup_->ambientSh = directional;
   if (pipeline_) pipeline_->setAmbientSh(directional);
 }
 

@@ -32,6 +32,9 @@ struct LightingSetup {
   int tagId = -1;
   std::vector<lighting::SceneLight> lights;  ///< marker frame
   cv::Vec3d ambient{0, 0, 0};
+  /// The ambient's directional part: radiance as SH bands 1-2 (band 0 is `ambient`; lighting/sh.h
+  /// convention, lighting world), from a fisheye's or the room's remainder after its lights; zero otherwise.
+  std::array<cv::Vec3d, 9> ambientSh{};
   std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
   std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
 };

@@ -230,6 +230,8 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     setLightUniforms(p, frame.lights(), frame.lightViews());
     const bool mu = real_ && frame.shadowMu().id() != 0;
     p.set("uLightMu", mu ? 1 : 0);
+    setVec3(p, "uAmbient", ambient_);
+    for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
     p.set("uVoxelCount", static_cast<int>(count));
     setVec3(p, "uGridOrigin", g.origin);
     p.set("uVoxel", static_cast<float>(g.voxel));

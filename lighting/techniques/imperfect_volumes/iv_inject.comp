@@ -1,7 +1,8 @@
 #version 450 core
 // Imperfect volumes, voxelisation (iv.h voxelise): per voxel, the points that fall in it (sorted on the CPU)
 // are lit by the scene's lights with the shadow maps of both scene versions (rho: the objects cast shadows,
-// mu: they are not there), and their mean reflected radiance, normal sum and albedo are written.
+// mu: they are not there) and by the ambient (unoccluded: a surface's own occlusion of the sky is left out),
+// and their mean reflected radiance, normal sum and albedo are written.
 #define SH_BANDS 1
 #include "lighting/techniques/imperfect_volumes/iv.glsl"
 
@@ -22,6 +23,8 @@ layout(std430, binding = 2) writeonly buffer Voxels { IvVoxel voxels[]; };
 
 uniform int uVoxelCount;
 uniform int uLightMu;  // 1: the mu shadow maps exist (else mu is lit like rho)
+uniform vec3 uAmbient;
+uniform vec3 uAmbientSh[9];
 
 void main() {
   int v = int(gl_GlobalInvocationID.x);
@@ -31,12 +34,13 @@ void main() {
   for (uint k = offsets[v]; k < offsets[v + 1]; ++k) {
     IvPoint p = points[k];
     vec3 x = p.position.xyz, n = p.normal.xyz;
-    vec3 eRho = directIrradiance(uShadow, x, n);
+    vec3 eAmbient = ivUnoccludedAmbient(uAmbient, uAmbientSh, n);
+    vec3 eRho = directIrradiance(uShadow, x, n) + eAmbient;
     r.exitantRho += vec4(p.albedo.rgb / SH_PI * eRho, 1.0);
     r.normalRho.xyz += n;
     r.albedoRho.rgb += p.albedo.rgb;
     if (p.position.w < 0.5) {
-      vec3 eMu = uLightMu == 1 ? directIrradiance(uShadowMu, x, n) : eRho;
+      vec3 eMu = uLightMu == 1 ? directIrradiance(uShadowMu, x, n) + eAmbient : eRho;
       r.exitantMu += vec4(p.albedo.rgb / SH_PI * eMu, 1.0);
       r.normalMu.xyz += n;
       r.albedoMu.rgb += p.albedo.rgb;

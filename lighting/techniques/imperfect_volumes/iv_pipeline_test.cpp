@@ -73,7 +73,7 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
     }
     EXPECT_GT(occupied, 100);
     EXPECT_GT(virtualVoxels, 10);
-    // A floor voxel away from the cube and the wall, lit unshadowed: albedo / pi times the lamp's irradiance.
+    // A floor voxel away from the cube and the wall, lit unshadowed: albedo / pi times the lamp's and the ambient's irradiance.
     const cv::Vec3d floorPoint(-0.2, -0.18, 0.001);
     cv::Vec3i c;
     ASSERT_TRUE(g.voxelOf(floorPoint, c));
@@ -85,7 +85,9 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
     EXPECT_GT(at[2], 0.99f * static_cast<float>(cv::norm(at)));
     const cv::Vec3d centre = g.centre(c[0], c[1], c[2]);
     const cv::Vec3d toLamp = lamp()[0].position - cv::Vec3d(centre[0], centre[1], 0.0);
-    const double E = 2.0 * toLamp[2] / std::pow(cv::norm(toLamp), 3.0);
+    // The lamp, and the ambient seen from a floor facing up: pi 0.1 + (pi y00 0.05 + (2 pi / 3) y10 0.03).
+    const double ambientUp = CV_PI * 0.1 + CV_PI * 0.282094792 * 0.05 + 2.0 * CV_PI / 3.0 * 0.488602512 * 0.03;
+    const double E = 2.0 * toLamp[2] / std::pow(cv::norm(toLamp), 3.0) + ambientUp;
     EXPECT_NEAR(vol.exitantMu[fv][0], 0.5 / CV_PI * E, 0.02 * 0.5 / CV_PI * E);
     EXPECT_EQ(vol.exitantRho[fv][0], vol.exitantMu[fv][0]) << "the cube does not shadow it";
 

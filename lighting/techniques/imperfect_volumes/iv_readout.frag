@@ -24,18 +24,6 @@ uniform vec3 uAmbientSh[9];
 layout(location = 0) out vec4 outRealDelta;
 layout(location = 1) out vec4 outVirtualIrradiance;
 
-// The shading pass's unoccluded ambient: pi * uniform + max(0, sum_lm A_l c_lm y_lm(n)).
-vec3 unoccludedAmbient(vec3 n) {
-  const float b[9] = float[9](0.282094791773878, 0.488602511902920 * n.y, 0.488602511902920 * n.z, 0.488602511902920 * n.x,
-                              1.092548430592079 * n.x * n.y, 1.092548430592079 * n.y * n.z,
-                              0.315391565252520 * (3.0 * n.z * n.z - 1.0), 1.092548430592079 * n.x * n.z,
-                              0.546274215296040 * (n.x * n.x - n.y * n.y));
-  vec3 e = SH_PI * b[0] * uAmbientSh[0];
-  for (int k = 1; k < 4; ++k) e += (2.0 * SH_PI / 3.0) * b[k] * uAmbientSh[k];
-  for (int k = 4; k < 9; ++k) e += (SH_PI / 4.0) * b[k] * uAmbientSh[k];
-  return SH_PI * uAmbient + max(e, vec3(0.0));
-}
-
 // The voxels reconstruction reads and their weights (count 0: none qualifies).
 int chosen[6];
 float weight[6];
@@ -118,7 +106,7 @@ void main() {
   int count = chooseVoxels(pos.xyz, n);
   if (count == 0) return;
   if (isVirtual) {
-    if (uVirtual == 1) outVirtualIrradiance = vec4(reconstruct(count, n, true) - unoccludedAmbient(n), 0.0);
+    if (uVirtual == 1) outVirtualIrradiance = vec4(reconstruct(count, n, true) - ivUnoccludedAmbient(uAmbient, uAmbientSh, n), 0.0);
   } else if (uReal == 1) {
     outRealDelta = vec4(reconstruct(count, n, true) - reconstruct(count, n, false), 0.0);
   }
