@@ -612,6 +612,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   int wholeFrames = 0;
   size_t gpuBytes = 0;
   std::optional<FrameState> prev;
+  nlohmann::json techniqueStats = nlohmann::json::object();  // the last lit frame's (counts: points, voxels, ...)
   const std::string name = c.technique.name;
   for (int f = 0; f < n; ++f) {
     capture::Frame frame = bs.frames[f];
@@ -628,6 +629,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     }
     lighting::LightingPipeline& pipe = *fp.lighting();
     gpuBytes = std::max(gpuBytes, pipe.gpuBytes());
+    if (r.info.contains("techniques")) techniqueStats = r.info["techniques"];
     FrameState st = frameState(pipe.downloadShade(), pipe.downloadGBuffer(0), *r.T_marker_camera);
     if (prev) {
       const auto [a, b] = flickerSums(*prev, st, frame.rgbd->colourIntrinsics);
@@ -685,7 +687,8 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
             {"rel_error_virtual", err.relVirtual()},
             {"ssim", bs.truths.empty() ? 0.0 : ssimSum / static_cast<double>(bs.truths.size())},
             {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
-            {"silhouette_mismatch_pixels", err.mismatched}};
+            {"silhouette_mismatch_pixels", err.mismatched},
+            {"technique_stats", techniqueStats}};
   if (wholeFrames > 0)
     r["whole_pipeline"] = {{"frames", wholeFrames},
                            {"rel_error_delta", whole.relDelta()},

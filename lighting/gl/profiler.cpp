@@ -11,6 +11,7 @@ QueryHandle timestampNow() {
 }  // namespace
 
 Profiler::Scope::Scope(Profiler& p, std::string name, bool gpu) : profiler_(p), index_(p.pending_.size()) {
+  if (gpu && p.finish_) glFinish();
   Pending entry{std::move(name), gpu, std::chrono::steady_clock::now(), {}, {}, {}};
   if (gpu) entry.begin = timestampNow();
   p.pending_.push_back(std::move(entry));
@@ -19,6 +20,7 @@ Profiler::Scope::Scope(Profiler& p, std::string name, bool gpu) : profiler_(p), 
 Profiler::Scope::~Scope() {
   Pending& e = profiler_.pending_[index_];
   if (e.gpu) e.end = timestampNow();
+  if (e.gpu && profiler_.finish_) glFinish();
   e.cpuEnd = std::chrono::steady_clock::now();
 }
 

@@ -17,6 +17,12 @@ struct StageTime {
 
 class Profiler {
  public:
+  /// finishEachStage: every GPU scope waits for the GPU at its begin and end (glFinish), so its CPU wall
+  /// time is the stage's own work. On a software rasteriser (llvmpipe) timestamps of compute dispatches and
+  /// draws are taken when its deferred queue reaches them, and a stage's timestamps can bracket an earlier
+  /// stage's work; benchmarks that attribute time to stages turn this on. It serialises CPU and GPU.
+  explicit Profiler(bool finishEachStage = false) : finish_(finishEachStage) {}
+
   class Scope {
    public:
     Scope(Profiler& p, std::string name, bool gpu);
@@ -46,6 +52,7 @@ class Profiler {
     QueryHandle begin, end;
   };
   std::vector<Pending> pending_;
+  bool finish_ = false;
 };
 
 }  // namespace mrgi::gl

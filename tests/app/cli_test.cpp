@@ -565,7 +565,10 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
     EXPECT_GT(rec["gpu_mb"].get<double>(), 0.1);
     EXPECT_TRUE(rec["ms_stages"].contains("gbuffer"));
   }
-  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "dlpv+kinect-val"}));
+  // Every technique and alias, and each pairing of a technique that serves real pixels with another one for
+  // the virtual object (Kinect-VAL serves the virtual object only).
+  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "imperfect-volumes", "dlpv+kinect-val",
+                                               "dlpv+imperfect-volumes", "imperfect-volumes+dlpv", "imperfect-volumes+kinect-val"}));
   // A coarser volume costs less GPU memory than the defaults.
   double mbDefault = 0, mbCoarse = 0;
   for (const auto& rec : doc["records"])

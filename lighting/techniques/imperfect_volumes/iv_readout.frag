@@ -78,21 +78,33 @@ int chooseVoxels(vec3 x, vec3 n) {
   return 0;
 }
 
-vec3 reconstruct(int count, vec3 n, bool rho) {
+// The irradiance about n of the weighted incident SH of both scene versions (rho; mu when `both`): the basis
+// and the clamped cosine's band factors evaluated once.
+void reconstruct(int count, vec3 n, bool both, out vec3 eRho, out vec3 eMu) {
+  float y[SH_COEFFS];
+  shEvaluate(n, y);
+  float f[SH_COEFFS];
+  for (int l = 0; l < SH_BANDS; ++l) {
+    float a = SH_PI * shPhongFactor(1.0, l);
+    for (int m = -l; m <= l; ++m) f[l * (l + 1) + m] = a * y[l * (l + 1) + m];
+  }
   float wsum = 0.0;
   for (int k = 0; k < count; ++k) wsum += weight[k];
-  vec3 e = vec3(0.0);
-  for (int ch = 0; ch < 3; ++ch) {
-    float c[SH_COEFFS];
-    for (int q = 0; q < SH_COEFFS; ++q) c[q] = 0.0;
-    for (int k = 0; k < count; ++k) {
+  eRho = vec3(0.0);
+  eMu = vec3(0.0);
+  for (int k = 0; k < count; ++k) {
+    float w = weight[k] / wsum;
+    for (int ch = 0; ch < 3; ++ch) {
       int base = (chosen[k] * 3 + ch) * SH_COEFFS;
-      for (int q = 0; q < SH_COEFFS; ++q) c[q] += weight[k] * (rho ? incidentRho[base + q] : incidentMu[base + q]);
+      float r = 0.0, u = 0.0;
+      for (int q = 0; q < SH_COEFFS; ++q) {
+        r += f[q] * incidentRho[base + q];
+        if (both) u += f[q] * incidentMu[base + q];
+      }
+      eRho[ch] += w * r;
+      eMu[ch] += w * u;
     }
-    for (int q = 0; q < SH_COEFFS; ++q) c[q] /= wsum;
-    e[ch] = ivShIrradiance(c, n);
   }
-  return e;
 }
 
 void main() {
@@ -105,9 +117,13 @@ void main() {
   bool isVirtual = texelFetch(uGAlbedo, px, 0).a > 0.5;
   int count = chooseVoxels(pos.xyz, n);
   if (count == 0) return;
+  vec3 eRho, eMu;
   if (isVirtual) {
-    if (uVirtual == 1) outVirtualIrradiance = vec4(reconstruct(count, n, true) - ivUnoccludedAmbient(uAmbient, uAmbientSh, n), 0.0);
+    if (uVirtual == 0) return;
+    reconstruct(count, n, false, eRho, eMu);
+    outVirtualIrradiance = vec4(eRho - ivUnoccludedAmbient(uAmbient, uAmbientSh, n), 0.0);
   } else if (uReal == 1) {
-    outRealDelta = vec4(reconstruct(count, n, true) - reconstruct(count, n, false), 0.0);
+    reconstruct(count, n, true, eRho, eMu);
+    outRealDelta = vec4(eRho - eMu, 0.0);
   }
 }

@@ -1,0 +1,99 @@
+// Lighting techniques' cost on the GL backend of this machine (OSMesa/llvmpipe unless MRGI_GL=egl): the
+// imperfect volumes' stages against their work. Run e.g.
+//   build/bench/lighting_bench --benchmark_counters_tabular=true
+// Each run lights a floor 2 m wide with a red wall and a sphere of radius 6 cm on it (the region around the
+// sphere: 48 cm), one point light and an ambient, at 320 x 240. Counters: the mean wall milliseconds of each
+// imperfect-volume stage per run (the GPU finishes each stage before the next begins), the points voxelised, the voxels gathered, and
+// `work` = voxels gathered x rays x passes (the gather's unit of work; passes = max(1, bounces) per scene
+// version, two versions).
+#include <benchmark/benchmark.h>
+
+#include <cstdlib>
+#include <string>
+
+#include "gl/context.h"
+#include "lighting/pipeline.h"
+#include "lighting/scene_file.h"
+#include "lighting/techniques/registry.h"
+
+using namespace mrgi;
+using namespace mrgi::lighting;
+
+namespace {
+
+void addQuad(std::vector<MeshVertex>& v, std::vector<uint32_t>& idx, cv::Vec3f p0, cv::Vec3f e1, cv::Vec3f e2, cv::Vec3f albedo,
+             int n) {
+  const cv::Vec3f normal = cv::normalize(e1.cross(e2));
+  const auto base = static_cast<uint32_t>(v.size());
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) v.push_back({p0 + e1 * (float(i) / n) + e2 * (float(j) / n), normal, albedo});
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const uint32_t a = base + static_cast<uint32_t>(j * (n + 1) + i), b = a + 1, c = a + static_cast<uint32_t>(n) + 2,
+                     d = a + static_cast<uint32_t>(n) + 1;
+      idx.insert(idx.end(), {a, b, c, a, c, d});
+    }
+}
+
+/// args: resolution, rays, bounces, points per triangle.
+void BM_ImperfectVolumes(benchmark::State& state) {
+  gl::ContextConfig cc;
+  cc.width = 320;
+  cc.height = 240;
+  if (const char* b = std::getenv("MRGI_GL")) cc.backend = gl::parseBackend(b);
+  auto context = gl::createContext(cc);
+  PipelineConfig cfg;
+  cfg.width = 320;
+  cfg.height = 240;
+  cfg.technique = parseTechniqueChoice("imperfect-volumes", &cfg.knobs);
+  cfg.set("iv", "resolution", static_cast<double>(state.range(0)));
+  cfg.set("iv", "rays", static_cast<double>(state.range(1)));
+  cfg.set("iv", "bounces", static_cast<double>(state.range(2)));
+  cfg.set("iv", "points", static_cast<double>(state.range(3)));
+  VirtualObject sphere;
+  sphere.mesh = loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
+  for (auto& p : sphere.mesh.positions) p *= 0.06f;
+  sphere.mesh.computeBounds();
+  sphere.material.albedo = {0.8f, 0.8f, 0.8f};
+  sphere.T_marker_object = capture::makePose(cv::Matx33d::eye(), {-0.2, 0.0, 0.06});
+  LightingPipeline pipe(cfg, {sphere});
+  std::vector<MeshVertex> v;
+  std::vector<uint32_t> idx;
+  addQuad(v, idx, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0.5f, 0.5f, 0.5f}, 200);  // 1 cm triangles, like a depth mesh
+  addQuad(v, idx, {-0.4f, -1, 0}, {0, 2, 0}, {0, 0, 1.5f}, {0.8f, 0.1f, 0.1f}, 150);
+  pipe.setRealMesh(v, idx);
+  CameraView cam;
+  cam.intrinsics = {320, 240, 300, 300, 159.5, 119.5};
+  cam.T_world_camera = capture::lookAtPose({0.4, -0.6, 0.5}, {-0.2, 0.0, 0.05});
+  SceneLight lamp;
+  lamp.position = {0.3, -0.3, 1.0};
+  lamp.intensity = {3, 3, 3};
+  std::map<std::string, double> sum;
+  int runs = 0;
+  for (auto _ : state) {
+    pipe.invalidate();
+    gl::Profiler profiler(true);  // each stage's own wall time (llvmpipe's timestamps mix deferred stages)
+    pipe.run(cam, {lamp}, {0.2, 0.2, 0.2}, &profiler);
+    for (const auto& [name, t] : profiler.resolve()) sum[name] += t.cpuMs;
+    ++runs;
+  }
+  const nlohmann::json stats = pipe.stats().value("imperfect-volumes", nlohmann::json::object());
+  for (const char* stage : {"iv.points", "iv.inject", "iv.gather", "iv.readout"})
+    state.counters[std::string(stage).substr(3) + "_ms"] = sum[stage] / std::max(runs, 1);
+  const double gathered = stats.value("voxels_gathered", 0.0);
+  state.counters["points"] = stats.value("points", 0.0);
+  state.counters["voxels_gathered"] = gathered;
+  state.counters["work"] = gathered * static_cast<double>(state.range(1)) * static_cast<double>(std::max<int64_t>(1, state.range(2))) * 2.0;
+}
+
+}  // namespace
+
+// Resolution (voxels gathered), rays and bounces one at a time around the defaults (32, 64, 1, 8 points);
+// points per triangle for the voxelisation.
+BENCHMARK(BM_ImperfectVolumes)
+    ->Args({16, 64, 1, 8})->Args({32, 64, 1, 8})->Args({48, 64, 1, 8})->Args({64, 64, 1, 8})
+    ->Args({32, 16, 1, 8})->Args({32, 128, 1, 8})->Args({32, 256, 1, 8})
+    ->Args({32, 64, 2, 8})->Args({32, 64, 3, 8})
+    ->Args({32, 64, 1, 3})->Args({32, 64, 1, 19})
+    ->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK_MAIN();
