@@ -215,12 +215,12 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       for (const cv::Vec3f& d : iv::rayDirections(knobs_.rays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
       directions_ = bufferOf(dirs.size() * sizeof(cv::Vec4f), dirs.data());
       voxels_ = bufferOf(count * 6 * sizeof(cv::Vec4f));
-      incidentRho_ = bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float));
-      incidentMu_ = real_ ? bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float)) : gl::Buffer();
+      incidentRho_ = real_ ? bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float)) : gl::Buffer();
+      incidentMu_ = bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float));
       bounce_ = bufferOf(knobs_.bounces > 1 ? count * 3 * static_cast<size_t>(C) * sizeof(float) : 0);
       reflected_ = bufferOf(knobs_.bounces > 1 ? count * sizeof(cv::Vec4f) : 0);
-      occlusionRho_ = bufferOf(count * sizeof(float));
-      occlusionMu_ = real_ ? bufferOf(count * sizeof(float)) : gl::Buffer();
+      occlusionRho_ = real_ ? bufferOf(count * sizeof(float)) : gl::Buffer();
+      occlusionMu_ = bufferOf(count * sizeof(float));
     }
   }
   {
@@ -228,7 +228,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     const gl::Program& p = injectProgram_;
     p.use();
     setLightUniforms(p, frame.lights(), frame.lightViews());
-    const bool mu = real_ && frame.shadowMu().id() != 0;
+    const bool mu = frame.shadowMu().id() != 0;
     p.set("uLightMu", mu ? 1 : 0);
     setVec3(p, "uAmbient", ambient_);
     for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
@@ -246,8 +246,8 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
   }
   {
     auto s = timed(profiler, "iv.gather");
-    gather(true);
-    if (real_) gather(false);
+    if (real_) gather(true);
+    gather(false);
   }
   gl::checkGlError("ImperfectVolumesTechnique::build()");
   stats_ = {{"points", pointCount_},          {"voxels_gathered", neededCount_}, {"voxel_m", g.voxel},
@@ -334,8 +334,8 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   frame.gNormal().bind(1);
   frame.gAlbedo().bind(2);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, incidentRho_.id());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 9, (real_ ? incidentMu_ : incidentRho_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, (real_ ? incidentRho_ : incidentMu_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 9, incidentMu_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 10, computed_.id());
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -367,7 +367,7 @@ iv::Volume ImperfectVolumesTechnique::downloadVolume() const {
 
 iv::Incident ImperfectVolumesTechnique::downloadIncident(bool rho) const {
   iv::Incident in;
-  if (!grid_ || (!rho && !real_)) return in;
+  if (!grid_ || (rho && !real_)) return in;
   const size_t n = grid_->count();
   in.bands = knobs_.bands;
   in.sh.resize(n * 3 * static_cast<size_t>(knobs_.bands * knobs_.bands));

@@ -4,7 +4,10 @@
 // gathered, lie in front of x (cos theta > 0) and are not x's own voxel, free ones only when there are any,
 // weighted by cos theta; the irradiance of the weighted incident SH about n.
 //   out 0, real pixels (uReal):       E_delta = E^rho - E^mu
-//   out 1, virtual pixels (uVirtual): E^rho minus the unoccluded ambient the shading pass adds itself
+//   out 1, virtual pixels (uVirtual): E^mu minus the unoccluded ambient the shading pass adds itself: the
+//                                     ambient the real surfaces hide from the object and their bounce (the
+//                                     object's own voxels neither occlude nor light it: a surface of voxels
+//                                     next to a curved object hides far more of its sky than the object does)
 #include "lighting/techniques/imperfect_volumes/iv.glsl"
 
 layout(binding = 0) uniform sampler2D uGPosition;
@@ -78,9 +81,9 @@ int chooseVoxels(vec3 x, vec3 n) {
   return 0;
 }
 
-// The irradiance about n of the weighted incident SH of both scene versions (rho; mu when `both`): the basis
-// and the clamped cosine's band factors evaluated once.
-void reconstruct(int count, vec3 n, bool both, out vec3 eRho, out vec3 eMu) {
+// The irradiance about n of the weighted incident SH of the scene versions asked for: the basis and the
+// clamped cosine's band factors evaluated once.
+void reconstruct(int count, vec3 n, bool rho, bool mu, out vec3 eRho, out vec3 eMu) {
   float y[SH_COEFFS];
   shEvaluate(n, y);
   float f[SH_COEFFS];
@@ -98,8 +101,8 @@ void reconstruct(int count, vec3 n, bool both, out vec3 eRho, out vec3 eMu) {
       int base = (chosen[k] * 3 + ch) * SH_COEFFS;
       float r = 0.0, u = 0.0;
       for (int q = 0; q < SH_COEFFS; ++q) {
-        r += f[q] * incidentRho[base + q];
-        if (both) u += f[q] * incidentMu[base + q];
+        if (rho) r += f[q] * incidentRho[base + q];
+        if (mu) u += f[q] * incidentMu[base + q];
       }
       eRho[ch] += w * r;
       eMu[ch] += w * u;
@@ -120,10 +123,10 @@ void main() {
   vec3 eRho, eMu;
   if (isVirtual) {
     if (uVirtual == 0) return;
-    reconstruct(count, n, false, eRho, eMu);
-    outVirtualIrradiance = vec4(eRho - ivUnoccludedAmbient(uAmbient, uAmbientSh, n), 0.0);
+    reconstruct(count, n, false, true, eRho, eMu);
+    outVirtualIrradiance = vec4(eMu - ivUnoccludedAmbient(uAmbient, uAmbientSh, n), 0.0);
   } else if (uReal == 1) {
-    reconstruct(count, n, true, eRho, eMu);
+    reconstruct(count, n, true, true, eRho, eMu);
     outRealDelta = vec4(eRho - eMu, 0.0);
   }
 }
