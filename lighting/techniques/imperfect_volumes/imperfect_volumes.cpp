@@ -308,6 +308,7 @@ void ImperfectVolumesTechnique::gather(bool rho) {
 
 void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   if (!frame.region()) return;
+  frame_ = &frame;
   const FrameVersions& v = frame.versions();
   const std::array<uint64_t, 3> from{v.geometry, v.lights, v.ambient};
   if (!builtFrom_ || *builtFrom_ != from) {
@@ -381,7 +382,32 @@ iv::Incident ImperfectVolumesTechnique::downloadIncident(bool rho) const {
 }
 
 cv::Mat ImperfectVolumesTechnique::debugImage(const std::string& view, const DebugContext&, nlohmann::json& info) const {
-  if (view != "iv_slices" || !grid_) return {};
+  if (!grid_) return {};
+  if (view == "iv_ao" && frame_) {
+    // Per pixel: the occlusion of the scene with the objects (the fraction of the sphere's rays blocked
+    // within range: an open floor reads 0.5, mid grey), read as the reconstruction reads light
+    // (iv::occlusion on the downloaded volume); real surfaces grey, the objects tinted yellow, outside the
+    // grid dark blue.
+    const iv::Volume v = downloadVolume();
+    const iv::Incident in = downloadIncident(real_);
+    const cv::Mat pos = frame_->downloadGBuffer(0), nrm = frame_->downloadGBuffer(1), alb = frame_->downloadGBuffer(2);
+    cv::Mat out(pos.size(), CV_8UC3, cv::Scalar(30, 30, 70));
+    double sum = 0;
+    int n = 0;
+    for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
+      const cv::Vec4f p = pos.at<cv::Vec4f>(i), q = nrm.at<cv::Vec4f>(i);
+      if (p[3] < 0.5f) continue;
+      const float ao = iv::occlusion(v, in, {p[0], p[1], p[2]}, {q[0], q[1], q[2]});
+      if (ao < 0.0f) continue;  // outside the grid
+      const auto open = cv::saturate_cast<uchar>(255.0 * (1.0 - ao));
+      const bool isVirtual = alb.at<cv::Vec4f>(i)[3] > 0.5f;
+      out.at<cv::Vec3b>(i) = isVirtual ? cv::Vec3b(open, open, static_cast<uchar>(open * 0.6)) : cv::Vec3b(open, open, open);
+      sum += ao, ++n;
+    }
+    info["debug_iv_mean_occlusion"] = n > 0 ? sum / n : 0.0;
+    return out;
+  }
+  if (view != "iv_slices") return {};
   // Two rows of slices along z (every 4th): occupancy (real grey, virtual yellow, empty dark blue) and the
   // ambient occlusion of the rho scene where rays were cast (white = open, black = enclosed; others dark red).
   const iv::Volume v = downloadVolume();

@@ -47,7 +47,9 @@ class ImperfectVolumesTechnique final : public Technique {
   unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights | kInputAmbient; }
   void update(const FrameResources& frame, gl::Profiler* profiler) override;
   TechniqueOutputs outputs() const override;
-  std::vector<std::string> debugViews() const override { return {"iv_slices"}; }
+  /// iv_slices: occupancy and ambient occlusion per slice of the grid; iv_ao: the ambient occlusion at each
+  /// pixel's surface with the objects (white: open sky, black: none of it).
+  std::vector<std::string> debugViews() const override { return {"iv_slices", "iv_ao"}; }
   cv::Mat debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const override;
   nlohmann::json stats() const override;
   size_t gpuBytes() const override;
@@ -77,6 +79,7 @@ class ImperfectVolumesTechnique final : public Technique {
   gl::Framebuffer outFb_;
   gl::VertexArray emptyVao_;
   nlohmann::json stats_ = nlohmann::json::object();
+  const FrameResources* frame_ = nullptr;  ///< of the last update (its G-buffer, for the AO view)
 };
 
 }  // namespace mrgi::lighting

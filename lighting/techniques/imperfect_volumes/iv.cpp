@@ -277,14 +277,14 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
   return out;
 }
 
-cv::Vec3f irradiance(const Volume& volume, const Incident& incident, const cv::Vec3f& x, const cv::Vec3f& n) {
+std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std::vector<uint8_t>& computed, const cv::Vec3f& x,
+                                                  const cv::Vec3f& n) {
   const Grid& g = volume.grid;
-  if (incident.bands <= 0 || incident.sh.empty()) return {0, 0, 0};
   const float s = static_cast<float>(g.voxel);
   const cv::Vec3f p = x + 0.5f * s * n;
   cv::Vec3i own(-1, -1, -1), centre;
   g.voxelOf(cv::Vec3d(x), own);
-  if (!g.voxelOf(cv::Vec3d(p), centre)) return {0, 0, 0};
+  if (computed.size() != g.count() || !g.voxelOf(cv::Vec3d(p), centre)) return {};
   struct Candidate {
     float d2, w;
     size_t v;
@@ -298,7 +298,7 @@ cv::Vec3f irradiance(const Volume& volume, const Incident& incident, const cv::V
         if (c == own) continue;
         if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] >= g.resolution || c[1] >= g.resolution || c[2] >= g.resolution) continue;
         const size_t v = g.index(c[0], c[1], c[2]);
-        if (!incident.computed[v]) continue;
+        if (!computed[v]) continue;
         const cv::Vec3f q = cv::Vec3f(g.centre(c[0], c[1], c[2]));
         const cv::Vec3f to = q - x;
         const float len = static_cast<float>(cv::norm(to));
@@ -309,20 +309,36 @@ cv::Vec3f irradiance(const Volume& volume, const Incident& incident, const cv::V
       }
   if (std::any_of(cands.begin(), cands.end(), [](const Candidate& c) { return !c.occupied; }))
     cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return c.occupied; }), cands.end());
-  if (cands.empty()) return {0, 0, 0};
   const size_t keep = std::min<size_t>(6, cands.size());
   std::partial_sort(cands.begin(), cands.begin() + static_cast<std::ptrdiff_t>(keep), cands.end(),
                     [](const Candidate& a, const Candidate& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.v < b.v); });
+  std::vector<std::pair<size_t, float>> out;
+  for (size_t k = 0; k < keep; ++k) out.emplace_back(cands[k].v, cands[k].w);
+  return out;
+}
+
+cv::Vec3f irradiance(const Volume& volume, const Incident& incident, const cv::Vec3f& x, const cv::Vec3f& n) {
+  if (incident.bands <= 0 || incident.sh.empty()) return {0, 0, 0};
+  const auto chosen = readVoxels(volume, incident.computed, x, n);
+  if (chosen.empty()) return {0, 0, 0};
   const int B = incident.bands, C = B * B;
   std::vector<float> c(static_cast<size_t>(3 * C), 0.0f);
   float wsum = 0;
-  for (size_t k = 0; k < keep; ++k) {
-    const float* src = incident.at(cands[k].v);
-    for (int q = 0; q < 3 * C; ++q) c[static_cast<size_t>(q)] += cands[k].w * src[q];
-    wsum += cands[k].w;
+  for (const auto& [v, w] : chosen) {
+    const float* src = incident.at(v);
+    for (int q = 0; q < 3 * C; ++q) c[static_cast<size_t>(q)] += w * src[q];
+    wsum += w;
   }
   for (float& v : c) v /= wsum;
   return shIrradiance(c.data(), B, n);
+}
+
+float occlusion(const Volume& volume, const Incident& incident, const cv::Vec3f& x, const cv::Vec3f& n) {
+  if (incident.occlusion.empty()) return -1.0f;
+  const auto chosen = readVoxels(volume, incident.computed, x, n);
+  float sum = 0, wsum = 0;
+  for (const auto& [v, w] : chosen) sum += w * incident.occlusion[v], wsum += w;
+  return wsum > 0 ? sum / wsum : -1.0f;
 }
 
 }  // namespace mrgi::lighting::iv

@@ -28,6 +28,7 @@
 /// object's is E^rho minus the unoccluded ambient the shading pass already adds.
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -116,9 +117,16 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
 /// step); -1 when the ray leaves the grid. `distance` gets the march distance of the hit.
 int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction, float* distance = nullptr);
 
+/// The voxels the reconstruction reads at surface point x with unit normal n, with their weights (cos theta);
+/// empty where none qualifies (above).
+std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std::vector<uint8_t>& computed, const cv::Vec3f& x,
+                                                  const cv::Vec3f& n);
 /// Irradiance (W/m^2) at surface point x with unit normal n from the incident SH (reconstruction above).
 /// Zero where no voxel qualifies.
 cv::Vec3f irradiance(const Volume& volume, const Incident& incident, const cv::Vec3f& x, const cv::Vec3f& n);
+/// Ambient occlusion at x: the weighted occlusion (fraction of the sphere's rays blocked within range) of the
+/// same voxels; a flat open floor reads 0.5. -1 where no voxel qualifies (outside the grid).
+float occlusion(const Volume& volume, const Incident& incident, const cv::Vec3f& x, const cv::Vec3f& n);
 
 /// The ambient's irradiance with nothing occluding it, sum_l pi s_l(1) c_lm y_lm(n) over its bands 0-2 plus
 /// pi times the uniform part.

@@ -116,6 +116,10 @@ TEST(ImperfectVolumes, AmbientOcclusionIsOneInsideABoxZeroInEmptySpaceAndAHalfOv
     const iv::Volume v = iv::voxelise(g, pts);
     const iv::Incident in = iv::gather(v, true, o, none);
     EXPECT_NEAR(in.occlusion[g.index(12, 12, 12)], 0.5, 0.03);
+    // Read at the half-space's surface as light is read: 0.5; outside the grid: -1.
+    const cv::Vec3f top(0.0f, 0.0f, static_cast<float>(g.origin[2] + 12 * g.voxel) - 0.001f);
+    EXPECT_NEAR(iv::occlusion(v, in, top, {0, 0, 1}), 0.5f, 0.03f);
+    EXPECT_EQ(iv::occlusion(v, in, {10.0f, 0.0f, 0.0f}, {0, 0, 1}), -1.0f);
   }
 }
 
