@@ -127,22 +127,36 @@ cp ../shared/data/fisheye-ros-calib/ost.yaml "$seeds/fisheye_yaml_fuzz/" 2>/dev/
 export LSAN_OPTIONS="suppressions=$PWD/fuzz/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 [[ -x /usr/bin/llvm-symbolizer ]] && export ASAN_SYMBOLIZER_PATH=/usr/bin/llvm-symbolizer
-status=0
-for t in "${targets[@]}"; do
-  corpus=build-fuzz/corpus/$t
+# Two targets at a time (each fuzzer is one process on one core; CI has two): the same time per target.
+fuzz_one() {
+  local t=$1
+  local corpus=build-fuzz/corpus/$t
   mkdir -p "$corpus" build-fuzz/crashes
   # Models: inputs up to 4 KB (small PLY/OBJ/glTF seeds): each run costs about 10 ms whatever its size, and
   # larger inputs only slow assimp's parsers down.
-  max_len=1048576
+  local max_len=1048576
   [[ $t == model_fuzz ]] && max_len=4096
-  args=(-timeout=10 -rss_limit_mb=4096 -max_len=$max_len -artifact_prefix=build-fuzz/crashes/$t- -print_final_stats=1)
+  local args=(-timeout=10 -rss_limit_mb=4096 -max_len=$max_len -artifact_prefix=build-fuzz/crashes/$t- -print_final_stats=1)
   if [[ $runs -gt 0 ]]; then args+=(-runs="$runs"); else args+=(-max_total_time="$seconds"); fi
   if ! build-fuzz/fuzz/$t "${args[@]}" "$corpus" "$seeds/$t" > build-fuzz/$t.log 2>&1; then
-    echo "$t: FAILED (see build-fuzz/$t.log)"
-    grep -m3 -E "ERROR|SUMMARY|==[0-9]+==" build-fuzz/$t.log || true
-    status=1
-  else
-    echo "$t: $(grep -m1 -E '^stat::number_of_executed_units' build-fuzz/$t.log | awk '{print $2}') executions, no crash"
+    { echo "$t: FAILED (see build-fuzz/$t.log)"; grep -m3 -E "ERROR|SUMMARY|==[0-9]+==" build-fuzz/$t.log || true; } > build-fuzz/$t.result
+    return 1
   fi
+  echo "$t: $(grep -m1 -E '^stat::number_of_executed_units' build-fuzz/$t.log | awk '{print $2}') executions, no crash" > build-fuzz/$t.result
+}
+status=0
+running=0
+for t in "${targets[@]}"; do
+  if [[ $running -ge 2 ]]; then
+    wait -n || status=1
+    running=$((running - 1))
+  fi
+  fuzz_one "$t" &
+  running=$((running + 1))
 done
+while [[ $running -gt 0 ]]; do
+  wait -n || status=1
+  running=$((running - 1))
+done
+for t in "${targets[@]}"; do cat build-fuzz/$t.result; done
 exit $status
