@@ -2,12 +2,13 @@
 /// Imperfect volumes (shared/papers/004; algorithms.md §7) as a technique module: the virtual objects'
 /// triangles and the real mesh (the fused room, or the frame's depth mesh) become points, N per triangle,
 /// voxelised into a grid over the region around the objects in two versions (rho: real + virtual, mu: real
-/// only), each voxel lit by the scene's lights through the frame's shadow maps; per voxel near a surface, rays
-/// march the grid and gather the incident radiance as SH — the ambient where nothing is hit within range,
-/// the surfaces' reflected light where something is, and further bounces. Outputs: on real pixels the
-/// change the objects make (the ambient they hide, their bounce), E^rho - E^mu; on the object, its ambient
-/// occlusion by real geometry and the bounce it receives (E^rho minus the unoccluded ambient the shading
-/// pass adds). Reference math: iv.h.
+/// only), each voxel lit by the scene's lights through the frame's shadow maps and by the unoccluded ambient;
+/// per voxel near a surface, rays march the grid and gather the incident radiance as SH — the ambient where
+/// nothing is hit within range, the surfaces' reflected light where something is, and further bounces.
+/// Outputs: on real pixels the change the objects make (the ambient they hide, their bounce), E^rho - E^mu;
+/// on the object, its ambient occlusion by real geometry and the bounce real surfaces send it (E^mu minus the
+/// unoccluded ambient the shading pass adds: the object's own voxels neither occlude nor light it).
+/// Reference math: iv.h.
 #include <optional>
 
 #include "gl/objects.h"

@@ -4,8 +4,8 @@
 ///
 /// Points on the scene's surfaces (N random points per triangle, uniform barycentric) mark the voxels of a
 /// grid around the virtual objects occupied, in two versions: rho (real + virtual) and mu (real only), as DLPV
-/// does. Each occupied voxel keeps the light its surface sends out: the mean reflected direct radiance of its
-/// points and their summed normal — a Lambertian surface element, seen from its front at the same radiance
+/// does. Each occupied voxel keeps the light its surface sends out: the mean reflected radiance of its points
+/// (the technique lights them with the direct light and the unoccluded ambient) and their summed normal — a Lambertian surface element, seen from its front at the same radiance
 /// from every direction. (Two SH bands, as the paper stores it, make the same surface 25 % too bright seen
 /// head-on and leak 7 % of its flux backwards.)
 ///
@@ -25,7 +25,7 @@
 /// (the clamped cosine). Occupied voxels are used only when no free one qualifies.
 ///
 /// The real-pixel delta is E^rho - E^mu (what the object adds: bounce, and the ambient it hides); the virtual
-/// object's is E^rho minus the unoccluded ambient the shading pass already adds.
+/// object's is E^mu minus the unoccluded ambient the shading pass already adds.
 #include <array>
 #include <cstdint>
 #include <utility>
