@@ -167,8 +167,13 @@ int runLive(const LiveOptions& o) {
   auto rebuild = [&] {
     std::optional<LightingSetup> s = base;
     if (s) s->scene = scene;
-    // Lights estimated from the last fisheye frame carry over (the next one may be many frames away).
-    if (s && frames && frames->setup()) s->lights = frames->setup()->lights;
+    // Lights and ambient estimated from the last fisheye frame carry over (the next one may be many frames
+    // away).
+    if (s && frames && frames->setup()) {
+      s->lights = frames->setup()->lights;
+      s->ambient = frames->setup()->ambient;
+      s->ambientSh = frames->setup()->ambientSh;
+    }
     frames = std::make_unique<FramePipeline>(std::move(s), width, height, fo);
   };
   rebuild();

@@ -113,6 +113,9 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
     // real surface sends them, bounce included. (A fisheye's hemisphere looks up from elsewhere and misses
     // the surfaces below the object; there the virtual-role technique's bounce stays.)
     pipeline_->setEnvironment(setup_->scene.lightSource == lighting::LightSource::Room);
+    // A setup that already carries a directional ambient (lights estimated before, e.g. a live window's
+    // pipeline rebuilt for new knobs) shades with it from the first frame.
+    pipeline_->setAmbientSh(setup_->ambientSh);
     needs_ = pipeline_->needs();
     if (needs_.realVals && needs_.realValOptions.fusion) surfels_.emplace(needs_.realValOptions.surfels);
   }

@@ -4,6 +4,7 @@
 
 #include "capture/error.h"
 #include "capture/session.h"
+#include "gl/context.h"
 #include "runtime/frame_pipeline.h"
 
 namespace mrgi::runtime {
@@ -71,6 +72,21 @@ TEST(PrepareLighting, ManifestLightsWithoutGroundTruthNameTheSceneAndTheSource) 
     EXPECT_NE(what.find("scene.json"), std::string::npos) << what;
     EXPECT_NE(what.find("session-dir has no ground-truth lights"), std::string::npos) << what;
   }
+}
+
+TEST(FramePipelineSetup, ADirectionalAmbientTheSetupCarriesShadesFromTheFirstFrame) {
+  // A live window rebuilds its pipeline when a knob changes, from a setup whose lights and ambient were
+  // estimated before (a fisheye frame may be many frames away): the SH part comes along, as the uniform part.
+  gl::ContextConfig cfg;
+  cfg.width = 64;
+  cfg.height = 48;
+  auto context = gl::createContext(cfg);
+  LightingSetup setup;
+  setup.ambient = {0.1, 0.1, 0.1};
+  setup.ambientSh[2] = {0.3, 0.2, 0.1};
+  FramePipeline fp(setup, 64, 48, FrameOptions{});
+  ASSERT_NE(fp.lighting(), nullptr);
+  EXPECT_EQ(fp.lighting()->frame().ambientSh()[2], cv::Vec3d(0.3, 0.2, 0.1));
 }
 
 }  // namespace
