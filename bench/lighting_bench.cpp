@@ -15,25 +15,12 @@
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
 #include "lighting/techniques/registry.h"
+#include "tests/lighting/test_scene.h"  // the test scenes' quads
 
 using namespace mrgi;
 using namespace mrgi::lighting;
 
 namespace {
-
-void addQuad(std::vector<MeshVertex>& v, std::vector<uint32_t>& idx, cv::Vec3f p0, cv::Vec3f e1, cv::Vec3f e2, cv::Vec3f albedo,
-             int n) {
-  const cv::Vec3f normal = cv::normalize(e1.cross(e2));
-  const auto base = static_cast<uint32_t>(v.size());
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) v.push_back({p0 + e1 * (float(i) / n) + e2 * (float(j) / n), normal, albedo});
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const uint32_t a = base + static_cast<uint32_t>(j * (n + 1) + i), b = a + 1, c = a + static_cast<uint32_t>(n) + 2,
-                     d = a + static_cast<uint32_t>(n) + 1;
-      idx.insert(idx.end(), {a, b, c, a, c, d});
-    }
-}
 
 /// args: resolution, rays, bounces, points per triangle.
 void BM_ImperfectVolumes(benchmark::State& state) {
@@ -59,8 +46,8 @@ void BM_ImperfectVolumes(benchmark::State& state) {
   LightingPipeline pipe(cfg, {sphere});
   std::vector<MeshVertex> v;
   std::vector<uint32_t> idx;
-  addQuad(v, idx, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0.5f, 0.5f, 0.5f}, 200);  // 1 cm triangles, like a depth mesh
-  addQuad(v, idx, {-0.4f, -1, 0}, {0, 2, 0}, {0, 0, 1.5f}, {0.8f, 0.1f, 0.1f}, 150);
+  test::addQuad(v, idx, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0.5f, 0.5f, 0.5f}, 200);  // 1 cm triangles, like a depth mesh
+  test::addQuad(v, idx, {-0.4f, -1, 0}, {0, 2, 0}, {0, 0, 1.5f}, {0.8f, 0.1f, 0.1f}, 150);
   pipe.setRealMesh(v, idx);
   CameraView cam;
   cam.intrinsics = {320, 240, 300, 300, 159.5, 119.5};

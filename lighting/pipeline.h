@@ -52,8 +52,8 @@ class LightingPipeline {
   LightingPipeline(const PipelineConfig& config, const std::vector<VirtualObject>& objects);
 
   /// The real mesh in the lighting world (empty = no real geometry). Every call counts as a change.
-  void setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
-    frame_->setRealMesh(vertices, indices);
+  void setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
+    frame_->setRealMesh(std::move(vertices), std::move(indices));
   }
   /// The real surface as the camera sees it now, for the G-buffer only (FrameResources::setViewMesh).
   void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {

@@ -404,11 +404,11 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
   roomAlbedoStatus_ = albedo.status;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
   for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
-  pipeline_->setRealMesh(vertices, room.indices);
+  pipeline_->setRealMesh(std::move(vertices), room.indices);
   roomLights_ = setup_->lights;
   size_t measured = 0;
   for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
-  info["room"] = {{"vertices", vertices.size()}, {"albedo_measured", measured}, {"triangles_near_lights", cleared},
+  info["room"] = {{"vertices", room.positions.size()}, {"albedo_measured", measured}, {"triangles_near_lights", cleared},
                   {"albedo_rays", {{"cast", rays.raysCast}, {"rechecked", rays.raysRechecked}, {"reused", rays.raysReused},
                                    {"changed_vertices", rays.changedVertices}}}};
   if (roomLightEstimate_)
@@ -480,8 +480,8 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     for (const char* stage : {"albedo", "mesh"}) r.info["skipped"].push_back(stage);
     if (val) r.info["skipped"].push_back("real_vals");
   } else {
-    const RealSurface real = realSurface(frame, r, profiler);
-    pipeline_->setRealMesh(real.vertices, real.indices);
+    RealSurface real = realSurface(frame, r, profiler);
+    pipeline_->setRealMesh(std::move(real.vertices), std::move(real.indices));
     if (options_.reuse) surfaceCache_ = SurfaceCache{*r.T_marker_camera, thumbnail_.clone(), r.positions, r.normals};
   }
   if (val && options_.room) {

@@ -218,10 +218,10 @@ Rsm FrameResources::makeRsm(int size) const {
   return r;
 }
 
-void FrameResources::setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
+void FrameResources::setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
   realMesh_ = GpuMesh(vertices, indices);
-  realVertices_ = vertices;
-  realIndices_ = indices;
+  realVertices_ = std::move(vertices);
+  realIndices_ = std::move(indices);
   geometryDirty_ = true;
 }
 

@@ -154,7 +154,8 @@ class FrameResources {
   int rsmSize() const { return config_.knobs.rsmSize; }
 
   // ---- inputs (set by the pipeline before a run)
-  void setRealMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
+  /// The real mesh (lighting world); kept on the CPU too (realVertices()): pass temporaries to move them.
+  void setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
   /// The real surface as the camera sees it now (the frame's depth), drawn into the G-buffer instead of
   /// the real mesh, which still casts the shadows and fills the RSMs (a fused room model). Sharper where
   /// real surfaces occlude virtual ones. Empty: the real mesh everywhere. A change counts as a camera change.

@@ -40,6 +40,29 @@ struct TechniqueOutputs {
   const gl::Texture* virtualRadiance = nullptr;
 };
 
+/// The two irradiance outputs a read-out pass writes (RGBA32F, the output size, nearest filtering), as one
+/// framebuffer: colour attachment 0 the real-pixel delta, 1 the object's indirect irradiance.
+struct IrradianceTargets {
+  gl::Texture realDelta, virtualIrradiance;
+  gl::Framebuffer fb;
+  IrradianceTargets(int width, int height)
+      : realDelta(GL_TEXTURE_2D, GL_RGBA32F, width, height), virtualIrradiance(GL_TEXTURE_2D, GL_RGBA32F, width, height) {
+    realDelta.setFilter(GL_NEAREST, GL_NEAREST);
+    virtualIrradiance.setFilter(GL_NEAREST, GL_NEAREST);
+    fb.attachColour(0, realDelta);
+    fb.attachColour(1, virtualIrradiance);
+    fb.finalise(2);
+  }
+  /// The outputs of a technique serving these roles.
+  TechniqueOutputs outputs(bool real, bool virtualObject) const {
+    TechniqueOutputs o;
+    if (real) o.realDelta = &realDelta;
+    if (virtualObject) o.virtualIrradiance = &virtualIrradiance;
+    return o;
+  }
+  size_t bytes() const { return realDelta.bytes() + virtualIrradiance.bytes(); }
+};
+
 /// What a debug view may draw on.
 struct DebugContext {
   cv::Mat composite;  ///< RGB8, the frame's composite

@@ -53,16 +53,8 @@ DlpvTechnique::DlpvTechnique(const TechniqueSetup& setup)
                                            "lighting/techniques/dlpv/lpv_inject.frag")),
       propagateProgram_(gl::Program::compute("lighting/techniques/dlpv/lpv_propagate.comp")),
       addProgram_(gl::Program::compute("lighting/techniques/dlpv/lpv_add.comp")),
-      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/dlpv/dlpv_readout.frag")) {
-  const int w = setup.frame->width(), h = setup.frame->height();
-  realDelta_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
-  virtualIrradiance_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
-  realDelta_.setFilter(GL_NEAREST, GL_NEAREST);
-  virtualIrradiance_.setFilter(GL_NEAREST, GL_NEAREST);
-  outFb_.attachColour(0, realDelta_);
-  outFb_.attachColour(1, virtualIrradiance_);
-  outFb_.finalise(2);
-}
+      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/dlpv/dlpv_readout.frag")),
+      out_(setup.frame->width(), setup.frame->height()) {}
 
 DlpvTechnique::Volume DlpvTechnique::makeVolume(int res) const {
   Volume v{gl::Texture(GL_TEXTURE_3D, GL_RGBA32F, res, res, res), gl::Texture(GL_TEXTURE_3D, GL_RGBA32F, res, res, res),
@@ -229,7 +221,7 @@ void DlpvTechnique::endLights(const FrameResources&, gl::Profiler* profiler) {
 void DlpvTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   if (!grid_) return;  // no light stage ran yet
   auto s = timed(profiler, "lpv.readout");
-  outFb_.bind();
+  out_.fb.bind();
   glViewport(0, 0, frame.width(), frame.height());
   glDisable(GL_DEPTH_TEST);
   const gl::Program& p = readoutProgram_;
@@ -253,12 +245,7 @@ void DlpvTechnique::update(const FrameResources& frame, gl::Profiler* profiler) 
   gl::checkGlError("DlpvTechnique::update()");
 }
 
-TechniqueOutputs DlpvTechnique::outputs() const {
-  TechniqueOutputs o;
-  if (real_) o.realDelta = &realDelta_;
-  if (virtual_) o.virtualIrradiance = &virtualIrradiance_;
-  return o;
-}
+TechniqueOutputs DlpvTechnique::outputs() const { return out_.outputs(real_, virtual_); }
 
 const DlpvTechnique::Volume* DlpvTechnique::volume(const std::string& name) const {
   if (name == "delta") return &delta_;
@@ -326,7 +313,7 @@ cv::Mat DlpvTechnique::debugImage(const std::string& view, const DebugContext&, 
 }
 
 size_t DlpvTechnique::gpuBytes() const {
-  size_t sum = realDelta_.bytes() + virtualIrradiance_.bytes();
+  size_t sum = out_.bytes();
   for (const Volume* v : {&delta_, &rho_, &rhoFull_, &muFull_, &scratchA_, &scratchB_, &deltaDirect_, &rhoDirect_, &muDirect_})
     sum += v->r.bytes() + v->g.bytes() + v->b.bytes();
   return sum;

@@ -65,8 +65,7 @@ class DlpvTechnique final : public Technique {
   int volumeRes_ = 0;
   Volume delta_, rho_, rhoFull_, muFull_, scratchA_, scratchB_;
   Volume deltaDirect_, rhoDirect_, muDirect_;  ///< direct lobes, joined directSteps before the end
-  gl::Texture realDelta_, virtualIrradiance_;
-  gl::Framebuffer outFb_;
+  IrradianceTargets out_;
   gl::VertexArray emptyVao_;
 };
 

@@ -126,10 +126,10 @@ IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int pe
   for (const P& p : pts) ++out.offsets[p.voxel + 1];
   for (size_t v = 0; v < grid.count(); ++v) out.offsets[v + 1] += out.offsets[v];
   std::vector<uint32_t> at(out.offsets.begin(), out.offsets.end() - 1);
-  out.position.resize(pts.size()), out.normal.resize(pts.size()), out.albedo.resize(pts.size());
+  out.data.resize(3 * pts.size());
   for (const P& p : pts) {
-    const uint32_t k = at[p.voxel]++;
-    out.position[k] = p.position, out.normal[k] = p.normal, out.albedo[k] = p.albedo;
+    const size_t k = 3 * size_t(at[p.voxel]++);
+    out.data[k] = p.position, out.data[k + 1] = p.normal, out.data[k + 2] = p.albedo;
   }
   return out;
 }
@@ -144,16 +144,8 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
       reflectProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_reflect.comp",
                                            {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/imperfect_volumes/iv_readout.frag",
-                                            {{"SH_BANDS", std::to_string(knobs_.bands)}})) {
-  const int w = setup.frame->width(), h = setup.frame->height();
-  realDelta_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
-  virtualIrradiance_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
-  realDelta_.setFilter(GL_NEAREST, GL_NEAREST);
-  virtualIrradiance_.setFilter(GL_NEAREST, GL_NEAREST);
-  outFb_.attachColour(0, realDelta_);
-  outFb_.attachColour(1, virtualIrradiance_);
-  outFb_.finalise(2);
-}
+                                            {{"SH_BANDS", std::to_string(knobs_.bands)}})),
+      out_(setup.frame->width(), setup.frame->height()) {}
 
 namespace {
 
@@ -167,6 +159,12 @@ gl::Buffer bufferOf(size_t bytes, const void* data = nullptr) {
 }
 
 void clearBuffer(const gl::Buffer& b) { glClearNamedBufferData(b.id(), GL_R32F, GL_RED, GL_FLOAT, nullptr); }
+
+/// The frame's ambient (uniform radiance and its SH part) as the passes' uAmbient and uAmbientSh.
+void setAmbient(const gl::Program& p, const FrameResources& frame) {
+  setVec3(p, "uAmbient", frame.ambient());
+  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+}
 
 }  // namespace
 
@@ -185,28 +183,14 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
   {
     auto s = timed(profiler, "iv.points", false);
     pts = ivScenePoints(frame, g, knobs_.points);
-    pointCount_ = pts.position.size();
-    // Voxels near a surface (the 26-neighbourhood of every occupied voxel): where reconstruction reads.
-    const int R = g.resolution;
-    for (int k = 0; k < R; ++k)
-      for (int j = 0; j < R; ++j)
-        for (int i = 0; i < R; ++i) {
-          const size_t v = g.index(i, j, k);
-          if (pts.offsets[v + 1] == pts.offsets[v]) continue;
-          for (int dk = -1; dk <= 1; ++dk)
-            for (int dj = -1; dj <= 1; ++dj)
-              for (int di = -1; di <= 1; ++di) {
-                const int a = i + di, b = j + dj, c = k + dk;
-                if (a >= 0 && b >= 0 && c >= 0 && a < R && b < R && c < R) computed[g.index(a, b, c)] = 1;
-              }
-        }
+    pointCount_ = pts.count();
+    std::vector<uint8_t> occupied(count);
+    for (size_t v = 0; v < count; ++v) occupied[v] = pts.offsets[v + 1] > pts.offsets[v];
+    const std::vector<uint8_t> near = iv::neededVoxels(g, occupied);
     for (size_t v = 0; v < count; ++v)
-      if (computed[v]) needed.push_back(static_cast<uint32_t>(v));
+      if (near[v]) computed[v] = 1, needed.push_back(static_cast<uint32_t>(v));
     neededCount_ = needed.size();
-    std::vector<cv::Vec4f> interleaved;
-    interleaved.reserve(3 * pts.position.size());
-    for (size_t k = 0; k < pts.position.size(); ++k) interleaved.insert(interleaved.end(), {pts.position[k], pts.normal[k], pts.albedo[k]});
-    points_ = bufferOf(interleaved.size() * sizeof(cv::Vec4f), interleaved.data());
+    points_ = bufferOf(pts.data.size() * sizeof(cv::Vec4f), pts.data.data());
     offsets_ = bufferOf(pts.offsets.size() * sizeof(uint32_t), pts.offsets.data());
     needed_ = bufferOf(needed.size() * sizeof(uint32_t), needed.data());
     computed_ = bufferOf(computed.size() * sizeof(uint32_t), computed.data());
@@ -230,8 +214,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     setLightUniforms(p, frame.lights(), frame.lightViews());
     const bool mu = frame.shadowMu().id() != 0;
     p.set("uLightMu", mu ? 1 : 0);
-    setVec3(p, "uAmbient", ambient_);
-    for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
+    setAmbient(p, frame);
     p.set("uVoxelCount", static_cast<int>(count));
     setVec3(p, "uGridOrigin", g.origin);
     p.set("uVoxel", static_cast<float>(g.voxel));
@@ -246,15 +229,15 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
   }
   {
     auto s = timed(profiler, "iv.gather");
-    if (real_) gather(true);
-    gather(false);
+    if (real_) gather(frame, true);
+    gather(frame, false);
   }
   gl::checkGlError("ImperfectVolumesTechnique::build()");
   stats_ = {{"points", pointCount_},          {"voxels_gathered", neededCount_}, {"voxel_m", g.voxel},
             {"real_triangles", pts.realTriangles}, {"virtual_triangles", pts.virtualTriangles}};
 }
 
-void ImperfectVolumesTechnique::gather(bool rho) {
+void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
   const iv::Grid& g = *grid_;
   const gl::Buffer& incident = rho ? incidentRho_ : incidentMu_;
   const gl::Buffer& occlusion = rho ? occlusionRho_ : occlusionMu_;
@@ -273,8 +256,7 @@ void ImperfectVolumesTechnique::gather(bool rho) {
   common(p);
   p.set("uRays", knobs_.rays);
   p.set("uRange", static_cast<float>(knobs_.range));
-  setVec3(p, "uAmbient", ambient_);
-  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
+  setAmbient(p, frame);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
@@ -312,13 +294,11 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   const FrameVersions& v = frame.versions();
   const std::array<uint64_t, 3> from{v.geometry, v.lights, v.ambient};
   if (!builtFrom_ || *builtFrom_ != from) {
-    ambient_ = frame.ambient();
-    ambientSh_ = frame.ambientSh();
     build(frame, profiler);
     builtFrom_ = from;
   }
   auto s = timed(profiler, "iv.readout");
-  outFb_.bind();
+  out_.fb.bind();
   glViewport(0, 0, frame.width(), frame.height());
   glDisable(GL_DEPTH_TEST);
   const gl::Program& p = readoutProgram_;
@@ -329,8 +309,7 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   p.set("uResolution", g.resolution);
   p.set("uReal", real_ ? 1 : 0);
   p.set("uVirtual", virtual_ ? 1 : 0);
-  setVec3(p, "uAmbient", ambient_);
-  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
+  setAmbient(p, frame);
   frame.gPosition().bind(0);
   frame.gNormal().bind(1);
   frame.gAlbedo().bind(2);
@@ -343,12 +322,7 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   gl::checkGlError("ImperfectVolumesTechnique::update()");
 }
 
-TechniqueOutputs ImperfectVolumesTechnique::outputs() const {
-  TechniqueOutputs o;
-  if (real_) o.realDelta = &realDelta_;
-  if (virtual_) o.virtualIrradiance = &virtualIrradiance_;
-  return o;
-}
+TechniqueOutputs ImperfectVolumesTechnique::outputs() const { return out_.outputs(real_, virtual_); }
 
 iv::Volume ImperfectVolumesTechnique::downloadVolume() const {
   if (!grid_) return iv::Volume(iv::Grid{cv::Vec3d(0, 0, 0), 1.0, 0});
@@ -439,7 +413,7 @@ cv::Mat ImperfectVolumesTechnique::debugImage(const std::string& view, const Deb
 nlohmann::json ImperfectVolumesTechnique::stats() const { return stats_; }
 
 size_t ImperfectVolumesTechnique::gpuBytes() const {
-  size_t sum = realDelta_.bytes() + virtualIrradiance_.bytes();
+  size_t sum = out_.bytes();
   for (const gl::Buffer* b : {&points_, &offsets_, &voxels_, &needed_, &directions_, &incidentRho_, &incidentMu_, &occlusionRho_,
                               &occlusionMu_, &reflected_, &bounce_, &computed_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);

@@ -33,9 +33,10 @@ const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable
 /// hole), on triangles that reach into the grid, with their interpolated normal and albedo; the points of
 /// each voxel contiguous (offsets: voxels + 1 entries). Shared by the technique and its tests.
 struct IvPoints {
-  std::vector<cv::Vec4f> position;  ///< w = 1 virtual
-  std::vector<cv::Vec4f> normal, albedo;
+  /// Per point, as the GPU reads it: position (w = 1 virtual), normal, albedo.
+  std::vector<cv::Vec4f> data;
   std::vector<uint32_t> offsets;
+  size_t count() const { return data.size() / 3; }
   size_t realTriangles = 0, virtualTriangles = 0;
 };
 IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle);
@@ -63,7 +64,7 @@ class ImperfectVolumesTechnique final : public Technique {
 
  private:
   void build(const FrameResources& frame, gl::Profiler* profiler);
-  void gather(bool rho);
+  void gather(const FrameResources& frame, bool rho);
 
   ImperfectVolumesKnobs knobs_;
   bool real_ = false, virtual_ = false;
@@ -74,10 +75,7 @@ class ImperfectVolumesTechnique final : public Technique {
   gl::Buffer points_, offsets_, voxels_, needed_, directions_, incidentRho_, incidentMu_, occlusionRho_, occlusionMu_,
       reflected_, bounce_, computed_;
   size_t neededCount_ = 0, pointCount_ = 0;
-  cv::Vec3d ambient_{0, 0, 0};
-  std::array<cv::Vec3d, 9> ambientSh_{};
-  gl::Texture realDelta_, virtualIrradiance_;
-  gl::Framebuffer outFb_;
+  IrradianceTargets out_;
   gl::VertexArray emptyVao_;
   nlohmann::json stats_ = nlohmann::json::object();
   const FrameResources* frame_ = nullptr;  ///< of the last update (its G-buffer, for the AO view)

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "lighting/sh.h"
+#include "reconstruction/light_estimation.h"
 
 namespace mrgi::lighting::iv {
 
@@ -111,25 +112,19 @@ cv::Vec3f Ambient::radiance(const cv::Vec3f& w) const {
 }
 
 cv::Vec3f unoccludedAmbient(const Ambient& ambient, const cv::Vec3f& n) {
-  // As the shading pass: pi * uniform + max(0, sum_l A_l c_lm y_lm(n)), A = (pi, 2 pi / 3, pi / 4).
-  double y[9];
-  sh::evaluate(cv::Vec3d(n), 3, y);
-  constexpr double A[3] = {CV_PI, 2.0 * CV_PI / 3.0, CV_PI / 4.0};
-  cv::Vec3f e(0, 0, 0);
-  for (int l = 0; l < 3; ++l)
-    for (int m = -l; m <= l; ++m) e += static_cast<float>(A[l] * y[sh::index(l, m)]) * ambient.sh[static_cast<size_t>(sh::index(l, m))];
-  for (int k = 0; k < 3; ++k) e[k] = std::max(e[k], 0.0f);
-  return static_cast<float>(CV_PI) * ambient.uniform + e;
+  // As the shading pass: pi * uniform + the SH part's clamped-cosine irradiance.
+  std::array<cv::Vec3d, 9> sh;
+  for (size_t k = 0; k < sh.size(); ++k) sh[k] = cv::Vec3d(ambient.sh[k]);
+  return static_cast<float>(CV_PI) * ambient.uniform + cv::Vec3f(reconstruction::ambientShIrradiance(sh, cv::Vec3d(n)));
 }
 
-std::vector<uint8_t> neededVoxels(const Volume& volume) {
-  const Grid& g = volume.grid;
+std::vector<uint8_t> neededVoxels(const Grid& g, const std::vector<uint8_t>& occupied) {
   const int R = g.resolution;
   std::vector<uint8_t> need(g.count(), 0);
   for (int k = 0; k < R; ++k)
     for (int j = 0; j < R; ++j)
       for (int i = 0; i < R; ++i) {
-        if (volume.occupancy[g.index(i, j, k)] == kEmpty) continue;
+        if (!occupied[g.index(i, j, k)]) continue;
         for (int dk = -1; dk <= 1; ++dk)
           for (int dj = -1; dj <= 1; ++dj)
             for (int di = -1; di <= 1; ++di) {
@@ -234,7 +229,7 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
   Incident out;
   out.bands = o.bands;
   const int C = o.bands * o.bands;
-  out.computed = o.everyVoxel ? std::vector<uint8_t>(g.count(), 1) : neededVoxels(volume);
+  out.computed = o.everyVoxel ? std::vector<uint8_t>(g.count(), 1) : neededVoxels(g, volume.occupancy);
   out.sh.assign(g.count() * static_cast<size_t>(3 * C), 0.0f);
   out.occlusion.assign(g.count(), 0.0f);
   const std::vector<cv::Vec3f> dirs = rayDirections(o.rays);

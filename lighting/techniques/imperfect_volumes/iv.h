@@ -106,9 +106,9 @@ struct Incident {
   const float* at(size_t v) const { return sh.data() + v * 3 * size_t(bands) * bands; }
 };
 
-/// Voxels whose rays are needed: those within one voxel (26-neighbourhood) of an occupied voxel of either
-/// version (where reconstruction reads).
-std::vector<uint8_t> neededVoxels(const Volume& volume);
+/// Voxels whose rays are needed: those within one voxel (26-neighbourhood) of an occupied one (non-zero in
+/// `occupied`, one entry per voxel; a Volume's occupancy: either version), where reconstruction reads.
+std::vector<uint8_t> neededVoxels(const Grid& grid, const std::vector<uint8_t>& occupied);
 
 /// Casts the rays of every needed voxel for the rho (all occupied voxels) or mu (real only) scene.
 Incident gather(const Volume& volume, bool rho, const Options& options, const Ambient& ambient);

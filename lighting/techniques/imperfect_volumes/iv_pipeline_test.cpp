@@ -171,7 +171,9 @@ TEST(GL, ImperfectVolumesTheObjectHidesAmbientFromTheFloorAndTakesTheWallsRed) {
   ASSERT_GT(nearN, 20);
   // Next to the cube the floor misses a good part of the sky: pi * 0.2 = 0.63 W/m^2 unoccluded.
   EXPECT_LT(nearSum / nearN, -0.05);
-  if (farN > 0) EXPECT_GT(farSum / farN, -0.02);  // far from it, little change
+  if (farN > 0) {
+    EXPECT_GT(farSum / farN, -0.02);  // far from it, little change
+  }
   // With the lamp, the wall's red bounce reaches the cube's side facing it (-x; out of the camera's view:
   // read from the volume): red well above green.
   pipe.run(camera(), lamp(), {0.0, 0.0, 0.0}, nullptr);
