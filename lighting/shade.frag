@@ -28,18 +28,7 @@ uniform int uAddDirectShadow;   // 1: the real-role technique leaves the object'
 uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
 uniform vec3 uAmbientSh[9];     // radiance as SH bands 0-2, lighting world (reconstruction::shBasis2's basis); 0 = none
-/// Irradiance of the SH ambient at unit normal n (reconstruction::ambientShIrradiance is its C++ twin):
-/// sum_lm A_l c_lm y_lm(n), A = (pi, 2 pi / 3, pi / 4), clamped at 0.
-vec3 shAmbientIrradiance(vec3 n) {
-  const float b[9] = float[9](0.282094791773878, 0.488602511902920 * n.y, 0.488602511902920 * n.z, 0.488602511902920 * n.x,
-                              1.092548430592079 * n.x * n.y, 1.092548430592079 * n.y * n.z,
-                              0.315391565252520 * (3.0 * n.z * n.z - 1.0), 1.092548430592079 * n.x * n.z,
-                              0.546274215296040 * (n.x * n.x - n.y * n.y));
-  vec3 e = SHADE_PI * b[0] * uAmbientSh[0];
-  for (int k = 1; k < 4; ++k) e += (2.0 * SHADE_PI / 3.0) * b[k] * uAmbientSh[k];
-  for (int k = 4; k < 9; ++k) e += (SHADE_PI / 4.0) * b[k] * uAmbientSh[k];
-  return max(e, vec3(0.0));
-}
+#include "lighting/ambient_sh.glsl"
 
 layout(location = 0) out vec4 outShade;
 layout(location = 1) out vec4 outIrradiance;
@@ -58,7 +47,7 @@ void main() {
     return;
   }
   if (isVirtual) {
-    vec3 e = directIrradiance(uShadow, pos.xyz, n) + SHADE_PI * uAmbient + shAmbientIrradiance(n);
+    vec3 e = directIrradiance(uShadow, pos.xyz, n) + SHADE_PI * uAmbient + ambientShIrradiance(uAmbientSh, n);
     vec3 indirect = uEnvironmentHoldsBounce == 1 ? vec3(0.0) : texelFetch(uVirtualIrradiance, p, 0).rgb;
     vec3 radiance = uEnvironmentHoldsBounce == 1 ? vec3(0.0) : texelFetch(uVirtualRadiance, p, 0).rgb;
     outShade = vec4((e + indirect) * albedo.rgb / SHADE_PI + radiance, 1.0);

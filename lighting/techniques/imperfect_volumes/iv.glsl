@@ -1,6 +1,7 @@
 // Imperfect volumes: the GLSL twin of iv.h (grid, voxel records, march, reconstruction). Define SH_BANDS
 // (1..8) before including.
 #include "lighting/sh.glsl"
+#include "lighting/ambient_sh.glsl"
 
 // One voxel's record (std430; iv.h Volume): rgb = mean exitant radiance of its points, w = their count
 // (rho: all points, mu: the real ones); normals: xyz = the sum of their unit normals; albedo: rgb mean.
@@ -40,15 +41,6 @@ float ivShIrradiance(float c[SH_COEFFS], vec3 n) {
   return e;
 }
 
-// The ambient's irradiance with nothing occluding it, as the shading pass adds it: pi * uniform +
-// max(0, sum_lm A_l c_lm y_lm(n)), A = (pi, 2 pi / 3, pi / 4) (iv.h unoccludedAmbient).
-vec3 ivUnoccludedAmbient(vec3 ambient, vec3 sh[9], vec3 n) {
-  const float b[9] = float[9](0.282094791773878, 0.488602511902920 * n.y, 0.488602511902920 * n.z, 0.488602511902920 * n.x,
-                              1.092548430592079 * n.x * n.y, 1.092548430592079 * n.y * n.z,
-                              0.315391565252520 * (3.0 * n.z * n.z - 1.0), 1.092548430592079 * n.x * n.z,
-                              0.546274215296040 * (n.x * n.x - n.y * n.y));
-  vec3 e = SH_PI * b[0] * sh[0];
-  for (int k = 1; k < 4; ++k) e += (2.0 * SH_PI / 3.0) * b[k] * sh[k];
-  for (int k = 4; k < 9; ++k) e += (SH_PI / 4.0) * b[k] * sh[k];
-  return SH_PI * ambient + max(e, vec3(0.0));
-}
+// The ambient's irradiance with nothing occluding it, as the shading pass adds it: pi * uniform + the SH
+// part's clamped-cosine irradiance (iv.h unoccludedAmbient).
+vec3 ivUnoccludedAmbient(vec3 ambient, vec3 sh[9], vec3 n) { return SH_PI * ambient + ambientShIrradiance(sh, n); }

@@ -34,10 +34,8 @@ uniform vec3 uAmbientSh[9];      // SH bands 0-2 of the ambient radiance
 bool occupiedAt(int v) { return (uRho == 1 ? voxels[v].exitantRho.w : voxels[v].exitantMu.w) > 0.0; }
 
 vec3 ambientRadiance(vec3 w) {
-  float b[9] = float[9](0.282094791773878, 0.488602511902920 * w.y, 0.488602511902920 * w.z, 0.488602511902920 * w.x,
-                        1.092548430592079 * w.x * w.y, 1.092548430592079 * w.y * w.z,
-                        0.315391565252520 * (3.0 * w.z * w.z - 1.0), 1.092548430592079 * w.x * w.z,
-                        0.546274215296040 * (w.x * w.x - w.y * w.y));
+  float b[9];
+  ambientShBasis(w, b);
   vec3 L = uAmbient;
   for (int k = 0; k < 9; ++k) L += b[k] * uAmbientSh[k];
   return L;
