@@ -1,9 +1,19 @@
-// Direct light of the scene's lights at a surface point, with the shadow test against a light's shadow map
-// (RSM world positions per light: layer i). Shared by the shading pass and techniques that light their own
-// points (imperfect volumes); the C++ side sets the uniforms with lighting::setLightUniforms.
+// Direct light of the scene's lights at a surface point, with shadow tests against the frame's shadow maps
+// (world positions per light: layer i). Shared by the shading pass and techniques that light their own
+// points (imperfect volumes); the C++ side binds the maps with FrameResources::bindShadowMaps and sets the
+// uniforms with lighting::setLightUniforms; lighting::shadowVisibility is the C++ twin of the tests.
+//   without the objects (mu): V = test(RSM^mu), the region's real surfaces
+//   with the objects (rho):   V = test(RSM^mu) * test(objects' map), the objects' map holding the virtual
+//                             objects alone in a view fitted to their bounding sphere (many times finer than
+//                             the region's RSM: the object's shadow edges are what the delta is made of);
+//                             test(RSM^rho) where a light sits too close to the objects for that view
 #ifndef MAX_LIGHTS
 #define MAX_LIGHTS 16
 #endif
+
+layout(binding = 12) uniform sampler2DArray uShadowRho;      // per light: RSM^rho world positions (w = 1 where seen)
+layout(binding = 13) uniform sampler2DArray uShadowMu;       // per light: RSM^mu world positions
+layout(binding = 14) uniform sampler2DArray uShadowObjects;  // per light: the objects' world positions
 
 uniform int uLightCount;
 uniform int uLightType[MAX_LIGHTS];
@@ -12,17 +22,20 @@ uniform vec3 uLightDirection[MAX_LIGHTS];
 uniform vec3 uLightPower[MAX_LIGHTS];
 uniform float uSpotCos[MAX_LIGHTS];
 uniform mat4 uLightViewProj[MAX_LIGHTS];
-uniform float uShadowBias[MAX_LIGHTS];  // metres, distance tolerance of the shadow test
+uniform float uShadowBias[MAX_LIGHTS];  // metres, distance tolerance of the shadow test; < -1e29: no map
+uniform mat4 uObjectViewProj[MAX_LIGHTS];
+uniform float uObjectShadowBias[MAX_LIGHTS];  // < -1e29: no objects' map for this light (RSM^rho instead)
 
 // Shadow-map test with a normal offset: the lookup point moves off the surface by the bias (about two map
 // texels) along its normal, so surfaces near the terminator (depth slope ~ tan θ per texel) do not shadow
 // themselves; the depth comparison keeps the same tolerance for the remaining slope.
-float visibility(sampler2DArray map, int i, vec3 x, vec3 n) {
-  x += n * max(uShadowBias[i], 0.0);
-  vec4 c = uLightViewProj[i] * vec4(x, 1.0);
+float shadowTest(sampler2DArray map, int i, mat4 viewProj, float bias, vec3 x, vec3 n) {
+  if (bias < -1e29) return 1.0;
+  x += n * bias;
+  vec4 c = viewProj * vec4(x, 1.0);
   if (c.w <= 0.0) return 1.0;
   vec3 ndc = c.xyz / c.w;
-  if (any(greaterThan(abs(ndc.xy), vec2(1.0)))) return 1.0;  // outside the map: not occluded by the object
+  if (any(greaterThan(abs(ndc.xy), vec2(1.0)))) return 1.0;  // outside the map: not occluded by what it holds
   vec4 s = texture(map, vec3(ndc.xy * 0.5 + 0.5, float(i)));
   if (s.w < 0.5) return 1.0;
   float dSelf, dOcc;
@@ -33,10 +46,17 @@ float visibility(sampler2DArray map, int i, vec3 x, vec3 n) {
     dSelf = distance(x, uLightPosition[i]);
     dOcc = distance(s.xyz, uLightPosition[i]);
   }
-  return dOcc < dSelf - uShadowBias[i] ? 0.0 : 1.0;
+  return dOcc < dSelf - bias ? 0.0 : 1.0;
 }
 
-vec3 directIrradiance(sampler2DArray map, vec3 x, vec3 n) {
+float visibility(bool withObjects, int i, vec3 x, vec3 n) {
+  if (!withObjects) return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n);
+  if (uObjectShadowBias[i] < -1e29) return shadowTest(uShadowRho, i, uLightViewProj[i], uShadowBias[i], x, n);
+  return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) *
+         shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+}
+
+vec3 directIrradiance(bool withObjects, vec3 x, vec3 n) {
   vec3 e = vec3(0.0);
   for (int i = 0; i < uLightCount; ++i) {
     vec3 contribution;
@@ -49,7 +69,7 @@ vec3 directIrradiance(sampler2DArray map, vec3 x, vec3 n) {
       if (uLightType[i] == 1 && dot(-ln, uLightDirection[i]) < uSpotCos[i]) continue;
       contribution = uLightPower[i] * max(dot(n, ln), 0.0) / d2;
     }
-    if (any(greaterThan(contribution, vec3(0.0)))) e += contribution * visibility(map, i, x, n);
+    if (any(greaterThan(contribution, vec3(0.0)))) e += contribution * visibility(withObjects, i, x, n);
   }
   return e;
 }

@@ -159,7 +159,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       for (size_t li = 0; li < lights.size(); ++li) {
         {
           auto s = timed(profiler, "rsm");
-          frame_->renderLight(li, addDirectShadow);
+          frame_->renderLight(li);
         }
         for (auto& t : techniques_) t->light(*frame_, li, profiler);
       }
@@ -195,8 +195,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   orZero(realOut.realDelta).bind(3);
   orZero(virtualOut.virtualIrradiance).bind(4);
   orZero(virtualOut.virtualRadiance).bind(5);
-  frame_->shadowRho().bind(12);
-  (frame_->shadowMu().id() ? frame_->shadowMu() : frame_->shadowRho()).bind(13);
+  frame_->bindShadowMaps();
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
   shadeAt_ = now;

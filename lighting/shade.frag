@@ -3,7 +3,7 @@
 // it does the direct light, the shadows and the ambient, then adds what the techniques handed out.
 //   real pixel:    rgb = E_delta * albedo / pi, a = 0   (the compositor adds it to the background)
 //                  E_delta = the real-role technique's delta, plus (when that technique does not already
-//                  account for it) the direct light the object blocks, sum_i E_i (vis_i(RSM^rho) - vis_i(RSM^mu))
+//                  account for it) the direct light the object blocks, sum_i E_i (vis_i(rho) - vis_i(mu)) (lighting/direct_light.glsl)
 //   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
 //                  E_indirect, L_indirect from the virtual-role technique; none when the ambient is an
@@ -19,8 +19,6 @@ layout(binding = 2) uniform sampler2D uGAlbedo;
 layout(binding = 3) uniform sampler2D uRealDelta;         // rgb: E_delta of the real-role technique (W/m^2)
 layout(binding = 4) uniform sampler2D uVirtualIrradiance; // rgb: indirect irradiance on the object (W/m^2)
 layout(binding = 5) uniform sampler2D uVirtualRadiance;   // rgb: indirect radiance of the object (W/m^2/sr)
-layout(binding = 12) uniform sampler2DArray uShadow;    // per light: RSM^rho world positions (w = 1 where seen)
-layout(binding = 13) uniform sampler2DArray uShadowMu;  // per light: RSM^mu world positions
 #include "lighting/direct_light.glsl"
 
 uniform int uLighting;          // 0: no virtual object in this frame (everything zero)
@@ -47,14 +45,14 @@ void main() {
     return;
   }
   if (isVirtual) {
-    vec3 e = directIrradiance(uShadow, pos.xyz, n) + SHADE_PI * uAmbient + ambientShIrradiance(uAmbientSh, n);
+    vec3 e = directIrradiance(true, pos.xyz, n) + SHADE_PI * uAmbient + ambientShIrradiance(uAmbientSh, n);
     vec3 indirect = uEnvironmentHoldsBounce == 1 ? vec3(0.0) : texelFetch(uVirtualIrradiance, p, 0).rgb;
     vec3 radiance = uEnvironmentHoldsBounce == 1 ? vec3(0.0) : texelFetch(uVirtualRadiance, p, 0).rgb;
     outShade = vec4((e + indirect) * albedo.rgb / SHADE_PI + radiance, 1.0);
     outIrradiance = vec4(indirect, 1.0);
   } else {
     vec3 delta = texelFetch(uRealDelta, p, 0).rgb;
-    if (uAddDirectShadow == 1) delta += directIrradiance(uShadow, pos.xyz, n) - directIrradiance(uShadowMu, pos.xyz, n);
+    if (uAddDirectShadow == 1) delta += directIrradiance(true, pos.xyz, n) - directIrradiance(false, pos.xyz, n);
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }

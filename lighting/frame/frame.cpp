@@ -15,6 +15,10 @@ const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable() {
       {{"rsm_size", KnobType::Int, 16, 4096, 256,
         "RSM and shadow-map texels per side, per light (RSM^rho and RSM^mu)", {64, 128, 512}, {64}, true},
        &FrameKnobs::rsmSize},
+      {{"shadow_size", KnobType::Int, 16, 4096, 512,
+        "texels per side of the objects' shadow maps (the virtual objects alone, fitted to their bounding "
+        "sphere, per light)", {128, 1024}, {128}, true},
+       &FrameKnobs::shadowSize},
       {{"size_factor", KnobType::Real, 1.0, 64.0, 4.0,
         "side of the region around the virtual objects that light views and volumes cover, in units of the "
         "objects' largest bounding-box edge",
@@ -168,6 +172,29 @@ LightView fitLightView(const SceneLight& light, const Region& region, int size) 
   return v;
 }
 
+void fitObjectView(LightView& v, const SceneLight& light, const cv::Vec3d& centre, double radius, int size) {
+  radius = std::max(radius, 1e-4);
+  v.objectShadowBias = -1;
+  if (light.type == LightType::Directional) {
+    const cv::Vec3d eye = centre - light.direction * (2.0 * radius);
+    v.objectViewProj = orthographicProjection(radius, 0.0, 3.0 * radius) *
+                       capture::inversePose(capture::lookAtPose(eye, centre));
+    v.objectShadowBias = 2.0 * (2.0 * radius / size);
+    return;
+  }
+  const double dist = cv::norm(centre - light.position);
+  if (!(dist > 1.05 * radius)) return;  // the light is (almost) among the objects: no single view holds them
+  const double half = std::asin(radius / dist);
+  const double focal = 0.5 * size / std::tan(half);
+  capture::Intrinsics k;
+  k.width = k.height = size;
+  k.fx = k.fy = focal;
+  k.cx = k.cy = 0.5 * size - 0.5;
+  v.objectViewProj = projectionFromIntrinsics(k, std::max(1e-4, dist - radius), dist + radius) *
+                     capture::inversePose(capture::lookAtPose(light.position, centre));
+  v.objectShadowBias = 2.0 * (dist + radius) / focal;
+}
+
 cv::Mat download4(const gl::Texture& t) {
   cv::Mat m(t.height(), t.width(), CV_32FC4);
   t.download(GL_RGBA, GL_FLOAT, m.ptr(), static_cast<GLsizei>(m.total() * m.elemSize()), 4);
@@ -180,6 +207,9 @@ FrameResources::FrameResources(const FrameConfig& config, const std::vector<Virt
     : config_(config),
       gbufferProgram_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/gbuffer.frag")),
       rsmProgram_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/rsm.frag")),
+      shadowProgram_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/shadow.frag")),
+      objectPosition_(GL_TEXTURE_2D, GL_RGBA32F, config.knobs.shadowSize, config.knobs.shadowSize),
+      objectDepth_(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, config.knobs.shadowSize, config.knobs.shadowSize),
       gPosition_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
       gNormal_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
       gAlbedo_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
@@ -190,6 +220,10 @@ FrameResources::FrameResources(const FrameConfig& config, const std::vector<Virt
   gbufferFb_.attachColour(2, gAlbedo_);
   gbufferFb_.attachDepth(gDepth_);
   gbufferFb_.finalise(3);
+  objectPosition_.setFilter(GL_NEAREST, GL_NEAREST);
+  objectFb_.attachColour(0, objectPosition_);
+  objectFb_.attachDepth(objectDepth_);
+  objectFb_.finalise(1);
   rsmRho_ = makeRsm(config.knobs.rsmSize);
   rsmMu_ = makeRsm(config.knobs.rsmSize);
   objects_.reserve(objects.size());
@@ -258,8 +292,12 @@ void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& light
       const auto m = toGl(views[i].viewProj);
       p.setMat4("uLightViewProj" + k, m.data());
       p.set("uShadowBias" + k, static_cast<float>(views[i].shadowBias));
+      const auto o = toGl(views[i].objectViewProj);
+      p.setMat4("uObjectViewProj" + k, o.data());
+      p.set("uObjectShadowBias" + k, views[i].objectShadowBias >= 0 ? static_cast<float>(views[i].objectShadowBias) : -1e30f);
     } else {
       p.set("uShadowBias" + k, -1e30f);  // no map: nothing occludes
+      p.set("uObjectShadowBias" + k, -1e30f);
     }
   }
 }
@@ -335,7 +373,11 @@ void FrameResources::drawScene(const gl::Program& program, bool includeVirtual, 
     viewMesh_.draw();
   else
     realMesh_.draw();
-  if (!includeVirtual) return;
+  if (includeVirtual) drawObjects(program);
+}
+
+void FrameResources::drawObjects(const gl::Program& program) const {
+  program.use();
   program.set("uVirtual", 1.0f);
   for (size_t i = 0; i < objects_.size(); ++i) {
     program.set("uObject", static_cast<float>(i + 1));
@@ -381,32 +423,115 @@ void FrameResources::renderRsm(Rsm& rsm, const SceneLight& light, const LightVie
   drawScene(p, includeVirtual, view.viewProj);
 }
 
-void FrameResources::renderLight(size_t i, bool keepMu) {
+void FrameResources::renderLight(size_t i) {
   if (!region_) throw std::logic_error("FrameResources::renderLight(): no region (no virtual object placed)");
   if (views_.size() != i) throw std::logic_error("FrameResources::renderLight(): lights must be rendered in order");
   const SceneLight& light = lights_.at(i);
-  views_.push_back(fitLightView(light, *region_, rsmSize()));
+  LightView view = fitLightView(light, *region_, rsmSize());
+  const auto bounds = objectBounds();
+  if (bounds) fitObjectView(view, light, 0.5 * (bounds->first + bounds->second),
+                            0.5 * cv::norm(bounds->second - bounds->first), config_.knobs.shadowSize);
+  views_.push_back(view);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   renderRsm(rsmRho_, light, views_.back(), true);
   renderRsm(rsmMu_, light, views_.back(), false);
+  const int m = config_.knobs.shadowSize;
+  if (view.objectShadowBias >= 0) {
+    objectFb_.bind();
+    glViewport(0, 0, m, m);
+    const float zero[4] = {0, 0, 0, 0};
+    glClearNamedFramebufferfv(objectFb_.id(), GL_COLOR, 0, zero);
+    const float one = 1.0f;
+    glClearNamedFramebufferfv(objectFb_.id(), GL_DEPTH, 0, &one);
+    const auto vp = toGl(view.objectViewProj);
+    shadowProgram_.use();
+    shadowProgram_.setMat4("uViewProj", vp.data());
+    drawObjects(shadowProgram_);
+  }
   glDisable(GL_DEPTH_TEST);
   const int n = rsmSize();
-  // Shadow maps: one layer per light of this run (RSM-sized, so they are allocated for the lights there are).
+  // Shadow arrays: one layer per light of this run (allocated for the lights there are).
   const int layers = static_cast<int>(lights_.size());
-  auto ensureLayers = [&](gl::Texture& t) {
+  auto ensureLayers = [&](gl::Texture& t, int size) {
     if (t.id() && t.depth() >= layers) return;
-    t = gl::Texture(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, n, n, layers);
+    t = gl::Texture(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, size, size, layers);
     t.setFilter(GL_NEAREST, GL_NEAREST);
   };
-  if (i == 0) ensureLayers(shadowRho_);
-  glCopyImageSubData(rsmRho_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowRho_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
-                     static_cast<GLint>(i), n, n, 1);
-  if (keepMu) {
-    if (i == 0) ensureLayers(shadowMu_);
-    glCopyImageSubData(rsmMu_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowMu_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
-                       static_cast<GLint>(i), n, n, 1);
+  if (i == 0) {
+    ensureLayers(shadowRho_, n);
+    ensureLayers(shadowMu_, n);
+    ensureLayers(shadowObjects_, m);
   }
+  const auto layer = static_cast<GLint>(i);
+  glCopyImageSubData(rsmRho_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowRho_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
+                     layer, n, n, 1);
+  glCopyImageSubData(rsmMu_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowMu_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
+                     layer, n, n, 1);
+  if (view.objectShadowBias >= 0)
+    glCopyImageSubData(objectPosition_.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowObjects_.id(), GL_TEXTURE_2D_ARRAY, 0, 0,
+                       0, layer, m, m, 1);
+}
+
+ShadowTexels FrameResources::downloadShadowTexels(size_t i) const {
+  if (i >= views_.size()) throw std::out_of_range("FrameResources::downloadShadowTexels(): no such light in the last run");
+  auto layer = [&](const gl::Texture& t) {
+    cv::Mat m(t.height(), t.width(), CV_32FC4);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glGetTextureSubImage(t.id(), 0, 0, 0, static_cast<GLint>(i), t.width(), t.height(), 1, GL_RGBA, GL_FLOAT,
+                         static_cast<GLsizei>(m.total() * m.elemSize()), m.ptr());
+    return m;
+  };
+  ShadowTexels out{layer(shadowRho_), layer(shadowMu_), cv::Mat()};
+  if (views_[i].objectShadowBias >= 0) out.objects = layer(shadowObjects_);
+  return out;
+}
+
+float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
+                 cv::Vec3d x, const cv::Vec3d& n) {
+  if (bias < 0 || positions.empty()) return 1.f;
+  x += n * bias;
+  const cv::Vec4d c = viewProj * cv::Vec4d(x[0], x[1], x[2], 1.0);
+  if (c[3] <= 0) return 1.f;
+  const double u = c[0] / c[3], v = c[1] / c[3];
+  if (std::abs(u) > 1 || std::abs(v) > 1) return 1.f;
+  const int col = std::clamp(static_cast<int>(std::floor((u * 0.5 + 0.5) * positions.cols)), 0, positions.cols - 1);
+  const int row = std::clamp(static_cast<int>(std::floor((v * 0.5 + 0.5) * positions.rows)), 0, positions.rows - 1);
+  const cv::Vec4f s = positions.at<cv::Vec4f>(row, col);
+  if (s[3] < 0.5f) return 1.f;
+  const cv::Vec3d occ(s[0], s[1], s[2]);
+  double self, other;
+  if (light.type == LightType::Directional) {
+    self = x.dot(light.direction);
+    other = occ.dot(light.direction);
+  } else {
+    self = cv::norm(x - light.position);
+    other = cv::norm(occ - light.position);
+  }
+  return other < self - bias ? 0.f : 1.f;
+}
+
+float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,
+                      const cv::Vec3d& x, const cv::Vec3d& n) {
+  if (!withObjects) return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n);
+  if (view.objectShadowBias < 0) return shadowTest(maps.rho, light, view.viewProj, view.shadowBias, x, n);
+  return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) *
+         shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
+}
+
+cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& n) {
+  if (light.type == LightType::Directional) return light.irradiance * std::max(-n.dot(light.direction), 0.0);
+  const cv::Vec3d l = light.position - x;
+  const double d2 = std::max(l.dot(l), 1e-8);
+  const cv::Vec3d ln = l / std::sqrt(d2);
+  if (light.type == LightType::Spot && (-ln).dot(light.direction) < light.spotCos()) return {0, 0, 0};
+  return light.intensity * (std::max(n.dot(ln), 0.0) / d2);
+}
+
+void FrameResources::bindShadowMaps() const {
+  shadowRho_.bind(12);
+  shadowMu_.bind(13);
+  shadowObjects_.bind(14);
 }
 
 RsmTexels FrameResources::downloadRsm(bool rho) const {
@@ -433,13 +558,16 @@ size_t FrameResources::estimateBytes(const FrameConfig& c, size_t lights) {
   const size_t rgba = 16, depth = 4;
   const size_t gbuffer = pixels * (3 * rgba + depth) + pixels * rgba;  // + the zero stand-in
   const size_t rsms = 2 * texels * (4 * rgba + depth);
-  const size_t shadows = 2 * std::max<size_t>(lights, 1) * texels * rgba;
-  return gbuffer + rsms + shadows;
+  const size_t objectTexels = static_cast<size_t>(c.knobs.shadowSize) * static_cast<size_t>(c.knobs.shadowSize);
+  const size_t shadows = std::max<size_t>(lights, 1) * (2 * texels + objectTexels) * rgba;
+  return gbuffer + rsms + objectTexels * (rgba + depth) + shadows;
 }
 
 size_t FrameResources::gpuBytes() const {
   size_t sum = 0;
-  for (const gl::Texture* t : {&gPosition_, &gNormal_, &gAlbedo_, &gDepth_, &shadowRho_, &shadowMu_, &zero_}) sum += t->bytes();
+  for (const gl::Texture* t : {&gPosition_, &gNormal_, &gAlbedo_, &gDepth_, &shadowRho_, &shadowMu_, &shadowObjects_,
+                               &objectPosition_, &objectDepth_, &zero_})
+    sum += t->bytes();
   for (const Rsm* r : {&rsmRho_, &rsmMu_})
     for (const gl::Texture* t : {&r->position, &r->normal, &r->flux, &r->direct, &r->depth}) sum += t->bytes();
   return sum;

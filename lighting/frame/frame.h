@@ -85,8 +85,15 @@ struct LightView {
   double focalPixels = 0;  ///< perspective
   double texelArea = 0;    ///< orthographic, m^2
   double shadowBias = 0;   ///< metres
+  /// The objects' shadow map: the same light fitted to the objects' bounding sphere (holding them alone).
+  /// objectShadowBias < 0: none (a point light too close to the objects for one view; RSM^rho tests them).
+  cv::Matx44d objectViewProj = cv::Matx44d::eye();
+  double objectShadowBias = -1;  ///< metres
 };
 LightView fitLightView(const SceneLight& light, const Region& region, int rsmSize);
+/// Adds the objects' view to `view`: orthographic over the sphere (centre, radius) for a directional light,
+/// a perspective frustum around it for a point or spot light (none when the light is within 1.05 radii).
+void fitObjectView(LightView& view, const SceneLight& light, const cv::Vec3d& centre, double radius, int size);
 
 struct CameraView {
   capture::Intrinsics intrinsics;
@@ -101,6 +108,12 @@ struct RsmTexels {
   cv::Mat position, normal, flux, direct;
 };
 
+/// One light's shadow maps as downloaded (CV_32FC4 world positions, w = 1 where a surface was seen):
+/// RSM^rho, RSM^mu and the objects' map (empty when the light's view has none).
+struct ShadowTexels {
+  cv::Mat rho, mu, objects;
+};
+
 /// The GPU textures of one reflective shadow map (RGBA32F, size x size, nearest filtering).
 struct Rsm {
   gl::Texture position, normal, flux, direct, depth;
@@ -110,6 +123,7 @@ struct Rsm {
 /// Knobs of the shared resources (scene key "frame").
 struct FrameKnobs {
   int rsmSize = 0;          ///< RSM texels per side
+  int shadowSize = 0;       ///< texels per side of the objects' shadow maps
   double sizeFactor = 0;    ///< region side / the objects' largest bounding-box edge
 };
 /// The knob table of FrameKnobs (declared once: lighting/frame/frame.cpp).
@@ -188,13 +202,15 @@ class FrameResources {
   // ---- stages (run by the pipeline)
   void fitRegionToObjects();
   void renderGBuffer();
-  /// Light i's view and RSMs (rho, mu); with `keepMu` its RSM^mu positions also go into the mu shadow array.
-  void renderLight(size_t i, bool keepMu);
+  /// Light i's view, RSMs (rho, mu) and the objects' shadow map; their positions go into the shadow arrays.
+  void renderLight(size_t i);
   void clearLightViews() { views_.clear(); }
 
   /// Draws the real mesh (and the objects when includeVirtual) with `program` (uModel, uNormalModel,
   /// uViewProj, uVirtual, uObject set here).
   void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj, bool cameraView = false) const;
+  /// Draws the objects alone (uModel, uNormalModel, uVirtual = 1, uObject set here; uViewProj by the caller).
+  void drawObjects(const gl::Program& program) const;
 
   // ---- results
   const gl::Texture& gPosition() const { return gPosition_; }  ///< xyz world, w = 1 where a surface was seen
@@ -210,6 +226,12 @@ class FrameResources {
   /// Per light: RSM^rho / RSM^mu world positions (layer = light index; allocated for the lights of the run).
   const gl::Texture& shadowRho() const { return shadowRho_; }
   const gl::Texture& shadowMu() const { return shadowMu_; }
+  /// Per light: the objects' world positions in their own view (LightView::objectViewProj).
+  const gl::Texture& shadowObjects() const { return shadowObjects_; }
+  /// Light i's layers of the three shadow arrays (lights of the last run).
+  ShadowTexels downloadShadowTexels(size_t i) const;
+  /// Binds the three shadow arrays where lighting/direct_light.glsl reads them (units 12, 13, 14).
+  void bindShadowMaps() const;
   /// A zeroed RGBA32F texture of the output size (stands in for an output no technique provides).
   const gl::Texture& zero();
   /// CV_32FC4 G-buffer channel: 0 position, 1 normal, 2 albedo (a = virtual).
@@ -241,17 +263,27 @@ class FrameResources {
   std::optional<Seen> seen_;
   bool geometryDirty_ = true, realValsDirty_ = true;
 
-  gl::Program gbufferProgram_, rsmProgram_;
+  gl::Program gbufferProgram_, rsmProgram_, shadowProgram_;
+  gl::Texture objectPosition_, objectDepth_;
+  gl::Framebuffer objectFb_;
   gl::Texture gPosition_, gNormal_, gAlbedo_, gDepth_;
   gl::Framebuffer gbufferFb_;
   Rsm rsmRho_, rsmMu_;
-  gl::Texture shadowRho_, shadowMu_, zero_;
+  gl::Texture shadowRho_, shadowMu_, shadowObjects_, zero_;
   std::vector<LightView> views_;
 };
 
 /// The uniforms of lighting/direct_light.glsl (uLightCount, uLightType[i], ...) for `lights` seen through
 /// `views` (a light without a view: nothing occludes it).
 void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& lights, const std::vector<LightView>& views);
+
+/// C++ twin of lighting/direct_light.glsl: one shadow-map test (1 lit, 0 occluded; bias < 0: no map, lit),
+/// a light's visibility with or without the objects, and a light's irradiance before shadowing.
+float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
+                 cv::Vec3d x, const cv::Vec3d& n);
+float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,
+                      const cv::Vec3d& x, const cv::Vec3d& n);
+cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& n);
 
 /// CV_32FC4 download of an RGBA32F 2D texture.
 cv::Mat download4(const gl::Texture& t);

@@ -212,15 +212,12 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     const gl::Program& p = injectProgram_;
     p.use();
     setLightUniforms(p, frame.lights(), frame.lightViews());
-    const bool mu = frame.shadowMu().id() != 0;
-    p.set("uLightMu", mu ? 1 : 0);
     setAmbient(p, frame);
     p.set("uVoxelCount", static_cast<int>(count));
     setVec3(p, "uGridOrigin", g.origin);
     p.set("uVoxel", static_cast<float>(g.voxel));
     p.set("uResolution", g.resolution);
-    frame.shadowRho().bind(12);
-    (mu ? frame.shadowMu() : frame.shadowRho()).bind(13);
+    frame.bindShadowMaps();
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, points_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, offsets_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());

@@ -8,8 +8,6 @@
 
 layout(local_size_x = 64) in;
 
-layout(binding = 12) uniform sampler2DArray uShadow;    // per light: RSM^rho world positions
-layout(binding = 13) uniform sampler2DArray uShadowMu;  // per light: RSM^mu world positions
 #include "lighting/direct_light.glsl"
 
 struct IvPoint {
@@ -22,7 +20,6 @@ layout(std430, binding = 1) readonly buffer Offsets { uint offsets[]; };  // vox
 layout(std430, binding = 2) writeonly buffer Voxels { IvVoxel voxels[]; };
 
 uniform int uVoxelCount;
-uniform int uLightMu;  // 1: the mu shadow maps exist (else mu is lit like rho)
 uniform vec3 uAmbient;
 uniform vec3 uAmbientSh[9];
 
@@ -35,12 +32,12 @@ void main() {
     IvPoint p = points[k];
     vec3 x = p.position.xyz, n = p.normal.xyz;
     vec3 eAmbient = ivUnoccludedAmbient(uAmbient, uAmbientSh, n);
-    vec3 eRho = directIrradiance(uShadow, x, n) + eAmbient;
+    vec3 eRho = directIrradiance(true, x, n) + eAmbient;
     r.exitantRho += vec4(p.albedo.rgb / SH_PI * eRho, 1.0);
     r.normalRho.xyz += n;
     r.albedoRho.rgb += p.albedo.rgb;
     if (p.position.w < 0.5) {
-      vec3 eMu = uLightMu == 1 ? directIrradiance(uShadowMu, x, n) + eAmbient : eRho;
+      vec3 eMu = directIrradiance(false, x, n) + eAmbient;
       r.exitantMu += vec4(p.albedo.rgb / SH_PI * eMu, 1.0);
       r.normalMu.xyz += n;
       r.albedoMu.rgb += p.albedo.rgb;

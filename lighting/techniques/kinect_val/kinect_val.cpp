@@ -59,39 +59,6 @@ Receiver seenFrom(const cv::Vec3f& p, const cv::Vec3f& n, const cv::Vec3f& eye, 
   return {p, n, cv::norm(toEye) > 0 ? cv::normalize(toEye) : n, exponent};
 }
 
-/// The shading pass's shadow-map test (shade.frag visibility()) on the CPU: 1 lit, 0 occluded.
-float mapVisibility(const cv::Mat& positions, const SceneLight& light, const LightView& view, const cv::Vec3f& p,
-                    const cv::Vec3f& n) {
-  const cv::Vec3d x = cv::Vec3d(p) + cv::Vec3d(n) * std::max(view.shadowBias, 0.0);
-  const cv::Vec4d c = view.viewProj * cv::Vec4d(x[0], x[1], x[2], 1.0);
-  if (c[3] <= 0) return 1.f;
-  const double u = c[0] / c[3], v = c[1] / c[3];
-  if (std::abs(u) > 1 || std::abs(v) > 1) return 1.f;
-  const int col = std::clamp(static_cast<int>((u * 0.5 + 0.5) * positions.cols), 0, positions.cols - 1);
-  const int row = std::clamp(static_cast<int>((v * 0.5 + 0.5) * positions.rows), 0, positions.rows - 1);
-  const cv::Vec4f s = positions.at<cv::Vec4f>(row, col);
-  if (s[3] < 0.5f) return 1.f;
-  const cv::Vec3d occ(s[0], s[1], s[2]);
-  double self, other;
-  if (light.type == LightType::Directional) {
-    self = x.dot(light.direction);
-    other = occ.dot(light.direction);
-  } else {
-    self = cv::norm(x - light.position);
-    other = cv::norm(occ - light.position);
-  }
-  return other < self - view.shadowBias ? 0.f : 1.f;
-}
-
-/// Direct irradiance a light sends to (p, n) without shadowing.
-cv::Vec3d lightIrradiance(const SceneLight& light, const cv::Vec3f& p, const cv::Vec3f& n) {
-  if (light.type == LightType::Directional) return light.irradiance * std::max(-cv::Vec3d(n).dot(light.direction), 0.0);
-  const cv::Vec3d l = light.position - cv::Vec3d(p);
-  const double d2 = std::max(l.dot(l), 1e-8);
-  const cv::Vec3d ln = l / std::sqrt(d2);
-  if (light.type == LightType::Spot && (-ln).dot(light.direction) < light.spotCos()) return {0, 0, 0};
-  return light.intensity * (std::max(cv::Vec3d(n).dot(ln), 0.0) / d2);
-}
 }  // namespace
 
 KinectValTechnique::KinectValTechnique(const TechniqueSetup& setup)
@@ -155,8 +122,7 @@ void KinectValTechnique::light(const FrameResources& frame, size_t index, gl::Pr
   const RsmTexels rho = frame.downloadRsm(true);
   const auto v = valsFromRsm(rho, light, knobs_.rsmStride);
   rsmVals_.insert(rsmVals_.end(), v.begin(), v.end());
-  cv::Mat mu = download4(frame.rsmMu().position);
-  shadowMaps_.push_back({light, frame.lightViews().at(index), rho.position, mu});
+  shadowMaps_.push_back({light, frame.lightViews().at(index), frame.downloadShadowTexels(index)});
 }
 
 size_t KinectValTechnique::shadowRealVals(std::vector<Val>& vals, const cv::Vec3d& ambientRadiance) const {
@@ -167,10 +133,11 @@ size_t KinectValTechnique::shadowRealVals(std::vector<Val>& vals, const cv::Vec3
   for (Val& v : vals) {
     cv::Vec3d with = CV_PI * ambientRadiance, without = with;
     for (const ShadowMaps& m : shadowMaps_) {
-      const cv::Vec3d e = lightIrradiance(m.light, v.position, v.normal);
+      const cv::Vec3d x(v.position), n(v.normal);
+      const cv::Vec3d e = unshadowedIrradiance(m.light, x, n);
       if (e == cv::Vec3d(0, 0, 0)) continue;
-      without += e * mapVisibility(m.mu, m.light, m.view, v.position, v.normal);
-      with += e * mapVisibility(m.rho, m.light, m.view, v.position, v.normal);
+      without += e * lightVisibility(m.maps, m.light, m.view, false, x, n);
+      with += e * lightVisibility(m.maps, m.light, m.view, true, x, n);
     }
     if (with == without) continue;
     for (int c = 0; c < 3; ++c)

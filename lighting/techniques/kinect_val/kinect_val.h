@@ -84,7 +84,7 @@ class KinectValTechnique final : public Technique {
   struct ShadowMaps {
     SceneLight light;
     LightView view;
-    cv::Mat rho, mu;  ///< RSM world positions with and without the virtual objects (CPU copies)
+    ShadowTexels maps;  ///< the shading pass's shadow maps (CPU copies)
   };
   std::vector<ShadowMaps> shadowMaps_;
   Stats stats_;

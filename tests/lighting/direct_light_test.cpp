@@ -1,0 +1,145 @@
+// The shading pass's direct light and shadows (lighting/direct_light.glsl) against their C++ twin
+// (lighting::lightVisibility), and the objects' shadow maps: the object's shadow edge follows the object at
+// the objects' map's resolution, not the region's RSM's.
+#include <gtest/gtest.h>
+
+#include "tests/lighting/test_scene.h"
+
+namespace mrgi::test {
+namespace {
+
+using lighting::LightType;
+
+SceneLight spotAbove() {
+  SceneLight l;
+  l.type = LightType::Spot;
+  l.position = {-0.2, 0.3, 0.9};
+  l.direction = cv::normalize(cv::Vec3d(0.2, -0.3, -0.9));
+  l.spotHalfAngleDeg = 35;
+  l.intensity = {3, 3, 3};
+  return l;
+}
+
+SceneLight obliqueSun() {
+  SceneLight l = sunDown(8.0);
+  l.direction = cv::normalize(cv::Vec3d(0.5, 0.3, -0.8));
+  return l;
+}
+
+// Technique "none": real pixels get exactly the object's direct shadow, sum_i E_i (V_i(rho) - V_i(mu)); the
+// object gets sum_i E_i V_i(rho) + pi ambient. Both are recomputed per pixel on the CPU from the downloaded
+// maps through the twin.
+TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
+  auto ctx = makeContext();
+  const int W = 200, H = 150;
+  TestScene s = makeScene(true, 0.15, {0.05, 0.0, 0.075});
+  PipelineConfig cfg = testConfig(W, H, 16, 128, "none");
+  cfg.set("frame", "shadow_size", 256);
+  LightingPipeline pipe = makePipeline(cfg, s);
+  const std::vector<SceneLight> lights = {obliqueSun(), pointAbove(), spotAbove()};
+  const cv::Vec3d ambient(0.03, 0.03, 0.03);
+  pipe.run(topCamera(W, H), lights, ambient, nullptr);
+  const auto& frame = pipe.frame();
+  std::vector<lighting::ShadowTexels> maps;
+  for (size_t i = 0; i < lights.size(); ++i) {
+    maps.push_back(frame.downloadShadowTexels(i));
+    ASSERT_FALSE(maps.back().objects.empty()) << i;  // every light here is far enough for the objects' view
+  }
+  const cv::Mat irr = pipe.downloadIrradiance(), shade = pipe.downloadShade();
+  const cv::Mat pos = pipe.downloadGBuffer(0), nrm = pipe.downloadGBuffer(1), alb = pipe.downloadGBuffer(2);
+  int real = 0, shadowed = 0, virt = 0, differ = 0;
+  for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
+    const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i), a = alb.at<cv::Vec4f>(i);
+    if (p[3] < 0.5f) continue;
+    const cv::Vec3d x(p[0], p[1], p[2]), nn(n[0], n[1], n[2]);
+    cv::Vec3d with(0, 0, 0), without(0, 0, 0);
+    for (size_t l = 0; l < lights.size(); ++l) {
+      const cv::Vec3d e = lighting::unshadowedIrradiance(lights[l], x, nn);
+      with += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], true, x, nn);
+      without += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], false, x, nn);
+    }
+    double got, want;
+    if (a[3] > 0.5f) {
+      ++virt;
+      want = (with[0] + CV_PI * ambient[0]) * a[0] / CV_PI;
+      got = shade.at<cv::Vec4f>(i)[0];
+    } else {
+      ++real;
+      want = with[0] - without[0];
+      got = irr.at<cv::Vec4f>(i)[0];
+      if (want < -1e-3) ++shadowed;
+    }
+    // A lookup on a texel boundary may round the other way in float; such pixels are counted, not failed.
+    if (std::abs(got - want) > 1e-4 * (1.0 + std::abs(want))) ++differ;
+  }
+  EXPECT_GT(real, 5000);
+  EXPECT_GT(virt, 250);
+  EXPECT_GT(shadowed, 250);
+  EXPECT_LE(differ, (real + virt) / 500) << differ << " of " << real + virt << " pixels differ";
+}
+
+// An oblique sun: the cube's shadow on the floor is where a ray towards the sun hits the cube. With a region
+// RSM of 32 texels (3.2 cm each) the edge is wrong over a band of pixels; the objects' map (512 over the
+// cube's bounding sphere, 0.5 mm) puts it where the cube is. Pixels within 2 mm of the edge are not judged.
+TEST(DirectLight, ObjectShadowEdgeFollowsTheObjectsMap) {
+  auto ctx = makeContext();
+  const int W = 200, H = 150;
+  const double cube = 0.15;
+  const cv::Vec3d centre(0.013, -0.007, 0.075);
+  TestScene s = makeScene(false, cube, centre);
+  PipelineConfig cfg = testConfig(W, H, 16, 32, "none");
+  cfg.set("frame", "shadow_size", 512);
+  LightingPipeline pipe = makePipeline(cfg, s);
+  SceneLight sun = sunDown(10.0);
+  sun.direction = {0.6, 0.0, -0.8};
+  pipe.run(topCamera(W, H), {sun}, cv::Vec3d::all(0.0), nullptr);
+  const cv::Mat irr = pipe.downloadIrradiance(), pos = pipe.downloadGBuffer(0), alb = pipe.downloadGBuffer(2);
+  int judged = 0, inShadowJudged = 0, wrong = 0;
+  for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
+    const cv::Vec4f p = pos.at<cv::Vec4f>(i);
+    if (p[3] < 0.5f || alb.at<cv::Vec4f>(i)[3] > 0.5f || p[2] > 1e-3f) continue;
+    const cv::Vec3d x(p[0], p[1], p[2]);
+    const bool inside = inShadow(x, sun.direction, centre, 0.5 * cube - 0.002);
+    const bool outside = !inShadow(x, sun.direction, centre, 0.5 * cube + 0.002);
+    if (!inside && !outside) continue;
+    ++judged;
+    inShadowJudged += inside;
+    const float e = irr.at<cv::Vec4f>(i)[0];
+    if (inside ? std::abs(e + 8.0f) > 1e-4f : e != 0.0f) ++wrong;  // E cos = 10 x 0.8 lost
+  }
+  EXPECT_GT(judged, 20000);
+  EXPECT_GT(inShadowJudged, 150);  // the region map gets about 100 of these wrong
+  EXPECT_EQ(wrong, 0);
+}
+
+// The objects' view: orthographic for a directional light, a frustum around the bounding sphere for a
+// point light, none when the light is among the objects (RSM^rho tests them then, and the output stays
+// defined).
+TEST(DirectLight, ObjectViewFallsBackToTheRegionsMapWhenALightSitsAmongTheObjects) {
+  lighting::Region region = lighting::fitRegion({-0.1, -0.1, 0}, {0.1, 0.1, 0.2}, 4.0);
+  lighting::LightView v = lighting::fitLightView(pointAbove(), region, 64);
+  lighting::fitObjectView(v, pointAbove(), {0, 0, 0.1}, 0.17, 256);
+  EXPECT_GT(v.objectShadowBias, 0);
+  // The sphere's silhouette fills the view: a point on it at right angles to the light's axis maps to the
+  // frustum's edge.
+  SceneLight inside = pointAbove();
+  inside.position = {0.02, 0.0, 0.12};
+  lighting::fitObjectView(v, inside, {0, 0, 0.1}, 0.17, 256);
+  EXPECT_LT(v.objectShadowBias, 0);
+
+  auto ctx = makeContext();
+  TestScene s = makeScene(false, 0.15, {0, 0, 0.075});
+  PipelineConfig cfg = testConfig(64, 48, 16, 64, "none");
+  LightingPipeline pipe = makePipeline(cfg, s);
+  SceneLight close = pointAbove();
+  close.position = {0.0, 0.0, 0.2};  // 12.5 cm from the cube's centre, inside its bounding sphere (13 cm)
+  pipe.run(topCamera(64, 48), {close}, cv::Vec3d::all(0.01), nullptr);
+  EXPECT_LT(pipe.frame().lightViews()[0].objectShadowBias, 0);
+  const cv::Mat shade = pipe.downloadShade();
+  EXPECT_TRUE(cv::checkRange(shade));
+  const auto maps = pipe.frame().downloadShadowTexels(0);
+  EXPECT_TRUE(maps.objects.empty());
+}
+
+}  // namespace
+}  // namespace mrgi::test
