@@ -641,7 +641,8 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
       ssimSum += ssimOf(r.composite, it->second.composite);
       if (images && c.varied.empty() && it == bs.truths.begin()) {
         images->push_back({name + " (defaults), frame " + std::to_string(f), r.composite});
-        images->push_back({name + ": |delta - reference| (red: too dark, white = " + std::to_string(errScale).substr(0, 6) + ")",
+        images->push_back({name + ": error against the reference (real pixels |delta - reference|, red too dark, white = " +
+                               std::to_string(errScale).substr(0, 6) + " W/m^2/sr; the object relative, blue too dark, white = 10 %)",
                            errorImage(st.shade, it->second, errScale)});
       }
     }

@@ -106,15 +106,23 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth) {
   return e;
 }
 
-/// |delta_rt − delta_ref| as a heat image (black = 0, white = `scale`), virtual pixels grey.
+// (metrics.h)
 cv::Mat errorImage(const cv::Mat& shade, const Truth& truth, double scale) {
   cv::Mat out(shade.size(), CV_8UC3);
   for (int y = 0; y < shade.rows; ++y)
     for (int x = 0; x < shade.cols; ++x) {
       const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
       const cv::Vec3f r = truth.delta.at<cv::Vec3f>(y, x);
-      if (s[3] > 0.5f || truth.images.mask.at<uchar>(y, x)) {
+      const bool virtRt = s[3] > 0.5f, virtRef = truth.images.mask.at<uchar>(y, x) != 0;
+      if (virtRt != virtRef) {  // silhouette mismatch
         out.at<cv::Vec3b>(y, x) = {90, 90, 90};
+        continue;
+      }
+      if (virtRt) {  // relative error of the object's radiance: white = 10 %, blue: too dark, yellow: too bright
+        const double ref = capture::luminance({r[0], r[1], r[2]});
+        const double d = capture::luminance({s[0] - r[0], s[1] - r[1], s[2] - r[2]});
+        const auto v = cv::saturate_cast<uchar>(255.0 * std::abs(d) / std::max(0.1 * ref, 1e-9));
+        out.at<cv::Vec3b>(y, x) = d < 0 ? cv::Vec3b(v / 4, v / 4, v) : cv::Vec3b(v, v, v / 4);
         continue;
       }
       const double d = capture::luminance({s[0] - r[0], s[1] - r[1], s[2] - r[2]});

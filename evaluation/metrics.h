@@ -62,7 +62,9 @@ struct ErrorSums {
 };
 ErrorSums errorSums(const cv::Mat& shade, const Truth& truth);
 
-/// |delta_rt - delta_ref| as a heat image (black = 0, white = `scale`), virtual pixels grey.
+/// The error as an image (RGB8): real pixels |delta_rt - delta_ref| (black = 0, white = `scale`; red: too dark,
+/// green: too bright), virtual pixels their radiance's relative error (white = 10 %; blue: too dark, yellow:
+/// too bright), pixels virtual in one image only grey.
 cv::Mat errorImage(const cv::Mat& shade, const Truth& truth, double scale);
 
 /// Mean SSIM over the three channels of two RGB8 images.

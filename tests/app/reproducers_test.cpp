@@ -39,17 +39,27 @@ const json& cases() {
   return all;
 }
 
-/// One small synthetic session (2 frames, 160x120, a fisheye EXR on frame 0), made once per process.
+/// A directory removed with everything in it when the process ends.
+struct TempDir {
+  fs::path path;
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+/// One small synthetic session (2 frames, 160x120, a fisheye EXR on frame 0), made once per process and
+/// removed at its end.
 const fs::path& baseSession() {
-  static const fs::path dir = [] {
+  static const TempDir dir = [] {
     const fs::path d = fs::temp_directory_path() / ("mrgi_repro_base_" + std::to_string(::getpid()));
     fs::remove_all(d);
     const std::string cmd = std::string(MRGI_BINARY) + " synth --out " + d.string() +
                             " --frames 2 --width 160 --height 120 --fisheye-every 2 --render raycast > /dev/null 2>&1";
     EXPECT_EQ(std::system(cmd.c_str()), 0);
-    return d;
+    return TempDir{d};
   }();
-  return dir;
+  return dir.path;
 }
 
 /// Every regular file under root (except `skip`) with its bytes.

@@ -24,6 +24,11 @@ const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable
        &ImperfectVolumesKnobs::range},
       {{"bounces", KnobType::Int, 0, 3, 1, "light bounces off the volume's surfaces (0: ambient occlusion only)", {0, 2}, {0}, false},
        &ImperfectVolumesKnobs::bounces},
+      {{"object_rays", KnobType::Int, 0, 1024, 64,
+        "rays per virtual-object pixel, marched from its surface point through the real-only volume (0: the "
+        "object reads the voxels' SH like real pixels)",
+        {0, 256}, {0}, true},
+       &ImperfectVolumesKnobs::objectRays},
   };
   return table;
 }
@@ -31,13 +36,19 @@ const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable
 namespace {
 
 /// The per-voxel buffers: records, incident SH and occlusion per scene version (mu only for real pixels), the
-/// bounce and reflected scratch (more than one bounce), computed flags and point offsets; and the points,
-/// which depend on the scene: budgeted as three surfaces across the grid at 4 points (48 bytes each) per voxel.
-size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real) {
+/// bounce and reflected scratch (more than one bounce), computed flags and point offsets, for the object's
+/// own rays the ambient hidden per voxel and the sum of the reflected bounces; the ray directions; and the
+/// points, which depend on the scene: budgeted as three surfaces across the grid at 4 points (48 bytes each)
+/// per voxel.
+size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real, bool virtualObject) {
   const size_t r = static_cast<size_t>(k.resolution), n = r * r * r;
   const size_t c = static_cast<size_t>(k.bands) * k.bands;
   const size_t versions = real ? 2 : 1;
-  return n * (6 * 16 + versions * (3 * c * 4 + 4) + (k.bounces > 1 ? 3 * c * 4 + 16 : 0) + 4 + 4) + 3 * r * r * 4 * 48;
+  const bool own = virtualObject && k.objectRays > 0;
+  const size_t perVoxel = 7 * 16 + versions * (3 * c * 4 + 4) + (k.bounces > 1 ? 3 * c * 4 + 16 : 0) + 4 + 4 +
+                          (own ? 16 : 0) + (own && k.bounces > 1 ? 16 : 0);
+  const size_t directions = 16 * static_cast<size_t>(k.rays + (own ? k.objectRays : 0));
+  return n * perVoxel + directions + 3 * r * r * 4 * 48;
 }
 
 }  // namespace
@@ -51,9 +62,9 @@ TechniqueInfo imperfectVolumesTechniqueInfo() {
   t.stagePrefixes = {"iv."};
   t.knobs = groupOf("iv", imperfectVolumesKnobTable());
   t.create = [](const TechniqueSetup& s) { return std::make_unique<ImperfectVolumesTechnique>(s); };
-  t.estimateBytes = [](const KnobValues& values, bool real, bool, int w, int h) {
+  t.estimateBytes = [](const KnobValues& values, bool real, bool virtualObject, int w, int h) {
     const ImperfectVolumesKnobs k = knobsFrom(imperfectVolumesKnobTable(), values);
-    return voxelBytes(k, real) + 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
+    return voxelBytes(k, real, virtualObject) + 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
   };
   return t;
 }
@@ -143,6 +154,7 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
                                           {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       reflectProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_reflect.comp",
                                            {{"SH_BANDS", std::to_string(knobs_.bands)}})),
+      hiddenProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_hidden.comp")),
       readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/imperfect_volumes/iv_readout.frag",
                                             {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       out_(setup.frame->width(), setup.frame->height()) {}
@@ -198,13 +210,20 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       std::vector<cv::Vec4f> dirs;
       for (const cv::Vec3f& d : iv::rayDirections(knobs_.rays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
       directions_ = bufferOf(dirs.size() * sizeof(cv::Vec4f), dirs.data());
-      voxels_ = bufferOf(count * 6 * sizeof(cv::Vec4f));
+      voxels_ = bufferOf(count * 7 * sizeof(cv::Vec4f));
       incidentRho_ = real_ ? bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float)) : gl::Buffer();
       incidentMu_ = bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float));
       bounce_ = bufferOf(knobs_.bounces > 1 ? count * 3 * static_cast<size_t>(C) * sizeof(float) : 0);
       reflected_ = bufferOf(knobs_.bounces > 1 ? count * sizeof(cv::Vec4f) : 0);
       occlusionRho_ = real_ ? bufferOf(count * sizeof(float)) : gl::Buffer();
       occlusionMu_ = bufferOf(count * sizeof(float));
+      reflectedSum_ = bufferOf(knobs_.bounces > 1 && virtual_ ? count * sizeof(cv::Vec4f) : 0);
+      hidden_ = bufferOf(virtual_ && knobs_.objectRays > 0 ? count * sizeof(cv::Vec4f) : 0);
+    }
+    if (!objectDirections_.id() && virtual_ && knobs_.objectRays > 0) {
+      std::vector<cv::Vec4f> dirs;
+      for (const cv::Vec3f& d : iv::rayDirections(knobs_.objectRays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
+      objectDirections_ = bufferOf(dirs.size() * sizeof(cv::Vec4f), dirs.data());
     }
   }
   {
@@ -222,6 +241,26 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, offsets_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
     glDispatchCompute(static_cast<GLuint>((count + 63) / 64), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  if (virtual_ && knobs_.objectRays > 0) {
+    // The ambient the objects hide from real surfaces (what the object's own rays see on them).
+    auto s = timed(profiler, "iv.hidden");
+    const gl::Program& p = hiddenProgram_;
+    p.use();
+    setVec3(p, "uGridOrigin", g.origin);
+    p.set("uVoxel", static_cast<float>(g.voxel));
+    p.set("uResolution", g.resolution);
+    p.set("uNeededCount", static_cast<int>(neededCount_));
+    p.set("uRays", knobs_.rays);
+    p.set("uRange", static_cast<float>(knobs_.range));
+    setAmbient(p, frame);
+    clearBuffer(hidden_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 12, hidden_.id());
+    glDispatchCompute(static_cast<GLuint>(std::max<size_t>((neededCount_ + 31) / 32, 1)), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   }
   {
@@ -249,6 +288,8 @@ void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
     p.set("uNeededCount", static_cast<int>(neededCount_));
     p.set("uRho", rho ? 1 : 0);
   };
+  const bool accumulate = !rho && knobs_.bounces > 1 && virtual_;  // the object's rays read the mu bounces
+  if (accumulate) clearBuffer(reflectedSum_);
   const gl::Program& p = gatherProgram_;
   common(p);
   p.set("uRays", knobs_.rays);
@@ -272,6 +313,8 @@ void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
   for (int b = 1; b < knobs_.bounces; ++b) {
     const gl::Program& r = reflectProgram_;
     common(r);
+    r.set("uAccumulate", accumulate ? 1 : 0);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 11, (accumulate ? reflectedSum_ : voxels_).id());
     glDispatchCompute(groups, 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     p.use();
@@ -314,6 +357,16 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, (real_ ? incidentRho_ : incidentMu_).id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 9, incidentMu_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 10, computed_.id());
+  const bool objectRays = virtual_ && knobs_.objectRays > 0;
+  p.set("uObjectRays", objectRays ? knobs_.objectRays : 0);
+  p.set("uRange", static_cast<float>(knobs_.range));
+  p.set("uBounceLight", knobs_.bounces > 0 ? 1 : 0);
+  const bool reflectedOn = objectRays && knobs_.bounces > 1;
+  p.set("uReflectedOn", reflectedOn ? 1 : 0);
+  // Stand-ins where a buffer is not read (an SSBO binding must still name a buffer).
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, (objectRays ? objectDirections_ : voxels_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 11, (reflectedOn ? reflectedSum_ : voxels_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 12, (objectRays ? hidden_ : voxels_).id());
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
   gl::checkGlError("ImperfectVolumesTechnique::update()");
@@ -325,16 +378,26 @@ iv::Volume ImperfectVolumesTechnique::downloadVolume() const {
   if (!grid_) return iv::Volume(iv::Grid{cv::Vec3d(0, 0, 0), 1.0, 0});
   iv::Volume v(*grid_);
   const size_t n = grid_->count();
-  std::vector<cv::Vec4f> rec(n * 6);
+  std::vector<cv::Vec4f> rec(n * 7);
   voxels_.download(0, static_cast<GLsizeiptr>(rec.size() * sizeof(cv::Vec4f)), rec.data());
   for (size_t i = 0; i < n; ++i) {
-    const cv::Vec4f* r = &rec[i * 6];
+    const cv::Vec4f* r = &rec[i * 7];
     v.exitantRho[i] = r[0], v.exitantMu[i] = r[1], v.normalRho[i] = r[2], v.normalMu[i] = r[3];
     v.albedoRho[i] = cv::Vec3f(r[4][0], r[4][1], r[4][2]);
     v.albedoMu[i] = cv::Vec3f(r[5][0], r[5][1], r[5][2]);
+    v.exitantMuLit[i] = cv::Vec4f(r[6][0], r[6][1], r[6][2], r[1][3]);
     v.occupancy[i] = static_cast<uint8_t>((r[1][3] > 0 ? iv::kReal : 0) | (r[0][3] > r[1][3] ? iv::kVirtual : 0));
   }
   return v;
+}
+
+std::vector<cv::Vec3f> ImperfectVolumesTechnique::downloadHidden() const {
+  if (!grid_ || !hidden_.id() || hidden_.size() == 0) return {};
+  std::vector<cv::Vec4f> h(grid_->count());
+  hidden_.download(0, static_cast<GLsizeiptr>(h.size() * sizeof(cv::Vec4f)), h.data());
+  std::vector<cv::Vec3f> out(h.size());
+  for (size_t i = 0; i < h.size(); ++i) out[i] = {h[i][0], h[i][1], h[i][2]};
+  return out;
 }
 
 iv::Incident ImperfectVolumesTechnique::downloadIncident(bool rho) const {
@@ -412,7 +475,8 @@ nlohmann::json ImperfectVolumesTechnique::stats() const { return stats_; }
 size_t ImperfectVolumesTechnique::gpuBytes() const {
   size_t sum = out_.bytes();
   for (const gl::Buffer* b : {&points_, &offsets_, &voxels_, &needed_, &directions_, &incidentRho_, &incidentMu_, &occlusionRho_,
-                              &occlusionMu_, &reflected_, &bounce_, &computed_})
+                              &occlusionMu_, &reflected_, &bounce_, &computed_, &objectDirections_, &reflectedSum_,
+                              &hidden_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);
   return sum;
 }

@@ -25,6 +25,7 @@ struct ImperfectVolumesKnobs {
   int bands = 0;        ///< SH bands of the incident radiance
   double range = 0;     ///< metres: a hit farther than this returns the ambient
   int bounces = 0;      ///< 0: ambient occlusion only
+  int objectRays = 0;   ///< rays per virtual-object pixel through the mu volume (0: read the voxels' SH)
 };
 const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable();
 
@@ -61,6 +62,9 @@ class ImperfectVolumesTechnique final : public Technique {
   /// The last run's volume and gathered light as the reference math holds them (GPU download).
   iv::Volume downloadVolume() const;
   iv::Incident downloadIncident(bool rho) const;
+  /// Per voxel, the ambient the objects hide from its real surface (iv::ambientHiddenByObjects; empty unless
+  /// the object casts its own rays).
+  std::vector<cv::Vec3f> downloadHidden() const;
 
  private:
   void build(const FrameResources& frame, gl::Profiler* profiler);
@@ -68,12 +72,12 @@ class ImperfectVolumesTechnique final : public Technique {
 
   ImperfectVolumesKnobs knobs_;
   bool real_ = false, virtual_ = false;
-  gl::Program injectProgram_, gatherProgram_, reflectProgram_, readoutProgram_;
+  gl::Program injectProgram_, gatherProgram_, reflectProgram_, readoutProgram_, hiddenProgram_;
   std::optional<iv::Grid> grid_;
   /// The frame versions the volume was built from (geometry, lights, ambient).
   std::optional<std::array<uint64_t, 3>> builtFrom_;
   gl::Buffer points_, offsets_, voxels_, needed_, directions_, incidentRho_, incidentMu_, occlusionRho_, occlusionMu_,
-      reflected_, bounce_, computed_;
+      reflected_, bounce_, computed_, objectDirections_, reflectedSum_, hidden_;
   size_t neededCount_ = 0, pointCount_ = 0;
   IrradianceTargets out_;
   gl::VertexArray emptyVao_;

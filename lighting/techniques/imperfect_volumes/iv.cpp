@@ -73,7 +73,8 @@ Volume::Volume(const Grid& g)
       normalRho(g.count(), cv::Vec4f::all(0)),
       normalMu(g.count(), cv::Vec4f::all(0)),
       albedoRho(g.count(), cv::Vec3f::all(0)),
-      albedoMu(g.count(), cv::Vec3f::all(0)) {}
+      albedoMu(g.count(), cv::Vec3f::all(0)),
+      exitantMuLit(g.count(), cv::Vec4f::all(0)) {}
 
 Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
   Volume v(grid);
@@ -88,7 +89,10 @@ Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
       al[i] += p.albedo;
     };
     add(v.exitantRho, v.normalRho, v.albedoRho, p.radianceRho);
-    if (!p.isVirtual) add(v.exitantMu, v.normalMu, v.albedoMu, p.radianceMu);
+    if (!p.isVirtual) {
+      add(v.exitantMu, v.normalMu, v.albedoMu, p.radianceMu);
+      v.exitantMuLit[i] += cv::Vec4f(p.radianceRho[0], p.radianceRho[1], p.radianceRho[2], 1.0f);
+    }
   }
   const auto mean = [](std::vector<cv::Vec4f>& ex, std::vector<cv::Vec3f>& al) {
     for (size_t i = 0; i < ex.size(); ++i)
@@ -100,6 +104,9 @@ Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
   };
   mean(v.exitantRho, v.albedoRho);
   mean(v.exitantMu, v.albedoMu);
+  for (cv::Vec4f& e : v.exitantMuLit)
+    if (e[3] > 0)
+      for (int k = 0; k < 3; ++k) e[k] /= e[3];
   return v;
 }
 
@@ -236,6 +243,7 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
   // Bounce 0: the ambient where no surface is hit within range (and ambient occlusion).
   const std::vector<cv::Vec4f> dark(g.count(), cv::Vec4f::all(0));
   gatherPass(volume, rho, o, &ambient, o.bounces > 0 ? (rho ? volume.exitantRho : volume.exitantMu) : dark, dirs, out, true);
+  out.reflectedSum.assign(g.count(), cv::Vec3f(0, 0, 0));
   // Further bounces: occupied voxels reflect what the previous bounce brought them (no ambient: the
   // ambient stands for light from beyond the volume, already counted).
   if (o.bounces > 1) {
@@ -258,6 +266,7 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
         const cv::Vec3f E = shIrradiance(bounce.at(v), o.bands, n * static_cast<float>(1.0 / len));
         for (int c = 0; c < 3; ++c) reflected[v][c] = std::max(0.0f, albedo[v][c] / static_cast<float>(CV_PI) * E[c]);
         reflected[v][3] = 1.0f;
+        out.reflectedSum[v] += cv::Vec3f(reflected[v][0], reflected[v][1], reflected[v][2]);
       }
       Incident next;
       next.bands = o.bands;
@@ -270,6 +279,83 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
     }
   }
   return out;
+}
+
+int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction, float* distance) {
+  const Grid& g = volume.grid;
+  const float s = static_cast<float>(g.voxel);
+  cv::Vec3i own(-1, -1, -1);
+  g.voxelOf(cv::Vec3d(x), own);
+  const int maxSteps = static_cast<int>(std::ceil(std::sqrt(3.0f) * g.resolution)) + 1;
+  for (int step = 0; step <= maxSteps; ++step) {
+    const float t = (static_cast<float>(step) + 0.5f) * s;
+    cv::Vec3i c;
+    if (!g.voxelOf(cv::Vec3d(x + t * direction), c)) return -1;
+    if (c == own) continue;
+    const size_t v = g.index(c[0], c[1], c[2]);
+    if (volume.occupied(v, rho)) {
+      if (distance) *distance = t;
+      return static_cast<int64_t>(v);
+    }
+  }
+  return -1;
+}
+
+std::vector<cv::Vec3f> ambientHiddenByObjects(const Volume& volume, const Options& options, const Ambient& ambient,
+                                              const std::vector<cv::Vec3f>& dirs) {
+  const Grid& g = volume.grid;
+  std::vector<cv::Vec3f> hidden(g.count(), cv::Vec3f(0, 0, 0));
+  if (dirs.empty()) return hidden;
+  const float w = static_cast<float>(4.0 * CV_PI / static_cast<double>(dirs.size()));
+  for (int k = 0; k < g.resolution; ++k)
+    for (int j = 0; j < g.resolution; ++j)
+      for (int i = 0; i < g.resolution; ++i) {
+        const size_t v = g.index(i, j, k);
+        if (!(volume.exitantMu[v][3] > 0)) continue;
+        const cv::Vec3f nSum(volume.normalMu[v][0], volume.normalMu[v][1], volume.normalMu[v][2]);
+        const float len = static_cast<float>(cv::norm(nSum));
+        if (!(len > 0)) continue;
+        const cv::Vec3f n = nSum / len;
+        for (const cv::Vec3f& d : dirs) {
+          const float c = n.dot(d);
+          if (!(c > 0)) continue;
+          float t = 0;
+          const int64_t h = march(volume, true, {i, j, k}, d, &t);
+          if (h >= 0 && t <= options.range && (volume.occupancy[static_cast<size_t>(h)] & kVirtual))
+            hidden[v] += ambient.radiance(d) * (c * w);
+        }
+      }
+  return hidden;
+}
+
+cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, const Options& options,
+                      const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x, const cv::Vec3f& n,
+                      const std::vector<cv::Vec3f>* hidden) {
+  cv::Vec3f change(0, 0, 0);
+  if (dirs.empty() || incident.reflectedSum.size() != volume.grid.count()) return change;
+  const auto& normals = rho ? volume.normalRho : volume.normalMu;
+  const auto& direct = rho ? volume.exitantRho : volume.exitantMuLit;
+  for (const cv::Vec3f& d : dirs) {
+    const float c = n.dot(d);
+    if (!(c > 0)) continue;
+    float t = 0;
+    const int64_t h = marchFromPoint(volume, rho, x, d, &t);
+    if (h < 0 || t > options.range) continue;
+    const auto v = static_cast<size_t>(h);
+    const cv::Vec3f nSum(normals[v][0], normals[v][1], normals[v][2]);
+    cv::Vec3f L(0, 0, 0);
+    if (nSum.dot(-d) > 0) {
+      if (options.bounces > 0) {
+        L = cv::Vec3f(direct[v][0], direct[v][1], direct[v][2]);
+        if (!rho && hidden && hidden->size() == volume.grid.count())
+          for (int ch = 0; ch < 3; ++ch)
+            L[ch] = std::max(0.0f, L[ch] - volume.albedoMu[v][ch] / static_cast<float>(CV_PI) * (*hidden)[v][ch]);
+      }
+      L += incident.reflectedSum[v];
+    }
+    change += (L - ambient.radiance(d)) * c;
+  }
+  return change * static_cast<float>(4.0 * CV_PI / static_cast<double>(dirs.size()));
 }
 
 std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std::vector<uint8_t>& computed, const cv::Vec3f& x,

@@ -12,6 +12,7 @@ struct IvVoxel {
   vec4 normalMu;
   vec4 albedoRho;
   vec4 albedoMu;
+  vec4 exitantMuLit;  // rgb: mean radiance of the real points as the objects leave them lit
 };
 
 uniform vec3 uGridOrigin;
@@ -44,3 +45,12 @@ float ivShIrradiance(float c[SH_COEFFS], vec3 n) {
 // The ambient's irradiance with nothing occluding it, as the shading pass adds it: pi * uniform + the SH
 // part's clamped-cosine irradiance (iv.h unoccludedAmbient).
 vec3 ivUnoccludedAmbient(vec3 ambient, vec3 sh[9], vec3 n) { return SH_PI * ambient + ambientShIrradiance(sh, n); }
+
+// Radiance of direction w that the volume does not hold: the uniform ambient plus its SH part (iv.h Ambient).
+vec3 ivAmbientRadiance(vec3 ambient, vec3 sh[9], vec3 w) {
+  float b[9];
+  ambientShBasis(w, b);
+  vec3 L = ambient;
+  for (int k = 0; k < 9; ++k) L += b[k] * sh[k];
+  return L;
+}

@@ -75,6 +75,9 @@ struct Volume {
   /// their unit normals (xyz). Rho over all points, mu over the real ones.
   std::vector<cv::Vec4f> exitantRho, exitantMu, normalRho, normalMu;
   std::vector<cv::Vec3f> albedoRho, albedoMu;  ///< mean albedo of the points
+  /// rgb: mean exitant radiance of the real points as the objects leave them lit (their radianceRho: the
+  /// table in the object's shadow is dark), the light the object's own rays see on real surfaces.
+  std::vector<cv::Vec4f> exitantMuLit;
   explicit Volume(const Grid& g = {});
   bool occupied(size_t v, bool rho) const { return rho ? occupancy[v] != kEmpty : (occupancy[v] & kReal) != 0; }
 };
@@ -103,6 +106,9 @@ struct Incident {
   std::vector<uint8_t> computed;  ///< voxels whose rays were cast (near a surface)
   std::vector<float> sh;          ///< voxels x 3 channels x bands^2: incident radiance (ambient + bounces)
   std::vector<float> occlusion;   ///< voxels: fraction of rays that hit within range (ambient occlusion)
+  /// Per voxel: what its surface reflects of bounces 1 .. B-1 (zero for one bounce); with the direct light
+  /// it sends, what a surface point's own rays see when they hit it.
+  std::vector<cv::Vec3f> reflectedSum;
   const float* at(size_t v) const { return sh.data() + v * 3 * size_t(bands) * bands; }
 };
 
@@ -116,6 +122,32 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
 /// The first occupied voxel along a ray from voxel centre `from` (past its bounding sphere, one voxel per
 /// step); -1 when the ray leaves the grid. `distance` gets the march distance of the hit.
 int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction, float* distance = nullptr);
+
+/// The first occupied voxel along a ray from surface point x: samples at (k + 1/2) voxel along the ray,
+/// x's own voxel skipped (its surface is x's own); -1 when the ray leaves the grid. `distance` as march().
+int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction,
+                       float* distance = nullptr);
+/// Per voxel with real points: the ambient irradiance the virtual objects hide from its surface (W/m^2),
+/// sum over the rays of `dirs` in front of its mean real normal of L_ambient cos theta 4 pi / N, for rays
+/// marched through the rho occupancy (as the gather: past the voxel's bounding sphere) whose first hit
+/// within range is a voxel holding a virtual point. The real points' light is injected with the unoccluded
+/// ambient; under the object that is far too bright outdoors (the sky is most of the ground's light there),
+/// so the light the object's own rays see on real surfaces is exitantMuLit - albedoMu / pi x this.
+std::vector<cv::Vec3f> ambientHiddenByObjects(const Volume& volume, const Options& options, const Ambient& ambient,
+                                              const std::vector<cv::Vec3f>& dirs);
+
+/// A surface point's own gather (the virtual object's pixels, knob object_rays): the rays of `dirs` in
+/// front of n, marched from x through the mu occupancy (the objects are not in the way of their own rays);
+/// each that hits a voxel within range brings what that voxel's surface sends towards x (its front only):
+/// its real points' radiance as the objects leave them lit (exitantMuLit less albedo / pi x `hidden`, the
+/// ambient the objects hide from it, when given; bounces > 0) plus what it
+/// reflects of further bounces (incident.reflectedSum, of the mu gather) — in place of the ambient of its
+/// direction. Returns the change against the unoccluded ambient, sum over those rays of
+/// (L_hit - L_ambient) cos theta 4 pi / N (N = dirs.size()): exactly 0 where nothing is hit, so the shading
+/// pass's unoccluded ambient stays as it is.
+cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, const Options& options,
+                      const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x, const cv::Vec3f& n,
+                      const std::vector<cv::Vec3f>* hidden = nullptr);
 
 /// The voxels the reconstruction reads at surface point x with unit normal n, with their weights (cos theta);
 /// empty where none qualifies (above).

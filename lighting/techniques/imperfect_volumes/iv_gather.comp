@@ -33,13 +33,6 @@ uniform vec3 uAmbientSh[9];      // SH bands 0-2 of the ambient radiance
 
 bool occupiedAt(int v) { return (uRho == 1 ? voxels[v].exitantRho.w : voxels[v].exitantMu.w) > 0.0; }
 
-vec3 ambientRadiance(vec3 w) {
-  float b[9];
-  ambientShBasis(w, b);
-  vec3 L = uAmbient;
-  for (int k = 0; k < 9; ++k) L += b[k] * uAmbientSh[k];
-  return L;
-}
 
 void main() {
   int slot = int(gl_GlobalInvocationID.x);
@@ -75,7 +68,7 @@ void main() {
       if (uBounceLight == 1 && dot(nSum, -d) > 0.0)
         L = uExitantFromBuffer == 1 ? reflected[hit].rgb : (uRho == 1 ? voxels[hit].exitantRho.rgb : voxels[hit].exitantMu.rgb);
     } else if (uAmbientOn == 1) {
-      L = ambientRadiance(d);
+      L = ivAmbientRadiance(uAmbient, uAmbientSh, d);
     }
     if (L == vec3(0.0)) continue;
     float y[SH_COEFFS];

@@ -27,7 +27,7 @@ void main() {
   int v = int(gl_GlobalInvocationID.x);
   if (v >= uVoxelCount) return;
   IvVoxel r;
-  r.exitantRho = r.exitantMu = r.normalRho = r.normalMu = r.albedoRho = r.albedoMu = vec4(0.0);
+  r.exitantRho = r.exitantMu = r.normalRho = r.normalMu = r.albedoRho = r.albedoMu = r.exitantMuLit = vec4(0.0);
   for (uint k = offsets[v]; k < offsets[v + 1]; ++k) {
     IvPoint p = points[k];
     vec3 x = p.position.xyz, n = p.normal.xyz;
@@ -39,6 +39,7 @@ void main() {
     if (p.position.w < 0.5) {
       vec3 eMu = directIrradiance(false, x, n) + eAmbient;
       r.exitantMu += vec4(p.albedo.rgb / SH_PI * eMu, 1.0);
+      r.exitantMuLit += vec4(p.albedo.rgb / SH_PI * eRho, 1.0);
       r.normalMu.xyz += n;
       r.albedoMu.rgb += p.albedo.rgb;
     }
@@ -50,6 +51,7 @@ void main() {
   if (r.exitantMu.w > 0.0) {
     r.exitantMu.rgb /= r.exitantMu.w;
     r.albedoMu.rgb /= r.exitantMu.w;
+    r.exitantMuLit.rgb /= r.exitantMu.w;
   }
   voxels[v] = r;
 }

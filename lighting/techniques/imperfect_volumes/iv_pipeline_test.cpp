@@ -53,7 +53,10 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
   // A white cube 12 cm next to the red wall on the grey floor, a lamp, an ambient with a directional part.
   const TestScene s = makeScene(true, 0.12, {-0.36, 0.0, 0.06});
   for (int bounces : {1, 2}) {
-    const PipelineConfig cfg = ivConfig("imperfect-volumes", 16, bounces);
+    // One bounce: the object reads the voxels' SH; two: its pixels cast their own 64 rays (object_rays).
+    const int objectRays = bounces == 1 ? 0 : 64;
+    PipelineConfig cfg = ivConfig("imperfect-volumes", 16, bounces);
+    cfg.set("iv", "object_rays", objectRays);
     LightingPipeline pipe = makePipeline(cfg, s);
     pipe.setAmbientSh({cv::Vec3d(0.05, 0.05, 0.05), {}, cv::Vec3d(0.03, 0.02, 0.01)});
     pipe.run(camera(), lamp(), {0.1, 0.1, 0.12}, nullptr);
@@ -121,7 +124,21 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
     const cv::Mat pos = pipe.frame().downloadGBuffer(0), nrm = pipe.frame().downloadGBuffer(1), alb = pipe.frame().downloadGBuffer(2);
     const cv::Mat delta = download4(*t.outputs().realDelta), virt = download4(*t.outputs().virtualIrradiance);
     const iv::Incident rhoIn = iv::gather(vol, true, o, amb), muIn = iv::gather(vol, false, o, amb);
-    int checked = 0, good = 0, virtualChecked = 0, virtualGood = 0;
+    const std::vector<cv::Vec3f> objectDirs = iv::rayDirections(std::max(objectRays, 1));
+    // The ambient the cube hides from the real surfaces, GPU against the reference.
+    const std::vector<cv::Vec3f> hidden = iv::ambientHiddenByObjects(vol, o, amb, iv::rayDirections(o.rays));
+    if (objectRays > 0) {
+      const std::vector<cv::Vec3f> gpuHidden = t.downloadHidden();
+      ASSERT_EQ(gpuHidden.size(), hidden.size());
+      int hiding = 0, off = 0;
+      for (size_t v = 0; v < hidden.size(); ++v) {
+        hiding += hidden[v][0] > 0.f;
+        off += std::abs(gpuHidden[v][0] - hidden[v][0]) > 1e-4f + 1e-3f * hidden[v][0];
+      }
+      EXPECT_GT(hiding, 10) << "floor and wall voxels next to the cube";
+      EXPECT_LE(off, static_cast<int>(g.count() / 1000));
+    }
+    int checked = 0, good = 0, virtualChecked = 0, virtualGood = 0, virtualHit = 0;
     for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
       const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i);
       if (p[3] < 0.5f) continue;
@@ -129,7 +146,9 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
       const cv::Vec3f eRho = iv::irradiance(vol, rhoIn, x, nn), eMu = iv::irradiance(vol, muIn, x, nn);
       if (alb.at<cv::Vec4f>(i)[3] > 0.5f) {
         // The object: what the real surfaces hide and send (mu: its own voxels are not in the way).
-        const cv::Vec3f expected = eMu - iv::unoccludedAmbient(amb, nn);
+        const cv::Vec3f expected = objectRays > 0 ? iv::pointGather(vol, false, muIn, o, amb, objectDirs, x, nn, &hidden)
+                                                  : eMu - iv::unoccludedAmbient(amb, nn);
+        virtualHit += objectRays > 0 && expected != cv::Vec3f(0, 0, 0);
         const cv::Vec4f got = virt.at<cv::Vec4f>(i);
         ++virtualChecked;
         virtualGood += std::abs(got[0] - expected[0]) <= 1e-3f + 2e-3f * std::abs(expected[0]);
@@ -144,6 +163,7 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
     EXPECT_GT(good, static_cast<int>(0.995 * checked)) << good << " of " << checked;
     EXPECT_GT(virtualChecked, 100);
     EXPECT_GT(virtualGood, static_cast<int>(0.99 * virtualChecked)) << virtualGood << " of " << virtualChecked;
+    if (objectRays > 0) EXPECT_GT(virtualHit, virtualChecked / 2) << "the object's rays reach the floor and the wall";
   }
 }
 

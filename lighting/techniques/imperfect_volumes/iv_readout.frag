@@ -8,6 +8,8 @@
 //                                     ambient the real surfaces hide from the object and their bounce (the
 //                                     object's own voxels neither occlude nor light it: a surface of voxels
 //                                     next to a curved object hides far more of its sky than the object does)
+//                                     With uObjectRays > 0 the object's pixels cast their own rays through the
+//                                     mu volume instead (iv.h pointGather): no SH band limit, no voxel offset.
 #include "lighting/techniques/imperfect_volumes/iv.glsl"
 
 layout(binding = 0) uniform sampler2D uGPosition;
@@ -18,6 +20,15 @@ layout(std430, binding = 2) readonly buffer Voxels { IvVoxel voxels[]; };
 layout(std430, binding = 5) readonly buffer IncidentRho { float incidentRho[]; };
 layout(std430, binding = 9) readonly buffer IncidentMu { float incidentMu[]; };
 layout(std430, binding = 10) readonly buffer Computed { uint computed[]; };  // 1 per voxel whose rays were cast
+// The object's own rays (uObjectRays > 0; iv.h pointGather): their directions, and what the mu voxels
+// reflect of bounces 1 .. B-1 (uReflectedOn).
+layout(std430, binding = 4) readonly buffer ObjectDirections { vec4 objectDirections[]; };
+layout(std430, binding = 11) readonly buffer ReflectedSumMu { vec4 reflectedSumMu[]; };
+layout(std430, binding = 12) readonly buffer Hidden { vec4 hidden[]; };  // iv_hidden.comp
+uniform int uObjectRays;
+uniform float uRange;
+uniform int uBounceLight;  // 0: surfaces send nothing (bounces 0)
+uniform int uReflectedOn;
 
 uniform int uReal;
 uniform int uVirtual;
@@ -110,6 +121,42 @@ void reconstruct(int count, vec3 n, bool rho, bool mu, out vec3 eRho, out vec3 e
   }
 }
 
+// iv.h marchFromPoint: samples at (k + 1/2) voxel from x, x's own voxel skipped, the mu occupancy.
+int marchFromPoint(vec3 x, vec3 d, out float t) {
+  ivec3 own = ivec3(-1);
+  ivVoxelOf(x, own);
+  int maxSteps = int(ceil(sqrt(3.0) * float(uResolution))) + 1;
+  for (int step = 0; step <= maxSteps; ++step) {
+    t = (float(step) + 0.5) * uVoxel;
+    ivec3 c;
+    if (!ivVoxelOf(x + t * d, c)) return -1;
+    if (c == own) continue;
+    int v = ivIndex(c);
+    if (voxels[v].exitantMu.w > 0.0) return v;
+  }
+  return -1;
+}
+
+// iv.h pointGather over the mu volume: the change against the unoccluded ambient.
+vec3 pointGather(vec3 x, vec3 n) {
+  vec3 change = vec3(0.0);
+  for (int j = 0; j < uObjectRays; ++j) {
+    vec3 d = objectDirections[j].xyz;
+    float c = dot(n, d);
+    if (!(c > 0.0)) continue;
+    float t;
+    int h = marchFromPoint(x, d, t);
+    if (h < 0 || t > uRange) continue;
+    vec3 L = vec3(0.0);
+    if (dot(voxels[h].normalMu.xyz, -d) > 0.0) {
+      if (uBounceLight == 1) L = max(voxels[h].exitantMuLit.rgb - voxels[h].albedoMu.rgb / SH_PI * hidden[h].rgb, vec3(0.0));
+      if (uReflectedOn == 1) L += reflectedSumMu[h].rgb;
+    }
+    change += (L - ivAmbientRadiance(uAmbient, uAmbientSh, d)) * c;
+  }
+  return change * (4.0 * SH_PI / float(max(uObjectRays, 1)));
+}
+
 void main() {
   ivec2 px = ivec2(gl_FragCoord.xy);
   outRealDelta = vec4(0.0);
@@ -118,6 +165,10 @@ void main() {
   if (pos.w < 0.5) return;
   vec3 n = texelFetch(uGNormal, px, 0).xyz;
   bool isVirtual = texelFetch(uGAlbedo, px, 0).a > 0.5;
+  if (isVirtual && uVirtual == 1 && uObjectRays > 0) {
+    outVirtualIrradiance = vec4(pointGather(pos.xyz, n), 0.0);
+    return;
+  }
   int count = chooseVoxels(pos.xyz, n);
   if (count == 0) return;
   vec3 eRho, eMu;

@@ -10,9 +10,13 @@ layout(std430, binding = 2) readonly buffer Voxels { IvVoxel voxels[]; };
 layout(std430, binding = 3) readonly buffer Needed { uint needed[]; };
 layout(std430, binding = 7) writeonly buffer Reflected { vec4 reflected[]; };
 layout(std430, binding = 8) readonly buffer Bounce { float bounce[]; };
+// The mu pass adds each bounce's reflected light here (uAccumulate): the voxels' outgoing radiance over all
+// bounces, which the object's own rays read (iv.h Incident::outgoing).
+layout(std430, binding = 11) buffer ReflectedSum { vec4 reflectedSum[]; };
 
 uniform int uNeededCount;
 uniform int uRho;
+uniform int uAccumulate;
 
 void main() {
   int slot = int(gl_GlobalInvocationID.x);
@@ -31,5 +35,7 @@ void main() {
     for (int q = 0; q < SH_COEFFS; ++q) c[q] = bounce[(v * 3 + ch) * SH_COEFFS + q];
     e[ch] = ivShIrradiance(c, n);
   }
-  reflected[v] = vec4(max(albedo / SH_PI * e, vec3(0.0)), 1.0);
+  vec3 out_ = max(albedo / SH_PI * e, vec3(0.0));
+  reflected[v] = vec4(out_, 1.0);
+  if (uAccumulate == 1) reflectedSum[v].rgb += out_;
 }

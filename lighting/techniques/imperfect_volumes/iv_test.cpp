@@ -187,6 +187,83 @@ TEST(ImperfectVolumes, UnoccludedAmbientIsReadBackAndOcclusionRemovesIt) {
   for (int c = 0; c < 3; ++c) EXPECT_LT(covered[c], 0.2f * open[c]);
 }
 
+// The object's own rays (pointGather): nothing in the way -> exactly no change; under a large lid of
+// surfaces facing down at radiance Lw, with a uniform ambient La, the point trades the sky for the lid:
+// E changes by (Lw - La) pi F, F the lid's form factor (cosine-weighted solid angle / pi).
+TEST(ImperfectVolumes, APointsOwnRaysTradeTheSkyForTheSurfacesTheyHit) {
+  const iv::Grid g = unitGrid(32, 0.05);
+  iv::Ambient amb;
+  amb.uniform = {0.4f, 0.4f, 0.4f};
+  iv::Options o;
+  o.rays = 64;
+  o.bounces = 1;
+  o.range = 10.0;
+  const std::vector<cv::Vec3f> dirs = iv::rayDirections(1024);
+  const cv::Vec3f x(0.0125f, 0.0125f, 0.0f);  // not on a voxel boundary
+  const iv::Volume empty = iv::voxelise(g, {});
+  const iv::Incident none = iv::gather(empty, false, o, amb);
+  EXPECT_EQ(iv::pointGather(empty, false, none, o, amb, dirs, x, {0, 0, 1}), cv::Vec3f(0, 0, 0));
+  // The lid: the whole 32 x 32 layer 0.2 m above (k = 20; its points face down).
+  std::vector<iv::Point> pts;
+  for (int j = 0; j < 32; ++j)
+    for (int i = 0; i < 32; ++i) {
+      iv::Point p = pointIn(g, i, j, 20, {0, 0, -1});
+      p.radianceRho = p.radianceMu = {1.5f, 1.5f, 1.5f};
+      pts.push_back(p);
+    }
+  const iv::Volume lid = iv::voxelise(g, pts);
+  const iv::Incident in = iv::gather(lid, false, o, amb);
+  ASSERT_EQ(lid.exitantMuLit[g.index(3, 3, 20)], cv::Vec4f(1.5f, 1.5f, 1.5f, 1.0f));
+  const cv::Vec3f change = iv::pointGather(lid, false, in, o, amb, dirs, x, {0, 0, 1});
+  // The lid's voxels span 0.2 .. 0.25 m over x, 1.6 m wide (the rays find it within a step of its face).
+  const double F = plateIrradiance(1.0, 1.6, 0.2) / CV_PI;
+  EXPECT_NEAR(change[0], (1.5 - 0.4) * CV_PI * F, 0.04 * (1.5 - 0.4) * CV_PI * F) << "F " << F;
+  // Facing away from the lid: none of its rays reach it.
+  EXPECT_EQ(iv::pointGather(lid, false, in, o, amb, dirs, x, {0, 0, -1}), cv::Vec3f(0, 0, 0));
+  // Bounces 0 (ambient occlusion only): the lid is dark, the point loses the sky's pi F La.
+  o.bounces = 0;
+  const iv::Incident dark = iv::gather(lid, false, o, amb);
+  const cv::Vec3f lost = iv::pointGather(lid, false, dark, o, amb, dirs, x, {0, 0, 1});
+  EXPECT_NEAR(lost[0], -0.4 * CV_PI * F, 0.04 * 0.4 * CV_PI * F);
+  // Beyond range the lid counts as sky.
+  o.range = 0.1;
+  EXPECT_EQ(iv::pointGather(lid, false, dark, o, amb, dirs, x, {0, 0, 1}), cv::Vec3f(0, 0, 0));
+}
+
+// The ambient a virtual lid hides from a real floor below it: L_a pi F (F the lid's form factor seen from the
+// floor voxel's centre); a real lid hides nothing (the real points' own surroundings are left out of their
+// ambient), and neither does a virtual lid beyond range.
+TEST(ImperfectVolumes, TheAmbientObjectsHideFromRealSurfacesIsTheirFormFactor) {
+  const iv::Grid g = unitGrid(32, 0.05);
+  iv::Ambient amb;
+  amb.uniform = {0.4f, 0.2f, 0.1f};
+  iv::Options o;
+  o.range = 10.0;
+  const std::vector<cv::Vec3f> dirs = iv::rayDirections(1024);
+  for (bool virtualLid : {true, false}) {
+    // One floor voxel (a floor of many would hide its grazing rays behind its own neighbours, as it does in
+    // the gather) and the lid 0.2 m above it.
+    std::vector<iv::Point> pts = {pointIn(g, 16, 16, 16)};
+    for (int j = 0; j < 32; ++j)
+      for (int i = 0; i < 32; ++i) pts.push_back(pointIn(g, i, j, 20, {0, 0, -1}, virtualLid));
+    const iv::Volume v = iv::voxelise(g, pts);
+    const std::vector<cv::Vec3f> hidden = iv::ambientHiddenByObjects(v, o, amb, dirs);
+    const cv::Vec3f h = hidden[g.index(16, 16, 16)];
+    if (!virtualLid) {
+      EXPECT_EQ(h, cv::Vec3f(0, 0, 0));
+      continue;
+    }
+    // From the floor voxel's centre (z = 0.025) to the lid's lower face (z = 0.2): 0.175 m, 1.6 m wide.
+    const double F = plateIrradiance(1.0, 1.6, 0.175) / CV_PI;
+    EXPECT_NEAR(h[0], 0.4 * CV_PI * F, 0.04 * 0.4 * CV_PI * F);
+    EXPECT_NEAR(h[2], 0.1 * CV_PI * F, 0.04 * 0.1 * CV_PI * F);
+    EXPECT_EQ(hidden[g.index(16, 16, 20)], cv::Vec3f(0, 0, 0)) << "the lid's own voxels hold no real point";
+    o.range = 0.1;
+    EXPECT_EQ(iv::ambientHiddenByObjects(v, o, amb, dirs)[g.index(16, 16, 16)], cv::Vec3f(0, 0, 0));
+    o.range = 10.0;
+  }
+}
+
 TEST(ImperfectVolumes, WithoutVirtualPointsRhoAndMuAreIdentical) {
   // The real-pixel delta E^rho - E^mu is exactly 0 when nothing virtual is in the volume.
   const iv::Grid g = unitGrid(16);

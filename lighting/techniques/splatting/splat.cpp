@@ -1,0 +1,189 @@
+#include "lighting/techniques/splatting/splat.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace mrgi::lighting::splat {
+
+namespace {
+constexpr float kPi = static_cast<float>(CV_PI);
+float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
+cv::Vec3f absVec(const cv::Vec3f& c) { return {std::abs(c[0]), std::abs(c[1]), std::abs(c[2])}; }
+}  // namespace
+
+float peakPerFlux(float exponent) { return exponent > 0 ? (exponent + 1.0f) / (2.0f * kPi) : 1.0f / kPi; }
+
+float widenedExponent(float exponent, float d, float widen) {
+  if (!(widen > 0)) return exponent;
+  return std::min(exponent, exponent * d / widen);
+}
+
+cv::Vec3f intensity(const PixelLight& l, const cv::Vec3f& w, float d) {
+  const float cn = l.normal.dot(w);
+  if (!(cn > 0)) return {0, 0, 0};
+  if (!(l.exponent > 0)) return l.flux * (cn / kPi);
+  const float P = widenedExponent(l.exponent, d, l.widen);
+  const float ca = std::max(l.axis.dot(w), 0.0f);
+  // cos^0 = 1 (also for ca = 0: the fully widened lobe is uniform over the hemisphere).
+  const float lobe = P > 0 ? std::pow(ca, P) : 1.0f;
+  return l.flux * ((P + 1.0f) / (2.0f * kPi) * lobe);  // normalised at every widened P', also P' = 0
+}
+
+cv::Vec3f irradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n) {
+  const cv::Vec3f v = x - l.position;
+  const float d2 = v.dot(v);
+  if (!(d2 > 0) || !std::isfinite(d2)) return {0, 0, 0};
+  const float d = std::sqrt(d2);
+  const cv::Vec3f w = v / d;
+  const float cr = -n.dot(w);
+  if (!(cr > 0)) return {0, 0, 0};
+  return intensity(l, w, d) * (cr / (d2 + std::max(l.area, 0.0f) / kPi));
+}
+
+float outline(float x, float n) {
+  if (!(x > 0) || x >= 1) return 0;
+  return std::pow(x, n / (n + 2)) * std::sqrt(std::max(0.0f, 1 - std::pow(x, 4 / (n + 2))));
+}
+
+Ellipse boundingEllipse(float n) {
+  Ellipse e;
+  e.centre = std::pow(n / (n + 2), (n + 2) / 4);
+  e.halfHeight = outline(e.centre, n);
+  e.halfWidth = std::max(e.centre, 1 - e.centre);
+  return e;
+}
+
+SplatBox splatBox(const PixelLight& l, float iLow) {
+  SplatBox b;
+  const float n = l.exponent > 0 ? l.exponent : 1.0f;
+  const cv::Vec3f axis = l.exponent > 0 ? l.axis : l.normal;
+  b.axes[0] = axis;
+  const cv::Vec3f helper = std::abs(axis[0]) < 0.9f ? cv::Vec3f(1, 0, 0) : cv::Vec3f(0, 1, 0);
+  b.axes[1] = cv::normalize(axis.cross(helper));
+  b.axes[2] = axis.cross(b.axes[1]);
+  const float i0 = lum(absVec(l.flux)) * peakPerFlux(l.exponent);
+  const float R = iLow > 0 && i0 > 0 ? std::sqrt(i0 / iLow) : 0.0f;
+  const Ellipse e = boundingEllipse(n);
+  float lo = (e.centre - e.halfWidth) * R, hi = (e.centre + e.halfWidth) * R, lateral = e.halfHeight * R;
+  if (l.exponent > 0 && l.widen > 0 && R > 0) {  // the widened lobe near the light: the ball of radius a
+    lo = std::min(lo, -l.widen);
+    hi = std::max(hi, l.widen);
+    lateral = std::max(lateral, l.widen);
+  }
+  b.centre = l.position + axis * (0.5f * (lo + hi));
+  b.half = {0.5f * (hi - lo), lateral, lateral};
+  return b;
+}
+
+bool insideBox(const SplatBox& b, const cv::Vec3f& x) {
+  const cv::Vec3f v = x - b.centre;
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(v.dot(b.axes[k])) > b.half[k]) return false;
+  return true;
+}
+
+cv::Vec3f splatIrradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow) {
+  return insideBox(splatBox(l, iLow), x) ? irradiance(l, x, n) : cv::Vec3f(0, 0, 0);
+}
+
+Pyramid buildPyramid(const cv::Mat& importance) {
+  int side = 1;
+  while (side < std::max(importance.cols, importance.rows)) side *= 2;
+  cv::Mat base = cv::Mat::zeros(side, side, CV_64F);
+  cv::Mat src;
+  importance.convertTo(src, CV_64F);
+  for (int y = 0; y < src.rows; ++y)
+    for (int x = 0; x < src.cols; ++x) {
+      const double v = src.at<double>(y, x);
+      base.at<double>(y, x) = std::isfinite(v) && v > 0 ? v : 0.0;
+    }
+  Pyramid p;
+  p.levels.push_back(base);
+  while (p.levels.back().rows > 1) {
+    const cv::Mat& f = p.levels.back();
+    cv::Mat c(f.rows / 2, f.cols / 2, CV_64F);
+    for (int y = 0; y < c.rows; ++y)
+      for (int x = 0; x < c.cols; ++x)
+        c.at<double>(y, x) = f.at<double>(2 * y, 2 * x) + f.at<double>(2 * y, 2 * x + 1) +
+                             f.at<double>(2 * y + 1, 2 * x) + f.at<double>(2 * y + 1, 2 * x + 1);
+    p.levels.push_back(c);
+  }
+  return p;
+}
+
+Warped warp(const Pyramid& p, cv::Vec2d u) {
+  Warped out;
+  if (p.levels.empty() || !(p.levels.back().at<double>(0, 0) > 0)) return out;
+  int x = 0, y = 0;
+  double w = 1;
+  for (int k = static_cast<int>(p.levels.size()) - 2; k >= 0; --k) {
+    const cv::Mat& f = p.levels[static_cast<size_t>(k)];
+    x *= 2, y *= 2;
+    const double t0 = f.at<double>(y, x), t1 = f.at<double>(y, x + 1);
+    const double b0 = f.at<double>(y + 1, x), b1 = f.at<double>(y + 1, x + 1);
+    // Vertical: the top row with probability Φ_r.
+    const double r = (t0 + t1) / (t0 + t1 + b0 + b1);
+    if (u[1] < r) {
+      u[1] = u[1] / r;
+      w /= 2 * r;
+    } else {
+      u[1] = (u[1] - r) / (1 - r);
+      w /= 2 * (1 - r);
+      y += 1;
+    }
+    // Horizontal within the chosen row (method A).
+    const double l = y % 2 == 0 ? t0 : b0, rr = y % 2 == 0 ? t1 : b1;
+    const double c = l / (l + rr);
+    if (u[0] < c) {
+      u[0] = u[0] / c;
+      w /= 2 * c;
+    } else {
+      u[0] = (u[0] - c) / (1 - c);
+      w /= 2 * (1 - c);
+      x += 1;
+    }
+    u = {std::clamp(u[0], 0.0, std::nextafter(1.0, 0.0)), std::clamp(u[1], 0.0, std::nextafter(1.0, 0.0))};
+  }
+  out.texel = {x, y};
+  out.weight = w;
+  return out;
+}
+
+cv::Vec2d samplePoint(int i) {
+  // R2: the plastic number's powers (Roberts 2018), offset 0.5.
+  constexpr double g = 1.32471795724474602596;
+  constexpr double a1 = 1.0 / g, a2 = 1.0 / (g * g);
+  const double x = 0.5 + a1 * i, y = 0.5 + a2 * i;
+  return {x - std::floor(x), y - std::floor(y)};
+}
+
+double warpedEstimate(const Pyramid& p, const cv::Mat& f, int n) {
+  const double texels = static_cast<double>(p.levels.front().total());
+  double sum = 0;
+  for (int i = 0; i < n; ++i) {
+    const Warped s = warp(p, samplePoint(i));
+    if (s.texel.x < 0 || s.texel.x >= f.cols || s.texel.y >= f.rows) continue;
+    sum += f.at<double>(s.texel) * texels * s.weight;
+  }
+  return sum / std::max(n, 1);
+}
+
+double importance(const cv::Vec3f& flux, float ao, float exponent) {
+  const double l = lum(absVec(flux));
+  const double v = l * (1.0 - std::clamp(ao, 0.0f, 1.0f)) * (1.0 + std::max(exponent, 0.0f));
+  return std::isfinite(v) && v > 0 ? v : 0.0;
+}
+
+cv::Vec3f gather(const std::vector<PixelLight>& lights, const cv::Vec3f& x, const cv::Vec3f& n) {
+  cv::Vec3f e(0, 0, 0);
+  for (const PixelLight& l : lights) e += irradiance(l, x, n);
+  return e;
+}
+
+cv::Vec3f gatherBounded(const std::vector<PixelLight>& lights, const cv::Vec3f& x, const cv::Vec3f& n, float iLow) {
+  cv::Vec3f e(0, 0, 0);
+  for (const PixelLight& l : lights) e += splatIrradiance(l, x, n, iLow);
+  return e;
+}
+
+}  // namespace mrgi::lighting::splat

@@ -1,0 +1,111 @@
+#pragma once
+/// Splatting indirect illumination (shared/papers/001; algorithms.md §2 and §5) for mixed reality: the plain
+/// C++ reference of the GPU passes.
+///
+/// Pixel lights. Every texel of a reflective shadow map is a pixel light (VPL) at x_p with normal n_p and
+/// reflected flux Φ_p; its radiant intensity towards a unit direction ω is
+///   diffuse  I_p(ω) = Φ_p / π <n_p, ω>₊                      (a Lambertian patch; algorithms.md §2)
+///   glossy   I_p(ω) = Φ_p (P' + 1) / (2π) <r_p, ω>₊^P'  (<n_p, ω> > 0)
+/// with r_p the light's mirror direction at the texel and Φ_p the flux the glossy lobe reflects (specular ×
+/// the incident flux); the lobe is normalised, so it sends Φ_p out (less what falls below the surface).
+/// Near the pixel light the exponent is widened: P'(d) = min(P, P d / a), a the widening distance, so the
+/// lobe does not focus a singular spot onto a receiver that touches it (algorithms.md §5).
+/// A receiver at x with normal n gets
+///   E_p(x) = I_p(ω) <n, −ω>₊ / (d² + A_p / π),   ω = (x − x_p) / d, d = |x − x_p|
+/// where A_p is the texel's surface footprint: the disc clamp of Kinect-VAL's form factor, so E stays below
+/// Φ_p / A_p as d → 0 and equals I cos / d² far away.
+///
+/// Splat bounds. E_p ≤ B(α, r) = I_0 cos^n α / r² (α the angle to the lobe axis: n_p with n = 1 for a diffuse
+/// light, r_p with n = P for a glossy one; I_0 the lobe's peak intensity), so outside the region
+/// r(α) = sqrt(I_0 cos^n α / I_low) every receiver gets less than I_low. In units of R = sqrt(I_0 / I_low)
+/// the region's outline is F(x) = x^{n/(n+2)} sqrt(1 − x^{4/(n+2)}) along the axis x ∈ [0, 1]; it lies in
+/// the ellipse centred at c(n) = (n/(n+2))^{(n+2)/4} with half-height h(n) = F(c(n)) and half-width
+/// max(c, 1 − c). A widened glossy lobe adds the ball of radius a around the light (inside it P' < P).
+///
+/// Importance sampling by hierarchical warping (§5): the importance map's pyramid of sums is descended from
+/// its top; at each level the sample's y is warped into the top or bottom half, Φ_r = Φ_top / (Φ_top +
+/// Φ_bottom), y' = y / Φ_r or (y − Φ_r) / (1 − Φ_r) (the paper's scaled form, same map), then x within the
+/// chosen half (method A); the sample's weight is the product of 1/(2Φ) of each choice, i.e. 1 / (texels ×
+/// pdf). The warped estimate (1/N) Σ f(t_s) texels w_s of Σ_t f_t is unbiased wherever the importance is
+/// non-zero. Importance p = lum(Φ) (1 − AO) (1 + P): dark, occluded and diffuse texels get fewer samples.
+///
+/// Mixed reality: the real-pixel delta is the splat of RSM^rho's lights minus RSM^mu's. Both are sampled at
+/// the same texels with the same weights from one importance map that is non-zero only where the two RSMs
+/// differ (the object, and the real surfaces it shadows), so identical texels cancel exactly and with no
+/// virtual object the delta is exactly 0. The object's indirect light is the splat of RSM^rho's lights
+/// (its own texels excluded: a surface does not light itself).
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace mrgi::lighting::splat {
+
+/// One pixel light as the GPU reads it (std430, 4 × vec4).
+struct PixelLight {
+  cv::Vec3f position;  ///< x_p, lighting world
+  float area = 0;      ///< A_p, m² (the texel's footprint on the surface)
+  cv::Vec3f normal;    ///< n_p, unit, facing the light
+  float exponent = 0;  ///< P: 0 = diffuse, > 0 glossy about `axis`
+  cv::Vec3f flux;      ///< Φ_p, W, times the sample's weight (negative for a subtracted light)
+  float widen = 0;     ///< a, metres (glossy only; 0 = no widening)
+  cv::Vec3f axis;      ///< r_p (glossy) or n_p (diffuse), unit
+  float pad = 0;
+};
+static_assert(sizeof(PixelLight) == 64);
+
+/// Peak radiant intensity per unit flux of the lobe: 1/π (diffuse) or (P + 1) / (2π).
+float peakPerFlux(float exponent);
+/// Exponent at distance d: min(P, P d / a) (P when a ≤ 0).
+float widenedExponent(float exponent, float d, float widen);
+/// Radiant intensity towards unit ω (W/sr), widened at distance d.
+cv::Vec3f intensity(const PixelLight& l, const cv::Vec3f& w, float d);
+/// Irradiance the light sends to the receiver (x, n), W/m²; 0 on the light itself (d = 0).
+cv::Vec3f irradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n);
+
+/// The significant region's outline F(x) and the ellipse around it (units of R).
+float outline(float x, float n);
+struct Ellipse {
+  float centre = 0, halfWidth = 0, halfHeight = 0;
+};
+Ellipse boundingEllipse(float n);
+/// World-space box around a light's significant region for the cut-off I_low (W/m², luminance; > 0):
+/// centre, three unit axes (the first along the lobe axis) and half extents; it holds the ellipsoid of
+/// boundingEllipse() scaled by R = sqrt(I_0 / I_low) and, for a widened glossy lobe, the ball of radius a.
+struct SplatBox {
+  cv::Vec3f centre, axes[3];
+  cv::Vec3f half{0, 0, 0};
+};
+SplatBox splatBox(const PixelLight& l, float iLow);
+/// Whether x lies in the box.
+bool insideBox(const SplatBox& b, const cv::Vec3f& x);
+/// The bounded splat: irradiance() where x lies in splatBox(l, iLow), 0 elsewhere.
+cv::Vec3f splatIrradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow);
+
+/// Sum pyramid of an importance map (square, side a power of two; level 0 = the map).
+struct Pyramid {
+  std::vector<cv::Mat> levels;  ///< CV_64F, level k side = side >> k; the last is 1 x 1
+};
+/// Builds the pyramid of a CV_32F or CV_64F map padded with zeros to the next power-of-two square.
+Pyramid buildPyramid(const cv::Mat& importance);
+/// A warped sample: the texel and its weight 1 / (texels × pdf) (texels = side² of level 0); weight 0 and
+/// texel (-1, -1) when the map is all zero.
+struct Warped {
+  cv::Point texel{-1, -1};
+  double weight = 0;
+};
+Warped warp(const Pyramid& p, cv::Vec2d u);
+/// The i-th of n sample points in [0, 1)²: the R2 low-discrepancy sequence (deterministic; GPU twin).
+cv::Vec2d samplePoint(int i);
+/// The warped estimate of Σ f over the map's texels with n samples: (1/n) Σ f(t_s) texels w_s.
+double warpedEstimate(const Pyramid& p, const cv::Mat& f, int n);
+
+/// Importance of one texel: lum(Φ) (1 − AO) (1 + P), 0 for non-finite or negative input.
+double importance(const cv::Vec3f& flux, float ao, float exponent);
+
+/// Σ_p E_p at (x, n), without bounds (the gather the splats approximate).
+cv::Vec3f gather(const std::vector<PixelLight>& lights, const cv::Vec3f& x, const cv::Vec3f& n);
+/// Σ_p E_p at (x, n), each light only within its splat box.
+cv::Vec3f gatherBounded(const std::vector<PixelLight>& lights, const cv::Vec3f& x, const cv::Vec3f& n, float iLow);
+
+}  // namespace mrgi::lighting::splat
