@@ -631,12 +631,19 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     gpuBytes = std::max(gpuBytes, pipe.gpuBytes());
     if (r.info.contains("techniques")) techniqueStats = r.info["techniques"];
     FrameState st = frameState(pipe.downloadShade(), pipe.downloadGBuffer(0), *r.T_marker_camera);
+    std::optional<NearObjects> near;
+    if (const auto b = pipe.frame().objectBounds()) {
+      near.emplace();
+      near->positions = st.positions;
+      near->centre = 0.5 * (b->first + b->second);
+      near->radius = 0.5 * cv::norm(b->second - b->first);
+    }
     if (prev) {
       const auto [a, b] = flickerSums(*prev, st, frame.rgbd->colourIntrinsics);
       flickNum += a, flickDen += b;
     }
     if (const auto it = bs.truths.find(f); it != bs.truths.end()) {
-      const ErrorSums e = errorSums(st.shade, it->second);
+      const ErrorSums e = errorSums(st.shade, it->second, near ? &*near : nullptr);
       err.add(e);
       ssimSum += ssimOf(r.composite, it->second.composite);
       if (images && c.varied.empty() && it == bs.truths.begin()) {
@@ -685,6 +692,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
             {"gpu_mb", static_cast<double>(gpuBytes) / (1024.0 * 1024.0)},
             {"rmse_delta", err.rmse()},
             {"rel_error_delta", err.relDelta()},
+            {"rel_error_delta_near", err.relDeltaNear()},
             {"rel_error_virtual", err.relVirtual()},
             {"ssim", bs.truths.empty() ? 0.0 : ssimSum / static_cast<double>(bs.truths.size())},
             {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
@@ -735,7 +743,7 @@ int runSweep(const BenchOptions& o) {
       perSession.push_back(measureConfig(c, sessions[si], o, errScale, si == 0 ? &images : nullptr));
     // The record: each measure's mean over the sessions (each session weighs the same), per session below.
     json r = {{"technique", c.technique.name}, {"varied", c.varied}, {"knobs", knobsJson(c)}};
-    for (const char* key : {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_virtual", "ssim",
+    for (const char* key : {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_delta_near", "rel_error_virtual", "ssim",
                             "flicker", "silhouette_mismatch_pixels"}) {
       double sum = 0;
       for (const auto& p : perSession) sum += p[key].get<double>();

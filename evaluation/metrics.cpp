@@ -79,7 +79,7 @@ std::pair<double, double> flickerSums(const FrameState& prev, const FrameState& 
   return {num, den};
 }
 
-ErrorSums errorSums(const cv::Mat& shade, const Truth& truth) {
+ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects* near) {
   ErrorSums e;
   for (int y = 0; y < shade.rows; ++y)
     for (int x = 0; x < shade.cols; ++x) {
@@ -90,8 +90,14 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth) {
         ++e.mismatched;
         continue;
       }
+      bool isNear = false;
+      if (near && !virtRt && near->radius > 0) {
+        const cv::Vec4f p = near->positions.at<cv::Vec4f>(y, x);
+        isNear = p[3] > 0.5f && cv::norm(cv::Vec3d(p[0], p[1], p[2]) - near->centre) <= near->radii * near->radius;
+      }
       for (int c = 0; c < 3; ++c) {
         const double d = s[c] - r[c];
+        if (isNear) e.nearAbs += std::abs(d), e.nearRef += std::abs(r[c]);
         if (virtRt) {
           e.virtAbs += std::abs(d);
           e.virtRef += std::abs(r[c]);

@@ -52,15 +52,26 @@ struct ErrorSums {
   size_t real = 0;
   double virtAbs = 0, virtRef = 0;
   size_t mismatched = 0;  ///< pixels virtual in one image only (silhouette), left out
+  double nearAbs = 0, nearRef = 0;  ///< the delta's sums over real pixels near the objects (NearObjects)
   void add(const ErrorSums& e) {
     sq += e.sq, abs += e.abs, absRef += e.absRef, real += e.real;
     virtAbs += e.virtAbs, virtRef += e.virtRef, mismatched += e.mismatched;
+    nearAbs += e.nearAbs, nearRef += e.nearRef;
   }
   double rmse() const { return real ? std::sqrt(sq / (3.0 * static_cast<double>(real))) : 0.0; }
   double relDelta() const { return absRef > 0 ? abs / absRef : 0.0; }
   double relVirtual() const { return virtRef > 0 ? virtAbs / virtRef : 0.0; }
+  double relDeltaNear() const { return nearRef > 0 ? nearAbs / nearRef : 0.0; }
 };
-ErrorSums errorSums(const cv::Mat& shade, const Truth& truth);
+/// Real pixels near the objects: their surface point (G-buffer positions, CV_32FC4, w = valid) within
+/// `radii` x the objects' bounding radius of its centre (the contact shadow and the bounce next to them).
+struct NearObjects {
+  cv::Mat positions;
+  cv::Vec3d centre{0, 0, 0};
+  double radius = 0;
+  double radii = 2.0;
+};
+ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects* near = nullptr);
 
 /// The error as an image (RGB8): real pixels |delta_rt - delta_ref| (black = 0, white = `scale`; red: too dark,
 /// green: too bright), virtual pixels their radiance's relative error (white = 10 %; blue: too dark, yellow:

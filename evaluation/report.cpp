@@ -112,13 +112,13 @@ json choosePresets(const json& records) {
 
 void writeCsv(const std::string& path, const json& records) {
   std::ostringstream s;
-  s << "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_virtual,ssim,flicker\n";
+  s << "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_delta_near,rel_error_virtual,ssim,flicker\n";
   for (const auto& r : records) {
     std::string knobs;
     for (const auto& [k, v] : r["knobs"].items()) knobs += (knobs.empty() ? "" : ";") + k + "=" + v.dump();
     s << r["technique"].get<std::string>() << "," << r.value("varied", "") << "," << knobs << "," << r["ms_total"] << ","
       << r["ms_lighting"] << "," << r["gpu_mb"] << "," << r["rmse_delta"] << "," << r["rel_error_delta"] << ","
-      << r["rel_error_virtual"] << "," << r["ssim"] << "," << r["flicker"] << "\n";
+      << r.value("rel_error_delta_near", 0.0) << "," << r["rel_error_virtual"] << "," << r["ssim"] << "," << r["flicker"] << "\n";
   }
   capture::writeFileAtomically(path, s.str());
 }

@@ -102,7 +102,7 @@ struct CameraView {
 };
 
 /// RSM texels as read back from the GPU (CV_32FC4 each, size x size): world position (w = 1 where a surface
-/// was seen), normal facing the light (w = 1 on virtual surfaces), reflected flux (albedo x flux through the
+/// was seen), normal facing the light (w = object index + 1 on virtual surfaces, 0 on real ones), reflected flux (albedo x flux through the
 /// texel, W), incident flux through the texel (W).
 struct RsmTexels {
   cv::Mat position, normal, flux, direct;

@@ -14,10 +14,10 @@ uniform float uSpotCos;        // cos of the spot half angle
 uniform float uFocal;          // perspective focal length, pixels
 uniform float uCentre;         // principal point (= size / 2), pixels
 uniform float uTexelArea;      // orthographic texel footprint, m^2
-uniform float uVirtual;
+uniform float uObject;  // 0 for the real mesh, 1 + index for a virtual object
 
 layout(location = 0) out vec4 outPosition;
-layout(location = 1) out vec4 outNormal;  // w = 1 on virtual surfaces
+layout(location = 1) out vec4 outNormal;  // w = object index + 1 on virtual surfaces, 0 on real ones
 layout(location = 2) out vec4 outFlux;
 layout(location = 3) out vec4 outDirect;
 
@@ -36,7 +36,7 @@ void main() {
     if (uLightType == 1 && dot(normalize(vPosition - uLightPosition), uLightDirection) < uSpotCos) phi = vec3(0.0);
   }
   outPosition = vec4(vPosition, 1.0);
-  outNormal = vec4(n, uVirtual);
+  outNormal = vec4(n, uObject);
   outFlux = vec4(vAlbedo * phi, 1.0);
   outDirect = vec4(phi, 1.0);
 }

@@ -8,12 +8,14 @@ namespace mrgi::lighting {
 TechniqueInfo dlpvTechniqueInfo();       // lighting/techniques/dlpv/
 TechniqueInfo kinectValTechniqueInfo();  // lighting/techniques/kinect_val/
 TechniqueInfo imperfectVolumesTechniqueInfo();  // lighting/techniques/imperfect_volumes/
+TechniqueInfo splattingTechniqueInfo();  // lighting/techniques/splatting/
 
 const std::vector<TechniqueInfo>& techniques() {
   static const std::vector<TechniqueInfo> all = {
       dlpvTechniqueInfo(),
       kinectValTechniqueInfo(),
       imperfectVolumesTechniqueInfo(),
+      splattingTechniqueInfo(),
   };
   return all;
 }

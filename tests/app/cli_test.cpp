@@ -552,7 +552,8 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
   std::set<std::string> techniques;
   for (const auto& rec : doc["records"]) {
     techniques.insert(rec["technique"].get<std::string>());
-    for (const char* key : {"ms_total", "ms_lighting", "rmse_delta", "rel_error_delta", "rel_error_virtual", "ssim", "flicker", "gpu_mb"}) {
+    for (const char* key : {"ms_total", "ms_lighting", "rmse_delta", "rel_error_delta", "rel_error_delta_near", "rel_error_virtual",
+                            "ssim", "flicker", "gpu_mb"}) {
       ASSERT_TRUE(rec.contains(key)) << key;
       const double v = rec[key].get<double>();
       EXPECT_TRUE(std::isfinite(v) && v >= 0) << key << " " << v;
@@ -567,8 +568,11 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
   }
   // Every technique and alias, and each pairing of a technique that serves real pixels with another one for
   // the virtual object (Kinect-VAL serves the virtual object only).
-  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "imperfect-volumes", "dlpv+kinect-val",
-                                               "dlpv+imperfect-volumes", "imperfect-volumes+dlpv", "imperfect-volumes+kinect-val"}));
+  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "imperfect-volumes", "splatting",
+                                               "dlpv+kinect-val", "dlpv+imperfect-volumes", "dlpv+splatting",
+                                               "imperfect-volumes+dlpv", "imperfect-volumes+kinect-val",
+                                               "imperfect-volumes+splatting", "splatting+dlpv", "splatting+kinect-val",
+                                               "splatting+imperfect-volumes"}));
   // A coarser volume costs less GPU memory than the defaults.
   double mbDefault = 0, mbCoarse = 0;
   for (const auto& rec : doc["records"])

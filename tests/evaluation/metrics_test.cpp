@@ -45,6 +45,19 @@ TEST(Metrics, ErrorSumsAgainstAKnownTruth) {
   cv::Mat s = shadeOf(8, 4, -0.2f, 0.5f);
   s.at<cv::Vec4f>(0, 3)[3] = 1;
   EXPECT_EQ(errorSums(s, t).mismatched, 1u);
+  // Near the objects: only the real pixels whose surface point lies within 2 radii of their centre. Pixels
+  // x < 2 sit 1 cm from it and carry the error; the others are 1 m away and exact.
+  cv::Mat positions(4, 8, CV_32FC4), off = shadeOf(8, 4, -0.2f, 0.5f);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 8; ++x) {
+      positions.at<cv::Vec4f>(y, x) = x < 2 ? cv::Vec4f(0.01f, 0, 0, 1) : cv::Vec4f(1, 0, 0, 1);
+      if (x < 2 && off.at<cv::Vec4f>(y, x)[3] < 0.5f) off.at<cv::Vec4f>(y, x) = {-0.3f, -0.3f, -0.3f, 0.f};
+    }
+  NearObjects near{positions, {0, 0, 0}, 0.05, 2.0};
+  const ErrorSums n = errorSums(off, t, &near);
+  EXPECT_NEAR(n.relDeltaNear(), 0.5, 1e-6);  // 0.1 off a delta of 0.2
+  EXPECT_LT(n.relDelta(), n.relDeltaNear());
+  EXPECT_EQ(errorSums(off, t).relDeltaNear(), 0.0);  // none asked for
 }
 
 TEST(Metrics, FlickerIsZeroForAnUnchangedDeltaAndRelativeOtherwise) {

@@ -48,7 +48,7 @@ TechniqueInfo kinectValTechniqueInfo() {
   t.stagePrefixes = {"val."};
   t.knobs = groupOf("val", kinectValKnobTable());
   t.create = [](const TechniqueSetup& s) { return std::make_unique<KinectValTechnique>(s); };
-  t.estimateBytes = [](const KnobValues&, bool, bool, int w, int h) { return 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h); };
+  t.estimateBytes = [](const KnobValues&, const KnobValues&, bool, bool, int w, int h) { return 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h); };
   return t;
 }
 

@@ -1,0 +1,33 @@
+#version 450 core
+// Splatting: a pixel light's bounded contribution to the G-buffer point under the fragment (splat.h
+// splatIrradiance), added by blending: uTarget 0 onto real pixels (the delta's signed lights), 1 onto
+// virtual pixels (the object's indirect light). Alpha counts the splats that reached the pixel (overdraw).
+#include "lighting/techniques/splatting/splat.glsl"
+layout(std430, binding = 2) readonly buffer Lights { PixelLight lights[]; };
+layout(binding = 0) uniform sampler2D uGPosition;
+layout(binding = 1) uniform sampler2D uGNormal;
+layout(binding = 2) uniform sampler2D uGAlbedo;
+
+uniform int uTarget;
+uniform float uILowScale;
+
+flat in int vLight;
+layout(location = 0) out vec4 outRealDelta;
+layout(location = 1) out vec4 outVirtualIrradiance;
+
+void main() {
+  outRealDelta = outVirtualIrradiance = vec4(0.0);
+  ivec2 px = ivec2(gl_FragCoord.xy);
+  vec4 pos = texelFetch(uGPosition, px, 0);
+  if (pos.w < 0.5) return;
+  bool isVirtual = texelFetch(uGAlbedo, px, 0).a > 0.5;
+  if (isVirtual != (uTarget == 1)) return;
+  PixelLight l = lights[vLight];
+  SplatBox b = splatBox(l, uILowScale * splatLum(abs(l.fluxWiden.rgb)));
+  if (!splatInsideBox(b, pos.xyz)) return;
+  vec3 e = splatIrradiance(l, pos.xyz, texelFetch(uGNormal, px, 0).xyz);
+  if (uTarget == 0)
+    outRealDelta = vec4(e, 1.0);
+  else
+    outVirtualIrradiance = vec4(e, 1.0);
+}
