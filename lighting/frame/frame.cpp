@@ -482,8 +482,12 @@ ShadowTexels FrameResources::downloadShadowTexels(size_t i) const {
                          static_cast<GLsizei>(m.total() * m.elemSize()), m.ptr());
     return m;
   };
-  ShadowTexels out{layer(shadowRho_), layer(shadowMu_), cv::Mat()};
-  if (views_[i].objectShadowBias >= 0) out.objects = layer(shadowObjects_);
+  // RSM^rho is read only where the light has no objects' map (lightVisibility), so only then downloaded.
+  ShadowTexels out{cv::Mat(), layer(shadowMu_), cv::Mat()};
+  if (views_[i].objectShadowBias >= 0)
+    out.objects = layer(shadowObjects_);
+  else
+    out.rho = layer(shadowRho_);
   return out;
 }
 

@@ -109,7 +109,7 @@ struct RsmTexels {
 };
 
 /// One light's shadow maps as downloaded (CV_32FC4 world positions, w = 1 where a surface was seen):
-/// RSM^rho, RSM^mu and the objects' map (empty when the light's view has none).
+/// RSM^mu, and either the objects' map or, where the light's view has none, RSM^rho (the other empty).
 struct ShadowTexels {
   cv::Mat rho, mu, objects;
 };

@@ -1,6 +1,8 @@
 #include "gl/objects.h"
 
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include "gl/error.h"
 
@@ -11,6 +13,15 @@ Buffer::Buffer(GLsizeiptr size, const void* data, GLbitfield flags) : size_(size
   glCreateBuffers(1, &id);
   handle_ = BufferHandle(id);
   glNamedBufferStorage(id, size, data, flags);
+}
+
+void Buffer::clear() const { glClearNamedBufferData(handle_.id(), GL_R8, GL_RED, GL_UNSIGNED_BYTE, nullptr); }
+
+Buffer Buffer::storage(size_t bytes, const void* data) {
+  if (data && bytes >= 16) return Buffer(static_cast<GLsizeiptr>(bytes), data);
+  std::vector<uint8_t> bytesOut(std::max<size_t>(bytes, 16), 0);
+  if (data) std::copy_n(static_cast<const uint8_t*>(data), bytes, bytesOut.begin());
+  return Buffer(static_cast<GLsizeiptr>(bytesOut.size()), bytesOut.data());
 }
 
 void Buffer::upload(GLintptr offset, GLsizeiptr bytes, const void* data) {

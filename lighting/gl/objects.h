@@ -64,6 +64,11 @@ class Buffer {
   GLsizeiptr size() const { return size_; }
   void upload(GLintptr offset, GLsizeiptr bytes, const void* data);
   void download(GLintptr offset, GLsizeiptr bytes, void* out) const;
+  /// Sets every byte to zero (glClearNamedBufferData; the contents change, the object does not).
+  void clear() const;
+  /// A storage buffer of at least 16 bytes (an SSBO binding needs a non-empty one): the first `bytes` from
+  /// `data`, zeros where data is null and beyond.
+  static Buffer storage(size_t bytes, const void* data = nullptr);
 
  private:
   BufferHandle handle_;

@@ -139,6 +139,7 @@ TEST(DirectLight, ObjectViewFallsBackToTheRegionsMapWhenALightSitsAmongTheObject
   EXPECT_TRUE(cv::checkRange(shade));
   const auto maps = pipe.frame().downloadShadowTexels(0);
   EXPECT_TRUE(maps.objects.empty());
+  EXPECT_FALSE(maps.rho.empty());  // RSM^rho stands in for the objects' map
 }
 
 }  // namespace

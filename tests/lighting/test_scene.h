@@ -109,6 +109,24 @@ inline CameraView topCamera(int w, int h) {
   return c;
 }
 
+/// 96 x 72, looking from the front right at a cube next to the red wall (makeScene(true, ..., {-0.36, 0, 0.06})).
+inline CameraView wallCamera() {
+  CameraView c;
+  const int w = 96, h = 72;
+  c.intrinsics = {w, h, 1.2 * w, 1.2 * w, 0.5 * w - 0.5, 0.5 * h - 0.5};
+  c.T_world_camera = capture::lookAtPose({0.35, -0.6, 0.45}, {-0.25, 0.0, 0.05});
+  return c;
+}
+
+/// A 2 W/sr lamp 0.9 m over the floor, in front of the wall.
+inline std::vector<SceneLight> wallLamp() {
+  SceneLight l;
+  l.type = lighting::LightType::Point;
+  l.position = {0.1, -0.2, 0.9};
+  l.intensity = {2.0, 2.0, 2.0};
+  return {l};
+}
+
 inline SceneLight sunDown(double e = 10.0) {
   SceneLight l;
   l.type = lighting::LightType::Directional;

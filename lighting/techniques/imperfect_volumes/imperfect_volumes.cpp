@@ -161,17 +161,6 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
 
 namespace {
 
-/// A buffer holding `bytes` (at least 16: GL buffers are never empty), filled from data or zero.
-gl::Buffer bufferOf(size_t bytes, const void* data = nullptr) {
-  const size_t size = std::max<size_t>(bytes, 16);
-  if (data && bytes >= size) return gl::Buffer(static_cast<GLsizeiptr>(size), data);
-  std::vector<uint8_t> zero(size, 0);
-  if (data) std::copy_n(static_cast<const uint8_t*>(data), bytes, zero.begin());
-  return gl::Buffer(static_cast<GLsizeiptr>(size), zero.data());
-}
-
-void clearBuffer(const gl::Buffer& b) { glClearNamedBufferData(b.id(), GL_R32F, GL_RED, GL_FLOAT, nullptr); }
-
 /// The frame's ambient (uniform radiance and its SH part) as the passes' uAmbient and uAmbientSh.
 void setAmbient(const gl::Program& p, const FrameResources& frame) {
   setVec3(p, "uAmbient", frame.ambient());
@@ -202,28 +191,28 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     for (size_t v = 0; v < count; ++v)
       if (near[v]) computed[v] = 1, needed.push_back(static_cast<uint32_t>(v));
     neededCount_ = needed.size();
-    points_ = bufferOf(pts.data.size() * sizeof(cv::Vec4f), pts.data.data());
-    offsets_ = bufferOf(pts.offsets.size() * sizeof(uint32_t), pts.offsets.data());
-    needed_ = bufferOf(needed.size() * sizeof(uint32_t), needed.data());
-    computed_ = bufferOf(computed.size() * sizeof(uint32_t), computed.data());
+    points_ = gl::Buffer::storage(pts.data.size() * sizeof(cv::Vec4f), pts.data.data());
+    offsets_ = gl::Buffer::storage(pts.offsets.size() * sizeof(uint32_t), pts.offsets.data());
+    needed_ = gl::Buffer::storage(needed.size() * sizeof(uint32_t), needed.data());
+    computed_ = gl::Buffer::storage(computed.size() * sizeof(uint32_t), computed.data());
     if (regrid || !directions_.id()) {
       std::vector<cv::Vec4f> dirs;
       for (const cv::Vec3f& d : iv::rayDirections(knobs_.rays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
-      directions_ = bufferOf(dirs.size() * sizeof(cv::Vec4f), dirs.data());
-      voxels_ = bufferOf(count * 7 * sizeof(cv::Vec4f));
-      incidentRho_ = real_ ? bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float)) : gl::Buffer();
-      incidentMu_ = bufferOf(count * 3 * static_cast<size_t>(C) * sizeof(float));
-      bounce_ = bufferOf(knobs_.bounces > 1 ? count * 3 * static_cast<size_t>(C) * sizeof(float) : 0);
-      reflected_ = bufferOf(knobs_.bounces > 1 ? count * sizeof(cv::Vec4f) : 0);
-      occlusionRho_ = real_ ? bufferOf(count * sizeof(float)) : gl::Buffer();
-      occlusionMu_ = bufferOf(count * sizeof(float));
-      reflectedSum_ = bufferOf(knobs_.bounces > 1 && virtual_ ? count * sizeof(cv::Vec4f) : 0);
-      hidden_ = bufferOf(virtual_ && knobs_.objectRays > 0 ? count * sizeof(cv::Vec4f) : 0);
+      directions_ = gl::Buffer::storage(dirs.size() * sizeof(cv::Vec4f), dirs.data());
+      voxels_ = gl::Buffer::storage(count * 7 * sizeof(cv::Vec4f));
+      incidentRho_ = real_ ? gl::Buffer::storage(count * 3 * static_cast<size_t>(C) * sizeof(float)) : gl::Buffer();
+      incidentMu_ = gl::Buffer::storage(count * 3 * static_cast<size_t>(C) * sizeof(float));
+      bounce_ = gl::Buffer::storage(knobs_.bounces > 1 ? count * 3 * static_cast<size_t>(C) * sizeof(float) : 0);
+      reflected_ = gl::Buffer::storage(knobs_.bounces > 1 ? count * sizeof(cv::Vec4f) : 0);
+      occlusionRho_ = real_ ? gl::Buffer::storage(count * sizeof(float)) : gl::Buffer();
+      occlusionMu_ = gl::Buffer::storage(count * sizeof(float));
+      reflectedSum_ = gl::Buffer::storage(knobs_.bounces > 1 && virtual_ ? count * sizeof(cv::Vec4f) : 0);
+      hidden_ = gl::Buffer::storage(virtual_ && knobs_.objectRays > 0 ? count * sizeof(cv::Vec4f) : 0);
     }
     if (!objectDirections_.id() && virtual_ && knobs_.objectRays > 0) {
       std::vector<cv::Vec4f> dirs;
       for (const cv::Vec3f& d : iv::rayDirections(knobs_.objectRays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
-      objectDirections_ = bufferOf(dirs.size() * sizeof(cv::Vec4f), dirs.data());
+      objectDirections_ = gl::Buffer::storage(dirs.size() * sizeof(cv::Vec4f), dirs.data());
     }
   }
   {
@@ -255,7 +244,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     p.set("uRays", knobs_.rays);
     p.set("uRange", static_cast<float>(knobs_.range));
     setAmbient(p, frame);
-    clearBuffer(hidden_);
+    hidden_.clear();
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
@@ -277,8 +266,8 @@ void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
   const iv::Grid& g = *grid_;
   const gl::Buffer& incident = rho ? incidentRho_ : incidentMu_;
   const gl::Buffer& occlusion = rho ? occlusionRho_ : occlusionMu_;
-  clearBuffer(incident);
-  clearBuffer(occlusion);
+  incident.clear();
+  occlusion.clear();
   const GLuint groups = static_cast<GLuint>(std::max<size_t>((neededCount_ + 31) / 32, 1));
   const auto common = [&](const gl::Program& p) {
     p.use();
@@ -289,7 +278,7 @@ void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
     p.set("uRho", rho ? 1 : 0);
   };
   const bool accumulate = !rho && knobs_.bounces > 1 && virtual_;  // the object's rays read the mu bounces
-  if (accumulate) clearBuffer(reflectedSum_);
+  if (accumulate) reflectedSum_.clear();
   const gl::Program& p = gatherProgram_;
   common(p);
   p.set("uRays", knobs_.rays);

@@ -26,22 +26,6 @@ PipelineConfig ivConfig(const std::string& technique, int resolution, int bounce
   return cfg;
 }
 
-CameraView camera() {
-  CameraView c;
-  const int w = 96, h = 72;
-  c.intrinsics = {w, h, 1.2 * w, 1.2 * w, 0.5 * w - 0.5, 0.5 * h - 0.5};
-  c.T_world_camera = capture::lookAtPose({0.35, -0.6, 0.45}, {-0.25, 0.0, 0.05});
-  return c;
-}
-
-std::vector<SceneLight> lamp() {
-  SceneLight l;
-  l.type = lighting::LightType::Point;
-  l.position = {0.1, -0.2, 0.9};
-  l.intensity = {2.0, 2.0, 2.0};
-  return {l};
-}
-
 const ImperfectVolumesTechnique& ivOf(const LightingPipeline& pipe) {
   return dynamic_cast<const ImperfectVolumesTechnique&>(*pipe.technique("imperfect-volumes"));
 }
@@ -59,7 +43,7 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
     cfg.set("iv", "object_rays", objectRays);
     LightingPipeline pipe = makePipeline(cfg, s);
     pipe.setAmbientSh({cv::Vec3d(0.05, 0.05, 0.05), {}, cv::Vec3d(0.03, 0.02, 0.01)});
-    pipe.run(camera(), lamp(), {0.1, 0.1, 0.12}, nullptr);
+    pipe.run(wallCamera(), wallLamp(), {0.1, 0.1, 0.12}, nullptr);
     const ImperfectVolumesTechnique& t = ivOf(pipe);
     ASSERT_TRUE(t.grid());
     const iv::Grid g = *t.grid();
@@ -87,7 +71,7 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
     const cv::Vec3f at(vol.normalMu[fv][0], vol.normalMu[fv][1], vol.normalMu[fv][2]);
     EXPECT_GT(at[2], 0.99f * static_cast<float>(cv::norm(at)));
     const cv::Vec3d centre = g.centre(c[0], c[1], c[2]);
-    const cv::Vec3d toLamp = lamp()[0].position - cv::Vec3d(centre[0], centre[1], 0.0);
+    const cv::Vec3d toLamp = wallLamp()[0].position - cv::Vec3d(centre[0], centre[1], 0.0);
     // The lamp, and the ambient seen from a floor facing up: pi 0.1 + (pi y00 0.05 + (2 pi / 3) y10 0.03).
     const double ambientUp = CV_PI * 0.1 + CV_PI * 0.282094792 * 0.05 + 2.0 * CV_PI / 3.0 * 0.488602512 * 0.03;
     const double E = 2.0 * toLamp[2] / std::pow(cv::norm(toLamp), 3.0) + ambientUp;
@@ -173,7 +157,7 @@ TEST(GL, ImperfectVolumesTheObjectHidesAmbientFromTheFloorAndTakesTheWallsRed) {
   const PipelineConfig cfg = ivConfig("imperfect-volumes", 32, 1);
   LightingPipeline pipe = makePipeline(cfg, s);
   // Ambient only: the floor next to the cube loses what the cube hides of the sky.
-  pipe.run(camera(), {}, {0.2, 0.2, 0.2}, nullptr);
+  pipe.run(wallCamera(), {}, {0.2, 0.2, 0.2}, nullptr);
   const iv::Grid g = *ivOf(pipe).grid();
   const cv::Mat pos = pipe.frame().downloadGBuffer(0), alb = pipe.frame().downloadGBuffer(2);
   const cv::Mat delta = download4(*ivOf(pipe).outputs().realDelta);
@@ -196,7 +180,7 @@ TEST(GL, ImperfectVolumesTheObjectHidesAmbientFromTheFloorAndTakesTheWallsRed) {
   }
   // With the lamp, the wall's red bounce reaches the cube's side facing it (-x; out of the camera's view:
   // read from the volume): red well above green.
-  pipe.run(camera(), lamp(), {0.0, 0.0, 0.0}, nullptr);
+  pipe.run(wallCamera(), wallLamp(), {0.0, 0.0, 0.0}, nullptr);
   const iv::Volume vol = ivOf(pipe).downloadVolume();
   const cv::Vec3f e = iv::irradiance(vol, ivOf(pipe).downloadIncident(false), {-0.42f, 0.0f, 0.06f}, {-1, 0, 0});
   EXPECT_GT(e[0], 3.0f * e[1]) << e;

@@ -3,12 +3,16 @@
 #include <algorithm>
 #include <cmath>
 
+#include "capture/colour.h"
+
 namespace mrgi::lighting::splat {
 
 namespace {
 constexpr float kPi = static_cast<float>(CV_PI);
-float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
-cv::Vec3f absVec(const cv::Vec3f& c) { return {std::abs(c[0]), std::abs(c[1]), std::abs(c[2])}; }
+/// Luminance of |c| (a subtracted light weighs by its magnitude).
+float absLum(const cv::Vec3f& c) {
+  return static_cast<float>(capture::luminance({std::abs(c[0]), std::abs(c[1]), std::abs(c[2])}));
+}
 }  // namespace
 
 float peakPerFlux(float exponent) { return exponent > 0 ? (exponent + 1.0f) / (2.0f * kPi) : 1.0f / kPi; }
@@ -61,7 +65,7 @@ SplatBox splatBox(const PixelLight& l, float iLow) {
   const cv::Vec3f helper = std::abs(axis[0]) < 0.9f ? cv::Vec3f(1, 0, 0) : cv::Vec3f(0, 1, 0);
   b.axes[1] = cv::normalize(axis.cross(helper));
   b.axes[2] = axis.cross(b.axes[1]);
-  const float i0 = lum(absVec(l.flux)) * peakPerFlux(l.exponent);
+  const float i0 = absLum(l.flux) * peakPerFlux(l.exponent);
   const float R = iLow > 0 && i0 > 0 ? std::sqrt(i0 / iLow) : 0.0f;
   const Ellipse e = boundingEllipse(n);
   float lo = (e.centre - e.halfWidth) * R, hi = (e.centre + e.halfWidth) * R, lateral = e.halfHeight * R;
@@ -74,6 +78,8 @@ SplatBox splatBox(const PixelLight& l, float iLow) {
   b.half = {0.5f * (hi - lo), lateral, lateral};
   return b;
 }
+
+float scaledILow(const PixelLight& l, float scale) { return scale * absLum(l.flux); }
 
 bool insideBox(const SplatBox& b, const cv::Vec3f& x) {
   const cv::Vec3f v = x - b.centre;
@@ -169,7 +175,7 @@ double warpedEstimate(const Pyramid& p, const cv::Mat& f, int n) {
 }
 
 double importance(const cv::Vec3f& flux, float ao, float exponent) {
-  const double l = lum(absVec(flux));
+  const double l = absLum(flux);
   const double v = l * (1.0 - std::clamp(ao, 0.0f, 1.0f)) * (1.0 + std::max(exponent, 0.0f));
   return std::isfinite(v) && v > 0 ? v : 0.0;
 }

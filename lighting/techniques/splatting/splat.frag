@@ -23,7 +23,7 @@ void main() {
   bool isVirtual = texelFetch(uGAlbedo, px, 0).a > 0.5;
   if (isVirtual != (uTarget == 1)) return;
   PixelLight l = lights[vLight];
-  SplatBox b = splatBox(l, uILowScale * splatLum(abs(l.fluxWiden.rgb)));
+  SplatBox b = splatBox(l, splatScaledILow(l, uILowScale));
   if (!splatInsideBox(b, pos.xyz)) return;
   vec3 e = splatIrradiance(l, pos.xyz, texelFetch(uGNormal, px, 0).xyz);
   if (uTarget == 0)

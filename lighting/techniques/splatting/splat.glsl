@@ -13,6 +13,9 @@ struct PixelLight {
 
 float splatLum(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 
+// splat.h scaledILow: I_low = scale x lum|Phi|.
+float splatScaledILow(PixelLight l, float scale) { return scale * splatLum(abs(l.fluxWiden.rgb)); }
+
 float splatWidened(float P, float d, float a) { return a > 0.0 ? min(P, P * d / a) : P; }
 
 vec3 splatIntensity(PixelLight l, vec3 w, float d) {

@@ -77,6 +77,8 @@ struct SplatBox {
   cv::Vec3f half{0, 0, 0};
 };
 SplatBox splatBox(const PixelLight& l, float iLow);
+/// I_low of a light when it scales with the light: scale x lum|Phi| (the technique's splats; splat.vert).
+float scaledILow(const PixelLight& l, float scale);
 /// Whether x lies in the box.
 bool insideBox(const SplatBox& b, const cv::Vec3f& x);
 /// The bounded splat: irradiance() where x lies in splatBox(l, iLow), 0 elsewhere.

@@ -14,7 +14,7 @@ void main() {
   vLight = uFirstRecord + gl_InstanceID;
   PixelLight l = lights[vLight];
   vec2 corner = vec2(gl_VertexID & 1, gl_VertexID >> 1);  // triangle strip 0..3
-  float iLow = uILowScale * splatLum(abs(l.fluxWiden.rgb));
+  float iLow = splatScaledILow(l, uILowScale);
   if (!(iLow > 0.0)) {
     gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: no fragment
     return;

@@ -4,6 +4,7 @@
 //   delta:  texels where RSM^rho and RSM^mu differ (the object, and the real surfaces it hides from the
 //           light): lum(Phi_rho) (+ the glossy lobe's lum(s Phi) (1 + P) on a glossy object) + lum(Phi_mu)
 //   object: the real texels of RSM^rho (the light real surfaces send the object; its own texels excluded)
+#include "lighting/techniques/splatting/splat.glsl"
 #define MAX_OBJECTS 16
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -23,7 +24,7 @@ uniform int uPadded;  // P
 uniform float uSpecular[MAX_OBJECTS];
 uniform float uExponent[MAX_OBJECTS];
 
-float lum(vec3 c) { return dot(abs(c), vec3(0.2126, 0.7152, 0.0722)); }
+float lum(vec3 c) { return splatLum(abs(c)); }
 float finiteOrZero(float v) { return (isnan(v) || isinf(v) || v < 0.0) ? 0.0 : v; }
 
 void main() {

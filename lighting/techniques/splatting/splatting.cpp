@@ -31,11 +31,6 @@ namespace {
 constexpr int kMaxObjects = 16;
 constexpr int kMaxLevels = 14;
 
-gl::Buffer bufferOf(size_t bytes) {
-  std::vector<uint8_t> zero(std::max<size_t>(bytes, 16), 0);
-  return gl::Buffer(static_cast<GLsizeiptr>(zero.size()), zero.data());
-}
-
 int paddedSide(int size) {
   int p = 1;
   while (p < size) p *= 2;
@@ -114,11 +109,11 @@ SplattingTechnique::SplattingTechnique(const TechniqueSetup& setup)
   }
   levels_ = static_cast<int>(levelOffsets_.size());
   if (levels_ > kMaxLevels) throw std::invalid_argument("splatting: the RSM is too large for its importance pyramid");
-  deltaPyramid_ = bufferOf(static_cast<size_t>(offset) * sizeof(float));
-  objectPyramid_ = bufferOf(static_cast<size_t>(offset) * sizeof(float));
+  deltaPyramid_ = gl::Buffer::storage(static_cast<size_t>(offset) * sizeof(float));
+  objectPyramid_ = gl::Buffer::storage(static_cast<size_t>(offset) * sizeof(float));
   const size_t samples = static_cast<size_t>(knobs_.vpls) + kMaxLights;
-  if (real_) deltaLights_ = bufferOf(3 * samples * sizeof(splat::PixelLight));
-  if (virtual_) objectLights_ = bufferOf(samples * sizeof(splat::PixelLight));
+  if (real_) deltaLights_ = gl::Buffer::storage(3 * samples * sizeof(splat::PixelLight));
+  if (virtual_) objectLights_ = gl::Buffer::storage(samples * sizeof(splat::PixelLight));
 }
 
 void SplattingTechnique::beginLights(const FrameResources& frame, gl::Profiler*) {

@@ -16,8 +16,6 @@ using namespace mrgi::test;
 
 namespace {
 
-float lumOf(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
-
 // The frame's resources come from a pipeline without a technique ("none": real pixels get the direct
 // shadow alone); with one light its RSMs are that light's after a run, and the technique is driven by hand
 // as the pipeline drives its techniques (beginLights, light, update).
@@ -36,22 +34,6 @@ std::unique_ptr<SplattingTechnique> runSplat(const LightingPipeline& pipe, int v
   return t;
 }
 
-CameraView camera() {
-  CameraView c;
-  const int w = 96, h = 72;
-  c.intrinsics = {w, h, 1.2 * w, 1.2 * w, 0.5 * w - 0.5, 0.5 * h - 0.5};
-  c.T_world_camera = capture::lookAtPose({0.35, -0.6, 0.45}, {-0.25, 0.0, 0.05});
-  return c;
-}
-
-std::vector<SceneLight> lamp() {
-  SceneLight l;
-  l.type = lighting::LightType::Point;
-  l.position = {0.1, -0.2, 0.9};
-  l.intensity = {2.0, 2.0, 2.0};
-  return {l};
-}
-
 
 }  // namespace
 
@@ -59,7 +41,7 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
   auto ctx = makeContext();
   const TestScene s = makeScene(true, 0.12, {-0.36, 0.0, 0.06});
   LightingPipeline pipe = makePipeline(frameConfig(), s);
-  pipe.run(camera(), lamp(), {0, 0, 0}, nullptr);
+  pipe.run(wallCamera(), wallLamp(), {0, 0, 0}, nullptr);
   const auto tp = runSplat(pipe, 512, 16.0);
   const SplattingTechnique& t = *tp;
   const std::vector<splat::PixelLight> delta = t.downloadLights(true), object = t.downloadLights(false);
@@ -101,7 +83,7 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
   const cv::Mat dOut = download4(*t.outputs().realDelta), vOut = download4(*t.outputs().virtualIrradiance);
   int checked = 0, good = 0, virt = 0, virtGood = 0;
   double boundSum = 0;
-  for (const splat::PixelLight& l : delta) boundSum += t.iLowScale() * lumOf(cv::Vec3f(std::abs(l.flux[0]), std::abs(l.flux[1]), std::abs(l.flux[2])));
+  for (const splat::PixelLight& l : delta) boundSum += splat::scaledILow(l, t.iLowScale());
   for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
     const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i);
     if (p[3] < 0.5f) continue;
@@ -110,7 +92,7 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
     const auto& lights = isVirtual ? object : delta;
     cv::Vec3f bounded(0, 0, 0);
     for (const splat::PixelLight& l : lights) {
-      const float iLow = t.iLowScale() * lumOf(cv::Vec3f(std::abs(l.flux[0]), std::abs(l.flux[1]), std::abs(l.flux[2])));
+      const float iLow = splat::scaledILow(l, t.iLowScale());
       if (iLow > 0) bounded += splat::splatIrradiance(l, x, nn, iLow);
     }
     const cv::Vec4f got = isVirtual ? vOut.at<cv::Vec4f>(i) : dOut.at<cv::Vec4f>(i);
@@ -135,7 +117,7 @@ TEST(GL, SplattingDeltaIsExactlyZeroWhereTheObjectChangesNoTexel) {
   auto ctx = makeContext();
   const TestScene s = makeScene(true, 0.12, {-0.2, 0.0, -0.3});
   LightingPipeline pipe = makePipeline(frameConfig(), s);
-  pipe.run(camera(), lamp(), {0, 0, 0}, nullptr);
+  pipe.run(wallCamera(), wallLamp(), {0, 0, 0}, nullptr);
   const auto tp = runSplat(pipe, 256, 4.0);
   const SplattingTechnique& t = *tp;
   const cv::Mat imp = t.downloadImportance(true);
@@ -149,7 +131,7 @@ TEST(GL, SplattingTheObjectTakesTheWallsRed) {
   auto ctx = makeContext();
   const TestScene s = makeScene(true, 0.12, {-0.36, 0.0, 0.06});
   LightingPipeline pipe = makePipeline(frameConfig(), s);
-  pipe.run(camera(), lamp(), {0, 0, 0}, nullptr);
+  pipe.run(wallCamera(), wallLamp(), {0, 0, 0}, nullptr);
   const auto t = runSplat(pipe, 1024, 4.0);
   const cv::Mat v = download4(*t->outputs().virtualIrradiance);
   const cv::Mat alb = pipe.frame().downloadGBuffer(2);
@@ -172,7 +154,7 @@ TEST(GL, SplattingStaysFiniteFromOneToSixteenThousandLights) {
   s.objects[0].material.albedo = {0.4f, 0.4f, 0.4f};
   s.objects[0].material.roughness = 0.0141f;  // exponent 2 / r^2 - 2 = 10^4
   LightingPipeline pipe = makePipeline(frameConfig(), s);
-  pipe.run(camera(), lamp(), {0, 0, 0}, nullptr);
+  pipe.run(wallCamera(), wallLamp(), {0, 0, 0}, nullptr);
   for (int vpls : {1, 16384}) {
     const auto t = runSplat(pipe, vpls, 16.0);
     EXPECT_EQ(t->downloadLights(true).size(), 3u * static_cast<size_t>(vpls));
