@@ -22,13 +22,18 @@ const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable
       {{"range", KnobType::Real, 0.001, 10.0, 0.25, "metres: a surface farther along a ray than this leaves the ambient",
         {0.1, 0.5}, {}, true},
        &ImperfectVolumesKnobs::range},
-      {{"bounces", KnobType::Int, 0, 3, 1, "light bounces off the volume's surfaces (0: ambient occlusion only)", {0, 2}, {0}, false},
+      {{"bounces", KnobType::Int, 0, 3, 2, "light bounces off the volume's surfaces (0: ambient occlusion only)", {0, 1}, {1}, false},
        &ImperfectVolumesKnobs::bounces},
       {{"object_rays", KnobType::Int, 0, 1024, 64,
         "rays per virtual-object pixel, marched from its surface point through the real-only volume (0: the "
         "object reads the voxels' SH like real pixels)",
         {0, 256}, {0}, true},
        &ImperfectVolumesKnobs::objectRays},
+      {{"outer_resolution", KnobType::Int, 0, 128, 32,
+        "voxels per axis of the coarser volume the object's rays go on through past the grid (side: the grid's + 2 "
+        "range; real surfaces only; 0: past the grid is the ambient)",
+        {0, 16}, {0}, true},
+       &ImperfectVolumesKnobs::outerResolution},
   };
   return table;
 }
@@ -37,9 +42,9 @@ namespace {
 
 /// The per-voxel buffers: records, incident SH and occlusion per scene version (mu only for real pixels), the
 /// bounce and reflected scratch (more than one bounce), computed flags and point offsets, for the object's
-/// own rays the ambient hidden per voxel and the sum of the reflected bounces; the ray directions; and the
+/// own rays the ambient hidden per voxel and the sum of the reflected bounces; the ray directions; the
 /// points, which depend on the scene: budgeted as three surfaces across the grid at 4 points (48 bytes each)
-/// per voxel.
+/// per voxel; and for the object's rays the outer volume's records, offsets and points.
 size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real, bool virtualObject) {
   const size_t r = static_cast<size_t>(k.resolution), n = r * r * r;
   const size_t c = static_cast<size_t>(k.bands) * k.bands;
@@ -48,7 +53,10 @@ size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real, bool virtualObject)
   const size_t perVoxel = 7 * 16 + versions * (3 * c * 4 + 4) + (k.bounces > 1 ? 3 * c * 4 + 16 : 0) + 4 + 4 +
                           (own ? 16 : 0) + (own && k.bounces > 1 ? 16 : 0);
   const size_t directions = 16 * static_cast<size_t>(k.rays + (own ? k.objectRays : 0));
-  return n * perVoxel + directions + 3 * r * r * 4 * 48;
+  // The outer volume: records and offsets, its points budgeted as the grid's.
+  const size_t ro = own ? static_cast<size_t>(k.outerResolution) : 0, no = ro * ro * ro;
+  const size_t outer = no * (7 * 16 + 4) + ro * ro * 3 * 4 * 48;
+  return n * perVoxel + directions + 3 * r * r * 4 * 48 + outer;
 }
 
 }  // namespace
@@ -69,7 +77,7 @@ TechniqueInfo imperfectVolumesTechniqueInfo() {
   return t;
 }
 
-IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle) {
+IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle, const iv::Grid* without) {
   perTriangle = std::clamp(perTriangle, 1, 64);
   const cv::Vec3f lo(grid.origin), hi = lo + cv::Vec3f::all(static_cast<float>(grid.voxel * grid.resolution));
   struct P {
@@ -95,8 +103,8 @@ IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int pe
       const float s = std::sqrt(r[0]);
       const float wa = 1.0f - s, wb = (1.0f - r[1]) * s, wc = r[1] * s;
       const cv::Vec3f p = wa * x[0] + wb * x[1] + wc * x[2];
-      cv::Vec3i v;
-      if (!grid.voxelOf(cv::Vec3d(p), v)) continue;
+      cv::Vec3i v, inner;
+      if (!grid.voxelOf(cv::Vec3d(p), v) || (without && without->voxelOf(cv::Vec3d(p), inner))) continue;
       cv::Vec3f nn = wa * n[0] + wb * n[1] + wc * n[2];
       const float len = static_cast<float>(cv::norm(nn));
       nn = len > 1e-12f ? nn / len : cv::Vec3f(0, 0, 0);
@@ -107,6 +115,7 @@ IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int pe
     return true;
   };
   for (const FrameObject& o : frame.objects()) {
+    if (without) break;  // the outer volume holds the real scene only
     const Mesh& m = o.source.mesh;
     const cv::Matx33f N = normalMatrix(o.T_world_object);
     const cv::Matx44d& T = o.T_world_object;
@@ -143,6 +152,11 @@ IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int pe
     out.data[k] = p.position, out.data[k + 1] = p.normal, out.data[k + 2] = p.albedo;
   }
   return out;
+}
+
+IvPoints ivOuterPoints(const FrameResources& frame, const iv::Grid& inner, const iv::Grid& outer, int perTriangle) {
+  const double ratio = inner.voxel / outer.voxel;
+  return ivScenePoints(frame, outer, std::max(1, static_cast<int>(std::lround(perTriangle * ratio * ratio))), &inner);
 }
 
 ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup)
@@ -209,6 +223,17 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       reflectedSum_ = gl::Buffer::storage(knobs_.bounces > 1 && virtual_ ? count * sizeof(cv::Vec4f) : 0);
       hidden_ = gl::Buffer::storage(virtual_ && knobs_.objectRays > 0 ? count * sizeof(cv::Vec4f) : 0);
     }
+    if (virtual_ && knobs_.objectRays > 0 && knobs_.outerResolution > 0) {
+      // The outer volume past the grid: the real mesh at the same point density per voxel area.
+      const iv::Grid o = iv::outerGrid(g, knobs_.range, knobs_.outerResolution);
+      const IvPoints op = ivOuterPoints(frame, g, o, knobs_.points);
+      outerPointCount_ = op.count();
+      outerPoints_ = gl::Buffer::storage(std::max<size_t>(op.data.size(), 1) * sizeof(cv::Vec4f), op.data.data());
+      outerOffsets_ = gl::Buffer::storage(op.offsets.size() * sizeof(uint32_t), op.offsets.data());
+      if (!outerGrid_ || outerGrid_->resolution != o.resolution || !outerVoxels_.id())
+        outerVoxels_ = gl::Buffer::storage(o.count() * 7 * sizeof(cv::Vec4f));
+      outerGrid_ = o;
+    }
     if (!objectDirections_.id() && virtual_ && knobs_.objectRays > 0) {
       std::vector<cv::Vec4f> dirs;
       for (const cv::Vec3f& d : iv::rayDirections(knobs_.objectRays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
@@ -230,6 +255,13 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, offsets_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
     glDispatchCompute(static_cast<GLuint>((count + 63) / 64), 1, 1);
+    if (outerGrid_) {
+      p.set("uVoxelCount", static_cast<int>(outerGrid_->count()));
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, outerPoints_.id());
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, outerOffsets_.id());
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, outerVoxels_.id());
+      glDispatchCompute(static_cast<GLuint>((outerGrid_->count() + 63) / 64), 1, 1);
+    }
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   }
   if (virtual_ && knobs_.objectRays > 0) {
@@ -260,6 +292,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
   gl::checkGlError("ImperfectVolumesTechnique::build()");
   stats_ = {{"points", pointCount_},          {"voxels_gathered", neededCount_}, {"voxel_m", g.voxel},
             {"real_triangles", pts.realTriangles}, {"virtual_triangles", pts.virtualTriangles}};
+  if (outerGrid_) stats_["outer_points"] = outerPointCount_, stats_["outer_voxel_m"] = outerGrid_->voxel;
 }
 
 void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
@@ -356,6 +389,13 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, (objectRays ? objectDirections_ : voxels_).id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 11, (reflectedOn ? reflectedSum_ : voxels_).id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 12, (objectRays ? hidden_ : voxels_).id());
+  const bool outer = objectRays && outerGrid_;
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 13, (outer ? outerVoxels_ : voxels_).id());
+  p.set("uOuterResolution", outer ? outerGrid_->resolution : 0);
+  if (outer) {
+    setVec3(p, "uOuterOrigin", outerGrid_->origin);
+    p.set("uOuterVoxel", static_cast<float>(outerGrid_->voxel));
+  }
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
   gl::checkGlError("ImperfectVolumesTechnique::update()");
@@ -363,12 +403,14 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
 
 TechniqueOutputs ImperfectVolumesTechnique::outputs() const { return out_.outputs(real_, virtual_); }
 
-iv::Volume ImperfectVolumesTechnique::downloadVolume() const {
-  if (!grid_) return iv::Volume(iv::Grid{cv::Vec3d(0, 0, 0), 1.0, 0});
-  iv::Volume v(*grid_);
-  const size_t n = grid_->count();
+namespace {
+
+/// A volume's records as the reference math holds them.
+iv::Volume downloadRecords(const iv::Grid& grid, const gl::Buffer& voxels) {
+  iv::Volume v(grid);
+  const size_t n = grid.count();
   std::vector<cv::Vec4f> rec(n * 7);
-  voxels_.download(0, static_cast<GLsizeiptr>(rec.size() * sizeof(cv::Vec4f)), rec.data());
+  voxels.download(0, static_cast<GLsizeiptr>(rec.size() * sizeof(cv::Vec4f)), rec.data());
   for (size_t i = 0; i < n; ++i) {
     const cv::Vec4f* r = &rec[i * 7];
     v.exitantRho[i] = r[0], v.exitantMu[i] = r[1], v.normalRho[i] = r[2], v.normalMu[i] = r[3];
@@ -378,6 +420,18 @@ iv::Volume ImperfectVolumesTechnique::downloadVolume() const {
     v.occupancy[i] = static_cast<uint8_t>((r[1][3] > 0 ? iv::kReal : 0) | (r[0][3] > r[1][3] ? iv::kVirtual : 0));
   }
   return v;
+}
+
+}  // namespace
+
+iv::Volume ImperfectVolumesTechnique::downloadVolume() const {
+  if (!grid_) return iv::Volume(iv::Grid{cv::Vec3d(0, 0, 0), 1.0, 0});
+  return downloadRecords(*grid_, voxels_);
+}
+
+iv::Volume ImperfectVolumesTechnique::downloadOuterVolume() const {
+  if (!outerGrid_) return iv::Volume(iv::Grid{cv::Vec3d(0, 0, 0), 1.0, 0});
+  return downloadRecords(*outerGrid_, outerVoxels_);
 }
 
 std::vector<cv::Vec3f> ImperfectVolumesTechnique::downloadHidden() const {
@@ -465,7 +519,7 @@ size_t ImperfectVolumesTechnique::gpuBytes() const {
   size_t sum = out_.bytes();
   for (const gl::Buffer* b : {&points_, &offsets_, &voxels_, &needed_, &directions_, &incidentRho_, &incidentMu_, &occlusionRho_,
                               &occlusionMu_, &reflected_, &bounce_, &computed_, &objectDirections_, &reflectedSum_,
-                              &hidden_})
+                              &hidden_, &outerPoints_, &outerOffsets_, &outerVoxels_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);
   return sum;
 }

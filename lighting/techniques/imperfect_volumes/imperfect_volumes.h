@@ -26,13 +26,15 @@ struct ImperfectVolumesKnobs {
   double range = 0;     ///< metres: a hit farther than this returns the ambient
   int bounces = 0;      ///< 0: ambient occlusion only
   int objectRays = 0;   ///< rays per virtual-object pixel through the mu volume (0: read the voxels' SH)
+  int outerResolution = 0;  ///< voxels per axis of the outer volume the object's rays continue in (0: none)
 };
 const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable();
 
 /// The points of a frame's scene for the volume (CPU): N per triangle of every virtual object and of the
 /// real mesh (at least 4 per voxel of a triangle's area, so that a triangle larger than a voxel leaves no
 /// hole), on triangles that reach into the grid, with their interpolated normal and albedo; the points of
-/// each voxel contiguous (offsets: voxels + 1 entries). Shared by the technique and its tests.
+/// each voxel contiguous (offsets: voxels + 1 entries). With `without` (the outer volume, iv::outerGrid):
+/// the real mesh's triangles only and none of the points inside `without`. Shared by the technique and its tests.
 struct IvPoints {
   /// Per point, as the GPU reads it: position (w = 1 virtual), normal, albedo.
   std::vector<cv::Vec4f> data;
@@ -40,7 +42,10 @@ struct IvPoints {
   size_t count() const { return data.size() / 3; }
   size_t realTriangles = 0, virtualTriangles = 0;
 };
-IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle);
+IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle, const iv::Grid* without = nullptr);
+/// The outer volume's points: the real mesh outside `inner`, at the inner grid's density per voxel area
+/// (perTriangle scaled by (inner voxel / outer voxel)^2, at least 1).
+IvPoints ivOuterPoints(const FrameResources& frame, const iv::Grid& inner, const iv::Grid& outer, int perTriangle);
 
 class ImperfectVolumesTechnique final : public Technique {
  public:
@@ -59,8 +64,12 @@ class ImperfectVolumesTechnique final : public Technique {
 
   const ImperfectVolumesKnobs& knobs() const { return knobs_; }
   const std::optional<iv::Grid>& grid() const { return grid_; }
+  /// The outer volume's grid (none unless the object's rays continue past the grid).
+  const std::optional<iv::Grid>& outerGrid() const { return outerGrid_; }
   /// The last run's volume and gathered light as the reference math holds them (GPU download).
   iv::Volume downloadVolume() const;
+  /// The outer volume (empty grid where there is none).
+  iv::Volume downloadOuterVolume() const;
   iv::Incident downloadIncident(bool rho) const;
   /// Per voxel, the ambient the objects hide from its real surface (iv::ambientHiddenByObjects; empty unless
   /// the object casts its own rays).
@@ -72,13 +81,13 @@ class ImperfectVolumesTechnique final : public Technique {
 
   ImperfectVolumesKnobs knobs_;
   bool real_ = false, virtual_ = false;
-  gl::Program injectProgram_, gatherProgram_, reflectProgram_, readoutProgram_, hiddenProgram_;
-  std::optional<iv::Grid> grid_;
+  gl::Program injectProgram_, gatherProgram_, reflectProgram_, hiddenProgram_, readoutProgram_;
+  std::optional<iv::Grid> grid_, outerGrid_;
   /// The frame versions the volume was built from (geometry, lights, ambient).
   std::optional<std::array<uint64_t, 3>> builtFrom_;
   gl::Buffer points_, offsets_, voxels_, needed_, directions_, incidentRho_, incidentMu_, occlusionRho_, occlusionMu_,
-      reflected_, bounce_, computed_, objectDirections_, reflectedSum_, hidden_;
-  size_t neededCount_ = 0, pointCount_ = 0;
+      reflected_, bounce_, computed_, objectDirections_, reflectedSum_, hidden_, outerPoints_, outerOffsets_, outerVoxels_;
+  size_t neededCount_ = 0, pointCount_ = 0, outerPointCount_ = 0;
   IrradianceTargets out_;
   gl::VertexArray emptyVao_;
   nlohmann::json stats_ = nlohmann::json::object();

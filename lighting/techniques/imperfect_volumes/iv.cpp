@@ -115,6 +115,8 @@ cv::Vec3f Ambient::radiance(const cv::Vec3f& w) const {
   sh::evaluate(cv::Vec3d(w), 3, y);
   cv::Vec3f L = uniform;
   for (int i = 0; i < 9; ++i) L += static_cast<float>(y[i]) * sh[static_cast<size_t>(i)];
+  // Three bands of a sky seen from above ring below the horizon; radiance is never negative.
+  for (int c = 0; c < 3; ++c) L[c] = std::max(L[c], 0.0f);
   return L;
 }
 
@@ -281,7 +283,8 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
   return out;
 }
 
-int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction, float* distance) {
+int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction, float* distance,
+                       float* exit) {
   const Grid& g = volume.grid;
   const float s = static_cast<float>(g.voxel);
   cv::Vec3i own(-1, -1, -1);
@@ -290,10 +293,42 @@ int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const
   for (int step = 0; step <= maxSteps; ++step) {
     const float t = (static_cast<float>(step) + 0.5f) * s;
     cv::Vec3i c;
-    if (!g.voxelOf(cv::Vec3d(x + t * direction), c)) return -1;
+    if (!g.voxelOf(cv::Vec3d(x + t * direction), c)) {
+      if (exit) *exit = t;
+      return -1;
+    }
     if (c == own) continue;
     const size_t v = g.index(c[0], c[1], c[2]);
     if (volume.occupied(v, rho)) {
+      if (distance) *distance = t;
+      return static_cast<int64_t>(v);
+    }
+  }
+  return -1;
+}
+
+Grid outerGrid(const Grid& inner, double range, int resolution) {
+  Grid g;
+  g.resolution = std::max(resolution, 1);
+  const double side = inner.voxel * inner.resolution + 2.0 * std::max(range, 0.0);
+  g.voxel = side / g.resolution;
+  g.origin = inner.origin - cv::Vec3d::all(std::max(range, 0.0));
+  return g;
+}
+
+int64_t marchOuter(const Volume& outer, const cv::Vec3f& x, const cv::Vec3f& direction, float from, float* distance) {
+  const Grid& g = outer.grid;
+  const float s = static_cast<float>(g.voxel);
+  cv::Vec3i own(-1, -1, -1);
+  g.voxelOf(cv::Vec3d(x), own);
+  const int maxSteps = static_cast<int>(std::ceil(std::sqrt(3.0f) * g.resolution)) + 1;
+  for (int step = 0; step <= maxSteps; ++step) {
+    const float t = from + static_cast<float>(step) * s;
+    cv::Vec3i c;
+    if (!g.voxelOf(cv::Vec3d(x + t * direction), c)) return -1;
+    if (c == own) continue;
+    const size_t v = g.index(c[0], c[1], c[2]);
+    if (outer.occupied(v, false)) {
       if (distance) *distance = t;
       return static_cast<int64_t>(v);
     }
@@ -330,7 +365,7 @@ std::vector<cv::Vec3f> ambientHiddenByObjects(const Volume& volume, const Option
 
 cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, const Options& options,
                       const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x, const cv::Vec3f& n,
-                      const std::vector<cv::Vec3f>* hidden) {
+                      const std::vector<cv::Vec3f>* hidden, const Volume* outer) {
   cv::Vec3f change(0, 0, 0);
   if (dirs.empty() || incident.reflectedSum.size() != volume.grid.count()) return change;
   const auto& normals = rho ? volume.normalRho : volume.normalMu;
@@ -338,8 +373,19 @@ cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, 
   for (const cv::Vec3f& d : dirs) {
     const float c = n.dot(d);
     if (!(c > 0)) continue;
-    float t = 0;
-    const int64_t h = marchFromPoint(volume, rho, x, d, &t);
+    float t = 0, exit = 0;
+    const int64_t h = marchFromPoint(volume, rho, x, d, &t, &exit);
+    if (h < 0 && outer && exit <= options.range) {
+      // Past the grid: the outer volume's real surfaces.
+      const int64_t o = marchOuter(*outer, x, d, exit, &t);
+      if (o < 0 || t > options.range) continue;
+      const auto v = static_cast<size_t>(o);
+      const cv::Vec3f nSum(outer->normalMu[v][0], outer->normalMu[v][1], outer->normalMu[v][2]);
+      cv::Vec3f L(0, 0, 0);
+      if (nSum.dot(-d) > 0 && options.bounces > 0) L = cv::Vec3f(outer->exitantMuLit[v][0], outer->exitantMuLit[v][1], outer->exitantMuLit[v][2]);
+      change += (L - ambient.radiance(d)) * c;
+      continue;
+    }
     if (h < 0 || t > options.range) continue;
     const auto v = static_cast<size_t>(h);
     const cv::Vec3f nSum(normals[v][0], normals[v][1], normals[v][2]);

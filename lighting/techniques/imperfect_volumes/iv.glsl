@@ -52,5 +52,5 @@ vec3 ivAmbientRadiance(vec3 ambient, vec3 sh[9], vec3 w) {
   ambientShBasis(w, b);
   vec3 L = ambient;
   for (int k = 0; k < 9; ++k) L += b[k] * sh[k];
-  return L;
+  return max(L, vec3(0.0));  // three bands of a sky seen from above ring below the horizon
 }

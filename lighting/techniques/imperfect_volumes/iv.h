@@ -85,7 +85,8 @@ struct Volume {
 /// Marks each point's voxel (points outside the grid are dropped) and accumulates its light.
 Volume voxelise(const Grid& grid, const std::vector<Point>& points);
 
-/// Radiance of direction w (towards the scene) that the volume does not hold: uniform + SH bands 0-2.
+/// Radiance of direction w (towards the scene) that the volume does not hold: uniform + SH bands 0-2, each
+/// channel clamped at 0.
 struct Ambient {
   cv::Vec3f uniform{0, 0, 0};
   std::array<cv::Vec3f, 9> sh{};  ///< lighting/sh.h convention; zero = none
@@ -124,9 +125,20 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
 int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction, float* distance = nullptr);
 
 /// The first occupied voxel along a ray from surface point x: samples at (k + 1/2) voxel along the ray,
-/// x's own voxel skipped (its surface is x's own); -1 when the ray leaves the grid. `distance` as march().
+/// x's own voxel skipped (its surface is x's own); -1 when the ray leaves the grid. `distance` as march();
+/// `exit` gets the distance of the first sample outside the grid when it leaves.
 int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction,
-                       float* distance = nullptr);
+                       float* distance = nullptr, float* exit = nullptr);
+
+/// The coarser grid the object's own rays continue in once they leave the region's grid (knob
+/// outer_resolution): centred on `inner`, its side the inner side + 2 `range` (whatever a ray from inside the
+/// inner grid can reach within range), `resolution` voxels per axis. It holds the real points outside the inner
+/// grid only (the mu scene: a ray from an object is not blocked by the objects).
+Grid outerGrid(const Grid& inner, double range, int resolution);
+/// A ray continued in the outer volume from distance `from` (where it left the inner grid): samples at
+/// from + k outer voxels, x's own outer voxel skipped, the first occupied one (real points); -1 when it
+/// leaves the outer grid. `distance` as march().
+int64_t marchOuter(const Volume& outer, const cv::Vec3f& x, const cv::Vec3f& direction, float from, float* distance = nullptr);
 /// Per voxel with real points: the ambient irradiance the virtual objects hide from its surface (W/m^2),
 /// sum over the rays of `dirs` in front of its mean real normal of L_ambient cos theta 4 pi / N, for rays
 /// marched through the rho occupancy (as the gather: past the voxel's bounding sphere) whose first hit
@@ -144,10 +156,12 @@ std::vector<cv::Vec3f> ambientHiddenByObjects(const Volume& volume, const Option
 /// reflects of further bounces (incident.reflectedSum, of the mu gather) — in place of the ambient of its
 /// direction. Returns the change against the unoccluded ambient, sum over those rays of
 /// (L_hit - L_ambient) cos theta 4 pi / N (N = dirs.size()): exactly 0 where nothing is hit, so the shading
-/// pass's unoccluded ambient stays as it is.
+/// pass's unoccluded ambient stays as it is. With `outer` (outerGrid; mu only) a ray that leaves the grid
+/// goes on through it (marchOuter) and a hit there brings its real points' light as the objects leave it
+/// lit (exitantMuLit; farther from the objects, neither the ambient they hide nor further bounces).
 cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, const Options& options,
                       const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x, const cv::Vec3f& n,
-                      const std::vector<cv::Vec3f>* hidden = nullptr);
+                      const std::vector<cv::Vec3f>* hidden = nullptr, const Volume* outer = nullptr);
 
 /// The voxels the reconstruction reads at surface point x with unit normal n, with their weights (cos theta);
 /// empty where none qualifies (above).

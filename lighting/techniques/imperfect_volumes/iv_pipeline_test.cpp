@@ -122,7 +122,21 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
       EXPECT_GT(hiding, 10) << "floor and wall voxels next to the cube";
       EXPECT_LE(off, static_cast<int>(g.count() / 1000));
     }
-    int checked = 0, good = 0, virtualChecked = 0, virtualGood = 0, virtualHit = 0;
+    int checked = 0, good = 0, virtualChecked = 0, virtualGood = 0, virtualHit = 0, outerHit = 0;
+    // The outer volume the object's rays go on through (object rays only): its occupancy the CPU's points.
+    const iv::Volume outerVol = t.downloadOuterVolume();
+    if (objectRays > 0) {
+      ASSERT_TRUE(t.outerGrid());
+      const IvPoints op = ivOuterPoints(pipe.frame(), g, *t.outerGrid(), t.knobs().points);
+      int outerOccupied = 0;
+      for (size_t v = 0; v < t.outerGrid()->count(); ++v) {
+        ASSERT_EQ(outerVol.occupancy[v] == iv::kReal, op.offsets[v + 1] > op.offsets[v]) << v;
+        outerOccupied += outerVol.occupancy[v] == iv::kReal;
+      }
+      EXPECT_GT(outerOccupied, 100);
+    } else {
+      EXPECT_FALSE(t.outerGrid());
+    }
     for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
       const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i);
       if (p[3] < 0.5f) continue;
@@ -130,8 +144,9 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
       const cv::Vec3f eRho = iv::irradiance(vol, rhoIn, x, nn), eMu = iv::irradiance(vol, muIn, x, nn);
       if (alb.at<cv::Vec4f>(i)[3] > 0.5f) {
         // The object: what the real surfaces hide and send (mu: its own voxels are not in the way).
-        const cv::Vec3f expected = objectRays > 0 ? iv::pointGather(vol, false, muIn, o, amb, objectDirs, x, nn, &hidden)
+        const cv::Vec3f expected = objectRays > 0 ? iv::pointGather(vol, false, muIn, o, amb, objectDirs, x, nn, &hidden, &outerVol)
                                                   : eMu - iv::unoccludedAmbient(amb, nn);
+        if (objectRays > 0) outerHit += expected != iv::pointGather(vol, false, muIn, o, amb, objectDirs, x, nn, &hidden);
         virtualHit += objectRays > 0 && expected != cv::Vec3f(0, 0, 0);
         const cv::Vec4f got = virt.at<cv::Vec4f>(i);
         ++virtualChecked;
@@ -147,7 +162,10 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
     EXPECT_GT(good, static_cast<int>(0.995 * checked)) << good << " of " << checked;
     EXPECT_GT(virtualChecked, 100);
     EXPECT_GT(virtualGood, static_cast<int>(0.99 * virtualChecked)) << virtualGood << " of " << virtualChecked;
-    if (objectRays > 0) EXPECT_GT(virtualHit, virtualChecked / 2) << "the object's rays reach the floor and the wall";
+    if (objectRays > 0) {
+      EXPECT_GT(virtualHit, virtualChecked / 2) << "the object's rays reach the floor and the wall";
+      EXPECT_GT(outerHit, 10) << "rays that go on past the grid";
+    }
   }
 }
 

@@ -9,7 +9,8 @@
 //                                     object's own voxels neither occlude nor light it: a surface of voxels
 //                                     next to a curved object hides far more of its sky than the object does)
 //                                     With uObjectRays > 0 the object's pixels cast their own rays through the
-//                                     mu volume instead (iv.h pointGather): no SH band limit, no voxel offset.
+//                                     mu volume instead (iv.h pointGather): no SH band limit, no voxel offset;
+//                                     past the grid they go on through the coarser outer volume.
 #include "lighting/techniques/imperfect_volumes/iv.glsl"
 
 layout(binding = 0) uniform sampler2D uGPosition;
@@ -25,6 +26,11 @@ layout(std430, binding = 10) readonly buffer Computed { uint computed[]; };  // 
 layout(std430, binding = 4) readonly buffer ObjectDirections { vec4 objectDirections[]; };
 layout(std430, binding = 11) readonly buffer ReflectedSumMu { vec4 reflectedSumMu[]; };
 layout(std430, binding = 12) readonly buffer Hidden { vec4 hidden[]; };  // iv_hidden.comp
+// The coarser outer volume the object's rays continue in past the grid (iv.h outerGrid; uOuterResolution 0: none).
+layout(std430, binding = 13) readonly buffer OuterVoxels { IvVoxel outerVoxels[]; };
+uniform vec3 uOuterOrigin;
+uniform float uOuterVoxel;
+uniform int uOuterResolution;
 uniform int uObjectRays;
 uniform float uRange;
 uniform int uBounceLight;  // 0: surfaces send nothing (bounces 0)
@@ -121,15 +127,20 @@ void reconstruct(int count, vec3 n, bool rho, bool mu, out vec3 eRho, out vec3 e
   }
 }
 
-// iv.h marchFromPoint: samples at (k + 1/2) voxel from x, x's own voxel skipped, the mu occupancy.
-int marchFromPoint(vec3 x, vec3 d, out float t) {
+// iv.h marchFromPoint: samples at (k + 1/2) voxel from x, x's own voxel skipped, the mu occupancy; tExit: the
+// first sample outside the grid.
+int marchFromPoint(vec3 x, vec3 d, out float t, out float tExit) {
   ivec3 own = ivec3(-1);
   ivVoxelOf(x, own);
+  tExit = 0.0;
   int maxSteps = int(ceil(sqrt(3.0) * float(uResolution))) + 1;
   for (int step = 0; step <= maxSteps; ++step) {
     t = (float(step) + 0.5) * uVoxel;
     ivec3 c;
-    if (!ivVoxelOf(x + t * d, c)) return -1;
+    if (!ivVoxelOf(x + t * d, c)) {
+      tExit = t;
+      return -1;
+    }
     if (c == own) continue;
     int v = ivIndex(c);
     if (voxels[v].exitantMu.w > 0.0) return v;
@@ -137,15 +148,48 @@ int marchFromPoint(vec3 x, vec3 d, out float t) {
   return -1;
 }
 
-// iv.h pointGather over the mu volume: the change against the unoccluded ambient.
+// iv.h Grid::voxelOf over the outer grid.
+bool outerVoxelOf(vec3 p, out ivec3 v) {
+  vec3 u = (p - uOuterOrigin) / uOuterVoxel;
+  v = ivec3(0);
+  if (any(lessThan(u, vec3(0.0))) || any(greaterThanEqual(u, vec3(float(uOuterResolution))))) return false;
+  v = min(ivec3(u), ivec3(uOuterResolution - 1));
+  return true;
+}
+
+// iv.h marchOuter: samples at from + k outer voxels, x's own outer voxel skipped, the real occupancy.
+int marchOuter(vec3 x, vec3 d, float from, out float t) {
+  ivec3 own = ivec3(-1);
+  outerVoxelOf(x, own);
+  int maxSteps = int(ceil(sqrt(3.0) * float(uOuterResolution))) + 1;
+  for (int step = 0; step <= maxSteps; ++step) {
+    t = from + float(step) * uOuterVoxel;
+    ivec3 c;
+    if (!outerVoxelOf(x + t * d, c)) return -1;
+    if (c == own) continue;
+    int v = (c.z * uOuterResolution + c.y) * uOuterResolution + c.x;
+    if (outerVoxels[v].exitantMu.w > 0.0) return v;
+  }
+  return -1;
+}
+
+// iv.h pointGather over the mu volume (and the outer one past it): the change against the unoccluded ambient.
 vec3 pointGather(vec3 x, vec3 n) {
   vec3 change = vec3(0.0);
   for (int j = 0; j < uObjectRays; ++j) {
     vec3 d = objectDirections[j].xyz;
     float c = dot(n, d);
     if (!(c > 0.0)) continue;
-    float t;
-    int h = marchFromPoint(x, d, t);
+    float t, tExit;
+    int h = marchFromPoint(x, d, t, tExit);
+    if (h < 0 && uOuterResolution > 0 && tExit <= uRange) {
+      int o = marchOuter(x, d, tExit, t);
+      if (o < 0 || t > uRange) continue;
+      vec3 L = vec3(0.0);
+      if (dot(outerVoxels[o].normalMu.xyz, -d) > 0.0 && uBounceLight == 1) L = outerVoxels[o].exitantMuLit.rgb;
+      change += (L - ivAmbientRadiance(uAmbient, uAmbientSh, d)) * c;
+      continue;
+    }
     if (h < 0 || t > uRange) continue;
     vec3 L = vec3(0.0);
     if (dot(voxels[h].normalMu.xyz, -d) > 0.0) {

@@ -230,6 +230,53 @@ TEST(ImperfectVolumes, APointsOwnRaysTradeTheSkyForTheSurfacesTheyHit) {
   EXPECT_EQ(iv::pointGather(lid, false, dark, o, amb, dirs, x, {0, 0, 1}), cv::Vec3f(0, 0, 0));
 }
 
+// Past the grid the object's rays go on through the outer volume: a point 10 cm above a lit floor that
+// reaches far beyond the 40 cm grid, facing it, trades the sky for the floor over the whole disc within range
+// (F = r^2 / (h^2 + r^2), r^2 = range^2 - h^2); without the outer volume only over the grid's part of it.
+TEST(ImperfectVolumes, TheObjectsRaysGoOnThroughTheOuterVolumePastTheGrid) {
+  const iv::Grid g = unitGrid(8, 0.05);  // [-0.2, 0.2]^3
+  iv::Options o;
+  o.bounces = 1;
+  o.range = 1.0;
+  const iv::Grid og = iv::outerGrid(g, o.range, 48);
+  ASSERT_NEAR(og.voxel, 0.05, 1e-12);
+  ASSERT_NEAR(og.origin[0], -1.2, 1e-12);
+  iv::Ambient amb;
+  amb.uniform = {0.4f, 0.4f, 0.4f};
+  const auto floorPoint = [](const iv::Grid& grid, int i, int j, int k) {
+    iv::Point p = pointIn(grid, i, j, k, {0, 0, 1});
+    p.radianceRho = p.radianceMu = {1.5f, 1.5f, 1.5f};
+    return p;
+  };
+  std::vector<iv::Point> inner, outer;
+  for (int j = 0; j < 8; ++j)
+    for (int i = 0; i < 8; ++i) inner.push_back(floorPoint(g, i, j, 0));  // z = -0.175
+  for (int j = 0; j < 48; ++j)
+    for (int i = 0; i < 48; ++i) {
+      const iv::Point p = floorPoint(og, i, j, 20);  // the same layer, z = -0.175
+      cv::Vec3i in;
+      if (!g.voxelOf(cv::Vec3d(p.position), in)) outer.push_back(p);
+    }
+  const iv::Volume vol = iv::voxelise(g, inner), outerVol = iv::voxelise(og, outer);
+  const iv::Incident in = iv::gather(vol, false, o, amb);
+  const std::vector<cv::Vec3f> dirs = iv::rayDirections(4096);
+  const cv::Vec3f x(0.0125f, 0.0125f, -0.075f), n(0, 0, -1);
+  const double h = 0.1, r2 = o.range * o.range - h * h;
+  const double full = (1.5 - 0.4) * CV_PI * r2 / (h * h + r2);
+  const cv::Vec3f with = iv::pointGather(vol, false, in, o, amb, dirs, x, n, nullptr, &outerVol);
+  EXPECT_NEAR(with[0], full, 0.05 * full);
+  const cv::Vec3f without = iv::pointGather(vol, false, in, o, amb, dirs, x, n);
+  EXPECT_LT(without[0], 0.9 * full) << "past the grid the rays read the sky";
+  // Within a range that stays inside the grid the outer volume changes nothing.
+  o.range = 0.15;
+  EXPECT_EQ(iv::pointGather(vol, false, in, o, amb, dirs, x, n, nullptr, &outerVol),
+            iv::pointGather(vol, false, in, o, amb, dirs, x, n));
+  // An empty outer volume: the sky, as without it.
+  o.range = 1.0;
+  const iv::Volume none = iv::voxelise(og, {});
+  EXPECT_EQ(iv::pointGather(vol, false, in, o, amb, dirs, x, n, nullptr, &none), without);
+}
+
 // The ambient a virtual lid hides from a real floor below it: L_a pi F (F the lid's form factor seen from the
 // floor voxel's centre); a real lid hides nothing (the real points' own surroundings are left out of their
 // ambient), and neither does a virtual lid beyond range.
