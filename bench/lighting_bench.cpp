@@ -1,14 +1,18 @@
 // Lighting techniques' cost on the GL backend of this machine (OSMesa/llvmpipe unless MRGI_GL=egl): the
-// imperfect volumes' stages against their work. Run e.g.
+// imperfect volumes' stages against their work, and splatting's against its light count. Run e.g.
 //   build/bench/lighting_bench --benchmark_counters_tabular=true
 // Each run lights a floor 2 m wide with a red wall and a sphere of radius 6 cm on it (the region around the
 // sphere: 48 cm), one point light and an ambient, at 320 x 240. Counters: the mean wall milliseconds of each
 // imperfect-volume stage per run (the GPU finishes each stage before the next begins), the points voxelised, the voxels gathered, and
 // `work` = voxels gathered x rays x passes (the gather's unit of work; passes = max(1, bounces) per scene
-// version, two versions).
+// version, two versions). Splatting: the mean milliseconds of its importance, sampling and splat passes, the
+// lights splatted and the overdraw (splats per pixel, mean and largest; the splat_overdraw view).
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
+#include <functional>
+#include <map>
+#include <memory>
 #include <string>
 
 #include "gl/context.h"
@@ -22,21 +26,26 @@ using namespace mrgi::lighting;
 
 namespace {
 
-/// args: resolution, rays, bounces, points per triangle.
-void BM_ImperfectVolumes(benchmark::State& state) {
+std::unique_ptr<gl::Context> benchContext() {
   gl::ContextConfig cc;
   cc.width = 320;
   cc.height = 240;
   if (const char* b = std::getenv("MRGI_GL")) cc.backend = gl::parseBackend(b);
-  auto context = gl::createContext(cc);
+  return gl::createContext(cc);
+}
+
+PipelineConfig benchConfig(const std::string& technique) {
   PipelineConfig cfg;
   cfg.width = 320;
   cfg.height = 240;
-  cfg.technique = parseTechniqueChoice("imperfect-volumes", &cfg.knobs);
-  cfg.set("iv", "resolution", static_cast<double>(state.range(0)));
-  cfg.set("iv", "rays", static_cast<double>(state.range(1)));
-  cfg.set("iv", "bounces", static_cast<double>(state.range(2)));
-  cfg.set("iv", "points", static_cast<double>(state.range(3)));
+  cfg.technique = parseTechniqueChoice(technique, &cfg.knobs);
+  return cfg;
+}
+
+/// Runs the bench scene with `cfg` once to warm up, then once per iteration with every stage timed; the
+/// stages' mean wall milliseconds. `after` runs after each timed run.
+std::map<std::string, double> runScene(benchmark::State& state, const PipelineConfig& cfg,
+                                       const std::function<void(const LightingPipeline&)>& after = {}) {
   VirtualObject sphere;
   sphere.mesh = loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
   for (auto& p : sphere.mesh.positions) p *= 0.06f;
@@ -64,14 +73,54 @@ void BM_ImperfectVolumes(benchmark::State& state) {
     pipe.run(cam, {lamp}, {0.2, 0.2, 0.2}, &profiler);
     for (const auto& [name, t] : profiler.resolve()) sum[name] += t.cpuMs;
     ++runs;
+    if (after) after(pipe);
   }
-  const nlohmann::json stats = pipe.stats().value("imperfect-volumes", nlohmann::json::object());
+  for (auto& [name, t] : sum) t /= std::max(runs, 1);
+  return sum;
+}
+
+/// args: resolution, rays, bounces, points per triangle.
+void BM_ImperfectVolumes(benchmark::State& state) {
+  auto context = benchContext();
+  PipelineConfig cfg = benchConfig("imperfect-volumes");
+  cfg.set("iv", "resolution", static_cast<double>(state.range(0)));
+  cfg.set("iv", "rays", static_cast<double>(state.range(1)));
+  cfg.set("iv", "bounces", static_cast<double>(state.range(2)));
+  cfg.set("iv", "points", static_cast<double>(state.range(3)));
+  nlohmann::json stats;
+  const auto ms = runScene(state, cfg, [&](const LightingPipeline& pipe) {
+    stats = pipe.stats().value("imperfect-volumes", nlohmann::json::object());
+  });
   for (const char* stage : {"iv.points", "iv.inject", "iv.gather", "iv.readout"})
-    state.counters[std::string(stage).substr(3) + "_ms"] = sum[stage] / std::max(runs, 1);
+    state.counters[std::string(stage).substr(3) + "_ms"] = ms.count(stage) ? ms.at(stage) : 0.0;
   const double gathered = stats.value("voxels_gathered", 0.0);
   state.counters["points"] = stats.value("points", 0.0);
   state.counters["voxels_gathered"] = gathered;
   state.counters["work"] = gathered * static_cast<double>(state.range(1)) * static_cast<double>(std::max<int64_t>(1, state.range(2))) * 2.0;
+}
+
+/// args: pixel lights (splat.vpls), i_low.
+void BM_Splatting(benchmark::State& state) {
+  auto context = benchContext();
+  PipelineConfig cfg = benchConfig("splatting");
+  cfg.set("splat", "vpls", static_cast<double>(state.range(0)));
+  cfg.set("splat", "i_low", static_cast<double>(state.range(1)));
+  double meanOverdraw = 0, maxOverdraw = 0, lights = 0;
+  int runs = 0;
+  const auto ms = runScene(state, cfg, [&](const LightingPipeline& pipe) {
+    nlohmann::json info;
+    pipe.technique("splatting")->debugImage("splat_overdraw", {}, info);
+    meanOverdraw += info.value("mean_splats_per_pixel", 0.0);
+    maxOverdraw = std::max(maxOverdraw, info.value("max_splats_per_pixel", 0.0));
+    const nlohmann::json stats = pipe.stats().value("splatting", nlohmann::json::object());
+    lights = stats.value("delta_lights", 0.0) + stats.value("object_lights", 0.0);
+    ++runs;
+  });
+  for (const char* stage : {"splat.importance", "splat.sample", "splat.splat"})
+    state.counters[std::string(stage).substr(6) + "_ms"] = ms.count(stage) ? ms.at(stage) : 0.0;
+  state.counters["lights"] = lights;
+  state.counters["overdraw_mean"] = meanOverdraw / std::max(runs, 1);
+  state.counters["overdraw_max"] = maxOverdraw;
 }
 
 }  // namespace
@@ -83,5 +132,10 @@ BENCHMARK(BM_ImperfectVolumes)
     ->Args({32, 16, 1, 8})->Args({32, 128, 1, 8})->Args({32, 256, 1, 8})
     ->Args({32, 64, 2, 8})->Args({32, 64, 3, 8})
     ->Args({32, 64, 1, 3})->Args({32, 64, 1, 19})
+    ->Unit(benchmark::kMillisecond)->Iterations(3);
+// Light count 64 .. 16384 at the default I_low (16), and the splat size (I_low 4 and 64) at 1024 lights.
+BENCHMARK(BM_Splatting)
+    ->Args({64, 16})->Args({256, 16})->Args({1024, 16})->Args({4096, 16})->Args({16384, 16})
+    ->Args({1024, 4})->Args({1024, 64})
     ->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK_MAIN();

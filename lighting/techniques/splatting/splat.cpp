@@ -174,6 +174,51 @@ double warpedEstimate(const Pyramid& p, const cv::Mat& f, int n) {
   return sum / std::max(n, 1);
 }
 
+float texelArea(const cv::Vec3f& direct, const cv::Vec3f& beam, float cosine) {
+  const int c = beam[0] >= beam[1] && beam[0] >= beam[2] ? 0 : (beam[1] >= beam[2] ? 1 : 2);
+  const float across = beam[c] > 0 ? direct[c] / beam[c] : 0.0f;
+  return across / std::max(cosine, 0.1f);
+}
+
+cv::Vec3f ambientFlux(const cv::Vec3f& flux, const cv::Vec3f& direct, const cv::Vec3f& eAmbient, float area, float share) {
+  cv::Vec3f a(0, 0, 0);
+  for (int c = 0; c < 3; ++c) {
+    const float albedo = direct[c] > 0 ? std::clamp(flux[c] / direct[c], 0.0f, 1.0f) : 0.0f;
+    a[c] = albedo * eAmbient[c] * area * share;
+    if (!std::isfinite(a[c]) || a[c] < 0) a[c] = 0;
+  }
+  return a;
+}
+
+cv::Vec3f occluderFlux(const cv::Vec3f& ambientBehind, float area, float share) {
+  cv::Vec3f o(0, 0, 0);
+  for (int c = 0; c < 3; ++c) {
+    o[c] = -static_cast<float>(CV_PI) * std::max(ambientBehind[c], 0.0f) * area * share;
+    if (!std::isfinite(o[c])) o[c] = 0;
+  }
+  return o;
+}
+
+float rsmOcclusion(const cv::Mat& position, const cv::Mat& normal, cv::Point t, float radius) {
+  static const cv::Point dirs[8] = {{1, 0}, {1, 1}, {0, 1}, {-1, 1}, {-1, 0}, {-1, -1}, {0, -1}, {1, -1}};
+  const cv::Vec4f p = position.at<cv::Vec4f>(t), n4 = normal.at<cv::Vec4f>(t);
+  if (!(p[3] > 0.5f) || !(radius > 0)) return 0.0f;
+  const cv::Vec3f x(p[0], p[1], p[2]), n(n4[0], n4[1], n4[2]);
+  float occ = 0;
+  for (int r : {2, 5})
+    for (const cv::Point& d : dirs) {
+      const cv::Point q = t + r * d;
+      if (q.x < 0 || q.y < 0 || q.x >= position.cols || q.y >= position.rows) continue;
+      const cv::Vec4f o = position.at<cv::Vec4f>(q);
+      if (!(o[3] > 0.5f)) continue;
+      const cv::Vec3f v = cv::Vec3f(o[0], o[1], o[2]) - x;
+      const float len = std::sqrt(v.dot(v));
+      if (!(len > 0) || len >= radius) continue;
+      if (n.dot(v) > 0.2f * len) occ += 1.0f - len / radius;
+    }
+  return std::min(occ / 16.0f, 0.9f);
+}
+
 double importance(const cv::Vec3f& flux, float ao, float exponent) {
   const double l = absLum(flux);
   const double v = l * (1.0 - std::clamp(ao, 0.0f, 1.0f)) * (1.0 + std::max(exponent, 0.0f));

@@ -27,7 +27,8 @@
 /// Φ_bottom), y' = y / Φ_r or (y − Φ_r) / (1 − Φ_r) (the paper's scaled form, same map), then x within the
 /// chosen half (method A); the sample's weight is the product of 1/(2Φ) of each choice, i.e. 1 / (texels ×
 /// pdf). The warped estimate (1/N) Σ f(t_s) texels w_s of Σ_t f_t is unbiased wherever the importance is
-/// non-zero. Importance p = lum(Φ) (1 − AO) (1 + P): dark, occluded and diffuse texels get fewer samples.
+/// non-zero. Importance p = lum(Φ) (1 − AO) (1 + P): dark, occluded and diffuse texels get fewer samples
+/// (AO: rsmOcclusion, from the RSM itself).
 ///
 /// Mixed reality: the real-pixel delta is the splat of RSM^rho's lights minus RSM^mu's. Both are sampled at
 /// the same texels with the same weights from one importance map that is non-zero only where the two RSMs
@@ -101,6 +102,29 @@ Warped warp(const Pyramid& p, cv::Vec2d u);
 cv::Vec2d samplePoint(int i);
 /// The warped estimate of Σ f over the map's texels with n samples: (1/n) Σ f(t_s) texels w_s.
 double warpedEstimate(const Pyramid& p, const cv::Mat& f, int n);
+
+/// A texel's footprint on its surface (m²): across the beam direct / beam (the beam's brightest channel:
+/// W/m² at the texel, intensity / d² or the sun's irradiance) over cos θ clamped at 0.1 (splat_texel.glsl).
+float texelArea(const cv::Vec3f& direct, const cv::Vec3f& beam, float cosine);
+/// The ambient's bounce off a texel, the share one light's RSM carries (each light's RSM tiles the surfaces it
+/// sees once, so with L lights each carries 1 / L): albedo E_ambient A share, albedo = flux / direct per
+/// channel (clamped to [0, 1]; 0 without direct light). The RSMs hold only the lights' direct bounce; outdoors
+/// the sky's bounce off the table is most of what the object receives.
+cv::Vec3f ambientFlux(const cv::Vec3f& flux, const cv::Vec3f& direct, const cv::Vec3f& eAmbient, float area, float share);
+
+/// The ambient occlusion of an RSM texel (CV_32FC4 world positions, w = 1 where a surface was seen, and
+/// normals), from the RSM itself as screen-space AO from the light: of 16 neighbours (8 directions at 2 and 5
+/// texels) each that lies within `radius` metres of the texel's point and above its tangent plane (more than
+/// asin 0.2 ≈ 11.5° up) occludes 1 − d / radius; AO = their sum / 16, at most 0.9, so that no lit texel drops
+/// out of the sampling (the warped estimate stays unbiased). 0 for an empty texel. GLSL twin in
+/// splat_importance.comp.
+float rsmOcclusion(const cv::Mat& position, const cv::Mat& normal, cv::Point t, float radius);
+
+/// The ambient a surface patch of area A blocks, seen from in front of it, as a negative Lambertian light:
+/// −π L_ambient(−n) A share (L the ambient's radiance looking along −n, the sky behind the patch). Summed
+/// with the light the patch sends, a receiver's irradiance trades the sky behind the patch for the patch:
+/// on the object, the ambient the real surfaces hide; on real surfaces, the ambient the object hides.
+cv::Vec3f occluderFlux(const cv::Vec3f& ambientBehind, float area, float share);
 
 /// Importance of one texel: lum(Φ) (1 − AO) (1 + P), 0 for non-finite or negative input.
 double importance(const cv::Vec3f& flux, float ao, float exponent);

@@ -5,8 +5,12 @@
 // total / (N p_t) (an unbiased estimate of the sum over all texels):
 //   uMode 0 (real-pixel delta): 3 records: RSM^rho's diffuse light, its glossy light (a glossy object's texel;
 //                              else zero flux) and RSM^mu's diffuse light with negated flux
-//   uMode 1 (the object):       1 record, RSM^rho's diffuse light (real texels only)
+//   uMode 1 (the object):       1 record, the real surface's diffuse light (RSM^rho's real texel, else
+//                              RSM^mu's in the object's shadow)
+// Diffuse fluxes as splat_texel.glsl makes them (with the ambient's bounce and, for an occluder, the
+// ambient it blocks), as the importance weighs them.
 #include "lighting/techniques/splatting/splat.glsl"
+#include "lighting/techniques/splatting/splat_texel.glsl"
 #define MAX_OBJECTS 16
 #define MAX_LEVELS 14
 layout(local_size_x = 64) in;
@@ -29,10 +33,6 @@ uniform int uFirstSample;  // index of its first R2 point
 uniform int uFirstRecord;  // where its records start
 uniform int uLevels;       // levels of the pyramid (level uLevels - 1 is 1 x 1)
 uniform int uLevelOffset[MAX_LEVELS];
-uniform int uLightType;    // 0 point, 1 spot, 2 directional
-uniform vec3 uLightPosition;
-uniform vec3 uLightDirection;
-uniform vec3 uLightPower;  // intensity (W/sr) or irradiance (W/m^2)
 uniform float uWiden;
 uniform float uSpecular[MAX_OBJECTS];
 uniform float uExponent[MAX_OBJECTS];
@@ -42,25 +42,12 @@ float at(int level, ivec2 t) {
   return pyr[uLevelOffset[level] + t.y * side + t.x];
 }
 
-// The texel's diffuse pixel light (area: the texel's footprint across the beam over <n, l>, clamped at 0.1;
-// kinect_val valsFromRsm) and the light's direction towards it.
-PixelLight texelLight(vec4 p, vec4 n, vec3 flux, vec3 direct, float scale, out vec3 toLight) {
-  vec3 beam;
-  if (uLightType == 2) {
-    toLight = -uLightDirection;
-    beam = uLightPower;
-  } else {
-    vec3 d = uLightPosition - p.xyz;
-    float d2 = max(dot(d, d), 1e-12);
-    toLight = d * inversesqrt(d2);
-    beam = uLightPower / d2;
-  }
-  int c = beam.r >= beam.g && beam.r >= beam.b ? 0 : (beam.g >= beam.b ? 1 : 2);
-  float across = beam[c] > 0.0 ? direct[c] / beam[c] : 0.0;
+// A texel's diffuse pixel light of flux f (its footprint from splat_texel.glsl).
+PixelLight diffuseLight(vec4 p, vec4 n, vec3 f, float area, float scale) {
   PixelLight l;
-  l.positionArea = vec4(p.xyz, across / max(dot(n.xyz, toLight), 0.1));
+  l.positionArea = vec4(p.xyz, area);
   l.normalExponent = vec4(n.xyz, 0.0);
-  l.fluxWiden = vec4(flux * scale, 0.0);
+  l.fluxWiden = vec4(f * scale, 0.0);
   l.axis = vec4(n.xyz, 0.0);
   return l;
 }
@@ -101,31 +88,45 @@ void main() {
   if (!(p > 0.0)) return;
   float scale = total / (float(uCount) * p);
   vec4 pr = texelFetch(uRhoPosition, t, 0), nr = texelFetch(uRhoNormal, t, 0);
+  vec4 pm = texelFetch(uMuPosition, t, 0), nm = texelFetch(uMuNormal, t, 0);
   vec3 toLight;
+  float area;
   if (uMode == 1) {
-    lights[uFirstRecord + i] = texelLight(pr, nr, texelFetch(uRhoFlux, t, 0).rgb, texelFetch(uRhoDirect, t, 0).rgb, scale, toLight);
+    // The object's light from a real surface: its direct bounce, ambient bounce and the ambient it blocks; where
+    // the object hides it from the light (RSM^rho shows the object), RSM^mu's surface, in the object's shadow.
+    if (pr.w > 0.5 && nr.w < 0.5) {
+      vec3 f = splatTexelFlux(pr.xyz, nr.xyz, texelFetch(uRhoFlux, t, 0).rgb, texelFetch(uRhoDirect, t, 0).rgb, true, true, area, toLight);
+      lights[uFirstRecord + i] = diffuseLight(pr, nr, f, area, scale);
+    } else if (pm.w > 0.5) {
+      vec3 f = splatTexelFlux(pm.xyz, nm.xyz, texelFetch(uMuFlux, t, 0).rgb, texelFetch(uMuDirect, t, 0).rgb, false, true, area, toLight);
+      lights[uFirstRecord + i] = diffuseLight(pm, nm, f, area, scale);
+    }
     return;
   }
   int base = uFirstRecord + 3 * i;
   if (pr.w > 0.5) {
+    // An object's texel also reflects the ambient and blocks it (the real surfaces near it lose sky); a real
+    // surface RSM^rho shows is there in both versions: its direct bounce only (the ambient's parts cancel).
     vec3 direct = texelFetch(uRhoDirect, t, 0).rgb;
-    lights[base] = texelLight(pr, nr, texelFetch(uRhoFlux, t, 0).rgb, direct, scale, toLight);
-    if (nr.w > 0.5) {
+    bool isObject = nr.w > 0.5;
+    vec3 f = splatTexelFlux(pr.xyz, nr.xyz, texelFetch(uRhoFlux, t, 0).rgb, direct, true, isObject, area, toLight);
+    if (!isObject) f = texelFetch(uRhoFlux, t, 0).rgb;
+    lights[base] = diffuseLight(pr, nr, f, area, scale);
+    if (isObject) {
       int obj = clamp(int(nr.w + 0.5) - 1, 0, MAX_OBJECTS - 1);
-      if (uSpecular[obj] > 0.0) {
-        PixelLight g = texelLight(pr, nr, uSpecular[obj] * direct, direct, scale, toLight);
-        g.normalExponent.w = max(uExponent[obj], 0.0);
+      if (uSpecular[obj] > 0.0 && uExponent[obj] > 0.0) {
+        PixelLight g = diffuseLight(pr, nr, uSpecular[obj] * direct, area, scale);
+        g.normalExponent.w = uExponent[obj];
         g.fluxWiden.w = uWiden;
         g.axis = vec4(reflect(-toLight, nr.xyz), 0.0);
-        if (uExponent[obj] > 0.0) lights[base + 1] = g;
+        lights[base + 1] = g;
       }
     }
   }
-  vec4 pm = texelFetch(uMuPosition, t, 0);
   if (pm.w > 0.5) {
-    PixelLight m = texelLight(pm, texelFetch(uMuNormal, t, 0), texelFetch(uMuFlux, t, 0).rgb, texelFetch(uMuDirect, t, 0).rgb,
-                              scale, toLight);
-    m.fluxWiden.rgb = -m.fluxWiden.rgb;
-    lights[base + 2] = m;
+    // The real surface the object hides from the light loses its direct bounce only: it is still there,
+    // reflecting and blocking the ambient as before.
+    float a = splatTexelArea(pm.xyz, nm.xyz, texelFetch(uMuDirect, t, 0).rgb, toLight);
+    lights[base + 2] = diffuseLight(pm, nm, -texelFetch(uMuFlux, t, 0).rgb, a, scale);
   }
 }

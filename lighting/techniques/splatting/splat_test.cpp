@@ -207,6 +207,30 @@ TEST(SplatWarping, ImportanceIsDefinedForEveryInput) {
   EXPECT_GT(importance({-1, -1, -1}, 0.0f, 0.0f), 0.0);  // a subtracted light weighs by its magnitude
 }
 
+// A texel's occlusion in its RSM: 0 on an open plane, an empty texel or a zero reach; at the bottom of a pit
+// (every neighbour raised above its tangent plane) it reaches its cap of 0.9, so it never leaves the sampling.
+TEST(SplatOcclusion, IsZeroInTheOpenAndCappedInAPit) {
+  cv::Mat pos(16, 16, CV_32FC4), nrm(16, 16, CV_32FC4, cv::Scalar(0, 0, 1, 0));
+  for (int y = 0; y < 16; ++y)
+    for (int x = 0; x < 16; ++x) pos.at<cv::Vec4f>(y, x) = {0.01f * x, 0.01f * y, 0.0f, 1.0f};
+  EXPECT_EQ(rsmOcclusion(pos, nrm, {8, 8}, 0.1f), 0.0f);
+  // A pit: every other texel 5 cm above the centre.
+  cv::Mat pit = pos.clone();
+  for (int y = 0; y < 16; ++y)
+    for (int x = 0; x < 16; ++x)
+      if (x != 8 || y != 8) pit.at<cv::Vec4f>(y, x)[2] = 0.05f;
+  const float deep = rsmOcclusion(pit, nrm, {8, 8}, 1.0f);
+  EXPECT_GT(deep, 0.8f);
+  EXPECT_LE(deep, 0.9f);
+  EXPECT_EQ(rsmOcclusion(pit, nrm, {8, 8}, 0.0f), 0.0f);
+  EXPECT_EQ(rsmOcclusion(pit, nrm, {8, 8}, 0.01f), 0.0f) << "all beyond reach";
+  cv::Mat empty = pos.clone();
+  empty.at<cv::Vec4f>(8, 8)[3] = 0.0f;
+  EXPECT_EQ(rsmOcclusion(empty, nrm, {8, 8}, 1.0f), 0.0f);
+  // At the map's corner half the neighbours are missing: finite, defined.
+  EXPECT_TRUE(std::isfinite(rsmOcclusion(pit, nrm, {0, 0}, 1.0f)));
+}
+
 // A sharp glossy light 20 cm over a plane, its mirror direction 30° off the vertical: the brightest point
 // of the plane is where that direction meets it.
 TEST(SplatCaustic, ASharpLobeFocusesWhereItsMirrorDirectionMeetsThePlane) {

@@ -60,6 +60,21 @@ void setMaterials(const gl::Program& p, const FrameResources& frame) {
   }
 }
 
+/// The light and the ambient for splat_texel.glsl: a light's share of the ambient's bounce is 1 / the lights
+/// with samples (each light's RSM tiles the surfaces it sees once).
+void setTexelUniforms(const gl::Program& p, const FrameResources& frame, const SceneLight& l, float ambientShare) {
+  p.set("uLightType", shaderLightType(l.type));
+  setVec3(p, "uLightPosition", l.position);
+  setVec3(p, "uLightDirection", l.direction);
+  setVec3(p, "uLightPower", l.type == LightType::Directional ? l.irradiance : l.intensity);
+  setVec3(p, "uAmbient", frame.ambient());
+  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+  p.set("uAmbientShare", ambientShare);
+}
+
+/// The reach of a texel's occlusion in its RSM (splat::rsmOcclusion): an eighth of the region's side.
+float aoRadius(const Region& region) { return static_cast<float>(region.side / 8.0); }
+
 void bindRsms(const FrameResources& frame) {
   const Rsm& r = frame.rsmRho();
   const Rsm& m = frame.rsmMu();
@@ -125,6 +140,8 @@ void SplattingTechnique::beginLights(const FrameResources& frame, gl::Profiler*)
   for (size_t i = 0; i < lights.size(); ++i)
     if (w[i] > 0 && sum > 0) budget_[i] = std::max(1, static_cast<int>(std::floor(knobs_.vpls * w[i] / sum)));
   deltaRecords_ = objectRecords_ = samplesSoFar_ = 0;
+  const auto sampled = std::count_if(budget_.begin(), budget_.end(), [](int n) { return n > 0; });
+  ambientShare_ = sampled > 0 ? 1.0f / static_cast<float>(sampled) : 0.0f;
   const double s = frame.region()->side;
   iLowScale_ = static_cast<float>(knobs_.iLow / (CV_PI * s * s));
 }
@@ -139,6 +156,9 @@ void SplattingTechnique::light(const FrameResources& frame, size_t index, gl::Pr
     p.set("uSize", frame.rsmSize());
     p.set("uPadded", padded_);
     setMaterials(p, frame);
+    setTexelUniforms(p, frame, frame.lights().at(index), ambientShare_);
+    aoRadius_ = aoRadius(*frame.region());
+    p.set("uAoRadius", aoRadius_);
     bindRsms(frame);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, deltaPyramid_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, objectPyramid_.id());
@@ -169,6 +189,7 @@ void SplattingTechnique::light(const FrameResources& frame, size_t index, gl::Pr
     sampleLight(frame, index, false, n, samplesSoFar_, objectRecords_);
     objectRecords_ += n;
   }
+  lastSamples_ = {samplesSoFar_, n};
   samplesSoFar_ += n;
 }
 
@@ -184,10 +205,7 @@ void SplattingTechnique::sampleLight(const FrameResources& frame, size_t index, 
   p.set("uLevels", levels_);
   for (int k = 0; k < kMaxLevels; ++k)
     p.set("uLevelOffset[" + std::to_string(k) + "]", k < levels_ ? levelOffsets_[static_cast<size_t>(k)] : 0);
-  p.set("uLightType", shaderLightType(l.type));
-  setVec3(p, "uLightPosition", l.position);
-  setVec3(p, "uLightDirection", l.direction);
-  setVec3(p, "uLightPower", l.type == LightType::Directional ? l.irradiance : l.intensity);
+  setTexelUniforms(p, frame, l, ambientShare_);
   p.set("uWiden", static_cast<float>(knobs_.widen));
   setMaterials(p, frame);
   bindRsms(frame);
@@ -278,7 +296,17 @@ cv::Mat SplattingTechnique::debugImage(const std::string& view, const DebugConte
       const auto v = cv::saturate_cast<uchar>(peak > 0 ? 200.0 * std::sqrt(imp.at<float>(i) / peak) : 0.0);
       img.at<cv::Vec3b>(i) = {v, v, v};
     }
+    // The texels the light's samples warped to (splat.h warp on the same importance, as the GPU warps).
+    const splat::Pyramid pyr = splat::buildPyramid(imp);
+    int marked = 0;
+    for (int k = 0; k < lastSamples_.second; ++k) {
+      const splat::Warped w = splat::warp(pyr, splat::samplePoint(lastSamples_.first + k));
+      if (w.texel.x < 0 || w.texel.y < 0 || w.texel.x >= img.cols || w.texel.y >= img.rows) continue;
+      img.at<cv::Vec3b>(w.texel.y, w.texel.x) = {0, 230, 255};  // BGR yellow
+      ++marked;
+    }
     info["importance_peak"] = peak;
+    info["sampled_texels_marked"] = marked;
     return img;
   }
   return {};

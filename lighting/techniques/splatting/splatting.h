@@ -8,6 +8,7 @@
 /// texels cancel and with no object the delta is exactly 0), glossy objects' lobes included (their focused
 /// reflections: caustics on the table); on the object, the bounce real surfaces send it (RSM^rho's real
 /// texels). Reference math: splat.h.
+#include <utility>
 #include <vector>
 
 #include "gl/objects.h"
@@ -29,7 +30,7 @@ class SplattingTechnique final : public Technique {
   explicit SplattingTechnique(const TechniqueSetup& setup);
 
   std::string name() const override { return "splatting"; }
-  unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights; }
+  unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights | kInputAmbient; }
   void beginLights(const FrameResources& frame, gl::Profiler* profiler) override;
   void light(const FrameResources& frame, size_t index, gl::Profiler* profiler) override;
   void update(const FrameResources& frame, gl::Profiler* profiler) override;
@@ -47,6 +48,8 @@ class SplattingTechnique final : public Technique {
   float iLowScale() const { return iLowScale_; }
   /// The last light's level-0 importance (delta or object), padded side x side (GPU download).
   cv::Mat downloadImportance(bool delta) const;
+  /// The reach of a texel's occlusion in its RSM (splat::rsmOcclusion), metres: the region's side / 8.
+  float occlusionRadius() const { return aoRadius_; }
 
  private:
   void sampleLight(const FrameResources& frame, size_t index, bool delta, int count, int firstSample, int firstRecord);
@@ -55,6 +58,9 @@ class SplattingTechnique final : public Technique {
   bool real_ = false, virtual_ = false;
   gl::Program importanceProgram_, reduceProgram_, sampleProgram_, splatProgram_;
   int padded_ = 0, levels_ = 0;
+  std::pair<int, int> lastSamples_{0, 0};
+  float ambientShare_ = 0;
+  float aoRadius_ = 0;  ///< each sampled light's share of the ambient's bounce  ///< the last light's first sample index and sample count
   std::vector<int> levelOffsets_;
   gl::Buffer deltaPyramid_, objectPyramid_, deltaLights_, objectLights_;
   std::vector<int> budget_;     ///< samples per light this run
