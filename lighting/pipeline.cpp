@@ -130,7 +130,9 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   glDisable(GL_BLEND);
   const FrameVersions now = frame_->update(camera, lights, ambientRadiance);
   const bool needGbuffer = changed(gbufferAt_, now, kInputCamera | kInputGeometry);
-  const bool needLights = changed(lightsAt_, now, kInputGeometry | kInputLights);
+  unsigned lightInputs = kInputGeometry | kInputLights;
+  for (const auto& t : techniques_) lightInputs |= t->lightInputs();
+  const bool needLights = changed(lightsAt_, now, lightInputs);
   skipped_.clear();
   if (!needGbuffer) skipped_.push_back("gbuffer");
   if (!needLights) skipped_.push_back("rsm");

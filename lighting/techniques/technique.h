@@ -86,6 +86,9 @@ class Technique {
   /// The frame inputs update() depends on (FrameInput bits). Per-light work always depends on lights and
   /// geometry.
   virtual unsigned inputs() const = 0;
+  /// Further inputs its per-light work (beginLights, light, endLights) depends on: a change reruns the
+  /// lights' pass (RSMs included), as a change of lights or geometry does.
+  virtual unsigned lightInputs() const { return 0; }
   virtual TechniqueNeeds needs() const { return {}; }
   /// Whether the real-pixel delta already contains the object's direct shadow on real surfaces (otherwise
   /// the shading pass adds it from the shadow maps).

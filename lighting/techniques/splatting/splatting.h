@@ -31,6 +31,8 @@ class SplattingTechnique final : public Technique {
 
   std::string name() const override { return "splatting"; }
   unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights | kInputAmbient; }
+  /// The pixel lights carry the ambient's bounce and occlusion: a new ambient samples them again.
+  unsigned lightInputs() const override { return kInputAmbient; }
   void beginLights(const FrameResources& frame, gl::Profiler* profiler) override;
   void light(const FrameResources& frame, size_t index, gl::Profiler* profiler) override;
   void update(const FrameResources& frame, gl::Profiler* profiler) override;
