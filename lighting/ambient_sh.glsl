@@ -1,6 +1,6 @@
 // The ambient's SH part (bands 0-2, lighting/sh.h convention; reconstruction::shBasis2's basis): its basis,
-// and its irradiance about a normal. The shading pass and the imperfect volumes read the ambient through it;
-// reconstruction::ambientShIrradiance is the C++ twin.
+// its irradiance about a normal and the ambient's radiance along a direction. The shading pass, the imperfect
+// volumes and splatting read the ambient through it; reconstruction::ambientShIrradiance is the C++ twin.
 
 // y_i(d) for i < 9, d a unit vector.
 void ambientShBasis(vec3 d, out float b[9]) {
@@ -18,4 +18,14 @@ vec3 ambientShIrradiance(vec3 sh[9], vec3 n) {
   for (int k = 1; k < 4; ++k) e += (2.0 * pi / 3.0) * b[k] * sh[k];
   for (int k = 4; k < 9; ++k) e += (pi / 4.0) * b[k] * sh[k];
   return max(e, vec3(0.0));
+}
+
+// The ambient's radiance seen looking along unit w: the uniform part plus the SH part, each channel clamped
+// at 0 (three bands of a sky seen from above ring below the horizon; iv::Ambient::radiance is the C++ twin).
+vec3 ambientRadiance(vec3 uniformPart, vec3 sh[9], vec3 w) {
+  float b[9];
+  ambientShBasis(w, b);
+  vec3 L = uniformPart;
+  for (int k = 0; k < 9; ++k) L += b[k] * sh[k];
+  return max(L, vec3(0.0));
 }

@@ -230,8 +230,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       outerPointCount_ = op.count();
       outerPoints_ = gl::Buffer::storage(std::max<size_t>(op.data.size(), 1) * sizeof(cv::Vec4f), op.data.data());
       outerOffsets_ = gl::Buffer::storage(op.offsets.size() * sizeof(uint32_t), op.offsets.data());
-      if (!outerGrid_ || outerGrid_->resolution != o.resolution || !outerVoxels_.id())
-        outerVoxels_ = gl::Buffer::storage(o.count() * 7 * sizeof(cv::Vec4f));
+      if (!outerVoxels_.id()) outerVoxels_ = gl::Buffer::storage(o.count() * 7 * sizeof(cv::Vec4f));  // the knob is fixed
       outerGrid_ = o;
     }
     if (!objectDirections_.id() && virtual_ && knobs_.objectRays > 0) {

@@ -283,15 +283,19 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
   return out;
 }
 
-int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction, float* distance,
-                       float* exit) {
+namespace {
+
+/// The first occupied voxel along a ray from x, sampled at t = (k + offset) voxel + from (k = 0, 1, ...), x's
+/// own voxel skipped; -1 when a sample leaves the grid (`exit` gets its t). marchFromPoint and marchOuter.
+int64_t marchSamples(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction, float offset, float from,
+                     float* distance, float* exit) {
   const Grid& g = volume.grid;
   const float s = static_cast<float>(g.voxel);
   cv::Vec3i own(-1, -1, -1);
   g.voxelOf(cv::Vec3d(x), own);
   const int maxSteps = static_cast<int>(std::ceil(std::sqrt(3.0f) * g.resolution)) + 1;
   for (int step = 0; step <= maxSteps; ++step) {
-    const float t = (static_cast<float>(step) + 0.5f) * s;
+    const float t = (static_cast<float>(step) + offset) * s + from;
     cv::Vec3i c;
     if (!g.voxelOf(cv::Vec3d(x + t * direction), c)) {
       if (exit) *exit = t;
@@ -307,6 +311,13 @@ int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const
   return -1;
 }
 
+}  // namespace
+
+int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction, float* distance,
+                       float* exit) {
+  return marchSamples(volume, rho, x, direction, 0.5f, 0.0f, distance, exit);
+}
+
 Grid outerGrid(const Grid& inner, double range, int resolution) {
   Grid g;
   g.resolution = std::max(resolution, 1);
@@ -317,23 +328,7 @@ Grid outerGrid(const Grid& inner, double range, int resolution) {
 }
 
 int64_t marchOuter(const Volume& outer, const cv::Vec3f& x, const cv::Vec3f& direction, float from, float* distance) {
-  const Grid& g = outer.grid;
-  const float s = static_cast<float>(g.voxel);
-  cv::Vec3i own(-1, -1, -1);
-  g.voxelOf(cv::Vec3d(x), own);
-  const int maxSteps = static_cast<int>(std::ceil(std::sqrt(3.0f) * g.resolution)) + 1;
-  for (int step = 0; step <= maxSteps; ++step) {
-    const float t = from + static_cast<float>(step) * s;
-    cv::Vec3i c;
-    if (!g.voxelOf(cv::Vec3d(x + t * direction), c)) return -1;
-    if (c == own) continue;
-    const size_t v = g.index(c[0], c[1], c[2]);
-    if (outer.occupied(v, false)) {
-      if (distance) *distance = t;
-      return static_cast<int64_t>(v);
-    }
-  }
-  return -1;
+  return marchSamples(outer, false, x, direction, 0.0f, from, distance, nullptr);
 }
 
 std::vector<cv::Vec3f> ambientHiddenByObjects(const Volume& volume, const Options& options, const Ambient& ambient,

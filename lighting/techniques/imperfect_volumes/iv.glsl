@@ -19,16 +19,20 @@ uniform vec3 uGridOrigin;
 uniform float uVoxel;
 uniform int uResolution;
 
-int ivIndex(ivec3 v) { return (v.z * uResolution + v.y) * uResolution + v.x; }
-vec3 ivCentre(ivec3 v) { return uGridOrigin + uVoxel * (vec3(v) + 0.5); }
-ivec3 ivCoords(int index) { return ivec3(index % uResolution, (index / uResolution) % uResolution, index / (uResolution * uResolution)); }
-bool ivVoxelOf(vec3 p, out ivec3 v) {
-  vec3 u = (p - uGridOrigin) / uVoxel;
+// A grid's voxel index and the voxel holding p (false outside): iv.h Grid::index / voxelOf, for any grid.
+int ivIndexIn(int resolution, ivec3 v) { return (v.z * resolution + v.y) * resolution + v.x; }
+bool ivVoxelIn(vec3 origin, float voxel, int resolution, vec3 p, out ivec3 v) {
+  vec3 u = (p - origin) / voxel;
   v = ivec3(0);
-  if (any(lessThan(u, vec3(0.0))) || any(greaterThanEqual(u, vec3(float(uResolution))))) return false;
-  v = min(ivec3(u), ivec3(uResolution - 1));
+  if (any(lessThan(u, vec3(0.0))) || any(greaterThanEqual(u, vec3(float(resolution))))) return false;
+  v = min(ivec3(u), ivec3(resolution - 1));
   return true;
 }
+
+int ivIndex(ivec3 v) { return ivIndexIn(uResolution, v); }
+vec3 ivCentre(ivec3 v) { return uGridOrigin + uVoxel * (vec3(v) + 0.5); }
+ivec3 ivCoords(int index) { return ivec3(index % uResolution, (index / uResolution) % uResolution, index / (uResolution * uResolution)); }
+bool ivVoxelOf(vec3 p, out ivec3 v) { return ivVoxelIn(uGridOrigin, uVoxel, uResolution, p, v); }
 
 // Irradiance about unit n of incident SH c: sum_l pi s_l(1) c_lm y_lm(n) (one channel).
 float ivShIrradiance(float c[SH_COEFFS], vec3 n) {
@@ -45,12 +49,3 @@ float ivShIrradiance(float c[SH_COEFFS], vec3 n) {
 // The ambient's irradiance with nothing occluding it, as the shading pass adds it: pi * uniform + the SH
 // part's clamped-cosine irradiance (iv.h unoccludedAmbient).
 vec3 ivUnoccludedAmbient(vec3 ambient, vec3 sh[9], vec3 n) { return SH_PI * ambient + ambientShIrradiance(sh, n); }
-
-// Radiance of direction w that the volume does not hold: the uniform ambient plus its SH part (iv.h Ambient).
-vec3 ivAmbientRadiance(vec3 ambient, vec3 sh[9], vec3 w) {
-  float b[9];
-  ambientShBasis(w, b);
-  vec3 L = ambient;
-  for (int k = 0; k < 9; ++k) L += b[k] * sh[k];
-  return max(L, vec3(0.0));  // three bands of a sky seen from above ring below the horizon
-}

@@ -68,7 +68,7 @@ void main() {
       if (uBounceLight == 1 && dot(nSum, -d) > 0.0)
         L = uExitantFromBuffer == 1 ? reflected[hit].rgb : (uRho == 1 ? voxels[hit].exitantRho.rgb : voxels[hit].exitantMu.rgb);
     } else if (uAmbientOn == 1) {
-      L = ivAmbientRadiance(uAmbient, uAmbientSh, d);
+      L = ambientRadiance(uAmbient, uAmbientSh, d);
     }
     if (L == vec3(0.0)) continue;
     float y[SH_COEFFS];

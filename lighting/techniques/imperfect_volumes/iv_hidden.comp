@@ -40,7 +40,7 @@ void main() {
       if (!ivVoxelOf(o + t * d, q)) break;
       IvVoxel h = voxels[ivIndex(q)];
       if (h.exitantRho.w > 0.0) {
-        if (t <= uRange && h.exitantRho.w > h.exitantMu.w) e += ivAmbientRadiance(uAmbient, uAmbientSh, d) * c;
+        if (t <= uRange && h.exitantRho.w > h.exitantMu.w) e += ambientRadiance(uAmbient, uAmbientSh, d) * c;
         break;
       }
     }

@@ -148,14 +148,7 @@ int marchFromPoint(vec3 x, vec3 d, out float t, out float tExit) {
   return -1;
 }
 
-// iv.h Grid::voxelOf over the outer grid.
-bool outerVoxelOf(vec3 p, out ivec3 v) {
-  vec3 u = (p - uOuterOrigin) / uOuterVoxel;
-  v = ivec3(0);
-  if (any(lessThan(u, vec3(0.0))) || any(greaterThanEqual(u, vec3(float(uOuterResolution))))) return false;
-  v = min(ivec3(u), ivec3(uOuterResolution - 1));
-  return true;
-}
+bool outerVoxelOf(vec3 p, out ivec3 v) { return ivVoxelIn(uOuterOrigin, uOuterVoxel, uOuterResolution, p, v); }
 
 // iv.h marchOuter: samples at from + k outer voxels, x's own outer voxel skipped, the real occupancy.
 int marchOuter(vec3 x, vec3 d, float from, out float t) {
@@ -167,7 +160,7 @@ int marchOuter(vec3 x, vec3 d, float from, out float t) {
     ivec3 c;
     if (!outerVoxelOf(x + t * d, c)) return -1;
     if (c == own) continue;
-    int v = (c.z * uOuterResolution + c.y) * uOuterResolution + c.x;
+    int v = ivIndexIn(uOuterResolution, c);
     if (outerVoxels[v].exitantMu.w > 0.0) return v;
   }
   return -1;
@@ -187,7 +180,7 @@ vec3 pointGather(vec3 x, vec3 n) {
       if (o < 0 || t > uRange) continue;
       vec3 L = vec3(0.0);
       if (dot(outerVoxels[o].normalMu.xyz, -d) > 0.0 && uBounceLight == 1) L = outerVoxels[o].exitantMuLit.rgb;
-      change += (L - ivAmbientRadiance(uAmbient, uAmbientSh, d)) * c;
+      change += (L - ambientRadiance(uAmbient, uAmbientSh, d)) * c;
       continue;
     }
     if (h < 0 || t > uRange) continue;
@@ -196,7 +189,7 @@ vec3 pointGather(vec3 x, vec3 n) {
       if (uBounceLight == 1) L = max(voxels[h].exitantMuLit.rgb - voxels[h].albedoMu.rgb / SH_PI * hidden[h].rgb, vec3(0.0));
       if (uReflectedOn == 1) L += reflectedSumMu[h].rgb;
     }
-    change += (L - ivAmbientRadiance(uAmbient, uAmbientSh, d)) * c;
+    change += (L - ambientRadiance(uAmbient, uAmbientSh, d)) * c;
   }
   return change * (4.0 * SH_PI / float(max(uObjectRays, 1)));
 }

@@ -53,6 +53,12 @@ float rsmOcclusion(sampler2D positions, vec3 p, vec3 n, ivec2 t) {
     }
   return min(occ / 16.0, 0.9);
 }
+// The luminance of a texel's diffuse flux as the sampling pass makes its light (splat_texel.glsl).
+float texelFluxLum(vec4 p, vec4 n, vec3 flux, vec3 direct, bool withDirect) {
+  vec3 toLight;
+  float area = splatTexelArea(p.xyz, n.xyz, direct, toLight);
+  return lum(splatTexelFlux(n.xyz, flux, direct, area, withDirect));
+}
 float finiteOrZero(float v) { return (isnan(v) || isinf(v) || v < 0.0) ? 0.0 : v; }
 
 void main() {
@@ -67,13 +73,11 @@ void main() {
     // The diffuse fluxes as the sampling pass makes the lights.
     vec3 dr = texelFetch(uRhoDirect, t, 0).rgb, dm = texelFetch(uMuDirect, t, 0).rgb;
     bool isObject = pr.w > 0.5 && nr.w > 0.5;
-    float area;
-    vec3 toLight;
     float aoRho = pr.w > 0.5 ? rsmOcclusion(uRhoPosition, pr.xyz, nr.xyz, t) : 0.0;
     float aoMu = pm.w > 0.5 ? rsmOcclusion(uMuPosition, pm.xyz, nm.xyz, t) : 0.0;
     if (differs) {
       if (pr.w > 0.5) {
-        float r = lum(isObject ? splatTexelFlux(pr.xyz, nr.xyz, fr.rgb, dr, true, true, area, toLight) : fr.rgb);
+        float r = isObject ? texelFluxLum(pr, nr, fr.rgb, dr, true) : lum(fr.rgb);
         if (isObject) {
           int obj = clamp(int(nr.w + 0.5) - 1, 0, MAX_OBJECTS - 1);
           if (uSpecular[obj] > 0.0) r += lum(uSpecular[obj] * dr) * (1.0 + uExponent[obj]);
@@ -83,9 +87,9 @@ void main() {
       if (pm.w > 0.5) d += lum(fm.rgb) * (1.0 - aoMu);
     }
     if (pr.w > 0.5 && !isObject)
-      o = lum(splatTexelFlux(pr.xyz, nr.xyz, fr.rgb, dr, true, true, area, toLight)) * (1.0 - aoRho);
+      o = texelFluxLum(pr, nr, fr.rgb, dr, true) * (1.0 - aoRho);
     else if (pm.w > 0.5)
-      o = lum(splatTexelFlux(pm.xyz, nm.xyz, fm.rgb, dm, false, true, area, toLight)) * (1.0 - aoMu);
+      o = texelFluxLum(pm, nm, fm.rgb, dm, false) * (1.0 - aoMu);
   }
   delta[k] = finiteOrZero(d);
   object[k] = finiteOrZero(o);

@@ -95,10 +95,14 @@ void main() {
     // The object's light from a real surface: its direct bounce, ambient bounce and the ambient it blocks; where
     // the object hides it from the light (RSM^rho shows the object), RSM^mu's surface, in the object's shadow.
     if (pr.w > 0.5 && nr.w < 0.5) {
-      vec3 f = splatTexelFlux(pr.xyz, nr.xyz, texelFetch(uRhoFlux, t, 0).rgb, texelFetch(uRhoDirect, t, 0).rgb, true, true, area, toLight);
+      vec3 direct = texelFetch(uRhoDirect, t, 0).rgb;
+      area = splatTexelArea(pr.xyz, nr.xyz, direct, toLight);
+      vec3 f = splatTexelFlux(nr.xyz, texelFetch(uRhoFlux, t, 0).rgb, direct, area, true);
       lights[uFirstRecord + i] = diffuseLight(pr, nr, f, area, scale);
     } else if (pm.w > 0.5) {
-      vec3 f = splatTexelFlux(pm.xyz, nm.xyz, texelFetch(uMuFlux, t, 0).rgb, texelFetch(uMuDirect, t, 0).rgb, false, true, area, toLight);
+      vec3 direct = texelFetch(uMuDirect, t, 0).rgb;
+      area = splatTexelArea(pm.xyz, nm.xyz, direct, toLight);
+      vec3 f = splatTexelFlux(nm.xyz, texelFetch(uMuFlux, t, 0).rgb, direct, area, false);
       lights[uFirstRecord + i] = diffuseLight(pm, nm, f, area, scale);
     }
     return;
@@ -107,11 +111,10 @@ void main() {
   if (pr.w > 0.5) {
     // An object's texel also reflects the ambient and blocks it (the real surfaces near it lose sky); a real
     // surface RSM^rho shows is there in both versions: its direct bounce only (the ambient's parts cancel).
-    vec3 direct = texelFetch(uRhoDirect, t, 0).rgb;
+    vec3 direct = texelFetch(uRhoDirect, t, 0).rgb, flux = texelFetch(uRhoFlux, t, 0).rgb;
     bool isObject = nr.w > 0.5;
-    vec3 f = splatTexelFlux(pr.xyz, nr.xyz, texelFetch(uRhoFlux, t, 0).rgb, direct, true, isObject, area, toLight);
-    if (!isObject) f = texelFetch(uRhoFlux, t, 0).rgb;
-    lights[base] = diffuseLight(pr, nr, f, area, scale);
+    area = splatTexelArea(pr.xyz, nr.xyz, direct, toLight);
+    lights[base] = diffuseLight(pr, nr, isObject ? splatTexelFlux(nr.xyz, flux, direct, area, true) : flux, area, scale);
     if (isObject) {
       int obj = clamp(int(nr.w + 0.5) - 1, 0, MAX_OBJECTS - 1);
       if (uSpecular[obj] > 0.0 && uExponent[obj] > 0.0) {

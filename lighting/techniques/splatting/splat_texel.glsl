@@ -38,27 +38,16 @@ vec3 splatAmbientFlux(vec3 flux, vec3 direct, vec3 n, float area) {
   return (any(isnan(a)) || any(isinf(a))) ? vec3(0.0) : max(a, vec3(0.0));
 }
 
-// The ambient's radiance seen looking along unit w (uniform + SH bands 0-2), clamped at 0.
-vec3 splatAmbientRadiance(vec3 w) {
-  float b[9];
-  ambientShBasis(w, b);
-  vec3 L = uAmbient;
-  for (int k = 0; k < 9; ++k) L += b[k] * uAmbientSh[k];
-  return max(L, vec3(0.0));
-}
-
 // splat.h occluderFlux: the ambient a surface patch blocks, seen from in front of it (the sky behind it
 // along -n), as a negative Lambertian light: -pi L_ambient(-n) A x share.
 vec3 splatOccluderFlux(vec3 n, float area) {
-  vec3 o = -SPLAT_PI * splatAmbientRadiance(-n) * (area * uAmbientShare);
+  vec3 o = -SPLAT_PI * ambientRadiance(uAmbient, uAmbientSh, -n) * (area * uAmbientShare);
   return (any(isnan(o)) || any(isinf(o))) ? vec3(0.0) : o;
 }
 
-// A texel's diffuse flux (splat.h texelFlux): the light's direct bounce (withDirect: not where the objects
-// shadow it), its share of the ambient's bounce and, where it occludes, of the ambient it blocks.
-vec3 splatTexelFlux(vec3 p, vec3 n, vec3 flux, vec3 direct, bool withDirect, bool occludes, out float area, out vec3 toLight) {
-  area = splatTexelArea(p, n, direct, toLight);
-  vec3 f = (withDirect ? flux : vec3(0.0)) + splatAmbientFlux(flux, direct, n, area);
-  if (occludes) f += splatOccluderFlux(n, area);
-  return f;
+// A real surface's or an object's diffuse flux, its footprint `area` (splatTexelArea): the light's direct
+// bounce (withDirect: not where the objects shadow it), its share of the ambient's bounce and of the ambient
+// it blocks (splat.h ambientFlux, occluderFlux).
+vec3 splatTexelFlux(vec3 n, vec3 flux, vec3 direct, float area, bool withDirect) {
+  return (withDirect ? flux : vec3(0.0)) + splatAmbientFlux(flux, direct, n, area) + splatOccluderFlux(n, area);
 }

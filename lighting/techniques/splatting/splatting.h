@@ -60,9 +60,9 @@ class SplattingTechnique final : public Technique {
   bool real_ = false, virtual_ = false;
   gl::Program importanceProgram_, reduceProgram_, sampleProgram_, splatProgram_;
   int padded_ = 0, levels_ = 0;
-  std::pair<int, int> lastSamples_{0, 0};
-  float ambientShare_ = 0;
-  float aoRadius_ = 0;  ///< each sampled light's share of the ambient's bounce  ///< the last light's first sample index and sample count
+  std::pair<int, int> lastSamples_{0, 0};  ///< the last light's first sample index and sample count
+  float ambientShare_ = 0;                  ///< each sampled light's share of the ambient's bounce
+  float aoRadius_ = 0;                      ///< the last light's occlusion reach (occlusionRadius())
   std::vector<int> levelOffsets_;
   gl::Buffer deltaPyramid_, objectPyramid_, deltaLights_, objectLights_;
   std::vector<int> budget_;     ///< samples per light this run
