@@ -9,6 +9,7 @@ TechniqueInfo dlpvTechniqueInfo();       // lighting/techniques/dlpv/
 TechniqueInfo kinectValTechniqueInfo();  // lighting/techniques/kinect_val/
 TechniqueInfo imperfectVolumesTechniqueInfo();  // lighting/techniques/imperfect_volumes/
 TechniqueInfo splattingTechniqueInfo();  // lighting/techniques/splatting/
+TechniqueInfo picTechniqueInfo();        // lighting/techniques/pic/
 
 const std::vector<TechniqueInfo>& techniques() {
   static const std::vector<TechniqueInfo> all = {
@@ -16,6 +17,7 @@ const std::vector<TechniqueInfo>& techniques() {
       kinectValTechniqueInfo(),
       imperfectVolumesTechniqueInfo(),
       splattingTechniqueInfo(),
+      picTechniqueInfo(),
   };
   return all;
 }

@@ -48,6 +48,7 @@ void surfelAt(const SurfaceMesh& m, size_t t, float u, float v, Surfel& s) {
   s.albedo = m.albedo.size() == m.positions.size() ? w * m.albedo[i0] + u * m.albedo[i1] + v * m.albedo[i2]
                                                    : cv::Vec3f(0.5f, 0.5f, 0.5f);
   s.triangle = static_cast<uint32_t>(t);
+  s.barycentric = {u, v};
 }
 
 double triangleArea(const SurfaceMesh& m, size_t t) {
@@ -131,6 +132,15 @@ std::vector<Surfel> placeSurfels(const SurfaceMesh& mesh, const SurfelOptions& o
     out.swap(next);
   }
   return out;
+}
+
+void updateAlbedo(std::vector<Surfel>& surfels, const SurfaceMesh& mesh) {
+  for (Surfel& s : surfels) {
+    if (s.triangle >= mesh.triangles()) continue;
+    const float area = s.area;
+    surfelAt(mesh, s.triangle, s.barycentric[0], s.barycentric[1], s);
+    s.area = area;
+  }
 }
 
 std::pair<double, double> nearestNeighbourSpread(const std::vector<Surfel>& surfels) {

@@ -37,7 +37,10 @@ struct Surfel {
   cv::Vec3f position, normal, albedo;
   float area = 0;
   uint32_t triangle = 0;
+  cv::Vec2f barycentric{0, 0};  ///< of the triangle's 2nd and 3rd vertex (to re-read a changed albedo)
 };
+/// The surfels' albedo read again from the mesh's (same triangles, new vertex albedo).
+void updateAlbedo(std::vector<Surfel>& surfels, const SurfaceMesh& mesh);
 
 struct SurfelOptions {
   int count = 4096;         ///< surfels over the whole mesh (each of area A_mesh / count)

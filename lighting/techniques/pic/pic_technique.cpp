@@ -1,0 +1,486 @@
+#include "lighting/techniques/pic/pic_technique.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "gl/error.h"
+#include "lighting/material.h"
+#include "lighting/sh.h"
+#include "lighting/techniques/registry.h"
+#include "reconstruction/mesh_rays.h"
+
+namespace mrgi::lighting {
+
+const std::vector<KnobBinding<PicKnobs>>& picKnobTable() {
+  static const std::vector<KnobBinding<PicKnobs>> table = {
+      {{"surfels", KnobType::Int, 16, 65536, 4096, "surfels over the static real mesh (precomputed)", {1024, 16384}, {1024}, true},
+       &PicKnobs::surfels},
+      {{"bands", KnobType::Int, 1, 8, 4, "SH bands of the caches' radiance", {2, 3, 6, 8}, {2}, false}, &PicKnobs::bands},
+      {{"chroma_bands", KnobType::Int, 0, 8, 0, "SH bands kept for the caches' chroma (Co, Cg); 0: as many as bands",
+        {1, 2}, {}, false},
+       &PicKnobs::chromaBands},
+      {{"links", KnobType::Int, 4, 2048, 128, "hierarchy nodes linked to each cache (precomputed)", {32, 512}, {32}, true},
+       &PicKnobs::links},
+      {{"grid", KnobType::Int, 1, 16, 6, "caches per axis of the grid over the region (precomputed)", {4, 10}, {}, false},
+       &PicKnobs::grid},
+      {{"receivers", KnobType::Int, 0, 4096, 256, "bounce receivers on a cut of the hierarchy (0: no bounce)", {0, 1024}, {0}, true},
+       &PicKnobs::receivers},
+      {{"bounces", KnobType::Int, 0, 4, 1, "bounces per run (with progressive: added to the last run's)", {0, 2}, {}, false},
+       &PicKnobs::bounces},
+      {{"progressive", KnobType::Bool, 0, 1, 0, "the bounce light carries over between runs (each run adds `bounces`)", {1}, {}, false},
+       &PicKnobs::progressive},
+      {{"rgb9e5", KnobType::Bool, 0, 1, 1, "surfel and node flux stored as RGB9E5 (else RGBA32F)", {0}, {}, false},
+       &PicKnobs::rgb9e5},
+  };
+  return table;
+}
+
+namespace {
+
+constexpr int kMaxObjects = 16;
+
+int chromaOf(const PicKnobs& k) { return k.chromaBands > 0 ? std::min(k.chromaBands, k.bands) : k.bands; }
+size_t cacheFloats(const PicKnobs& k) {
+  const auto b = static_cast<size_t>(k.bands), c = static_cast<size_t>(chromaOf(k));
+  return b * b + 2 * c * c;
+}
+
+gl::Defines definesOf(const PicKnobs& k) {
+  return {{"SH_BANDS", std::to_string(k.bands)}, {"PIC_CHROMA_BANDS", std::to_string(chromaOf(k))}};
+}
+
+uint64_t hashBytes(const void* data, size_t bytes, uint64_t h = 1469598103934665603ull) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ull;
+  return h;
+}
+
+double msSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
+template <class T>
+gl::Buffer bufferOf(const std::vector<T>& v) {
+  return gl::Buffer::storage(std::max<size_t>(v.size() * sizeof(T), 16), v.empty() ? nullptr : v.data());
+}
+
+bool sameShadows(const std::vector<SceneLight>& a, const std::vector<SceneLight>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (a[i].type != b[i].type || a[i].position != b[i].position || a[i].direction != b[i].direction) return false;
+  return true;
+}
+
+}  // namespace
+
+TechniqueInfo picTechniqueInfo() {
+  TechniqueInfo t;
+  t.name = "pic";
+  t.description = "Precomputed illuminance composition: the static room's surfels, hierarchy and SH caches precomputed, relit per run (virtual object only)";
+  t.real = false;
+  t.virtualObject = true;
+  t.stagePrefixes = {"pic."};
+  t.knobs = groupOf("pic", picKnobTable());
+  t.create = [](const TechniqueSetup& s) { return std::make_unique<PicTechnique>(s); };
+  t.estimateBytes = [](const KnobValues& values, const KnobValues&, bool, bool, int w, int h) {
+    const PicKnobs k = knobsFrom(picKnobTable(), values);
+    const auto s = static_cast<size_t>(k.surfels), nodes = 2 * s;
+    const auto b2 = static_cast<size_t>(k.bands * k.bands);
+    const auto g = static_cast<size_t>(k.grid), caches = g * g * g, r = static_cast<size_t>(k.receivers);
+    const size_t perCache = static_cast<size_t>(k.links) * (4 + 4 * b2) + 4 * b2 * 9 + 4 * cacheFloats(k) + 4;
+    return s * (48 + 4) + nodes * (16 + 8 + 4) + (caches + r) * perCache + 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
+  };
+  return t;
+}
+
+PicTechnique::PicTechnique(const TechniqueSetup& setup)
+    : knobs_(knobsFrom(picKnobTable(), setup.knobs)),
+      lightProgram_(gl::Program::compute("lighting/techniques/pic/pic_light.comp", definesOf(knobs_))),
+      pullProgram_(gl::Program::compute("lighting/techniques/pic/pic_pull.comp", definesOf(knobs_))),
+      gatherProgram_(gl::Program::compute("lighting/techniques/pic/pic_gather.comp", definesOf(knobs_))),
+      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/pic/pic_readout.frag", definesOf(knobs_))),
+      irradiance_(GL_TEXTURE_2D, GL_RGBA32F, setup.frame->width(), setup.frame->height()),
+      radiance_(GL_TEXTURE_2D, GL_RGBA32F, setup.frame->width(), setup.frame->height()) {
+  irradiance_.setFilter(GL_NEAREST, GL_NEAREST);
+  radiance_.setFilter(GL_NEAREST, GL_NEAREST);
+  fb_.attachColour(0, irradiance_);
+  fb_.attachColour(1, radiance_);
+  fb_.finalise(2);
+}
+
+PicTechnique::~PicTechnique() = default;
+
+int PicTechnique::chromaBands() const { return chromaOf(knobs_); }
+
+TechniqueOutputs PicTechnique::outputs() const {
+  TechniqueOutputs o;
+  o.virtualIrradiance = &irradiance_;
+  o.virtualRadiance = &radiance_;
+  return o;
+}
+
+void PicTechnique::precomputeMesh(const FrameResources& frame) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto& v = frame.realVertices();
+  mesh_ = {};
+  mesh_.positions.reserve(v.size());
+  for (const MeshVertex& x : v) {
+    mesh_.positions.push_back(x.position);
+    mesh_.normals.push_back(x.normal);
+    mesh_.albedo.push_back(x.albedo);
+  }
+  mesh_.indices = frame.realIndices();
+  rays_ = std::make_unique<reconstruction::MeshRays>(mesh_.positions, mesh_.indices);
+  surfels_ = pic::placeSurfels(mesh_, {knobs_.surfels, 3}, rays_.get());
+  const double msSurfels = msSince(t0);
+  const auto t1 = std::chrono::steady_clock::now();
+  hierarchy_ = pic::buildHierarchy(surfels_);
+  const double msHierarchy = msSince(t1);
+  const auto t2 = std::chrono::steady_clock::now();
+  receivers_ = knobs_.receivers > 0 ? pic::bounceReceivers(hierarchy_, knobs_.receivers) : pic::Receivers{};
+  receiverLinks_ = pic::linkCaches(hierarchy_, surfels_, *rays_, receivers_.positions, {knobs_.bands, knobs_.links, 1});
+  const double msReceivers = msSince(t2);
+  ++precomputes_;
+  stats_["precompute_ms_surfels"] = msSurfels;
+  stats_["precompute_ms_hierarchy"] = msHierarchy;
+  stats_["precompute_ms_receivers"] = msReceivers;
+
+  // GPU: surfels (receiver index in normal.w), children and the inner nodes by level.
+  std::vector<cv::Vec4f> s;
+  s.reserve(3 * surfels_.size());
+  for (size_t i = 0; i < surfels_.size(); ++i) {
+    const pic::Surfel& x = surfels_[i];
+    const float r = i < receivers_.ofSurfel.size() ? static_cast<float>(receivers_.ofSurfel[i]) : -1.0f;
+    s.push_back({x.position[0], x.position[1], x.position[2], x.area});
+    s.push_back({x.normal[0], x.normal[1], x.normal[2], r});
+    s.push_back({x.albedo[0], x.albedo[1], x.albedo[2], 0.0f});
+  }
+  surfelBuffer_ = bufferOf(s);
+  std::vector<cv::Vec2i> children(hierarchy_.nodes.size(), cv::Vec2i(-1, -1));
+  for (size_t k = 0; k < hierarchy_.nodes.size(); ++k) children[k] = {hierarchy_.nodes[k].child[0], hierarchy_.nodes[k].child[1]};
+  children_ = bufferOf(children);
+  levelsCount_ = hierarchy_.levels();
+  levelFirst_.assign(static_cast<size_t>(std::max(levelsCount_, 1)), 0);
+  levelCount_.assign(static_cast<size_t>(std::max(levelsCount_, 1)), 0);
+  std::vector<int> ordered;
+  for (int level = 1; level < levelsCount_; ++level) {
+    levelFirst_[static_cast<size_t>(level)] = static_cast<int>(ordered.size());
+    for (size_t k = hierarchy_.leaves; k < hierarchy_.nodes.size(); ++k)
+      if (hierarchy_.nodes[k].level == level) ordered.push_back(static_cast<int>(k));
+    levelCount_[static_cast<size_t>(level)] = static_cast<int>(ordered.size()) - levelFirst_[static_cast<size_t>(level)];
+  }
+  levelNodes_ = bufferOf(ordered);
+  const size_t nodes = std::max<size_t>(hierarchy_.nodes.size(), 1);
+  fluxF_ = gl::Buffer::storage(nodes * 16);
+  fluxP_ = gl::Buffer::storage(nodes * 4);
+  uploadLinks(receiverLinks_, receiverNodes_, receiverFactors_, receiverTransfer_);
+  receiverSh_ = gl::Buffer::storage(std::max<size_t>(receivers_.positions.size(), 1) * cacheFloats(knobs_) * 4);
+  receiversLit_ = false;
+  visibilityLights_.clear();
+  visibility_ = {};
+  gridValid_ = false;
+}
+
+void PicTechnique::uploadLinks(const pic::CacheLinks& links, gl::Buffer& nodes, gl::Buffer& factors, gl::Buffer& transfer) {
+  nodes = bufferOf(links.node);
+  factors = bufferOf(links.factor);
+  transfer = bufferOf(links.transfer);
+}
+
+void PicTechnique::placeGrid(const cv::Vec3f& centre, float side) {
+  const auto t0 = std::chrono::steady_clock::now();
+  gridCentre_ = centre;
+  gridSide_ = side;
+  caches_ = pic::linkCaches(hierarchy_, surfels_, *rays_, pic::gridCaches(gridCentre_, gridSide_, knobs_.grid),
+                            {knobs_.bands, knobs_.links, 1});
+  uploadLinks(caches_, cacheNodes_, cacheFactors_, cacheTransfer_);
+  cacheBack_ = bufferOf(caches_.backFraction);
+  cacheSh_ = gl::Buffer::storage(std::max<size_t>(caches_.caches(), 1) * cacheFloats(knobs_) * 4);
+  gridValid_ = true;
+  stats_["precompute_ms_caches"] = msSince(t0);
+}
+
+void PicTechnique::lightAndPull(const FrameResources& frame, bool bounce) {
+  const gl::Program& p = lightProgram_;
+  p.use();
+  const auto n = static_cast<int>(surfels_.size());
+  p.set("uCount", n);
+  p.set("uPacked", knobs_.rgb9e5 ? 1 : 0);
+  p.set("uBounce", bounce && receiversLit_ ? 1 : 0);
+  const auto& lights = frame.lights();
+  p.set("uLightCount", static_cast<int>(std::min<size_t>(lights.size(), kMaxLights)));
+  for (size_t i = 0; i < lights.size() && i < static_cast<size_t>(kMaxLights); ++i) {
+    const auto name = [i](const char* u) { return std::string(u) + "[" + std::to_string(i) + "]"; };
+    const SceneLight& l = lights[i];
+    p.set(name("uLightType"), shaderLightType(l.type));
+    setVec3(p, name("uLightPosition"), l.position);
+    setVec3(p, name("uLightDirection"), l.direction);
+    setVec3(p, name("uLightPower"), l.type == LightType::Directional ? l.irradiance : l.intensity);
+    p.set(name("uSpotCos"), static_cast<float>(l.type == LightType::Spot ? l.spotCos() : -2.0));
+  }
+  setVec3(p, "uAmbient", frame.ambient());
+  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, surfelBuffer_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, visibility_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, fluxF_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, fluxP_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, receiverSh_.id());
+  glDispatchCompute(static_cast<GLuint>((n + 63) / 64), 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  const gl::Program& q = pullProgram_;
+  q.use();
+  q.set("uPacked", knobs_.rgb9e5 ? 1 : 0);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, children_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, levelNodes_.id());
+  for (int level = 1; level < levelsCount_; ++level) {
+    const int count = levelCount_[static_cast<size_t>(level)];
+    if (count == 0) continue;
+    q.set("uFirst", levelFirst_[static_cast<size_t>(level)]);
+    q.set("uCount", count);
+    glDispatchCompute(static_cast<GLuint>((count + 63) / 64), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+}
+
+void PicTechnique::gather(const FrameResources& frame, bool receivers) {
+  const pic::CacheLinks& links = receivers ? receiverLinks_ : caches_;
+  if (links.caches() == 0) return;
+  const gl::Program& p = gatherProgram_;
+  p.use();
+  // The ambient's 9 coefficients (pic.h Ambient::coefficients) as YCoCg: the gather subtracts T a.
+  pic::Ambient a;
+  a.uniform = cv::Vec3f(frame.ambient());
+  for (size_t k = 0; k < 9; ++k) a.sh[k] = cv::Vec3f(frame.ambientSh()[k]);
+  const auto coefficients = a.coefficients();
+  for (size_t k = 0; k < 9; ++k)
+    setVec3(p, "uAmbientCoefficients[" + std::to_string(k) + "]", cv::Vec3d(pic::toYCoCg(coefficients[k])));
+  p.set("uCount", static_cast<int>(links.caches()));
+  p.set("uLinks", links.links);
+  p.set("uPacked", knobs_.rgb9e5 ? 1 : 0);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, fluxF_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, fluxP_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, (receivers ? receiverNodes_ : cacheNodes_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 8, (receivers ? receiverFactors_ : cacheFactors_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 9, (receivers ? receiverTransfer_ : cacheTransfer_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 10, (receivers ? receiverSh_ : cacheSh_).id());
+  glDispatchCompute(static_cast<GLuint>((links.caches() + 63) / 64), 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  if (receivers) receiversLit_ = true;
+}
+
+void PicTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
+  fb_.bind();
+  glViewport(0, 0, frame.width(), frame.height());
+  const float zero[4] = {0, 0, 0, 0};
+  glClearNamedFramebufferfv(fb_.id(), GL_COLOR, 0, zero);
+  glClearNamedFramebufferfv(fb_.id(), GL_COLOR, 1, zero);
+  if (!frame.region()) return;
+  {
+    auto s = timed(profiler, "pic.precompute", false);
+    const auto& v = frame.realVertices();
+    const auto& idx = frame.realIndices();
+    // The geometry's key: positions and triangles (the albedo is read again without a precompute).
+    uint64_t key = hashBytes(idx.data(), idx.size() * sizeof(uint32_t));
+    uint64_t albedo = 1469598103934665603ull;
+    for (const MeshVertex& x : v) {
+      key = hashBytes(&x.position, sizeof(x.position), key);
+      albedo = hashBytes(&x.albedo, sizeof(x.albedo), albedo);
+    }
+    if (key != meshKey_ || !rays_) {
+      precomputeMesh(frame);
+      meshKey_ = key;
+      albedoKey_ = albedo;
+    } else if (albedo != albedoKey_) {
+      for (size_t i = 0; i < v.size() && i < mesh_.albedo.size(); ++i) mesh_.albedo[i] = v[i].albedo;
+      pic::updateAlbedo(surfels_, mesh_);
+      std::vector<cv::Vec4f> s;
+      for (size_t i = 0; i < surfels_.size(); ++i) {
+        const pic::Surfel& x = surfels_[i];
+        const float r = i < receivers_.ofSurfel.size() ? static_cast<float>(receivers_.ofSurfel[i]) : -1.0f;
+        s.push_back({x.position[0], x.position[1], x.position[2], x.area});
+        s.push_back({x.normal[0], x.normal[1], x.normal[2], r});
+        s.push_back({x.albedo[0], x.albedo[1], x.albedo[2], 0.0f});
+      }
+      surfelBuffer_ = bufferOf(s);
+      albedoKey_ = albedo;
+    }
+    // The grid covers the region with a cache spacing's margin, its centre on a lattice of that spacing: it
+    // is re-linked only when the objects move by a spacing, and is the same for the same region whatever came
+    // before (a fresh pipeline gets the same caches).
+    const Region& r = *frame.region();
+    const double h = r.side / std::max(knobs_.grid, 1);
+    cv::Vec3f centre;
+    for (int a = 0; a < 3; ++a) centre[a] = static_cast<float>(std::round(r.centre()[a] / h) * h);
+    const auto side = static_cast<float>(r.side + h);
+    if (!gridValid_ || centre != gridCentre_ || side != gridSide_) placeGrid(centre, side);
+  }
+  if (surfels_.empty() || hierarchy_.root < 0) return;
+  {
+    auto s = timed(profiler, "pic.visibility", false);
+    if (!visibility_.id() || !sameShadows(frame.lights(), visibilityLights_)) {
+      std::vector<SceneLight> lights(frame.lights().begin(), frame.lights().begin() +
+                                                                  static_cast<std::ptrdiff_t>(std::min<size_t>(frame.lights().size(), kMaxLights)));
+      const std::vector<uint8_t> vis = pic::surfelVisibility(surfels_, lights, *rays_);
+      std::vector<uint32_t> bits(surfels_.size(), 0);
+      for (size_t i = 0; i < surfels_.size(); ++i)
+        for (size_t l = 0; l < lights.size(); ++l)
+          if (vis[i * lights.size() + l]) bits[i] |= 1u << l;
+      visibility_ = bufferOf(bits);
+      visibilityLights_ = frame.lights();
+    }
+  }
+  {
+    auto s = timed(profiler, "pic.light");
+    // Not progressive: every run starts from the direct light and adds `bounces` (the same result for the same
+    // inputs); progressive: the receivers keep the last run's light, so each run adds bounces to it.
+    if (!knobs_.progressive) receiversLit_ = false;
+    for (int b = 0; b < knobs_.bounces && !receivers_.positions.empty(); ++b) {
+      lightAndPull(frame, true);
+      gather(frame, true);
+    }
+    lightAndPull(frame, !receivers_.positions.empty());
+  }
+  {
+    auto s = timed(profiler, "pic.gather");
+    gather(frame, false);
+  }
+  auto s = timed(profiler, "pic.readout");
+  fb_.bind();
+  glViewport(0, 0, frame.width(), frame.height());
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_BLEND);
+  const gl::Program& p = readoutProgram_;
+  p.use();
+  frame.gPosition().bind(0);
+  frame.gNormal().bind(1);
+  frame.gAlbedo().bind(2);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 10, cacheSh_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 11, cacheBack_.id());
+  setVec3(p, "uGridCentre", cv::Vec3d(gridCentre_));
+  p.set("uGridSide", gridSide_);
+  p.set("uGridResolution", knobs_.grid);
+  const capture::Pose& T = frame.camera().T_world_camera;
+  setVec3(p, "uCameraPosition", cv::Vec3d(T(0, 3), T(1, 3), T(2, 3)));
+  const auto& objects = frame.objects();
+  for (int k = 0; k < kMaxObjects; ++k) {
+    const std::string at = "[" + std::to_string(k) + "]";
+    float spec = 0, exponent = 0;
+    if (k < static_cast<int>(objects.size())) {
+      spec = objects[static_cast<size_t>(k)].source.material.specular;
+      exponent = phongExponent(objects[static_cast<size_t>(k)].source.material.roughness);
+    }
+    p.set("uSpecular" + at, spec);
+    p.set("uExponent" + at, exponent);
+  }
+  emptyVao_.bind();
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  gl::checkGlError("PicTechnique::update()");
+  stats_["surfels"] = surfels_.size();
+  stats_["nodes"] = hierarchy_.nodes.size();
+  stats_["levels"] = levelsCount_;
+  stats_["caches"] = caches_.caches();
+  stats_["receivers"] = receivers_.positions.size();
+  stats_["precomputes"] = precomputes_;
+}
+
+std::vector<cv::Vec3f> PicTechnique::downloadFlux() const {
+  const size_t n = hierarchy_.nodes.size();
+  std::vector<cv::Vec3f> out(n);
+  if (n == 0) return out;
+  if (knobs_.rgb9e5) {
+    std::vector<uint32_t> p(n);
+    fluxP_.download(0, static_cast<GLsizeiptr>(n * 4), p.data());
+    for (size_t i = 0; i < n; ++i) out[i] = pic::unpackRgb9e5(p[i]);
+  } else {
+    std::vector<cv::Vec4f> f(n);
+    fluxF_.download(0, static_cast<GLsizeiptr>(n * 16), f.data());
+    for (size_t i = 0; i < n; ++i) out[i] = {f[i][0], f[i][1], f[i][2]};
+  }
+  return out;
+}
+
+std::vector<float> PicTechnique::downloadCaches(bool receivers) const {
+  const size_t n = (receivers ? receiverLinks_ : caches_).caches() * cacheFloats(knobs_);
+  std::vector<float> out(n);
+  if (n > 0) (receivers ? receiverSh_ : cacheSh_).download(0, static_cast<GLsizeiptr>(n * 4), out.data());
+  return out;
+}
+
+std::vector<cv::Vec3f> PicTechnique::decodeCache(const std::vector<float>& stored, size_t cache) const {
+  const auto b2 = static_cast<size_t>(knobs_.bands * knobs_.bands), c2 = static_cast<size_t>(chromaBands() * chromaBands());
+  const float* x = &stored[cache * cacheFloats(knobs_)];
+  std::vector<cv::Vec3f> out(b2);
+  for (size_t i = 0; i < b2; ++i) out[i] = pic::fromYCoCg({x[i], i < c2 ? x[b2 + i] : 0.0f, i < c2 ? x[b2 + c2 + i] : 0.0f});
+  return out;
+}
+
+cv::Mat PicTechnique::debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const {
+  if (view != "pic_surfels" && view != "pic_caches") return {};
+  if (!context.T_world_camera || context.composite.empty()) return {};
+  cv::Mat img = context.composite.clone();
+  const capture::Pose T_camera_world = capture::inversePose(*context.T_world_camera);
+  const auto project = [&](const cv::Vec3f& p, cv::Point& px) {
+    const cv::Vec4d c = T_camera_world * cv::Vec4d(p[0], p[1], p[2], 1.0);
+    if (c[2] <= 1e-3) return false;
+    px = {static_cast<int>(context.intrinsics.fx * c[0] / c[2] + context.intrinsics.cx),
+          static_cast<int>(context.intrinsics.fy * c[1] / c[2] + context.intrinsics.cy)};
+    return px.x >= 0 && px.y >= 0 && px.x < img.cols && px.y < img.rows;
+  };
+  int drawn = 0;
+  if (view == "pic_surfels") {
+    // Each surfel a dot coloured by its radiosity (flux / area), scaled to the brightest.
+    const std::vector<cv::Vec3f> flux = downloadFlux();
+    float peak = 1e-12f;
+    for (size_t i = 0; i < surfels_.size() && i < flux.size(); ++i) peak = std::max(peak, std::max({flux[i][0], flux[i][1], flux[i][2]}) / surfels_[i].area);
+    for (size_t i = 0; i < surfels_.size() && i < flux.size(); ++i) {
+      cv::Point px;
+      if (!project(surfels_[i].position, px)) continue;
+      const cv::Vec3f c = flux[i] / (surfels_[i].area * peak) * 255.0f;
+      cv::circle(img, px, 2, cv::Scalar(c[0], c[1], c[2]), cv::FILLED);
+      ++drawn;
+    }
+    info["radiosity_peak"] = peak;
+    info["surfels_drawn"] = drawn;
+  } else {
+    // Each cache a dot: its irradiance about +y (scaled to the largest magnitude; red where negative), grey
+    // where it lies behind geometry.
+    const std::vector<float> stored = downloadCaches(false);
+    std::vector<cv::Vec3f> e(caches_.caches());
+    float peak = 1e-12f;
+    for (size_t c = 0; c < caches_.caches(); ++c) {
+      e[c] = pic::shIrradiance(decodeCache(stored, c).data(), knobs_.bands, {0, 1, 0});
+      peak = std::max(peak, std::max({std::abs(e[c][0]), std::abs(e[c][1]), std::abs(e[c][2])}));
+    }
+    for (size_t c = 0; c < caches_.caches(); ++c) {
+      cv::Point px;
+      if (!project(caches_.positions[c], px)) continue;
+      cv::Scalar colour;
+      if (caches_.backFraction[c] > 0.5f)
+        colour = cv::Scalar(128, 128, 128);
+      else if (e[c][0] + e[c][1] + e[c][2] < 0)
+        colour = cv::Scalar(255, 0, 0);
+      else
+        colour = cv::Scalar(e[c][0] / peak * 255.0f, e[c][1] / peak * 255.0f, e[c][2] / peak * 255.0f);
+      cv::circle(img, px, 3, colour, cv::FILLED);
+      cv::circle(img, px, 3, cv::Scalar(255, 255, 255), 1);
+      ++drawn;
+    }
+    info["irradiance_peak"] = peak;
+    info["caches_drawn"] = drawn;
+  }
+  return img;
+}
+
+size_t PicTechnique::gpuBytes() const {
+  size_t sum = irradiance_.bytes() + radiance_.bytes();
+  for (const gl::Buffer* b : {&surfelBuffer_, &visibility_, &children_, &levelNodes_, &cacheNodes_, &cacheFactors_, &cacheTransfer_,
+                              &cacheBack_, &cacheSh_, &receiverNodes_, &receiverFactors_, &receiverTransfer_, &receiverSh_})
+    sum += static_cast<size_t>(b->id() ? b->size() : 0);
+  sum += static_cast<size_t>(knobs_.rgb9e5 ? (fluxP_.id() ? fluxP_.size() : 0) : (fluxF_.id() ? fluxF_.size() : 0));
+  return sum;
+}
+
+}  // namespace mrgi::lighting
