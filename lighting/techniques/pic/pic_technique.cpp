@@ -431,11 +431,20 @@ cv::Mat PicTechnique::debugImage(const std::string& view, const DebugContext& co
   };
   int drawn = 0;
   if (view == "pic_surfels") {
-    // Each surfel a dot coloured by its radiosity (flux / area), scaled to the brightest.
+    // Each surfel a dot coloured by its radiosity (flux / area), white at the 95th percentile of their
+    // brightest channel.
     const std::vector<cv::Vec3f> flux = downloadFlux();
+    std::vector<float> level;
+    for (size_t i = 0; i < surfels_.size() && i < flux.size(); ++i)
+      level.push_back(std::max({flux[i][0], flux[i][1], flux[i][2]}) / surfels_[i].area);
     float peak = 1e-12f;
-    for (size_t i = 0; i < surfels_.size() && i < flux.size(); ++i) peak = std::max(peak, std::max({flux[i][0], flux[i][1], flux[i][2]}) / surfels_[i].area);
-    for (size_t i = 0; i < surfels_.size() && i < flux.size(); ++i) {
+    if (!level.empty()) {
+      std::vector<float> sorted = level;
+      const size_t at = sorted.size() * 95 / 100;
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(at), sorted.end());
+      peak = std::max(peak, sorted[at]);
+    }
+    for (size_t i = 0; i < level.size(); ++i) {
       cv::Point px;
       if (!project(surfels_[i].position, px)) continue;
       const cv::Vec3f c = flux[i] / (surfels_[i].area * peak) * 255.0f;
@@ -445,30 +454,29 @@ cv::Mat PicTechnique::debugImage(const std::string& view, const DebugContext& co
     info["radiosity_peak"] = peak;
     info["surfels_drawn"] = drawn;
   } else {
-    // Each cache a dot: its irradiance about +y (scaled to the largest magnitude; red where negative), grey
-    // where it lies behind geometry.
+    // Each cache a dot: its mean incident radiance (band 0: the room's light minus the ambient it hides),
+    // white at the largest magnitude, outlined red where negative (the room hides more ambient than it
+    // sends) and grey where the cache lies behind geometry.
     const std::vector<float> stored = downloadCaches(false);
-    std::vector<cv::Vec3f> e(caches_.caches());
+    std::vector<cv::Vec3f> mean(caches_.caches());
     float peak = 1e-12f;
     for (size_t c = 0; c < caches_.caches(); ++c) {
-      e[c] = pic::shIrradiance(decodeCache(stored, c).data(), knobs_.bands, {0, 1, 0});
-      peak = std::max(peak, std::max({std::abs(e[c][0]), std::abs(e[c][1]), std::abs(e[c][2])}));
+      mean[c] = decodeCache(stored, c)[0] * static_cast<float>(sh::kY00);
+      peak = std::max(peak, std::max({std::abs(mean[c][0]), std::abs(mean[c][1]), std::abs(mean[c][2])}));
     }
     for (size_t c = 0; c < caches_.caches(); ++c) {
       cv::Point px;
       if (!project(caches_.positions[c], px)) continue;
-      cv::Scalar colour;
-      if (caches_.backFraction[c] > 0.5f)
-        colour = cv::Scalar(128, 128, 128);
-      else if (e[c][0] + e[c][1] + e[c][2] < 0)
-        colour = cv::Scalar(255, 0, 0);
-      else
-        colour = cv::Scalar(e[c][0] / peak * 255.0f, e[c][1] / peak * 255.0f, e[c][2] / peak * 255.0f);
-      cv::circle(img, px, 3, colour, cv::FILLED);
-      cv::circle(img, px, 3, cv::Scalar(255, 255, 255), 1);
+      const cv::Vec3f m = mean[c];
+      const bool behind = caches_.backFraction[c] > 0.5f, negative = m[0] + m[1] + m[2] < 0;
+      const cv::Scalar fill = behind ? cv::Scalar(128, 128, 128)
+                                     : cv::Scalar(std::abs(m[0]) / peak * 255.0f, std::abs(m[1]) / peak * 255.0f,
+                                                  std::abs(m[2]) / peak * 255.0f);
+      cv::circle(img, px, 3, fill, cv::FILLED);
+      cv::circle(img, px, 4, negative ? cv::Scalar(255, 0, 0) : cv::Scalar(255, 255, 255), 1);
       ++drawn;
     }
-    info["irradiance_peak"] = peak;
+    info["mean_radiance_peak"] = peak;
     info["caches_drawn"] = drawn;
   }
   return img;

@@ -47,8 +47,8 @@ class PicTechnique final : public Technique {
   unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights | kInputAmbient; }
   void update(const FrameResources& frame, gl::Profiler* profiler) override;
   TechniqueOutputs outputs() const override;
-  /// pic_surfels: the surfels over the composite, coloured by their flux; pic_caches: the caches, coloured by
-  /// their irradiance about +y (grey by back fraction where they lie behind geometry).
+  /// pic_surfels: the surfels over the composite, coloured by their radiosity; pic_caches: the caches, coloured
+  /// by their mean incident radiance (outlined red where negative, grey where they lie behind geometry).
   std::vector<std::string> debugViews() const override { return {"pic_surfels", "pic_caches"}; }
   cv::Mat debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const override;
   nlohmann::json stats() const override { return stats_; }
