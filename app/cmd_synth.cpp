@@ -46,6 +46,7 @@ struct SynthOptions {
   int scan = 0;                   ///< look-around frames after the orbit (walls, ceiling, the lamp)
   std::string exposure = "1";     ///< "auto" (at most 1 % of pixels clip) or a fixed relative exposure
   bool moveBox = false;           ///< the box moves to the front of the table a third of the way through (carving)
+  bool moveLight = false;         ///< the lamp moves a third of the way round the table over the orbit
 };
 
 /// The look-around: standing at the table's front edge, the camera turns a full circle twice, once
@@ -194,6 +195,14 @@ cv::Mat cameraImage(const cv::Mat& radiance, uint64_t noiseSeed) {
   return out;
 }
 
+/// --move-light: the lamp's position at frame i of an orbit of n frames, a third of the way round the vertical
+/// axis through the tag from where it starts, at the same height (look-around frames keep the last).
+cv::Vec3f movedLight(const cv::Vec3f& start, int i, int n) {
+  const double t = n > 1 ? std::min(i, n - 1) / static_cast<double>(n - 1) : 0.0;
+  const double r = std::hypot(start[0], start[2]), a = std::atan2(start[2], start[0]) + t * 2.0 * CV_PI / 3.0;
+  return {static_cast<float>(r * std::cos(a)), start[1], static_cast<float>(r * std::sin(a))};
+}
+
 int runSynth(const SynthOptions& o) {
   TabletopConfig tc;
   tc.tagId = o.tagId;
@@ -246,6 +255,13 @@ int runSynth(const SynthOptions& o) {
                                                {"min", {lo[0] + d[0], lo[1] + d[1], lo[2] + d[2]}},
                                                {"max", {hi[0] + d[0], hi[1] + d[1], hi[2] + d[2]}}};
   }
+  if (o.moveLight) {
+    if (!o.environment.empty()) throw std::invalid_argument("--move-light needs the room's lamp (not --environment)");
+    if (o.moveBox) throw std::invalid_argument("--move-light cannot be combined with --move-box");
+    if (o.fisheyeEvery > 0) throw std::invalid_argument("--move-light cannot be combined with --fisheye-every (the fisheye is rendered once)");
+    table.groundTruth["scene"]["light_moves"] = {{"arc_deg", 120}, {"axis", "world y through the tag"},
+                                                 {"note", "each frame's lights are in frames.jsonl"}};
+  }
   groundtruth::PathTraceOptions po;
   po.spp = o.spp;
   po.bounces = o.bounces;
@@ -283,7 +299,26 @@ int runSynth(const SynthOptions& o) {
     // With a reference the frame's two renders share its step of the bar.
     const double share = augmentedCaster && pathTrace && !scanning ? 0.5 : 1.0;
     po.progress = [&bar, i, share, total](double x) { bar((i + share * x) / total); };
-    const RayCaster& room = moved && i >= moveAt ? *moved : rc;
+    // --move-light: this frame's scenes with the lamp where it is now (the casters refer to them).
+    std::optional<groundtruth::Scene> litRoom, litAugmented;
+    std::optional<RayCaster> litRc, litAugmentedRc;
+    if (o.moveLight && !table.scene.lights.empty()) {
+      const cv::Vec3f p = movedLight(table.scene.lights[0].position, i, o.frames);
+      litRoom = table.scene;
+      litRoom->lights[0].position = p;
+      litRc.emplace(*litRoom);
+      if (augmentedCaster) {
+        litAugmented = augmented;
+        litAugmented->lights[0].position = p;
+        litAugmentedRc.emplace(*litAugmented);
+      }
+      capture::GroundTruthLight l;
+      l.position = cv::Vec3d(p);
+      l.intensity = cv::Vec3d(table.scene.lights[0].intensity);
+      l.radius = table.scene.lights[0].radius;
+      frame.groundTruthLights = std::vector<capture::GroundTruthLight>{l};
+    }
+    const RayCaster& room = litRc ? *litRc : moved && i >= moveAt ? *moved : rc;
     const PathTracer pt(room, po);
     const RgbdRender r = renderRgbd(room, pathTrace ? &pt : nullptr, m.colour, *frame.groundTruthT_world_camera);
     capture::RgbdFrame rgbd;
@@ -299,8 +334,9 @@ int runSynth(const SynthOptions& o) {
       const groundtruth::PinholeCamera cam{m.colour, *frame.groundTruthT_world_camera};
       groundtruth::PathTraceOptions rhoOptions = po;
       rhoOptions.progress = [&bar, i, total](double x) { bar((i + 0.5 + 0.5 * x) / total); };
-      const cv::Mat rho = pathTrace ? PathTracer(*augmentedCaster, rhoOptions).render(cam) : r.radiance;
-      const cv::Mat mask = groundtruth::virtualMask(*augmentedCaster, cam);
+      const RayCaster& withObjects = litAugmentedRc ? *litAugmentedRc : *augmentedCaster;
+      const cv::Mat rho = pathTrace ? PathTracer(withObjects, rhoOptions).render(cam) : r.radiance;
+      const cv::Mat mask = groundtruth::virtualMask(withObjects, cam);
       cv::Mat delta = rho - r.radiance;
       rho.copyTo(delta, mask);
       char name[64];
@@ -349,6 +385,8 @@ Action addSynth(CLI::App& app) {
   app.add_option("--scene", o->scene, "also write each frame's reference composite with this scene's objects (reference/)");
   app.add_option("--scan", o->scan, "append N look-around frames (walls, ceiling, the lamp; no marker in view, no reference)")
       ->check(CLI::Range(0, 100000));
+  app.add_flag("--move-light", o->moveLight,
+               "the lamp moves a third of the way round the table over the orbit (each frame records its lights)");
   app.add_flag("--move-box", o->moveBox, "the box moves to the front of the table a third of the way through (a room that changes: carving)");
   app.add_option("--exposure", o->exposure, "auto (at most 1 % of pixels clip; recorded per frame) or a relative exposure")
       ->check([](const std::string& v) -> std::string {

@@ -7,6 +7,9 @@
 // `work` = voxels gathered x rays x passes (the gather's unit of work; passes = max(1, bounces) per scene
 // version, two versions). Splatting: the mean milliseconds of its importance, sampling and splat passes, the
 // lights splatted and the overdraw (splats per pixel, mean and largest; the splat_overdraw view).
+// Precomputed illuminance composition: its precompute's parts (ms, once per configuration: surfels,
+// hierarchy, receivers, caches), the mean ms of its per-run stages (surfel lighting with the bounce and the
+// pull-up, the caches' gather, the read-out), caches x links and its GPU memory.
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -123,6 +126,32 @@ void BM_Splatting(benchmark::State& state) {
   state.counters["overdraw_max"] = maxOverdraw;
 }
 
+/// args: surfels, grid, links, bands, chroma bands (0: as bands), rgb9e5.
+void BM_Pic(benchmark::State& state) {
+  auto context = benchContext();
+  PipelineConfig cfg = benchConfig("pic");
+  cfg.set("pic", "surfels", static_cast<double>(state.range(0)));
+  cfg.set("pic", "grid", static_cast<double>(state.range(1)));
+  cfg.set("pic", "links", static_cast<double>(state.range(2)));
+  cfg.set("pic", "bands", static_cast<double>(state.range(3)));
+  cfg.set("pic", "chroma_bands", static_cast<double>(state.range(4)));
+  cfg.set("pic", "rgb9e5", static_cast<double>(state.range(5)));
+  nlohmann::json stats;
+  double bytes = 0;
+  const auto ms = runScene(state, cfg, [&](const LightingPipeline& pipe) {
+    stats = pipe.stats().value("pic", nlohmann::json::object());
+    bytes = static_cast<double>(pipe.technique("pic")->gpuBytes());
+  });
+  for (const char* part : {"surfels", "hierarchy", "receivers", "caches"})
+    state.counters[std::string("pre_") + part + "_ms"] = stats.value(std::string("precompute_ms_") + part, 0.0);
+  for (const char* stage : {"pic.light", "pic.gather", "pic.readout"})
+    state.counters[std::string(stage).substr(4) + "_ms"] = ms.count(stage) ? ms.at(stage) : 0.0;
+  const double g = static_cast<double>(state.range(1));
+  state.counters["cache_links"] = g * g * g * static_cast<double>(state.range(2));
+  state.counters["gpu_mb"] = bytes / 1048576.0;
+  state.counters["precomputes"] = stats.value("precomputes", 0.0);
+}
+
 }  // namespace
 
 // Resolution (voxels gathered), rays and bounces one at a time around the defaults (32, 64, 1, 8 points);
@@ -137,5 +166,14 @@ BENCHMARK(BM_ImperfectVolumes)
 BENCHMARK(BM_Splatting)
     ->Args({64, 16})->Args({256, 16})->Args({1024, 16})->Args({4096, 16})->Args({16384, 16})
     ->Args({1024, 4})->Args({1024, 64})
+    ->Unit(benchmark::kMillisecond)->Iterations(3);
+// Surfels and caches (precompute), caches x links (gather), bands with full and compressed chroma, RGBA32F flux.
+BENCHMARK(BM_Pic)
+    ->Args({1024, 6, 128, 4, 0, 1})->Args({4096, 6, 128, 4, 0, 1})->Args({16384, 6, 128, 4, 0, 1})
+    ->Args({4096, 4, 128, 4, 0, 1})->Args({4096, 10, 128, 4, 0, 1})
+    ->Args({4096, 6, 32, 4, 0, 1})->Args({4096, 6, 512, 4, 0, 1})
+    ->Args({4096, 6, 128, 1, 0, 1})->Args({4096, 6, 128, 2, 0, 1})->Args({4096, 6, 128, 6, 0, 1})->Args({4096, 6, 128, 8, 0, 1})
+    ->Args({4096, 6, 128, 4, 2, 1})->Args({4096, 6, 128, 6, 2, 1})->Args({4096, 6, 128, 8, 2, 1})
+    ->Args({4096, 6, 128, 4, 0, 0})
     ->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK_MAIN();

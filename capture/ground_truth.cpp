@@ -25,6 +25,11 @@ const json& need(const json& j, const char* k, const std::string& file, const st
   return j[k];
 }
 
+double finiteNumber(const json& j, const std::string& file, const std::string& key) {
+  if (!j.is_number() || !std::isfinite(j.get<double>())) throw CaptureError(file, key + " must be a finite number");
+  return j.get<double>();
+}
+
 }  // namespace
 
 std::string GroundTruthReference::pathFor(const std::string& sessionDir, const std::string& pattern, int64_t index) {
@@ -38,38 +43,64 @@ std::string GroundTruthReference::pathFor(const std::string& sessionDir, const s
   return sessionDir + "/" + p;
 }
 
+std::vector<GroundTruthLight> lightsFromJson(const json& array, const std::string& file, const std::string& prefix) {
+  if (!array.is_array()) throw CaptureError(file, prefix + " must be an array");
+  std::vector<GroundTruthLight> out;
+  for (size_t i = 0; i < array.size(); ++i) {
+    const json& l = array[i];
+    const std::string key = prefix + "[" + std::to_string(i) + "]";
+    if (!l.is_object()) throw CaptureError(file, key + " must be an object");
+    GroundTruthLight light;
+    const std::string type = l.contains("type") && l["type"].is_string() ? l["type"].get<std::string>() : "";
+    if (type == "point" || type == "spot") {
+      light.type = type == "point" ? GroundTruthLight::Type::Point : GroundTruthLight::Type::Spot;
+      light.position = vec3(need(l, "position", file, key), file, key + ".position");
+      light.intensity = vec3(need(l, "intensity_w_sr", file, key), file, key + ".intensity_w_sr");
+      if (light.type == GroundTruthLight::Type::Spot) {
+        light.direction = cv::normalize(vec3(need(l, "direction", file, key), file, key + ".direction"));
+        if (l.contains("spot_half_angle_deg")) light.spotHalfAngleDeg = finiteNumber(l["spot_half_angle_deg"], file, key + ".spot_half_angle_deg");
+      }
+    } else if (type == "directional") {
+      light.type = GroundTruthLight::Type::Directional;
+      light.direction = cv::normalize(vec3(need(l, "direction", file, key), file, key + ".direction"));
+      light.irradiance = vec3(need(l, "irradiance_w_m2", file, key), file, key + ".irradiance_w_m2");
+    } else {
+      throw CaptureError(file, key + ".type '" + type + "' is not point, spot or directional");
+    }
+    if (l.contains("radius_m")) light.radius = finiteNumber(l["radius_m"], file, key + ".radius_m");
+    out.push_back(light);
+  }
+  return out;
+}
+
+json lightsToJson(const std::vector<GroundTruthLight>& lights) {
+  json out = json::array();
+  const auto v = [](const cv::Vec3d& x) { return json::array({x[0], x[1], x[2]}); };
+  for (const GroundTruthLight& l : lights) {
+    json j;
+    if (l.type == GroundTruthLight::Type::Directional) {
+      j = {{"type", "directional"}, {"direction", v(l.direction)}, {"irradiance_w_m2", v(l.irradiance)}};
+    } else {
+      j = {{"type", l.type == GroundTruthLight::Type::Spot ? "spot" : "point"}, {"position", v(l.position)}, {"intensity_w_sr", v(l.intensity)}};
+      if (l.type == GroundTruthLight::Type::Spot) {
+        j["direction"] = v(l.direction);
+        j["spot_half_angle_deg"] = l.spotHalfAngleDeg;
+      }
+    }
+    if (l.radius > 0) j["radius_m"] = l.radius;
+    out.push_back(j);
+  }
+  return out;
+}
+
 GroundTruth GroundTruth::fromJson(const json& j, const std::string& file) {
   GroundTruth g;
   if (j.is_null()) return g;
   if (!j.is_object()) throw CaptureError(file, "ground_truth must be an object");
   if (j.contains("T_world_marker")) g.T_world_marker = poseFromJson(j["T_world_marker"], file, "ground_truth.T_world_marker");
   if (j.contains("lights")) {
-    if (!j["lights"].is_array()) throw CaptureError(file, "ground_truth.lights must be an array");
     g.listsLights = true;
-    for (size_t i = 0; i < j["lights"].size(); ++i) {
-      const json& l = j["lights"][i];
-      const std::string key = "ground_truth.lights[" + std::to_string(i) + "]";
-      if (!l.is_object()) throw CaptureError(file, key + " must be an object");
-      GroundTruthLight light;
-      const std::string type = l.value("type", "");
-      if (type == "point" || type == "spot") {
-        light.type = type == "point" ? GroundTruthLight::Type::Point : GroundTruthLight::Type::Spot;
-        light.position = vec3(need(l, "position", file, key), file, key + ".position");
-        light.intensity = vec3(need(l, "intensity_w_sr", file, key), file, key + ".intensity_w_sr");
-        if (light.type == GroundTruthLight::Type::Spot) {
-          light.direction = cv::normalize(vec3(need(l, "direction", file, key), file, key + ".direction"));
-          if (l.contains("spot_half_angle_deg")) light.spotHalfAngleDeg = l["spot_half_angle_deg"].get<double>();
-        }
-      } else if (type == "directional") {
-        light.type = GroundTruthLight::Type::Directional;
-        light.direction = cv::normalize(vec3(need(l, "direction", file, key), file, key + ".direction"));
-        light.irradiance = vec3(need(l, "irradiance_w_m2", file, key), file, key + ".irradiance_w_m2");
-      } else {
-        throw CaptureError(file, key + ".type '" + type + "' is not point, spot or directional");
-      }
-      if (l.contains("radius_m")) light.radius = l["radius_m"].get<double>();
-      g.lights.push_back(light);
-    }
+    g.lights = lightsFromJson(j["lights"], file, "ground_truth.lights");
   }
   if (j.contains("scene") && j["scene"].is_object() && j["scene"].contains("ambient_radiance"))
     g.ambientRadiance = vec3(j["scene"]["ambient_radiance"], file, "ground_truth.scene.ambient_radiance");

@@ -14,17 +14,6 @@
 
 namespace mrgi::capture {
 
-struct GroundTruthLight {
-  enum class Type { Point, Spot, Directional };
-  Type type = Type::Point;
-  cv::Vec3d position{0, 0, 0};    ///< point/spot, world, metres
-  cv::Vec3d direction{0, 0, -1};  ///< spot axis / directional travel direction (into the scene), unit
-  cv::Vec3d intensity{0, 0, 0};   ///< point/spot: W/sr per channel
-  cv::Vec3d irradiance{0, 0, 0};  ///< directional: W/m^2 at normal incidence
-  double spotHalfAngleDeg = 45;
-  double radius = 0;              ///< emitter radius (metres) the generator rendered, 0 = a delta light
-};
-
 /// Where the session's true reference composites are (patterns relative to the session, NNNNNN = the frame
 /// index) and the scene file (relative to the session) whose objects they show.
 struct GroundTruthReference {
@@ -32,6 +21,12 @@ struct GroundTruthReference {
   /// The file of `pattern` for frame `index`, under `sessionDir`.
   static std::string pathFor(const std::string& sessionDir, const std::string& pattern, int64_t index);
 };
+
+/// Parses a JSON array of lights (the manifest's "ground_truth.lights", a frame's "lights"); errors name
+/// `file` and the key (`key` + "[i].type"). An unknown light type is an error, never dropped.
+std::vector<GroundTruthLight> lightsFromJson(const nlohmann::json& array, const std::string& file, const std::string& key);
+/// The same array as the parser reads it.
+nlohmann::json lightsToJson(const std::vector<GroundTruthLight>& lights);
 
 struct GroundTruth {
   std::optional<Pose> T_world_marker;

@@ -262,6 +262,7 @@ void SessionWriter::append(const Frame& frame) {
     line["exposure"] = f.exposure;
   }
   if (frame.groundTruthT_world_camera) line["T_world_camera"] = poseToJson(*frame.groundTruthT_world_camera);
+  if (frame.groundTruthLights) line["lights"] = lightsToJson(*frame.groundTruthLights);
   for (const char* sub : {"colour", "depth", "fisheye"})
     if (line.contains(sub)) syncDirectory(dir / sub);
   const std::string text = line.dump() + "\n";
@@ -351,6 +352,7 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
       if (!(e.colourExposure > 0)) throw CaptureError(where, "colour_exposure " + std::to_string(e.colourExposure) + " must be positive");
     }
     if (j.contains("T_world_camera")) e.pose = poseFromJson(j["T_world_camera"], where, "T_world_camera");
+    if (j.contains("lights")) e.lights = lightsFromJson(j["lights"], where, "lights");
     entries_.push_back(std::move(e));
   }
   if (entries_.empty()) throw CaptureError(indexPath, "the session holds no complete frame");
@@ -375,6 +377,7 @@ Frame SessionSource::read(int64_t i) const {
   f.index = e.index;
   f.timestamp = e.t;
   f.groundTruthT_world_camera = e.pose;
+  f.groundTruthLights = e.lights;
   if (!e.colour.empty()) {
     RgbdFrame r;
     const std::string colourPath = (dir / e.colour).string(), depthPath = (dir / e.depth).string();

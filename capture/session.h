@@ -91,6 +91,7 @@ class SessionSource final : public FrameSource {
     std::string colour, depth, fisheye;
     double exposure = 1.0, colourExposure = 1.0;
     std::optional<Pose> pose;
+    std::optional<std::vector<GroundTruthLight>> lights;
   };
   std::string dir_;
   SessionManifest manifest_;

@@ -82,12 +82,27 @@ struct FisheyeFrame {
   FisheyeCalibration calibration;
 };
 
+/// A light of the ground truth (manifest "ground_truth.lights", or a frame's own when the lights move).
+struct GroundTruthLight {
+  enum class Type { Point, Spot, Directional };
+  Type type = Type::Point;
+  cv::Vec3d position{0, 0, 0};    ///< point/spot, world, metres
+  cv::Vec3d direction{0, 0, -1};  ///< spot axis / directional travel direction (into the scene), unit
+  cv::Vec3d intensity{0, 0, 0};   ///< point/spot: W/sr per channel
+  cv::Vec3d irradiance{0, 0, 0};  ///< directional: W/m^2 at normal incidence
+  double spotHalfAngleDeg = 45;
+  double radius = 0;              ///< emitter radius (metres) the generator rendered, 0 = a delta light
+};
+
 struct Frame {
   int64_t index = 0;       ///< 0-based position in the source
   double timestamp = 0.0;  ///< seconds, strictly increasing within a source
   std::optional<RgbdFrame> rgbd;
   std::optional<FisheyeFrame> fisheye;
   std::optional<Pose> groundTruthT_world_camera;  ///< colour camera pose, when the source knows it
+  /// This frame's lights (world frame), when the session's lights move (a frame's "lights" in frames.jsonl);
+  /// otherwise the manifest's ground-truth lights hold for every frame.
+  std::optional<std::vector<GroundTruthLight>> groundTruthLights;
 };
 
 /// What a source can tell before reading frames.

@@ -292,6 +292,15 @@ FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler
     r.normals = reconstruction::computeNormals(r.positions);
     return r;
   }
+  // A session whose lights move: the frame's own ground-truth lights replace the manifest's.
+  if (frame.groundTruthLights && setup_->scene.lightSource == lighting::LightSource::Manifest && setup_->T_world_marker) {
+    if (frame.groundTruthLights->size() > static_cast<size_t>(lighting::kMaxLights))
+      throw capture::CaptureError("frames.jsonl", "frame " + std::to_string(frame.index) + ": " +
+                                                      std::to_string(frame.groundTruthLights->size()) + " lights, at most " +
+                                                      std::to_string(lighting::kMaxLights) + " are supported");
+    setup_->lights = lightsInMarkerFrame(*frame.groundTruthLights, *setup_->T_world_marker);
+    r.info["lights_from_frame"] = setup_->lights.size();
+  }
   if (fisheyeRays_ && frame.fisheye) estimateLights(frame, r, profiler);
   // Marker -> camera pose in the lighting world (the marker frame).
   r.T_marker_camera = markerPose(frame, r, profiler);

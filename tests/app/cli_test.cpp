@@ -147,7 +147,7 @@ TEST(Cli, ReplayWritesFramesAndSummary) {
   EXPECT_FALSE(fs::exists(mine / "frame_0000.png"));
   // The video goes inside --out only: an absolute path or one climbing out is refused, nothing written.
   std::ofstream(out.string() + "_video.mp4") << "my other video";
-  for (const std::string mp4 : {out.string() + "_video.mp4", "../" + out.filename().string() + "_video.mp4"}) {
+  for (const std::string& mp4 : {out.string() + "_video.mp4", "../" + out.filename().string() + "_video.mp4"}) {
     expectOneLineError(runMrgi("replay " + session().string() + " --frames 1 --out " + out.string() + " --mp4 " + mp4), "--mp4");
     EXPECT_EQ(slurp(out.string() + "_video.mp4"), "my other video");
   }
@@ -567,12 +567,12 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
     EXPECT_TRUE(rec["ms_stages"].contains("gbuffer"));
   }
   // Every technique and alias, and each pairing of a technique that serves real pixels with another one for
-  // the virtual object (Kinect-VAL serves the virtual object only).
-  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "imperfect-volumes", "splatting",
-                                               "dlpv+kinect-val", "dlpv+imperfect-volumes", "dlpv+splatting",
+  // the virtual object (Kinect-VAL and precomputed illuminance composition serve the virtual object only).
+  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "imperfect-volumes", "splatting", "pic",
+                                               "dlpv+kinect-val", "dlpv+imperfect-volumes", "dlpv+splatting", "dlpv+pic",
                                                "imperfect-volumes+dlpv", "imperfect-volumes+kinect-val",
-                                               "imperfect-volumes+splatting", "splatting+dlpv", "splatting+kinect-val",
-                                               "splatting+imperfect-volumes"}));
+                                               "imperfect-volumes+splatting", "imperfect-volumes+pic", "splatting+dlpv",
+                                               "splatting+kinect-val", "splatting+imperfect-volumes", "splatting+pic"}));
   // A coarser volume costs less GPU memory than the defaults.
   double mbDefault = 0, mbCoarse = 0;
   for (const auto& rec : doc["records"])
@@ -646,6 +646,57 @@ TEST(Cli, ReferencePathTracesRhoMuDeltaAndComposite) {
   expectOneLineError(runMrgi(base + "--frame 7 --out " + out.string()), "has no frame 7");
   expectOneLineError(runMrgi(base + "--out " + (fs::path(MRGI_SOURCE_DIR) / "recordings").string()), "refusing to overwrite");
   fs::remove_all(out);
+}
+
+TEST(Cli, SynthMovesTheLightAndReplayRelightsEachFrame) {
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_synth_light_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const Result r = runMrgi("synth --out " + out.string() +
+                           " --frames 3 --width 96 --height 72 --render raycast --fisheye-every 0 --static-camera --move-light");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto manifest = nlohmann::json::parse(slurp(out / "manifest.json"));
+  const auto start = manifest["ground_truth"]["lights"][0]["position"];
+  std::istringstream index(slurp(out / "frames.jsonl"));
+  std::string line;
+  std::vector<cv::Vec3d> at;
+  while (std::getline(index, line)) {
+    const auto j = nlohmann::json::parse(line);
+    ASSERT_TRUE(j.contains("lights")) << line;
+    const auto p = j["lights"][0]["position"];
+    at.push_back({p[0].get<double>(), p[1].get<double>(), p[2].get<double>()});
+    EXPECT_EQ(j["lights"][0]["radius_m"], manifest["ground_truth"]["lights"][0]["radius_m"]);
+  }
+  ASSERT_EQ(at.size(), 3u);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(at[0][c], start[c].get<double>(), 1e-6);  // frame 0: the manifest's lamp
+  // A third of the way round the vertical axis through the tag, at the same height.
+  const double a0 = std::atan2(at[0][2], at[0][0]), a2 = std::atan2(at[2][2], at[2][0]);
+  EXPECT_NEAR(std::remainder(a2 - a0, 2 * CV_PI), 2 * CV_PI / 3, 1e-6);
+  EXPECT_NEAR(at[2][1], at[0][1], 1e-6);
+  // The camera stays: the images change by the light alone (the box's shadow moves).
+  const cv::Mat f0 = cv::imread((out / "colour/000000.png").string()), f2 = cv::imread((out / "colour/000002.png").string());
+  EXPECT_GT(cv::norm(f0, f2, cv::NORM_L1) / static_cast<double>(f0.total()), 3.0);
+
+  // Replay with the session's lights: each frame's own, with precomputed illuminance composition on the object.
+  const fs::path scene = writeScene("moving_light.json", R"({"objects": [{"model": ")" + kModels +
+                                                             R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+                                                             "lights": "manifest", "technique": "imperfect-volumes+pic",
+                                                             "pic": {"surfels": 512, "grid": 3, "links": 32, "receivers": 32}})");
+  const fs::path replay = out.string() + "_replay";
+  fs::remove_all(replay);
+  const Result rr = runMrgi("replay " + out.string() + " --scene " + scene.string() + " --out " + replay.string() + " --pose ground-truth");
+  ASSERT_EQ(rr.exitCode, 0) << rr.err;
+  const auto summary = nlohmann::json::parse(slurp(replay / "summary.json"));
+  ASSERT_EQ(summary["per_frame"].size(), 3u);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(summary["per_frame"][i]["lights_from_frame"], 1) << i;
+  // Not with the outdoor environment (no lamp to move).
+  const Result bad = runMrgi("synth --out " + out.string() + "_env --frames 1 --width 32 --height 24 --move-light --environment " +
+                             std::string(MRGI_SHARED_DATA) + "/hdr-blender-world/forest.exr");
+  EXPECT_NE(bad.exitCode, 0);
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+  EXPECT_NE(bad.err.find("--move-light needs the room's lamp"), std::string::npos) << bad.err;
+  fs::remove_all(out.string() + "_env");
+  fs::remove_all(out);
+  fs::remove_all(replay);
 }
 
 TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {

@@ -59,6 +59,11 @@ void writeSession(const fs::path& dir, int frames) {
   for (int i = 0; i < frames; ++i) w.append(syntheticFrame(i));
 }
 
+std::string slurpFile(const fs::path& p) {
+  std::ifstream f(p);
+  return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
 std::string expectCaptureError(const std::function<void()>& fn) {
   try {
     fn();
@@ -90,6 +95,63 @@ TEST(Session, RoundTripPreservesPixelsDepthAndPoses) {
     EXPECT_DOUBLE_EQ((*f->groundTruthT_world_camera)(0, 3), 0.01 * i);
   }
   EXPECT_FALSE(s.next());
+  fs::remove_all(dir);
+}
+
+TEST(Session, FramesCarryTheirOwnLightsWhenTheLightsMove) {
+  const fs::path dir = freshDir("movinglights");
+  {
+    SessionWriter w(dir.string(), smallManifest());
+    for (int i = 0; i < 3; ++i) {
+      Frame f = syntheticFrame(i);
+      if (i > 0) {  // frame 0 has none: the manifest's lights hold for it
+        GroundTruthLight point, spot, sun;
+        point.position = {0.1 * i, 2, 0.5};
+        point.intensity = {9, 8.4, 7.6};
+        point.radius = 0.04;
+        spot.type = GroundTruthLight::Type::Spot;
+        spot.position = {0, 1.5, 0};
+        spot.direction = {0, -1, 0};
+        spot.intensity = {3, 3, 3};
+        spot.spotHalfAngleDeg = 30 + i;
+        sun.type = GroundTruthLight::Type::Directional;
+        sun.direction = cv::normalize(cv::Vec3d(1, -2, 0));
+        sun.irradiance = {100, 90, 80};
+        f.groundTruthLights = std::vector<GroundTruthLight>{point, spot, sun};
+      }
+      w.append(f);
+    }
+  }
+  SessionSource s(dir.string());
+  for (int i = 0; i < 3; ++i) {
+    const auto f = s.next();
+    ASSERT_TRUE(f);
+    if (i == 0) {
+      EXPECT_FALSE(f->groundTruthLights);
+      continue;
+    }
+    ASSERT_TRUE(f->groundTruthLights);
+    const auto& l = *f->groundTruthLights;
+    ASSERT_EQ(l.size(), 3u);
+    EXPECT_EQ(l[0].type, GroundTruthLight::Type::Point);
+    EXPECT_DOUBLE_EQ(l[0].position[0], 0.1 * i);
+    EXPECT_DOUBLE_EQ(l[0].radius, 0.04);
+    EXPECT_EQ(l[1].type, GroundTruthLight::Type::Spot);
+    EXPECT_DOUBLE_EQ(l[1].spotHalfAngleDeg, 30 + i);
+    EXPECT_EQ(l[2].type, GroundTruthLight::Type::Directional);
+    EXPECT_NEAR(l[2].irradiance[2], 80, 1e-12);
+    EXPECT_NEAR(cv::norm(l[2].direction - cv::normalize(cv::Vec3d(1, -2, 0))), 0, 1e-12);
+  }
+  // A malformed frame light: one line naming the index line and the key.
+  std::string text = slurpFile(dir / "frames.jsonl");
+  const size_t at = text.find("\"point\"");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, 7, "\"lamp\"");
+  std::ofstream(dir / "frames.jsonl", std::ios::trunc) << text;
+  const std::string m = expectCaptureError([&] { SessionSource bad(dir.string()); });
+  EXPECT_NE(m.find("frames.jsonl:2"), std::string::npos) << m;
+  EXPECT_NE(m.find("lights[0].type 'lamp'"), std::string::npos) << m;
+  EXPECT_EQ(m.find('\n'), std::string::npos) << m;
   fs::remove_all(dir);
 }
 
