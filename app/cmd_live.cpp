@@ -161,6 +161,8 @@ int runLive(const LiveOptions& o) {
   FrameOptions fo;
   fo.pose = o.pose;
   fo.room = room;
+  fo.cacheDir = o.room;  // techniques keep what they precompute beside the saved room
+  fo.progress = precomputeProgress();
   if (o.fuseRoom) fo.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds of the pipeline
   fo.fuseRefresh = o.fuseRefresh;
   std::unique_ptr<FramePipeline> frames;

@@ -93,6 +93,8 @@ int runReplay(const ReplayOptions& o) {
   fo.meshStride = o.meshStride;
   fo.reuse = !o.recomputeAll;
   fo.room = room;
+  fo.cacheDir = o.room;  // techniques keep what they precompute beside the saved room
+  fo.progress = precomputeProgress();
   if (o.fuseRoom) fo.fuse = std::make_shared<reconstruction::RoomModel>();
   fo.fuseRefresh = o.fuseRefresh;
   FramePipeline frames(std::move(setup), width, height, fo);

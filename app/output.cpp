@@ -1,5 +1,8 @@
 #include "app/output.h"
 
+#include <map>
+#include <memory>
+
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -132,6 +135,16 @@ int Mp4Writer::close() {
   fs::rename(partial_, path_, ec);
   if (ec) throw capture::CaptureError(path_, "cannot move the finished video into place: " + ec.message());
   return frames_;
+}
+
+std::function<void(const std::string& what, double fraction)> precomputeProgress() {
+  auto bars = std::make_shared<std::map<std::string, std::unique_ptr<ProgressBar>>>();
+  return [bars](const std::string& what, double fraction) {
+    auto& bar = (*bars)[what];
+    if (!bar) bar = std::make_unique<ProgressBar>(what);
+    (*bar)(fraction);
+    if (fraction >= 1.0) bar.reset();  // done: the next precompute of this kind draws a new bar
+  };
 }
 
 }  // namespace mrgi::app

@@ -1,6 +1,8 @@
 #pragma once
 // What the subcommands write: atomic PNG/EXR files, output folders that never swallow a user's files,
 // and a progress bar on the terminal.
+#include <functional>
+#include <memory>
 #include <string>
 
 #include <opencv2/core.hpp>
@@ -33,6 +35,10 @@ class ProgressBar {
   bool tty_;
   int shown_ = -1;
 };
+
+/// A progress reporter for long precomputes (lighting::PipelineConfig::progress): one ProgressBar per label,
+/// shown while that precompute runs.
+std::function<void(const std::string& what, double fraction)> precomputeProgress();
 
 /// Ctrl-C (SIGINT) and SIGTERM while alive only raise a flag, so a long command stops between two complete
 /// frames and still finishes its output (summary, video). A second Ctrl-C ends the process at once.

@@ -79,6 +79,8 @@ LightingPipeline::LightingPipeline(const PipelineConfig& config, const std::vect
     s.real = a.real;
     s.virtualObject = a.virtualObject;
     s.frame = frame_.get();
+    s.progress = config_.progress;
+    s.cacheDir = config_.cacheDir;
     techniques_.push_back(a.info->create(s));
     if (a.real) real_ = techniques_.back().get();
     if (a.virtualObject) virtual_ = techniques_.back().get();

@@ -10,6 +10,7 @@
 /// inputs it declares changed; the shading when anything did. A skipped stage's results are the last run's,
 /// which equal what it would compute again.
 #include <array>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -34,6 +35,11 @@ struct PipelineConfig {
   TechniqueChoice technique;      ///< default: the registry's first technique
   KnobSet knobs;                  ///< every group complete (defaults)
   std::optional<Region> fixedRegion;  ///< overrides fitting the region to the virtual objects (tests)
+  /// Reports the progress of a technique's long precompute (what, fraction 0..1); may be empty.
+  std::function<void(const std::string& what, double fraction)> progress;
+  /// A folder where techniques may keep what they precompute between runs (beside a saved room: files of
+  /// their own, named by what they were computed from); empty: nothing is kept.
+  std::string cacheDir;
   /// The frame group's and the technique's knob values, set by name ("lpv", "resolution"); throws
   /// std::invalid_argument for an unknown group or knob, or a value out of its declared range.
   PipelineConfig& set(const std::string& group, const std::string& knob, double value);

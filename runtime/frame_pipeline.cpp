@@ -96,7 +96,9 @@ size_t gpuBudgetBytes() {
 FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int height, const FrameOptions& options)
     : setup_(std::move(setup)), options_(options) {
   if (!setup_) return;
-  const lighting::PipelineConfig pc = lighting::pipelineConfig(setup_->scene, width, height);
+  lighting::PipelineConfig pc = lighting::pipelineConfig(setup_->scene, width, height);
+  pc.progress = options_.progress;
+  pc.cacheDir = options_.cacheDir;
   if (options_.gpu) {
     // Refuse what cannot fit before allocating any of it (a 4096² RSM per light is gigabytes).
     const size_t lights = setup_->fisheye ? static_cast<size_t>(setup_->scene.fisheyeLightCount) : setup_->lights.size();

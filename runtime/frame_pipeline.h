@@ -1,6 +1,7 @@
 #pragma once
 // The per-frame work every application shares (replay, insert, and later live): marker pose, filtered
 // depth, estimated lights and albedo, real mesh, lighting and compositing of one RGB-D frame.
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -74,6 +75,10 @@ struct FrameOptions {
   /// from the room and the room's VALs follow). Null: none.
   std::shared_ptr<reconstruction::RoomModel> fuse;
   int fuseRefresh = 30;
+  /// Progress of a technique's long precompute (lighting::PipelineConfig::progress); may be empty.
+  std::function<void(const std::string& what, double fraction)> progress;
+  /// Where techniques keep their precomputed data between runs (a saved room's folder); empty: nowhere.
+  std::string cacheDir;
 };
 
 struct FrameResult {

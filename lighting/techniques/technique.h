@@ -8,6 +8,7 @@
 /// Per run the pipeline calls, only when the technique's declared inputs changed:
 ///   beginLights()  -> light(i) for each light, right after the frame rendered light i's RSMs -> endLights()
 ///   (only when the RSMs were re-rendered, i.e. lights or geometry changed), then update().
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -75,6 +76,10 @@ struct TechniqueSetup {
   KnobValues knobs;
   bool real = false, virtualObject = false;
   const FrameResources* frame = nullptr;
+  /// Progress of a long precompute (what, fraction 0..1); may be empty (PipelineConfig::progress).
+  std::function<void(const std::string& what, double fraction)> progress;
+  /// Where precomputed data may be kept between runs; empty: nowhere (PipelineConfig::cacheDir).
+  std::string cacheDir;
 };
 
 class Technique {

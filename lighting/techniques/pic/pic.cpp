@@ -1,9 +1,15 @@
 #include "lighting/techniques/pic/pic.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <queue>
+#include <type_traits>
 
 #include "lighting/frame/frame.h"
 #include "lighting/point_index.h"
@@ -629,6 +635,233 @@ cv::Vec3f unpackRgb9e5(uint32_t p) {
   const double scale = std::ldexp(1.0, static_cast<int>(p >> 27) - 15 - 9);
   return {static_cast<float>((p & 511u) * scale), static_cast<float>(((p >> 9) & 511u) * scale),
           static_cast<float>(((p >> 18) & 511u) * scale)};
+}
+
+namespace {
+
+constexpr char kMagic[8] = {'M', 'R', 'G', 'I', 'P', 'I', 'C', '1'};
+
+class Writer {
+ public:
+  explicit Writer(std::ofstream& out) : out_(out) {}
+  template <class T>
+  void value(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    out_.write(reinterpret_cast<const char*>(&v), sizeof(T));
+  }
+  template <class T>
+  void array(const std::vector<T>& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    value(static_cast<uint64_t>(v.size()));
+    if (!v.empty()) out_.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(T)));
+  }
+
+ private:
+  std::ofstream& out_;
+};
+
+class Reader {
+ public:
+  explicit Reader(std::vector<char> bytes) : bytes_(std::move(bytes)) {}
+  template <class T>
+  bool value(T& v) {
+    if (bytes_.size() - at_ < sizeof(T)) return false;
+    std::memcpy(&v, bytes_.data() + at_, sizeof(T));
+    at_ += sizeof(T);
+    return true;
+  }
+  template <class T>
+  bool array(std::vector<T>& v) {
+    uint64_t n = 0;
+    if (!value(n) || n > (bytes_.size() - at_) / sizeof(T)) return false;
+    v.resize(static_cast<size_t>(n));
+    if (n) std::memcpy(v.data(), bytes_.data() + at_, static_cast<size_t>(n) * sizeof(T));
+    at_ += static_cast<size_t>(n) * sizeof(T);
+    return true;
+  }
+  bool done() const { return at_ == bytes_.size(); }
+
+ private:
+  std::vector<char> bytes_;
+  size_t at_ = 0;
+};
+
+std::vector<float> flatten(const std::vector<cv::Vec3f>& v) {
+  std::vector<float> out;
+  out.reserve(3 * v.size());
+  for (const cv::Vec3f& x : v) out.insert(out.end(), {x[0], x[1], x[2]});
+  return out;
+}
+
+bool unflatten(const std::vector<float>& f, std::vector<cv::Vec3f>& v) {
+  if (f.size() % 3) return false;
+  v.resize(f.size() / 3);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = {f[3 * i], f[3 * i + 1], f[3 * i + 2]};
+  return true;
+}
+
+void writeVec3s(Writer& w, const std::vector<cv::Vec3f>& v) { w.array(flatten(v)); }
+bool readVec3s(Reader& r, std::vector<cv::Vec3f>& v) {
+  std::vector<float> f;
+  return r.array(f) && unflatten(f, v);
+}
+
+void writeLinks(Writer& w, const CacheLinks& l) {
+  w.value(static_cast<int32_t>(l.bands));
+  w.value(static_cast<int32_t>(l.links));
+  writeVec3s(w, l.positions);
+  w.array(l.node), w.array(l.factor), w.array(l.transfer), w.array(l.backFraction);
+}
+
+bool readLinks(Reader& r, CacheLinks& l) {
+  int32_t bands = 0, links = 0;
+  if (!r.value(bands) || !r.value(links) || bands < 1 || bands > sh::kMaxBands || links < 1) return false;
+  l.bands = bands, l.links = links;
+  if (!readVec3s(r, l.positions) || !r.array(l.node) || !r.array(l.factor) || !r.array(l.transfer) || !r.array(l.backFraction)) return false;
+  const size_t C = l.positions.size(), L = static_cast<size_t>(links), B2 = static_cast<size_t>(bands * bands);
+  return l.node.size() == C * L && l.factor.size() == C * L * B2 && l.transfer.size() == C * B2 * 9 && l.backFraction.size() == C;
+}
+
+// Surfels: 12 floats (position, normal, albedo, area, barycentric) and their triangles.
+void writeSurfels(Writer& w, const std::vector<Surfel>& s) {
+  std::vector<float> f;
+  std::vector<uint32_t> t;
+  for (const Surfel& x : s) {
+    f.insert(f.end(), {x.position[0], x.position[1], x.position[2], x.normal[0], x.normal[1], x.normal[2], x.albedo[0],
+                       x.albedo[1], x.albedo[2], x.area, x.barycentric[0], x.barycentric[1]});
+    t.push_back(x.triangle);
+  }
+  w.array(f), w.array(t);
+}
+
+bool readSurfels(Reader& r, std::vector<Surfel>& s) {
+  std::vector<float> f;
+  std::vector<uint32_t> t;
+  if (!r.array(f) || !r.array(t) || f.size() != 12 * t.size()) return false;
+  s.resize(t.size());
+  for (size_t i = 0; i < t.size(); ++i) {
+    const float* x = &f[12 * i];
+    s[i].position = {x[0], x[1], x[2]};
+    s[i].normal = {x[3], x[4], x[5]};
+    s[i].albedo = {x[6], x[7], x[8]};
+    s[i].area = x[9];
+    s[i].barycentric = {x[10], x[11]};
+    s[i].triangle = t[i];
+  }
+  return true;
+}
+
+// Nodes: 7 floats (position, normal, area) and 4 integers (children, parent, level).
+void writeNodes(Writer& w, const std::vector<Node>& nodes) {
+  std::vector<float> f;
+  std::vector<int32_t> i;
+  for (const Node& n : nodes) {
+    f.insert(f.end(), {n.position[0], n.position[1], n.position[2], n.normal[0], n.normal[1], n.normal[2], n.area});
+    i.insert(i.end(), {n.child[0], n.child[1], n.parent, n.level});
+  }
+  w.array(f), w.array(i);
+}
+
+bool readNodes(Reader& r, std::vector<Node>& nodes) {
+  std::vector<float> f;
+  std::vector<int32_t> i;
+  if (!r.array(f) || !r.array(i) || f.size() % 7 || f.size() / 7 != i.size() / 4 || i.size() % 4) return false;
+  nodes.resize(i.size() / 4);
+  for (size_t k = 0; k < nodes.size(); ++k) {
+    const float* x = &f[7 * k];
+    nodes[k].position = {x[0], x[1], x[2]};
+    nodes[k].normal = {x[3], x[4], x[5]};
+    nodes[k].area = x[6];
+    nodes[k].child[0] = i[4 * k], nodes[k].child[1] = i[4 * k + 1], nodes[k].parent = i[4 * k + 2], nodes[k].level = i[4 * k + 3];
+  }
+  return true;
+}
+
+template <class Body>
+void saveFile(const std::string& path, uint64_t key, const Body& body) {
+  namespace fs = std::filesystem;
+  const fs::path target(path), temp = target.string() + ".tmp";
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    if (!out) return;  // a cache that cannot be written is only not kept
+    out.write(kMagic, sizeof kMagic);
+    Writer w(out);
+    w.value(key);
+    body(w);
+    if (!out) {
+      out.close();
+      std::error_code ec;
+      fs::remove(temp, ec);
+      return;
+    }
+  }
+  std::error_code ec;
+  fs::rename(temp, target, ec);
+  if (ec) fs::remove(temp, ec);
+}
+
+std::optional<Reader> openFile(const std::string& path, uint64_t key) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.size() < sizeof kMagic + sizeof(uint64_t) || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) return std::nullopt;
+  Reader r(std::vector<char>(bytes.begin() + sizeof kMagic, bytes.end()));
+  uint64_t k = 0;
+  if (!r.value(k) || k != key) return std::nullopt;
+  return r;
+}
+
+}  // namespace
+
+void saveMeshPrecompute(const std::string& path, uint64_t key, const MeshPrecompute& p) {
+  saveFile(path, key, [&](Writer& w) {
+    writeSurfels(w, p.surfels);
+    writeNodes(w, p.hierarchy.nodes);
+    w.value(static_cast<uint64_t>(p.hierarchy.leaves));
+    w.value(p.hierarchy.root);
+    w.value(p.hierarchy.eMax);
+    w.array(p.receivers.nodes), w.array(p.receivers.ofSurfel);
+    writeVec3s(w, p.receivers.positions);
+    writeLinks(w, p.receiverLinks);
+  });
+}
+
+bool loadMeshPrecompute(const std::string& path, uint64_t key, MeshPrecompute& out) {
+  auto r = openFile(path, key);
+  if (!r) return false;
+  MeshPrecompute p;
+  uint64_t leaves = 0;
+  if (!readSurfels(*r, p.surfels) || !readNodes(*r, p.hierarchy.nodes) || !r->value(leaves) || !r->value(p.hierarchy.root) ||
+      !r->value(p.hierarchy.eMax) || !r->array(p.receivers.nodes) || !r->array(p.receivers.ofSurfel) ||
+      !readVec3s(*r, p.receivers.positions) || !readLinks(*r, p.receiverLinks) || !r->done())
+    return false;
+  // The structure the runtime walks: leaves first, children before parents, indices in range.
+  const auto n = static_cast<int64_t>(p.hierarchy.nodes.size());
+  p.hierarchy.leaves = static_cast<size_t>(leaves);
+  if (leaves != p.surfels.size() || (n > 0 && (p.hierarchy.root < 0 || p.hierarchy.root >= n)) || (n == 0 && p.hierarchy.root != -1))
+    return false;
+  for (int64_t k = static_cast<int64_t>(leaves); k < n; ++k)
+    for (int32_t c : p.hierarchy.nodes[static_cast<size_t>(k)].child)
+      if (c < 0 || c >= k) return false;
+  for (int32_t k : p.receivers.ofSurfel)
+    if (k < -1 || k >= static_cast<int64_t>(p.receivers.positions.size())) return false;
+  for (int32_t k : p.receiverLinks.node)
+    if (k < -1 || k >= n) return false;
+  if (p.receiverLinks.positions.size() != p.receivers.positions.size() || p.receivers.ofSurfel.size() != p.surfels.size()) return false;
+  out = std::move(p);
+  return true;
+}
+
+void saveCacheLinks(const std::string& path, uint64_t key, const CacheLinks& links) {
+  saveFile(path, key, [&](Writer& w) { writeLinks(w, links); });
+}
+
+bool loadCacheLinks(const std::string& path, uint64_t key, CacheLinks& out) {
+  auto r = openFile(path, key);
+  CacheLinks l;
+  if (!r || !readLinks(*r, l) || !r->done()) return false;
+  out = std::move(l);
+  return true;
 }
 
 }  // namespace mrgi::lighting::pic

@@ -12,6 +12,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -174,6 +175,21 @@ std::vector<cv::Vec3f> gridCaches(const cv::Vec3f& centre, float side, int resol
 /// (1 - backFraction) too (renormalised; plain trilinear where every corner is behind geometry).
 std::vector<cv::Vec3f> interpolateGrid(const std::vector<cv::Vec3f>& cacheSh, const CacheLinks& links, const cv::Vec3f& centre,
                                        float side, int resolution, const cv::Vec3f& x);
+
+// ---- saved precompute
+/// What linkCaches and the hierarchy hold, in a file: "MRGIPIC1", `key`, then each part's arrays (size and
+/// bytes). load* returns false (nothing changed) for a missing, foreign (other key) or damaged file; save*
+/// writes a temporary file and renames it into place (a reader never sees half a file).
+struct MeshPrecompute {
+  std::vector<Surfel> surfels;
+  Hierarchy hierarchy;
+  Receivers receivers;
+  CacheLinks receiverLinks;
+};
+void saveMeshPrecompute(const std::string& path, uint64_t key, const MeshPrecompute& p);
+bool loadMeshPrecompute(const std::string& path, uint64_t key, MeshPrecompute& p);
+void saveCacheLinks(const std::string& path, uint64_t key, const CacheLinks& links);
+bool loadCacheLinks(const std::string& path, uint64_t key, CacheLinks& links);
 
 // ---- compression
 /// YCoCg (algorithms.md §6) and its exact inverse.

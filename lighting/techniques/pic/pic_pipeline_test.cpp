@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <map>
 
 #include "lighting/pipeline.h"
 #include "lighting/techniques/pic/pic.h"
@@ -167,4 +169,58 @@ TEST(GL, PicMovingLightRerunsOnlyTheRuntimeStages) {
   pipe.setRealMesh(grown.vertices, grown.indices);
   pipe.run(wallCamera(), lamp, {0, 0, 0}, &profiler);
   EXPECT_EQ(t.precomputes(), 2);
+}
+
+TEST(GL, PicKeepsItsPrecomputeInTheCacheFolder) {
+  namespace fs = std::filesystem;
+  auto ctx = makeContext();
+  const TestScene s = makeScene(true, 0.12, {-0.36, 0.0, 0.06});
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_pic_cache_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::map<std::string, std::vector<double>> reported;
+  const auto run = [&](int surfels) {
+    PipelineConfig cfg = picConfig(0, true);
+    cfg.set("pic", "surfels", surfels);
+    cfg.cacheDir = dir.string();
+    cfg.progress = [&](const std::string& what, double f) { reported[what].push_back(f); };
+    auto pipe = std::make_unique<LightingPipeline>(cfg, s.objects);
+    pipe->setRealMesh(s.vertices, s.indices);
+    pipe->run(wallCamera(), wallLamp(), {0.1, 0.1, 0.1}, nullptr);
+    return pipe;
+  };
+  const auto first = run(1024);
+  EXPECT_EQ(picOf(*first).precomputes(), 1);
+  EXPECT_EQ(picOf(*first).cacheLoads(), 0);
+  // The precompute's progress: from 0 to 1, never backwards; the grid's links too.
+  ASSERT_FALSE(reported["pic precompute"].empty());
+  EXPECT_EQ(reported["pic precompute"].front(), 0.0);
+  EXPECT_EQ(reported["pic precompute"].back(), 1.0);
+  EXPECT_TRUE(std::is_sorted(reported["pic precompute"].begin(), reported["pic precompute"].end()));
+  EXPECT_EQ(reported["pic caches"].back(), 1.0);
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
+  ASSERT_EQ(files.size(), 2u);  // the mesh's part and the grid's, no temporary left
+  const std::vector<float> want = picOf(*first).downloadCaches(false);
+
+  // A fresh pipeline over the same room reads both back: no precompute, the same caches to the bit.
+  reported.clear();
+  const auto second = run(1024);
+  EXPECT_EQ(picOf(*second).precomputes(), 0);
+  EXPECT_EQ(picOf(*second).cacheLoads(), 2);
+  EXPECT_TRUE(reported["pic precompute"].empty());
+  EXPECT_EQ(picOf(*second).downloadCaches(false), want);
+
+  // A damaged file is computed again (and replaced); other knobs keep files of their own.
+  for (const fs::path& f : files)
+    if (f.filename().string().rfind("pic_mesh_", 0) == 0) fs::resize_file(f, fs::file_size(f) / 2);
+  const auto third = run(1024);
+  EXPECT_EQ(picOf(*third).precomputes(), 1);
+  EXPECT_EQ(picOf(*third).downloadCaches(false), want);
+  EXPECT_EQ(picOf(*run(1024)).cacheLoads(), 2);
+  EXPECT_EQ(picOf(*run(512)).precomputes(), 1);
+  size_t count = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++count;
+  EXPECT_EQ(count, 4u);
+  fs::remove_all(dir);
 }

@@ -98,6 +98,8 @@ TechniqueInfo picTechniqueInfo() {
 
 PicTechnique::PicTechnique(const TechniqueSetup& setup)
     : knobs_(knobsFrom(picKnobTable(), setup.knobs)),
+      progress_(setup.progress),
+      cacheDir_(setup.cacheDir),
       lightProgram_(gl::Program::compute("lighting/techniques/pic/pic_light.comp", definesOf(knobs_))),
       pullProgram_(gl::Program::compute("lighting/techniques/pic/pic_pull.comp", definesOf(knobs_))),
       gatherProgram_(gl::Program::compute("lighting/techniques/pic/pic_gather.comp", definesOf(knobs_))),
@@ -122,6 +124,13 @@ TechniqueOutputs PicTechnique::outputs() const {
   return o;
 }
 
+std::string PicTechnique::cacheFile(const char* part, uint64_t key) const {
+  if (cacheDir_.empty()) return {};
+  char name[64];
+  std::snprintf(name, sizeof name, "pic_%s_%016llx.bin", part, static_cast<unsigned long long>(key));
+  return cacheDir_ + "/" + name;
+}
+
 void PicTechnique::precomputeMesh(const FrameResources& frame) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto& v = frame.realVertices();
@@ -134,19 +143,46 @@ void PicTechnique::precomputeMesh(const FrameResources& frame) {
   }
   mesh_.indices = frame.realIndices();
   rays_ = std::make_unique<reconstruction::MeshRays>(mesh_.positions, mesh_.indices);
-  surfels_ = pic::placeSurfels(mesh_, {knobs_.surfels, 3}, rays_.get());
-  const double msSurfels = msSince(t0);
-  const auto t1 = std::chrono::steady_clock::now();
-  hierarchy_ = pic::buildHierarchy(surfels_);
-  const double msHierarchy = msSince(t1);
-  const auto t2 = std::chrono::steady_clock::now();
-  receivers_ = knobs_.receivers > 0 ? pic::bounceReceivers(hierarchy_, knobs_.receivers) : pic::Receivers{};
-  receiverLinks_ = pic::linkCaches(hierarchy_, surfels_, *rays_, receivers_.positions, {knobs_.bands, knobs_.links, 1});
-  const double msReceivers = msSince(t2);
-  ++precomputes_;
-  stats_["precompute_ms_surfels"] = msSurfels;
-  stats_["precompute_ms_hierarchy"] = msHierarchy;
-  stats_["precompute_ms_receivers"] = msReceivers;
+  // The saved precompute's key: the geometry (positions, normals, triangles: the surfels' albedo is read
+  // again from the mesh) and the knobs it depends on.
+  uint64_t key = hashBytes(mesh_.indices.data(), mesh_.indices.size() * sizeof(uint32_t));
+  key = hashBytes(mesh_.positions.data(), mesh_.positions.size() * sizeof(cv::Vec3f), key);
+  key = hashBytes(mesh_.normals.data(), mesh_.normals.size() * sizeof(cv::Vec3f), key);
+  for (int k : {knobs_.surfels, knobs_.bands, knobs_.links, knobs_.receivers, 1 /* format */}) key = hashBytes(&k, sizeof k, key);
+  geometryKey_ = key;
+  const std::string file = cacheFile("mesh", key);
+  pic::MeshPrecompute saved;
+  if (!file.empty() && pic::loadMeshPrecompute(file, key, saved)) {
+    surfels_ = std::move(saved.surfels);
+    hierarchy_ = std::move(saved.hierarchy);
+    receivers_ = std::move(saved.receivers);
+    receiverLinks_ = std::move(saved.receiverLinks);
+    pic::updateAlbedo(surfels_, mesh_);
+    ++cacheLoads_;
+    stats_["precompute_loaded_ms"] = msSince(t0);
+  } else {
+    const auto report = [this](double f) {
+      if (progress_) progress_("pic precompute", f);
+    };
+    report(0.0);
+    surfels_ = pic::placeSurfels(mesh_, {knobs_.surfels, 3}, rays_.get());
+    const double msSurfels = msSince(t0);
+    report(0.05);
+    const auto t1 = std::chrono::steady_clock::now();
+    hierarchy_ = pic::buildHierarchy(surfels_);
+    const double msHierarchy = msSince(t1);
+    report(0.1);
+    const auto t2 = std::chrono::steady_clock::now();
+    receivers_ = knobs_.receivers > 0 ? pic::bounceReceivers(hierarchy_, knobs_.receivers) : pic::Receivers{};
+    receiverLinks_ = pic::linkCaches(hierarchy_, surfels_, *rays_, receivers_.positions, {knobs_.bands, knobs_.links, 1},
+                                     [&](double f) { report(0.1 + 0.9 * f); });
+    report(1.0);
+    stats_["precompute_ms_surfels"] = msSurfels;
+    stats_["precompute_ms_hierarchy"] = msHierarchy;
+    stats_["precompute_ms_receivers"] = msSince(t2);
+    ++precomputes_;
+    if (!file.empty()) pic::saveMeshPrecompute(file, key, {surfels_, hierarchy_, receivers_, receiverLinks_});
+  }
 
   // GPU: surfels (receiver index in normal.w), children and the inner nodes by level.
   std::vector<cv::Vec4f> s;
@@ -194,8 +230,25 @@ void PicTechnique::placeGrid(const cv::Vec3f& centre, float side) {
   const auto t0 = std::chrono::steady_clock::now();
   gridCentre_ = centre;
   gridSide_ = side;
-  caches_ = pic::linkCaches(hierarchy_, surfels_, *rays_, pic::gridCaches(gridCentre_, gridSide_, knobs_.grid),
-                            {knobs_.bands, knobs_.links, 1});
+  uint64_t key = hashBytes(&geometryKey_, sizeof geometryKey_);
+  key = hashBytes(&centre, sizeof centre, key);
+  key = hashBytes(&side, sizeof side, key);
+  key = hashBytes(&knobs_.grid, sizeof knobs_.grid, key);
+  const std::string file = cacheFile("grid", key);
+  const auto nodes = static_cast<int32_t>(hierarchy_.nodes.size());
+  const auto valid = [&](const pic::CacheLinks& l) {
+    if (l.caches() != static_cast<size_t>(knobs_.grid * knobs_.grid * knobs_.grid) || l.bands != knobs_.bands) return false;
+    return std::all_of(l.node.begin(), l.node.end(), [&](int32_t k) { return k >= -1 && k < nodes; });
+  };
+  if (!file.empty() && pic::loadCacheLinks(file, key, caches_) && valid(caches_)) {
+    ++cacheLoads_;
+  } else {
+    caches_ = pic::linkCaches(hierarchy_, surfels_, *rays_, pic::gridCaches(gridCentre_, gridSide_, knobs_.grid),
+                              {knobs_.bands, knobs_.links, 1}, [this](double f) {
+                                if (progress_) progress_("pic caches", f);
+                              });
+    if (!file.empty()) pic::saveCacheLinks(file, key, caches_);
+  }
   uploadLinks(caches_, cacheNodes_, cacheFactors_, cacheTransfer_);
   cacheBack_ = bufferOf(caches_.backFraction);
   cacheSh_ = gl::Buffer::storage(std::max<size_t>(caches_.caches(), 1) * cacheFloats(knobs_) * 4);
@@ -256,7 +309,7 @@ void PicTechnique::gather(const FrameResources& frame, bool receivers) {
   for (size_t k = 0; k < 9; ++k) a.sh[k] = cv::Vec3f(frame.ambientSh()[k]);
   const auto coefficients = a.coefficients();
   for (size_t k = 0; k < 9; ++k)
-    setVec3(p, "uAmbientCoefficients[" + std::to_string(k) + "]", cv::Vec3d(pic::toYCoCg(coefficients[k])));
+    setVec3(p, std::string("uAmbientCoefficients[") + std::to_string(k) + "]", cv::Vec3d(pic::toYCoCg(coefficients[k])));
   p.set("uCount", static_cast<int>(links.caches()));
   p.set("uLinks", links.links);
   p.set("uPacked", knobs_.rgb9e5 ? 1 : 0);

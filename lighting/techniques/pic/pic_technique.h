@@ -65,6 +65,8 @@ class PicTechnique final : public Technique {
   cv::Vec3f gridCentre() const { return gridCentre_; }
   float gridSide() const { return gridSide_; }
   int precomputes() const { return precomputes_; }
+  /// Precomputes read back from the cache folder instead (TechniqueSetup::cacheDir).
+  int cacheLoads() const { return cacheLoads_; }
   /// GPU downloads: the nodes' flux, the caches' (or receivers') stored SH (YCoCg layout, pic.glsl).
   std::vector<cv::Vec3f> downloadFlux() const;
   std::vector<float> downloadCaches(bool receivers) const;
@@ -78,14 +80,19 @@ class PicTechnique final : public Technique {
   void lightAndPull(const FrameResources& frame, bool bounce);
   void gather(const FrameResources& frame, bool receivers);
 
+  /// The file a precompute is kept in (empty without a cache folder): pic_<part>_<key>.bin.
+  std::string cacheFile(const char* part, uint64_t key) const;
+
   PicKnobs knobs_;
+  std::function<void(const std::string&, double)> progress_;
+  std::string cacheDir_;
   gl::Program lightProgram_, pullProgram_, gatherProgram_, readoutProgram_;
   gl::Texture irradiance_, radiance_;
   gl::Framebuffer fb_;
   gl::VertexArray emptyVao_;
 
   pic::SurfaceMesh mesh_;
-  uint64_t meshKey_ = 0, albedoKey_ = 0;
+  uint64_t meshKey_ = 0, albedoKey_ = 0, geometryKey_ = 0;
   std::unique_ptr<reconstruction::MeshRays> rays_;
   std::vector<pic::Surfel> surfels_;
   pic::Hierarchy hierarchy_;
@@ -95,7 +102,7 @@ class PicTechnique final : public Technique {
   float gridSide_ = 0;
   bool gridValid_ = false, receiversLit_ = false;
   std::vector<SceneLight> visibilityLights_;
-  int precomputes_ = 0, levelsCount_ = 0;
+  int precomputes_ = 0, cacheLoads_ = 0, levelsCount_ = 0;
   std::vector<int> levelFirst_, levelCount_;
 
   gl::Buffer surfelBuffer_, visibility_, fluxF_, fluxP_, children_, levelNodes_;
