@@ -471,7 +471,7 @@ std::vector<cv::Vec3f> PicTechnique::decodeCache(const std::vector<float>& store
 }
 
 cv::Mat PicTechnique::debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const {
-  if (view != "pic_surfels" && view != "pic_caches") return {};
+  if (view != "pic_surfels" && view != "pic_caches" && view != "pic_cut") return {};
   if (!context.T_world_camera || context.composite.empty()) return {};
   cv::Mat img = context.composite.clone();
   const capture::Pose T_camera_world = capture::inversePose(*context.T_world_camera);
@@ -483,6 +483,44 @@ cv::Mat PicTechnique::debugImage(const std::string& view, const DebugContext& co
     return px.x >= 0 && px.y >= 0 && px.x < img.cols && px.y < img.rows;
   };
   int drawn = 0;
+  if (view == "pic_cut") {
+    // The hierarchy cut linked to the cache nearest the grid's centre (white ring): each linked node's surfels
+    // in one colour of its own; surfels it does not see (no linked node holds them) are left out.
+    if (caches_.caches() == 0) return img;
+    size_t centre = 0;
+    for (size_t c = 1; c < caches_.caches(); ++c)
+      if (cv::norm(caches_.positions[c] - gridCentre_) < cv::norm(caches_.positions[centre] - gridCentre_)) centre = c;
+    const auto L = static_cast<size_t>(caches_.links);
+    int linked = 0;
+    for (size_t l = 0; l < L; ++l) {
+      const int32_t node = caches_.node[centre * L + l];
+      if (node < 0) continue;
+      ++linked;
+      const uint32_t h = static_cast<uint32_t>(node) * 2654435761u;
+      const cv::Scalar colour(64 + (h & 127), 64 + ((h >> 8) & 127), 64 + ((h >> 16) & 127));
+      std::vector<int32_t> stack{node};
+      while (!stack.empty()) {
+        const int32_t k = stack.back();
+        stack.pop_back();
+        const pic::Node& n = hierarchy_.nodes[static_cast<size_t>(k)];
+        if (n.child[0] >= 0) {
+          stack.push_back(n.child[0]);
+          stack.push_back(n.child[1]);
+          continue;
+        }
+        cv::Point px;
+        if (!project(surfels_[static_cast<size_t>(k)].position, px)) continue;
+        cv::circle(img, px, 2, colour, cv::FILLED);
+        ++drawn;
+      }
+    }
+    cv::Point px;
+    if (project(caches_.positions[centre], px)) cv::circle(img, px, 5, cv::Scalar(255, 255, 255), 2);
+    info["cache"] = centre;
+    info["linked_nodes"] = linked;
+    info["surfels_drawn"] = drawn;
+    return img;
+  }
   if (view == "pic_surfels") {
     // Each surfel a dot coloured by its radiosity (flux / area), white at the 95th percentile of their
     // brightest channel.

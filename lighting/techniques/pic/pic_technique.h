@@ -49,7 +49,8 @@ class PicTechnique final : public Technique {
   TechniqueOutputs outputs() const override;
   /// pic_surfels: the surfels over the composite, coloured by their radiosity; pic_caches: the caches, coloured
   /// by their mean incident radiance (outlined red where negative, grey where they lie behind geometry).
-  std::vector<std::string> debugViews() const override { return {"pic_surfels", "pic_caches"}; }
+  /// pic_cut: the hierarchy cut linked to the cache at the grid's centre, a colour per linked node.
+  std::vector<std::string> debugViews() const override { return {"pic_surfels", "pic_caches", "pic_cut"}; }
   cv::Mat debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const override;
   nlohmann::json stats() const override { return stats_; }
   size_t gpuBytes() const override;
