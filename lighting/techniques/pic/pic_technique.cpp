@@ -184,17 +184,8 @@ void PicTechnique::precomputeMesh(const FrameResources& frame) {
     if (!file.empty()) pic::saveMeshPrecompute(file, key, {surfels_, hierarchy_, receivers_, receiverLinks_});
   }
 
-  // GPU: surfels (receiver index in normal.w), children and the inner nodes by level.
-  std::vector<cv::Vec4f> s;
-  s.reserve(3 * surfels_.size());
-  for (size_t i = 0; i < surfels_.size(); ++i) {
-    const pic::Surfel& x = surfels_[i];
-    const float r = i < receivers_.ofSurfel.size() ? static_cast<float>(receivers_.ofSurfel[i]) : -1.0f;
-    s.push_back({x.position[0], x.position[1], x.position[2], x.area});
-    s.push_back({x.normal[0], x.normal[1], x.normal[2], r});
-    s.push_back({x.albedo[0], x.albedo[1], x.albedo[2], 0.0f});
-  }
-  surfelBuffer_ = bufferOf(s);
+  // GPU: surfels, children and the inner nodes by level.
+  uploadSurfels();
   std::vector<cv::Vec2i> children(hierarchy_.nodes.size(), cv::Vec2i(-1, -1));
   for (size_t k = 0; k < hierarchy_.nodes.size(); ++k) children[k] = {hierarchy_.nodes[k].child[0], hierarchy_.nodes[k].child[1]};
   children_ = bufferOf(children);
@@ -218,6 +209,20 @@ void PicTechnique::precomputeMesh(const FrameResources& frame) {
   visibilityLights_.clear();
   visibility_ = {};
   gridValid_ = false;
+}
+
+void PicTechnique::uploadSurfels() {
+  // pic.glsl PicSurfel: position and area, normal and the receiver's index (-1: none), albedo.
+  std::vector<cv::Vec4f> s;
+  s.reserve(3 * surfels_.size());
+  for (size_t i = 0; i < surfels_.size(); ++i) {
+    const pic::Surfel& x = surfels_[i];
+    const float r = i < receivers_.ofSurfel.size() ? static_cast<float>(receivers_.ofSurfel[i]) : -1.0f;
+    s.push_back({x.position[0], x.position[1], x.position[2], x.area});
+    s.push_back({x.normal[0], x.normal[1], x.normal[2], r});
+    s.push_back({x.albedo[0], x.albedo[1], x.albedo[2], 0.0f});
+  }
+  surfelBuffer_ = bufferOf(s);
 }
 
 void PicTechnique::uploadLinks(const pic::CacheLinks& links, gl::Buffer& nodes, gl::Buffer& factors, gl::Buffer& transfer) {
@@ -349,15 +354,7 @@ void PicTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
     } else if (albedo != albedoKey_) {
       for (size_t i = 0; i < v.size() && i < mesh_.albedo.size(); ++i) mesh_.albedo[i] = v[i].albedo;
       pic::updateAlbedo(surfels_, mesh_);
-      std::vector<cv::Vec4f> s;
-      for (size_t i = 0; i < surfels_.size(); ++i) {
-        const pic::Surfel& x = surfels_[i];
-        const float r = i < receivers_.ofSurfel.size() ? static_cast<float>(receivers_.ofSurfel[i]) : -1.0f;
-        s.push_back({x.position[0], x.position[1], x.position[2], x.area});
-        s.push_back({x.normal[0], x.normal[1], x.normal[2], r});
-        s.push_back({x.albedo[0], x.albedo[1], x.albedo[2], 0.0f});
-      }
-      surfelBuffer_ = bufferOf(s);
+      uploadSurfels();
       albedoKey_ = albedo;
     }
     // The grid covers the region with a cache spacing's margin, its centre on a lattice of that spacing: it

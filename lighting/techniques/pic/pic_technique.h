@@ -77,6 +77,8 @@ class PicTechnique final : public Technique {
  private:
   void precomputeMesh(const FrameResources& frame);
   void placeGrid(const cv::Vec3f& centre, float side);
+  /// The surfels' GPU records (pic.glsl PicSurfel), after a precompute or a new albedo.
+  void uploadSurfels();
   void uploadLinks(const pic::CacheLinks& links, gl::Buffer& nodes, gl::Buffer& factors, gl::Buffer& transfer);
   void lightAndPull(const FrameResources& frame, bool bounce);
   void gather(const FrameResources& frame, bool receivers);
