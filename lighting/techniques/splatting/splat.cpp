@@ -231,6 +231,32 @@ cv::Vec3f gather(const std::vector<PixelLight>& lights, const cv::Vec3f& x, cons
   return e;
 }
 
+int farSamples(int count, int level) {
+  if (count <= 0) return 0;
+  long long stride = 1;
+  for (int k = 0; k < level && stride < count; ++k) stride *= kFarStride;
+  return static_cast<int>((count + stride - 1) / stride);
+}
+
+float farWeight(int count, int level) {
+  const int m = farSamples(count, level);
+  return m > 0 ? static_cast<float>(count) / static_cast<float>(m) : 0.0f;
+}
+
+cv::Vec3f splatFar(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow, int sample, int count,
+                   int levels) {
+  if (!(iLow > 0)) return {0, 0, 0};
+  cv::Vec3f e(0, 0, 0);
+  float cut = iLow;
+  for (int k = 0; k <= levels; ++k, cut /= kFarStride) {
+    if (sample >= farSamples(count, k)) break;
+    if (!insideBox(splatBox(l, cut), x)) continue;
+    if (k > 0 && insideBox(splatBox(l, cut * kFarStride), x)) continue;
+    e += farWeight(count, k) * irradiance(l, x, n);
+  }
+  return e;
+}
+
 cv::Vec3f gatherBounded(const std::vector<PixelLight>& lights, const cv::Vec3f& x, const cv::Vec3f& n, float iLow) {
   cv::Vec3f e(0, 0, 0);
   for (const PixelLight& l : lights) e += splatIrradiance(l, x, n, iLow);

@@ -2,6 +2,7 @@
 // Splatting: a pixel light's bounded contribution to the G-buffer point under the fragment (splat.h
 // splatIrradiance), added by blending: uTarget 0 onto real pixels (the delta's signed lights), 1 onto
 // virtual pixels (the object's indirect light). Alpha counts the splats that reached the pixel (overdraw).
+// At far level uLevel > 0 only the shell between level uLevel - 1's box and its own, weighted (splat.h splatFar).
 #include "lighting/techniques/splatting/splat.glsl"
 layout(std430, binding = 2) readonly buffer Lights { PixelLight lights[]; };
 layout(binding = 0) uniform sampler2D uGPosition;
@@ -9,7 +10,9 @@ layout(binding = 1) uniform sampler2D uGNormal;
 layout(binding = 2) uniform sampler2D uGAlbedo;
 
 uniform int uTarget;
-uniform float uILowScale;
+uniform float uILowScale;  // at far level k: the knob's / 16^k
+uniform int uLevel;
+uniform float uWeight;  // the far level's weight n / farSamples(n, level)
 
 flat in int vLight;
 layout(location = 0) out vec4 outRealDelta;
@@ -23,9 +26,10 @@ void main() {
   bool isVirtual = texelFetch(uGAlbedo, px, 0).a > 0.5;
   if (isVirtual != (uTarget == 1)) return;
   PixelLight l = lights[vLight];
-  SplatBox b = splatBox(l, splatScaledILow(l, uILowScale));
-  if (!splatInsideBox(b, pos.xyz)) return;
-  vec3 e = splatIrradiance(l, pos.xyz, texelFetch(uGNormal, px, 0).xyz);
+  float iLow = splatScaledILow(l, uILowScale);
+  if (!splatInsideBox(splatBox(l, iLow), pos.xyz)) return;
+  if (uLevel > 0 && splatInsideBox(splatBox(l, iLow * float(SPLAT_FAR_STRIDE)), pos.xyz)) return;
+  vec3 e = uWeight * splatIrradiance(l, pos.xyz, texelFetch(uGNormal, px, 0).xyz);
   if (uTarget == 0)
     outRealDelta = vec4(e, 1.0);
   else

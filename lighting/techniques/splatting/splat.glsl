@@ -3,6 +3,9 @@
 #define SPLAT_PI 3.14159265358979
 #endif
 
+// splat.h kFarStride: samples per far light, and the ratio of I_low between far levels.
+#define SPLAT_FAR_STRIDE 16
+
 // One pixel light (std430; splat.h PixelLight).
 struct PixelLight {
   vec4 positionArea;    // xyz x_p, w A_p (m^2)

@@ -85,6 +85,24 @@ bool insideBox(const SplatBox& b, const cv::Vec3f& x);
 /// The bounded splat: irradiance() where x lies in splatBox(l, iLow), 0 elsewhere.
 cv::Vec3f splatIrradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow);
 
+/// Far-field levels. A light's significant region at a fixed I_low cuts its faint, wide tail; the tail of a
+/// diffuse light falls off slowly (the flux it puts on a plane beyond r falls as 1/r), so larger boxes pay
+/// but cost their area. Level 0 splats every sample of a light over splatBox(l, iLow); level k >= 1 splats only
+/// the first farSamples(n, k) = ceil(n / 16^k) of the light's n samples over the shell splatBox(l, iLow / 16^k)
+/// minus level k - 1's box, weighted n / farSamples(n, k). The first samples of a light are a contiguous run of
+/// the R2 sequence (themselves low-discrepancy), and a level's weighted subset estimates the same sum as all n
+/// (their weights already hold 1/n), so over the levels each sample's expected splat is the bounded splat over
+/// the outermost box, which reaches 4^k times as far as level 0's, for about k + 1 times level 0's cost (16x the
+/// area for 1/16 of the lights). GLSL twin in splat.vert / splat.frag.
+constexpr int kFarStride = 16;  ///< samples per far light, and the ratio of I_low between levels
+/// Samples of a light of n that splat at far level k (k = 0: all n).
+int farSamples(int count, int level);
+/// The weight of far level k: n / farSamples(n, k) (1 at level 0; 0 when the light has no samples).
+float farWeight(int count, int level);
+/// Sample `sample` (0-based within its light of `count` samples) splatted over `levels` far levels at (x, n):
+/// level 0's bounded splat plus each far level's shell, weighted.
+cv::Vec3f splatFar(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow, int sample, int count, int levels);
+
 /// Sum pyramid of an importance map (square, side a power of two; level 0 = the map).
 struct Pyramid {
   std::vector<cv::Mat> levels;  ///< CV_64F, level k side = side >> k; the last is 1 x 1

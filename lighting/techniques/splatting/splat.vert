@@ -1,12 +1,13 @@
 #version 450 core
 // Splatting: one instance per pixel light, a screen rectangle around its splat box (the 8 corners projected;
 // the whole screen when the box reaches behind the camera's near plane; nothing for a light without flux).
+// At far level k the box is that of I_low / 16^k, uILowScale already divided (splat.h splatFar).
 #include "lighting/techniques/splatting/splat.glsl"
 layout(std430, binding = 2) readonly buffer Lights { PixelLight lights[]; };
 
 uniform int uFirstRecord;
 uniform mat4 uViewProj;  // the camera's clip <- world
-uniform float uILowScale;  // I_low of a light = uILowScale x lum(|Phi|)
+uniform float uILowScale;  // I_low of a light = uILowScale x lum(|Phi|) (at far level k: the knob's / 16^k)
 
 flat out int vLight;
 

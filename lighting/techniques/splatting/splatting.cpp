@@ -22,6 +22,11 @@ const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable() {
       {{"widen", KnobType::Real, 0.0, 1.0, 0.02, "metres: a glossy lobe widens within this distance of its light",
         {0.0, 0.05}, {}, false},
        &SplattingKnobs::widen},
+      {{"far_levels", KnobType::Int, 0, 3, 2,
+        "far-field levels: level k splats the first n / 16^k of a light's n samples 4^k times as far (their "
+        "weight n / that), for about k + 1 times the splats' cost",
+        {0, 1, 3}, {0}, true},
+       &SplattingKnobs::farLevels},
   };
   return table;
 }
@@ -140,6 +145,7 @@ void SplattingTechnique::beginLights(const FrameResources& frame, gl::Profiler*)
   for (size_t i = 0; i < lights.size(); ++i)
     if (w[i] > 0 && sum > 0) budget_[i] = std::max(1, static_cast<int>(std::floor(knobs_.vpls * w[i] / sum)));
   deltaRecords_ = objectRecords_ = samplesSoFar_ = 0;
+  sampled_.clear();
   const auto sampled = std::count_if(budget_.begin(), budget_.end(), [](int n) { return n > 0; });
   ambientShare_ = sampled > 0 ? 1.0f / static_cast<float>(sampled) : 0.0f;
   const double s = frame.region()->side;
@@ -190,6 +196,7 @@ void SplattingTechnique::light(const FrameResources& frame, size_t index, gl::Pr
     objectRecords_ += n;
   }
   lastSamples_ = {samplesSoFar_, n};
+  sampled_.push_back(lastSamples_);
   samplesSoFar_ += n;
 }
 
@@ -233,22 +240,37 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
   const auto vp = toGl(projectionFromIntrinsics(cam.intrinsics, cam.nearPlane, cam.farPlane) *
                        capture::inversePose(cam.T_world_camera));
   p.setMat4("uViewProj", vp.data());
-  p.set("uILowScale", iLowScale_);
-  p.set("uFirstRecord", 0);
   frame.gPosition().bind(0);
   frame.gNormal().bind(1);
   frame.gAlbedo().bind(2);
   emptyVao_.bind();
-  if (real_ && deltaRecords_ > 0) {
-    p.set("uTarget", 0);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, deltaLights_.id());
-    glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, deltaRecords_);
-  }
-  if (virtual_ && objectRecords_ > 0) {
-    p.set("uTarget", 1);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, objectLights_.id());
-    glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, objectRecords_);
-  }
+  // Level 0: every record over its own box, in one draw; far level k (splat.h splatFar): per light the
+  // records of its first farSamples(n, k) samples over the shell out to I_low / 16^k, weighted.
+  const auto draw = [&](int target, const gl::Buffer& records, int perSample, int total) {
+    if (total <= 0) return;
+    p.set("uTarget", target);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, records.id());
+    p.set("uLevel", 0);
+    p.set("uWeight", 1.0f);
+    p.set("uILowScale", iLowScale_);
+    p.set("uFirstRecord", 0);
+    glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, total);
+    float scale = iLowScale_;
+    for (int k = 1; k <= knobs_.farLevels; ++k) {
+      scale /= static_cast<float>(splat::kFarStride);
+      p.set("uLevel", k);
+      p.set("uILowScale", scale);
+      for (const auto& [first, n] : sampled_) {
+        const int m = splat::farSamples(n, k);
+        if (m <= 0) continue;
+        p.set("uWeight", splat::farWeight(n, k));
+        p.set("uFirstRecord", perSample * first);
+        glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, perSample * m);
+      }
+    }
+  };
+  if (real_) draw(0, deltaLights_, 3, deltaRecords_);
+  if (virtual_) draw(1, objectLights_, 1, objectRecords_);
   glDisable(GL_BLEND);
   gl::checkGlError("SplattingTechnique::update()");
 }

@@ -22,6 +22,7 @@ struct SplattingKnobs {
   int vpls = 0;        ///< sampled pixel lights per run (over all lights)
   double iLow = 0;     ///< I_low of a light: this x lum|Phi| / (pi s^2), s the region's side
   double widen = 0;    ///< metres: a glossy lobe widens within this distance of its light
+  int farLevels = 0;   ///< far-field levels (splat.h splatFar): each reaches 4x further with 1/16 of the samples
 };
 const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable();
 
@@ -46,6 +47,9 @@ class SplattingTechnique final : public Technique {
   const SplattingKnobs& knobs() const { return knobs_; }
   /// The last run's pixel lights (GPU download): the delta's records (3 per sample) and the object's (1 per sample).
   std::vector<splat::PixelLight> downloadLights(bool delta) const;
+  /// This run's sampled lights in record order: each one's first sample index and sample count (a delta
+  /// light's records start at 3 x its first sample, an object light's at its first sample).
+  const std::vector<std::pair<int, int>>& sampledLights() const { return sampled_; }
   /// I_low of a light of flux luminance 1 (the knob over pi s^2).
   float iLowScale() const { return iLowScale_; }
   /// The last light's level-0 importance (delta or object), padded side x side (GPU download).
@@ -66,6 +70,7 @@ class SplattingTechnique final : public Technique {
   std::vector<int> levelOffsets_;
   gl::Buffer deltaPyramid_, objectPyramid_, deltaLights_, objectLights_;
   std::vector<int> budget_;     ///< samples per light this run
+  std::vector<std::pair<int, int>> sampled_;  ///< this run's lights with samples: first sample index, count
   int deltaRecords_ = 0, objectRecords_ = 0, samplesSoFar_ = 0;
   float iLowScale_ = 0;
   IrradianceTargets out_;

@@ -47,6 +47,8 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
   pipe.run(wallCamera(), wallLamp(), {0, 0, 0}, nullptr);
   const auto tp = runSplat(pipe, 512, 16.0);
   const SplattingTechnique& t = *tp;
+  ASSERT_EQ(t.knobs().farLevels, 2);
+  ASSERT_EQ(t.sampledLights(), (std::vector<std::pair<int, int>>{{0, 512}}));
   const std::vector<splat::PixelLight> delta = t.downloadLights(true), object = t.downloadLights(false);
   ASSERT_EQ(delta.size(), 3u * 512u);
   ASSERT_EQ(object.size(), 512u);
@@ -102,8 +104,9 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
   for (const splat::PixelLight& l : delta) estimate += l.flux[0];
   EXPECT_NEAR(estimate, exact, 0.05 * std::abs(exact) + 1e-6) << "exact " << exact;
 
-  // Splats: per pixel the bounded sum of the downloaded lights, each cut at its own I_low; and the cut is
-  // never more than the sum of the I_low of the lights.
+  // Splats: per pixel the far-field sum of the downloaded lights (splat.h splatFar: each light's own box, and
+  // the first 32 and 2 of the 512 samples over the far levels' shells); and level 0's cut is never more than
+  // the sum of the I_low of the lights.
   const cv::Mat pos = pipe.frame().downloadGBuffer(0), nrm = pipe.frame().downloadGBuffer(1), alb = pipe.frame().downloadGBuffer(2);
   const cv::Mat dOut = download4(*t.outputs().realDelta), vOut = download4(*t.outputs().virtualIrradiance);
   int checked = 0, good = 0, virt = 0, virtGood = 0;
@@ -115,13 +118,17 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
     const cv::Vec3f x(p[0], p[1], p[2]), nn(n[0], n[1], n[2]);
     const bool isVirtual = alb.at<cv::Vec4f>(i)[3] > 0.5f;
     const auto& lights = isVirtual ? object : delta;
-    cv::Vec3f bounded(0, 0, 0);
-    for (const splat::PixelLight& l : lights) {
+    const int perSample = isVirtual ? 1 : 3;
+    cv::Vec3f bounded(0, 0, 0), splatted(0, 0, 0);
+    for (size_t j = 0; j < lights.size(); ++j) {
+      const splat::PixelLight& l = lights[j];
       const float iLow = splat::scaledILow(l, t.iLowScale());
-      if (iLow > 0) bounded += splat::splatIrradiance(l, x, nn, iLow);
+      if (!(iLow > 0)) continue;
+      bounded += splat::splatIrradiance(l, x, nn, iLow);
+      splatted += splat::splatFar(l, x, nn, iLow, static_cast<int>(j) / perSample, 512, t.knobs().farLevels);
     }
     const cv::Vec4f got = isVirtual ? vOut.at<cv::Vec4f>(i) : dOut.at<cv::Vec4f>(i);
-    const bool ok = std::abs(got[0] - bounded[0]) <= 1e-4f + 2e-3f * std::abs(bounded[0]);
+    const bool ok = std::abs(got[0] - splatted[0]) <= 1e-4f + 2e-3f * std::abs(splatted[0]);
     if (isVirtual) {
       ++virt, virtGood += ok;
     } else {
