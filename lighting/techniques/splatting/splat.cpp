@@ -257,6 +257,85 @@ cv::Vec3f splatFar(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, 
   return e;
 }
 
+namespace {
+double radicalInverse(int i, int base) {
+  double r = 0, f = 1.0 / base;
+  for (; i > 0; i /= base, f /= base) r += f * (i % base);
+  return r;
+}
+cv::Vec3f transformPoint(const cv::Matx44d& T, const cv::Vec3f& p) {
+  const cv::Vec4d q = T * cv::Vec4d(p[0], p[1], p[2], 1.0);
+  return {static_cast<float>(q[0]), static_cast<float>(q[1]), static_cast<float>(q[2])};
+}
+}  // namespace
+
+std::vector<SurfacePoint> surfacePoints(const std::vector<SurfaceSource>& sources, int count) {
+  struct Triangle {
+    cv::Vec3f p[3], n[3];
+    cv::Vec3f albedo;
+  };
+  std::vector<Triangle> tris;
+  std::vector<double> cumulative;
+  double total = 0;
+  for (const SurfaceSource& src : sources) {
+    if (!src.mesh) continue;
+    const Mesh& m = *src.mesh;
+    const cv::Matx33d R(src.T_world_object(0, 0), src.T_world_object(0, 1), src.T_world_object(0, 2), src.T_world_object(1, 0),
+                        src.T_world_object(1, 1), src.T_world_object(1, 2), src.T_world_object(2, 0), src.T_world_object(2, 1),
+                        src.T_world_object(2, 2));
+    const cv::Matx33d N = R.inv().t();  // normals: the inverse transpose
+    for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+      Triangle tri;
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t v = m.indices[t + static_cast<size_t>(k)];
+        if (v >= m.positions.size()) continue;
+        tri.p[k] = transformPoint(src.T_world_object, m.positions[v]);
+        const cv::Vec3f mn = v < m.normals.size() ? m.normals[v] : cv::Vec3f(0, 0, 1);
+        const cv::Vec3d wn = N * cv::Vec3d(mn[0], mn[1], mn[2]);
+        tri.n[k] = cv::Vec3f(static_cast<float>(wn[0]), static_cast<float>(wn[1]), static_cast<float>(wn[2]));
+      }
+      const double a = 0.5 * cv::norm((tri.p[1] - tri.p[0]).cross(tri.p[2] - tri.p[0]));
+      if (!(a > 0) || !std::isfinite(a)) continue;
+      tri.albedo = src.albedo;
+      tris.push_back(tri);
+      cumulative.push_back(total += a);
+    }
+  }
+  std::vector<SurfacePoint> out;
+  if (count <= 0 || !(total > 0)) return out;
+  out.reserve(static_cast<size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    const double u = radicalInverse(i + 1, 2) * total;
+    const auto it = std::lower_bound(cumulative.begin(), cumulative.end(), u);
+    const Triangle& t = tris[std::min<size_t>(static_cast<size_t>(it - cumulative.begin()), tris.size() - 1)];
+    const double r = std::sqrt(radicalInverse(i + 1, 3)), v = radicalInverse(i + 1, 5);
+    const auto a = static_cast<float>(1 - r), b = static_cast<float>(r * (1 - v)), c = static_cast<float>(r * v);
+    SurfacePoint p;
+    p.position = a * t.p[0] + b * t.p[1] + c * t.p[2];
+    const cv::Vec3f n = a * t.n[0] + b * t.n[1] + c * t.n[2];
+    const float len = static_cast<float>(cv::norm(n));
+    p.normal = len > 0 ? n / len : cv::Vec3f(0, 0, 1);
+    p.area = static_cast<float>(total / count);
+    p.albedo = t.albedo;
+    out.push_back(p);
+  }
+  return out;
+}
+
+PixelLight surfaceLight(const SurfacePoint& s, const std::vector<PixelLight>& objectLights, const cv::Vec3f& ambientFront,
+                        const cv::Vec3f& ambientBack) {
+  const cv::Vec3f front = ambientFront + gather(objectLights, s.position, s.normal);
+  const cv::Vec3f back = ambientBack + gather(objectLights, s.position, -s.normal);
+  PixelLight l;
+  l.position = s.position;
+  l.area = s.area;
+  l.normal = l.axis = s.normal;
+  l.flux = s.area * (s.albedo.mul(front) - back);
+  for (int c = 0; c < 3; ++c)
+    if (!std::isfinite(l.flux[c])) l.flux = {0, 0, 0};
+  return l;
+}
+
 cv::Vec3f gatherBounded(const std::vector<PixelLight>& lights, const cv::Vec3f& x, const cv::Vec3f& n, float iLow) {
   cv::Vec3f e(0, 0, 0);
   for (const PixelLight& l : lights) e += splatIrradiance(l, x, n, iLow);

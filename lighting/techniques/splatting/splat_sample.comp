@@ -3,7 +3,8 @@
 // point of index uFirstSample + i, descends the importance pyramid from its top (vertical split, then
 // horizontal within the chosen row) to a texel t, and writes that texel's pixel lights with the weight
 // total / (N p_t) (an unbiased estimate of the sum over all texels):
-//   uMode 0 (real-pixel delta): 3 records: RSM^rho's diffuse light, its glossy light (a glossy object's texel;
+//   uMode 0 (real-pixel delta): 3 records: RSM^rho's diffuse light (an object's texel with the ambient it
+//                              reflects and blocks unless surface lights carry those), its glossy light (a glossy object's texel;
 //                              else zero flux) and RSM^mu's diffuse light with negated flux
 //   uMode 1 (the object):       1 record, the real surface's diffuse light (RSM^rho's real texel, else
 //                              RSM^mu's in the object's shadow)
@@ -34,6 +35,8 @@ uniform int uFirstRecord;  // where its records start
 uniform int uLevels;       // levels of the pyramid (level uLevels - 1 is 1 x 1)
 uniform int uLevelOffset[MAX_LEVELS];
 uniform float uWiden;
+uniform int uObjectAmbient;  // 1: an object's texel also carries its share of the ambient's bounce and occlusion
+                             // (0 where surface lights carry the object's ambient, splat_surface.comp)
 uniform float uSpecular[MAX_OBJECTS];
 uniform float uExponent[MAX_OBJECTS];
 
@@ -114,7 +117,8 @@ void main() {
     vec3 direct = texelFetch(uRhoDirect, t, 0).rgb, flux = texelFetch(uRhoFlux, t, 0).rgb;
     bool isObject = nr.w > 0.5;
     area = splatTexelArea(pr.xyz, nr.xyz, direct, toLight);
-    lights[base] = diffuseLight(pr, nr, isObject ? splatTexelFlux(nr.xyz, flux, direct, area, true) : flux, area, scale);
+    bool withAmbient = isObject && uObjectAmbient != 0;
+    lights[base] = diffuseLight(pr, nr, withAmbient ? splatTexelFlux(nr.xyz, flux, direct, area, true) : flux, area, scale);
     if (isObject) {
       int obj = clamp(int(nr.w + 0.5) - 1, 0, MAX_OBJECTS - 1);
       if (uSpecular[obj] > 0.0 && uExponent[obj] > 0.0) {

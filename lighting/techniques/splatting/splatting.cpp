@@ -27,6 +27,11 @@ const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable() {
         "weight n / that), for about k + 1 times the splats' cost",
         {0, 1, 3}, {0}, true},
        &SplattingKnobs::farLevels},
+      {{"surface", KnobType::Int, 0, 4096, 256,
+        "surface lights on the objects: their second bounce minus the light they hide from the real surfaces in "
+        "front of them (0: the lights' RSMs alone)",
+        {0, 1024}, {0}, true},
+       &SplattingKnobs::surface},
   };
   return table;
 }
@@ -101,11 +106,13 @@ TechniqueInfo splattingTechniqueInfo() {
   t.estimateBytes = [](const KnobValues& values, const KnobValues& frame, bool real, bool virtualObject, int w, int h) {
     const SplattingKnobs k = knobsFrom(splattingKnobTable(), values);
     // Two importance pyramids over the padded RSM (4/3 of its texels), the lights (3 records per sample for
-    // the delta, 1 for the object, plus one sample per light), the two outputs.
+    // the delta, 1 for the object, plus one sample per light), the surface points and lights, the two outputs.
     const auto p = static_cast<size_t>(paddedSide(static_cast<int>(knobsFrom(frameKnobTable(), frame).rsmSize)));
     const size_t pyramid = 2 * (4 * p * p / 3 + 1) * sizeof(float);
     const size_t samples = static_cast<size_t>(k.vpls) + kMaxLights;
-    return pyramid + ((real ? 3 : 0) + (virtualObject ? 1 : 0)) * samples * sizeof(splat::PixelLight) +
+    const size_t surface = real ? static_cast<size_t>(k.surface) * (sizeof(splat::SurfacePoint) + sizeof(splat::PixelLight)) : 0;
+    const bool objectLights = virtualObject || (real && k.surface > 0);
+    return pyramid + ((real ? 3 : 0) + (objectLights ? 1 : 0)) * samples * sizeof(splat::PixelLight) + surface +
            2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
   };
   return t;
@@ -119,6 +126,7 @@ SplattingTechnique::SplattingTechnique(const TechniqueSetup& setup)
       reduceProgram_(gl::Program::compute("lighting/techniques/splatting/splat_reduce.comp")),
       sampleProgram_(gl::Program::compute("lighting/techniques/splatting/splat_sample.comp")),
       splatProgram_(gl::Program::graphics("lighting/techniques/splatting/splat.vert", "lighting/techniques/splatting/splat.frag")),
+      surfaceProgram_(gl::Program::compute("lighting/techniques/splatting/splat_surface.comp")),
       out_(setup.frame->width(), setup.frame->height()) {
   // Pyramid layout for the frame's RSM size: level 0 padded to a power of two, then halves down to 1 x 1.
   padded_ = paddedSide(setup.frame->rsmSize());
@@ -133,7 +141,11 @@ SplattingTechnique::SplattingTechnique(const TechniqueSetup& setup)
   objectPyramid_ = gl::Buffer::storage(static_cast<size_t>(offset) * sizeof(float));
   const size_t samples = static_cast<size_t>(knobs_.vpls) + kMaxLights;
   if (real_) deltaLights_ = gl::Buffer::storage(3 * samples * sizeof(splat::PixelLight));
-  if (virtual_) objectLights_ = gl::Buffer::storage(samples * sizeof(splat::PixelLight));
+  if (objectLightsNeeded()) objectLights_ = gl::Buffer::storage(samples * sizeof(splat::PixelLight));
+  if (real_ && knobs_.surface > 0) {
+    pointBuffer_ = gl::Buffer::storage(static_cast<size_t>(knobs_.surface) * sizeof(splat::SurfacePoint));
+    surfaceLights_ = gl::Buffer::storage(static_cast<size_t>(knobs_.surface) * sizeof(splat::PixelLight));
+  }
 }
 
 void SplattingTechnique::beginLights(const FrameResources& frame, gl::Profiler*) {
@@ -174,7 +186,7 @@ void SplattingTechnique::light(const FrameResources& frame, size_t index, gl::Pr
     const gl::Program& r = reduceProgram_;
     r.use();
     for (const gl::Buffer* b : {&deltaPyramid_, &objectPyramid_}) {
-      if ((b == &deltaPyramid_ && !real_) || (b == &objectPyramid_ && !virtual_)) continue;
+      if ((b == &deltaPyramid_ && !real_) || (b == &objectPyramid_ && !objectLightsNeeded())) continue;
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b->id());
       for (int k = 1; k < levels_; ++k) {
         const int side = padded_ >> k;
@@ -191,7 +203,7 @@ void SplattingTechnique::light(const FrameResources& frame, size_t index, gl::Pr
     sampleLight(frame, index, true, n, samplesSoFar_, deltaRecords_);
     deltaRecords_ += 3 * n;
   }
-  if (virtual_) {
+  if (objectLightsNeeded()) {
     sampleLight(frame, index, false, n, samplesSoFar_, objectRecords_);
     objectRecords_ += n;
   }
@@ -214,6 +226,7 @@ void SplattingTechnique::sampleLight(const FrameResources& frame, size_t index, 
     p.set("uLevelOffset[" + std::to_string(k) + "]", k < levels_ ? levelOffsets_[static_cast<size_t>(k)] : 0);
   setTexelUniforms(p, frame, l, ambientShare_);
   p.set("uWiden", static_cast<float>(knobs_.widen));
+  p.set("uObjectAmbient", real_ && knobs_.surface > 0 ? 0 : 1);
   setMaterials(p, frame);
   bindRsms(frame);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, (delta ? deltaPyramid_ : objectPyramid_).id());
@@ -222,7 +235,38 @@ void SplattingTechnique::sampleLight(const FrameResources& frame, size_t index, 
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
+void SplattingTechnique::surfaceLights(const FrameResources& frame) {
+  std::vector<splat::SurfaceSource> sources;
+  for (const FrameObject& o : frame.objects()) sources.push_back({&o.source.mesh, o.T_world_object, o.source.material.albedo});
+  points_ = splat::surfacePoints(sources, knobs_.surface);
+  if (points_.empty()) return;
+  pointBuffer_.upload(0, static_cast<GLsizeiptr>(points_.size() * sizeof(splat::SurfacePoint)), points_.data());
+  const gl::Program& p = surfaceProgram_;
+  p.use();
+  p.set("uCount", static_cast<int>(points_.size()));
+  p.set("uObjectLights", objectRecords_);
+  setVec3(p, "uAmbient", frame.ambient());
+  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, objectLights_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, pointBuffer_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, surfaceLights_.id());
+  glDispatchCompute(static_cast<GLuint>((points_.size() + 63) / 64), 1, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+}
+
+std::vector<splat::PixelLight> SplattingTechnique::downloadSurfaceLights() const {
+  std::vector<splat::PixelLight> out(points_.size());
+  if (!out.empty())
+    surfaceLights_.download(0, static_cast<GLsizeiptr>(out.size() * sizeof(splat::PixelLight)), out.data());
+  return out;
+}
+
 void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
+  points_.clear();
+  if (real_ && knobs_.surface > 0 && frame.region()) {
+    auto s = timed(profiler, "splat.surface");
+    surfaceLights(frame);
+  }
   auto s = timed(profiler, "splat.splat");
   out_.fb.bind();
   glViewport(0, 0, frame.width(), frame.height());
@@ -246,7 +290,8 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
   emptyVao_.bind();
   // Level 0: every record over its own box, in one draw; far level k (splat.h splatFar): per light the
   // records of its first farSamples(n, k) samples over the shell out to I_low / 16^k, weighted.
-  const auto draw = [&](int target, const gl::Buffer& records, int perSample, int total) {
+  const auto draw = [&](int target, const gl::Buffer& records, int perSample, int total,
+                        const std::vector<std::pair<int, int>>& groups) {
     if (total <= 0) return;
     p.set("uTarget", target);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, records.id());
@@ -260,7 +305,7 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
       scale /= static_cast<float>(splat::kFarStride);
       p.set("uLevel", k);
       p.set("uILowScale", scale);
-      for (const auto& [first, n] : sampled_) {
+      for (const auto& [first, n] : groups) {
         const int m = splat::farSamples(n, k);
         if (m <= 0) continue;
         p.set("uWeight", splat::farWeight(n, k));
@@ -269,8 +314,11 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
       }
     }
   };
-  if (real_) draw(0, deltaLights_, 3, deltaRecords_);
-  if (virtual_) draw(1, objectLights_, 1, objectRecords_);
+  if (real_) draw(0, deltaLights_, 3, deltaRecords_, sampled_);
+  if (virtual_) draw(1, objectLights_, 1, objectRecords_, sampled_);
+  // The surface lights are one group: the first points of their sequence cover the objects evenly.
+  const int surface = static_cast<int>(points_.size());
+  if (real_ && surface > 0) draw(0, surfaceLights_, 1, surface, {{0, surface}});
   glDisable(GL_BLEND);
   gl::checkGlError("SplattingTechnique::update()");
 }
@@ -335,12 +383,15 @@ cv::Mat SplattingTechnique::debugImage(const std::string& view, const DebugConte
 }
 
 nlohmann::json SplattingTechnique::stats() const {
-  return {{"samples", samplesSoFar_}, {"delta_lights", deltaRecords_}, {"object_lights", objectRecords_}};
+  return {{"samples", samplesSoFar_},
+          {"delta_lights", deltaRecords_},
+          {"object_lights", objectRecords_},
+          {"surface_lights", static_cast<int>(points_.size())}};
 }
 
 size_t SplattingTechnique::gpuBytes() const {
   size_t sum = out_.bytes();
-  for (const gl::Buffer* b : {&deltaPyramid_, &objectPyramid_, &deltaLights_, &objectLights_})
+  for (const gl::Buffer* b : {&deltaPyramid_, &objectPyramid_, &deltaLights_, &objectLights_, &pointBuffer_, &surfaceLights_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);
   return sum;
 }
