@@ -97,16 +97,18 @@ void main() {
   if (uMode == 1) {
     // The object's light from a real surface: its direct bounce, ambient bounce and the ambient it blocks; where
     // the object hides it from the light (RSM^rho shows the object), RSM^mu's surface, in the object's shadow.
+    // Its area is that of the texels the sample stands for (the footprint x its weight, at least the
+    // footprint): a receiver touching it gets at most their radiosity, not one texel's flux over one texel.
     if (pr.w > 0.5 && nr.w < 0.5) {
       vec3 direct = texelFetch(uRhoDirect, t, 0).rgb;
       area = splatTexelArea(pr.xyz, nr.xyz, direct, toLight);
       vec3 f = splatTexelFlux(nr.xyz, texelFetch(uRhoFlux, t, 0).rgb, direct, area, true);
-      lights[uFirstRecord + i] = diffuseLight(pr, nr, f, area, scale);
+      lights[uFirstRecord + i] = diffuseLight(pr, nr, f, area * max(scale, 1.0), scale);
     } else if (pm.w > 0.5) {
       vec3 direct = texelFetch(uMuDirect, t, 0).rgb;
       area = splatTexelArea(pm.xyz, nm.xyz, direct, toLight);
       vec3 f = splatTexelFlux(nm.xyz, texelFetch(uMuFlux, t, 0).rgb, direct, area, false);
-      lights[uFirstRecord + i] = diffuseLight(pm, nm, f, area, scale);
+      lights[uFirstRecord + i] = diffuseLight(pm, nm, f, area * max(scale, 1.0), scale);
     }
     return;
   }
