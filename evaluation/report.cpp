@@ -102,8 +102,12 @@ json choosePresets(const json& records) {
       fast = i;
       break;  // the front is fastest first
     }
+  // Balanced: the best trade (least ms/ms_min x err/err_min) among the front's records more accurate than
+  // fast, so that the two differ whenever the front offers more accuracy at all (fast when it does not).
+  balanced = fast;
   double bestScore = INFINITY;
   for (size_t i : front) {
+    if (!(errorOf(records[i]) < errorOf(records[fast]))) continue;
     const double score = std::max(msOf(records[i]), 1e-6) / msMin * (errorOf(records[i]) / eMin);
     if (score < bestScore) bestScore = score, balanced = i;
   }

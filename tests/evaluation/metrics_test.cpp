@@ -80,11 +80,18 @@ TEST(Metrics, PresetsComeFromTheParetoFront) {
     return nlohmann::json{{"technique", t}, {"knobs", nlohmann::json::object()}, {"ms_lighting", ms},
                           {"rel_error_delta", err}, {"rel_error_virtual", err}};
   };
-  const nlohmann::json records = {rec("a", 10, 0.5), rec("b", 20, 0.2), rec("c", 40, 0.1), rec("d", 50, 0.3)};
+  const nlohmann::json records = {rec("a", 10, 0.5), rec("b", 20, 0.2), rec("c", 40, 0.1), rec("d", 50, 0.3),
+                                  rec("e", 25, 0.15)};
   const nlohmann::json p = choosePresets(records);
   EXPECT_EQ(p["accurate"]["technique"], "c");  // least error
   EXPECT_EQ(p["fast"]["technique"], "b");      // fastest within twice the least error
-  EXPECT_EQ(p["balanced"]["technique"], "b");  // least ms/ms_min x err/err_min: a 5, b 4, c 4 (ties: first)
+  // Least ms/ms_min x err/err_min among the front's records more accurate than fast: e 3.75, c 4 (b's 4 and
+  // a's 5 are not more accurate).
+  EXPECT_EQ(p["balanced"]["technique"], "e");
+  // With nothing more accurate than fast on the front, balanced is fast.
+  const nlohmann::json two = choosePresets(nlohmann::json{rec("a", 10, 0.5), rec("b", 20, 0.2)});
+  EXPECT_EQ(two["fast"]["technique"], "b");
+  EXPECT_EQ(two["balanced"]["technique"], "b");
   EXPECT_TRUE(choosePresets(nlohmann::json::array()).empty());
 }
 

@@ -211,8 +211,8 @@ TEST(SplatBounds, FarLevelsCutLessOfADiffuseLightOnAPlane) {
     }
   for (int k = 0; k < 4; ++k) missed[k] /= total;
   EXPECT_GT(missed[0], 0.1) << missed[0];  // a quarter of the region's side cuts a good part of a low light's bounce
-  EXPECT_LT(missed[1], 0.5 * missed[0]) << missed[1];
-  EXPECT_LT(missed[2], 0.5 * missed[1]) << missed[2];
+  EXPECT_LT(missed[1], 0.3 * missed[0]) << missed[1];  // measured 0.17, 0.036, 0.007
+  EXPECT_LT(missed[2], 0.3 * missed[1]) << missed[2];
   EXPECT_GE(missed[2], -1e-6);
 }
 
