@@ -1,5 +1,9 @@
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <future>
+#include <mutex>
+#include <vector>
 #include <filesystem>
 #include <iostream>
 #include <unistd.h>
@@ -8,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "runtime/background_writer.h"
 #include "runtime/presets.h"
 #include "runtime/debug_view.h"
 #include "app/commands.h"
@@ -29,6 +34,29 @@ using nlohmann::json;
 
 namespace mrgi::app {
 namespace {
+
+/// Per-frame latencies (ms), added from the writer thread.
+class Latency {
+ public:
+  void add(double ms) {
+    std::lock_guard lock(mutex_);
+    ms_.push_back(ms);
+  }
+  json summary() const {
+    std::lock_guard lock(mutex_);
+    if (ms_.empty()) return {{"mean", 0.0}, {"max", 0.0}, {"frames", 0}};
+    double sum = 0, peak = 0;
+    for (double v : ms_) sum += v, peak = std::max(peak, v);
+    std::vector<double> sorted = ms_;
+    std::sort(sorted.begin(), sorted.end());
+    return {{"mean", sum / static_cast<double>(ms_.size())}, {"median", sorted[sorted.size() / 2]}, {"max", peak},
+            {"first", ms_.front()}, {"last", ms_.back()}, {"frames", ms_.size()}};
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<double> ms_;
+};
 
 struct ReplayOptions {
   std::string source;
@@ -105,6 +133,10 @@ int runReplay(const ReplayOptions& o) {
   if (fps <= 0) fps = info.fps > 0 ? info.fps : 30.0;
   std::optional<Mp4Writer> video;
   if (!o.mp4.empty()) video.emplace((fs::path(o.out) / o.mp4).string(), width, height, fps);
+  // The composites are encoded (PNG, video) on a writer thread while the next frame is worked on; at most 4
+  // wait. Declared after the video: on the way out it finishes its writes before the video closes.
+  Latency latency;  // frame in (read and decoded) -> its composite on disk, ms (written by the writer thread)
+  runtime::BackgroundWriter writer(4);
   InterruptGuard guard;
   bool interrupted = false;
   ProgressBar bar("replay");
@@ -117,15 +149,30 @@ int runReplay(const ReplayOptions& o) {
   std::map<std::string, int64_t> skipped;                 // stage -> frames it was skipped on
   int64_t done = 0, posed = 0;
   const auto start = std::chrono::steady_clock::now();
+  // Frame n + 1 is read and decoded on a worker thread while frame n is worked on (only a frame the loop will
+  // take: a damaged frame past --frames is never touched). Its read error surfaces when the loop takes it.
+  using Clock = std::chrono::steady_clock;
+  using Read = std::pair<std::optional<capture::Frame>, Clock::time_point>;  // the frame, when it was in
+  const auto readAhead = [&source] {
+    return std::async(std::launch::async, [&source] {
+      std::optional<capture::Frame> f = source->next();
+      return Read{std::move(f), Clock::now()};
+    });
+  };
+  std::future<Read> ahead = readAhead();
   while (limit < 0 || done < limit) {
     if (InterruptGuard::interrupted()) {
       interrupted = true;
       break;
     }
     std::optional<capture::Frame> frame;
+    Clock::time_point frameStart;
     {
+      // The loop's wait for the read-ahead (0 when it was ready).
       auto s = profiler.cpu("read");
-      frame = source->next();
+      Read r = ahead.get();
+      frame = std::move(r.first), frameStart = r.second;
+      if (frame && (limit < 0 || done + 1 < limit)) ahead = readAhead();
     }
     if (!frame) break;
     FrameResult result = frames.process(*frame, compositor, profiler);
@@ -176,11 +223,16 @@ int runReplay(const ReplayOptions& o) {
       if (!context->pollEvents()) break;
     }
     {
+      // The frame loop's share of the writing: the wait for a free slot in the writer's queue.
       auto s = profiler.cpu("write");
       char name[32];
       std::snprintf(name, sizeof name, "frame_%04lld.png", static_cast<long long>(done));
-      writePng((fs::path(o.out) / name).string(), composite);
-      if (video) video->write(composite);
+      writer.push([path = (fs::path(o.out) / name).string(), image = composite.clone(), v = video ? &*video : nullptr,
+                    frameStart, &latency] {
+        writePng(path, image);
+        if (v) v->write(image);
+        latency.add(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frameStart).count());
+      });
     }
     json stages;
     std::string line;
@@ -202,6 +254,7 @@ int runReplay(const ReplayOptions& o) {
     std::fflush(stdout);
     if (limit > 0) bar(static_cast<double>(done) / static_cast<double>(limit));
   }
+  writer.finish();  // every composite is on disk (and in the video) before the summary says so
   if (done == 0 && !interrupted) throw capture::CaptureError(o.source, "no frame could be replayed");
   int videoFrames = 0;
   if (video) videoFrames = video->close();
@@ -236,6 +289,15 @@ int runReplay(const ReplayOptions& o) {
     summary["lights"] = setup->lights.size();
   }
   summary["wall_ms_per_frame"] = done ? wallMs / done : 0.0;
+  // The writer thread: its encoding time per frame (off the frame loop), the loop's waits for it, and the
+  // most composites that waited at once.
+  summary["writer"] = {{"encode_ms_per_frame", done ? 1e3 * writer.busySeconds() / done : 0.0},
+                       {"waited_ms_per_frame", done ? 1e3 * writer.blockedSeconds() / done : 0.0},
+                       {"peak_queued", writer.peakQueued()}};
+  // Throughput and latency: frames a second over the whole run, and per frame the time from its arrival (read
+  // and decoded) to its composite on disk (a queue that grows would show here).
+  summary["fps"] = wallMs > 0 ? 1e3 * done / wallMs : 0.0;
+  summary["latency_ms"] = latency.summary();
   summary["interrupted"] = interrupted;
   if (video) summary["video"] = {{"file", o.mp4}, {"frames", videoFrames}, {"fps", fps}};
   summary["per_frame"] = perFrame;
