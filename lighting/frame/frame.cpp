@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "gl/error.h"
+#include "lighting/material.h"
 
 namespace mrgi::lighting {
 
@@ -127,6 +128,20 @@ void setMat3(const gl::Program& p, const std::string& name, const cv::Matx33f& m
 
 void setVec3(const gl::Program& p, const std::string& name, const cv::Vec3d& v) {
   p.set(name, static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
+}
+
+void setObjectLobes(const gl::Program& p, const FrameResources& frame) {
+  const auto& objects = frame.objects();
+  for (int k = 0; k < kShaderMaxObjects; ++k) {
+    const std::string at = "[" + std::to_string(k) + "]";
+    float spec = 0, exponent = 0;
+    if (k < static_cast<int>(objects.size())) {
+      spec = objects[static_cast<size_t>(k)].source.material.specular;
+      exponent = phongExponent(objects[static_cast<size_t>(k)].source.material.roughness);
+    }
+    p.set("uSpecular" + at, spec);
+    p.set("uExponent" + at, exponent);
+  }
 }
 
 int shaderLightType(LightType t) { return t == LightType::Point ? 0 : t == LightType::Spot ? 1 : 2; }

@@ -288,4 +288,9 @@ cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, cons
 /// CV_32FC4 download of an RGBA32F 2D texture.
 cv::Mat download4(const gl::Texture& t);
 
+/// The objects' glossy lobes for a shader declaring `uniform float uSpecular[16], uExponent[16]` (its
+/// MAX_OBJECTS): object k's material specular and Phong exponent, 0 beyond the frame's objects.
+constexpr int kShaderMaxObjects = 16;
+void setObjectLobes(const gl::Program& p, const FrameResources& frame);
+
 }  // namespace mrgi::lighting

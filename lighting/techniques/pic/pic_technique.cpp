@@ -7,7 +7,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include "gl/error.h"
-#include "lighting/material.h"
 #include "lighting/sh.h"
 #include "lighting/techniques/registry.h"
 #include "reconstruction/mesh_rays.h"
@@ -40,7 +39,6 @@ const std::vector<KnobBinding<PicKnobs>>& picKnobTable() {
 
 namespace {
 
-constexpr int kMaxObjects = 16;
 
 int chromaOf(const PicKnobs& k) { return k.chromaBands > 0 ? std::min(k.chromaBands, k.bands) : k.bands; }
 size_t cacheFloats(const PicKnobs& k) {
@@ -414,17 +412,7 @@ void PicTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   p.set("uGridResolution", knobs_.grid);
   const capture::Pose& T = frame.camera().T_world_camera;
   setVec3(p, "uCameraPosition", cv::Vec3d(T(0, 3), T(1, 3), T(2, 3)));
-  const auto& objects = frame.objects();
-  for (int k = 0; k < kMaxObjects; ++k) {
-    const std::string at = "[" + std::to_string(k) + "]";
-    float spec = 0, exponent = 0;
-    if (k < static_cast<int>(objects.size())) {
-      spec = objects[static_cast<size_t>(k)].source.material.specular;
-      exponent = phongExponent(objects[static_cast<size_t>(k)].source.material.roughness);
-    }
-    p.set("uSpecular" + at, spec);
-    p.set("uExponent" + at, exponent);
-  }
+  setObjectLobes(p, frame);
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
   gl::checkGlError("PicTechnique::update()");

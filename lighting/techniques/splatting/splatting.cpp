@@ -5,7 +5,6 @@
 
 #include "capture/colour.h"
 #include "gl/error.h"
-#include "lighting/material.h"
 #include "lighting/techniques/registry.h"
 
 namespace mrgi::lighting {
@@ -38,7 +37,6 @@ const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable() {
 
 namespace {
 
-constexpr int kMaxObjects = 16;
 constexpr int kMaxLevels = 14;
 
 int paddedSide(int size) {
@@ -54,20 +52,6 @@ double lightWeight(const SceneLight& l, const Region& region) {
   const double d = cv::norm(region.centre() - l.position);
   const double solid = d > r ? 2.0 * CV_PI * (1.0 - std::sqrt(1.0 - (r / d) * (r / d))) : 4.0 * CV_PI;
   return capture::luminance(l.intensity) * solid;
-}
-
-void setMaterials(const gl::Program& p, const FrameResources& frame) {
-  const auto& objects = frame.objects();
-  for (int k = 0; k < kMaxObjects; ++k) {
-    const std::string at = "[" + std::to_string(k) + "]";
-    float spec = 0, exponent = 0;
-    if (k < static_cast<int>(objects.size())) {
-      spec = objects[static_cast<size_t>(k)].source.material.specular;
-      exponent = phongExponent(objects[static_cast<size_t>(k)].source.material.roughness);
-    }
-    p.set("uSpecular" + at, spec);
-    p.set("uExponent" + at, exponent);
-  }
 }
 
 /// The light and the ambient for splat_texel.glsl: a light's share of the ambient's bounce is 1 / the lights
@@ -173,7 +157,7 @@ void SplattingTechnique::light(const FrameResources& frame, size_t index, gl::Pr
     p.use();
     p.set("uSize", frame.rsmSize());
     p.set("uPadded", padded_);
-    setMaterials(p, frame);
+    setObjectLobes(p, frame);
     setTexelUniforms(p, frame, frame.lights().at(index), ambientShare_);
     aoRadius_ = aoRadius(*frame.region());
     p.set("uAoRadius", aoRadius_);
@@ -227,7 +211,7 @@ void SplattingTechnique::sampleLight(const FrameResources& frame, size_t index, 
   setTexelUniforms(p, frame, l, ambientShare_);
   p.set("uWiden", static_cast<float>(knobs_.widen));
   p.set("uObjectAmbient", real_ && knobs_.surface > 0 ? 0 : 1);
-  setMaterials(p, frame);
+  setObjectLobes(p, frame);
   bindRsms(frame);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, (delta ? deltaPyramid_ : objectPyramid_).id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, (delta ? deltaLights_ : objectLights_).id());
