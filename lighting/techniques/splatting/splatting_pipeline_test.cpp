@@ -37,6 +37,18 @@ std::unique_ptr<SplattingTechnique> runSplat(const LightingPipeline& pipe, int v
   return t;
 }
 
+/// The ambient of the tests that light with one: a uniform part and an SH sky brighter above.
+const cv::Vec3d kSkyUniform(0.3, 0.25, 0.2);
+std::array<cv::Vec3d, 9> skySh() {
+  std::array<cv::Vec3d, 9> sh{};
+  sh[0] = {0.2, 0.2, 0.2}, sh[2] = {0.1, 0.05, 0.0};
+  return sh;
+}
+/// Runs the pipeline from the wall camera with the wall lamp and that ambient.
+void runWithSky(LightingPipeline& pipe) {
+  pipe.setAmbientSh(skySh());
+  pipe.run(wallCamera(), wallLamp(), kSkyUniform, nullptr);
+}
 
 }  // namespace
 
@@ -229,11 +241,9 @@ TEST(GL, SplattingTheAmbientsBounceAndOcclusionJoinEachTexelsFlux) {
   auto ctx = makeContext();
   const TestScene s = makeScene(true, 0.12, {-0.36, 0.0, 0.06});
   LightingPipeline pipe = makePipeline(frameConfig(), s);
-  const cv::Vec3d ambient(0.3, 0.25, 0.2);
-  std::array<cv::Vec3d, 9> sh{};
-  sh[0] = {0.2, 0.2, 0.2}, sh[2] = {0.1, 0.05, 0.0};
-  pipe.setAmbientSh(sh);
-  pipe.run(wallCamera(), wallLamp(), ambient, nullptr);
+  const cv::Vec3d ambient = kSkyUniform;
+  const std::array<cv::Vec3d, 9> sh = skySh();
+  runWithSky(pipe);
   const auto t = runSplat(pipe, 2048, 16.0);
   const RsmTexels rho = pipe.frame().downloadRsm(true), mu = pipe.frame().downloadRsm(false);
   const SceneLight lamp = wallLamp()[0];
@@ -283,11 +293,9 @@ TEST(GL, SplattingSurfaceLightsMatchTheReferenceAndHideTheSky) {
   {
     const TestScene s = makeScene(true, 0.12, {-0.2, 0.0, 0.12});
     LightingPipeline pipe = makePipeline(frameConfig(), s);
-    const cv::Vec3d ambient(0.3, 0.25, 0.2);
-    std::array<cv::Vec3d, 9> sh{};
-    sh[0] = {0.2, 0.2, 0.2}, sh[2] = {0.1, 0.05, 0.0};
-    pipe.setAmbientSh(sh);
-    pipe.run(wallCamera(), wallLamp(), ambient, nullptr);
+    const cv::Vec3d ambient = kSkyUniform;
+    const std::array<cv::Vec3d, 9> sh = skySh();
+    runWithSky(pipe);
     const auto t = runSplat(pipe, 512, 16.0);
     ASSERT_EQ(t->knobs().surface, 256);
     const std::vector<splat::SurfacePoint>& points = t->surfacePoints();
