@@ -210,7 +210,7 @@ int runBruteForce(const BenchOptions& o) {
         records.push_back(r);
       }
   }
-  json out = {{"session", o.session}, {"model", o.model}, {"gl", context->renderer()}, {"records", records}};
+  json out = {{"generated_by", "mrgi bench"}, {"session", o.session}, {"model", o.model}, {"gl", context->renderer()}, {"records", records}};
   if (!o.json.empty()) {
     createParentDirectory(o.json);
     capture::writeFileAtomically(o.json, out.dump(2) + "\n");
@@ -779,7 +779,8 @@ int runSweep(const BenchOptions& o) {
   }
   json sessionInfo = json::array();
   for (const auto& bs : sessions) sessionInfo.push_back(bs.refInfo);
-  json doc = {{"session", o.sessions.size() == 1 ? json(o.sessions.front()) : json(o.sessions)},
+  json doc = {{"generated_by", "mrgi bench"},
+              {"session", o.sessions.size() == 1 ? json(o.sessions.front()) : json(o.sessions)},
               {"scene", first.scene},
               {"frames", first.frames.size()},
               {"gl", context->renderer()},
@@ -843,6 +844,11 @@ Action addBench(CLI::App& app) {
   app.add_option("--repeats", o->repeats, "timing repeats (best is kept)")->check(CLI::PositiveNumber);
   app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl")->check(CLI::IsMember({"osmesa", "egl"}));
   return [o] {
+    // Nothing the user has is replaced: each file named here is new or an earlier output of mrgi bench.
+    checkReplaceable(o->json, "--json", "mrgi bench");
+    checkReplaceable(o->csv, "--csv", "mrgi bench", evaluation::kCsvHeader);
+    checkReplaceable(o->html, "--html", "mrgi bench");
+    checkReplaceable(o->presets, "--presets", "mrgi bench");
     if (o->against == "bruteforce") {
       if (o->technique.empty()) throw std::invalid_argument("--against bruteforce needs --technique");
       o->session = o->sessions.front();

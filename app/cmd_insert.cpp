@@ -159,7 +159,7 @@ int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, j
     cv::Mat shot;
     ui.endFrame(done && !o.screenshot.empty() ? &shot : nullptr);
     if (done) {
-      if (!o.screenshot.empty()) writePng(o.screenshot, shot);
+      if (!o.screenshot.empty()) writePng(o.screenshot, shot, "mrgi insert");
       save();
       break;
     }
@@ -173,6 +173,8 @@ int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, j
 }
 
 int runInsert(const InsertOptions& o) {
+  checkReplaceable(o.preview, "--preview", "mrgi insert");
+  checkReplaceable(o.screenshot, "--screenshot", "mrgi insert");
   auto source = capture::open(o.session);
   if (!source->info().hasRgbd) throw capture::CaptureError(o.session, "has no RGB-D frames");
   const capture::SessionManifest* manifest = source->sessionManifest();
@@ -310,7 +312,7 @@ int runInsert(const InsertOptions& o) {
   if (window) return interactive(o, context, doc, index, savePath, *frames.setup(), frameOptions, *frame, result, snap, report);
   if (!o.preview.empty()) {
     frames.render(*frame, result, compositor, profiler);
-    writePng(o.preview, result.composite);
+    writePng(o.preview, result.composite, "mrgi insert");
     report["preview"] = o.preview;
   }
   saveScene(o.save, doc);

@@ -107,6 +107,7 @@ bool roleCombo(const char* label, std::string& name, bool real) {
 }
 
 int runLive(const LiveOptions& o) {
+  checkReplaceable(o.screenshot, "--screenshot", "mrgi live");
   LiveSource live(o.in);
   const capture::SourceInfo& info = live.source().info();
   const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
@@ -326,7 +327,7 @@ int runLive(const LiveOptions& o) {
     if (done) {
       if (!o.screenshot.empty()) {
         createParentDirectory(o.screenshot);
-        writePng(o.screenshot, shot);
+        writePng(o.screenshot, shot, "mrgi live");
       }
       break;
     }

@@ -93,6 +93,7 @@ struct RoomLightsCliOptions {
 };
 
 int runRoomLights(const RoomLightsCliOptions& o) {
+  checkReplaceable(o.map, "--map", "mrgi room-lights");
   const reconstruction::RoomMesh room = reconstruction::loadRoom(o.room);
   reconstruction::RoomLightOptions ro;
   ro.split.medianCut.count = o.count;
@@ -126,7 +127,7 @@ int runRoomLights(const RoomLightsCliOptions& o) {
                     {"saturated_fraction", l.saturatedFraction},
                     {"over_exposed", l.overExposed},
                     {"coverage", l.coverage}};
-  if (!o.map.empty()) writePng(o.map, runtime::roomLightsImage(l));
+  if (!o.map.empty()) writePng(o.map, runtime::roomLightsImage(l), "mrgi room-lights");
   if (o.json) {
     std::printf("%s\n", out.dump().c_str());
   } else {

@@ -74,7 +74,8 @@ cv::Mat decodeV4l2Buffer(uint32_t fourcc, const uint8_t* data, size_t bytes, int
   return rgb;
 }
 
-void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& c, const std::string& cameraName) {
+void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& c, const std::string& cameraName,
+                             const std::string& comment) {
   auto list = [](std::initializer_list<double> v) {
     std::string s = "[";
     char buf[32];
@@ -85,7 +86,7 @@ void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& 
     return s + "]";
   };
   const auto& K = c.K;
-  std::string y;
+  std::string y = comment.empty() ? std::string() : comment + "\n";
   y += "image_width: " + std::to_string(c.width) + "\n";
   y += "image_height: " + std::to_string(c.height) + "\n";
   y += "camera_name: " + cameraName + "\n";

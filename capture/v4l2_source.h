@@ -19,7 +19,9 @@ FisheyeCalibration readFisheyeCalibration(const std::string& path);
 /// Writes a calibration in the ROS camera_calibration YAML form (image_width/height, camera_matrix,
 /// distortion_model "equidistant", distortion_coefficients, rectification_matrix, projection_matrix),
 /// atomically; readFisheyeCalibration reads it back.
-void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& c, const std::string& cameraName = "fisheye");
+/// `comment`, when given, is written as the file's first line ("# ...").
+void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& c, const std::string& cameraName = "fisheye",
+                             const std::string& comment = {});
 
 class V4l2Source final : public FrameSource {
  public:

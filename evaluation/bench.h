@@ -41,6 +41,8 @@ struct ReportImage {
   cv::Mat rgb;  ///< RGB8
 };
 
+/// The first line of the CSV writeCsv writes (its column names).
+extern const char* const kCsvHeader;
 void writeCsv(const std::string& path, const nlohmann::json& records);
 /// doc: the bench's JSON document (records, presets, reference, renderer).
 void writeHtml(const std::string& path, const nlohmann::json& doc, const std::vector<ReportImage>& images);

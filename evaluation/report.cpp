@@ -114,9 +114,12 @@ json choosePresets(const json& records) {
   return {{"fast", records[fast]}, {"balanced", records[balanced]}, {"accurate", records[accurate]}};
 }
 
+const char* const kCsvHeader =
+    "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_delta_near,rel_error_virtual,ssim,flicker";
+
 void writeCsv(const std::string& path, const json& records) {
   std::ostringstream s;
-  s << "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_delta_near,rel_error_virtual,ssim,flicker\n";
+  s << kCsvHeader << "\n";
   for (const auto& r : records) {
     std::string knobs;
     for (const auto& [k, v] : r["knobs"].items()) knobs += (knobs.empty() ? "" : ";") + k + "=" + v.dump();
@@ -268,7 +271,7 @@ std::string tipOf(const json& r) {
 void writeHtml(const std::string& path, const json& doc, const std::vector<ReportImage>& images) {
   const json& records = doc["records"];
   std::ostringstream h;
-  h << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>mrgi bench</title><style>"
+  h << "<!DOCTYPE html><html><head><meta charset='utf-8'><meta name=\"generator\" content=\"mrgi bench\"><title>mrgi bench</title><style>"
        "body{font-family:sans-serif;max-width:1200px;margin:20px auto}table{border-collapse:collapse;font-size:12px}"
        "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td.l{text-align:left}"
        "figure{display:inline-block;margin:6px}figcaption{font-size:12px}</style></head><body>";

@@ -98,6 +98,15 @@ TEST(Json, DeepNestingIsRefusedInOneLineNotByTheStack) {
   }
 }
 
+TEST(Json, AConstAccessToAMissingKeyThrowsInEveryBuild) {
+  // nlohmann-json's own check is an assert(), gone in release builds: the access read past the map and
+  // crashed only with some heap layouts (a CLI test, once in CI). capture/json_checks.h makes it throw.
+  const nlohmann::json j = nlohmann::json::parse(R"({"frame": {"rsm_size": 128}})");
+  EXPECT_EQ(j["frame"]["rsm_size"], 128);
+  EXPECT_THROW(static_cast<void>(j["lpv"]), std::logic_error);
+  EXPECT_THROW(static_cast<void>(j["frame"]["resolution"]), std::logic_error);
+}
+
 TEST(GroundTruth, SessionsExposeItWithoutKnowingTheSourceType) {
   const std::unique_ptr<FrameSource> s = open(std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-hdr");
   const SessionManifest* m = s->sessionManifest();
