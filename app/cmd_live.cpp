@@ -166,6 +166,7 @@ int runLive(const LiveOptions& o) {
   fo.progress = precomputeProgress();
   if (o.fuseRoom) fo.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds of the pipeline
   fo.fuseRefresh = o.fuseRefresh;
+  fo.techniqueStats = false;  // the window shows none: nothing of them is read back
   std::unique_ptr<FramePipeline> frames;
   auto rebuild = [&] {
     std::optional<LightingSetup> s = base;
@@ -202,6 +203,8 @@ int runLive(const LiveOptions& o) {
   InterruptGuard guard;
   const double period = info.fps > 0 ? 1.0 / info.fps : 0.0;
   auto last = std::chrono::steady_clock::now();
+  gl::Profiler profiler;
+  const auto gpuView = [&] { return views[viewIndex] == Views::kComposite; };
 
   while (!InterruptGuard::interrupted() && ui.beginFrame()) {
     if (needRebuild) {
@@ -220,11 +223,15 @@ int runLive(const LiveOptions& o) {
           recorder->append(*next);
         }
         frame = std::move(next);
-        gl::Profiler profiler;
+        // The composite view without the marker axes shows the compositor's texture as it is: nothing is
+        // read back. Every other view reads what it shows.
+        compositor.setReadback(gpuView() ? compositor::Compositor::Readback::None : compositor::Compositor::Readback::Now);
         const auto t0 = std::chrono::steady_clock::now();
         result = frames->process(*frame, compositor, profiler);
         frameMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        stages = profiler.resolve();
+        // Stage times a frame late, when their GPU timestamps have arrived (the loop never waits for them).
+        profiler.endFrame();
+        for (auto& t : profiler.collect(false)) stages = std::move(t.stages);
         if (frame->fisheye) lastFisheye = frame->fisheye->image;
         ++processed;
         fresh = true;
@@ -234,6 +241,18 @@ int runLive(const LiveOptions& o) {
         paused = ended = true;
       }
     }
+    if (gpuView() && frame) {
+      std::vector<WindowUi::Line> lines;
+      if (axes && result.T_marker_camera) {
+        const auto p = markerAxesPixels(frame->rgbd->colourIntrinsics, *result.T_marker_camera,
+                                        frames->setup() ? frames->setup()->tagSize : 0.1);
+        const cv::Vec3b colours[3] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}};
+        for (int i = 0; i < 3; ++i) lines.push_back({{p[0].x, p[0].y, p[i + 1].x, p[i + 1].y}, colours[i]});
+      }
+      ui.showTexture(compositor.output().id(), compositor.output().width(), compositor.output().height(),
+                     debugViewName(views[viewIndex]), lines);
+    } else {
+    if (frame && result.composite.empty()) result.composite = compositor.readOutput();  // left on the GPU before
     if (fresh || view.empty() || ImGui::IsAnyItemActive()) {
       view = frame ? renderDebugView(views[viewIndex], *frames, result, frame->rgbd->colourIntrinsics, lastFisheye) : cv::Mat();
       if (!view.empty() && views[viewIndex] == Views::kComposite && axes && result.T_marker_camera) {
@@ -242,6 +261,7 @@ int runLive(const LiveOptions& o) {
       }
     }
     ui.showImage(view, std::string(debugViewName(views[viewIndex])) + (view.empty() ? " (nothing to show on this frame)" : ""));
+    }
 
     ui.beginPanel("mrgi live");
     ImGui::Text("%s", live.name().c_str());

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <chrono>
+#include <deque>
 #include <cstdio>
 #include <future>
 #include <mutex>
@@ -160,6 +161,43 @@ int runReplay(const ReplayOptions& o) {
     });
   };
   std::future<Read> ahead = readAhead();
+  // The frame loop never waits for the GPU unless an output asks for it (--dump-delta, --debug): each
+  // composite is read into a pixel buffer and handed to the writer when the read has finished (typically
+  // while the next frame is worked on), and each frame's GPU stage times are taken when its timestamps have
+  // arrived. --debug draws on the composite, so it reads it at once.
+  compositor.setReadback(o.debug ? compositor::Compositor::Readback::Now : compositor::Compositor::Readback::Later);
+  std::deque<std::pair<std::string, Clock::time_point>> awaiting;  // composites drawn, not yet read: file, frame in
+  const auto write = [&](const cv::Mat& composite) {
+    // The frame loop's share of the writing: the wait for a free slot in the writer's queue.
+    auto s = profiler.cpu("write");
+    auto [path, frameStart] = awaiting.front();
+    awaiting.pop_front();
+    writer.push([path, image = composite, v = video ? &*video : nullptr, frameStart, &latency] {
+      writePng(path, image);
+      if (v) v->write(image);
+      latency.add(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frameStart).count());
+    });
+  };
+  const auto timesArrived = [&](std::vector<gl::Profiler::FrameTimes> frames) {
+    for (const auto& [index, times] : frames) {
+      json stages;
+      std::string line;
+      const bool frameOfItsOwn = index < perFrame.size();  // else the writes after the last frame
+      for (const auto& [name, t] : times) {
+        stages[name] = {{"cpu_ms", t.cpuMs}, {"gpu_ms", t.gpuMs}};
+        sums[name].first += t.cpuMs;
+        sums[name].second += t.gpuMs;
+        char buf[64];
+        std::snprintf(buf, sizeof buf, " %s %.1f", name.c_str(), std::max(t.cpuMs, t.gpuMs));
+        line += buf;
+      }
+      if (!frameOfItsOwn) continue;
+      perFrame[index]["stages"] = stages;
+      // Per-stage timings of every frame (ms; the larger of CPU wall and GPU time), when they are known.
+      std::printf("frame %lld/%lld:%s ms\n", static_cast<long long>(index + 1), static_cast<long long>(limit), line.c_str());
+    }
+    std::fflush(stdout);
+  };
   while (limit < 0 || done < limit) {
     if (InterruptGuard::interrupted()) {
       interrupted = true;
@@ -223,37 +261,23 @@ int runReplay(const ReplayOptions& o) {
       if (!context->pollEvents()) break;
     }
     {
-      // The frame loop's share of the writing: the wait for a free slot in the writer's queue.
-      auto s = profiler.cpu("write");
       char name[32];
       std::snprintf(name, sizeof name, "frame_%04lld.png", static_cast<long long>(done));
-      writer.push([path = (fs::path(o.out) / name).string(), image = composite.clone(), v = video ? &*video : nullptr,
-                    frameStart, &latency] {
-        writePng(path, image);
-        if (v) v->write(image);
-        latency.add(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frameStart).count());
-      });
+      awaiting.emplace_back((fs::path(o.out) / name).string(), frameStart);
+      if (!composite.empty()) write(composite.clone());
+      for (const cv::Mat& c : compositor.takeComposites(false)) write(c);
     }
-    json stages;
-    std::string line;
-    for (const auto& [name, t] : profiler.resolve()) {
-      stages[name] = {{"cpu_ms", t.cpuMs}, {"gpu_ms", t.gpuMs}};
-      sums[name].first += t.cpuMs;
-      sums[name].second += t.gpuMs;
-      char buf[64];
-      std::snprintf(buf, sizeof buf, " %s %.1f", name.c_str(), std::max(t.cpuMs, t.gpuMs));
-      line += buf;
-    }
-    json record = {{"frame", done}, {"index", frame->index}, {"t", frame->timestamp}, {"stages", stages}};
+    json record = {{"frame", done}, {"index", frame->index}, {"t", frame->timestamp}, {"stages", json::object()}};
     for (const auto& [k, v] : frameInfo.items()) record[k] = v;
     perFrame.push_back(record);
     ++done;
-    // Per-stage timings of every frame (ms; the larger of CPU wall and GPU time).
-    std::printf("frame %lld/%lld:%s ms\n", static_cast<long long>(done), static_cast<long long>(limit),
-                line.c_str());
-    std::fflush(stdout);
+    profiler.endFrame();
+    timesArrived(profiler.collect(false));
     if (limit > 0) bar(static_cast<double>(done) / static_cast<double>(limit));
   }
+  for (const cv::Mat& c : compositor.takeComposites(true)) write(c);  // the reads still in flight
+  profiler.endFrame();  // the last writes' waits, which are no frame's
+  timesArrived(profiler.collect(true));
   writer.finish();  // every composite is on disk (and in the video) before the summary says so
   if (done == 0 && !interrupted) throw capture::CaptureError(o.source, "no frame could be replayed");
   int videoFrames = 0;

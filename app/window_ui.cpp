@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "gl/glapi.h"
+#include "gl/objects.h"
 
 namespace mrgi::app {
 
@@ -49,15 +50,6 @@ bool WindowUi::beginFrame() {
 }
 
 void WindowUi::showImage(const cv::Mat& image, const std::string& caption) {
-  const ImGuiViewport* vp = ImGui::GetMainViewport();
-  const float viewW = vp->Size.x - kPanelWidth, viewH = vp->Size.y;
-  ImGui::SetNextWindowPos(vp->Pos);
-  ImGui::SetNextWindowSize(ImVec2(viewW, viewH));
-  ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(0, 0));
-  ImGui::PushStyleVar(ImGuiStyleVar_WindowBorderSize, 0.0f);
-  ImGui::Begin("##view", nullptr,
-               ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoBringToFrontOnFocus |
-                   ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoBackground);
   if (!image.empty()) {
     cv::Mat rgba;
     if (image.channels() == 1)
@@ -74,12 +66,33 @@ void WindowUi::showImage(const cv::Mat& image, const std::string& caption) {
     }
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     glTextureSubImage2D(texture_, 0, 0, 0, rgba.cols, rgba.rows, GL_RGBA, GL_UNSIGNED_BYTE, rgba.ptr());
+  }
+  showTexture(image.empty() ? 0 : texture_, image.cols, image.rows, caption);
+}
+
+void WindowUi::showTexture(unsigned texture, int width, int height, const std::string& caption, const std::vector<Line>& lines) {
+  const ImGuiViewport* vp = ImGui::GetMainViewport();
+  const float viewW = vp->Size.x - kPanelWidth, viewH = vp->Size.y;
+  ImGui::SetNextWindowPos(vp->Pos);
+  ImGui::SetNextWindowSize(ImVec2(viewW, viewH));
+  ImGui::PushStyleVar(ImGuiStyleVar_WindowPadding, ImVec2(0, 0));
+  ImGui::PushStyleVar(ImGuiStyleVar_WindowBorderSize, 0.0f);
+  ImGui::Begin("##view", nullptr,
+               ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoBringToFrontOnFocus |
+                   ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoBackground);
+  if (texture && width > 0 && height > 0) {
     // Largest integer zoom that fits (fractional when the image is larger than the view).
-    float zoom = std::min(viewW / static_cast<float>(rgba.cols), (viewH - 24.f) / static_cast<float>(rgba.rows));
+    float zoom = std::min(viewW / static_cast<float>(width), (viewH - 24.f) / static_cast<float>(height));
     if (zoom >= 1.f) zoom = std::floor(zoom);
-    const ImVec2 size(rgba.cols * zoom, rgba.rows * zoom);
+    const ImVec2 size(width * zoom, height * zoom);
     ImGui::SetCursorPos(ImVec2(0, 0));
-    ImGui::Image(reinterpret_cast<ImTextureID>(static_cast<intptr_t>(texture_)), size);
+    const ImVec2 at = ImGui::GetCursorScreenPos();
+    ImGui::Image(reinterpret_cast<ImTextureID>(static_cast<intptr_t>(texture)), size);
+    ImDrawList* draw = ImGui::GetWindowDrawList();
+    for (const Line& l : lines)  // pixel centres at +0.5
+      draw->AddLine(ImVec2(at.x + (l.ends[0] + 0.5f) * zoom, at.y + (l.ends[1] + 0.5f) * zoom),
+                    ImVec2(at.x + (l.ends[2] + 0.5f) * zoom, at.y + (l.ends[3] + 0.5f) * zoom),
+                    IM_COL32(l.rgb[0], l.rgb[1], l.rgb[2], 255), 2.0f);
   }
   ImGui::SetCursorPos(ImVec2(6, viewH - 20));
   ImGui::TextUnformatted(caption.c_str());
@@ -114,6 +127,7 @@ void WindowUi::endFrame(cv::Mat* screenshot) {
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
     glReadBuffer(GL_BACK);
     glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.ptr());
+    gl::countSynchronousReadback();
     cv::flip(rgba, rgba, 0);  // GL rows run bottom-up
     cv::cvtColor(rgba, *screenshot, cv::COLOR_RGBA2RGB);
   }

@@ -26,6 +26,14 @@ class WindowUi {
   bool beginFrame();
   /// Shows an RGB8 (or grey) image in the view area, scaled to fit with its aspect ratio kept.
   void showImage(const cv::Mat& image, const std::string& caption);
+  /// The same for an RGBA texture already on the GPU (row 0 at the top), e.g. the compositor's output: nothing
+  /// goes through the CPU.
+  /// `lines`: segments to draw over it, in the texture's pixels (x0, y0, x1, y1) with their RGB colours.
+  struct Line {
+    cv::Vec4f ends;
+    cv::Vec3b rgb;
+  };
+  void showTexture(unsigned texture, int width, int height, const std::string& caption, const std::vector<Line>& lines = {});
   /// Opens the control panel (ImGui::Begin); close it with endPanel().
   void beginPanel(const std::string& title);
   void endPanel();

@@ -1,6 +1,8 @@
 #include "compositor/compositor.h"
 
+#include <cstring>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -35,6 +37,7 @@ Compositor::Compositor(int width, int height)
       output_(GL_TEXTURE_2D, GL_RGBA8, width, height) {
   background_.setFilter(GL_NEAREST, GL_NEAREST);
   delta_.setFilter(GL_NEAREST, GL_NEAREST);
+  output_.setFilter(GL_LINEAR, GL_NEAREST);  // a view that zooms in (live, present) shows whole pixels
   framebuffer_.attachColour(0, output_);
   framebuffer_.finalise(1);
 }
@@ -82,11 +85,84 @@ cv::Mat Compositor::merge(const cv::Mat& background, const gl::Texture& delta) {
   vao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
 
+  if (readback_ == Readback::None) return {};
+  const GLsizeiptr bytes = static_cast<GLsizeiptr>(width_) * height_ * 4;
+  if (readback_ == Readback::Later) {
+    if (reads_.size() >= 3) {
+      ready_.push_back(finish(reads_.front(), true));
+      reads_.erase(reads_.begin());
+    }
+    Read r;
+    if (spare_.empty()) {
+      r.pixels = gl::Buffer(bytes, nullptr, GL_MAP_READ_BIT);
+    } else {
+      r.pixels = std::move(spare_.back());
+      spare_.pop_back();
+    }
+    glBindBuffer(GL_PIXEL_PACK_BUFFER, r.pixels.id());
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glGetTextureImage(output_.id(), 0, GL_RGBA, GL_UNSIGNED_BYTE, static_cast<GLsizei>(bytes), nullptr);
+    glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+    r.fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+    glFlush();  // the read starts now, not when the next frame's work forces it
+    gl::checkGlError("Compositor::composite() (read into a pixel buffer)");
+    reads_.push_back(std::move(r));
+    return {};
+  }
   cv::Mat out4(height_, width_, CV_8UC4);
-  output_.download(GL_RGBA, GL_UNSIGNED_BYTE, out4.ptr(), static_cast<GLsizei>(out4.total() * 4), 4);
+  output_.download(GL_RGBA, GL_UNSIGNED_BYTE, out4.ptr(), static_cast<GLsizei>(bytes), 4);
   gl::checkGlError("Compositor::composite()");
   cv::Mat out;
   cv::cvtColor(out4, out, cv::COLOR_RGBA2RGB);
+  return out;
+}
+
+Compositor::~Compositor() {
+  for (Read& r : reads_)
+    if (r.fence) glDeleteSync(r.fence);
+}
+
+void Compositor::setReadback(Readback mode) { readback_ = mode; }
+
+cv::Mat Compositor::readOutput() const {
+  cv::Mat out4(height_, width_, CV_8UC4), out;
+  output_.download(GL_RGBA, GL_UNSIGNED_BYTE, out4.ptr(), static_cast<GLsizei>(out4.total() * 4), 4);
+  cv::cvtColor(out4, out, cv::COLOR_RGBA2RGB);
+  return out;
+}
+
+cv::Mat Compositor::finish(Read& r, bool wait) {
+  GLenum state = glClientWaitSync(r.fence, 0, 0);
+  if (state == GL_TIMEOUT_EXPIRED) {
+    if (!wait) return {};
+    gl::countSynchronousReadback();  // the CPU waits for the GPU here
+    state = glClientWaitSync(r.fence, GL_SYNC_FLUSH_COMMANDS_BIT, 10'000'000'000ull);
+  }
+  if (state != GL_ALREADY_SIGNALED && state != GL_CONDITION_SATISFIED)
+    throw gl::GlError("Compositor: a composite's read did not finish (glClientWaitSync " + std::to_string(state) + ")");
+  glDeleteSync(r.fence);
+  r.fence = nullptr;
+  const GLsizeiptr bytes = static_cast<GLsizeiptr>(width_) * height_ * 4;
+  cv::Mat out4(height_, width_, CV_8UC4);
+  const void* mapped = glMapNamedBufferRange(r.pixels.id(), 0, bytes, GL_MAP_READ_BIT);
+  if (!mapped) throw gl::GlError("Compositor: cannot map a composite's pixel buffer");
+  std::memcpy(out4.ptr(), mapped, static_cast<size_t>(bytes));
+  glUnmapNamedBuffer(r.pixels.id());
+  spare_.push_back(std::move(r.pixels));
+  cv::Mat out;
+  cv::cvtColor(out4, out, cv::COLOR_RGBA2RGB);
+  return out;
+}
+
+std::vector<cv::Mat> Compositor::takeComposites(bool wait) {
+  std::vector<cv::Mat> out = std::move(ready_);
+  ready_.clear();
+  while (!reads_.empty()) {
+    cv::Mat m = finish(reads_.front(), wait);
+    if (m.empty()) break;  // still in flight (and so are the later ones)
+    out.push_back(std::move(m));
+    reads_.erase(reads_.begin());
+  }
   return out;
 }
 

@@ -42,6 +42,11 @@ struct AlbedoOptions {
   /// neighbours, and a virtual shadow darkens it less), so it is not the default.
   int fillScale = 1;
   double exposure = 1.0;          ///< an 8-bit colour's linear value per unit radiance (RgbdFrame::exposure)
+  /// Evaluate every stride-th pixel of every stride-th row only (pixels (s x, s y)): the result is that grid,
+  /// ceil(W / s) x ceil(H / s), measured on the decimated geometry (its shadow marches step over the grid)
+  /// and filled at its resolution. A depth mesh over every s-th pixel reads nothing else: s^2 fewer pixels and
+  /// rejected pixels to fill.
+  int stride = 1;
 };
 
 struct AlbedoResult {
@@ -50,7 +55,7 @@ struct AlbedoResult {
 };
 
 /// colour: CV_8UC3 sRGB (RGB order) or CV_32FC3 linear; positions/normals: CV_32FC3 camera frame from
-/// backProject/computeNormals (zero = unknown).
+/// backProject/computeNormals (zero = unknown). The result has the input's size (options.stride 1) or the grid's.
 AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, const cv::Mat& normals,
                             const capture::Intrinsics& k, const AlbedoLights& lights, const AlbedoOptions& options = {});
 

@@ -167,6 +167,18 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
   return {};
 }
 
+std::array<cv::Point2f, 4> markerAxesPixels(const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length) {
+  const capture::Pose T = capture::inversePose(T_marker_camera);
+  std::array<cv::Point2f, 4> out;
+  const cv::Vec3d ends[4] = {{0, 0, 0}, {length, 0, 0}, {0, length, 0}, {0, 0, length}};
+  for (int i = 0; i < 4; ++i) {
+    const cv::Vec3d p = capture::transformPoint(T, ends[i]);
+    const double z = std::max(p[2], 1e-6);
+    out[static_cast<size_t>(i)] = cv::Point2f(static_cast<float>(k.fx * p[0] / z + k.cx), static_cast<float>(k.fy * p[1] / z + k.cy));
+  }
+  return out;
+}
+
 void drawMarkerAxes(cv::Mat& rgb, const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length) {
   const capture::Pose T = capture::inversePose(T_marker_camera);
   cv::Mat R(3, 3, CV_64F), rvec;

@@ -1,6 +1,7 @@
 #pragma once
 // Debug views of one processed frame, as RGB8 images: what `mrgi replay --debug` writes and what the live
 // window shows next to the composite.
+#include <array>
 #include <string>
 #include <vector>
 
@@ -51,5 +52,8 @@ cv::Mat roomSeenFrom(const reconstruction::MeshRays& rays, const reconstruction:
 
 /// Draws the marker's axes (x red, y green, z blue, `length` metres) onto an RGB8 camera image.
 void drawMarkerAxes(cv::Mat& rgb, const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length);
+/// The same axes as pixel positions: the marker's origin, then the ends of its x, y and z axes (drawn red,
+/// green, blue), for drawing them over an image that stays on the GPU.
+std::array<cv::Point2f, 4> markerAxesPixels(const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length);
 
 }  // namespace mrgi::runtime

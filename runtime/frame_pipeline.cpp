@@ -360,9 +360,17 @@ RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameR
     auto s = profiler.cpu("albedo");
     reconstruction::AlbedoOptions ao;
     ao.exposure = frame.rgbd->exposure;
+    ao.stride = options_.meshStride;  // the mesh's vertices are the only pixels read
     albedo = reconstruction::estimateAlbedo(frame.rgbd->colour, r.positions, r.normals, frame.rgbd->colourIntrinsics,
                                             albedoLights(T_camera_marker), ao)
                  .albedo;
+    if (ao.stride > 1) {
+      // Back to the frame's pixels for the mesh: vertex pixel (s x, s y) reads grid pixel (x, y).
+      cv::Mat full(r.positions.size(), CV_32FC3);
+      for (int y = 0; y < full.rows; ++y)
+        for (int x = 0; x < full.cols; ++x) full.at<cv::Vec3f>(y, x) = albedo.at<cv::Vec3f>(y / ao.stride, x / ao.stride);
+      albedo = full;
+    }
   }
   {
     auto s = profiler.cpu("mesh");
@@ -529,7 +537,8 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   pipeline_->run(view, setup_->lights, setup_->ambient, &profiler);
   for (const std::string& stage : pipeline_->skippedStages()) r.info["skipped"].push_back(stage);
   // Each technique's facts of this frame (counts, flicker), under its name.
-  if (auto stats = pipeline_->stats(); !stats.empty()) r.info["techniques"] = std::move(stats);
+  if (options_.techniqueStats)
+    if (auto stats = pipeline_->stats(); !stats.empty()) r.info["techniques"] = std::move(stats);
   compositor.setExposure(rgbd.exposure);
   r.composite = compositor.composite(rgbd.colour, pipeline_->shade(), &profiler);
   r.lit = true;

@@ -75,6 +75,10 @@ struct FrameOptions {
   /// from the room and the room's VALs follow). Null: none.
   std::shared_ptr<reconstruction::RoomModel> fuse;
   int fuseRefresh = 30;
+  /// Each technique's facts of a frame (counts, mean irradiance, flicker) in FrameResult::info["techniques"].
+  /// Some are read back from the GPU: a frame loop that writes and shows none turns them off. (Whether the
+  /// composite is read back is the compositor's setting: compositor::Compositor::setReadback.)
+  bool techniqueStats = true;
   /// Progress of a technique's long precompute (lighting::PipelineConfig::progress); may be empty.
   std::function<void(const std::string& what, double fraction)> progress;
   /// Where techniques keep their precomputed data between runs (a saved room's folder); empty: nowhere.

@@ -493,6 +493,7 @@ ShadowTexels FrameResources::downloadShadowTexels(size_t i) const {
   auto layer = [&](const gl::Texture& t) {
     cv::Mat m(t.height(), t.width(), CV_32FC4);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    gl::countSynchronousReadback();
     glGetTextureSubImage(t.id(), 0, 0, 0, static_cast<GLint>(i), t.width(), t.height(), 1, GL_RGBA, GL_FLOAT,
                          static_cast<GLsizei>(m.total() * m.elemSize()), m.ptr());
     return m;

@@ -28,7 +28,15 @@ void Buffer::upload(GLintptr offset, GLsizeiptr bytes, const void* data) {
   glNamedBufferSubData(handle_.id(), offset, bytes, data);
 }
 
+namespace {
+thread_local uint64_t gReadbacks = 0;
+}  // namespace
+
+uint64_t synchronousReadbacks() { return gReadbacks; }
+void countSynchronousReadback() { ++gReadbacks; }
+
 void Buffer::download(GLintptr offset, GLsizeiptr bytes, void* out) const {
+  countSynchronousReadback();
   glGetNamedBufferSubData(handle_.id(), offset, bytes, out);
 }
 
@@ -73,6 +81,7 @@ void Texture::upload(GLenum format, GLenum type, const void* data, int rowAlignm
 }
 
 void Texture::download(GLenum format, GLenum type, void* out, GLsizei bufSize, int rowAlignment) const {
+  countSynchronousReadback();
   glPixelStorei(GL_PACK_ALIGNMENT, rowAlignment);
   glGetTextureImage(handle_.id(), 0, format, type, bufSize, out);
 }

@@ -54,6 +54,13 @@ using QueryHandle = Handle<traits::Query>;
 using ShaderHandle = Handle<traits::Shader>;
 using ProgramHandle = Handle<traits::Program>;
 
+/// Synchronous GPU -> CPU transfers so far on this thread's contexts: every Buffer/Texture download, pixel
+/// read into client memory and blocking query read counts one. The CPU waits for the GPU at each, so the
+/// frame path's count is held at zero by a test where no output needs a result on the CPU.
+uint64_t synchronousReadbacks();
+/// Counts one (for code that calls GL's read functions itself).
+void countSynchronousReadback();
+
 /// A buffer object with immutable storage (glNamedBufferStorage).
 class Buffer {
  public:

@@ -1,5 +1,7 @@
 #include "gl/profiler.h"
 
+#include <algorithm>
+
 namespace mrgi::gl {
 namespace {
 QueryHandle timestampNow() {
@@ -24,9 +26,9 @@ Profiler::Scope::~Scope() {
   e.cpuEnd = std::chrono::steady_clock::now();
 }
 
-std::map<std::string, StageTime> Profiler::resolve() {
+std::map<std::string, StageTime> Profiler::times(const std::vector<Pending>& stages) {
   std::map<std::string, StageTime> out;
-  for (Pending& e : pending_) {
+  for (const Pending& e : stages) {
     StageTime& t = out[e.name];
     t.cpuMs += std::chrono::duration<double, std::milli>(e.cpuEnd - e.cpuBegin).count();
     if (e.gpu && e.begin && e.end) {
@@ -36,7 +38,40 @@ std::map<std::string, StageTime> Profiler::resolve() {
       t.gpuMs += en > b ? static_cast<double>(en - b) * 1e-6 : 0.0;
     }
   }
+  return out;
+}
+
+std::map<std::string, StageTime> Profiler::resolve() {
+  if (std::any_of(pending_.begin(), pending_.end(), [](const Pending& e) { return e.gpu; })) countSynchronousReadback();
+  std::map<std::string, StageTime> out = times(pending_);
   pending_.clear();
+  return out;
+}
+
+uint64_t Profiler::endFrame() {
+  ended_.emplace_back(frames_, std::move(pending_));
+  pending_.clear();
+  return frames_++;
+}
+
+std::vector<Profiler::FrameTimes> Profiler::collect(bool wait) {
+  const auto arrived = [](const Pending& e) {
+    if (!e.gpu || !e.begin || !e.end) return true;
+    GLuint64 available = 0;
+    glGetQueryObjectui64v(e.end.id(), GL_QUERY_RESULT_AVAILABLE, &available);
+    if (available) glGetQueryObjectui64v(e.begin.id(), GL_QUERY_RESULT_AVAILABLE, &available);
+    return available != 0;
+  };
+  std::vector<FrameTimes> out;
+  size_t done = 0;
+  for (; done < ended_.size(); ++done) {
+    const auto& [frame, stages] = ended_[done];
+    const bool ready = std::all_of(stages.begin(), stages.end(), arrived);
+    if (!ready && !wait) break;  // timestamps arrive in order: later frames are not ready either
+    if (!ready) countSynchronousReadback();
+    out.push_back({frame, times(stages)});
+  }
+  ended_.erase(ended_.begin(), ended_.begin() + static_cast<std::ptrdiff_t>(done));
   return out;
 }
 

@@ -41,8 +41,19 @@ class Profiler {
   Scope cpu(std::string name) { return Scope(*this, std::move(name), false); }
 
   /// Waits for this frame's queries and returns the stage times (summed over repeated names), then
-  /// starts a new frame. The map is ordered by name.
+  /// starts a new frame. The map is ordered by name. Waiting is a synchronous readback.
   std::map<std::string, StageTime> resolve();
+
+  /// The frame loop's way, which never waits for the GPU: ends this frame (its number is returned, from 0)
+  /// and keeps its stages until their timestamps have arrived; collect() hands over the ended frames whose
+  /// timestamps all have, oldest first (typically the previous frame's, a frame late), or with wait = true
+  /// every ended frame (at the end of a run: a synchronous readback).
+  struct FrameTimes {
+    uint64_t frame = 0;
+    std::map<std::string, StageTime> stages;
+  };
+  uint64_t endFrame();
+  std::vector<FrameTimes> collect(bool wait);
 
  private:
   struct Pending {
@@ -51,7 +62,10 @@ class Profiler {
     std::chrono::steady_clock::time_point cpuBegin, cpuEnd;
     QueryHandle begin, end;
   };
+  static std::map<std::string, StageTime> times(const std::vector<Pending>& stages);
   std::vector<Pending> pending_;
+  std::vector<std::pair<uint64_t, std::vector<Pending>>> ended_;  ///< frames waiting for their timestamps
+  uint64_t frames_ = 0;
   bool finish_ = false;
 };
 

@@ -235,18 +235,7 @@ void KinectValTechnique::update(const FrameResources& frame, gl::Profiler* profi
   // moving camera alone changes nothing), relative to its mean.
   runStats_ = {{"real_vals", stats_.realVals}, {"virtual_vals", stats_.virtualVals}, {"receivers", stats_.receivers},
                {"shadowed_vals", stats_.shadowedVals}};
-  std::vector<cv::Vec3f> E, S;
-  gpu_.downloadSums(E, S);
-  double sum = 0;
-  for (const auto& e : E) sum += capture::luminance(cv::Vec3d(e));
-  runStats_["mean_irradiance"] = E.empty() ? 0.0 : sum / static_cast<double>(E.size());
-  if (!stats_.bruteForce && !prevE_.empty() && prevE_.size() == E.size() && sum > 0) {
-    double change = 0;
-    for (size_t i = 0; i < E.size(); ++i)
-      change += std::abs(capture::luminance(cv::Vec3d(E[i])) - capture::luminance(cv::Vec3d(prevE_[i])));
-    runStats_["flicker"] = change / sum;
-  }
-  prevE_ = stats_.bruteForce ? std::vector<cv::Vec3f>() : E;
+  ++runs_;
 }
 
 void KinectValTechnique::bruteForce(const FrameResources& frame, gl::Profiler* profiler) {
@@ -298,7 +287,26 @@ void KinectValTechnique::downloadValSums(std::vector<cv::Vec3f>& E, std::vector<
   gpu_.downloadSums(E, S);
 }
 
-nlohmann::json KinectValTechnique::stats() const { return runStats_; }
+nlohmann::json KinectValTechnique::stats() const {
+  if (statsRun_ != runs_) {
+    statsRun_ = runs_;
+    std::vector<cv::Vec3f> E, S;
+    gpu_.downloadSums(E, S);
+    double sum = 0;
+    for (const auto& e : E) sum += capture::luminance(cv::Vec3d(e));
+    irradianceStats_ = {{"mean_irradiance", E.empty() ? 0.0 : sum / static_cast<double>(E.size())}};
+    if (!stats_.bruteForce && !prevE_.empty() && prevE_.size() == E.size() && sum > 0) {
+      double change = 0;
+      for (size_t i = 0; i < E.size(); ++i)
+        change += std::abs(capture::luminance(cv::Vec3d(E[i])) - capture::luminance(cv::Vec3d(prevE_[i])));
+      irradianceStats_["flicker"] = change / sum;
+    }
+    prevE_ = stats_.bruteForce ? std::vector<cv::Vec3f>() : E;
+  }
+  nlohmann::json out = runStats_;
+  if (runs_ > 0) out.update(irradianceStats_);
+  return out;
+}
 
 cv::Mat KinectValTechnique::debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const {
   if (view == "val_irradiance") {

@@ -89,8 +89,13 @@ class KinectValTechnique final : public Technique {
   std::vector<ShadowMaps> shadowMaps_;
   Stats stats_;
   std::vector<cv::Matx44d> transforms_;  ///< object placements of the last run
-  std::vector<cv::Vec3f> prevE_;  ///< the previous run's sparse-point irradiance (flicker)
+  /// The facts of a run (counts now; the irradiance and flicker, which need the sums on the CPU, when stats()
+  /// is first asked after the run: nothing is read back on a run nobody asks about).
   nlohmann::json runStats_ = nlohmann::json::object();
+  uint64_t runs_ = 0;
+  mutable uint64_t statsRun_ = 0;
+  mutable nlohmann::json irradianceStats_ = nlohmann::json::object();
+  mutable std::vector<cv::Vec3f> prevE_;  ///< the sparse points' irradiance when stats() was last asked (flicker)
 };
 
 }  // namespace mrgi::lighting
