@@ -1,6 +1,8 @@
 #include <algorithm>
 #include <chrono>
 #include <deque>
+#include <exception>
+#include <functional>
 #include <cstdio>
 #include <future>
 #include <mutex>
@@ -178,6 +180,19 @@ int runReplay(const ReplayOptions& o) {
       latency.add(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frameStart).count());
     });
   };
+  // Leaving through an error (a damaged frame, a full disk), the composites still being read are written
+  // too (the writer, declared before, then finishes its queue): every frame before the error is on disk.
+  struct WriteInFlight {
+    std::function<void()> write;
+    ~WriteInFlight() {
+      if (std::uncaught_exceptions() > 0) try {
+          write();
+        } catch (...) {
+        }
+    }
+  } inFlight{[&] {
+    for (const cv::Mat& c : compositor.takeComposites(true)) write(c);
+  }};
   const auto timesArrived = [&](std::vector<gl::Profiler::FrameTimes> frames) {
     for (const auto& [index, times] : frames) {
       json stages;

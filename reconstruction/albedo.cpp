@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
@@ -85,25 +84,7 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
   CV_Assert(colour.size() == positions.size() && normals.size() == positions.size());
   CV_Assert(positions.type() == CV_32FC3 && normals.type() == CV_32FC3);
   CV_Assert(colour.type() == CV_8UC3 || colour.type() == CV_32FC3);
-  CV_Assert(o.exposure > 0 && o.stride >= 1);
-  if (o.stride > 1) {
-    // The grid of pixels (s x, s y) as an image of its own, with the camera model that maps to it.
-    const int s = o.stride;
-    const cv::Size grid((colour.cols + s - 1) / s, (colour.rows + s - 1) / s);
-    const auto decimate = [&](const cv::Mat& m) {
-      cv::Mat d(grid, m.type());
-      const size_t bytes = m.elemSize();
-      for (int y = 0; y < grid.height; ++y)
-        for (int x = 0; x < grid.width; ++x) std::memcpy(d.ptr(y, x), m.ptr(y * s, x * s), bytes);
-      return d;
-    };
-    capture::Intrinsics kg = k;
-    kg.fx /= s, kg.fy /= s, kg.cx /= s, kg.cy /= s;
-    kg.width = grid.width, kg.height = grid.height;
-    AlbedoOptions og = o;
-    og.stride = 1;
-    return estimateAlbedo(decimate(colour), decimate(positions), decimate(normals), kg, lights, og);
-  }
+  CV_Assert(o.exposure > 0);
   const cv::Mat linear = colour.type() == CV_8UC3 ? cv::Mat(capture::decodeSrgb(colour) * (1.0 / o.exposure)) : colour;
   AlbedoResult out;
   out.albedo.create(colour.size(), CV_32FC3);

@@ -38,15 +38,10 @@ struct AlbedoOptions {
   /// The fill's resolution. 1 (default): Navier-Stokes inpainting at full resolution. > 1: rejected pixels take
   /// the bilinear upsampling of the measured pixels' means per fillScale x fillScale block, the blocks without
   /// enough measured pixels inpainted at that resolution: 30x cheaper on a frame with large rejected regions
-  /// (BM_Albedo), but it mixes across sharp albedo edges (a clipped white tag square takes in its black
-  /// neighbours, and a virtual shadow darkens it less), so it is not the default.
+  /// (BM_Albedo) at 4, but 4 x 4 blocks mix across sharp albedo edges (a clipped white tag square takes in its
+  /// black neighbours, and a virtual shadow darkens it less). The frame pipeline fills from 2 x 2 blocks.
   int fillScale = 1;
   double exposure = 1.0;          ///< an 8-bit colour's linear value per unit radiance (RgbdFrame::exposure)
-  /// Evaluate every stride-th pixel of every stride-th row only (pixels (s x, s y)): the result is that grid,
-  /// ceil(W / s) x ceil(H / s), measured on the decimated geometry (its shadow marches step over the grid)
-  /// and filled at its resolution. A depth mesh over every s-th pixel reads nothing else: s^2 fewer pixels and
-  /// rejected pixels to fill.
-  int stride = 1;
 };
 
 struct AlbedoResult {
@@ -55,7 +50,7 @@ struct AlbedoResult {
 };
 
 /// colour: CV_8UC3 sRGB (RGB order) or CV_32FC3 linear; positions/normals: CV_32FC3 camera frame from
-/// backProject/computeNormals (zero = unknown). The result has the input's size (options.stride 1) or the grid's.
+/// backProject/computeNormals (zero = unknown).
 AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, const cv::Mat& normals,
                             const capture::Intrinsics& k, const AlbedoLights& lights, const AlbedoOptions& options = {});
 

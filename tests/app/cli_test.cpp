@@ -994,6 +994,9 @@ TEST(Cli, CorruptPngFramesAreOneLineWithNoLibraryMessages) {
   std::string crc = original;
   crc[crc.size() / 2] = static_cast<char>(crc[crc.size() / 2] ^ 0x55);  // inside IDAT: its CRC no longer matches
   expectOneLineError(replayWith(crc), png.string());
+  // The frame before the damaged one is on disk, complete (its composite was still being read when the
+  // damaged frame came).
+  EXPECT_EQ(cv::imread((dir / "out" / "frame_0000.png").string()).cols, 160);
   expectOneLineError(replayWith(original.substr(0, original.size() / 2)), png.string());
   std::string huge = original;  // IHDR width and height (big-endian at bytes 16 and 20) = 100000
   for (int at : {16, 20}) {
