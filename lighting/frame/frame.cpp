@@ -130,6 +130,11 @@ void setVec3(const gl::Program& p, const std::string& name, const cv::Vec3d& v) 
   p.set(name, static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
 }
 
+void setAmbientUniforms(const gl::Program& p, const FrameResources& frame) {
+  setVec3(p, "uAmbient", frame.ambient());
+  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+}
+
 void setObjectLobes(const gl::Program& p, const FrameResources& frame) {
   const auto& objects = frame.objects();
   for (int k = 0; k < kShaderMaxObjects; ++k) {

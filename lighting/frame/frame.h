@@ -292,5 +292,7 @@ cv::Mat download4(const gl::Texture& t);
 /// MAX_OBJECTS): object k's material specular and Phong exponent, 0 beyond the frame's objects.
 constexpr int kShaderMaxObjects = 16;
 void setObjectLobes(const gl::Program& p, const FrameResources& frame);
+/// The frame's ambient (uniform radiance and its SH part) as a pass's uAmbient and uAmbientSh[9].
+void setAmbientUniforms(const gl::Program& p, const FrameResources& frame);
 
 }  // namespace mrgi::lighting

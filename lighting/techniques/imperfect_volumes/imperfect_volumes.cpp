@@ -173,15 +173,7 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
                                             {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       out_(setup.frame->width(), setup.frame->height()) {}
 
-namespace {
 
-/// The frame's ambient (uniform radiance and its SH part) as the passes' uAmbient and uAmbientSh.
-void setAmbient(const gl::Program& p, const FrameResources& frame) {
-  setVec3(p, "uAmbient", frame.ambient());
-  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
-}
-
-}  // namespace
 
 void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler* profiler) {
   const Region& region = *frame.region();
@@ -244,7 +236,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     const gl::Program& p = injectProgram_;
     p.use();
     setLightUniforms(p, frame.lights(), frame.lightViews());
-    setAmbient(p, frame);
+    setAmbientUniforms(p, frame);
     p.set("uVoxelCount", static_cast<int>(count));
     setVec3(p, "uGridOrigin", g.origin);
     p.set("uVoxel", static_cast<float>(g.voxel));
@@ -274,7 +266,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     p.set("uNeededCount", static_cast<int>(neededCount_));
     p.set("uRays", knobs_.rays);
     p.set("uRange", static_cast<float>(knobs_.range));
-    setAmbient(p, frame);
+    setAmbientUniforms(p, frame);
     hidden_.clear();
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
@@ -315,7 +307,7 @@ void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
   common(p);
   p.set("uRays", knobs_.rays);
   p.set("uRange", static_cast<float>(knobs_.range));
-  setAmbient(p, frame);
+  setAmbientUniforms(p, frame);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
@@ -370,7 +362,7 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   p.set("uResolution", g.resolution);
   p.set("uReal", real_ ? 1 : 0);
   p.set("uVirtual", virtual_ ? 1 : 0);
-  setAmbient(p, frame);
+  setAmbientUniforms(p, frame);
   frame.gPosition().bind(0);
   frame.gNormal().bind(1);
   frame.gAlbedo().bind(2);

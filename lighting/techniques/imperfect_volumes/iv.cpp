@@ -110,16 +110,6 @@ Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
   return v;
 }
 
-cv::Vec3f Ambient::radiance(const cv::Vec3f& w) const {
-  double y[9];
-  sh::evaluate(cv::Vec3d(w), 3, y);
-  cv::Vec3f L = uniform;
-  for (int i = 0; i < 9; ++i) L += static_cast<float>(y[i]) * sh[static_cast<size_t>(i)];
-  // Three bands of a sky seen from above ring below the horizon; radiance is never negative.
-  for (int c = 0; c < 3; ++c) L[c] = std::max(L[c], 0.0f);
-  return L;
-}
-
 cv::Vec3f unoccludedAmbient(const Ambient& ambient, const cv::Vec3f& n) {
   // As the shading pass: pi * uniform + the SH part's clamped-cosine irradiance.
   std::array<cv::Vec3d, 9> sh;

@@ -33,6 +33,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "lighting/ambient.h"
+
 namespace mrgi::lighting::iv {
 
 /// Axis-aligned in the lighting world; voxel (i, j, k) spans origin + voxel * [i, i+1] x [j, j+1] x [k, k+1].
@@ -85,13 +87,9 @@ struct Volume {
 /// Marks each point's voxel (points outside the grid are dropped) and accumulates its light.
 Volume voxelise(const Grid& grid, const std::vector<Point>& points);
 
-/// Radiance of direction w (towards the scene) that the volume does not hold: uniform + SH bands 0-2, each
-/// channel clamped at 0.
-struct Ambient {
-  cv::Vec3f uniform{0, 0, 0};
-  std::array<cv::Vec3f, 9> sh{};  ///< lighting/sh.h convention; zero = none
-  cv::Vec3f radiance(const cv::Vec3f& w) const;
-};
+/// The radiance the volume does not hold: the shading pass's ambient (lighting/ambient.h; radiance(w) of
+/// direction w towards the scene).
+using Ambient = lighting::Ambient;
 
 struct Options {
   int rays = 64;        ///< per voxel, 1..1024

@@ -435,20 +435,6 @@ std::vector<cv::Vec3f> bounceIrradiance(const std::vector<Surfel>& surfels, cons
   return out;
 }
 
-std::array<cv::Vec3f, 9> Ambient::coefficients() const {
-  std::array<cv::Vec3f, 9> a = sh;
-  a[0] += uniform * static_cast<float>(1.0 / sh::kY00);
-  return a;
-}
-
-cv::Vec3f Ambient::irradiance(const cv::Vec3f& n) const {
-  std::array<cv::Vec3d, 9> s;
-  for (size_t k = 0; k < 9; ++k) s[k] = cv::Vec3d(sh[k]);
-  cv::Vec3f e = static_cast<float>(CV_PI) * uniform + cv::Vec3f(reconstruction::ambientShIrradiance(s, cv::Vec3d(n)));
-  for (int c = 0; c < 3; ++c) e[c] = std::isfinite(e[c]) ? std::max(e[c], 0.0f) : 0.0f;
-  return e;
-}
-
 std::vector<uint8_t> surfelVisibility(const std::vector<Surfel>& surfels, const std::vector<SceneLight>& lights,
                                       const reconstruction::MeshRays& rays) {
   const size_t L = lights.size();

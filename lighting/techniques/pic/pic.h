@@ -17,6 +17,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "lighting/ambient.h"
 #include "lighting/scene_file.h"
 
 namespace mrgi::reconstruction {
@@ -137,15 +138,8 @@ Receivers bounceReceivers(const Hierarchy& hierarchy, int count);
 std::vector<cv::Vec3f> bounceIrradiance(const std::vector<Surfel>& surfels, const Receivers& receivers,
                                         const std::vector<cv::Vec3f>& receiverSh, int bands);
 
-/// The ambient as the shading pass has it: a uniform radiance and 9 SH coefficients (sh.h convention).
-struct Ambient {
-  cv::Vec3f uniform{0, 0, 0};
-  std::array<cv::Vec3f, 9> sh{};
-  /// The 9 coefficients of the whole ambient (the uniform part on y_00).
-  std::array<cv::Vec3f, 9> coefficients() const;
-  /// Irradiance about n, as the shading pass: pi uniform + the SH part's clamped cosine, clamped at 0.
-  cv::Vec3f irradiance(const cv::Vec3f& n) const;
-};
+/// The ambient as the shading pass has it (lighting/ambient.h).
+using Ambient = lighting::Ambient;
 
 /// Per surfel and light (surfel-major): 1 where nothing of `rays` lies between the surfel (lifted 1 mm along
 /// its normal) and the light.

@@ -277,8 +277,7 @@ void PicTechnique::lightAndPull(const FrameResources& frame, bool bounce) {
     setVec3(p, name("uLightPower"), l.type == LightType::Directional ? l.irradiance : l.intensity);
     p.set(name("uSpotCos"), static_cast<float>(l.type == LightType::Spot ? l.spotCos() : -2.0));
   }
-  setVec3(p, "uAmbient", frame.ambient());
-  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+  setAmbientUniforms(p, frame);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, surfelBuffer_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, visibility_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, fluxF_.id());
