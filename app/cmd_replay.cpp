@@ -172,7 +172,8 @@ int runReplay(const ReplayOptions& o) {
   const auto write = [&](const cv::Mat& composite) {
     // The frame loop's share of the writing: the wait for a free slot in the writer's queue.
     auto s = profiler.cpu("write");
-    auto [path, frameStart] = awaiting.front();
+    const std::string path = awaiting.front().first;  // not a structured binding: clang 15 cannot capture one
+    const Clock::time_point frameStart = awaiting.front().second;
     awaiting.pop_front();
     writer.push([path, image = composite, v = video ? &*video : nullptr, frameStart, &latency] {
       writePng(path, image);
