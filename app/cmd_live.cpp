@@ -223,8 +223,8 @@ int runLive(const LiveOptions& o) {
           recorder->append(*next);
         }
         frame = std::move(next);
-        // The composite view without the marker axes shows the compositor's texture as it is: nothing is
-        // read back. Every other view reads what it shows.
+        // The composite view shows the compositor's texture as it is (the marker axes drawn over it): nothing
+        // is read back. Every other view reads what it shows.
         compositor.setReadback(gpuView() ? compositor::Compositor::Readback::None : compositor::Compositor::Readback::Now);
         const auto t0 = std::chrono::steady_clock::now();
         result = frames->process(*frame, compositor, profiler);
@@ -252,15 +252,10 @@ int runLive(const LiveOptions& o) {
       ui.showTexture(compositor.output().id(), compositor.output().width(), compositor.output().height(),
                      debugViewName(views[viewIndex]), lines);
     } else {
-    if (frame && result.composite.empty()) result.composite = compositor.readOutput();  // left on the GPU before
-    if (fresh || view.empty() || ImGui::IsAnyItemActive()) {
-      view = frame ? renderDebugView(views[viewIndex], *frames, result, frame->rgbd->colourIntrinsics, lastFisheye) : cv::Mat();
-      if (!view.empty() && views[viewIndex] == Views::kComposite && axes && result.T_marker_camera) {
-        view = view.clone();
-        drawMarkerAxes(view, frame->rgbd->colourIntrinsics, *result.T_marker_camera, frames->setup() ? frames->setup()->tagSize : 0.1);
-      }
-    }
-    ui.showImage(view, std::string(debugViewName(views[viewIndex])) + (view.empty() ? " (nothing to show on this frame)" : ""));
+      if (frame && result.composite.empty()) result.composite = compositor.readOutput();  // left on the GPU before
+      if (fresh || view.empty() || ImGui::IsAnyItemActive())
+        view = frame ? renderDebugView(views[viewIndex], *frames, result, frame->rgbd->colourIntrinsics, lastFisheye) : cv::Mat();
+      ui.showImage(view, std::string(debugViewName(views[viewIndex])) + (view.empty() ? " (nothing to show on this frame)" : ""));
     }
 
     ui.beginPanel("mrgi live");

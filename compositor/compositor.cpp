@@ -109,11 +109,8 @@ cv::Mat Compositor::merge(const cv::Mat& background, const gl::Texture& delta) {
     reads_.push_back(std::move(r));
     return {};
   }
-  cv::Mat out4(height_, width_, CV_8UC4);
-  output_.download(GL_RGBA, GL_UNSIGNED_BYTE, out4.ptr(), static_cast<GLsizei>(bytes), 4);
+  cv::Mat out = readOutput();
   gl::checkGlError("Compositor::composite()");
-  cv::Mat out;
-  cv::cvtColor(out4, out, cv::COLOR_RGBA2RGB);
   return out;
 }
 
