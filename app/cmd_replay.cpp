@@ -75,6 +75,7 @@ struct ReplayOptions {
   std::string pose = "marker";
   int meshStride = 2;
   bool recomputeAll = false;
+  bool sequential = false;  ///< no frame prepared on the worker while GL works on the one before
   std::string mp4 = "replay.mp4";  ///< inside --out; empty: none
   double fps = 0;                  ///< 0: from the source's timestamps
   std::string room;                ///< mrgi room output: the real scene of the lighting
@@ -152,17 +153,32 @@ int runReplay(const ReplayOptions& o) {
   std::map<std::string, int64_t> skipped;                 // stage -> frames it was skipped on
   int64_t done = 0, posed = 0;
   const auto start = std::chrono::steady_clock::now();
-  // Frame n + 1 is read and decoded on a worker thread while frame n is worked on (only a frame the loop will
-  // take: a damaged frame past --frames is never touched). Its read error surfaces when the loop takes it.
+  // Frame n + 1 is read, decoded and prepared (marker, depth filter, normals, albedo, real mesh and VALs: the
+  // CPU half of the frame pipeline) on a worker thread while GL works on frame n; only a frame the loop will
+  // take (a damaged frame past --frames is never touched). Its error surfaces when the loop takes it.
+  // --debug's views and --fuse-room's refreshes read the pipeline's state between frames: there, and with
+  // --sequential, the worker only reads and the frame is worked on in the loop, one stage after another.
+  const bool overlap = !o.sequential && !o.debug && !o.fuseRoom;
   using Clock = std::chrono::steady_clock;
-  using Read = std::pair<std::optional<capture::Frame>, Clock::time_point>;  // the frame, when it was in
-  const auto readAhead = [&source] {
-    return std::async(std::launch::async, [&source] {
-      std::optional<capture::Frame> f = source->next();
-      return Read{std::move(f), Clock::now()};
+  struct Ahead {
+    std::optional<capture::Frame> frame;
+    Clock::time_point in;  // when it was read and decoded
+    std::optional<PreparedFrame> prepared;
+    std::unique_ptr<gl::Profiler> stages;  // the worker's CPU stages of it
+  };
+  const auto readAhead = [&source, &frames, overlap] {
+    return std::async(std::launch::async, [&source, &frames, overlap] {
+      Ahead a;
+      a.frame = source->next();
+      a.in = Clock::now();
+      if (a.frame && overlap) {
+        a.stages = std::make_unique<gl::Profiler>();
+        a.prepared = frames.prepare(*a.frame, *a.stages);
+      }
+      return a;
     });
   };
-  std::future<Read> ahead = readAhead();
+  std::future<Ahead> ahead = readAhead();
   // The frame loop never waits for the GPU unless an output asks for it (--dump-delta, --debug): each
   // composite is read into a pixel buffer and handed to the writer when the read has finished (typically
   // while the next frame is worked on), and each frame's GPU stage times are taken when its timestamps have
@@ -221,15 +237,23 @@ int runReplay(const ReplayOptions& o) {
     }
     std::optional<capture::Frame> frame;
     Clock::time_point frameStart;
+    std::optional<PreparedFrame> prepared;
     {
-      // The loop's wait for the read-ahead (0 when it was ready).
+      // The loop's wait for the worker (0 when the frame was ready).
       auto s = profiler.cpu("read");
-      Read r = ahead.get();
-      frame = std::move(r.first), frameStart = r.second;
+      Ahead a = ahead.get();
+      frame = std::move(a.frame), frameStart = a.in, prepared = std::move(a.prepared);
+      if (a.stages) profiler.adopt(*a.stages);  // the worker's stages count as this frame's
       if (frame && (limit < 0 || done + 1 < limit)) ahead = readAhead();
     }
     if (!frame) break;
-    FrameResult result = frames.process(*frame, compositor, profiler);
+    FrameResult result;
+    if (prepared) {
+      frames.render(*frame, *prepared, compositor, profiler);
+      result = std::move(prepared->result);
+    } else {
+      result = frames.process(*frame, compositor, profiler);
+    }
     if (result.T_marker_camera) ++posed;
     if (frame->fisheye) lastFisheye = frame->fisheye->image;  // the lights are estimated from it, lit frame or not
     json frameInfo = result.info;
@@ -313,6 +337,9 @@ int runReplay(const ReplayOptions& o) {
   summary["stages_ms"] = mean;  // means over all frames: a skipped stage costs 0 on its frame
   summary["skipped_frames"] = skipped;
   summary["reuse"] = !o.recomputeAll;
+  // Whether each frame's CPU half ran on the worker while GL worked on the frame before (its stages' times
+  // then overlap the loop's and do not add up to the frame's).
+  summary["overlapped"] = overlap;
   if (const LightingSetup* setup = frames.setup()) {
     summary["scene"] = o.scene;
     summary["technique"] = setup->scene.technique.name;
@@ -386,6 +413,8 @@ Action addReplay(CLI::App& app) {
   app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")
       ->check(CLI::Range(capture::kMinFrameRate, capture::kMaxFrameRate));
   app.add_flag("--recompute-all", o->recomputeAll, "run every stage on every frame (default: skip stages whose inputs did not change)");
+  app.add_flag("--sequential", o->sequential, "work on each frame in the loop, one stage after another (default: the next frame's CPU "
+                                             "half, marker to real mesh, runs on a worker while GL works on this one; the same composites)");
   app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(CLI::Range(1, 16));
   return [o] { return runReplay(*o); };
 }

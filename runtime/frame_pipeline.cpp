@@ -169,8 +169,14 @@ void FramePipeline::useAmbientSh(const std::array<cv::Vec3d, 9>& sh) {
   setup_->ambient = sh[0] * 0.28209479177387814;  // Y_00
   std::array<cv::Vec3d, 9> directional = sh;
   directional[0] = {0, 0, 0};
-  setup_->ambientSh = directional;
-  if (pipeline_) pipeline_->setAmbientSh(directional);
+  setup_->ambientSh = directional;  // render() hands it to the lighting with the frame's lights
+}
+
+void FramePipeline::takeLights(PreparedFrame& p) const {
+  if (!setup_) return;
+  p.lights = setup_->lights;
+  p.ambient = setup_->ambient;
+  p.ambientSh = setup_->ambientSh;
 }
 
 void FramePipeline::estimateRoomLights() {
@@ -249,10 +255,45 @@ cv::Mat measuredDepth(const FrameResult& r) {
 }
 
 FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler) {
-  FrameResult r = measure(frame, profiler);
-  if (options_.fuse) fuseFrame(*frame.rgbd, r, profiler);
-  render(frame, r, compositor, profiler);
-  return r;
+  PreparedFrame p = prepare(frame, profiler);
+  if (options_.fuse) {
+    fuseFrame(*frame.rgbd, p.result, profiler);
+    takeLights(p);  // lights from a refreshed room
+  }
+  render(frame, p, compositor, profiler);
+  return std::move(p.result);
+}
+
+PreparedFrame FramePipeline::prepare(capture::Frame& frame, gl::Profiler& profiler) {
+  PreparedFrame p;
+  p.result = measure(frame, profiler);
+  takeLights(p);
+  // Fusion may give the frame a room to be lit by instead: its surface is then left to render().
+  if (!options_.fuse) buildSurface(frame, p, profiler);
+  return p;
+}
+
+void FramePipeline::buildSurface(const capture::Frame& frame, PreparedFrame& p, gl::Profiler& profiler) {
+  const FrameResult& r = p.result;
+  if (!setup_ || !pipeline_ || !r.T_marker_camera || options_.room || r.reusedSurface || p.surface) return;
+  p.surface = realSurface(frame, r, profiler);
+  if (options_.reuse) surfaceCache_ = SurfaceCache{*r.T_marker_camera, thumbnail_.clone(), r.positions, r.normals};
+  if (!needs_.realVals) return;
+  // Real surfaces as area lights: the seen radiance of every stride-th filtered pixel, fused over frames
+  // when the technique asks for it (surfels out of view keep their light).
+  auto s = profiler.cpu("real_vals");
+  const capture::RgbdFrame& rgbd = *frame.rgbd;
+  auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::radianceOf(rgbd.colour, rgbd.exposure), rgbd.colourIntrinsics,
+                                     *r.T_marker_camera, needs_.realValOptions.stride);
+  if (surfels_) {
+    cv::Mat depth;
+    cv::extractChannel(r.positions, depth, 2);
+    surfels_->integrate(vals, depth, rgbd.colourIntrinsics, *r.T_marker_camera);
+    vals = surfels_->vals();
+  }
+  p.result.info["real_vals"] = vals.size();
+  if (surfels_) p.result.info["surfels"] = surfels_->size();
+  p.realVals = std::move(vals);
 }
 
 void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler) {
@@ -336,9 +377,11 @@ FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler
   return r;
 }
 
-reconstruction::AlbedoLights FramePipeline::albedoLights(const capture::Pose& T_frame_marker) const {
+reconstruction::AlbedoLights FramePipeline::albedoLights(const capture::Pose& T_frame_marker,
+                                                         const std::vector<lighting::SceneLight>& lights,
+                                                         const cv::Vec3d& ambient) const {
   reconstruction::AlbedoLights al;
-  for (const auto& l : setup_->lights) {
+  for (const auto& l : lights) {
     if (l.type == lighting::LightType::Directional) {
       reconstruction::EstimatedLight e;
       e.direction = -(capture::rotationOf(T_frame_marker) * l.direction);
@@ -348,7 +391,7 @@ reconstruction::AlbedoLights FramePipeline::albedoLights(const capture::Pose& T_
       al.points.push_back({capture::transformPoint(T_frame_marker, l.position), l.intensity});
     }
   }
-  al.ambientIrradiance = CV_PI * setup_->ambient;
+  al.ambientIrradiance = CV_PI * ambient;
   return al;
 }
 
@@ -365,7 +408,7 @@ RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameR
     // its cost; 4 x 4 blocks mix across the tag's edges.
     ao.fillScale = 2;
     albedo = reconstruction::estimateAlbedo(frame.rgbd->colour, r.positions, r.normals, frame.rgbd->colourIntrinsics,
-                                            albedoLights(T_camera_marker), ao)
+                                            albedoLights(T_camera_marker, setup_->lights, setup_->ambient), ao)
                  .albedo;
   }
   {
@@ -377,8 +420,8 @@ RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameR
 }
 
 
-void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
-  if (roomLights_ && *roomLights_ == setup_->lights) {
+void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Profiler& profiler) {
+  if (roomLights_ && *roomLights_ == p.lights) {
     info["skipped"].push_back("room_albedo");
     return;
   }
@@ -395,7 +438,7 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
     room.indices.reserve(full.indices.size());
     for (size_t t = 0; t + 2 < full.indices.size(); t += 3) {
       bool nearLight = false;
-      for (const auto& l : setup_->lights) {
+      for (const auto& l : p.lights) {
         if (l.type == lighting::LightType::Directional) continue;
         for (int k = 0; k < 3 && !nearLight; ++k)
           nearLight = cv::norm(cv::Vec3d(full.positions[full.indices[t + k]]) - l.position) < kLightClearance;
@@ -413,14 +456,14 @@ void FramePipeline::useRoom(nlohmann::json& info, gl::Profiler& profiler) {
     roomAlbedoCache_ = std::make_shared<reconstruction::RoomAlbedoCache>(options_.fuse ? options_.fuse->options().voxelM
                                                                                       : reconstruction::RoomOptions{}.voxelM);
   const reconstruction::RoomAlbedo albedo =
-      reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose()), {}, roomAlbedoCache_.get());
+      reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose(), p.lights, p.ambient), {}, roomAlbedoCache_.get());
   const auto& rays = roomAlbedoCache_->lastStats();
   roomAlbedo_ = albedo.albedo;
   roomAlbedoStatus_ = albedo.status;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
   for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
   pipeline_->setRealMesh(std::move(vertices), room.indices);
-  roomLights_ = setup_->lights;
+  roomLights_ = p.lights;
   size_t measured = 0;
   for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
   info["room"] = {{"vertices", room.positions.size()}, {"albedo_measured", measured}, {"triangles_near_lights", cleared},
@@ -480,6 +523,16 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
 
 void FramePipeline::render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor,
                            gl::Profiler& profiler) {
+  PreparedFrame p;
+  p.result = std::move(r);
+  takeLights(p);
+  render(frame, p, compositor, profiler);
+  r = std::move(p.result);
+}
+
+void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor,
+                           gl::Profiler& profiler) {
+  FrameResult& r = p.result;
   const capture::RgbdFrame& rgbd = *frame.rgbd;
   if (!setup_ || !r.T_marker_camera) {
     // No scene, or marker lost: nothing can be placed; the frame is the background.
@@ -489,15 +542,17 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
   }
   const bool val = needs_.realVals;
   if (options_.room) {
-    useRoom(r.info, profiler);
+    useRoom(p, r.info, profiler);
     if (!r.reusedSurface) roomViewMesh(rgbd, r, profiler);
   } else if (r.reusedSurface) {
     for (const char* stage : {"albedo", "mesh"}) r.info["skipped"].push_back(stage);
     if (val) r.info["skipped"].push_back("real_vals");
   } else {
-    RealSurface real = realSurface(frame, r, profiler);
-    pipeline_->setRealMesh(std::move(real.vertices), std::move(real.indices));
-    if (options_.reuse) surfaceCache_ = SurfaceCache{*r.T_marker_camera, thumbnail_.clone(), r.positions, r.normals};
+    buildSurface(frame, p, profiler);  // prepared already, unless measured only
+    pipeline_->setRealMesh(std::move(p.surface->vertices), std::move(p.surface->indices));
+    p.surface.reset();
+    if (p.realVals) pipeline_->setRealVals(std::move(*p.realVals));
+    p.realVals.reset();
   }
   if (val && options_.room) {
     // Real surfaces as area lights from the room: every surface it holds, in view or not, once per room
@@ -511,26 +566,12 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
     } else {
       r.info["skipped"].push_back("real_vals");
     }
-  } else if (val && !r.reusedSurface) {
-    // Real surfaces as area lights: the seen radiance of every stride-th filtered pixel, fused over frames
-    // when the technique asks for it (surfels out of view keep their light).
-    auto s = profiler.cpu("real_vals");
-    auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::radianceOf(rgbd.colour, rgbd.exposure), rgbd.colourIntrinsics,
-                                       *r.T_marker_camera, needs_.realValOptions.stride);
-    if (surfels_) {
-      cv::Mat depth;
-      cv::extractChannel(r.positions, depth, 2);
-      surfels_->integrate(vals, depth, rgbd.colourIntrinsics, *r.T_marker_camera);
-      vals = surfels_->vals();
-    }
-    r.info["real_vals"] = vals.size();
-    if (surfels_) r.info["surfels"] = surfels_->size();
-    pipeline_->setRealVals(std::move(vals));
   }
   lighting::CameraView view;
   view.intrinsics = rgbd.colourIntrinsics;
   view.T_world_camera = *r.T_marker_camera;
-  pipeline_->run(view, setup_->lights, setup_->ambient, &profiler);
+  pipeline_->setAmbientSh(p.ambientSh);
+  pipeline_->run(view, p.lights, p.ambient, &profiler);
   for (const std::string& stage : pipeline_->skippedStages()) r.info["skipped"].push_back(stage);
   // Each technique's facts of this frame (counts, flicker), under its name.
   if (options_.techniqueStats)

@@ -106,17 +106,36 @@ struct RealSurface {
   std::vector<uint32_t> indices;
 };
 
+/// The CPU half of a frame (FramePipeline::prepare): its measurement and, lit from its own depth, its real
+/// surface and real VALs, with the lights and ambient it is to be lit under. It touches no GL, so the next
+/// frame's may be made on another thread while the GL half of this one runs.
+struct PreparedFrame {
+  FrameResult result;
+  std::optional<RealSurface> surface;               ///< the real scene from this frame's depth, when built
+  std::optional<std::vector<lighting::Val>> realVals;  ///< its real VALs, when the techniques need them
+  std::vector<lighting::SceneLight> lights;          ///< marker frame, as they were for this frame
+  cv::Vec3d ambient{0, 0, 0};
+  std::array<cv::Vec3d, 9> ambientSh{};
+};
+
 class FramePipeline {
  public:
   /// Without a setup frames are only decoded and composited as background.
   FramePipeline(std::optional<LightingSetup> setup, int width, int height, const FrameOptions& options);
-  /// Processes one frame (registers its depth if needed) inside the current GL context: measure, then render.
+  /// Processes one frame (registers its depth if needed) inside the current GL context: prepare, then render.
   FrameResult process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler);
+  /// The CPU half of process(): measure(), then the real surface and real VALs from the frame's depth. It
+  /// touches neither GL nor anything render() reads, so a frame loop may prepare frame n + 1 on another
+  /// thread while render() works on frame n (frames prepared in order; `profiler` then one of that thread's
+  /// own, CPU stages only). With FrameOptions::fuse it only measures: fusion refreshes what render() reads.
+  PreparedFrame prepare(capture::Frame& frame, gl::Profiler& profiler);
+  /// The GL half of process(): a prepared frame lit and composited (background only without a marker pose).
+  void render(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor, gl::Profiler& profiler);
   /// The measuring half: registration, fisheye lights, marker pose, filtered depth, normals.
   FrameResult measure(capture::Frame& frame, gl::Profiler& profiler);
-  /// The rendering half: albedo, real mesh, lighting, composite (background only without a marker pose).
+  /// A measured frame rendered: albedo, real mesh, lighting, composite (prepare()'s rest, then render()).
   void render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor, gl::Profiler& profiler);
-  /// Albedo and real mesh of a measured frame with a marker pose (the first steps of render()).
+  /// Albedo and real mesh of a measured frame with a marker pose (what prepare() adds to measure()).
   RealSurface realSurface(const capture::Frame& frame, const FrameResult& r, gl::Profiler& profiler) const;
   lighting::LightingPipeline* lighting() { return pipeline_.get(); }
   const LightingSetup* setup() const { return setup_ ? &*setup_ : nullptr; }
@@ -163,15 +182,21 @@ class FramePipeline {
   int framesSinceRefresh_ = 0;
   /// FrameOptions::fuse: the measured frame into the live room, and the room's surface refreshed when due.
   void fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
-  void useRoom(nlohmann::json& info, gl::Profiler& profiler);
+  void useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Profiler& profiler);
+  /// The real surface (and real VALs) of a frame lit from its own depth, unless it has one, its last one
+  /// holds, or a room lights it; keeps the reuse cache.
+  void buildSurface(const capture::Frame& frame, PreparedFrame& p, gl::Profiler& profiler);
   /// "lights": "room": the lights and ambient from the room model, once (the room is static).
   void estimateRoomLights();
   /// An SH remainder of estimated lights as this pipeline's ambient: band 0 uniform, bands 1-2 directional.
   void useAmbientSh(const std::array<cv::Vec3d, 9>& sh);
+  /// The setup's lights and ambient as they are now, for a frame to be lit under.
+  void takeLights(PreparedFrame& p) const;
   std::shared_ptr<const reconstruction::RoomLights> roomLightEstimate_;
   /// The setup's lights and ambient as the albedo estimate takes them, in the frame T_frame_marker maps to
   /// (the camera for a frame's pixels, the marker frame itself for the room).
-  reconstruction::AlbedoLights albedoLights(const capture::Pose& T_frame_marker) const;
+  reconstruction::AlbedoLights albedoLights(const capture::Pose& T_frame_marker, const std::vector<lighting::SceneLight>& lights,
+                                            const cv::Vec3d& ambient) const;
   /// The frame's depth mesh, each vertex with the albedo of the nearest room vertex: the G-buffer's real surface.
   void roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
   cv::Mat thumbnail_;  ///< of the frame being processed

@@ -1,6 +1,7 @@
 #include "gl/profiler.h"
 
 #include <algorithm>
+#include <stdexcept>
 
 namespace mrgi::gl {
 namespace {
@@ -46,6 +47,13 @@ std::map<std::string, StageTime> Profiler::resolve() {
   std::map<std::string, StageTime> out = times(pending_);
   pending_.clear();
   return out;
+}
+
+void Profiler::adopt(Profiler& other) {
+  for (const Pending& e : other.pending_)
+    if (e.gpu) throw std::logic_error("Profiler::adopt: stage " + e.name + " has GPU timestamps of another frame loop");
+  for (Pending& e : other.pending_) pending_.push_back(std::move(e));
+  other.pending_.clear();
 }
 
 uint64_t Profiler::endFrame() {

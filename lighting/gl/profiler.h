@@ -53,6 +53,9 @@ class Profiler {
     std::map<std::string, StageTime> stages;
   };
   uint64_t endFrame();
+  /// Moves the stages another profiler timed into this frame: the CPU stages of work done for it on another
+  /// thread (which times them with a profiler of its own; a GPU stage there is a logic error).
+  void adopt(Profiler& other);
   std::vector<FrameTimes> collect(bool wait);
 
  private:

@@ -515,6 +515,57 @@ TEST(Cli, ReplayEstimatesLightsFromTheSessionFisheye) {
   fs::remove_all(noFisheye);
 }
 
+TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
+  // Frame n + 1's CPU half (marker, depth filter, albedo, real mesh and VALs) runs on a worker while GL works
+  // on frame n. What it changes (the lights of its frame, estimated from the fisheye or moved by the session,
+  // the surfels, the reuse cache) must not reach frame n: the composites equal those of --sequential bit for
+  // bit. Lights estimated on frames 0 and 2 (the shared session's fisheye), and a lamp that moves every frame.
+  const fs::path moving = fs::temp_directory_path() / ("mrgi_cli_overlap_moving_" + std::to_string(::getpid()));
+  fs::remove_all(moving);
+  ASSERT_EQ(runMrgi("synth --out " + moving.string() +
+                    " --frames 4 --width 96 --height 72 --render raycast --fisheye-every 0 --static-camera --move-light").exitCode, 0);
+  const std::string sphere = R"({"objects": [{"model": ")" + kModels + R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}], )";
+  const fs::path fisheyeScene = writeScene("overlap_fisheye.json", sphere + R"("lights": "fisheye", "fisheye_light_count": 2,
+      "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128}, "val": {"sparse_points": 64}})");
+  const fs::path movingScene = writeScene("overlap_moving.json", sphere + R"("lights": "manifest",
+      "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128}, "val": {"sparse_points": 64}})");
+  for (const auto& [source, scene, frames] : {std::tuple{session(), fisheyeScene, 3}, std::tuple{moving, movingScene, 4}}) {
+    std::vector<fs::path> outs;
+    for (const std::string mode : {"", " --sequential"}) {
+      const fs::path out = fs::temp_directory_path() / ("mrgi_cli_overlap_" + std::to_string(outs.size()) + "_" + std::to_string(::getpid()));
+      fs::remove_all(out);
+      const Result r = runMrgi("replay " + source.string() + " --scene " + scene.string() + " --out " + out.string() +
+                               " --pose ground-truth --mp4 \"\"" + mode);
+      ASSERT_EQ(r.exitCode, 0) << r.err;
+      const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
+      EXPECT_EQ(s["frames"], frames);
+      EXPECT_EQ(s["overlapped"], mode.empty()) << mode;
+      // The worker's stages are reported as their frame's.
+      for (const char* stage : {"depth_filter", "albedo", "mesh", "real_vals"})
+        EXPECT_GT(s["stages_ms"][stage]["cpu_ms"].get<double>(), 0.0) << stage << mode;
+      if (source == moving)
+        for (int i = 0; i < frames; ++i) EXPECT_EQ(s["per_frame"][i]["lights_from_frame"], 1) << i;
+      else
+        EXPECT_EQ(s["per_frame"][2]["lights_estimated"], 2);
+      outs.push_back(out);
+    }
+    for (int i = 0; i < frames; ++i) {
+      char name[32];
+      std::snprintf(name, sizeof name, "frame_%04d.png", i);
+      const cv::Mat a = cv::imread((outs[0] / name).string()), b = cv::imread((outs[1] / name).string());
+      ASSERT_FALSE(a.empty() || b.empty()) << name;
+      EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0) << source << " " << name;
+    }
+    // The lamp moved: the frames differ from each other (so equal composites are not equal by accident).
+    if (source == moving) {
+      const cv::Mat f0 = cv::imread((outs[0] / "frame_0000.png").string()), f3 = cv::imread((outs[0] / "frame_0003.png").string());
+      EXPECT_GT(cv::norm(f0, f3, cv::NORM_L1) / static_cast<double>(f0.total()), 1.0);
+    }
+    for (const fs::path& o : outs) fs::remove_all(o);
+  }
+  fs::remove_all(moving);
+}
+
 TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
   const fs::path rec = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth";
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_insert_" + std::to_string(::getpid()));

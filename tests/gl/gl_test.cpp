@@ -2,6 +2,7 @@
 // with known values; shader includes, defines and error locations; GPU timers. Window.* needs a display
 // (run under Xvfb by CTest) and saves a screenshot.
 #include <filesystem>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -123,6 +124,27 @@ TEST(GL, ProfilerReportsNamedStages) {
   EXPECT_GE(times.at("outer").cpuMs, times.at("inner").cpuMs);
   EXPECT_EQ(times.at("cpu-only").gpuMs, 0.0);
   EXPECT_TRUE(profiler.resolve().empty());  // a new frame starts empty
+}
+
+TEST(GL, ProfilerAdoptsTheCpuStagesAnotherThreadTimed) {
+  auto ctx = makeContext(gl::Backend::OSMesa);
+  gl::Profiler loop;
+  gl::Profiler worker;  // CPU stages only: no GL on its thread
+  std::thread([&worker] {
+    auto s = worker.cpu("prepare");
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }).join();
+  { auto s = loop.cpu("render"); }
+  loop.adopt(worker);
+  const auto times = loop.resolve();
+  ASSERT_EQ(times.size(), 2u);
+  EXPECT_GE(times.at("prepare").cpuMs, 19.0);
+  EXPECT_EQ(times.at("prepare").gpuMs, 0.0);
+  EXPECT_TRUE(worker.resolve().empty());  // moved, not copied
+  // A GPU stage belongs to the frame loop that queried it.
+  gl::Profiler other;
+  { auto s = other.gpu("gbuffer"); }
+  EXPECT_THROW(loop.adopt(other), std::logic_error);
 }
 
 TEST(GL, UnknownBackendAndBadSizeAreErrors) {
