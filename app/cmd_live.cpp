@@ -197,7 +197,8 @@ int runLive(const LiveOptions& o) {
   FrameResult result;
   cv::Mat lastFisheye, view;
   std::map<std::string, gl::StageTime> stages;
-  double fps = 0, frameMs = 0;
+  double fps = 0, frameMs = 0, pipelineMs = 0;
+  std::chrono::steady_clock::time_point loopStart, loopEnd;  // the first frame's start, the last frame's end
   int64_t processed = 0;
   std::string status = "starting";
   InterruptGuard guard;
@@ -227,8 +228,10 @@ int runLive(const LiveOptions& o) {
         // is read back. Every other view reads what it shows.
         compositor.setReadback(gpuView() ? compositor::Compositor::Readback::None : compositor::Compositor::Readback::Now);
         const auto t0 = std::chrono::steady_clock::now();
+        if (processed == 0) loopStart = t0;
         result = frames->process(*frame, compositor, profiler);
         frameMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        pipelineMs += frameMs;
         // Stage times a frame late, when their GPU timestamps have arrived (the loop never waits for them).
         profiler.endFrame();
         for (auto& t : profiler.collect(false)) stages = std::move(t.stages);
@@ -339,6 +342,7 @@ int runLive(const LiveOptions& o) {
     const bool done = o.frames > 0 && (processed >= o.frames || ended);  // a scripted run never waits on a closed source
     cv::Mat shot;
     ui.endFrame(done && !o.screenshot.empty() ? &shot : nullptr);
+    if (fresh) loopEnd = std::chrono::steady_clock::now();
     if (done) {
       if (!o.screenshot.empty()) {
         createParentDirectory(o.screenshot);
@@ -354,6 +358,14 @@ int runLive(const LiveOptions& o) {
   }
   json summary = {{"source", live.name()}, {"frames", processed}, {"window", {context->width(), context->height()}},
                   {"renderer", context->renderer()}};
+  // Throughput of the window loop (frame, UI and swap; no writes), from the first frame's start to the last's
+  // end, and the mean time of the frame pipeline alone within it.
+  if (processed > 0) {
+    const double wallMs = std::chrono::duration<double, std::milli>(loopEnd - loopStart).count();
+    summary["wall_ms_per_frame"] = wallMs / static_cast<double>(processed);
+    summary["fps"] = wallMs > 0 ? 1e3 * static_cast<double>(processed) / wallMs : 0.0;
+    summary["pipeline_ms_per_frame"] = pipelineMs / static_cast<double>(processed);
+  }
   if (!o.screenshot.empty() && o.frames > 0 && (processed >= o.frames || ended)) summary["screenshot"] = o.screenshot;
   if (recorder) summary["recorded"] = {{"session", recordDir}, {"frames", recorder->framesWritten()}};
   if (fo.fuse) {

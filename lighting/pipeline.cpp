@@ -47,7 +47,7 @@ size_t estimateGpuBytes(const PipelineConfig& config, size_t lights) {
   completeKnobs(c.knobs);
   size_t sum = FrameResources::estimateBytes(frameConfigOf(c), lights) + 2 * 16 * static_cast<size_t>(c.width) * c.height;
   for (const RoleAssignment& a : assignRoles(c.technique))
-    if (a.info->estimateBytes) sum += a.info->estimateBytes(c.knobs.at(a.info->knobs.key), c.knobs.at("frame"), a.real, a.virtualObject, c.width, c.height);
+    if (a.info->estimateBytes) sum += a.info->estimateBytes(c.knobs.at(a.info->knobs.key), c.knobs.at("frame"), a.real, a.virtualObject, c.width, c.height, lights);
   return sum;
 }
 

@@ -33,8 +33,9 @@ struct TechniqueInfo {
   std::vector<TechniqueAlias> aliases;
   std::function<std::unique_ptr<Technique>(const TechniqueSetup&)> create;
   /// GPU memory an instance will hold (bytes) for these knobs, roles and output size, before it is built.
-  /// `frame`: the shared frame group's knobs (RSM and shadow-map sizes).
-  std::function<size_t(const KnobValues& knobs, const KnobValues& frame, bool real, bool virtualObject, int width, int height)>
+  /// `frame`: the shared frame group's knobs (RSM and shadow-map sizes); `lights`: how many lights.
+  std::function<size_t(const KnobValues& knobs, const KnobValues& frame, bool real, bool virtualObject, int width, int height,
+                       size_t lights)>
       estimateBytes;
 };
 

@@ -1168,6 +1168,10 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto summary = nlohmann::json::parse(r.out);
   EXPECT_EQ(summary["frames"], 3);
+  // Its throughput: the loop's time per frame holds the pipeline's.
+  EXPECT_GT(summary["fps"].get<double>(), 0.0);
+  EXPECT_GE(summary["wall_ms_per_frame"].get<double>(), summary["pipeline_ms_per_frame"].get<double>());
+  EXPECT_NEAR(summary["fps"].get<double>() * summary["wall_ms_per_frame"].get<double>(), 1000.0, 1e-6);
   // The record toggle wrote the frames it showed into a session.
   EXPECT_EQ(summary["recorded"]["frames"], 3);
   EXPECT_EQ(nlohmann::json::parse(runMrgi("info " + (dir / "rec").string()).out)["frame_count"], 3);

@@ -1,11 +1,8 @@
 // The frame path waits for the GPU only where an output needs a result on the CPU: with the technique facts
 // off and the composite left on the GPU (a live view) or read into a pixel buffer (replay), processing a
 // frame makes no synchronous readback, for every registered technique; the composites read later are the
-// ones read at once, bit for bit.
-//
-// One exception is held at its exact count until it is moved to the GPU: Kinect-VAL builds its virtual VALs
-// from each light's RSM and dims the real VALs in the object's shadow on the CPU, so it reads back each
-// light's RSM (4 layers) and two of its shadow-map layers: 6 per light per frame.
+// ones read at once, bit for bit. (Kinect-VAL builds its VALs from the RSMs and dims the real ones in the
+// object's shadow on the GPU; it read 6 layers per light per frame back when it did that on the CPU.)
 #include <gtest/gtest.h>
 
 #include "capture/session.h"
@@ -70,11 +67,11 @@ TEST_P(FrameReadbacks, NoneOnTheFramePathWhenNoOutputNeedsThem) {
   const Frames now = run(technique, compositor::Compositor::Readback::Now, true, 3);
   const Frames none = run(technique, compositor::Compositor::Readback::None, false, 3);
   const Frames later = run(technique, compositor::Compositor::Readback::Later, false, 3);
+  ASSERT_GT(none.lights, 0u);  // every light stage runs (RSMs, shadow maps, Kinect-VAL's virtual VALs)
   for (size_t i = 0; i < 3; ++i) {
     EXPECT_GE(now.readbacks[i], 1u) << "frame " << i << ": the composite is read at once";
-    const uint64_t expected = technique == "kinect-val" ? 6 * none.lights : 0;
-    EXPECT_EQ(none.readbacks[i], expected) << technique << ", frame " << i;
-    EXPECT_EQ(later.readbacks[i], expected) << technique << ", frame " << i;
+    EXPECT_EQ(none.readbacks[i], 0u) << technique << ", frame " << i;
+    EXPECT_EQ(later.readbacks[i], 0u) << technique << ", frame " << i;
   }
   EXPECT_TRUE(none.composites.empty());
   ASSERT_EQ(now.composites.size(), 3u);

@@ -36,7 +36,7 @@ TechniqueInfo dlpvTechniqueInfo() {
   t.knobs = groupOf("lpv", dlpvKnobTable());
   t.aliases = {{"lpv-diff", {{"naive_difference", 1.0}}, "DLPV with the naive two-volume difference on real pixels"}};
   t.create = [](const TechniqueSetup& s) { return std::make_unique<DlpvTechnique>(s); };
-  t.estimateBytes = [](const KnobValues& k, const KnobValues&, bool real, bool virtualObject, int w, int h) {
+  t.estimateBytes = [](const KnobValues& k, const KnobValues&, bool real, bool virtualObject, int w, int h, size_t) {
     const DlpvKnobs knobs = knobsFrom(dlpvKnobTable(), k);
     const size_t r = static_cast<size_t>(knobs.resolution);
     const size_t volumes = 2 + (virtualObject ? 1 : 0) + (real ? (knobs.naiveDifference ? 4 : 2) : 0);

@@ -70,7 +70,7 @@ TechniqueInfo imperfectVolumesTechniqueInfo() {
   t.stagePrefixes = {"iv."};
   t.knobs = groupOf("iv", imperfectVolumesKnobTable());
   t.create = [](const TechniqueSetup& s) { return std::make_unique<ImperfectVolumesTechnique>(s); };
-  t.estimateBytes = [](const KnobValues& values, const KnobValues&, bool real, bool virtualObject, int w, int h) {
+  t.estimateBytes = [](const KnobValues& values, const KnobValues&, bool real, bool virtualObject, int w, int h, size_t) {
     const ImperfectVolumesKnobs k = knobsFrom(imperfectVolumesKnobTable(), values);
     return voxelBytes(k, real, virtualObject) + 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
   };

@@ -48,7 +48,12 @@ TechniqueInfo kinectValTechniqueInfo() {
   t.stagePrefixes = {"val."};
   t.knobs = groupOf("val", kinectValKnobTable());
   t.create = [](const TechniqueSetup& s) { return std::make_unique<KinectValTechnique>(s); };
-  t.estimateBytes = [](const KnobValues&, const KnobValues&, bool, bool, int w, int h) { return 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h); };
+  t.estimateBytes = [](const KnobValues& k, const KnobValues& frame, bool, bool, int w, int h, size_t lights) {
+    // Radiance and irradiance targets, and the slots of the virtual VALs (twice: built, then in the set).
+    const size_t slots = std::max<size_t>(lights, 1) * ValGpu::rsmValCapacity(static_cast<int>(frame.at("rsm_size")),
+                                                                            static_cast<int>(k.at("rsm_stride")));
+    return 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h) + 2 * slots * sizeof(Val);
+  };
   return t;
 }
 
@@ -110,59 +115,28 @@ TechniqueNeeds KinectValTechnique::needs() const {
   return n;
 }
 
-void KinectValTechnique::beginLights(const FrameResources&, gl::Profiler*) {
-  rsmVals_.clear();
-  shadowMaps_.clear();
+void KinectValTechnique::beginLights(const FrameResources& frame, gl::Profiler*) {
+  gpu_.beginVirtual(frame.lights().size() * ValGpu::rsmValCapacity(frame.rsmRho().position.width(), knobs_.rsmStride));
 }
 
 void KinectValTechnique::light(const FrameResources& frame, size_t index, gl::Profiler* profiler) {
-  // The virtual object's lit texels become VALs (virtual -> virtual bounce).
+  // The virtual object's lit texels become VALs (virtual -> virtual bounce), compacted on the GPU.
   auto s = timed(profiler, "val.rsm_vals");
-  const SceneLight& light = frame.lights().at(index);
-  const RsmTexels rho = frame.downloadRsm(true);
-  const auto v = valsFromRsm(rho, light, knobs_.rsmStride);
-  rsmVals_.insert(rsmVals_.end(), v.begin(), v.end());
-  shadowMaps_.push_back({light, frame.lightViews().at(index), frame.downloadShadowTexels(index)});
-}
-
-size_t KinectValTechnique::shadowRealVals(std::vector<Val>& vals, const cv::Vec3d& ambientRadiance) const {
-  // The camera saw the real surfaces without the virtual object; where the object now shadows them they
-  // reflect less: exitance x E_with / E_without (direct light through RSM^rho vs RSM^mu, plus the ambient),
-  // so the object's underside does not receive bounce from the table it shadows.
-  size_t dimmed = 0;
-  for (Val& v : vals) {
-    cv::Vec3d with = CV_PI * ambientRadiance, without = with;
-    for (const ShadowMaps& m : shadowMaps_) {
-      const cv::Vec3d x(v.position), n(v.normal);
-      const cv::Vec3d e = unshadowedIrradiance(m.light, x, n);
-      if (e == cv::Vec3d(0, 0, 0)) continue;
-      without += e * lightVisibility(m.maps, m.light, m.view, false, x, n);
-      with += e * lightVisibility(m.maps, m.light, m.view, true, x, n);
-    }
-    if (with == without) continue;
-    for (int c = 0; c < 3; ++c)
-      if (without[c] > 0) v.flux[c] *= static_cast<float>(std::clamp(with[c] / without[c], 0.0, 1.0));
-    ++dimmed;
-  }
-  return dimmed;
+  gpu_.appendRsmVals(frame.rsmRho(), frame.lights().at(index), knobs_.rsmStride);
 }
 
 void KinectValTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   const CameraView& camera = frame.camera();
   const cv::Vec3f eye(capture::translationOf(camera.T_world_camera));
   const std::vector<Val>& realVals = frame.realVals();
-  stats_ = {realVals.size(), rsmVals_.size(), 0, 0, knobs_.bruteForce};
+  stats_ = {realVals.size(), 0, 0, 0, knobs_.bruteForce};
   transforms_.clear();
   for (const FrameObject& o : frame.objects()) transforms_.push_back(o.T_world_object);
   {
+    // The real VALs up, then on the GPU: dimmed where the objects shadow them, the virtual ones of the light
+    // stage after them, weighed (nothing read back; the counts are read when stats are asked for).
     auto s = timed(profiler, "val.upload");
-    vals_.clear();
-    vals_.reserve(realVals.size() + rsmVals_.size());
-    vals_.insert(vals_.end(), realVals.begin(), realVals.end());
-    stats_.shadowedVals = shadowRealVals(vals_, frame.ambient());
-    vals_.insert(vals_.end(), rsmVals_.begin(), rsmVals_.end());
-    setValWeights(vals_);
-    gpu_.setVals(vals_);
+    gpu_.assemble(realVals, frame);
   }
   const float zero[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(fb_.id(), GL_COLOR, 0, zero);
@@ -233,8 +207,7 @@ void KinectValTechnique::update(const FrameResources& frame, gl::Profiler* profi
 
   // Per-run facts; flicker = frame-to-frame change of the sparse points' irradiance (model space, so a
   // moving camera alone changes nothing), relative to its mean.
-  runStats_ = {{"real_vals", stats_.realVals}, {"virtual_vals", stats_.virtualVals}, {"receivers", stats_.receivers},
-               {"shadowed_vals", stats_.shadowedVals}};
+  runStats_ = {{"real_vals", stats_.realVals}, {"receivers", stats_.receivers}};
   ++runs_;
 }
 
@@ -287,6 +260,16 @@ void KinectValTechnique::downloadValSums(std::vector<cv::Vec3f>& E, std::vector<
   gpu_.downloadSums(E, S);
 }
 
+KinectValTechnique::Stats KinectValTechnique::valStats() const {
+  Stats s = stats_;
+  if (runs_ > 0) {
+    const ValGpu::Counts c = gpu_.downloadCounts();
+    s.virtualVals = c.virtualVals;
+    s.shadowedVals = c.dimmed;
+  }
+  return s;
+}
+
 nlohmann::json KinectValTechnique::stats() const {
   if (statsRun_ != runs_) {
     statsRun_ = runs_;
@@ -294,7 +277,9 @@ nlohmann::json KinectValTechnique::stats() const {
     gpu_.downloadSums(E, S);
     double sum = 0;
     for (const auto& e : E) sum += capture::luminance(cv::Vec3d(e));
-    irradianceStats_ = {{"mean_irradiance", E.empty() ? 0.0 : sum / static_cast<double>(E.size())}};
+    const ValGpu::Counts c = gpu_.downloadCounts();
+    irradianceStats_ = {{"mean_irradiance", E.empty() ? 0.0 : sum / static_cast<double>(E.size())},
+                        {"virtual_vals", c.virtualVals}, {"shadowed_vals", c.dimmed}};
     if (!stats_.bruteForce && !prevE_.empty() && prevE_.size() == E.size() && sum > 0) {
       double change = 0;
       for (size_t i = 0; i < E.size(); ++i)

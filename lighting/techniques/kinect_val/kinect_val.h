@@ -52,9 +52,11 @@ class KinectValTechnique final : public Technique {
     size_t shadowedVals = 0;  ///< real VALs dimmed because the object shadows them
     bool bruteForce = false;
   };
-  const Stats& valStats() const { return stats_; }
-  /// The VALs of the last run (real ones dimmed where the object shadows them, then the virtual ones).
-  const std::vector<Val>& vals() const { return vals_; }
+  /// (The virtual and dimmed counts are read back from the GPU.)
+  Stats valStats() const;
+  /// The VALs of the last run as gathered (real ones dimmed where the object shadows them, then the virtual
+  /// ones), read back from the GPU where they were built.
+  std::vector<Val> downloadVals() const { return gpu_.downloadVals(); }
   /// Per sparse point (objects in order; brute force: per visible virtual pixel) E and S of the last run.
   void downloadValSums(std::vector<cv::Vec3f>& E, std::vector<cv::Vec3f>& S) const;
   /// The sparse points' VPL pairs of the last run (objects in order), after occlusion.
@@ -65,7 +67,6 @@ class KinectValTechnique final : public Technique {
   const gl::Texture& irradiance() const { return irradiance_; }
 
  private:
-  size_t shadowRealVals(std::vector<Val>& vals, const cv::Vec3d& ambientRadiance) const;
   void bruteForce(const FrameResources& frame, gl::Profiler* profiler);
 
   KinectValKnobs knobs_;
@@ -79,15 +80,7 @@ class KinectValTechnique final : public Technique {
   gl::Program meshProgram_;
   gl::Texture radiance_, irradiance_;
   gl::Framebuffer fb_;
-  std::vector<Val> rsmVals_;  ///< virtual VALs of the last light stage, all lights
-  std::vector<Val> vals_;     ///< everything the last run gathered
-  struct ShadowMaps {
-    SceneLight light;
-    LightView view;
-    ShadowTexels maps;  ///< the shading pass's shadow maps (CPU copies)
-  };
-  std::vector<ShadowMaps> shadowMaps_;
-  Stats stats_;
+  Stats stats_;  ///< what the CPU knows of the last run (the GPU holds the VAL counts)
   std::vector<cv::Matx44d> transforms_;  ///< object placements of the last run
   /// The facts of a run (counts now; the irradiance and flicker, which need the sums on the CPU, when stats()
   /// is first asked after the run: nothing is read back on a run nobody asks about).

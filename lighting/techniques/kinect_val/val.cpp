@@ -283,4 +283,23 @@ std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light, int 
   return out;
 }
 
+size_t dimShadowedVals(std::vector<Val>& vals, const std::vector<LightShadowMaps>& lights, const cv::Vec3d& ambientRadiance) {
+  size_t dimmed = 0;
+  for (Val& v : vals) {
+    cv::Vec3d with = CV_PI * ambientRadiance, without = with;
+    for (const LightShadowMaps& m : lights) {
+      const cv::Vec3d x(v.position), n(v.normal);
+      const cv::Vec3d e = unshadowedIrradiance(m.light, x, n);
+      if (e == cv::Vec3d(0, 0, 0)) continue;
+      without += e * lightVisibility(m.maps, m.light, m.view, false, x, n);
+      with += e * lightVisibility(m.maps, m.light, m.view, true, x, n);
+    }
+    if (with == without) continue;
+    for (int c = 0; c < 3; ++c)
+      if (without[c] > 0) v.flux[c] *= static_cast<float>(std::clamp(with[c] / without[c], 0.0, 1.0));
+    ++dimmed;
+  }
+  return dimmed;
+}
+
 }  // namespace mrgi::lighting

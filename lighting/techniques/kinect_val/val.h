@@ -112,4 +112,16 @@ void occludeReference(const std::vector<cv::Vec3f>& positions, const std::vector
 /// spot) over <n, l>+ (clamped at 0.1). stride > 1 takes every stride-th texel per axis, standing for its
 /// stride² block (area and flux × stride²).
 std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light, int stride = 1);
+
+/// One light with its shadow maps as downloaded (the frame's light view and its layers).
+struct LightShadowMaps {
+  SceneLight light;
+  LightView view;
+  ShadowTexels maps;
+};
+/// The real VALs the virtual objects now shadow, dimmed: the camera saw them lit without the objects, so each
+/// reflects exitance x E_with / E_without per channel (clamped to [0, 1]): direct light through the shadow
+/// maps with and without the objects (lightVisibility), plus the ambient's irradiance π L_a in both. So the
+/// object's underside gets no bounce from the table it shadows. Returns how many VALs changed.
+size_t dimShadowedVals(std::vector<Val>& vals, const std::vector<LightShadowMaps>& lights, const cv::Vec3d& ambientRadiance);
 }  // namespace mrgi::lighting

@@ -5,7 +5,8 @@
 // (brute force); sums[2i] = (E, 0), sums[2i+1] = (S, 0) are written for the brute-force path.
 // Large VAL sets are gathered in chunks [uValBegin, uValEnd), one dispatch each, the running sums kept per
 // receiver in `partial` between them (llvmpipe cuts a shader invocation's loops after 65535 iterations, and
-// a bounded dispatch keeps a GPU's watchdog away); the last chunk renormalises.
+// a bounded dispatch keeps a GPU's watchdog away); the last chunk renormalises. The set's size is counts[0]
+// (a set built on the GPU is dispatched for its capacity; chunks past its end carry the sums through).
 #include "lighting/techniques/kinect_val/val.glsl"
 layout(local_size_x = 64) in;
 
@@ -14,6 +15,7 @@ layout(std430, binding = 1) readonly buffer Receivers { Receiver receivers[]; };
 layout(std430, binding = 2) writeonly buffer Vpls { Vpl vpls[]; };
 layout(std430, binding = 3) writeonly buffer Sums { vec4 sums[]; };
 layout(std430, binding = 4) buffer Partial { vec4 partial[]; };  // 5 per receiver
+layout(std430, binding = 6) readonly buffer Counts { uint counts[]; };  // [0]: the VALs in `vals` (built on the GPU)
 uniform int uValBegin;
 uniform int uValEnd;
 uniform int uFirstChunk;  // 1: start from zero sums
@@ -41,11 +43,12 @@ void main() {
     s.ldSq = vec3(p2.w, p4.xy);
     s.lsSq = vec3(p3.w, p4.zw);
   }
-  for (int base = uValBegin; base < uValEnd; base += K_CACHE) {
+  int valEnd = min(uValEnd, int(counts[0]));  // the chunk ends at the set's end
+  for (int base = uValBegin; base < valEnd; base += K_CACHE) {
     for (int t = int(gl_LocalInvocationIndex); t < K_CACHE; t += 64)
-      if (base + t < uValEnd) tile[t] = vals[base + t];
+      if (base + t < valEnd) tile[t] = vals[base + t];
     barrier();
-    int count = min(K_CACHE, uValEnd - base);
+    int count = min(K_CACHE, valEnd - base);
     if (live)
       for (int j = 0; j < count; ++j) valAccumulate(s, r, refl, tile[j]);
     barrier();

@@ -1,6 +1,7 @@
 #include "lighting/techniques/kinect_val/val_gpu.h"
 
 #include <algorithm>
+#include <cstddef>
 #include <stdexcept>
 #include <string>
 
@@ -11,8 +12,92 @@ namespace mrgi::lighting {
 ValGpu::ValGpu(int kCache)
     : kCache_(kCache),
       gather_(gl::Program::compute("lighting/techniques/kinect_val/val_gather.comp", {{"K_CACHE", std::to_string(kCache)}})),
-      occlude_(gl::Program::compute("lighting/techniques/kinect_val/val_occlude.comp")) {
+      occlude_(gl::Program::compute("lighting/techniques/kinect_val/val_occlude.comp")),
+      rsmVals_(gl::Program::compute("lighting/techniques/kinect_val/val_rsm.comp")),
+      dim_(gl::Program::compute("lighting/techniques/kinect_val/val_dim.comp")),
+      weights_(gl::Program::compute("lighting/techniques/kinect_val/val_weights.comp")) {
   if (kCache < 16 || kCache > 512) throw std::invalid_argument("K_cache must be in 16..512, got " + std::to_string(kCache));
+  const Counts none;
+  counts_ = gl::Buffer(sizeof(Counts), &none);
+}
+
+namespace {
+void barrier() { glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT); }
+}  // namespace
+
+size_t ValGpu::rsmValCapacity(int rsmSize, int stride) {
+  stride = std::max(stride, 1);
+  const int first = stride / 2;
+  const size_t side = rsmSize > first ? static_cast<size_t>((rsmSize - first + stride - 1) / stride) : 0;
+  return side * side;
+}
+
+void ValGpu::beginVirtual(size_t capacity) {
+  virtualCapacity_ = capacity;
+  ensure(virtual_, capacity * sizeof(Val));
+  const uint32_t zero = 0;
+  counts_.upload(offsetof(Counts, virtualVals), sizeof zero, &zero);
+}
+
+void ValGpu::appendRsmVals(const Rsm& rsm, const SceneLight& light, int stride) {
+  rsmVals_.use();
+  rsmVals_.set("uStride", std::max(stride, 1));
+  rsmVals_.set("uCapacity", static_cast<int>(virtualCapacity_));
+  rsmVals_.set("uLightType", light.type == LightType::Point ? 0 : light.type == LightType::Spot ? 1 : 2);
+  setVec3(rsmVals_, "uLightPosition", light.position);
+  setVec3(rsmVals_, "uLightDirection", light.direction);
+  setVec3(rsmVals_, "uLightPower", light.type == LightType::Directional ? light.irradiance : light.intensity);
+  rsm.position.bind(0);
+  rsm.normal.bind(1);
+  rsm.flux.bind(2);
+  rsm.direct.bind(3);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, virtual_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, counts_.id());
+  glDispatchCompute(1, 1, 1);
+  barrier();
+  gl::checkGlError("ValGpu::appendRsmVals()");
+}
+
+void ValGpu::assemble(const std::vector<Val>& real, const FrameResources& frame) {
+  const size_t n = real.size();
+  valCount_ = n + virtualCapacity_;
+  ensure(vals_, valCount_ * sizeof(Val));
+  if (n) vals_.upload(0, static_cast<GLsizeiptr>(n * sizeof(Val)), real.data());
+  const uint32_t zero = 0;
+  counts_.upload(offsetof(Counts, dimmed), sizeof zero, &zero);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, vals_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, counts_.id());
+  if (n && !frame.lights().empty()) {
+    dim_.use();
+    setLightUniforms(dim_, frame.lights(), frame.lightViews());
+    frame.bindShadowMaps();
+    dim_.set("uRealCount", static_cast<int>(n));
+    setVec3(dim_, "uAmbientIrradiance", CV_PI * frame.ambient());
+    glDispatchCompute(static_cast<GLuint>((n + 63) / 64), 1, 1);
+    barrier();
+  }
+  if (virtualCapacity_)
+    glCopyNamedBufferSubData(virtual_.id(), vals_.id(), 0, static_cast<GLintptr>(n * sizeof(Val)),
+                             static_cast<GLsizeiptr>(virtualCapacity_ * sizeof(Val)));
+  barrier();
+  weights_.use();
+  weights_.set("uRealCount", static_cast<int>(n));
+  weights_.set("uCapacity", static_cast<int>(valCount_));
+  glDispatchCompute(1, 1, 1);
+  barrier();
+  gl::checkGlError("ValGpu::assemble()");
+}
+
+ValGpu::Counts ValGpu::downloadCounts() const {
+  Counts c;
+  counts_.download(0, sizeof c, &c);
+  return c;
+}
+
+std::vector<Val> ValGpu::downloadVals() const {
+  std::vector<Val> out(std::min<size_t>(downloadCounts().all, valCount_));
+  if (!out.empty()) vals_.download(0, static_cast<GLsizeiptr>(out.size() * sizeof(Val)), out.data());
+  return out;
 }
 
 void ValGpu::ensure(gl::Buffer& b, size_t bytes) {
@@ -24,6 +109,9 @@ void ValGpu::setVals(const std::vector<Val>& vals) {
   valCount_ = vals.size();
   ensure(vals_, vals.size() * sizeof(Val));
   if (!vals.empty()) vals_.upload(0, static_cast<GLsizeiptr>(vals.size() * sizeof(Val)), vals.data());
+  Counts c;
+  c.all = c.real = static_cast<uint32_t>(vals.size());
+  counts_.upload(0, sizeof c, &c);
 }
 
 void ValGpu::gather(const std::vector<Receiver>& receivers) {
@@ -49,6 +137,7 @@ void ValGpu::gather(const std::vector<Receiver>& receivers) {
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, vpls_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, sums_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, partial_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, counts_.id());
   for (size_t c = 0; c < chunks; ++c) {
     gather_.set("uValBegin", static_cast<int>(c * kValsPerDispatch));
     gather_.set("uValEnd", static_cast<int>(std::min(valCount_, (c + 1) * kValsPerDispatch)));

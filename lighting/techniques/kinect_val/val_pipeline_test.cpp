@@ -176,7 +176,7 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
   const double ambient = 0.1;  // W/m^2/sr: pi * 0.1 W/m^2 still reach the shadow
   pipe.run(topCamera(160, 120), {sun}, cv::Vec3d::all(ambient), nullptr);
   // Real VALs in the shadow reflect only the ambient: exitance x pi a / (E cos + pi a); the rest unchanged.
-  const auto& used = kval(pipe).vals();
+  const std::vector<Val> used = kval(pipe).downloadVals();
   ASSERT_EQ(used.size(), original.size() + kval(pipe).valStats().virtualVals);
   const double ratio = CV_PI * ambient / (8.0 + CV_PI * ambient);
   int dimmed = 0;
@@ -213,6 +213,60 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
   EXPECT_GT(inside, 100);
   EXPECT_GT(outside, 5000);
   EXPECT_EQ(wrong, 0);
+}
+
+TEST(GL, KinectValBuildsItsValsOnTheGpuAsTheCppReferenceDoes) {
+  // The frame path builds the VAL set on the GPU (val_rsm.comp, val_dim.comp, val_weights.comp) and reads
+  // nothing back. The same set from the downloaded RSM and shadow maps by the C++ reference (valsFromRsm,
+  // dimShadowedVals, setValWeights): same VALs in the same order, the same ones dimmed.
+  auto ctx = makeContext();
+  const double cube = 0.16;
+  const cv::Vec3d centre(0.0, 0.0, 0.2);
+  SceneLight sun = sunDown(10.0);
+  sun.direction = cv::normalize(cv::Vec3d(0.6, 0.1, -0.8));
+  SceneLight lamp;
+  lamp.type = LightType::Point;
+  lamp.position = {-0.4, 0.2, 0.9};
+  lamp.intensity = {3.0, 2.5, 2.0};
+  for (const SceneLight& light : {sun, lamp})
+    for (int stride : {1, 2, 3}) {
+      const TestScene s = makeScene(false, cube, centre);
+      PipelineConfig cfg = testConfig(160, 120, 16, 128, "kinect-val");
+      cfg.set("val", "rsm_stride", stride);
+      LightingPipeline pipe = makePipeline(cfg, s);
+      const std::vector<Val> real = roomVals();
+      pipe.setRealVals(real);
+      const cv::Vec3d ambient = cv::Vec3d::all(0.1);
+      pipe.run(topCamera(160, 120), {light}, ambient, nullptr);
+      const KinectValTechnique& k = kval(pipe);
+      const std::vector<Val> gpu = k.downloadVals();
+
+      std::vector<Val> ref = real;
+      const size_t dimmed = dimShadowedVals(ref, {{light, pipe.frame().lightViews().at(0), pipe.frame().downloadShadowTexels(0)}}, ambient);
+      const std::vector<Val> virt = valsFromRsm(pipe.downloadRsm(true), light, stride);
+      ref.insert(ref.end(), virt.begin(), virt.end());
+      setValWeights(ref);
+
+      const std::string at = (light.type == LightType::Point ? "point light, stride " : "sun, stride ") + std::to_string(stride);
+      ASSERT_EQ(gpu.size(), ref.size()) << at;
+      EXPECT_GT(virt.size(), 20u) << at;  // the cube's lit texels
+      EXPECT_GT(dimmed, 20u) << at;       // floor VALs in its shadow
+      const KinectValTechnique::Stats st = k.valStats();
+      EXPECT_EQ(st.virtualVals, virt.size()) << at;
+      EXPECT_EQ(st.shadowedVals, dimmed) << at;
+      const auto near = [](float a, float b) { return std::abs(a - b) <= 1e-5f * std::max(std::abs(a), std::abs(b)) + 1e-12f; };
+      int wrong = 0;
+      for (size_t i = 0; i < ref.size(); ++i) {
+        const Val &g = gpu[i], &r = ref[i];
+        bool same = g.position == r.position && g.normal == r.normal && near(g.area, r.area) && near(g.weight, r.weight);
+        for (int c = 0; c < 3; ++c) same = same && near(g.flux[c], r.flux[c]);
+        if (!same && ++wrong <= 3)
+          ADD_FAILURE() << at << ", VAL " << i << (i < real.size() ? " (real)" : " (virtual)") << ": gpu area " << g.area
+                        << " flux " << g.flux << " weight " << g.weight << ", reference area " << r.area << " flux " << r.flux
+                        << " weight " << r.weight;
+      }
+      EXPECT_EQ(wrong, 0) << at;
+    }
 }
 
 TEST(GL, DlpvPlusKinectValKeepsDlpvsRealPixelsAndReplacesTheObjectsBounce) {

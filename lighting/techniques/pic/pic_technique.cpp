@@ -83,7 +83,7 @@ TechniqueInfo picTechniqueInfo() {
   t.stagePrefixes = {"pic."};
   t.knobs = groupOf("pic", picKnobTable());
   t.create = [](const TechniqueSetup& s) { return std::make_unique<PicTechnique>(s); };
-  t.estimateBytes = [](const KnobValues& values, const KnobValues&, bool, bool, int w, int h) {
+  t.estimateBytes = [](const KnobValues& values, const KnobValues&, bool, bool, int w, int h, size_t) {
     const PicKnobs k = knobsFrom(picKnobTable(), values);
     const auto s = static_cast<size_t>(k.surfels), nodes = 2 * s;
     const auto b2 = static_cast<size_t>(k.bands * k.bands);

@@ -87,7 +87,7 @@ TechniqueInfo splattingTechniqueInfo() {
   t.stagePrefixes = {"splat."};
   t.knobs = groupOf("splat", splattingKnobTable());
   t.create = [](const TechniqueSetup& s) { return std::make_unique<SplattingTechnique>(s); };
-  t.estimateBytes = [](const KnobValues& values, const KnobValues& frame, bool real, bool virtualObject, int w, int h) {
+  t.estimateBytes = [](const KnobValues& values, const KnobValues& frame, bool real, bool virtualObject, int w, int h, size_t) {
     const SplattingKnobs k = knobsFrom(splattingKnobTable(), values);
     // Two importance pyramids over the padded RSM (4/3 of its texels), the lights (3 records per sample for
     // the delta, 1 for the object, plus one sample per light), the surface points and lights, the two outputs.
