@@ -56,19 +56,20 @@ float visibility(bool withObjects, int i, vec3 x, vec3 n) {
          shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
 }
 
+// Light i's irradiance at a point before any shadow test (lighting::unshadowedIrradiance).
+vec3 unshadowedIrradiance(int i, vec3 x, vec3 n) {
+  if (uLightType[i] == 2) return uLightPower[i] * max(dot(n, -uLightDirection[i]), 0.0);
+  vec3 l = uLightPosition[i] - x;
+  float d2 = max(dot(l, l), 1e-8);
+  vec3 ln = l * inversesqrt(d2);
+  if (uLightType[i] == 1 && dot(-ln, uLightDirection[i]) < uSpotCos[i]) return vec3(0.0);
+  return uLightPower[i] * max(dot(n, ln), 0.0) / d2;
+}
+
 vec3 directIrradiance(bool withObjects, vec3 x, vec3 n) {
   vec3 e = vec3(0.0);
   for (int i = 0; i < uLightCount; ++i) {
-    vec3 contribution;
-    if (uLightType[i] == 2) {
-      contribution = uLightPower[i] * max(dot(n, -uLightDirection[i]), 0.0);
-    } else {
-      vec3 l = uLightPosition[i] - x;
-      float d2 = max(dot(l, l), 1e-8);
-      vec3 ln = l * inversesqrt(d2);
-      if (uLightType[i] == 1 && dot(-ln, uLightDirection[i]) < uSpotCos[i]) continue;
-      contribution = uLightPower[i] * max(dot(n, ln), 0.0) / d2;
-    }
+    vec3 contribution = unshadowedIrradiance(i, x, n);
     if (any(greaterThan(contribution, vec3(0.0)))) e += contribution * visibility(withObjects, i, x, n);
   }
   return e;

@@ -1,11 +1,12 @@
 #version 450 core
 // Precomputed illuminance composition: the surfels' outgoing flux (pic.h surfelFlux): albedo x (the lights'
-// direct irradiance where the surfel sees them (the visibility bits, Embree) + the ambient's irradiance +
+// direct irradiance where the surfel sees them (the visibility bits, Embree; the lights' uniforms of
+// lighting/direct_light.glsl, its shadow maps unused) + the ambient's irradiance +
 // the bounce from its receiver's cache about its normal (uBounce)) x area, never negative; stored as RGB9E5
 // (uPacked) or RGBA32F per node (the leaves are nodes 0 .. surfels-1).
 #include "lighting/ambient_sh.glsl"
+#include "lighting/direct_light.glsl"
 #include "lighting/techniques/pic/pic.glsl"
-#define MAX_LIGHTS 16
 layout(local_size_x = 64) in;
 
 layout(std430, binding = 0) readonly buffer Surfels { PicSurfel surfels[]; };
@@ -17,24 +18,8 @@ layout(std430, binding = 4) readonly buffer Receivers { float receivers[]; };  /
 uniform int uCount;
 uniform int uPacked;
 uniform int uBounce;
-uniform int uLightCount;
-uniform int uLightType[MAX_LIGHTS];  // 0 point, 1 spot, 2 directional
-uniform vec3 uLightPosition[MAX_LIGHTS];
-uniform vec3 uLightDirection[MAX_LIGHTS];
-uniform vec3 uLightPower[MAX_LIGHTS];
-uniform float uSpotCos[MAX_LIGHTS];
 uniform vec3 uAmbient;
 uniform vec3 uAmbientSh[9];
-
-// lighting::unshadowedIrradiance.
-vec3 unshadowed(int l, vec3 x, vec3 n) {
-  if (uLightType[l] == 2) return uLightPower[l] * max(-dot(n, uLightDirection[l]), 0.0);
-  vec3 d = uLightPosition[l] - x;
-  float d2 = max(dot(d, d), 1e-8);
-  vec3 dn = d * inversesqrt(d2);
-  if (uLightType[l] == 1 && dot(-dn, uLightDirection[l]) < uSpotCos[l]) return vec3(0.0);
-  return uLightPower[l] * (max(dot(n, dn), 0.0) / d2);
-}
 
 void main() {
   int i = int(gl_GlobalInvocationID.x);
@@ -45,7 +30,7 @@ void main() {
   e = max(e, vec3(0.0));
   uint bits = visible[i];
   for (int l = 0; l < uLightCount; ++l)
-    if ((bits & (1u << uint(l))) != 0u) e += unshadowed(l, s.positionArea.xyz, n);
+    if ((bits & (1u << uint(l))) != 0u) e += unshadowedIrradiance(l, s.positionArea.xyz, n);
   int r = int(s.normalReceiver.w);
   if (uBounce != 0 && r >= 0) {
     float cache[PIC_CACHE_FLOATS];

@@ -266,17 +266,7 @@ void PicTechnique::lightAndPull(const FrameResources& frame, bool bounce) {
   p.set("uCount", n);
   p.set("uPacked", knobs_.rgb9e5 ? 1 : 0);
   p.set("uBounce", bounce && receiversLit_ ? 1 : 0);
-  const auto& lights = frame.lights();
-  p.set("uLightCount", static_cast<int>(std::min<size_t>(lights.size(), kMaxLights)));
-  for (size_t i = 0; i < lights.size() && i < static_cast<size_t>(kMaxLights); ++i) {
-    const auto name = [i](const char* u) { return std::string(u) + "[" + std::to_string(i) + "]"; };
-    const SceneLight& l = lights[i];
-    p.set(name("uLightType"), shaderLightType(l.type));
-    setVec3(p, name("uLightPosition"), l.position);
-    setVec3(p, name("uLightDirection"), l.direction);
-    setVec3(p, name("uLightPower"), l.type == LightType::Directional ? l.irradiance : l.intensity);
-    p.set(name("uSpotCos"), static_cast<float>(l.type == LightType::Spot ? l.spotCos() : -2.0));
-  }
+  setLightUniforms(p, frame.lights(), {});  // the visibility bits stand for the shadow maps
   setAmbientUniforms(p, frame);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, surfelBuffer_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, visibility_.id());
