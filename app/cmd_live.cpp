@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <future>
 #include <thread>
 
 #include <imgui.h>
@@ -207,9 +208,30 @@ int runLive(const LiveOptions& o) {
   gl::Profiler profiler;
   const auto gpuView = [&] { return views[viewIndex] == Views::kComposite; };
 
+  // While the composite view plays, frame n + 1 is read and prepared (marker, depth filter, albedo, real mesh
+  // and VALs: FramePipeline::prepare) on a worker while GL renders frame n. The other views read the
+  // pipeline between frames, a rebuild replaces it, fusion refreshes what rendering reads and a paused demo
+  // reads nothing: then the worker is joined first and frames are worked on in the loop.
+  struct Ahead {
+    std::optional<capture::Frame> frame;
+    std::optional<capture::Frame> arrived;  // the frame as it arrived, for the recorder (preparing registers its depth)
+    std::optional<PreparedFrame> prepared;
+    std::unique_ptr<gl::Profiler> stages;  // the worker's CPU stages of it
+  };
+  std::future<Ahead> ahead;
+  std::optional<Ahead> pending;  // a frame the worker delivered that the loop has not taken yet
+  const auto overlap = [&] { return gpuView() && !o.fuseRoom && !paused && !needRebuild; };
+  const auto join = [&] {
+    if (ahead.valid()) pending = ahead.get();
+  };
+  size_t lightCount = 0;  // of the frame shown (the worker may be changing the setup's)
+  int64_t preparedAhead = 0;  // frames the worker prepared
+
   while (!InterruptGuard::interrupted() && ui.beginFrame()) {
+    if (!overlap()) join();
     if (needRebuild) {
       rebuild();
+      if (pending) pending->prepared.reset();  // prepared by the pipeline just replaced: worked on again
       views = debugViews(*frames);
       viewIndex = std::min(viewIndex, static_cast<int>(views.size()) - 1);
       needRebuild = false;
@@ -217,19 +239,49 @@ int runLive(const LiveOptions& o) {
     bool fresh = false;
     if (!paused || step) {
       step = false;
-      auto next = live.next();
-      if (next && next->rgbd) {
+      join();
+      Ahead next;
+      if (pending) {
+        next = std::move(*pending);
+        pending.reset();
+      } else {
+        next.frame = live.next();
+      }
+      if (next.frame && next.frame->rgbd) {
         if (recording) {
-          if (!recorder) recorder.emplace(recordDir, manifestFor(live.source(), *next));
-          recorder->append(*next);
+          const capture::Frame& arrived = next.arrived ? *next.arrived : *next.frame;
+          if (!recorder) recorder.emplace(recordDir, manifestFor(live.source(), arrived));
+          recorder->append(arrived);
         }
-        frame = std::move(next);
+        frame = std::move(next.frame);
         // The composite view shows the compositor's texture as it is (the marker axes drawn over it): nothing
         // is read back. Every other view reads what it shows.
         compositor.setReadback(gpuView() ? compositor::Compositor::Readback::None : compositor::Compositor::Readback::Now);
         const auto t0 = std::chrono::steady_clock::now();
         if (processed == 0) loopStart = t0;
-        result = frames->process(*frame, compositor, profiler);
+        if (next.stages) profiler.adopt(*next.stages);
+        if (next.prepared) ++preparedAhead;
+        std::optional<PreparedFrame> prepared = std::move(next.prepared);
+        if (!prepared && !o.fuseRoom) prepared = frames->prepare(*frame, profiler);  // before the worker prepares the next
+        if (overlap())
+          ahead = std::async(std::launch::async, [&live, &frames] {
+            Ahead a;
+            a.frame = live.next();
+            if (a.frame && a.frame->rgbd) {
+              a.arrived = *a.frame;  // shares the images; registration replaces the depth, never writes into it
+              a.stages = std::make_unique<gl::Profiler>();
+              a.prepared = frames->prepare(*a.frame, *a.stages);
+            }
+            return a;
+          });
+        if (prepared) {
+          lightCount = prepared->lights.size();
+          frames->render(*frame, *prepared, compositor, profiler);
+          result = std::move(prepared->result);
+        } else {
+          result = frames->process(*frame, compositor, profiler);
+          lightCount = frames->setup() ? frames->setup()->lights.size() : 0;
+        }
         frameMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         pipelineMs += frameMs;
         // Stage times a frame late, when their GPU timestamps have arrived (the loop never waits for them).
@@ -239,7 +291,7 @@ int runLive(const LiveOptions& o) {
         ++processed;
         fresh = true;
         status = "playing";
-      } else if (!next) {
+      } else if (!next.frame) {
         status = "end of " + live.name();
         paused = ended = true;
       }
@@ -271,7 +323,7 @@ int runLive(const LiveOptions& o) {
     ImGui::Text("%.1f fps, pipeline %.1f ms", fps, frameMs);
     const std::string marker = result.info.value("marker", std::string(frames->setup() ? "-" : "no scene"));
     ImGui::Text("marker: %s", marker.c_str());
-    if (frames->setup()) ImGui::Text("lights: %zu", frames->setup()->lights.size());
+    if (frames->setup()) ImGui::Text("lights: %zu", lightCount);
     ImGui::Checkbox("pause", &paused);
     ImGui::SameLine();
     if (ImGui::Button("step")) step = true;
@@ -365,6 +417,7 @@ int runLive(const LiveOptions& o) {
     summary["wall_ms_per_frame"] = wallMs / static_cast<double>(processed);
     summary["fps"] = wallMs > 0 ? 1e3 * static_cast<double>(processed) / wallMs : 0.0;
     summary["pipeline_ms_per_frame"] = pipelineMs / static_cast<double>(processed);
+    summary["prepared_ahead"] = preparedAhead;
   }
   if (!o.screenshot.empty() && o.frames > 0 && (processed >= o.frames || ended)) summary["screenshot"] = o.screenshot;
   if (recorder) summary["recorded"] = {{"session", recordDir}, {"frames", recorder->framesWritten()}};

@@ -1172,6 +1172,7 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
   EXPECT_GT(summary["fps"].get<double>(), 0.0);
   EXPECT_GE(summary["wall_ms_per_frame"].get<double>(), summary["pipeline_ms_per_frame"].get<double>());
   EXPECT_NEAR(summary["fps"].get<double>() * summary["wall_ms_per_frame"].get<double>(), 1000.0, 1e-6);
+  EXPECT_EQ(summary["prepared_ahead"], 2);  // frames 2 and 3 were prepared while GL rendered the one before
   // The record toggle wrote the frames it showed into a session.
   EXPECT_EQ(summary["recorded"]["frames"], 3);
   EXPECT_EQ(nlohmann::json::parse(runMrgi("info " + (dir / "rec").string()).out)["frame_count"], 3);
