@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/image_io.h"
 #include "capture/npz.h"
 #include "capture/v4l2_source.h"
 #include "reconstruction/albedo.h"
@@ -158,6 +159,31 @@ void BM_RoomSurfaceFrame640(benchmark::State& state) {
   state.counters["blocks"] = static_cast<double>(room.blocks());
 }
 
+// PNG encoding of real 640x480 camera frames (rgbd-slambook): arg 0 = zlib's default strategy at level 3
+// (the first wave's), 1 = capture::encodePng as shipped (run-length deflate). Counter: bytes per frame.
+void BM_EncodePng(benchmark::State& state) {
+  std::vector<cv::Mat> frames;
+  for (int i = 1; i <= 5; ++i) {
+    cv::Mat bgr = cv::imread(std::string(MRGI_SHARED_DATA) + "/rgbd-slambook/joinMap/color/" + std::to_string(i) + ".png");
+    cv::cvtColor(bgr, bgr, cv::COLOR_BGR2RGB);
+    frames.push_back(bgr);
+  }
+  size_t bytes = 0, n = 0;
+  for (auto _ : state) {
+    const cv::Mat& f = frames[n++ % frames.size()];
+    std::vector<unsigned char> out;
+    if (state.range(0) == 0) {
+      cv::Mat bgr;
+      cv::cvtColor(f, bgr, cv::COLOR_RGB2BGR);
+      cv::imencode(".png", bgr, out, {cv::IMWRITE_PNG_COMPRESSION, 3});
+    } else {
+      out = capture::encodePng(f, "bench");
+    }
+    bytes += out.size();
+  }
+  state.counters["bytes"] = n ? static_cast<double>(bytes) / static_cast<double>(n) : 0.0;
+}
+
 // Marker accuracy and cost on the real ViSP RGB-D sequence (20 frames, 7 tags) against its poses:
 // counters report mean/worst translation (mm) and rotation (deg) errors, raw and depth-refined.
 void BM_MarkerPoseRealSequence(benchmark::State& state) {
@@ -244,6 +270,7 @@ void BM_MedianCutIrradianceError(benchmark::State& state) {
 
 }  // namespace
 
+BENCHMARK(BM_EncodePng)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MarkerPoseRealSequence)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MedianCutIrradianceError)
     ->ArgsProduct({{1, 4, 16, 64, 256}, {0, 1}})
