@@ -268,6 +268,32 @@ double surfelSolidAngle(double area, double cosine, double d) {
   return std::isfinite(v) ? v : 0.0;
 }
 
+std::vector<int32_t> refineCut(const Hierarchy& h, size_t count, const std::function<double(int32_t)>& weight,
+                               bool dropEmpty) {
+  std::vector<int32_t> done;
+  if (h.root < 0) return done;
+  using Item = std::pair<double, int32_t>;
+  std::priority_queue<Item> open;
+  const auto push = [&](int32_t k) {
+    const double w = weight(k);
+    if (!dropEmpty || w > 0) open.push({w, k});
+  };
+  push(h.root);
+  while (!open.empty() && open.size() + done.size() < count) {
+    const int32_t k = open.top().second;
+    open.pop();
+    const Node& n = h.nodes[static_cast<size_t>(k)];
+    if (n.child[0] < 0) {
+      done.push_back(k);
+      continue;
+    }
+    for (int32_t child : n.child) push(child);
+  }
+  while (!open.empty()) done.push_back(open.top().second), open.pop();
+  std::sort(done.begin(), done.end());
+  return done;
+}
+
 CacheLinks linkCaches(const Hierarchy& h, const std::vector<Surfel>& surfels, const reconstruction::MeshRays& rays,
                       const std::vector<cv::Vec3f>& positions, const LinkOptions& options,
                       const std::function<void(double)>& progress) {
@@ -343,26 +369,9 @@ CacheLinks linkCaches(const Hierarchy& h, const std::vector<Surfel>& surfels, co
           const double* b = &S[static_cast<size_t>(nd.child[1]) * static_cast<size_t>(B2)];
           for (int i = 0; i < B2; ++i) row[i] = a[i] + b[i];
         }
-        // The cut: refine the node with the largest band-0 factor until `links` nodes.
-        using Item = std::pair<double, int32_t>;
-        std::priority_queue<Item> open;
-        std::vector<int32_t> done;
-        if (S[static_cast<size_t>(h.root) * static_cast<size_t>(B2)] > 0) open.push({S[static_cast<size_t>(h.root) * static_cast<size_t>(B2)], h.root});
-        while (!open.empty() && open.size() + done.size() < L) {
-          const int32_t k = open.top().second;
-          open.pop();
-          const Node& nd = h.nodes[static_cast<size_t>(k)];
-          if (nd.child[0] < 0) {
-            done.push_back(k);
-            continue;
-          }
-          for (int32_t ch : nd.child) {
-            const double f0 = S[static_cast<size_t>(ch) * static_cast<size_t>(B2)];
-            if (f0 > 0) open.push({f0, ch});
-          }
-        }
-        while (!open.empty()) done.push_back(open.top().second), open.pop();
-        std::sort(done.begin(), done.end());
+        // The cut: refine the node with the largest band-0 factor until `links` nodes (unseen nodes left out).
+        const std::vector<int32_t> done =
+            refineCut(h, L, [&](int32_t k) { return S[static_cast<size_t>(k) * static_cast<size_t>(B2)]; }, true);
         for (size_t l = 0; l < done.size() && l < L; ++l) {
           const auto k = static_cast<size_t>(done[l]);
           out.node[c * L + l] = done[l];
@@ -383,23 +392,8 @@ CacheLinks linkCaches(const Hierarchy& h, const std::vector<Surfel>& surfels, co
 Receivers bounceReceivers(const Hierarchy& h, int count) {
   Receivers r;
   if (h.root < 0) return r;
-  using Item = std::pair<float, int32_t>;
-  std::priority_queue<Item> open;
-  open.push({h.nodes[static_cast<size_t>(h.root)].area, h.root});
-  std::vector<int32_t> done;
-  while (!open.empty() && open.size() + done.size() < static_cast<size_t>(std::max(1, count))) {
-    const int32_t k = open.top().second;
-    open.pop();
-    const Node& n = h.nodes[static_cast<size_t>(k)];
-    if (n.child[0] < 0) {
-      done.push_back(k);
-      continue;
-    }
-    open.push({h.nodes[static_cast<size_t>(n.child[0])].area, n.child[0]});
-    open.push({h.nodes[static_cast<size_t>(n.child[1])].area, n.child[1]});
-  }
-  while (!open.empty()) done.push_back(open.top().second), open.pop();
-  std::sort(done.begin(), done.end());
+  const std::vector<int32_t> done = refineCut(h, static_cast<size_t>(std::max(1, count)),
+                                             [&h](int32_t k) { return static_cast<double>(h.nodes[static_cast<size_t>(k)].area); }, false);
   r.nodes = done;
   // Every surfel's receiver: its ancestor in the cut (walk the cut's subtrees down).
   r.ofSurfel.assign(h.leaves, -1);

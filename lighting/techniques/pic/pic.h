@@ -91,6 +91,13 @@ double clusterDistance(const Node& a, const Node& b, double eMax, const ClusterO
 /// (when none did, the closest pair found merges). Deterministic.
 Hierarchy buildHierarchy(const std::vector<Surfel>& surfels, const ClusterOptions& options = {});
 
+/// A cut through the hierarchy of at most `count` nodes, refined top-down: from the root, the node of the
+/// largest weight is replaced by its children until the cut holds `count` nodes (a leaf stays). With
+/// dropEmpty, nodes of weight <= 0 (and what lies under them) are left out. Sorted by node index; ties in
+/// weight go to the larger index. Shared by the caches' links and the bounce receivers.
+std::vector<int32_t> refineCut(const Hierarchy& hierarchy, size_t count, const std::function<double(int32_t)>& weight,
+                               bool dropEmpty);
+
 /// Caches and their links.
 struct LinkOptions {
   int bands = 4;        ///< SH bands of the caches' radiance, 1..8
