@@ -38,6 +38,39 @@ TagDetector::TagDetector(const DetectorOptions& options) : impl_(std::make_uniqu
 
 TagDetector::~TagDetector() = default;
 
+std::vector<TagDetection> TagDetector::detect(const cv::Mat& image, cv::Rect roi) const {
+  // Whole 4-pixel tiles of the image (libapriltag thresholds per tile of 4 x 4 pixels from the image's origin).
+  constexpr int kTile = 4;
+  roi &= cv::Rect(0, 0, image.cols, image.rows);
+  const int x0 = roi.x / kTile * kTile, y0 = roi.y / kTile * kTile;
+  const int x1 = std::min((roi.x + roi.width + kTile - 1) / kTile * kTile, image.cols / kTile * kTile);
+  const int y1 = std::min((roi.y + roi.height + kTile - 1) / kTile * kTile, image.rows / kTile * kTile);
+  if (x1 - x0 < 2 * kTile || y1 - y0 < 2 * kTile) return {};
+  const cv::Rect region(x0, y0, x1 - x0, y1 - y0);
+  std::vector<TagDetection> out = detect(image(region));
+  for (TagDetection& d : out) {
+    for (cv::Point2d& c : d.corners) c += cv::Point2d(region.x, region.y);
+    d.centre += cv::Point2d(region.x, region.y);
+  }
+  return out;
+}
+
+cv::Rect tagSearchRegion(const std::array<cv::Point2d, 4>& corners, double grow) {
+  double lx = corners[0].x, hx = lx, ly = corners[0].y, hy = ly;
+  for (const cv::Point2d& c : corners) lx = std::min(lx, c.x), hx = std::max(hx, c.x), ly = std::min(ly, c.y), hy = std::max(hy, c.y);
+  const double g = grow * std::max(hx - lx, hy - ly);
+  if (!std::isfinite(g)) return {};
+  return cv::Rect(cv::Point(static_cast<int>(std::floor(lx - g)), static_cast<int>(std::floor(ly - g))),
+                  cv::Point(static_cast<int>(std::ceil(hx + g)) + 1, static_cast<int>(std::ceil(hy + g)) + 1));
+}
+
+bool tagWellInside(const TagDetection& d, const cv::Rect& roi, double margin) {
+  for (const cv::Point2d& c : d.corners)
+    if (c.x < roi.x + margin || c.y < roi.y + margin || c.x > roi.x + roi.width - margin || c.y > roi.y + roi.height - margin)
+      return false;
+  return true;
+}
+
 std::vector<TagDetection> TagDetector::detect(const cv::Mat& image) const {
   cv::Mat grey;
   if (image.type() == CV_8UC1) grey = image;

@@ -45,6 +45,11 @@ class TagDetector {
   TagDetector& operator=(const TagDetector&) = delete;
   /// Detections in an 8-bit grey or RGB image, sorted by id.
   std::vector<TagDetection> detect(const cv::Mat& image) const;
+  /// Detections inside `roi` only, in the image's pixels, at the cost of the region's area. The region is
+  /// clipped to the image and grown to whole 4-pixel tiles of the image, where libapriltag's adaptive
+  /// threshold works, so a tag well inside it (tagWellInside) is found with the same corners as on the
+  /// whole image.
+  std::vector<TagDetection> detect(const cv::Mat& image, cv::Rect roi) const;
   const DetectorOptions& options() const { return options_; }
 
  private:
@@ -52,6 +57,13 @@ class TagDetector {
   std::unique_ptr<Impl> impl_;
   DetectorOptions options_;
 };
+
+/// The region detect(image, roi) searches for a tag last seen at `corners`: their bounding box grown by
+/// `grow` times its larger side on every side.
+cv::Rect tagSearchRegion(const std::array<cv::Point2d, 4>& corners, double grow);
+/// A detection in a region lies well inside it: its corners at least `margin` pixels from the region's edges
+/// (a tag cut by the region's edge may be found with wrong corners, or not at all).
+bool tagWellInside(const TagDetection& d, const cv::Rect& roi, double margin);
 
 /// The four corners of a tag of edge `size` in the tag frame, in libapriltag corner order.
 std::array<cv::Point3d, 4> tagCornersInTagFrame(double size);

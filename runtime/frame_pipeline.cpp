@@ -218,16 +218,35 @@ std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& fra
   auto s = profiler.cpu("marker");
   const capture::RgbdFrame& rgbd = *frame.rgbd;
   std::optional<capture::Pose> measured;
-  for (const auto& d : detector_->detect(rgbd.colour)) {
-    if (setup_->tagId >= 0 && d.id != setup_->tagId) continue;
-    // measure() registered the depth to the colour image before this.
-    const auto pose = reconstruction::measureTagPose(d, setup_->tagSize, rgbd.colourIntrinsics, rgbd.depth,
-                                                     track_.lastMeasured());
-    if (pose) {
-      measured = pose->T_camera_tag;
-      break;
+  // The first wanted tag with a pose among `found`; from a search region, only one well inside it.
+  const auto measure = [&](const std::vector<reconstruction::TagDetection>& found, const cv::Rect* region) {
+    for (const auto& d : found) {
+      if (setup_->tagId >= 0 && d.id != setup_->tagId) continue;
+      if (region && !reconstruction::tagWellInside(d, *region, 4.0)) continue;
+      // measure() registered the depth to the colour image before this.
+      const auto pose = reconstruction::measureTagPose(d, setup_->tagSize, rgbd.colourIntrinsics, rgbd.depth,
+                                                       track_.lastMeasured());
+      if (pose) {
+        measured = pose->T_camera_tag;
+        lastTagCorners_ = d.corners;
+        return true;
+      }
     }
+    return false;
+  };
+  // Around where the tag was last seen (its box grown by its size on every side: a ninth of the image or
+  // less), the whole image when it is not found there: the same corners (Marker.DetectionInARegion...) at a
+  // fraction of the cost.
+  bool found = false;
+  if (lastTagCorners_) {
+    const cv::Rect region = reconstruction::tagSearchRegion(*lastTagCorners_, 1.0) & cv::Rect(0, 0, rgbd.colour.cols, rgbd.colour.rows);
+    found = measure(detector_->detect(rgbd.colour, region), &region);
   }
+  if (!found) {
+    found = measure(detector_->detect(rgbd.colour), nullptr);
+    r.info["marker_search"] = "image";
+  }
+  if (!found) lastTagCorners_.reset();
   const auto status = track_.update(frame.timestamp, measured);
   r.info["marker"] = reconstruction::toString(status);
   if (status != reconstruction::TrackStatus::Lost && track_.pose()) return capture::inversePose(*track_.pose());

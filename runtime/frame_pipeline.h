@@ -160,6 +160,7 @@ class FramePipeline {
   std::optional<reconstruction::FisheyeRays> worldFisheyeRays_;  ///< the same rays in the lighting world
   std::optional<reconstruction::TagDetector> detector_;
   reconstruction::MarkerTrack track_;
+  std::optional<std::array<cv::Point2d, 4>> lastTagCorners_;  ///< where the tag was last measured (its search region)
   lighting::TechniqueNeeds needs_;              ///< what the scene's techniques need (real VALs)
   std::optional<lighting::SurfelMap> surfels_;  ///< fusion of real VALs over frames, when asked for
   /// The frame the lighting pipeline's real surface was built from (FrameOptions::reuse).

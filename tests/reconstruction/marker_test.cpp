@@ -107,6 +107,52 @@ capture::Pose poseFromJson(const nlohmann::json& m) {
 
 }  // namespace
 
+TEST(Marker, DetectionInARegionAroundTheTagMatchesTheWholeImages) {
+  // The frame pipeline looks for its tag around where it last saw it: on real images (the 12-tag photo and
+  // the 20 frames of the ViSP RGB-D sequence) every tag found in its search region has the corners found on
+  // the whole image (to float rounding: 4e-5 px), and a region that cuts a tag gives no detection of it well
+  // inside.
+  std::vector<cv::Mat> images{cv::imread(kData + "/apriltag-visp/AprilTag.png", cv::IMREAD_COLOR)};
+  for (int f = 0; f < 20; ++f) {
+    char n[16];
+    std::snprintf(n, sizeof n, "%04d", f);
+    images.push_back(cv::imread(kData + "/rgbd-visp-apriltag/color_image_" + n + ".png", cv::IMREAD_COLOR));
+  }
+  TagDetector detector;
+  int compared = 0, cut = 0;
+  double maxDiff = 0, centreDiff = 0;
+  for (size_t i = 0; i < images.size(); ++i) {
+    ASSERT_FALSE(images[i].empty()) << i;
+    const cv::Mat& img = images[i];
+    for (const TagDetection& whole : detector.detect(img)) {
+      const cv::Rect roi = tagSearchRegion(whole.corners, 1.0);
+      bool seen = false;
+      for (const TagDetection& d : detector.detect(img, roi)) {
+        if (d.id != whole.id) continue;
+        seen = true;
+        for (int c = 0; c < 4; ++c) maxDiff = std::max(maxDiff, cv::norm(d.corners[c] - whole.corners[c]));
+        centreDiff = std::max(centreDiff, cv::norm(d.centre - whole.centre));
+        EXPECT_TRUE(tagWellInside(d, roi & cv::Rect(0, 0, img.cols, img.rows), 4.0) ||
+                    !tagWellInside(whole, cv::Rect(0, 0, img.cols, img.rows), 8.0));
+      }
+      EXPECT_TRUE(seen) << "image " << i << ", tag " << whole.id;
+      compared += seen;
+      // A region through the middle of the tag.
+      const double w = std::abs(whole.corners[1].x - whole.corners[0].x) + std::abs(whole.corners[2].x - whole.corners[1].x);
+      const cv::Rect half(cv::Point(static_cast<int>(whole.centre.x), static_cast<int>(whole.centre.y - w)),
+                          cv::Point(static_cast<int>(whole.centre.x + 2 * w), static_cast<int>(whole.centre.y + w)));
+      for (const TagDetection& d : detector.detect(img, half))
+        if (d.id == whole.id) EXPECT_FALSE(tagWellInside(d, half, 4.0)) << "image " << i << ", tag " << whole.id;
+      ++cut;
+    }
+  }
+  std::printf("%d tags: corners within %.3g px, centres within %.3g px of the whole image's\n", compared, maxDiff, centreDiff);
+  EXPECT_GT(compared, 30);
+  EXPECT_EQ(compared, cut);
+  EXPECT_LT(maxDiff, 1e-3);
+  EXPECT_LT(centreDiff, 1e-3);
+}
+
 TEST(Marker, RealRgbdSequencePosesMatchGroundTruth) {
   const auto seq = readVispSequence();
   TagDetector detector;
