@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
@@ -180,18 +180,10 @@ std::array<cv::Point2f, 4> markerAxesPixels(const capture::Intrinsics& k, const 
 }
 
 void drawMarkerAxes(cv::Mat& rgb, const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length) {
-  const capture::Pose T = capture::inversePose(T_marker_camera);
-  cv::Mat R(3, 3, CV_64F), rvec;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) R.at<double>(i, j) = T(i, j);
-  cv::Rodrigues(R, rvec);
-  const cv::Vec3d tvec(T(0, 3), T(1, 3), T(2, 3));
-  const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
-  // drawFrameAxes draws x in red for BGR images; the camera image is RGB, so draw on a BGR copy.
-  cv::Mat bgr;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  cv::drawFrameAxes(bgr, K, cv::noArray(), rvec, tvec, static_cast<float>(length), 2);
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  // The live window draws the same pixels over its GPU image (markerAxesPixels); here onto the RGB image.
+  const std::array<cv::Point2f, 4> p = markerAxesPixels(k, T_marker_camera, length);
+  const cv::Scalar colours[3] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}};  // x red, y green, z blue (RGB)
+  for (int i = 0; i < 3; ++i) cv::line(rgb, p[0], p[static_cast<size_t>(i) + 1], colours[i], 2);
 }
 
 }  // namespace mrgi::runtime
