@@ -1,5 +1,6 @@
 #include "capture/ply_check.h"
 
+#include <cstdio>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
@@ -114,9 +115,11 @@ void checkPlyFile(const std::string& path) {
     throw InputError(path, "malformed PLY: face " + std::to_string(i) + " " + why);
   };
   auto checkIndex = [&](uint64_t face, double v) {
-    if (!(v >= 0 && v < static_cast<double>(vertices) && v == std::floor(v)))
-      badFace(face, "names vertex " + (std::isfinite(v) ? std::to_string(static_cast<long long>(v)) : std::string("?")) + " of " +
-                        std::to_string(vertices));
+    if (v >= 0 && v < static_cast<double>(vertices) && v == std::floor(v)) return;
+    // Named as written: a value past long long (7.8e27, found by the room fuzzer) cannot be converted to one.
+    char named[32] = "?";
+    if (std::isfinite(v)) std::snprintf(named, sizeof named, "%.15g", v);
+    badFace(face, "names vertex " + std::string(named) + " of " + std::to_string(vertices));
   };
 
   auto truncated = [&](const Element& e, uint64_t have) {
