@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
-#include <future>
 #include <thread>
 
 #include <imgui.h>
@@ -212,14 +211,8 @@ int runLive(const LiveOptions& o) {
   // and VALs: FramePipeline::prepare) on a worker while GL renders frame n. The other views read the
   // pipeline between frames, a rebuild replaces it, fusion refreshes what rendering reads and a paused demo
   // reads nothing: then the worker is joined first and frames are worked on in the loop.
-  struct Ahead {
-    std::optional<capture::Frame> frame;
-    std::optional<capture::Frame> arrived;  // the frame as it arrived, for the recorder (preparing registers its depth)
-    std::optional<PreparedFrame> prepared;
-    std::unique_ptr<gl::Profiler> stages;  // the worker's CPU stages of it
-  };
-  std::future<Ahead> ahead;
-  std::optional<Ahead> pending;  // a frame the worker delivered that the loop has not taken yet
+  std::future<runtime::FrameAhead> ahead;
+  std::optional<runtime::FrameAhead> pending;  // a frame the worker delivered that the loop has not taken yet
   const auto overlap = [&] { return gpuView() && !o.fuseRoom && !paused && !needRebuild; };
   const auto join = [&] {
     if (ahead.valid()) pending = ahead.get();
@@ -240,7 +233,7 @@ int runLive(const LiveOptions& o) {
     if (!paused || step) {
       step = false;
       join();
-      Ahead next;
+      runtime::FrameAhead next;
       if (pending) {
         next = std::move(*pending);
         pending.reset();
@@ -249,7 +242,7 @@ int runLive(const LiveOptions& o) {
       }
       if (next.frame && next.frame->rgbd) {
         if (recording) {
-          const capture::Frame& arrived = next.arrived ? *next.arrived : *next.frame;
+          const capture::Frame& arrived = next.arrived ? *next.arrived : *next.frame;  // before registration
           if (!recorder) recorder.emplace(recordDir, manifestFor(live.source(), arrived));
           recorder->append(arrived);
         }
@@ -263,17 +256,7 @@ int runLive(const LiveOptions& o) {
         if (next.prepared) ++preparedAhead;
         std::optional<PreparedFrame> prepared = std::move(next.prepared);
         if (!prepared && !o.fuseRoom) prepared = frames->prepare(*frame, profiler);  // before the worker prepares the next
-        if (overlap())
-          ahead = std::async(std::launch::async, [&live, &frames] {
-            Ahead a;
-            a.frame = live.next();
-            if (a.frame && a.frame->rgbd) {
-              a.arrived = *a.frame;  // shares the images; registration replaces the depth, never writes into it
-              a.stages = std::make_unique<gl::Profiler>();
-              a.prepared = frames->prepare(*a.frame, *a.stages);
-            }
-            return a;
-          });
+        if (overlap()) ahead = runtime::readAhead([&live] { return live.next(); }, frames.get());
         if (prepared) {
           lightCount = prepared->lights.size();
           frames->render(*frame, *prepared, compositor, profiler);

@@ -160,25 +160,10 @@ int runReplay(const ReplayOptions& o) {
   // --sequential, the worker only reads and the frame is worked on in the loop, one stage after another.
   const bool overlap = !o.sequential && !o.debug && !o.fuseRoom;
   using Clock = std::chrono::steady_clock;
-  struct Ahead {
-    std::optional<capture::Frame> frame;
-    Clock::time_point in;  // when it was read and decoded
-    std::optional<PreparedFrame> prepared;
-    std::unique_ptr<gl::Profiler> stages;  // the worker's CPU stages of it
+  const auto readNext = [&source, &frames, overlap] {
+    return runtime::readAhead([&source] { return source->next(); }, overlap ? &frames : nullptr);
   };
-  const auto readAhead = [&source, &frames, overlap] {
-    return std::async(std::launch::async, [&source, &frames, overlap] {
-      Ahead a;
-      a.frame = source->next();
-      a.in = Clock::now();
-      if (a.frame && overlap) {
-        a.stages = std::make_unique<gl::Profiler>();
-        a.prepared = frames.prepare(*a.frame, *a.stages);
-      }
-      return a;
-    });
-  };
-  std::future<Ahead> ahead = readAhead();
+  std::future<runtime::FrameAhead> ahead = readNext();
   // The frame loop never waits for the GPU unless an output asks for it (--dump-delta, --debug): each
   // composite is read into a pixel buffer and handed to the writer when the read has finished (typically
   // while the next frame is worked on), and each frame's GPU stage times are taken when its timestamps have
@@ -241,10 +226,10 @@ int runReplay(const ReplayOptions& o) {
     {
       // The loop's wait for the worker (0 when the frame was ready).
       auto s = profiler.cpu("read");
-      Ahead a = ahead.get();
+      runtime::FrameAhead a = ahead.get();
       frame = std::move(a.frame), frameStart = a.in, prepared = std::move(a.prepared);
       if (a.stages) profiler.adopt(*a.stages);  // the worker's stages count as this frame's
-      if (frame && (limit < 0 || done + 1 < limit)) ahead = readAhead();
+      if (frame && (limit < 0 || done + 1 < limit)) ahead = readNext();
     }
     if (!frame) break;
     FrameResult result;

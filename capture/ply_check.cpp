@@ -1,9 +1,9 @@
 #include "capture/ply_check.h"
 
-#include <cstdio>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>

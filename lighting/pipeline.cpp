@@ -186,9 +186,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   p.use();
   p.set("uLighting", lit ? 1 : 0);
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
-  setVec3(p, "uAmbient", ambientRadiance);
+  setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
   p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
-  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", ambientSh_[static_cast<size_t>(k)]);
   setLightUniforms(p, lights, frame_->lightViews());
   frame_->gPosition().bind(0);
   frame_->gNormal().bind(1);

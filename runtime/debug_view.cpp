@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include <opencv2/core/utility.hpp>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"

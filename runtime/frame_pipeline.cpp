@@ -283,6 +283,20 @@ FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor
   return std::move(p.result);
 }
 
+std::future<FrameAhead> readAhead(std::function<std::optional<capture::Frame>()> next, FramePipeline* pipeline) {
+  return std::async(std::launch::async, [next = std::move(next), pipeline] {
+    FrameAhead a;
+    a.frame = next();
+    a.in = std::chrono::steady_clock::now();
+    if (a.frame && a.frame->rgbd && pipeline) {
+      a.arrived = *a.frame;  // shares the images: registration replaces the depth, never writes into it
+      a.stages = std::make_unique<gl::Profiler>();
+      a.prepared = pipeline->prepare(*a.frame, *a.stages);
+    }
+    return a;
+  });
+}
+
 PreparedFrame FramePipeline::prepare(capture::Frame& frame, gl::Profiler& profiler) {
   PreparedFrame p;
   p.result = measure(frame, profiler);

@@ -1,7 +1,9 @@
 #pragma once
 // The per-frame work every application shares (replay, insert, and later live): marker pose, filtered
 // depth, estimated lights and albedo, real mesh, lighting and compositing of one RGB-D frame.
+#include <chrono>
 #include <functional>
+#include <future>
 #include <memory>
 #include <optional>
 #include <string>
@@ -202,5 +204,17 @@ class FramePipeline {
   void roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
   cv::Mat thumbnail_;  ///< of the frame being processed
 };
+
+/// A frame read ahead of a frame loop on a worker thread, and prepared there when a pipeline was given.
+struct FrameAhead {
+  std::optional<capture::Frame> frame;     ///< nullopt at the end of the source
+  std::optional<capture::Frame> arrived;   ///< as read, before preparing registered its depth (shares the images)
+  std::chrono::steady_clock::time_point in;  ///< when it was read and decoded
+  std::optional<PreparedFrame> prepared;   ///< FramePipeline::prepare's result
+  std::unique_ptr<gl::Profiler> stages;    ///< the CPU stages of preparing it (gl::Profiler::adopt)
+};
+/// Reads the next frame with `next` on a worker thread and, with `pipeline`, prepares it there (the caller
+/// prepares nothing else with that pipeline until the result is taken). A read error surfaces at get().
+std::future<FrameAhead> readAhead(std::function<std::optional<capture::Frame>()> next, FramePipeline* pipeline);
 
 }  // namespace mrgi::runtime

@@ -173,8 +173,6 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
                                             {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       out_(setup.frame->width(), setup.frame->height()) {}
 
-
-
 void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler* profiler) {
   const Region& region = *frame.region();
   iv::Grid g;

@@ -61,8 +61,7 @@ void setTexelUniforms(const gl::Program& p, const FrameResources& frame, const S
   setVec3(p, "uLightPosition", l.position);
   setVec3(p, "uLightDirection", l.direction);
   setVec3(p, "uLightPower", l.type == LightType::Directional ? l.irradiance : l.intensity);
-  setVec3(p, "uAmbient", frame.ambient());
-  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+  setAmbientUniforms(p, frame);
   p.set("uAmbientShare", ambientShare);
 }
 
