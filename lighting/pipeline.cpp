@@ -130,7 +130,16 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
                            const cv::Vec3d& ambientRadiance, gl::Profiler* profiler) {
   glDisable(GL_CULL_FACE);
   glDisable(GL_BLEND);
-  const FrameVersions now = frame_->update(camera, lights, ambientRadiance);
+  // Only the lights that matter at the objects' region are rendered (frame knob light_cutoff); the others
+  // change the objects' effect on the scene by at most that share, and light real pixels equally with and
+  // without the objects.
+  frame_->fitRegionToObjects();
+  const std::optional<Region>& region = frame_->region();
+  lightsKept_ = lightsThatMatter(lights, ambientRadiance, region.value_or(Region{}),
+                                 region ? frame_->config().knobs.lightCutoff : 0.0);
+  std::vector<SceneLight> kept;
+  for (size_t i : lightsKept_) kept.push_back(lights[i]);
+  const FrameVersions now = frame_->update(camera, kept, ambientRadiance);
   const bool needGbuffer = changed(gbufferAt_, now, kInputCamera | kInputGeometry);
   unsigned lightInputs = kInputGeometry | kInputLights;
   for (const auto& t : techniques_) lightInputs |= t->lightInputs();
@@ -148,7 +157,6 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     return;
   }
 
-  if (needGbuffer || needLights) frame_->fitRegionToObjects();
   const bool lit = frame_->region().has_value();
   if (needGbuffer) {
     auto s = timed(profiler, "gbuffer");
@@ -160,7 +168,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     frame_->clearLightViews();
     if (lit) {
       for (auto& t : techniques_) t->beginLights(*frame_, profiler);
-      for (size_t li = 0; li < lights.size(); ++li) {
+      for (size_t li = 0; li < kept.size(); ++li) {
         {
           auto s = timed(profiler, "rsm");
           frame_->renderLight(li);
@@ -188,7 +196,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
   setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
   p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
-  setLightUniforms(p, lights, frame_->lightViews());
+  setLightUniforms(p, kept, frame_->lightViews());
   frame_->gPosition().bind(0);
   frame_->gNormal().bind(1);
   frame_->gAlbedo().bind(2);

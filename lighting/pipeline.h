@@ -99,6 +99,9 @@ class LightingPipeline {
   /// Stages the last run skipped because their inputs had not changed: of "gbuffer", "rsm", each
   /// technique's name (its update), "shade".
   const std::vector<std::string>& skippedStages() const { return skipped_; }
+  /// Indices (into the last run's lights) of the lights it rendered: those that matter at the objects'
+  /// region (lightsThatMatter, frame knob light_cutoff); every light when no object is placed.
+  const std::vector<size_t>& lightsRendered() const { return lightsKept_; }
   /// The next run computes every stage.
   void invalidate();
 
@@ -145,6 +148,7 @@ class LightingPipeline {
   bool idle(const Technique& t) const;
   std::vector<std::optional<FrameVersions>> techniqueAt_;
   std::vector<std::string> skipped_;
+  std::vector<size_t> lightsKept_;
 };
 
 }  // namespace mrgi::lighting

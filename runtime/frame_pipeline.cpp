@@ -606,6 +606,14 @@ void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compos
   pipeline_->setAmbientSh(p.ambientSh);
   pipeline_->run(view, p.lights, p.ambient, &profiler);
   for (const std::string& stage : pipeline_->skippedStages()) r.info["skipped"].push_back(stage);
+  if (const auto& rendered = pipeline_->lightsRendered(); rendered.size() < p.lights.size()) {
+    // The lights too dim at the objects to be worth rendering (frame knob light_cutoff), by index.
+    nlohmann::json skippedLights = nlohmann::json::array();
+    for (size_t i = 0, k = 0; i < p.lights.size(); ++i)
+      if (k < rendered.size() && rendered[k] == i) ++k;
+      else skippedLights.push_back(i);
+    r.info["lights_skipped"] = std::move(skippedLights);
+  }
   // Each technique's facts of this frame (counts, flicker), under its name.
   if (options_.techniqueStats)
     if (auto stats = pipeline_->stats(); !stats.empty()) r.info["techniques"] = std::move(stats);

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numeric>
 #include <stdexcept>
 
 #include "gl/error.h"
@@ -25,6 +27,11 @@ const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable() {
         "objects' largest bounding-box edge",
         {2.0, 3.0, 6.0}, {}, false},
        &FrameKnobs::sizeFactor},
+      {{"light_cutoff", KnobType::Real, 0.0, 0.5, 0.01,
+        "share of the most irradiance the lights and the ambient can give the region that the dimmest lights "
+        "may carry and be skipped (no RSM, shadow map or technique work); 0: every light is rendered",
+        {0.0, 0.05}, {}, false},
+       &FrameKnobs::lightCutoff},
   };
   return table;
 }
@@ -162,6 +169,50 @@ Region fitRegion(const cv::Vec3d& lo, const cv::Vec3d& hi, double sizeFactor) {
   r.side = edge * sizeFactor;
   r.origin = 0.5 * (lo + hi) - cv::Vec3d::all(0.5 * r.side);
   return r;
+}
+
+cv::Vec3d irradianceBound(const SceneLight& light, const Region& region) {
+  if (light.type == LightType::Directional) return light.irradiance;
+  const cv::Vec3d toCentre = region.centre() - light.position;
+  const double d = cv::norm(toCentre), r = region.radius();
+  if (!(d > r)) return cv::Vec3d::all(std::numeric_limits<double>::infinity());
+  if (light.type == LightType::Spot) {
+    // The cone misses the sphere when the angle from its axis to the centre exceeds the half angle by more
+    // than the sphere's angular radius.
+    const double off = std::acos(std::clamp(toCentre.dot(light.direction) / d, -1.0, 1.0));
+    if (off - std::asin(r / d) > light.spotHalfAngleDeg * CV_PI / 180.0) return {0, 0, 0};
+  }
+  return light.intensity / ((d - r) * (d - r));
+}
+
+std::vector<size_t> lightsThatMatter(const std::vector<SceneLight>& lights, const cv::Vec3d& ambientRadiance,
+                                     const Region& region, double cutoff) {
+  std::vector<size_t> kept(lights.size());
+  std::iota(kept.begin(), kept.end(), size_t{0});
+  if (!(cutoff > 0)) return kept;
+  std::vector<cv::Vec3d> bound(lights.size());
+  cv::Vec3d total = CV_PI * ambientRadiance;
+  for (size_t i = 0; i < lights.size(); ++i) {
+    bound[i] = irradianceBound(lights[i], region);
+    if (std::isfinite(bound[i][0] + bound[i][1] + bound[i][2])) total += bound[i];
+  }
+  auto brightest = [](const cv::Vec3d& b) { return std::max({b[0], b[1], b[2]}); };
+  std::vector<size_t> order = kept;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return brightest(bound[a]) < brightest(bound[b]); });
+  std::vector<bool> skip(lights.size(), false);
+  cv::Vec3d skipped{0, 0, 0};
+  for (size_t i : order) {
+    const cv::Vec3d next = skipped + bound[i];
+    bool within = true;
+    for (int c = 0; c < 3; ++c) within = within && next[c] <= cutoff * total[c];
+    if (!within) break;
+    skipped = next;
+    skip[i] = true;
+  }
+  kept.clear();
+  for (size_t i = 0; i < lights.size(); ++i)
+    if (!skip[i]) kept.push_back(i);
+  return kept;
 }
 
 LightView fitLightView(const SceneLight& light, const Region& region, int size) {

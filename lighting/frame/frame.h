@@ -78,6 +78,20 @@ struct Region {
 };
 Region fitRegion(const cv::Vec3d& lo, const cv::Vec3d& hi, double sizeFactor);
 
+/// The most unshadowed irradiance `light` can give a point of the region's bounding sphere, whatever the
+/// point's normal (W/m^2 per channel): a directional light's irradiance; a point light's intensity over the
+/// squared distance to the sphere's nearest point; a spot's the same, or exactly 0 when its cone misses the
+/// sphere. Infinite for a point or spot light inside the sphere. Bounds the light's share of everything the
+/// objects change: their direct light, the shadow they cast (its receivers lie behind them from the light),
+/// what they bounce.
+cv::Vec3d irradianceBound(const SceneLight& light, const Region& region);
+/// The lights worth rendering for the region, by index in `lights` (in order): the dimmest lights (by
+/// irradianceBound, ascending) are left out for as long as, in every channel, the bounds of those left out
+/// sum to at most `cutoff` of the sum over all lights with a finite bound plus the ambient's irradiance
+/// (pi x ambient radiance). cutoff 0: every light. A light with an infinite bound is always kept.
+std::vector<size_t> lightsThatMatter(const std::vector<SceneLight>& lights, const cv::Vec3d& ambientRadiance,
+                                     const Region& region, double cutoff);
+
 /// How one light sees the region: perspective for point/spot lights (frustum around the region's bounding
 /// sphere), orthographic for directional ones (fitted to the region).
 struct LightView {
@@ -125,6 +139,7 @@ struct FrameKnobs {
   int rsmSize = 0;          ///< RSM texels per side
   int shadowSize = 0;       ///< texels per side of the objects' shadow maps
   double sizeFactor = 0;    ///< region side / the objects' largest bounding-box edge
+  double lightCutoff = 0;   ///< share of the irradiance bound at the region the skipped lights may carry (lightsThatMatter)
 };
 /// The knob table of FrameKnobs (declared once: lighting/frame/frame.cpp).
 const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable();
