@@ -735,48 +735,55 @@ int runSweep(const BenchOptions& o) {
 
   json records = json::array();
   // The knobs start from the first session's scene file (the same file for all).
-  const auto configs = sweepConfigs(o.technique, o.quick, first.setup.scene.knobs);
-  for (size_t ci = 0; ci < configs.size(); ++ci) {
-    const BenchConfig& c = configs[ci];
-    json perSession = json::array();
-    for (size_t si = 0; si < sessions.size(); ++si)
-      perSession.push_back(measureConfig(c, sessions[si], o, errScale, si == 0 ? &images : nullptr));
-    // The record: each measure's mean over the sessions (each session weighs the same), per session below.
-    json r = {{"technique", c.technique.name}, {"varied", c.varied}, {"knobs", knobsJson(c)}};
-    for (const char* key : {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_delta_near", "rel_error_virtual", "ssim",
-                            "flicker", "silhouette_mismatch_pixels"}) {
-      double sum = 0;
-      for (const auto& p : perSession) sum += p[key].get<double>();
-      r[key] = sum / static_cast<double>(perSession.size());
-    }
-    json stages = json::object();
-    for (const auto& p : perSession)
-      for (const auto& [stage, ms] : p["ms_stages"].items())
-        stages[stage] = stages.value(stage, 0.0) + ms.get<double>() / static_cast<double>(perSession.size());
-    r["ms_stages"] = stages;
-    r["sessions"] = perSession;
-    std::string wholeText;
-    for (const auto& p : perSession)
-      if (p.contains("whole_pipeline")) {
-        char buf[160];
-        std::snprintf(buf, sizeof buf, ", whole pipeline (%s): delta %.3f virtual %.3f SSIM %.4f",
-                      fs::path(p["session"].get<std::string>()).filename().c_str(), p["whole_pipeline"]["rel_error_delta"].get<double>(),
-                      p["whole_pipeline"]["rel_error_virtual"].get<double>(), p["whole_pipeline"]["ssim"].get<double>());
-        wholeText += buf;
-        if (p.contains("whole_pipeline_room")) {
-          std::snprintf(buf, sizeof buf, "; from the room: delta %.3f virtual %.3f SSIM %.4f (%.0f ms)",
-                        p["whole_pipeline_room"]["rel_error_delta"].get<double>(), p["whole_pipeline_room"]["rel_error_virtual"].get<double>(),
-                        p["whole_pipeline_room"]["ssim"].get<double>(), p["whole_pipeline_room"]["ms_total"].get<double>());
-          wholeText += buf;
-        }
+  std::vector<BenchConfig> configs = sweepConfigs(o.technique, o.quick, first.setup.scene.knobs);
+  auto measureFrom = [&](size_t from) {
+    for (size_t ci = from; ci < configs.size(); ++ci) {
+      const BenchConfig& c = configs[ci];
+      json perSession = json::array();
+      for (size_t si = 0; si < sessions.size(); ++si)
+        perSession.push_back(measureConfig(c, sessions[si], o, errScale, si == 0 ? &images : nullptr));
+      // The record: each measure's mean over the sessions (each session weighs the same), per session below.
+      json r = {{"technique", c.technique.name}, {"varied", c.varied}, {"knobs", knobsJson(c)}};
+      for (const char* key : {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_delta_near", "rel_error_virtual", "ssim",
+                              "flicker", "silhouette_mismatch_pixels"}) {
+        double sum = 0;
+        for (const auto& p : perSession) sum += p[key].get<double>();
+        r[key] = sum / static_cast<double>(perSession.size());
       }
-    std::printf("[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker %.3f%s\n",
-                ci + 1, configs.size(), r["technique"].get<std::string>().c_str(), c.varied.c_str(), r["knobs"].dump().c_str(),
-                r["ms_total"].get<double>(), r["ms_lighting"].get<double>(), r["rel_error_delta"].get<double>(),
-                r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(), r["flicker"].get<double>(), wholeText.c_str());
-    std::fflush(stdout);
-    records.push_back(r);
-  }
+      json stages = json::object();
+      for (const auto& p : perSession)
+        for (const auto& [stage, ms] : p["ms_stages"].items())
+          stages[stage] = stages.value(stage, 0.0) + ms.get<double>() / static_cast<double>(perSession.size());
+      r["ms_stages"] = stages;
+      r["sessions"] = perSession;
+      std::string wholeText;
+      for (const auto& p : perSession)
+        if (p.contains("whole_pipeline")) {
+          char buf[160];
+          std::snprintf(buf, sizeof buf, ", whole pipeline (%s): delta %.3f virtual %.3f SSIM %.4f",
+                        fs::path(p["session"].get<std::string>()).filename().c_str(), p["whole_pipeline"]["rel_error_delta"].get<double>(),
+                        p["whole_pipeline"]["rel_error_virtual"].get<double>(), p["whole_pipeline"]["ssim"].get<double>());
+          wholeText += buf;
+          if (p.contains("whole_pipeline_room")) {
+            std::snprintf(buf, sizeof buf, "; from the room: delta %.3f virtual %.3f SSIM %.4f (%.0f ms)",
+                          p["whole_pipeline_room"]["rel_error_delta"].get<double>(), p["whole_pipeline_room"]["rel_error_virtual"].get<double>(),
+                          p["whole_pipeline_room"]["ssim"].get<double>(), p["whole_pipeline_room"]["ms_total"].get<double>());
+            wholeText += buf;
+          }
+        }
+      std::printf("[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker %.3f%s\n",
+                  ci + 1, configs.size(), r["technique"].get<std::string>().c_str(), c.varied.c_str(), r["knobs"].dump().c_str(),
+                  r["ms_total"].get<double>(), r["ms_lighting"].get<double>(), r["rel_error_delta"].get<double>(),
+                  r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(), r["flicker"].get<double>(), wholeText.c_str());
+      std::fflush(stdout);
+      records.push_back(r);
+    }
+  };
+  measureFrom(0);
+  // Then each technique's free knob moves together (evaluation::combinedConfigs), measured the same way.
+  const size_t swept = configs.size();
+  for (BenchConfig& c : combinedConfigs(configs, records)) configs.push_back(std::move(c));
+  measureFrom(swept);
   json sessionInfo = json::array();
   for (const auto& bs : sessions) sessionInfo.push_back(bs.refInfo);
   json doc = {{"generated_by", "mrgi bench"},

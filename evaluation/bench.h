@@ -29,6 +29,14 @@ nlohmann::json knobsJson(const BenchConfig& c);
 /// technique at the defaults. quick: the declared quick values only (tests, small sessions).
 std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::KnobSet& base);
 
+/// The knob moves that cost a technique nothing, made together: for each technique's defaults (configs[i]
+/// measured as records[i]), its one-knob moves that took at least 5 % off the lighting time and kept the error
+/// (mean of rel_error_delta and rel_error_virtual) within 1 % of the defaults' — the fastest value per knob
+/// — all applied at once, as one configuration with varied = "combined" (none for a technique with fewer
+/// than two such moves). Measured like the others, it joins the front the presets are chosen from: the
+/// one-at-a-time sweep cannot see that savings add up.
+std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs, const nlohmann::json& records);
+
 /// Presets from the measured records: the Pareto front of (ms_lighting, error) where error is the mean of
 /// rel_error_delta and rel_error_virtual; accurate = least error, fast = the fastest front point within
 /// twice the least error, balanced = the front point with the least (ms / ms_min) x (error / error_min).

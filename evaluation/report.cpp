@@ -86,6 +86,32 @@ std::vector<size_t> allIndices(const json& records) {
 }
 }  // namespace
 
+std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs, const json& records) {
+  std::vector<BenchConfig> out;
+  for (size_t d = 0; d < configs.size() && d < records.size(); ++d) {
+    if (!configs[d].varied.empty()) continue;
+    const double ms = msOf(records[d]), err = errorOf(records[d]);
+    std::map<std::string, size_t> fastest;  // per knob moved, the fastest free value's config
+    for (size_t i = 0; i < configs.size() && i < records.size(); ++i) {
+      const BenchConfig& c = configs[i];
+      if (c.varied.empty() || c.varied == "combined" || !(c.technique == configs[d].technique) ||
+          c.technique.name != configs[d].technique.name)
+        continue;
+      if (!(msOf(records[i]) <= 0.95 * ms && errorOf(records[i]) <= 1.01 * err)) continue;
+      const auto it = fastest.find(c.varied);
+      if (it == fastest.end() || msOf(records[i]) < msOf(records[it->second])) fastest[c.varied] = i;
+    }
+    if (fastest.size() < 2) continue;
+    BenchConfig combined{configs[d].technique, configs[d].knobs, "combined"};
+    for (const auto& [varied, i] : fastest) {
+      const std::string group = varied.substr(0, varied.find('.')), knob = varied.substr(varied.find('.') + 1);
+      combined.knobs[group][knob] = configs[i].knobs.at(group).at(knob);
+    }
+    out.push_back(std::move(combined));
+  }
+  return out;
+}
+
 json choosePresets(const json& records) {
   if (records.empty()) return json::object();
   const auto front = paretoFront(records, allIndices(records));
@@ -259,7 +285,8 @@ json variedValue(const json& r) { return knobValue(r, r.value("varied", "")); }
 /// "dlpv frame.rsm_size=64" or "dlpv defaults".
 std::string labelOf(const json& r) {
   const std::string v = r.value("varied", "");
-  return r["technique"].get<std::string>() + (v.empty() ? " defaults" : " " + v + "=" + variedValue(r).dump());
+  const json value = variedValue(r);
+  return r["technique"].get<std::string>() + (v.empty() ? " defaults" : " " + v + (value.is_null() ? "" : "=" + value.dump()));
 }
 
 std::string tipOf(const json& r) {

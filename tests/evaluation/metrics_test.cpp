@@ -95,6 +95,45 @@ TEST(Metrics, PresetsComeFromTheParetoFront) {
   EXPECT_TRUE(choosePresets(nlohmann::json::array()).empty());
 }
 
+// The moves that cost nothing are made together: from Kinect-VAL's sweep, those 5 % faster or more with the
+// error within 1 % of the defaults', the fastest value per knob; a move that costs accuracy, one that saves
+// too little and another technique's moves are left out; a technique with one free move gets no combination.
+TEST(Metrics, FreeKnobMovesAreCombinedIntoOneConfiguration) {
+  lighting::KnobSet base;
+  lighting::completeKnobs(base);
+  const std::vector<BenchConfig> all = sweepConfigs("", false, base);
+  std::vector<BenchConfig> configs;
+  nlohmann::json records = nlohmann::json::array();
+  auto add = [&](const std::string& technique, const std::string& varied, double value, double ms, double err) {
+    const auto it = std::find_if(all.begin(), all.end(), [&](const BenchConfig& c) {
+      if (c.technique.name != technique || c.varied != varied) return false;
+      if (varied.empty()) return true;
+      const auto dot = varied.find('.');
+      return c.knobs.at(varied.substr(0, dot)).at(varied.substr(dot + 1)) == value;
+    });
+    ASSERT_NE(it, all.end()) << technique << " " << varied << " " << value;
+    configs.push_back(*it);
+    records.push_back({{"technique", technique}, {"ms_lighting", ms}, {"rel_error_delta", err}, {"rel_error_virtual", err}});
+  };
+  add("kinect-val", "", 0, 200, 0.25);
+  add("kinect-val", "frame.rsm_size", 64, 180, 0.25);     // free
+  add("kinect-val", "frame.rsm_size", 128, 185, 0.25);    // free, but 64 is faster
+  add("kinect-val", "val.sparse_points", 256, 130, 0.2520);  // free: +0.8 %
+  add("kinect-val", "val.stride", 8, 160, 0.2530);        // costs 1.2 %
+  add("kinect-val", "val.occlusion", 0, 195, 0.25);       // saves 2.5 %
+  add("dlpv", "", 0, 600, 0.4);
+  add("dlpv", "frame.rsm_size", 128, 450, 0.4);           // dlpv's only free move
+  const auto combined = combinedConfigs(configs, records);
+  ASSERT_EQ(combined.size(), 1u);
+  const BenchConfig& c = combined.front();
+  EXPECT_EQ(c.technique.name, "kinect-val");
+  EXPECT_EQ(c.varied, "combined");
+  lighting::KnobSet expected = configs.front().knobs;
+  expected["frame"]["rsm_size"] = 64;
+  expected["val"]["sparse_points"] = 256;
+  EXPECT_EQ(c.knobs, expected);
+}
+
 TEST(Metrics, TheSweepComesFromTheKnobTables) {
   lighting::KnobSet base;
   lighting::completeKnobs(base);
