@@ -30,7 +30,7 @@ nlohmann::json knobsJson(const BenchConfig& c);
 std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::KnobSet& base);
 
 /// The knob moves that cost a technique nothing, made together: for each technique's defaults (configs[i]
-/// measured as records[i]), its one-knob moves that took at least 5 % off the lighting time and kept the error
+/// measured as records[i]), its one-knob moves that took at least 10 % off the lighting time (more than the timing noise) and kept the error
 /// (mean of rel_error_delta and rel_error_virtual) within 1 % of the defaults' — the fastest value per knob
 /// — all applied at once, as one configuration with varied = "combined" (none for a technique with fewer
 /// than two such moves). Measured like the others, it joins the front the presets are chosen from: the

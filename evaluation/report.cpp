@@ -97,7 +97,9 @@ std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs
       if (c.varied.empty() || c.varied == "combined" || !(c.technique == configs[d].technique) ||
           c.technique.name != configs[d].technique.name)
         continue;
-      if (!(msOf(records[i]) <= 0.95 * ms && errorOf(records[i]) <= 1.01 * err)) continue;
+      // Each row is one measurement on a shared machine (the same work varies by 10-20 % between rows), so
+      // some picks are noise; the combination is measured and only the front decides.
+      if (!(msOf(records[i]) <= 0.9 * ms && errorOf(records[i]) <= 1.01 * err)) continue;
       const auto it = fastest.find(c.varied);
       if (it == fastest.end() || msOf(records[i]) < msOf(records[it->second])) fastest[c.varied] = i;
     }

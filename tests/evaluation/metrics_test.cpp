@@ -95,7 +95,7 @@ TEST(Metrics, PresetsComeFromTheParetoFront) {
   EXPECT_TRUE(choosePresets(nlohmann::json::array()).empty());
 }
 
-// The moves that cost nothing are made together: from Kinect-VAL's sweep, those 5 % faster or more with the
+// The moves that cost nothing are made together: from Kinect-VAL's sweep, those 10 % faster or more with the
 // error within 1 % of the defaults', the fastest value per knob; a move that costs accuracy, one that saves
 // too little and another technique's moves are left out; a technique with one free move gets no combination.
 TEST(Metrics, FreeKnobMovesAreCombinedIntoOneConfiguration) {
@@ -116,11 +116,11 @@ TEST(Metrics, FreeKnobMovesAreCombinedIntoOneConfiguration) {
     records.push_back({{"technique", technique}, {"ms_lighting", ms}, {"rel_error_delta", err}, {"rel_error_virtual", err}});
   };
   add("kinect-val", "", 0, 200, 0.25);
-  add("kinect-val", "frame.rsm_size", 64, 180, 0.25);     // free
-  add("kinect-val", "frame.rsm_size", 128, 185, 0.25);    // free, but 64 is faster
+  add("kinect-val", "frame.rsm_size", 64, 170, 0.25);     // free
+  add("kinect-val", "frame.rsm_size", 128, 175, 0.25);    // free, but 64 is faster
   add("kinect-val", "val.sparse_points", 256, 130, 0.2520);  // free: +0.8 %
   add("kinect-val", "val.stride", 8, 160, 0.2530);        // costs 1.2 %
-  add("kinect-val", "val.occlusion", 0, 195, 0.25);       // saves 2.5 %
+  add("kinect-val", "val.occlusion", 0, 185, 0.25);       // saves 7.5 %: within the timing noise
   add("dlpv", "", 0, 600, 0.4);
   add("dlpv", "frame.rsm_size", 128, 450, 0.4);           // dlpv's only free move
   const auto combined = combinedConfigs(configs, records);
