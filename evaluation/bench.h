@@ -39,7 +39,8 @@ std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs
 
 /// Presets from the measured records: the Pareto front of (ms_lighting, error) where error is the mean of
 /// rel_error_delta and rel_error_virtual; accurate = least error, fast = the fastest front point within
-/// twice the least error, balanced = the front point with the least (ms / ms_min) x (error / error_min).
+/// twice the least error, balanced = among the front points at least 5 % more accurate than fast, the one
+/// with the least (ms / ms_min) x (error / error_min) (fast when there is none).
 /// Returns {"fast": record, "balanced": record, "accurate": record} (empty object without records).
 nlohmann::json choosePresets(const nlohmann::json& records);
 

@@ -92,6 +92,10 @@ TEST(Metrics, PresetsComeFromTheParetoFront) {
   const nlohmann::json two = choosePresets(nlohmann::json{rec("a", 10, 0.5), rec("b", 20, 0.2)});
   EXPECT_EQ(two["fast"]["technique"], "b");
   EXPECT_EQ(two["balanced"]["technique"], "b");
+  // A front point 2 % more accurate than fast is no better within what a run resolves: balanced is the next.
+  const nlohmann::json close = choosePresets(nlohmann::json{rec("a", 10, 0.2), rec("b", 12, 0.196), rec("c", 40, 0.1)});
+  EXPECT_EQ(close["fast"]["technique"], "a");
+  EXPECT_EQ(close["balanced"]["technique"], "c");
   EXPECT_TRUE(choosePresets(nlohmann::json::array()).empty());
 }
 
