@@ -927,6 +927,34 @@ bool waitForFile(const fs::path& p, double seconds) {
   return false;
 }
 
+// The bundled scene with four more lights of the room (two spots aimed away, two dim lamps across it): only
+// the objects' lamp is rendered, and each frame names the lights left out; with light_cutoff 0 none is.
+TEST(Cli, ReplayNamesTheLightsTooDimAtTheObjectsToRender) {
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_lamps_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const std::string rec = std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-pt";
+  const std::string lamps = std::string(MRGI_SOURCE_DIR) + "/recordings/scenes/tabletop-lamps.json";
+  const Result r = runMrgi("replay " + rec + " --scene " + lamps + " --frames 2 --out " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto summary = nlohmann::json::parse(slurp(out / "summary.json"));
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(summary["per_frame"][i]["lights_skipped"], nlohmann::json({1, 2, 3, 4})) << i;
+  EXPECT_EQ(summary["knobs"]["frame"]["light_cutoff"], 0.01);
+  // The same scene with every light rendered.
+  auto scene = nlohmann::json::parse(slurp(lamps));
+  for (auto& o : scene["objects"]) o["model"] = std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply";
+  scene["frame"] = {{"light_cutoff", 0}};
+  const fs::path all = out.string() + "_all.json";
+  std::ofstream(all) << scene.dump();
+  const fs::path outAll = out.string() + "_all";
+  fs::remove_all(outAll);
+  const Result a = runMrgi("replay " + rec + " --scene " + all.string() + " --frames 1 --out " + outAll.string());
+  ASSERT_EQ(a.exitCode, 0) << a.err;
+  EXPECT_FALSE(nlohmann::json::parse(slurp(outAll / "summary.json"))["per_frame"][0].contains("lights_skipped"));
+  fs::remove_all(out);
+  fs::remove_all(outAll);
+  fs::remove(all);
+}
+
 TEST(Cli, CtrlCDuringReplayLeavesCompleteFramesVideoAndSummary) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_interrupt_" + std::to_string(::getpid()));
   fs::remove_all(out);
