@@ -62,7 +62,7 @@ struct BenchOptions {
   int refBounces = 3;
   bool quick = false;
   bool room = false;  ///< also light from each session's fused room model, side by side
-  std::string pose = "ground-truth";
+  PoseMode pose = PoseMode::GroundTruth;
   std::vector<std::string> sessions{"recordings/tabletop-synth", "recordings/tabletop-pt", "recordings/tabletop-hdr"};
   std::string session = "recordings/tabletop-synth";  ///< bruteforce mode
   std::string model = "recordings/models/sphere.ply";
@@ -285,7 +285,7 @@ std::map<int, Truth> loadTrueReferences(const std::string& session, const captur
 json markerPoseError(const BenchSession& bs, const BenchOptions& o) {
   if (!bs.setup.T_world_marker) return nullptr;
   FrameOptions mo;
-  mo.pose = "marker";
+  mo.pose = PoseMode::Marker;
   mo.gpu = false;
   FramePipeline tracker(bs.setup, bs.W, bs.H, mo);
   gl::Profiler none;
@@ -369,10 +369,18 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   FramePipeline measurer(bs.setup, bs.W, bs.H, mo);
   gl::Profiler none;
   double ms = 0;
+  // Odometry carries the pose from frame to frame: the frames between the reference frames are tracked too.
+  const bool carried = o.pose == PoseMode::Odometry || o.pose == PoseMode::Tracked;
+  int measured = 0;
   for (int f : refFrames) {
+    for (; carried && measured < f; ++measured) {
+      capture::Frame between = bs.frames[static_cast<size_t>(measured)];
+      if (between.rgbd) measurer.measure(between, none);
+    }
+    measured = f + 1;
     capture::Frame frame = bs.frames[f];
     const FrameResult r = measurer.measure(frame, none);
-    if (!r.T_marker_camera) throw capture::CaptureError(path, "frame " + std::to_string(f) + ": no camera pose (marker not found)");
+    if (!r.T_marker_camera) throw capture::CaptureError(path, "frame " + std::to_string(f) + ": no camera pose (--pose " + toString(o.pose) + ": tracking lost)");
     const ReferenceScenes scenes = reconstructedScenes(*measurer.setup(), measurer.realSurface(frame, r, none),
                                                        frame.rgbd->colourIntrinsics, *r.T_marker_camera);
     groundtruth::PathTraceOptions po;
@@ -838,8 +846,9 @@ Action addBench(CLI::App& app) {
   app.add_flag("--room", o->room,
                "also light each configuration from the session's fused room model (mrgi room over all its frames) and report "
                "its whole-pipeline error beside the per-frame one");
-  app.add_option("--pose", o->pose, "camera pose: ground-truth (default; needs a synthetic session) or marker")
-      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  addPoseOption(app, o->pose)->description(
+      "camera pose per frame: ground-truth (default here: the bench ranks techniques, not tracking; needs a synthetic "
+      "session), marker, odometry or tracked");
   app.add_option("--model", o->model, "bruteforce: virtual object, resting on the marker plane at its centre");
   app.add_option("--scale", o->scale, "model scale (the bundled unit sphere: its radius in metres)")
       ->check(CLI::Range(1e-3, 10.0));

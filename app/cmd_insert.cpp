@@ -41,6 +41,7 @@ struct InsertOptions {
   int replace = -1;
   bool snap = false;
   std::string up = "camera";
+  PoseMode pose = PoseMode::Tracked;
   int64_t frame = 0;
   std::vector<double> at;  // pixel u,v: translate = the surface point seen there
   std::string preview;
@@ -226,8 +227,9 @@ int runInsert(const InsertOptions& o) {
   // The frame to measure and preview on.
   const capture::SourceInfo& info = source->info();
   const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
-  LightingSetup setup = prepareLighting(scene, savePath, *source, o.session, "marker", !o.room.empty());
+  LightingSetup setup = prepareLighting(scene, savePath, *source, o.session, o.pose, !o.room.empty());
   FrameOptions frameOptions;
+  frameOptions.pose = o.pose;
   if (!o.room.empty()) frameOptions.room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   gl::ContextConfig cfg;
   cfg.backend = gl::parseBackend(o.gl);
@@ -245,15 +247,25 @@ int runInsert(const InsertOptions& o) {
   for (int64_t i = 0; i <= o.frame; ++i) {
     frame = source->next();
     if (!frame) throw capture::CaptureError(o.session, "has no frame " + std::to_string(o.frame));
-    if (i < o.frame) continue;
+    // Odometry carries the pose frame to frame: every frame before the chosen one is tracked too.
+    if (i < o.frame && (o.pose == PoseMode::Marker || o.pose == PoseMode::GroundTruth)) continue;
     result = frames.measure(*frame, profiler);
   }
   if (!result.T_marker_camera)
-    throw capture::CaptureError(o.session, "marker not found in frame " + std::to_string(o.frame) + " (" +
-                                               setup.tagFamily + (setup.tagId >= 0 ? " id " + std::to_string(setup.tagId) : "") + ")");
+    throw capture::CaptureError(o.session, "frame " + std::to_string(o.frame) + " has no camera pose (--pose " +
+                                               toString(o.pose) + "; marker " + setup.tagFamily +
+                                               (setup.tagId >= 0 ? " id " + std::to_string(setup.tagId) : "") + " not found)");
 
+  // A recording without a marker: its first frame founded the world; the scene records it so that replay
+  // places the objects in the same world.
+  if (const auto world = frames.poses() ? frames.poses()->foundedWorld() : std::nullopt) {
+    json m = json::array();
+    for (double v : world->val) m.push_back(v);
+    doc["world"] = {{"first_frame_T_world_camera", m}};
+  }
   lighting::VirtualObject& obj = scene.objects[index];
   json report = {{"scene", o.save}, {"object", index}};
+  report["pose"] = result.pose.facts();
   if (!o.at.empty()) {
     const int u = static_cast<int>(std::lround(o.at[0])), v = static_cast<int>(std::lround(o.at[1]));
     if (u < 0 || v < 0 || u >= width || v >= height)
@@ -338,6 +350,7 @@ Action addInsert(CLI::App& app) {
   app.add_option("--at", o->at, "u,v: put the object's origin on the surface seen at this pixel (overrides --translate)")
       ->delimiter(',')->expected(2);
   app.add_flag("--snap", o->snap, "rest the object on the plane below it (planes from the frame's depth)");
+  addPoseOption(app, o->pose);
   app.add_option("--up", o->up, "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame");
   app.add_option("--frame", o->frame, "frame of the session to measure and preview on")->check(CLI::NonNegativeNumber);
   app.add_option("--preview", o->preview, "write the composite of that frame with the placed object (PNG)");

@@ -44,7 +44,7 @@ struct LiveOptions {
   std::string record;
   bool recordNow = false;
   bool noLoop = false;
-  std::string pose = "marker";
+  PoseMode pose = PoseMode::Tracked;
   std::string view = "composite";
   std::string room;  ///< mrgi room output: the real scene of the lighting
   bool fuseRoom = false;  ///< build the room from the frames as they come
@@ -161,6 +161,7 @@ int runLive(const LiveOptions& o) {
 
   FrameOptions fo;
   fo.pose = o.pose;
+  fo.foundWorldAnew = true;  // a scene placed in a recording's first-frame world is placed in this camera's first frame
   fo.room = room;
   fo.cacheDir = o.room;  // techniques keep what they precompute beside the saved room
   fo.progress = precomputeProgress();
@@ -438,8 +439,7 @@ Action addLive(CLI::App& app) {
   app.add_option("--record", o->record, "folder the record toggle writes a session into (default: live-DATE-TIME)");
   app.add_flag("--record-now", o->recordNow, "start recording with the first frame (as if the toggle were on)");
   app.add_flag("--no-loop", o->noLoop, "stop at the end of a recording instead of playing it again");
-  app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
-      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  addPoseOption(app, o->pose);
   app.add_option("--view", o->view, "initial view: composite, delta, gbuffer_albedo, dlpv_slices, fisheye_lights, ...");
   return [o] {
     o->in.loop = !o->noLoop;

@@ -31,7 +31,7 @@ struct ReferenceOptions {
   int bounces = 3;
   uint64_t seed = 1;
   int threads = 0;
-  std::string pose = "marker";
+  PoseMode pose = PoseMode::Tracked;
   int meshStride = 2;
 };
 
@@ -40,23 +40,27 @@ int runReference(const ReferenceOptions& o) {
   if (!source->info().hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames");
   LightingSetup setup = prepareLighting(lighting::loadScene(o.scene), o.scene, *source, o.source, o.pose);
 
-  std::optional<capture::Frame> frame;
-  for (int i = 0; i <= o.frame; ++i) {
-    frame = source->next();
-    if (!frame) throw capture::CaptureError(o.source, "has no frame " + std::to_string(o.frame) + " (it ends after " + std::to_string(i) + ")");
-  }
-  if (!frame->rgbd) throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + " has no RGB-D image");
-  prepareOutputDirectory(o.out, "reference.json", "mrgi reference");  // after every input check: nothing is created on error
-  const capture::Intrinsics k = frame->rgbd->colourIntrinsics;
   FrameOptions fo;
   fo.pose = o.pose;
   fo.meshStride = o.meshStride;
   fo.gpu = false;
-  FramePipeline frames(setup, k.width, k.height, fo);
+  const capture::Intrinsics& k0 = source->info().colourIntrinsics;
+  FramePipeline frames(setup, k0.width, k0.height, fo);
   gl::Profiler profiler;
+  // Odometry carries the pose from frame to frame: the frames before the chosen one are tracked too.
+  const bool carried = o.pose == PoseMode::Odometry || o.pose == PoseMode::Tracked;
+  std::optional<capture::Frame> frame;
+  for (int i = 0; i <= o.frame; ++i) {
+    frame = source->next();
+    if (!frame) throw capture::CaptureError(o.source, "has no frame " + std::to_string(o.frame) + " (it ends after " + std::to_string(i) + ")");
+    if (carried && i < o.frame && frame->rgbd) frames.measure(*frame, profiler);
+  }
+  if (!frame->rgbd) throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + " has no RGB-D image");
+  const capture::Intrinsics k = frame->rgbd->colourIntrinsics;
   const FrameResult r = frames.measure(*frame, profiler);
   if (!r.T_marker_camera)
-    throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + ": marker not found, nothing to place the objects on");
+    throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + ": no camera pose (--pose " + std::string(toString(o.pose)) + "), nothing to place the objects on");
+  prepareOutputDirectory(o.out, "reference.json", "mrgi reference");  // after every input check: nothing is created on error
   const RealSurface real = frames.realSurface(*frame, r, profiler);
   const ReferenceScenes scenes = reconstructedScenes(*frames.setup(), real, k, *r.T_marker_camera);
 
@@ -81,7 +85,7 @@ int runReference(const ReferenceOptions& o) {
   json info = {{"generated_by", "mrgi reference"},
                {"source", o.source},     {"scene", o.scene},       {"frame", o.frame},
                {"spp", o.spp},           {"bounces", o.bounces},   {"seed", o.seed},
-               {"pose", o.pose},         {"marker", r.info.value("marker", "")},
+               {"pose", toString(o.pose)},         {"marker", r.info.value("marker", "")},
                {"triangles_real", real.indices.size() / 3},
                {"virtual_pixels", cv::countNonZero(images.mask)},
                {"ms", ms},
@@ -104,8 +108,7 @@ Action addReference(CLI::App& app) {
   app.add_option("--bounces", o->bounces, "indirect bounces after the first surface")->check(CLI::Range(0, 64));
   app.add_option("--seed", o->seed, "random seed (the images depend on it alone)");
   app.add_option("--threads", o->threads, "worker threads (0 = all)")->check(CLI::Range(0, 1024));
-  app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
-      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  addPoseOption(app, o->pose);
   app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(CLI::Range(1, 16));
   return [o] { return runReference(*o); };
 }

@@ -72,7 +72,7 @@ struct ReplayOptions {
   std::string presets = MRGI_DEFAULT_PRESETS;
   bool dumpDelta = false;
   bool debug = false;
-  std::string pose = "marker";
+  PoseMode pose = PoseMode::Tracked;
   int meshStride = 2;
   bool recomputeAll = false;
   bool sequential = false;  ///< no frame prepared on the worker while GL works on the one before
@@ -388,8 +388,7 @@ Action addReplay(CLI::App& app) {
                                      "RSM flux/normal of the last light, each technique's own views, the fisheye frame with its "
                                      "median-cut lights; with --room the fused room seen from the camera (radiance, albedo) "
                                      "and, lit from the room, its environment at the object with its lights");
-  app.add_option("--pose", o->pose, "camera pose from the tracked marker (default) or the session's ground truth")
-      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  addPoseOption(app, o->pose);
   app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();
   app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
   app.add_flag("--fuse-room", o->fuseRoom, "build the room model from the frames as they come (every frame with a pose fused; its surface lights the scene from the first such frame, refreshed every --fuse-refresh frames)");

@@ -25,7 +25,7 @@ namespace {
 
 struct RoomCliOptions {
   std::string source, out;
-  std::string pose = "marker";
+  PoseMode pose = PoseMode::Tracked;
   int frames = 0;
   int every = 1;
   reconstruction::RoomOptions room;
@@ -38,7 +38,7 @@ int runRoom(const RoomCliOptions& o) {
   const capture::SourceInfo& info = source->info();
   if (!info.hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames to build a room from");
   const LightingSetup setup = markerSetup(*source);
-  if (o.pose == "ground-truth" && !setup.T_world_marker)
+  if (o.pose == PoseMode::GroundTruth && !setup.T_world_marker)
     throw capture::CaptureError(o.source, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
   prepareOutputDirectory(o.out, "room.json", "mrgi room");
 
@@ -55,7 +55,7 @@ int runRoom(const RoomCliOptions& o) {
   const reconstruction::RoomModel& room = fusion.model;
   const int64_t seen = fusion.frames;
   if (room.framesIntegrated() == 0)
-    throw capture::CaptureError(o.source, fusion.posed == 0 ? "no frame has a marker pose: nothing to build a room from"
+    throw capture::CaptureError(o.source, fusion.posed == 0 ? "no frame has a trusted camera pose (" + std::to_string(fusion.lost) + " lost, " + std::to_string(fusion.held) + " held): nothing to build a room from"
                                                      : "no frame could be integrated (every pose disagreed or the budget was reached)");
   const reconstruction::RoomMesh mesh = runtime::saveRoomModel(o.out, room, o.source);
   if (mesh.positions.empty()) throw capture::CaptureError(o.source, "the fused room has no surface");
@@ -163,8 +163,7 @@ Action addRoom(CLI::App& app) {
   auto o = std::make_shared<RoomCliOptions>();
   app.add_option("source", o->source, "recording to build the room from (session, TUM sequence, .oni file)")->required();
   app.add_option("--out", o->out, "room folder to write (room.ply, room_appearance.npy, room.json)")->required();
-  app.add_option("--pose", o->pose, "camera pose per frame: marker (tracked tag) or ground-truth (the session's)")
-      ->check(CLI::IsMember({"marker", "ground-truth"}));
+  addPoseOption(app, o->pose);
   app.add_option("--frames", o->frames, "read at most N frames (0 = all)")->check(CLI::NonNegativeNumber);
   app.add_option("--every", o->every, "integrate every Nth frame")->check(CLI::PositiveNumber);
   app.add_option("--voxel", o->room.voxelM, "voxel edge in metres")->capture_default_str();

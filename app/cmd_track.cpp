@@ -13,7 +13,9 @@
 #include "capture/image_io.h"
 #include "capture/session.h"
 #include "reconstruction/depth_filter.h"
+#include "capture/registration.h"
 #include "reconstruction/marker.h"
+#include "runtime/pose_source.h"
 
 using nlohmann::json;
 
@@ -32,6 +34,7 @@ struct TrackOptions {
   double smoothCutoff = -1, smoothBeta = -1, smoothDerivative = -1;  ///< < 0: the tracker's defaults
   bool refineDepth = false;
   float decimate = 1.0f;
+  std::optional<runtime::PoseMode> pose;  ///< set: one camera pose per frame from that source instead of per tag
 };
 
 capture::Intrinsics parseIntrinsics(const std::string& text, const cv::Size& size) {
@@ -58,7 +61,55 @@ json poseJson(const capture::Pose& T) {
   return rows;
 }
 
+/// --pose: the camera's pose per frame from a pose source, one line each, then a summary on stderr.
+int runCameraTrack(const TrackOptions& o) {
+  auto source = capture::open(o.input);
+  if (!source->info().hasRgbd) throw capture::CaptureError(o.input, "has no RGB-D frames to track");
+  runtime::MarkerSpec marker;
+  std::optional<capture::Pose> T_world_marker;
+  runtime::TrackingOptions tracking;
+  tracking.worldFromFirstFrame = true;  // no marker named: a first frame without a tag founds the world
+  if (const capture::SessionManifest* manifest = source->sessionManifest()) {
+    if (const auto& m = manifest->marker) marker = {m->family, m->sizeMetres, m->id}, tracking.worldFromFirstFrame = false;
+    T_world_marker = manifest->truth.T_world_marker;
+  }
+  if (!o.family.empty()) marker.family = o.family;
+  if (o.size > 0) marker.size = o.size;
+  if (o.id >= 0) marker.id = o.id;
+  auto poses = runtime::makePoseSource(*o.pose, marker, T_world_marker, tracking);
+  gl::Profiler profiler;
+  std::map<std::string, int> counts;
+  int64_t frames = 0;
+  while (auto frame = source->next()) {
+    if (!frame->rgbd) continue;
+    capture::ensureRegistered(*frame->rgbd);
+    const runtime::CameraPose p = poses->locate(*frame, profiler);
+    ++frames;
+    ++counts[p.tracked() ? runtime::toString(p.by) : "lost"];
+    json line = {{"frame", frame->index}, {"status", p.status()}, {"by", p.tracked() ? json(runtime::toString(p.by)) : json()}};
+    line["T_camera_world"] = p.tracked() ? poseJson(capture::inversePose(*p.T_world_camera)) : json();
+    if (p.fitness >= 0) line["fitness"] = p.fitness, line["inlier_rmse_m"] = p.inlierRmse;
+    if (o.json) {
+      std::printf("%s\n", line.dump().c_str());
+    } else if (p.tracked()) {
+      const cv::Vec3d c = capture::translationOf(*p.T_world_camera);
+      std::printf("frame %lld: tracked by %s, camera at (%.4f, %.4f, %.4f) m\n", static_cast<long long>(frame->index),
+                  runtime::toString(p.by), c[0], c[1], c[2]);
+    } else {
+      std::printf("frame %lld: lost\n", static_cast<long long>(frame->index));
+    }
+    std::fflush(stdout);
+  }
+  std::string summary;
+  for (const auto& [by, n] : counts) summary += (summary.empty() ? "" : ", ") + std::to_string(n) + " " + by;
+  std::fprintf(stderr, "%lld frames (--pose %s): %s\n", static_cast<long long>(frames), runtime::toString(*o.pose), summary.c_str());
+  if (counts["lost"] == frames)
+    throw capture::CaptureError(o.input, std::string("no frame could be placed (--pose ") + runtime::toString(*o.pose) + ")");
+  return 0;
+}
+
 int runTrack(const TrackOptions& o) {
+  if (o.pose) return runCameraTrack(o);
   // Inputs: one image (with --intrinsics) or any frame source.
   std::unique_ptr<capture::FrameSource> source;
   std::optional<capture::Frame> single;
@@ -163,7 +214,12 @@ Action addTrack(CLI::App& app) {
   auto o = std::make_shared<TrackOptions>();
   app.add_option("input", o->input, "session directory, TUM sequence, .oni file, or one image (with --intrinsics)")
       ->required();
-  app.add_flag("--json", o->json, "one JSON object per line per frame and tag: frame, status, id, T_camera_tag");
+  app.add_flag("--json", o->json, "one JSON object per line per frame and tag: frame, status, id, T_camera_tag (with --pose: per frame: frame, status, by, T_camera_world)");
+  auto pose = std::make_shared<runtime::PoseMode>(runtime::PoseMode::Tracked);
+  CLI::Option* poseOption = addPoseOption(app, *pose);
+  poseOption->description("the camera's pose per frame from this source (" + runtime::poseModeHelp() +
+                    ") instead of each tag's pose: JSON lines frame, status (tracked|lost), by (marker|odometry|relocalised|ground-truth), "
+                    "T_camera_world (row-major 4x4, metres; world = the marker frame)");
   app.add_option("--family", o->family, "AprilTag family (default: the session's, else tag36h11)");
   app.add_option("--size", o->size, "tag black-square edge in metres (default: the session's, else 0.1)")
       ->check(CLI::PositiveNumber);
@@ -179,7 +235,10 @@ Action addTrack(CLI::App& app) {
   app.add_flag("--refine-depth", o->refineDepth, "re-seat the pose on the depth plane under the tag (registered depth)");
   app.add_option("--decimate", o->decimate, "detect quads on an image decimated by this factor (faster)")
       ->check(CLI::Range(1.0, 8.0));
-  return [o] { return runTrack(*o); };
+  return [o, pose, poseOption] {
+    if (poseOption->count() > 0) o->pose = *pose;
+    return runTrack(*o);
+  };
 }
 
 }  // namespace mrgi::app

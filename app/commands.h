@@ -5,6 +5,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "runtime/pose_source.h"
+
 namespace mrgi::runtime {}
 namespace mrgi::evaluation {}
 
@@ -18,6 +20,8 @@ using Action = std::function<int()>;
 
 /// Checks a --technique value against the registry (a name, an alias, "REAL+VIRTUAL").
 CLI::Validator techniqueValidator();
+/// --pose MODE (runtime/pose_source.h), the same in every command that places a camera.
+CLI::Option* addPoseOption(CLI::App& app, runtime::PoseMode& mode);
 
 Action addInfo(CLI::App& app);
 Action addReplay(CLI::App& app);

@@ -1,3 +1,4 @@
+#include <map>
 #include <stdexcept>
 
 #include "app/commands.h"
@@ -18,6 +19,14 @@ CLI::Validator techniqueValidator() {
         return {};
       },
       "TECHNIQUE (" + names + " or REAL+VIRTUAL)", "technique");
+}
+
+CLI::Option* addPoseOption(CLI::App& app, runtime::PoseMode& mode) {
+  std::map<std::string, runtime::PoseMode> modes;
+  for (const std::string& name : runtime::poseModeNames()) modes.emplace(name, runtime::poseModeFromName(name));
+  return app.add_option("--pose", mode, runtime::poseModeHelp())
+      ->transform(CLI::CheckedTransformer(modes))
+      ->default_str(runtime::toString(mode));
 }
 
 }  // namespace mrgi::app

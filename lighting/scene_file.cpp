@@ -227,7 +227,7 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   json doc;
   doc = capture::parseJson(text, path);
   std::set<std::string> topLevel{"objects", "lights", "fisheye_light_count", "room_light_count", "room_saturated_gain",
-                                 "room_white_albedo", "ambient_radiance", "technique"};
+                                 "room_white_albedo", "ambient_radiance", "technique", "world"};
   for (const KnobGroup* g : knobGroups()) topLevel.insert(g->key);
   r.allowOnly(doc, "", topLevel);
   SceneDescription s;
@@ -336,6 +336,21 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   if (doc.contains("ambient_radiance")) {
     s.ambientRadiance = r.vec3(doc["ambient_radiance"], "ambient_radiance", 0, 1e6);
     s.ambientFromManifest = false;
+  }
+  if (doc.contains("world")) {
+    const json& w = doc["world"];
+    r.allowOnly(w, "world", {"first_frame_T_world_camera"});
+    const std::string key = "world.first_frame_T_world_camera";
+    if (!w.contains("first_frame_T_world_camera")) r.fail(key, "missing");
+    const json& m = w["first_frame_T_world_camera"];
+    if (!m.is_array() || m.size() != 16) r.fail(key, "must be an array of 16 numbers (row-major 4x4)");
+    cv::Matx44d T;
+    for (int i = 0; i < 16; ++i) T.val[i] = r.number(m[static_cast<size_t>(i)], key + "[" + std::to_string(i) + "]", -1e6, 1e6);
+    const cv::Matx33d R = T.get_minor<3, 3>(0, 0);
+    if (cv::norm(R.t() * R - cv::Matx33d::eye()) > 1e-4 || std::abs(cv::determinant(R) - 1) > 1e-4 || T(3, 0) != 0 ||
+        T(3, 1) != 0 || T(3, 2) != 0 || T(3, 3) != 1)
+      r.fail(key, "is not a rigid transform (its rotation must be orthonormal, its last row 0 0 0 1)");
+    s.firstFrameT_world_camera = T;
   }
   if (doc.contains("technique")) {
     // The technique first: an alias sets knobs that the knob sections below may still override.

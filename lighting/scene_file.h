@@ -6,6 +6,7 @@
 /// metres). The lighting world of `mrgi replay` is the marker frame: the tag is fixed in the room, so the
 /// volume stays axis-aligned in a frame that does not move with the camera.
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -90,6 +91,10 @@ struct SceneDescription {
   double roomWhiteAlbedo = 0.8;
   cv::Vec3d ambientRadiance{0, 0, 0};       ///< uniform environment radiance lighting the virtual object (W/m^2/sr)
   bool ambientFromManifest = true;          ///< take ambient from the manifest when it has one
+  /// The world the objects are placed in: the marker frame (none: the default), or, for a recording without
+  /// a marker, the world its first frame founded ("world": {"first_frame_T_world_camera": [16 numbers]}:
+  /// that frame's camera pose in it, row-major; mrgi insert writes it, replay places the first frame there).
+  std::optional<cv::Matx44d> firstFrameT_world_camera;
   TechniqueChoice technique;  ///< default: the registry's first technique
   /// Knob values by group ("frame" and each technique's section), every declared knob present.
   KnobSet knobs;

@@ -119,6 +119,33 @@ std::optional<Plane> supportPlane(const std::vector<Plane>& planes, const cv::Ve
   return under ? under : nearest;
 }
 
+std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, const cv::Mat& normals, const capture::Intrinsics& k) {
+  cv::Mat labels;
+  const std::vector<Plane> planes = findPlanes(positions, normals, {}, &labels);
+  if (planes.empty()) return std::nullopt;
+  // Image up is the camera's -y: a floor or table seen from above faces it.
+  const auto facesUp = [](const Plane& p) { return p.normal[1] < -0.3; };
+  const Plane* chosen = nullptr;
+  const int cx = std::clamp(static_cast<int>(std::lround(k.cx)), 0, labels.cols - 1);
+  const int cy = std::clamp(static_cast<int>(std::lround(k.cy)), 0, labels.rows - 1);
+  const uchar centre = labels.at<uchar>(cy, cx);
+  if (centre < planes.size() && facesUp(planes[centre])) chosen = &planes[centre];
+  for (size_t i = 0; i < planes.size() && !chosen; ++i)
+    if (facesUp(planes[i])) chosen = &planes[i];
+  if (!chosen) return std::nullopt;
+  const cv::Vec3d n = chosen->normal;  // faces the camera: up
+  // The centre's viewing ray meets the plane at t: n . (t r) + d = 0.
+  const cv::Vec3d ray((cx - k.cx) / k.fx, (cy - k.cy) / k.fy, 1.0);
+  const double denom = n.dot(ray);
+  const cv::Vec3d origin = std::abs(denom) > 1e-6 && -chosen->d / denom > 0 ? ray * (-chosen->d / denom) : chosen->centroid;
+  cv::Vec3d x = cv::Vec3d(1, 0, 0) - n * n[0];
+  if (cv::norm(x) < 1e-6) x = cv::Vec3d(0, 0, 1) - n * n[2];
+  x /= cv::norm(x);
+  const cv::Vec3d y = n.cross(x);
+  const cv::Matx33d R(x[0], y[0], n[0], x[1], y[1], n[1], x[2], y[2], n[2]);  // columns: the world's axes in the camera
+  return capture::makePose(R, origin);
+}
+
 capture::Pose restOnPlane(const capture::Pose& T_frame_object, const std::vector<cv::Vec3f>& points, const Plane& plane) {
   const cv::Matx33d R = capture::rotationOf(T_frame_object);
   const cv::Vec3d z = R * cv::Vec3d(0, 0, 1), n = plane.normal;

@@ -40,6 +40,12 @@ std::optional<Plane> supportPlane(const std::vector<Plane>& planes, const cv::Ve
                                   const cv::Mat& labels, const capture::Pose& T_camera_frame,
                                   const capture::Intrinsics& k, double maxTiltDeg = 45.0);
 
+/// A world founded on a frame without a marker: z up along the dominant plane under the view's centre (the
+/// plane whose pixels hold the image centre, else the largest one facing the camera from below it: the floor
+/// or the table), its origin where the centre's viewing ray meets that plane, x along the camera's x axis
+/// laid on the plane. Returns T_camera_world; nullopt when the frame holds no such plane.
+std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, const cv::Mat& normals, const capture::Intrinsics& k);
+
 /// Rests an object on a plane: its pose's up axis (the pose's +z) turns onto the plane normal (smallest
 /// rotation), its origin moves onto the plane along the normal, then up until the lowest of `points`
 /// (object space) touches the plane. Poses map object to the plane's frame.

@@ -41,7 +41,7 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
 
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
                               const capture::FrameSource& source, const std::string& sourcePath,
-                              const std::string& poseMode, bool roomGiven) {
+                              PoseMode poseMode, bool roomGiven) {
   LightingSetup setup;
   setup.scene = std::move(scene);
   const capture::SessionManifest* manifest = source.sessionManifest();
@@ -53,6 +53,7 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
     setup.tagFamily = manifest->marker->family;
     setup.tagSize = manifest->marker->sizeMetres;
     setup.tagId = manifest->marker->id;
+    setup.markerGiven = true;
   }
   if (truth) setup.T_world_marker = truth->T_world_marker;
   if (setup.scene.lightSource == lighting::LightSource::Scene) {
@@ -78,7 +79,7 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
     throw capture::CaptureError(setup.scene.lightSource == lighting::LightSource::Scene ? sceneFile : sourcePath,
                                 "lights: " + std::to_string(setup.lights.size()) + " lights, at most " +
                                     std::to_string(lighting::kMaxLights) + " are supported");
-  if (poseMode == "ground-truth" && !setup.T_world_marker)
+  if (poseMode == PoseMode::GroundTruth && !setup.T_world_marker)
     throw capture::CaptureError(sourcePath, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
   return setup;
 }
@@ -128,9 +129,15 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
                                   "lights: \"room\" needs a room model (--room ROOM, built by mrgi room)");
     estimateRoomLights();
   }
-  reconstruction::DetectorOptions dopt;
-  dopt.family = setup_->tagFamily;
-  detector_.emplace(dopt);
+  // A source that names no marker founds its world on its first frame when no tag is in it; a scene that
+  // recorded such a world places the first frame there again (a live camera founds it anew).
+  TrackingOptions tracking = options_.tracking;
+  if (!setup_->markerGiven) tracking.worldFromFirstFrame = true;
+  if (setup_->scene.firstFrameT_world_camera && !tracking.worldFromFirstFrame)
+    throw capture::CaptureError(setup_->scene.path.empty() ? "scene" : setup_->scene.path,
+                                "world: the scene's objects are placed in a recording's first frame, but this source has a marker");
+  if (setup_->scene.firstFrameT_world_camera && !options_.foundWorldAnew) tracking.firstFrameT_world_camera = *setup_->scene.firstFrameT_world_camera;
+  poses_ = makePoseSource(options_.pose, setup_->marker(), setup_->T_world_marker, tracking);
 }
 
 void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler) {
@@ -209,48 +216,11 @@ void FramePipeline::estimateRoomLights() {
   useAmbientSh(roomLightEstimate_->ambientSh);
 }
 
-std::optional<capture::Pose> FramePipeline::markerPose(const capture::Frame& frame, FrameResult& r,
-                                                       gl::Profiler& profiler) {
-  if (options_.pose == "ground-truth" && frame.groundTruthT_world_camera) {
-    r.info["marker"] = "ground-truth";
-    return capture::inversePose(*setup_->T_world_marker) * *frame.groundTruthT_world_camera;
-  }
-  auto s = profiler.cpu("marker");
-  const capture::RgbdFrame& rgbd = *frame.rgbd;
-  std::optional<capture::Pose> measured;
-  // The first wanted tag with a pose among `found`; from a search region, only one well inside it.
-  const auto measure = [&](const std::vector<reconstruction::TagDetection>& found, const cv::Rect* region) {
-    for (const auto& d : found) {
-      if (setup_->tagId >= 0 && d.id != setup_->tagId) continue;
-      if (region && !reconstruction::tagWellInside(d, *region, 4.0)) continue;
-      // measure() registered the depth to the colour image before this.
-      const auto pose = reconstruction::measureTagPose(d, setup_->tagSize, rgbd.colourIntrinsics, rgbd.depth,
-                                                       track_.lastMeasured());
-      if (pose) {
-        measured = pose->T_camera_tag;
-        lastTagCorners_ = d.corners;
-        return true;
-      }
-    }
-    return false;
-  };
-  // Around where the tag was last seen (its box grown by its size on every side: a ninth of the image or
-  // less), the whole image when it is not found there: the same corners (Marker.DetectionInARegion...) at a
-  // fraction of the cost.
-  bool found = false;
-  if (lastTagCorners_) {
-    const cv::Rect region = reconstruction::tagSearchRegion(*lastTagCorners_, 1.0) & cv::Rect(0, 0, rgbd.colour.cols, rgbd.colour.rows);
-    found = measure(detector_->detect(rgbd.colour, region), &region);
-  }
-  if (!found) {
-    found = measure(detector_->detect(rgbd.colour), nullptr);
-    r.info["marker_search"] = "image";
-  }
-  if (!found) lastTagCorners_.reset();
-  const auto status = track_.update(frame.timestamp, measured);
-  r.info["marker"] = reconstruction::toString(status);
-  if (status != reconstruction::TrackStatus::Lost && track_.pose()) return capture::inversePose(*track_.pose());
-  return std::nullopt;
+void FramePipeline::locate(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler) {
+  r.pose = poses_->locate(frame, profiler);
+  r.T_marker_camera = r.pose.T_world_camera;
+  r.info["marker"] = r.pose.by == PosedBy::GroundTruth ? std::string("ground-truth") : r.pose.marker;
+  r.info["pose"] = r.pose.facts();
 }
 
 namespace {
@@ -331,6 +301,10 @@ void FramePipeline::buildSurface(const capture::Frame& frame, PreparedFrame& p, 
 
 void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler) {
   if (!r.T_marker_camera || r.positions.empty() || r.reusedSurface) return;
+  if (r.pose.held()) {
+    r.info["room_fusion"] = {{"integrated", false}, {"refused", "held pose"}, {"blocks", options_.fuse->blocks()}};
+    return;
+  }
   reconstruction::RoomIntegration in;
   {
     auto s = profiler.cpu("room_fusion");
@@ -378,8 +352,8 @@ FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler
     r.info["lights_from_frame"] = setup_->lights.size();
   }
   if (fisheyeRays_ && frame.fisheye) estimateLights(frame, r, profiler);
-  // Marker -> camera pose in the lighting world (the marker frame).
-  r.T_marker_camera = markerPose(frame, r, profiler);
+  // The camera pose in the lighting world (the marker frame), from the pose source.
+  locate(frame, r, profiler);
   if (options_.reuse && options_.gpu) {
     cv::resize(rgbd.colour, thumbnail_, {32, 24}, 0, 0, cv::INTER_AREA);
     thumbnail_.convertTo(thumbnail_, CV_32F);

@@ -24,6 +24,7 @@
 #include "reconstruction/mesh_rays.h"
 #include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
+#include "runtime/pose_source.h"
 
 namespace mrgi::runtime {
 
@@ -33,12 +34,15 @@ struct LightingSetup {
   std::string tagFamily = "tag36h11";
   double tagSize = 0.16;
   int tagId = -1;
+  bool markerGiven = false;  ///< the source's manifest names its marker; without one a first frame without a tag founds the world
   std::vector<lighting::SceneLight> lights;  ///< marker frame
   cv::Vec3d ambient{0, 0, 0};
   /// The ambient's directional part: radiance as SH bands 1-2 (band 0 is `ambient`; lighting/sh.h
   /// convention, lighting world), from a fisheye's or the room's remainder after its lights; zero otherwise.
   std::array<cv::Vec3d, 9> ambientSh{};
   std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
+  /// The marker the setup's source carries (family, size, id).
+  MarkerSpec marker() const { return {tagFamily, tagSize, tagId}; }
   std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
 };
 
@@ -51,15 +55,19 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
 
 /// Resolves a loaded scene against a source (marker from the manifest, lights from the scene, the
 /// manifest's ground truth or its fisheye calibration). `sceneFile` and `sourcePath` name the culprit in
-/// errors; poseMode "ground-truth" needs the manifest's T_world_marker.
+/// errors; PoseMode::GroundTruth needs the manifest's T_world_marker.
 /// `roomGiven`: a room model will light the frames; a scene that does not say where its lights come from
 /// then takes them from the room when the source lists none and has no fisheye.
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
                               const capture::FrameSource& source, const std::string& sourcePath,
-                              const std::string& poseMode, bool roomGiven = false);
+                              PoseMode poseMode, bool roomGiven = false);
 
 struct FrameOptions {
-  std::string pose = "marker";  ///< marker | ground-truth
+  PoseMode pose = PoseMode::Tracked;  ///< where each frame's camera pose comes from (runtime/pose_source.h)
+  TrackingOptions tracking;
+  /// A scene whose world a recording's first frame founded: found it anew on this source's first frame (a live
+  /// camera) instead of placing the first frame where the recording's was.
+  bool foundWorldAnew = false;
   int meshStride = 2;
   bool gpu = true;  ///< false: measure() and realSurface() only, no lighting pipeline (no GL context needed)
   /// Skip work whose inputs did not change: while the camera stays put (pose within 1 mm and 0.1 degree of
@@ -89,7 +97,8 @@ struct FrameOptions {
 
 struct FrameResult {
   cv::Mat composite;  ///< 8-bit RGB, same order as the camera image
-  std::optional<capture::Pose> T_marker_camera;
+  std::optional<capture::Pose> T_marker_camera;  ///< nullopt when the frame is lost (CameraPose)
+  CameraPose pose;                               ///< how the frame was posed
   cv::Mat positions, normals;  ///< camera frame, from the filtered depth (empty without a scene)
   bool lit = false;            ///< the lighting pipeline ran (a scene and a marker pose)
   bool reusedSurface = false;  ///< static camera: the last frame's real surface was kept (FrameOptions::reuse)
@@ -140,6 +149,8 @@ class FramePipeline {
   /// Albedo and real mesh of a measured frame with a marker pose (what prepare() adds to measure()).
   RealSurface realSurface(const capture::Frame& frame, const FrameResult& r, gl::Profiler& profiler) const;
   lighting::LightingPipeline* lighting() { return pipeline_.get(); }
+  /// Where the frames' camera poses come from (null without a setup).
+  const PoseSource* poses() const { return poses_.get(); }
   const LightingSetup* setup() const { return setup_ ? &*setup_ : nullptr; }
   /// The lights estimated from the room ("lights": "room"), else null.
   const reconstruction::RoomLights* roomLights() const { return roomLightEstimate_.get(); }
@@ -153,16 +164,14 @@ class FramePipeline {
 
  private:
   void estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);
-  std::optional<capture::Pose> markerPose(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);
+  void locate(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);
 
   std::optional<LightingSetup> setup_;
   FrameOptions options_;
   std::unique_ptr<lighting::LightingPipeline> pipeline_;
   std::optional<reconstruction::FisheyeRays> fisheyeRays_;
   std::optional<reconstruction::FisheyeRays> worldFisheyeRays_;  ///< the same rays in the lighting world
-  std::optional<reconstruction::TagDetector> detector_;
-  reconstruction::MarkerTrack track_;
-  std::optional<std::array<cv::Point2d, 4>> lastTagCorners_;  ///< where the tag was last measured (its search region)
+  std::unique_ptr<PoseSource> poses_;
   lighting::TechniqueNeeds needs_;              ///< what the scene's techniques need (real VALs)
   std::optional<lighting::SurfelMap> surfels_;  ///< fusion of real VALs over frames, when asked for
   /// The frame the lighting pipeline's real surface was built from (FrameOptions::reuse).

@@ -17,6 +17,7 @@ LightingSetup markerSetup(const capture::FrameSource& source) {
     setup.tagFamily = manifest->marker->family;
     setup.tagSize = manifest->marker->sizeMetres;
     setup.tagId = manifest->marker->id;
+    setup.markerGiven = true;
   }
   if (manifest) setup.T_world_marker = manifest->truth.T_world_marker;
   return setup;
@@ -33,7 +34,7 @@ double median(std::vector<double> sorted) {
 double RoomFusion::medianFuseMs() const { return median(fuseMs); }
 double RoomFusion::medianSurfaceMs() const { return median(surfaceMs); }
 
-RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const reconstruction::RoomOptions& options,
+RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstruction::RoomOptions& options,
                     int64_t limit, int every,
                     const std::function<void(const nlohmann::json&, const reconstruction::RoomModel&)>& onFrame) {
   const capture::SourceInfo& info = source.info();
@@ -42,7 +43,7 @@ RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const
   fo.gpu = false;
   fo.reuse = false;
   FramePipeline frames(markerSetup(source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
-  RoomFusion out{reconstruction::RoomModel(options), 0, 0, {}, nlohmann::json::array()};
+  RoomFusion out{reconstruction::RoomModel(options)};
   gl::Profiler profiler;
   while (limit < 0 || out.frames < limit) {
     auto frame = source.next();
@@ -54,10 +55,15 @@ RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const
     double filterMs = 0;
     for (const auto& [stage, t] : profiler.resolve())
       if (stage == "depth_filter" || stage == "normals") filterMs += t.cpuMs;
-    nlohmann::json line = {{"frame", index}};
+    nlohmann::json line = {{"frame", index}, {"pose", r.pose.facts()}};
     if (!r.T_marker_camera || r.positions.empty()) {
       line["integrated"] = false;
-      line["refused"] = "no marker pose";
+      line["refused"] = "lost: no trusted camera pose";
+      ++out.lost;
+    } else if (r.pose.held()) {
+      line["integrated"] = false;
+      line["refused"] = "held pose: the marker is out of view";
+      ++out.held;
     } else {
       ++out.posed;
       const cv::Mat depth = measuredDepth(r);

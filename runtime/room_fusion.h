@@ -1,6 +1,7 @@
 #pragma once
 // Fusing a recording into the room model (mrgi room, bench --room): every frame's filtered depth at its
-// camera pose (tracked marker or the session's ground truth) into a RoomModel in the marker frame.
+// camera pose (runtime/pose_source.h) into a RoomModel in the marker frame. Frames without a trusted pose
+// (lost, or the marker's held pose) are refused, never fused at a guess.
 #include <functional>
 #include <string>
 #include <vector>
@@ -20,6 +21,8 @@ LightingSetup markerSetup(const capture::FrameSource& source);
 struct RoomFusion {
   reconstruction::RoomModel model;
   int64_t frames = 0, posed = 0;
+  /// Frames refused for their pose: lost, or held (the marker's last pose kept while unseen).
+  int64_t lost = 0, held = 0;
   std::vector<double> fuseMs;                    ///< per integrated-or-refused frame with a pose
   std::vector<double> surfaceMs;                 ///< the same frames: depth filter and normals + fusion
   nlohmann::json perFrame = nlohmann::json::array();  ///< frame, integrated, refused, overlap, inconsistent, new_blocks, fuse_ms
@@ -31,7 +34,7 @@ struct RoomFusion {
 
 /// Reads up to `limit` frames (< 0: all) of `source`, integrates every `every`-th. `onFrame` (optional) sees
 /// each frame's line as it is decided.
-RoomFusion fuseRoom(capture::FrameSource& source, const std::string& pose, const reconstruction::RoomOptions& options,
+RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstruction::RoomOptions& options,
                     int64_t limit = -1, int every = 1,
                     const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
 

@@ -1538,7 +1538,7 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
   const fs::path noTag = scratchSession("mrgi_cli_room_notag_", ::session(), 2);
   for (const auto& e : fs::directory_iterator(noTag / "s" / "colour"))  // flat grey frames: no tag to see
     cv::imwrite(e.path().string(), cv::Mat(120, 160, CV_8UC3, cv::Scalar(90, 90, 90)));
-  expectOneLineError(runMrgi("room " + (noTag / "s").string() + " --out " + (noTag / "room").string()), "no frame has a marker pose");
+  expectOneLineError(runMrgi("room " + (noTag / "s").string() + " --out " + (noTag / "room").string()), "no frame has a trusted camera pose (2 lost");
   fs::remove_all(noTag);
   fs::remove_all(out);
   fs::remove_all(mine);

@@ -26,10 +26,10 @@ Frames run(const std::string& technique, compositor::Compositor::Readback mode, 
   capture::SessionSource source(kSession);
   lighting::SceneDescription scene = lighting::loadScene(kScene);
   scene.technique = lighting::parseTechniqueChoice(technique, &scene.knobs);
-  LightingSetup setup = prepareLighting(scene, kScene, source, kSession, "ground-truth");
+  LightingSetup setup = prepareLighting(scene, kScene, source, kSession, PoseMode::GroundTruth);
   const capture::Intrinsics& k = source.info().colourIntrinsics;
   FrameOptions fo;
-  fo.pose = "ground-truth";
+  fo.pose = PoseMode::GroundTruth;
   fo.techniqueStats = stats;
   FramePipeline pipeline(setup, k.width, k.height, fo);
   compositor::Compositor compositor(k.width, k.height);

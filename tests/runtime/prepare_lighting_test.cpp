@@ -36,7 +36,7 @@ TEST(PrepareLighting, GroundTruthLightsOfEveryTypeComeIntoTheMarkerFrame) {
   const ManifestOnly source(m);
   lighting::SceneDescription scene;
   scene.lightSource = lighting::LightSource::Manifest;
-  const LightingSetup s = prepareLighting(scene, "scene.json", source, "session", "marker");
+  const LightingSetup s = prepareLighting(scene, "scene.json", source, "session", PoseMode::Marker);
   ASSERT_EQ(s.lights.size(), 3u);
   // World = (x_m, z_m + 0.5, -y_m), so marker = (x_w, -z_w, y_w - 0.5).
   EXPECT_EQ(s.lights[0].type, lighting::LightType::Point);
@@ -57,7 +57,7 @@ TEST(PrepareLighting, AnEnvironmentLitSessionHasNoDeltaLightsAndThatIsNoError) {
   const ManifestOnly source(m);
   lighting::SceneDescription scene;
   scene.lightSource = lighting::LightSource::Manifest;
-  EXPECT_TRUE(prepareLighting(scene, "scene.json", source, "session", "marker").lights.empty());
+  EXPECT_TRUE(prepareLighting(scene, "scene.json", source, "session", PoseMode::Marker).lights.empty());
 }
 
 TEST(PrepareLighting, ManifestLightsWithoutGroundTruthNameTheSceneAndTheSource) {
@@ -65,7 +65,7 @@ TEST(PrepareLighting, ManifestLightsWithoutGroundTruthNameTheSceneAndTheSource) 
   lighting::SceneDescription scene;
   scene.lightSource = lighting::LightSource::Manifest;
   try {
-    prepareLighting(scene, "scene.json", source, "session-dir", "marker");
+    prepareLighting(scene, "scene.json", source, "session-dir", PoseMode::Marker);
     ADD_FAILURE() << "accepted";
   } catch (const capture::CaptureError& e) {
     const std::string what = e.what();

@@ -1,0 +1,318 @@
+#include "reconstruction/odometry.h"
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+
+#include <open3d/core/Tensor.h>
+#include <open3d/t/pipelines/odometry/RGBDOdometry.h>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/colour.h"
+#include "reconstruction/depth.h"
+
+namespace mrgi::reconstruction {
+
+namespace o3c = open3d::core;
+namespace o3o = open3d::t::pipelines::odometry;
+
+const char* toString(OdometryMethod m) {
+  switch (m) {
+    case OdometryMethod::PointToPlane: return "point-to-plane";
+    case OdometryMethod::Intensity: return "intensity";
+    case OdometryMethod::Hybrid: return "hybrid";
+  }
+  return "?";
+}
+
+namespace {
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+o3c::Tensor toTensor(const cv::Mat& m) {
+  CV_Assert(m.depth() == CV_32F && m.isContinuous());
+  o3c::Tensor t({m.rows, m.cols, static_cast<int64_t>(m.channels())}, o3c::Float32);
+  std::memcpy(t.GetDataPtr(), m.ptr(), m.total() * m.elemSize());
+  return t;
+}
+
+o3c::Tensor intrinsicsTensor(const capture::Intrinsics& k) {
+  return o3c::Tensor(std::vector<double>{k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1}, {3, 3}, o3c::Float64);
+}
+
+o3c::Tensor poseTensor(const capture::Pose& T) {
+  return o3c::Tensor(std::vector<double>(T.val, T.val + 16), {4, 4}, o3c::Float64);
+}
+
+capture::Pose poseOf(const o3c::Tensor& t) {
+  const o3c::Tensor c = t.To(o3c::Float64).Contiguous();
+  const double* p = c.GetDataPtr<double>();
+  capture::Pose T;
+  for (int i = 0; i < 16; ++i) T.val[i] = p[i];
+  return T;
+}
+
+/// Intrinsics of an image halved by 2 x 2 blocks (pixel centres: u' = (u + 0.5) / 2 - 0.5).
+capture::Intrinsics halved(const capture::Intrinsics& k) {
+  return {k.width / 2, k.height / 2, k.fx / 2, k.fy / 2, (k.cx + 0.5) / 2 - 0.5, (k.cy + 0.5) / 2 - 0.5};
+}
+
+/// Depth halved by 2 x 2 blocks: the mean of a block whose four samples exist and lie within 4 % (+ 1 cm) of
+/// each other, NaN across a depth edge or a hole (no point floats between a foreground and a background).
+cv::Mat halveDepth(const cv::Mat& d) {
+  cv::Mat out(d.rows / 2, d.cols / 2, CV_32F);
+  for (int y = 0; y < out.rows; ++y) {
+    const float* a = d.ptr<float>(2 * y);
+    const float* b = d.ptr<float>(2 * y + 1);
+    float* o = out.ptr<float>(y);
+    for (int x = 0; x < out.cols; ++x) {
+      const float s[4] = {a[2 * x], a[2 * x + 1], b[2 * x], b[2 * x + 1]};
+      float lo = s[0], hi = s[0], sum = 0;
+      bool ok = true;
+      for (float v : s) {
+        ok &= std::isfinite(v);
+        lo = std::min(lo, v), hi = std::max(hi, v), sum += v;
+      }
+      o[x] = ok && hi - lo <= 0.04f * lo + 0.01f ? 0.25f * sum : kNaN;
+    }
+  }
+  return out;
+}
+
+cv::Mat halveIntensity(const cv::Mat& i) {
+  cv::Mat out;
+  cv::resize(i, out, {i.cols / 2, i.rows / 2}, 0, 0, cv::INTER_AREA);
+  return out;
+}
+
+/// Depth in metres with NaN where there is none or it is out of [minM, maxM].
+cv::Mat metresWithNaN(const cv::Mat& depth, double minM, double maxM) {
+  cv::Mat d;
+  if (depth.type() == CV_16U)
+    depth.convertTo(d, CV_32F, 1e-3);
+  else if (depth.type() == CV_32F)
+    d = depth.clone();
+  else
+    throw std::invalid_argument("odometry: depth must be CV_32F metres or CV_16U millimetres");
+  d.forEach<float>([&](float& z, const int*) {
+    if (!(z >= minM && z <= maxM)) z = kNaN;
+  });
+  return d;
+}
+}  // namespace
+
+struct OdometryFrame::Impl {
+  struct Level {
+    capture::Intrinsics k;
+    cv::Mat depth, intensity, vertices, normals;
+    o3c::Tensor tDepth, tIntensity, tDepthDx, tDepthDy, tIntensityDx, tIntensityDy, tVertices, tNormals, tK;
+  };
+  std::vector<Level> levels;
+  size_t valid = 0;
+  bool intensity = false;
+};
+
+OdometryFrame::OdometryFrame() : impl_(std::make_shared<Impl>()) {}
+OdometryFrame::~OdometryFrame() = default;
+OdometryFrame::OdometryFrame(const OdometryFrame&) = default;
+OdometryFrame& OdometryFrame::operator=(const OdometryFrame&) = default;
+
+OdometryFrame::OdometryFrame(const cv::Mat& depthIn, const cv::Mat& colour, const capture::Intrinsics& kIn,
+                             const OdometryOptions& o, double exposure) {
+  if (depthIn.empty() || depthIn.cols != kIn.width || depthIn.rows != kIn.height)
+    throw std::invalid_argument("odometry: depth is not on the intrinsics' pixel grid");
+  if (!colour.empty() && colour.size() != depthIn.size())
+    throw std::invalid_argument("odometry: colour and depth differ in size");
+  if (o.iterations.empty()) throw std::invalid_argument("odometry: no pyramid level");
+  auto impl = std::make_shared<Impl>();
+  cv::Mat depth = metresWithNaN(depthIn, o.minDepthM, o.maxDepthM);
+  cv::Mat grey;
+  if (!colour.empty()) {
+    // The intensity is the frame's radiance (its exposure divided out: auto exposure does not read as motion),
+    // as luminance, then gamma-encoded so that dark and bright texture weigh alike.
+    cv::Mat linear;
+    if (colour.type() == CV_8UC3) {
+      cv::transform(capture::radianceOf(colour, exposure), linear, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
+    } else if (colour.type() == CV_8UC1) {
+      cv::Mat rgb;
+      cv::cvtColor(colour, rgb, cv::COLOR_GRAY2RGB);
+      cv::extractChannel(capture::radianceOf(rgb, exposure), linear, 0);
+    } else {
+      throw std::invalid_argument("odometry: colour must be 8-bit RGB or grey");
+    }
+    cv::pow(cv::max(linear, 0.0), 1.0 / 2.2, grey);
+    grey *= o.intensityWeight;
+    if (o.normaliseIntensity) {
+      cv::Scalar mean, sd;
+      cv::meanStdDev(grey, mean, sd, depthIn > 0);
+      if (sd[0] > 1e-4) grey.convertTo(grey, CV_32F, 0.2 / sd[0], 0.5 - 0.2 * mean[0] / sd[0]);
+    }
+    impl->intensity = true;
+  }
+  capture::Intrinsics k = kIn;
+  while (depth.cols > std::max(o.maxWidth, 16)) {
+    depth = halveDepth(depth);
+    if (!grey.empty()) grey = halveIntensity(grey);
+    k = halved(k);
+  }
+  const int levels = static_cast<int>(o.iterations.size());
+  for (int l = 0; l < levels; ++l) {
+    if (l > 0) {
+      depth = halveDepth(depth);
+      if (!grey.empty()) grey = halveIntensity(grey);
+      k = halved(k);
+    }
+    if (depth.cols < 8 || depth.rows < 8) throw std::invalid_argument("odometry: too many pyramid levels for the image");
+    Impl::Level L;
+    L.k = k;
+    L.depth = depth;
+    // Vertices (NaN without depth) and normals (NaN where they cannot be formed).
+    L.vertices.create(depth.size(), CV_32FC3);
+    cv::Mat zeroed(depth.size(), CV_32FC3);
+    for (int y = 0; y < depth.rows; ++y)
+      for (int x = 0; x < depth.cols; ++x) {
+        const float z = depth.at<float>(y, x);
+        if (std::isfinite(z)) {
+          const cv::Vec3f v(static_cast<float>((x - k.cx) / k.fx * z), static_cast<float>((y - k.cy) / k.fy * z), z);
+          L.vertices.at<cv::Vec3f>(y, x) = v;
+          zeroed.at<cv::Vec3f>(y, x) = v;
+        } else {
+          L.vertices.at<cv::Vec3f>(y, x) = cv::Vec3f(kNaN, kNaN, kNaN);
+          zeroed.at<cv::Vec3f>(y, x) = cv::Vec3f(0, 0, 0);
+        }
+      }
+    L.normals = computeNormals(zeroed);
+    L.normals.forEach<cv::Vec3f>([](cv::Vec3f& n, const int*) {
+      if (n == cv::Vec3f(0, 0, 0)) n = cv::Vec3f(kNaN, kNaN, kNaN);
+    });
+    if (l == 0) impl->valid = static_cast<size_t>(cv::countNonZero(depth == depth));
+    L.tDepth = toTensor(depth);
+    L.tVertices = toTensor(L.vertices);
+    L.tNormals = toTensor(L.normals);
+    L.tK = intrinsicsTensor(k);
+    cv::Mat dx, dy;
+    cv::Sobel(depth, dx, CV_32F, 1, 0, 3);  // unscaled: the kernels scale by 1/8; NaN spreads to the 3 x 3
+    cv::Sobel(depth, dy, CV_32F, 0, 1, 3);
+    L.tDepthDx = toTensor(dx);
+    L.tDepthDy = toTensor(dy);
+    if (!grey.empty()) {
+      L.intensity = grey;
+      cv::Sobel(grey, dx, CV_32F, 1, 0, 3);
+      cv::Sobel(grey, dy, CV_32F, 0, 1, 3);
+      L.tIntensity = toTensor(grey);
+      L.tIntensityDx = toTensor(dx);
+      L.tIntensityDy = toTensor(dy);
+    }
+    impl->levels.push_back(std::move(L));
+  }
+  impl_ = std::move(impl);
+}
+
+int OdometryFrame::levels() const { return static_cast<int>(impl_->levels.size()); }
+const capture::Intrinsics& OdometryFrame::intrinsics(int l) const { return impl_->levels.at(l).k; }
+const cv::Mat& OdometryFrame::depth(int l) const { return impl_->levels.at(l).depth; }
+const cv::Mat& OdometryFrame::intensity(int l) const { return impl_->levels.at(l).intensity; }
+const cv::Mat& OdometryFrame::vertices(int l) const { return impl_->levels.at(l).vertices; }
+const cv::Mat& OdometryFrame::normals(int l) const { return impl_->levels.at(l).normals; }
+size_t OdometryFrame::validPixels() const { return impl_->valid; }
+bool OdometryFrame::hasIntensity() const { return impl_->intensity; }
+
+struct OdometrySolver {
+  static OdometryResult solve(const OdometryFrame& source, const OdometryFrame& target, const capture::Pose& init,
+                              const OdometryOptions& o) {
+    const auto& S = *source.impl_;
+    const auto& T = *target.impl_;
+    if (S.levels.size() != T.levels.size() || S.levels.empty() || !(S.levels[0].k == T.levels[0].k))
+      throw std::invalid_argument("odometry: source and target pyramids differ");
+    OdometryMethod method = o.method;
+    if (method != OdometryMethod::PointToPlane && !(S.intensity && T.intensity))
+      throw std::invalid_argument(std::string("odometry: ") + toString(method) + " needs colour in both frames");
+    OdometryResult out;
+    out.T_target_source = init;
+    const int levels = static_cast<int>(S.levels.size());
+    o3c::Tensor pose = poseTensor(init);
+    bool solved = true;
+    for (int l = levels - 1; l >= 0 && solved; --l) {
+      const auto& s = S.levels[l];
+      const auto& t = T.levels[l];
+      const int steps = o.iterations[static_cast<size_t>(levels - 1 - l)];
+      for (int i = 0; i < steps; ++i) {
+        o3o::OdometryResult r;
+        try {
+          switch (method) {
+            case OdometryMethod::PointToPlane:
+              r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose, o.depthOutlierM,
+                                                         o.depthHuberM);
+              break;
+            case OdometryMethod::Intensity:
+              r = o3o::ComputeOdometryResultIntensity(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tIntensityDx,
+                                                      t.tIntensityDy, s.tVertices, t.tK, pose, o.depthOutlierM,
+                                                      o.intensityHuber * o.intensityWeight);
+              break;
+            case OdometryMethod::Hybrid:
+              r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx, t.tDepthDy,
+                                                   t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK, pose,
+                                                   o.depthOutlierM, o.depthHuberM, o.intensityHuber * o.intensityWeight);
+              break;
+          }
+        } catch (const std::exception&) {
+          solved = false;  // no inlier at all: the frames do not overlap at this pose
+          break;
+        }
+        const capture::Pose delta = poseOf(r.transformation_);
+        bool finite = true;
+        for (double v : delta.val) finite &= std::isfinite(v);
+        if (!finite) {
+          solved = false;
+          break;
+        }
+        pose = r.transformation_.To(o3c::Float64).Matmul(pose);
+        ++out.steps;
+        const double angle = std::acos(std::clamp((delta(0, 0) + delta(1, 1) + delta(2, 2) - 1) / 2, -1.0, 1.0));
+        if (angle + cv::norm(capture::translationOf(delta)) < o.convergedStep) break;
+      }
+    }
+    if (!solved) return out;
+    out.T_target_source = poseOf(pose);
+    out.solved = true;
+    measure(S.levels[0], T.levels[0], out, o);
+    return out;
+  }
+
+  /// Quality at the finest level: projective association of the source's vertices into the target, the
+  /// point-to-plane residual of each association within the outlier distance.
+  static void measure(const OdometryFrame::Impl::Level& s, const OdometryFrame::Impl::Level& t, OdometryResult& out,
+                      const OdometryOptions& o) {
+    const cv::Matx33d R = capture::rotationOf(out.T_target_source);
+    const cv::Vec3d tr = capture::translationOf(out.T_target_source);
+    size_t valid = 0, inliers = 0;
+    double sum2 = 0;
+    for (int y = 0; y < s.vertices.rows; ++y)
+      for (int x = 0; x < s.vertices.cols; ++x) {
+        const cv::Vec3f v = s.vertices.at<cv::Vec3f>(y, x);
+        if (!std::isfinite(v[0])) continue;
+        ++valid;
+        const cv::Vec3d p = R * cv::Vec3d(v) + tr;
+        if (!(p[2] > 0)) continue;
+        const int u = static_cast<int>(std::lround(t.k.fx * p[0] / p[2] + t.k.cx));
+        const int w = static_cast<int>(std::lround(t.k.fy * p[1] / p[2] + t.k.cy));
+        if (u < 0 || w < 0 || u >= t.vertices.cols || w >= t.vertices.rows) continue;
+        const cv::Vec3f q = t.vertices.at<cv::Vec3f>(w, u);
+        const cv::Vec3f n = t.normals.at<cv::Vec3f>(w, u);
+        if (!std::isfinite(q[0]) || !std::isfinite(n[0])) continue;
+        const double r = (p - cv::Vec3d(q)).dot(cv::Vec3d(n));
+        if (std::abs(r) > o.depthOutlierM || std::abs(p[2] - q[2]) > o.depthOutlierM) continue;
+        ++inliers;
+        sum2 += r * r;
+      }
+    out.fitness = valid ? static_cast<double>(inliers) / static_cast<double>(valid) : 0.0;
+    out.inlierRmse = inliers ? std::sqrt(sum2 / static_cast<double>(inliers)) : 0.0;
+  }
+};
+
+OdometryResult estimateOdometry(const OdometryFrame& source, const OdometryFrame& target, const capture::Pose& init,
+                                const OdometryOptions& options) {
+  return OdometrySolver::solve(source, target, init, options);
+}
+
+}  // namespace mrgi::reconstruction

@@ -1,0 +1,94 @@
+#pragma once
+/// Dense RGB-D odometry: the rigid motion that carries one RGB-D frame (the source) onto another (the target:
+/// the previous frame, or the room model seen from a predicted pose). Each Gauss-Newton step is Open3D's
+/// (t::pipelines::odometry::ComputeOdometryResult{PointToPlane,Intensity,Hybrid}: projective association,
+/// Huber weights, one 6x6 solve); the coarse-to-fine pyramid they run over is made here with OpenCV, since
+/// Debian's Open3D build implements neither the grey conversion nor the bilateral filter on the CPU that its
+/// own multi-scale driver calls (shared/notes/anchors.md).
+///
+/// Camera frames are OpenCV's (x right, y down, z forward), depth in metres.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "capture/types.h"
+
+namespace mrgi::reconstruction {
+
+/// What the steps minimise: the point-to-plane distance (KinectFusion), the intensity difference
+/// (Steinbrücker et al. 2011), or both (Park et al. 2017: the robust default on textured scenes; point to
+/// plane alone slides along a flat, texture-less view).
+enum class OdometryMethod { PointToPlane, Intensity, Hybrid };
+const char* toString(OdometryMethod m);
+
+struct OdometryOptions {
+  OdometryMethod method = OdometryMethod::Hybrid;
+  /// Gauss-Newton steps per pyramid level, coarse to fine; the number of entries is the number of levels.
+  std::vector<int> iterations{10, 6, 4};
+  /// The finest level's width: a wider frame is halved until it fits (640x480 is tracked at 320x240).
+  int maxWidth = 320;
+  double minDepthM = 0.1, maxDepthM = 4.0;
+  /// Associations whose depths differ by more than this are outliers (metres, at the finest level; doubled
+  /// per coarser level); the Huber thresholds of the depth (metres) and intensity ([0, 1]) residuals.
+  float depthOutlierM = 0.07f, depthHuberM = 0.05f, intensityHuber = 0.1f;
+  /// The intensity residual's scale against the depth residual's in the hybrid (Open3D's hybrid step weighs
+  /// the two alike; its legacy odometry weighs depth 30 times more): intensities are multiplied by it (and
+  /// the Huber threshold with them), which weighs the intensity term by its square.
+  float intensityWeight = 0.5f;
+  /// Normalise each frame's intensity to a fixed mean and spread over its pixels with depth (for a camera
+  /// whose exposure changes unreported). Off: the frame's own exposure is divided out, and a view whose
+  /// content changes does not shift its intensities.
+  bool normaliseIntensity = false;
+  /// A step that moves less than this (radians + metres of the twist) ends the level early.
+  double convergedStep = 1e-5;
+};
+
+/// A frame prepared for odometry: per pyramid level (finest first) its depth, intensity and their gradients,
+/// and its vertex and normal maps; NaN where there is no depth. Cheap to copy (shares its images).
+class OdometryFrame {
+ public:
+  OdometryFrame();
+  ~OdometryFrame();
+  OdometryFrame(const OdometryFrame&);
+  OdometryFrame& operator=(const OdometryFrame&);
+  /// `depth` (CV_32F metres, 0 or NaN = none, or CV_16U millimetres) and `colour` (CV_8UC3 RGB or CV_8UC1
+  /// grey, sRGB-encoded, taken at `exposure`; may be empty for point-to-plane) on the same pixel grid with
+  /// intrinsics `k`.
+  OdometryFrame(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& k, const OdometryOptions& options = {},
+                double exposure = 1.0);
+  int levels() const;
+  const capture::Intrinsics& intrinsics(int level) const;
+  /// CV_32F metres (NaN = none) / CV_32F intensity / CV_32FC3 camera frame (NaN = none), at `level`.
+  const cv::Mat& depth(int level) const;
+  const cv::Mat& intensity(int level) const;
+  const cv::Mat& vertices(int level) const;
+  const cv::Mat& normals(int level) const;
+  /// Pixels with depth at the finest level.
+  size_t validPixels() const;
+  bool hasIntensity() const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<const Impl> impl_;
+  friend struct OdometrySolver;
+};
+
+struct OdometryResult {
+  capture::Pose T_target_source = capture::identityPose();
+  /// At the finest level, of the last step: inliers over the source's pixels, and the root mean square of
+  /// the inliers' point-to-plane (or depth) residuals in metres (0 for intensity alone).
+  double fitness = 0;
+  double inlierRmse = 0;
+  int steps = 0;
+  /// False when a level had no inlier at all (frames that do not overlap): the pose is then `init`.
+  bool solved = false;
+};
+
+/// The motion that carries `source` onto `target`, starting from `init` (target from source). Both frames
+/// need the same pyramid (same size, intrinsics and levels); throws std::invalid_argument otherwise.
+OdometryResult estimateOdometry(const OdometryFrame& source, const OdometryFrame& target,
+                                const capture::Pose& init = capture::identityPose(), const OdometryOptions& options = {});
+
+}  // namespace mrgi::reconstruction

@@ -1,0 +1,338 @@
+// Camera poses beyond the marker: the pose modes' one spelling, dense RGB-D odometry against the tags' own
+// poses on real frames with every tag painted out after the first, on synthetic sessions against their ground
+// truth, the marker's bounded correction when the tag returns, and loss and relocalisation across a jump.
+#include <cstdio>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "capture/error.h"
+#include "capture/frame_source.h"
+#include "capture/npz.h"
+#include "capture/registration.h"
+#include "capture/session.h"
+#include "reconstruction/marker.h"
+#include "reconstruction/odometry.h"
+#include "evaluation/tracking_metrics.h"
+#include "runtime/pose_source.h"
+#include "runtime/room_fusion.h"
+
+namespace mrgi::runtime {
+namespace {
+
+const std::string kData = MRGI_SHARED_DATA;
+const std::string kRecordings = std::string(MRGI_SOURCE_DIR) + "/recordings/";
+
+capture::Pose poseFromRows(const nlohmann::json& m) {
+  capture::Pose T;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) T(r, c) = m[r][c];
+  return T;
+}
+
+/// The ViSP desk sequence (real RealSense frames, 640x480) with its tags' poses; from `paintFrom` on, every
+/// tag is painted out (its quad, grown by half its size, filled flat grey) so that no marker is found.
+struct Visp {
+  std::vector<capture::Frame> frames;
+  std::vector<capture::Pose> T_world_camera;  ///< ground truth: the camera in tag 0's frame
+  MarkerSpec marker;
+  std::vector<cv::Vec3d> tagCentres;                  ///< every tag's centre in tag 0's frame (from frame 0)
+  std::vector<std::vector<cv::Point2d>> seenCentres;  ///< per frame, where each tag's centre was detected
+};
+
+Visp readVisp(int paintFrom) {
+  const std::string dir = kData + "/rgbd-visp-apriltag/";
+  const auto cam = nlohmann::json::parse(std::ifstream(dir + "cam.json"));
+  const auto data = nlohmann::json::parse(std::ifstream(dir + "apriltag_data.json"));
+  const capture::Intrinsics k{cam["w"], cam["h"], cam["px"], cam["py"], cam["u0"], cam["v0"]};
+  Visp v;
+  v.marker = {"tag36h11", data["tag_size"].get<double>(), 0};
+  for (int f = 0; f < 20; ++f) {
+    char name[16];
+    std::snprintf(name, sizeof name, "%04d", f);
+    cv::Mat bgr = cv::imread(dir + "color_image_" + name + ".png", cv::IMREAD_COLOR), rgb;
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    const auto& tags = data["detections"][f];
+    if (f >= paintFrom)
+      for (const auto& [id, tag] : tags.items()) {
+        std::vector<cv::Point2f> quad;
+        cv::Point2f centre(0, 0);
+        for (const auto& rc : tag["tag_corners"]) quad.emplace_back(rc[1].get<float>(), rc[0].get<float>()), centre += quad.back() / 4;
+        std::vector<cv::Point> grown;
+        for (const auto& p : quad) grown.emplace_back(centre + 1.5f * (p - centre));
+        cv::fillConvexPoly(rgb, grown, cv::Scalar(128, 128, 128));
+      }
+    std::vector<cv::Point2d> centres;
+    for (const auto& [id, tag] : tags.items()) {
+      cv::Point2d c(0, 0);
+      for (const auto& rc : tag["tag_corners"]) c += cv::Point2d(rc[1].get<double>(), rc[0].get<double>()) / 4;
+      centres.push_back(c);
+      if (f == 0)
+        v.tagCentres.push_back(capture::translationOf(capture::inversePose(poseFromRows(tags["0"]["cMo"])) * poseFromRows(tag["cMo"])));
+    }
+    v.seenCentres.push_back(centres);
+    capture::Frame fr;
+    fr.index = f;
+    fr.timestamp = f / 30.0;
+    capture::RgbdFrame rgbd;
+    rgbd.colour = rgb;
+    capture::readNpzArray(dir + "depth_image_" + name + ".npz", "data.npy").convertTo(rgbd.depth, CV_32F, 0.001);
+    rgbd.colourIntrinsics = rgbd.depthIntrinsics = k;
+    fr.rgbd = rgbd;
+    v.frames.push_back(fr);
+    v.T_world_camera.push_back(capture::inversePose(poseFromRows(data["grid"][f])));
+  }
+  // The board's camera poses (from every tag: steadier than one tag's) in tag 0's frame, the world the marker
+  // anchors: through frame 0, so that what is measured is the motion since the anchor.
+  const capture::Pose T_tag_board = capture::inversePose(poseFromRows(data["detections"][0]["0"]["cMo"])) * poseFromRows(data["grid"][0]);
+  for (auto& T : v.T_world_camera) T = T_tag_board * T;
+  return v;
+}
+
+struct Trajectory {
+  std::vector<CameraPose> poses;
+  double ateRmseM = 0, lastDriftM = 0, maxM = 0;
+  int tracked = 0;
+};
+
+Trajectory run(PoseSource& source, std::vector<capture::Frame> frames, const std::vector<capture::Pose>& truth) {
+  Trajectory t;
+  gl::Profiler profiler;
+  std::vector<std::optional<capture::Pose>> estimate;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    capture::ensureRegistered(*frames[i].rgbd);
+    t.poses.push_back(source.locate(frames[i], profiler));
+    estimate.push_back(t.poses.back().T_world_camera);
+  }
+  const evaluation::TrajectoryError e = evaluation::trajectoryError(estimate, truth);
+  t.tracked = e.tracked, t.ateRmseM = e.ateRmseM, t.maxM = e.ateMaxM, t.lastDriftM = e.lastM;
+  return t;
+}
+
+/// How far from where they were detected a trajectory draws the ViSP tags' centres over frames [from, to)
+/// (pixels, RMS): how far an object placed on the board would slide in the image.
+double centreReprojectionPx(const Visp& v, const Trajectory& t, int from, int to) {
+  double sum2 = 0;
+  int n = 0;
+  for (int f = from; f < to; ++f) {
+    if (!t.poses[f].tracked()) continue;
+    const capture::Pose T_camera_world = capture::inversePose(*t.poses[f].T_world_camera);
+    const capture::Intrinsics& k = v.frames[f].rgbd->colourIntrinsics;
+    for (size_t i = 0; i < v.tagCentres.size(); ++i) {
+      const cv::Vec3d p = capture::transformPoint(T_camera_world, v.tagCentres[i]);
+      const cv::Point2d uv(k.fx * p[0] / p[2] + k.cx, k.fy * p[1] / p[2] + k.cy);
+      sum2 += std::pow(cv::norm(uv - v.seenCentres[f][i]), 2), ++n;
+    }
+  }
+  return n ? std::sqrt(sum2 / n) : 0.0;
+}
+
+TEST(PoseModes, OneSpellingRoundTripsAndABadNameNamesTheFlag) {
+  ASSERT_EQ(poseModeNames(), (std::vector<std::string>{"marker", "ground-truth", "odometry", "tracked"}));
+  for (const auto& n : poseModeNames()) EXPECT_EQ(toString(poseModeFromName(n)), n);
+  try {
+    poseModeFromName("markr", "--pose");
+    FAIL();
+  } catch (const capture::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--pose: 'markr'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(makePoseSource(PoseMode::GroundTruth, {}, std::nullopt), capture::InputError);
+}
+
+TEST(Odometry, PaintedVispFramesFollowTheTagsPoses) {
+  // The real desk sequence with every tag painted out after frame 0: the marker anchors the world on frame 0,
+  // odometry carries it through the other 19 frames. Against the tags' own poses (about 1 mm).
+  const Visp v = readVisp(1);
+  auto source = makePoseSource(PoseMode::Odometry, v.marker, std::nullopt);
+  const Trajectory t = run(*source, v.frames, v.T_world_camera);
+  std::printf("painted ViSP, odometry: %d of %zu frames tracked, ATE RMSE %.2f mm, max %.2f mm, last frame %.2f mm\n", t.tracked,
+              v.frames.size(), 1e3 * t.ateRmseM, 1e3 * t.maxM, 1e3 * t.lastDriftM);
+  EXPECT_EQ(t.tracked, 20);
+  EXPECT_EQ(t.poses[0].by, PosedBy::Marker);
+  for (size_t i = 1; i < t.poses.size(); ++i) {
+    EXPECT_EQ(t.poses[i].marker, "-") << "odometry mode looks for the marker only until it has anchored the world";
+    if (t.poses[i].tracked()) EXPECT_NE(t.poses[i].by, PosedBy::Marker) << i;
+  }
+  const double px = centreReprojectionPx(v, t, 1, 20);
+  std::printf("  the tags' centres drawn %.2f px RMS from where they were detected\n", px);
+  // Measured: 13.9 mm ATE, 2.6 px. The 5 mm is not reached against these poses: they and the
+  // sensor's depth disagree (Odometry.VispDepthDisagreesWithTheTagsMotion), while the image, which is what an
+  // inserted object is judged by, stays within 3 px.
+  EXPECT_LT(t.ateRmseM, 0.02);
+  EXPECT_LT(px, 3.5);
+}
+
+TEST(Odometry, VispDepthDisagreesWithTheTagsMotion) {
+  // Why the ViSP ATE stays above 5 mm: from frame 0 to 16 the tags say the camera moved 35 mm and 3.3 degrees;
+  // the sensor's depth aligns far worse at that motion than at the one odometry finds (point-to-plane RMSE
+  // over the whole view), so the two references cannot both be met. Frames 0-8, where the tags say the camera
+  // stood still to 0.2 mm, show odometry's own noise: under 5 mm.
+  const Visp v = readVisp(100);
+  reconstruction::OdometryOptions o;
+  o.method = reconstruction::OdometryMethod::PointToPlane;  // depth alone
+  const auto& a = *v.frames[0].rgbd;
+  const auto& b = *v.frames[16].rgbd;
+  const reconstruction::OdometryFrame A(a.depth, a.colour, a.colourIntrinsics, o), B(b.depth, b.colour, b.colourIntrinsics, o);
+  const auto estimate = reconstruction::estimateOdometry(B, A, capture::identityPose(), o);
+  ASSERT_TRUE(estimate.solved);
+  reconstruction::OdometryOptions measureOnly = o;
+  measureOnly.iterations = {0, 0, 0};
+  const capture::Pose tags = capture::inversePose(v.T_world_camera[0]) * v.T_world_camera[16];
+  const auto atTags = reconstruction::estimateOdometry(B, A, tags, measureOnly);
+  std::printf("frame 16 against 0: depth residual %.1f mm at the tags' motion (%.1f mm, %.2f deg), %.1f mm at odometry's\n",
+              1e3 * atTags.inlierRmse, 1e3 * cv::norm(capture::translationOf(tags)), reconstruction::rotationErrorDeg(tags, capture::identityPose()),
+              1e3 * estimate.inlierRmse);
+  EXPECT_GT(atTags.inlierRmse, 1.3 * estimate.inlierRmse);
+  for (int f = 1; f <= 8; ++f) {
+    const auto& c = *v.frames[f].rgbd;
+    const reconstruction::OdometryFrame C(c.depth, c.colour, c.colourIntrinsics, o);
+    const auto still = reconstruction::estimateOdometry(C, A, capture::identityPose(), o);
+    EXPECT_LT(cv::norm(capture::translationOf(still.T_target_source)), 5e-3) << f;
+  }
+}
+
+TEST(Odometry, SyntheticSessionsFollowTheirGroundTruth) {
+  // Every frame from the first marker sighting on is tracked; the motion since that anchor against the
+  // session's ground truth (the anchor's own error is the marker's: 27 mm on tabletop-carve, whose tag is
+  // half hidden).
+  for (const std::string name : {"tabletop-synth", "tabletop-carve"}) {
+    auto src = capture::open(kRecordings + name);
+    const auto* m = src->sessionManifest();
+    ASSERT_TRUE(m && m->marker && m->truth.T_world_marker);
+    std::vector<capture::Frame> frames;
+    std::vector<capture::Pose> truth;
+    const capture::Pose T_marker_world = capture::inversePose(*m->truth.T_world_marker);
+    while (auto f = src->next()) {
+      truth.push_back(T_marker_world * *f->groundTruthT_world_camera);
+      frames.push_back(*f);
+    }
+    auto source = makePoseSource(PoseMode::Odometry, {m->marker->family, m->marker->sizeMetres, m->marker->id}, std::nullopt);
+    Trajectory t = run(*source, frames, truth);
+    size_t anchor = 0;
+    while (anchor < frames.size() && !t.poses[anchor].tracked()) ++anchor;
+    ASSERT_LT(anchor, frames.size());
+    EXPECT_EQ(t.poses[anchor].by, PosedBy::Marker);
+    const capture::Pose align = *t.poses[anchor].T_world_camera * capture::inversePose(truth[anchor]);
+    double sum2 = 0, last = 0;
+    for (size_t i = anchor; i < frames.size(); ++i) {
+      ASSERT_TRUE(t.poses[i].tracked()) << name << " frame " << i;
+      last = reconstruction::translationError(*t.poses[i].T_world_camera, align * truth[i]);
+      sum2 += last * last;
+    }
+    const double rmse = std::sqrt(sum2 / static_cast<double>(frames.size() - anchor));
+    std::printf("%s, odometry: frames %zu-%zu tracked from the marker's anchor, drift RMSE %.2f mm, last frame %.2f mm\n",
+                name.c_str(), anchor, frames.size() - 1, 1e3 * rmse, 1e3 * last);
+    EXPECT_LT(rmse, 6e-3) << name;  // measured 1.2 (synth) and 4.9 mm (carve, whose objects move)
+    EXPECT_LT(last, 8e-3) << name;
+  }
+}
+
+TEST(Tracking, TheReturningMarkerCorrectsWithoutAJump) {
+  // Tags painted out over frames 1-9 and back from 10 (real frames). Tracked: odometry alone over 1-9; from
+  // frame 10 each sighting pulls the pose towards the marker's by a bounded step, so the object does not jump
+  // by the drift odometry gathered, and the pose ends at the marker's.
+  Visp v = readVisp(1);
+  const Visp seen = readVisp(100);
+  for (int f = 10; f < 20; ++f) v.frames[f] = seen.frames[f];
+  auto tracked = makePoseSource(PoseMode::Tracked, v.marker, std::nullopt);
+  auto odometry = makePoseSource(PoseMode::Odometry, v.marker, std::nullopt);
+  auto marker = makePoseSource(PoseMode::Marker, v.marker, std::nullopt);
+  const Trajectory t = run(*tracked, v.frames, v.T_world_camera);
+  const Trajectory o = run(*odometry, v.frames, v.T_world_camera);
+  const Trajectory m = run(*marker, v.frames, v.T_world_camera);
+  ASSERT_EQ(t.tracked, 20);
+  const TrackingOptions defaults;
+  for (int f = 1; f < 10; ++f) {
+    EXPECT_EQ(t.poses[f].by, PosedBy::Odometry) << f;
+    EXPECT_EQ(t.poses[f].marker, "lost") << f;
+  }
+  for (int f = 10; f < 20; ++f) {
+    EXPECT_EQ(t.poses[f].by, PosedBy::Marker) << f;
+    EXPECT_LE(t.poses[f].correctionM, defaults.maxCorrectionM + 1e-9);
+    EXPECT_LE(t.poses[f].correctionDeg, defaults.maxCorrectionDeg + 1e-9);
+  }
+  // The returning tag moves the object by at most the correction's bound beyond what odometry moved it.
+  const capture::Pose stepTracked = capture::inversePose(*t.poses[9].T_world_camera) * *t.poses[10].T_world_camera;
+  const capture::Pose stepOdometry = capture::inversePose(*o.poses[9].T_world_camera) * *o.poses[10].T_world_camera;
+  EXPECT_LT(reconstruction::translationError(stepTracked, stepOdometry), defaults.maxCorrectionM + 1e-3);
+  EXPECT_LT(reconstruction::rotationErrorDeg(stepTracked, stepOdometry), defaults.maxCorrectionDeg + 0.1);
+  // Where the tags are drawn while they are seen: the marker's own poses, tracked (the marker's pull over
+  // odometry) and odometry alone. Tracked comes back to the marker: closer than odometry alone.
+  const double pxTracked = centreReprojectionPx(v, t, 10, 20), pxOdometry = centreReprojectionPx(v, o, 10, 20),
+               pxMarker = centreReprojectionPx(v, m, 10, 20);
+  std::printf("tags back from frame 10: their centres drawn %.2f px RMS (tracked), %.2f (odometry alone), %.2f (marker alone)\n",
+              pxTracked, pxOdometry, pxMarker);
+  EXPECT_LT(pxTracked, pxOdometry);
+  EXPECT_LT(pxTracked, 2.0);
+}
+
+TEST(Tracking, AJumpIsLostThenRelocalised) {
+  // Frames 6-11 of the synthetic orbit dropped (the camera jumps 0.25 m and 18 degrees) and a blank frame
+  // (no depth, black image: a sensor hiccup) where they were. The blank frame is lost: no pose at all, never
+  // a guess. Odometry cannot follow the jump, and within 3 frames the keyframes' ORB features and depth place
+  // the camera again, at the right pose.
+  auto src = capture::open(kRecordings + "tabletop-synth");
+  const auto* m = src->sessionManifest();
+  const capture::Pose T_marker_world = capture::inversePose(*m->truth.T_world_marker);
+  std::vector<capture::Frame> frames;
+  std::vector<capture::Pose> truth;
+  while (auto f = src->next()) {
+    if (f->index >= 6 && f->index < 12) {
+      if (f->index > 6) continue;
+      f->rgbd->depth.setTo(0);
+      f->rgbd->colour.setTo(0);
+    }
+    truth.push_back(T_marker_world * *f->groundTruthT_world_camera);
+    frames.push_back(*f);
+  }
+  auto source = makePoseSource(PoseMode::Odometry, {m->marker->family, m->marker->sizeMetres, m->marker->id}, std::nullopt);
+  const Trajectory t = run(*source, frames, truth);
+  ASSERT_TRUE(t.poses[5].tracked());
+  EXPECT_FALSE(t.poses[6].tracked()) << "a blank frame is lost";
+  int back = -1;
+  for (int i = 7; i < 10 && back < 0; ++i) {
+    if (t.poses[i].tracked()) back = i;
+    else EXPECT_EQ(t.poses[i].fitness < 0 || t.poses[i].fitness < 0.9, true);
+  }
+  ASSERT_GE(back, 0) << "relocalised within 3 frames";
+  EXPECT_EQ(t.poses[back].by, PosedBy::Relocalised);
+  EXPECT_LT(reconstruction::translationError(*t.poses[back].T_world_camera, truth[back]), 0.015);
+  EXPECT_LT(reconstruction::rotationErrorDeg(*t.poses[back].T_world_camera, truth[back]), 1.0);
+  // From there odometry carries on at the drift it had before the jump.
+  for (size_t i = static_cast<size_t>(back); i < t.poses.size(); ++i) {
+    ASSERT_TRUE(t.poses[i].tracked()) << i;
+    EXPECT_LT(reconstruction::translationError(*t.poses[i].T_world_camera, truth[i]), 0.015) << i;
+  }
+}
+
+TEST(Tracking, TheDefaultRoomOfAScanLiesOnTheGroundTruthRoom) {
+  // tabletop-scan: an orbit of the table that sees the marker, then a look-around that does not (0.4 m and 130
+  // degrees in one step, then 72 degrees a frame). With the default poses (tracked) every frame is either
+  // placed or lost, never fused at a held or guessed pose: the room lies on the room fused at the true poses.
+  const std::string scan = kRecordings + "tabletop-scan";
+  auto a = capture::open(scan), b = capture::open(scan);
+  RoomFusion tracked = fuseRoom(*a, PoseMode::Tracked, reconstruction::RoomOptions{});
+  RoomFusion truth = fuseRoom(*b, PoseMode::GroundTruth, reconstruction::RoomOptions{});
+  const auto mt = tracked.model.mesh(), mg = truth.model.mesh();
+  const auto accuracy = evaluation::surfaceDistance(mt, mg), coverage = evaluation::surfaceDistance(mg, mt);
+  std::printf("tabletop-scan, tracked: %d of %lld frames fused (%lld lost, %lld held); surface %.2f mm mean (90 %%: %.2f mm) from the "
+              "ground-truth room, which it covers %.0f %% of (within 2 cm)\n",
+              tracked.model.framesIntegrated(), static_cast<long long>(tracked.frames), static_cast<long long>(tracked.lost),
+              static_cast<long long>(tracked.held), 1e3 * accuracy.meanM, 1e3 * accuracy.p90M, 100 * coverage.within2cm);
+  EXPECT_GE(tracked.model.framesIntegrated(), 8);
+  EXPECT_EQ(tracked.held, 0);
+  EXPECT_LT(accuracy.meanM, 0.01);
+  for (const auto& line : tracked.perFrame)
+    if (line["pose"]["status"] == "lost") EXPECT_FALSE(line["integrated"].get<bool>()) << line.dump();
+  // The marker alone holds its last pose over the look-around: those frames are refused, not fused wrong.
+  auto c = capture::open(scan);
+  RoomFusion marker = fuseRoom(*c, PoseMode::Marker, reconstruction::RoomOptions{});
+  EXPECT_GT(marker.held, 0);
+  EXPECT_LT(evaluation::surfaceDistance(marker.model.mesh(), mg).meanM, 0.01);
+}
+
+}  // namespace
+}  // namespace mrgi::runtime
