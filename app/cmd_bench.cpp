@@ -20,6 +20,7 @@
 
 #include "evaluation/bench.h"
 #include "evaluation/metrics.h"
+#include "evaluation/tracking_metrics.h"
 #include "app/commands.h"
 #include "runtime/frame_pipeline.h"
 #include "app/output.h"
@@ -311,6 +312,34 @@ json markerPoseError(const BenchSession& bs, const BenchOptions& o) {
           {"resolution", {bs.W, bs.H}}};
 }
 
+/// Each way of placing the camera (marker, odometry, tracked) against the session's ground truth over the
+/// bench frames: absolute trajectory error, relative pose error between consecutive frames, the last frame's
+/// error (drift) and the frames lost. The world is the marker frame for all three.
+json trackingError(const BenchSession& bs) {
+  if (!bs.setup.T_world_marker) return nullptr;
+  json out = json::object();
+  for (const PoseMode mode : {PoseMode::Marker, PoseMode::Odometry, PoseMode::Tracked}) {
+    FrameOptions mo;
+    mo.pose = mode;
+    mo.gpu = false;
+    FramePipeline tracker(bs.setup, bs.W, bs.H, mo);
+    gl::Profiler none;
+    std::vector<std::optional<capture::Pose>> estimate;
+    std::vector<capture::Pose> truth;
+    for (const capture::Frame& f : bs.frames) {
+      if (!f.groundTruthT_world_camera) continue;
+      capture::Frame frame = f;
+      estimate.push_back(tracker.measure(frame, none).T_marker_camera);
+      truth.push_back(capture::inversePose(*bs.setup.T_world_marker) * *f.groundTruthT_world_camera);
+    }
+    const TrajectoryError e = trajectoryError(estimate, truth);
+    out[toString(mode)] = {{"frames", e.frames},          {"tracked", e.tracked},          {"ate_rmse_mm", 1e3 * e.ateRmseM},
+                           {"ate_max_mm", 1e3 * e.ateMaxM}, {"rpe_rmse_mm", 1e3 * e.rpeRmseM}, {"rpe_rmse_deg", e.rpeRmseDeg},
+                           {"last_mm", 1e3 * e.lastM}};
+  }
+  return out;
+}
+
 BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   BenchSession bs;
   bs.path = path;
@@ -348,6 +377,20 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
                 {"fuse_ms_median", fusion.medianFuseMs()},
                 {"surface_ms_median", fusion.medianSurfaceMs()},
                 {"ms", ms}};
+    if (o.pose != PoseMode::Tracked) {
+      // The same recording fused from tracked poses, next to this one: how far its surface lies from it and
+      // how much of it it covers (a scan's frames that tracking loses are refused, never fused at a guess).
+      auto again = capture::open(path);
+      RoomFusion tracked = fuseRoom(*again, PoseMode::Tracked, reconstruction::RoomOptions{});
+      const auto mesh = tracked.model.mesh();
+      const SurfaceDistance accuracy = surfaceDistance(mesh, *bs.room), coverage = surfaceDistance(*bs.room, mesh);
+      roomInfo["tracked"] = {{"frames", tracked.model.framesIntegrated()}, {"lost", tracked.lost},
+                             {"surface_mm_mean", 1e3 * accuracy.meanM}, {"surface_mm_p90", 1e3 * accuracy.p90M},
+                             {"covers", coverage.within2cm}};
+      std::printf("%s: room from tracked poses: %d frames (%lld lost), surface %.1f mm from the %s room, covering %.0f %% of it\n",
+                  path.c_str(), tracked.model.framesIntegrated(), static_cast<long long>(tracked.lost), 1e3 * accuracy.meanM,
+                  toString(o.pose), 100 * coverage.within2cm);
+    }
     std::printf(
         "%s: room fused from %d frames (%zu triangles, %.0f MiB of voxels, %.1f ms per frame median, %.1f ms with the "
         "depth filter)\n",
@@ -419,6 +462,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   std::printf("%s: reference %d frames, %d spp, %d bounces, %.1f s per frame\n", path.c_str(), refs, o.refSpp, o.refBounces,
               ms / refs / 1000);
   bs.refInfo["marker_pose_error"] = markerPoseError(bs, o);
+  bs.refInfo["tracking"] = trackingError(bs);
   if (reference) bs.trueRefs = loadTrueReferences(path, *reference, referenceScene, bs.setup.scene, bs.frames);
   if (!bs.trueRefs.empty()) {
     bs.refInfo["true_reference_frames"] = bs.trueRefs.size();

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <map>
 #include <thread>
 
 #include <imgui.h>
@@ -201,6 +202,7 @@ int runLive(const LiveOptions& o) {
   double fps = 0, frameMs = 0, pipelineMs = 0;
   std::chrono::steady_clock::time_point loopStart, loopEnd;  // the first frame's start, the last frame's end
   int64_t processed = 0;
+  std::map<std::string, int64_t> posedBy;  // frames by how they were posed (marker, odometry, ..., lost)
   std::string status = "starting";
   InterruptGuard guard;
   const double period = info.fps > 0 ? 1.0 / info.fps : 0.0;
@@ -273,6 +275,7 @@ int runLive(const LiveOptions& o) {
         for (auto& t : profiler.collect(false)) stages = std::move(t.stages);
         if (frame->fisheye) lastFisheye = frame->fisheye->image;
         ++processed;
+        if (frames->setup()) ++posedBy[result.pose.tracked() ? toString(result.pose.by) : "lost"];
         fresh = true;
         status = "playing";
       } else if (!next.frame) {
@@ -307,6 +310,15 @@ int runLive(const LiveOptions& o) {
     ImGui::Text("%.1f fps, pipeline %.1f ms", fps, frameMs);
     const std::string marker = result.info.value("marker", std::string(frames->setup() ? "-" : "no scene"));
     ImGui::Text("marker: %s", marker.c_str());
+    if (frames->setup()) {
+      // How this frame was posed; a lost frame is drawn without the objects (ARKit's "not available").
+      if (result.pose.tracked())
+        ImGui::Text("pose: %s (%s)", toString(result.pose.by), toString(o.pose));
+      else
+        ImGui::TextColored(ImVec4(1.f, 0.35f, 0.3f, 1.f), "pose: LOST - objects hidden (%s)", toString(o.pose));
+      if (result.pose.fitness >= 0)
+        ImGui::Text("tracking: fitness %.2f, rmse %.1f mm", result.pose.fitness, 1e3 * result.pose.inlierRmse);
+    }
     if (frames->setup()) ImGui::Text("lights: %zu", lightCount);
     ImGui::Checkbox("pause", &paused);
     ImGui::SameLine();
@@ -392,7 +404,7 @@ int runLive(const LiveOptions& o) {
       if (spent < period) std::this_thread::sleep_for(std::chrono::duration<double>(period - spent));
     }
   }
-  json summary = {{"source", live.name()}, {"frames", processed}, {"window", {context->width(), context->height()}},
+  json summary = {{"source", live.name()}, {"frames", processed}, {"pose", {{"mode", toString(o.pose)}, {"frames", posedBy}}}, {"window", {context->width(), context->height()}},
                   {"renderer", context->renderer()}};
   // Throughput of the window loop (frame, UI and swap; no writes), from the first frame's start to the last's
   // end, and the mean time of the frame pipeline alone within it.

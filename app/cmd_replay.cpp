@@ -4,6 +4,7 @@
 #include <exception>
 #include <functional>
 #include <cstdio>
+#include <map>
 #include <future>
 #include <mutex>
 #include <vector>
@@ -152,6 +153,7 @@ int runReplay(const ReplayOptions& o) {
   std::map<std::string, std::pair<double, double>> sums;  // stage -> (cpu, gpu) ms
   std::map<std::string, int64_t> skipped;                 // stage -> frames it was skipped on
   int64_t done = 0, posed = 0;
+  std::map<std::string, int64_t> posedBy;  ///< frames by how they were posed (marker, odometry, ..., lost)
   const auto start = std::chrono::steady_clock::now();
   // Frame n + 1 is read, decoded and prepared (marker, depth filter, normals, albedo, real mesh and VALs: the
   // CPU half of the frame pipeline) on a worker thread while GL works on frame n; only a frame the loop will
@@ -240,6 +242,7 @@ int runReplay(const ReplayOptions& o) {
       result = frames.process(*frame, compositor, profiler);
     }
     if (result.T_marker_camera) ++posed;
+    if (frames.setup()) ++posedBy[result.T_marker_camera ? toString(result.pose.by) : "lost"];
     if (frame->fisheye) lastFisheye = frame->fisheye->image;  // the lights are estimated from it, lit frame or not
     json frameInfo = result.info;
     if (frameInfo.contains("skipped"))
@@ -354,6 +357,7 @@ int runReplay(const ReplayOptions& o) {
   if (video) summary["video"] = {{"file", o.mp4}, {"frames", videoFrames}, {"fps", fps}};
   summary["per_frame"] = perFrame;
   summary["frames_with_pose"] = posed;
+  summary["pose"] = {{"mode", toString(o.pose)}, {"frames", posedBy}};
   if (const reconstruction::RoomModel* live = frames.liveRoom()) {
     summary["room"] = {{"integrated", live->framesIntegrated()}, {"refused", live->framesRefused()}, {"blocks", live->blocks()}};
     if (!o.saveRoom.empty() && live->framesIntegrated() > 0 && !runtime::saveRoomModel(o.saveRoom, *live, o.source).positions.empty())
@@ -362,8 +366,12 @@ int runReplay(const ReplayOptions& o) {
   capture::writeFileAtomically(fs::path(o.out) / "summary.json", summary.dump(2) + "\n");
   if (const LightingSetup* setup = frames.setup(); setup && posed == 0 && done > 0 && !interrupted)
     // The frames are written (the camera images), but nothing could be placed: say so and fail.
-    throw capture::CaptureError(o.source, "marker (" + setup->tagFamily + (setup->tagId >= 0 ? " id " + std::to_string(setup->tagId) : "") +
-                                              ") never seen in " + std::to_string(done) + " frames; nothing was placed");
+    throw capture::CaptureError(o.source, "no frame could be placed in " + std::to_string(done) + " frames (--pose " + toString(o.pose) +
+                                              ": marker " + setup->tagFamily + (setup->tagId >= 0 ? " id " + std::to_string(setup->tagId) : "") +
+                                              " never seen)");
+  if (const int64_t lost = posedBy.count("lost") ? posedBy["lost"] : 0; lost > 0 && !interrupted)
+    std::fprintf(stderr, "warning: %s: %lld of %lld frames lost (no trusted camera pose): drawn without the objects\n", o.source.c_str(),
+                 static_cast<long long>(lost), static_cast<long long>(done));
   std::printf("%s %lld frames into %s (%.1f ms/frame)\n", interrupted ? "interrupted: replayed" : "replayed",
               static_cast<long long>(done), o.out.c_str(), done ? wallMs / done : 0.0);
   return interrupted ? 130 : 0;

@@ -62,6 +62,7 @@ int runRoom(const RoomCliOptions& o) {
   const json summary = {{"frames", seen},
                         {"integrated", room.framesIntegrated()},
                         {"refused", room.framesRefused()},
+                        {"pose", {{"mode", toString(o.pose)}, {"lost", fusion.lost}, {"held", fusion.held}}},
                         {"blocks", room.blocks()},
                         {"voxel_mib", static_cast<double>(room.bytes()) / (1 << 20)},
                         {"appearance_mib", static_cast<double>(room.appearanceBytes()) / (1 << 20)},
@@ -71,6 +72,10 @@ int runRoom(const RoomCliOptions& o) {
                         {"fuse_ms_median", fusion.medianFuseMs()},
                         {"surface_ms_median", fusion.medianSurfaceMs()},
                         {"per_frame", fusion.perFrame}};
+  if (fusion.lost + fusion.held > 0)
+    std::fprintf(stderr, "warning: %s: %lld of %lld frames not fused for their pose (%lld lost, %lld held: --pose %s)\n", o.source.c_str(),
+                 static_cast<long long>(fusion.lost + fusion.held), static_cast<long long>(seen), static_cast<long long>(fusion.lost),
+                 static_cast<long long>(fusion.held), toString(o.pose));
   if (o.json)
     std::printf("%s\n", summary.dump().c_str());
   else

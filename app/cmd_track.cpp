@@ -89,6 +89,7 @@ int runCameraTrack(const TrackOptions& o) {
     json line = {{"frame", frame->index}, {"status", p.status()}, {"by", p.tracked() ? json(runtime::toString(p.by)) : json()}};
     line["T_camera_world"] = p.tracked() ? poseJson(capture::inversePose(*p.T_world_camera)) : json();
     if (p.fitness >= 0) line["fitness"] = p.fitness, line["inlier_rmse_m"] = p.inlierRmse;
+    if (p.correctionM > 0 || p.correctionDeg > 0) line["correction_m"] = p.correctionM, line["correction_deg"] = p.correctionDeg;
     if (o.json) {
       std::printf("%s\n", line.dump().c_str());
     } else if (p.tracked()) {

@@ -3,6 +3,7 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <optional>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/ximgproc/edge_filter.hpp>
@@ -20,6 +21,7 @@
 #include "reconstruction/depth_filter.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
+#include "reconstruction/odometry.h"
 #include "reconstruction/room_model.h"
 #include "capture/frame_source.h"
 #include "capture/memory.h"
@@ -236,6 +238,45 @@ void BM_MarkerPoseRealSequence(benchmark::State& state) {
   state.counters["ms_per_frame"] = benchmark::Counter(20, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
+// The odometry stage of tracked poses on the real ViSP frames (640x480, RealSense): preparing each frame's
+// pyramid and solving it against the frame before, per method (0 point-to-plane, 1 intensity, 2 hybrid) and
+// finest width (320: the default, a 640x480 frame halved first; 640: full resolution). Beside the marker stage
+// above (BM_MarkerPoseRealSequence's ms_per_frame).
+void BM_OdometryRealFrame(benchmark::State& state) {
+  const std::string dir = std::string(MRGI_SHARED_DATA) + "/rgbd-visp-apriltag/";
+  const auto cam = nlohmann::json::parse(std::ifstream(dir + "cam.json"));
+  const capture::Intrinsics k{cam["w"], cam["h"], cam["px"], cam["py"], cam["u0"], cam["v0"]};
+  std::vector<cv::Mat> colour, depth;
+  for (int f = 0; f < 20; ++f) {
+    char n[16];
+    std::snprintf(n, sizeof n, "%04d", f);
+    cv::Mat bgr = cv::imread(dir + "color_image_" + n + ".png", cv::IMREAD_COLOR), rgb;
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    colour.push_back(rgb);
+    cv::Mat d;
+    capture::readNpzArray(dir + "depth_image_" + n + ".npz", "data.npy").convertTo(d, CV_32F, 0.001);
+    depth.push_back(d);
+  }
+  reconstruction::OdometryOptions o;
+  o.method = static_cast<reconstruction::OdometryMethod>(state.range(0));
+  o.maxWidth = static_cast<int>(state.range(1));
+  double fitness = 0;
+  int frames = 0;
+  for (auto _ : state) {
+    std::optional<reconstruction::OdometryFrame> previous;
+    for (int f = 0; f < 20; ++f) {
+      reconstruction::OdometryFrame current(depth[f], colour[f], k, o);
+      if (previous) {
+        const auto r = reconstruction::estimateOdometry(current, *previous, capture::identityPose(), o);
+        fitness += r.fitness, ++frames;
+      }
+      previous = std::move(current);
+    }
+  }
+  state.counters["fitness"] = frames ? fitness / frames : 0.0;
+  state.counters["ms_per_frame"] = benchmark::Counter(20, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
 // Median cut on real HDR maps rendered through the calibrated fisheye: time and the worst relative
 // irradiance error (5 normals, 5 maps) against direct integration of the image, per light count.
 void BM_MedianCutIrradianceError(benchmark::State& state) {
@@ -272,6 +313,7 @@ void BM_MedianCutIrradianceError(benchmark::State& state) {
 
 BENCHMARK(BM_EncodePng)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MarkerPoseRealSequence)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_OdometryRealFrame)->Args({2, 320})->Args({0, 320})->Args({1, 320})->Args({2, 640})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MedianCutIrradianceError)
     ->ArgsProduct({{1, 4, 16, 64, 256}, {0, 1}})
     ->ArgNames({"lights", "variance"})

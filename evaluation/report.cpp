@@ -328,6 +328,14 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
         << "&deg; mean, " << fmt(m.value("position_mm_max", 0.0)) << " mm / " << fmt(m.value("rotation_deg_max", 0.0))
         << "&deg; max, " << m.value("lost", 0) << " frames lost; ";
     }
+  h << "</p><p>Camera tracking against the ground-truth poses (ATE RMSE, RPE per frame, frames tracked): ";
+  for (const auto& ref : doc.value("references", json::array()))
+    if (ref.contains("tracking") && ref["tracking"].is_object()) {
+      h << esc(ref.value("session", "")) << ": ";
+      for (const auto& [mode, t] : ref["tracking"].items())
+        h << esc(mode) << " " << fmt(t.value("ate_rmse_mm", 0.0)) << " mm, " << fmt(t.value("rpe_rmse_mm", 0.0)) << " mm / "
+          << fmt(t.value("rpe_rmse_deg", 0.0)) << "&deg;, " << t.value("tracked", 0) << " of " << t.value("frames", 0) << "; ";
+    }
   h << "</p><p>";
   h << "Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
        "error = mean of the relative errors of the real-pixel delta and the virtual radiance.</p>";

@@ -173,6 +173,19 @@ capture::Pose joinPose(const cv::Vec3d& w, const cv::Vec3d& t) {
   return capture::makePose(cv::Matx33d(R), t);
 }
 
+/// The nearest rigid transform (its rotation's polar factor): products of poses drift off the rotations, and
+/// a correction carried by a keyframe each frame would compound it.
+capture::Pose rigid(const capture::Pose& T) {
+  cv::Mat w, u, vt;
+  cv::SVD::compute(cv::Mat(capture::rotationOf(T)), w, u, vt);
+  cv::Mat R = u * vt;
+  if (cv::determinant(R) < 0) {
+    u.col(2) *= -1;
+    R = u * vt;
+  }
+  return capture::makePose(cv::Matx33d(R), capture::translationOf(T));
+}
+
 /// odometry and tracked: dense RGB-D odometry against keyframes, anchored by the marker.
 class OdometryPoses : public PoseSource {
  public:
@@ -247,7 +260,7 @@ class OdometryPoses : public PoseSource {
         // The keyframe the pose was tracked from moves with it (world frame), or the next frame's odometry
         // would undo the correction.
         Keyframe& kf = keyframes_[current_];
-        kf.T_world_camera = corrected * capture::inversePose(*pose) * kf.T_world_camera;
+        kf.T_world_camera = rigid(corrected * capture::inversePose(*pose) * kf.T_world_camera);
         pose = corrected;
         out.correctionM = dist * gainT;
         out.correctionDeg = angleDeg * gainW;
@@ -262,7 +275,7 @@ class OdometryPoses : public PoseSource {
       velocity_.reset();
       return out;
     }
-    out.T_world_camera = *pose;
+    out.T_world_camera = rigid(*pose);
     accept(*odo, rgbd, out, newKeyframe || out.by == PosedBy::Relocalised);
     return out;
   }
@@ -359,7 +372,7 @@ class OdometryPoses : public PoseSource {
   /// A posed frame: the next frame's prediction, and a keyframe when the view has moved on.
   void accept(const reconstruction::OdometryFrame& odo, const capture::RgbdFrame& rgbd, const CameraPose& out, bool force) {
     // The motion since the last frame, when it was posed too (the next frame's prediction).
-    if (!lost_ && previous_) velocity_ = capture::inversePose(lastPose_) * *out.T_world_camera;
+    if (!lost_ && previous_) velocity_ = rigid(capture::inversePose(lastPose_) * *out.T_world_camera);
     else velocity_.reset();
     lost_ = false;
     lastPose_ = *out.T_world_camera;

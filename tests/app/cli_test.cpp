@@ -1058,6 +1058,94 @@ TEST(Cli, RealOniRecordingReplaysAndRecordsIntoASessionThatReadsBack) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, AnObjectInsertedIntoARecordingWithoutAMarkerStaysOnItsFloorInEveryReplayedFrame) {
+  // The mirrored Kinect recording holds no tag: its first frame founds the world (z up along the floor, the
+  // dominant plane below the view's centre), insert --at --snap rests a sphere on that floor and the scene
+  // records the world; replay tracks every frame by odometry from there and draws the sphere in each.
+  const std::string oni = std::string(MRGI_SHARED_DATA) + "/oni-kinect-3dj/test.oni";
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_markerless_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string base = R"({"lights": [{"type": "directional", "direction": [0.3, 0.2, -1.0], "irradiance": [2.5, 2.4, 2.2]}],
+                               "ambient_radiance": [0.1, 0.1, 0.1], "technique": "kinect-val"})";
+  std::ofstream(dir / "base.json") << base;
+  const std::string sphere = (fs::path(MRGI_SOURCE_DIR) / "recordings/models/sphere.ply").string();
+  Result r = runMrgi("insert --session " + oni + " --model " + sphere + " --scale 0.1 --scene " + (dir / "base.json").string() +
+                     " --save " + (dir / "scene.json").string() + " --at 320,240 --snap");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto report = nlohmann::json::parse(r.out);
+  EXPECT_EQ(report["pose"]["by"], "first-frame");
+  // Resting on the floor: the support plane is the world's z = 0 and the unit sphere of radius 0.1 sits on it.
+  EXPECT_GT(report["plane"]["normal"][2].get<double>(), 0.999);
+  EXPECT_NEAR(report["plane"]["d"].get<double>(), 0.0, 1e-3);
+  EXPECT_NEAR(report["translate"][2].get<double>(), 0.1, 2e-3);
+  const auto scene = nlohmann::json::parse(slurp(dir / "scene.json"));
+  ASSERT_EQ(scene["world"]["first_frame_T_world_camera"].size(), 16u);
+  // The same world without the object: the background each frame would show.
+  auto empty = scene;
+  empty["objects"] = nlohmann::json::array();
+  std::ofstream(dir / "empty.json") << empty.dump();
+  for (const char* name : {"scene", "empty"}) {
+    r = runMrgi("replay " + oni + " --scene " + (dir / (std::string(name) + ".json")).string() + " --mp4 \"\" --out " + (dir / name).string());
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+  }
+  const auto summary = nlohmann::json::parse(slurp(dir / "scene" / "summary.json"));
+  ASSERT_EQ(summary["per_frame"].size(), 12u);
+  EXPECT_EQ(summary["frames_with_pose"], 12);
+  EXPECT_EQ(summary["per_frame"][0]["pose"]["by"], "first-frame");
+  for (size_t f = 0; f < 12; ++f) {
+    const auto& pose = summary["per_frame"][f]["pose"];
+    EXPECT_EQ(pose["status"], "tracked") << f;
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%04zu.png", f);
+    const cv::Mat with = cv::imread((dir / "scene" / name).string()), without = cv::imread((dir / "empty" / name).string());
+    ASSERT_FALSE(with.empty() || without.empty()) << name;
+    // The sphere covers about 40 x 40 pixels near the bottom centre in every frame, and stays there.
+    cv::Mat diff;
+    cv::absdiff(with, without, diff);
+    cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
+    const cv::Mat changed = diff > 30;
+    EXPECT_GT(cv::countNonZero(changed), 800) << name;
+    const cv::Moments m = cv::moments(changed, true);
+    if (m.m00 > 0) {
+      EXPECT_NEAR(m.m10 / m.m00, 302, 15) << name;
+      EXPECT_NEAR(m.m01 / m.m00, 425, 15) << name;
+    }
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Cli, TrackPrintsHowEveryFrameWasPosedAndRoomSaysWhatItRefused) {
+  const std::string synth = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
+  Result r = runMrgi("track " + synth + " --pose odometry --json");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  std::istringstream printed(r.out);
+  int n = 0;
+  for (std::string line; std::getline(printed, line); ++n) {
+    const auto j = nlohmann::json::parse(line);
+    EXPECT_EQ(j["frame"], n);
+    EXPECT_EQ(j["status"], "tracked") << line;
+    EXPECT_EQ(j["by"], n == 0 ? "marker" : "odometry") << line;
+    ASSERT_EQ(j["T_camera_world"].size(), 4u);
+    for (const auto& row : j["T_camera_world"]) EXPECT_EQ(row.size(), 4u);
+    EXPECT_EQ(j["T_camera_world"][3], nlohmann::json::parse("[0.0, 0.0, 0.0, 1.0]"));
+  }
+  EXPECT_EQ(n, 20);
+  EXPECT_NE(r.err.find("20 frames (--pose odometry): 1 marker, 19 odometry"), std::string::npos) << r.err;
+  expectOneLineError(runMrgi("track " + synth + " --pose markr"), "--pose");
+  // The scan's look-around loses the marker and cannot be followed: refused, said once on stderr and counted.
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_room_tracked_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  r = runMrgi("room " + (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-scan").string() + " --out " + out.string() + " --json");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("9 of 18 frames not fused for their pose (9 lost, 0 held: --pose tracked)"), std::string::npos) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["pose"]["lost"], 9);
+  EXPECT_EQ(summary["integrated"], 9);
+  fs::remove_all(out);
+}
+
 TEST(Cli, CorruptPngFramesAreOneLineWithNoLibraryMessages) {
   // A recorded session whose frame PNGs are damaged: a CRC error in the image data, a truncated file, a
   // header promising an image of 10^5 x 10^5. libpng's own "libpng error: ..." lines must not precede ours.
@@ -1289,7 +1377,7 @@ TEST(Cli, ReplayFailsInOneLineWhenTheMarkerIsNeverSeen) {
   const fs::path scene = writeScene("nomarker.json", R"({"objects": [{"model": ")" + kModels +
                                                          R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}], "lights": "manifest"})");
   const Result r = runMrgi("replay " + (dir / "s").string() + " --scene " + scene.string() + " --out " + (dir / "out").string());
-  expectOneLineError(r, "never seen in 3 frames");
+  expectOneLineError(r, "no frame could be placed in 3 frames");
   EXPECT_TRUE(fs::exists(dir / "out" / "frame_0002.png"));  // the camera images are still written
   const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
   EXPECT_EQ(summary["frames_with_pose"], 0);
