@@ -133,12 +133,14 @@ OdometryFrame::OdometryFrame(const cv::Mat& depthIn, const cv::Mat& colour, cons
     cv::Mat linear;
     if (colour.type() == CV_8UC3) {
       cv::transform(capture::radianceOf(colour, exposure), linear, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
+    } else if (colour.type() == CV_32FC1) {
+      linear = colour;  // already linear luminance at exposure 1 (a model's rendering)
     } else if (colour.type() == CV_8UC1) {
       cv::Mat rgb;
       cv::cvtColor(colour, rgb, cv::COLOR_GRAY2RGB);
       cv::extractChannel(capture::radianceOf(rgb, exposure), linear, 0);
     } else {
-      throw std::invalid_argument("odometry: colour must be 8-bit RGB or grey");
+      throw std::invalid_argument("odometry: colour must be 8-bit RGB or grey, or float linear luminance");
     }
     cv::pow(cv::max(linear, 0.0), 1.0 / 2.2, grey);
     grey *= o.intensityWeight;

@@ -54,8 +54,8 @@ class OdometryFrame {
   OdometryFrame(const OdometryFrame&);
   OdometryFrame& operator=(const OdometryFrame&);
   /// `depth` (CV_32F metres, 0 or NaN = none, or CV_16U millimetres) and `colour` (CV_8UC3 RGB or CV_8UC1
-  /// grey, sRGB-encoded, taken at `exposure`; may be empty for point-to-plane) on the same pixel grid with
-  /// intrinsics `k`.
+  /// grey, sRGB-encoded, taken at `exposure`; or CV_32FC1 linear luminance at exposure 1, as a room model's
+  /// rendering has it; may be empty for point-to-plane) on the same pixel grid with intrinsics `k`.
   OdometryFrame(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& k, const OdometryOptions& options = {},
                 double exposure = 1.0);
   int levels() const;

@@ -138,6 +138,9 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
                                 "world: the scene's objects are placed in a recording's first frame, but this source has a marker");
   if (setup_->scene.firstFrameT_world_camera && !options_.foundWorldAnew) tracking.firstFrameT_world_camera = *setup_->scene.firstFrameT_world_camera;
   poses_ = makePoseSource(options_.pose, setup_->marker(), setup_->T_world_marker, tracking);
+  // A saved room (static) is what odometry aligns frames with first; a room being fused is not (it changes
+  // on the render thread while the next frame is measured on the prepare worker).
+  if (options_.room && !options_.fuse) poses_->useModel(options_.room);
 }
 
 void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler) {

@@ -12,6 +12,7 @@
 #include "reconstruction/depth.h"
 #include "reconstruction/marker.h"
 #include "reconstruction/plane.h"
+#include "reconstruction/room_view.h"
 
 namespace mrgi::runtime {
 
@@ -68,6 +69,7 @@ const char* toString(PosedBy b) {
 nlohmann::json CameraPose::facts() const {
   nlohmann::json j = {{"status", status()}, {"by", tracked() ? nlohmann::json(toString(by)) : nlohmann::json()}, {"marker", marker}};
   if (fitness >= 0) j["fitness"] = fitness, j["inlier_rmse_m"] = inlierRmse;
+  if (!against.empty()) j["against"] = against;
   if (correctionM > 0 || correctionDeg > 0) j["correction_m"] = correctionM, j["correction_deg"] = correctionDeg;
   return j;
 }
@@ -192,6 +194,10 @@ class OdometryPoses : public PoseSource {
   OdometryPoses(PoseMode mode, const MarkerSpec& m, const TrackingOptions& o) : mode_(mode), measurement_(m), o_(o) {}
   PoseMode mode() const override { return mode_; }
   std::optional<capture::Pose> foundedWorld() const override { return founded_; }
+  void useModel(std::shared_ptr<const reconstruction::RoomMesh> room) override {
+    model_ = room && !room->positions.empty() ? std::move(room) : nullptr;
+    modelRays_ = model_ ? std::make_shared<reconstruction::MeshRays>(model_->positions, model_->indices) : nullptr;
+  }
 
   CameraPose locate(const capture::Frame& frame, gl::Profiler& profiler) override {
     const capture::RgbdFrame& rgbd = *frame.rgbd;
@@ -316,10 +322,29 @@ class OdometryPoses : public PoseSource {
       if (!trusted(r)) return std::nullopt;
       return T_world_target * r.T_target_source;
     };
+    // The room as seen from the prediction, rendered at the pyramid's finest level.
+    if (model_) {
+      const capture::Intrinsics& k0 = odo.intrinsics(0);
+      const reconstruction::RoomView view = reconstruction::renderRoomView(*model_, *modelRays_, predicted, k0, o_.odometry.maxDepthM);
+      reconstruction::OdometryOptions mo = o_.odometry;
+      mo.maxWidth = k0.width;
+      const reconstruction::OdometryFrame target(view.depth, view.luminance, k0, mo);
+      const auto r = reconstruction::estimateOdometry(odo, target, capture::identityPose(), mo);
+      if (r.solved && trusted(r)) {
+        out.fitness = r.fitness;
+        out.inlierRmse = r.inlierRmse;
+        out.against = "model";
+        return predicted * r.T_target_source;
+      }
+    }
     keyframeFailed_ = false;
+    out.against = "keyframe";
     if (auto p = attempt(keyframes_[current_].frame, keyframes_[current_].T_world_camera)) return p;
     keyframeFailed_ = true;  // the view has left the keyframe: the frame becomes one if the previous frame places it
-    if (previous_) return attempt(*previous_, lastPose_);
+    out.against = "previous";
+    if (previous_)
+      if (auto p = attempt(*previous_, lastPose_)) return p;
+    out.against.clear();
     return std::nullopt;
   }
 
@@ -424,6 +449,8 @@ class OdometryPoses : public PoseSource {
   std::deque<double> recentFitness_, recentRmse_;  ///< of the last trusted frames (TrackingOptions::qualityWindow)
   bool keyframeFailed_ = false;
   cv::Ptr<cv::ORB> orb_;
+  std::shared_ptr<const reconstruction::RoomMesh> model_;
+  std::shared_ptr<reconstruction::MeshRays> modelRays_;
 };
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "capture/types.h"
 #include "gl/profiler.h"
 #include "reconstruction/odometry.h"
+#include "reconstruction/room_model.h"
 
 namespace mrgi::runtime {
 
@@ -45,6 +46,9 @@ struct CameraPose {
   /// Odometry's quality of this frame when it ran: inliers over pixels with depth, and their point-to-plane
   /// RMSE (metres); negative when it did not run.
   double fitness = -1, inlierRmse = -1;
+  /// What odometry aligned the frame with: "model" (the room seen from the predicted pose), "keyframe" or
+  /// "previous" (the frame before); empty when it did not place the frame.
+  std::string against;
   /// Marker correction applied to the odometry pose this frame (metres, degrees), when the tag was seen.
   double correctionM = 0, correctionDeg = 0;
   bool tracked() const { return T_world_camera.has_value(); }
@@ -103,6 +107,9 @@ class PoseSource {
   /// The first frame's pose when the world was founded on it (TrackingOptions::worldFromFirstFrame), else
   /// nullopt: what a saved scene records to place its objects again.
   virtual std::optional<capture::Pose> foundedWorld() const { return std::nullopt; }
+  /// The room model in the world (a saved room): odometry then aligns each frame with the room as seen from
+  /// the predicted pose first (frame-to-model), the keyframes after. Null: keyframes only.
+  virtual void useModel(std::shared_ptr<const reconstruction::RoomMesh> room) {}
 };
 
 /// `T_world_marker`: the session's ground truth, which ground-truth poses need (they are given in its

@@ -311,6 +311,15 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   EXPECT_EQ(empty.lightSource, LightSource::Manifest);
 }
 
+TEST(SceneFile, AWorldFoundedOnARecordingsFirstFrame) {
+  EXPECT_FALSE(parseScene("{}", kScenePath).firstFrameT_world_camera);
+  const SceneDescription s =
+      parseScene(R"({"world": {"first_frame_T_world_camera": [0,-1,0,0.5, 1,0,0,0, 0,0,1,1.2, 0,0,0,1]}})", kScenePath);
+  ASSERT_TRUE(s.firstFrameT_world_camera);
+  EXPECT_EQ((*s.firstFrameT_world_camera)(0, 1), -1);
+  EXPECT_EQ((*s.firstFrameT_world_camera)(2, 3), 1.2);
+}
+
 TEST(SceneFile, LightsFromTheRoomAndTheirKnobs) {
   const SceneDescription d = parseScene(R"({"lights": "room"})", kScenePath);
   EXPECT_EQ(d.lightSource, LightSource::Room);
@@ -331,6 +340,10 @@ TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
   const Case cases[] = {
       {"{", "not valid JSON"},
       {R"({"object": []})", "object: unknown key"},
+      {R"({"world": {}})", "world.first_frame_T_world_camera: missing"},
+      {R"({"world": {"first_frame_T_world_camera": [1, 0, 0]}})", "world.first_frame_T_world_camera: must be an array of 16"},
+      {R"({"world": {"first_frame_T_world_camera": [2,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]}})", "is not a rigid transform"},
+      {R"({"world": {"first_frame_T_world_camera": [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1], "x": 1}})", "world.x: unknown key"},
       {R"({"objects": [{}]})", "objects[0].model: missing"},
       {R"({"objects": [{"model": "nope.obj"}]})", "objects[0].model:"},
       {R"({"objects": [{"model": "../models/cube.obj", "scale": -1}]})", "objects[0].scale: value -1 out of range"},

@@ -3,6 +3,7 @@
 // truth, the marker's bounded correction when the tag returns, and loss and relocalisation across a jump.
 #include <cstdio>
 #include <fstream>
+#include <functional>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -112,6 +113,28 @@ Trajectory run(PoseSource& source, std::vector<capture::Frame> frames, const std
   return t;
 }
 
+/// A bundled synthetic session: its frames (those `keep` accepts, possibly altered) with their true camera
+/// poses in the marker frame, and its marker.
+struct Synthetic {
+  std::vector<capture::Frame> frames;
+  std::vector<capture::Pose> truth;
+  MarkerSpec marker;
+};
+Synthetic readSynthetic(const std::string& name, const std::function<bool(capture::Frame&)>& keep = {}) {
+  auto src = capture::open(kRecordings + name);
+  const auto* m = src->sessionManifest();
+  EXPECT_TRUE(m && m->marker && m->truth.T_world_marker) << name;
+  Synthetic s;
+  s.marker = {m->marker->family, m->marker->sizeMetres, m->marker->id};
+  const capture::Pose T_marker_world = capture::inversePose(*m->truth.T_world_marker);
+  while (auto f = src->next()) {
+    if (keep && !keep(*f)) continue;
+    s.truth.push_back(T_marker_world * *f->groundTruthT_world_camera);
+    s.frames.push_back(*f);
+  }
+  return s;
+}
+
 /// How far from where they were detected a trajectory draws the ViSP tags' centres over frames [from, to)
 /// (pixels, RMS): how far an object placed on the board would slide in the image.
 double centreReprojectionPx(const Visp& v, const Trajectory& t, int from, int to) {
@@ -199,17 +222,10 @@ TEST(Odometry, SyntheticSessionsFollowTheirGroundTruth) {
   // session's ground truth (the anchor's own error is the marker's: 27 mm on tabletop-carve, whose tag is
   // half hidden).
   for (const std::string name : {"tabletop-synth", "tabletop-carve"}) {
-    auto src = capture::open(kRecordings + name);
-    const auto* m = src->sessionManifest();
-    ASSERT_TRUE(m && m->marker && m->truth.T_world_marker);
-    std::vector<capture::Frame> frames;
-    std::vector<capture::Pose> truth;
-    const capture::Pose T_marker_world = capture::inversePose(*m->truth.T_world_marker);
-    while (auto f = src->next()) {
-      truth.push_back(T_marker_world * *f->groundTruthT_world_camera);
-      frames.push_back(*f);
-    }
-    auto source = makePoseSource(PoseMode::Odometry, {m->marker->family, m->marker->sizeMetres, m->marker->id}, std::nullopt);
+    const Synthetic session = readSynthetic(name);
+    const auto& frames = session.frames;
+    const auto& truth = session.truth;
+    auto source = makePoseSource(PoseMode::Odometry, session.marker, std::nullopt);
     Trajectory t = run(*source, frames, truth);
     size_t anchor = 0;
     while (anchor < frames.size() && !t.poses[anchor].tracked()) ++anchor;
@@ -234,16 +250,10 @@ TEST(Tracking, ASessionWithTheMarkerInViewStaysOnItAndRigid) {
   // tabletop-synth with its tag seen in every frame, tracked: every pose within 3 mm of the truth (the marker's
   // own error at 320x240 is 4 mm RMS, odometry's drift 2 mm), and a rotation to rounding however many
   // corrections its keyframes carried (a correction carried each frame once compounded to 180 mm by frame 19).
-  auto src = capture::open(kRecordings + "tabletop-synth");
-  const auto* m = src->sessionManifest();
-  const capture::Pose T_marker_world = capture::inversePose(*m->truth.T_world_marker);
-  std::vector<capture::Frame> frames;
-  std::vector<capture::Pose> truth;
-  while (auto f = src->next()) {
-    truth.push_back(T_marker_world * *f->groundTruthT_world_camera);
-    frames.push_back(*f);
-  }
-  auto source = makePoseSource(PoseMode::Tracked, {m->marker->family, m->marker->sizeMetres, m->marker->id}, std::nullopt);
+  const Synthetic session = readSynthetic("tabletop-synth");
+  const auto& frames = session.frames;
+  const auto& truth = session.truth;
+  auto source = makePoseSource(PoseMode::Tracked, session.marker, std::nullopt);
   const Trajectory t = run(*source, frames, truth);
   std::printf("tabletop-synth, tracked: ATE RMSE %.2f mm, max %.2f mm\n", 1e3 * t.ateRmseM, 1e3 * t.maxM);
   EXPECT_EQ(t.tracked, 20);
@@ -298,21 +308,16 @@ TEST(Tracking, AJumpIsLostThenRelocalised) {
   // (no depth, black image: a sensor hiccup) where they were. The blank frame is lost: no pose at all, never
   // a guess. Odometry cannot follow the jump, and within 3 frames the keyframes' ORB features and depth place
   // the camera again, at the right pose.
-  auto src = capture::open(kRecordings + "tabletop-synth");
-  const auto* m = src->sessionManifest();
-  const capture::Pose T_marker_world = capture::inversePose(*m->truth.T_world_marker);
-  std::vector<capture::Frame> frames;
-  std::vector<capture::Pose> truth;
-  while (auto f = src->next()) {
-    if (f->index >= 6 && f->index < 12) {
-      if (f->index > 6) continue;
-      f->rgbd->depth.setTo(0);
-      f->rgbd->colour.setTo(0);
+  const Synthetic session = readSynthetic("tabletop-synth", [](capture::Frame& f) {
+    if (f.index == 6) {
+      f.rgbd->depth.setTo(0);
+      f.rgbd->colour.setTo(0);
     }
-    truth.push_back(T_marker_world * *f->groundTruthT_world_camera);
-    frames.push_back(*f);
-  }
-  auto source = makePoseSource(PoseMode::Odometry, {m->marker->family, m->marker->sizeMetres, m->marker->id}, std::nullopt);
+    return f.index <= 6 || f.index >= 12;
+  });
+  const auto& frames = session.frames;
+  const auto& truth = session.truth;
+  auto source = makePoseSource(PoseMode::Odometry, session.marker, std::nullopt);
   const Trajectory t = run(*source, frames, truth);
   ASSERT_TRUE(t.poses[5].tracked());
   EXPECT_FALSE(t.poses[6].tracked()) << "a blank frame is lost";
@@ -329,6 +334,31 @@ TEST(Tracking, AJumpIsLostThenRelocalised) {
   for (size_t i = static_cast<size_t>(back); i < t.poses.size(); ++i) {
     ASSERT_TRUE(t.poses[i].tracked()) << i;
     EXPECT_LT(reconstruction::translationError(*t.poses[i].T_world_camera, truth[i]), 0.015) << i;
+  }
+}
+
+TEST(Tracking, FrameToModelAlignsEachFrameWithTheRoom) {
+  // With a saved room (fused here at the true poses), odometry aligns each frame with the room as seen from
+  // the predicted pose (frame-to-model) before any keyframe: the room holds the world, so neither drift nor
+  // the marker's error on the anchoring frame stays (tabletop-pt: 8 mm without the room).
+  for (const std::string name : {"tabletop-synth", "tabletop-pt"}) {
+    auto a = capture::open(kRecordings + name);
+    const auto room = std::make_shared<const reconstruction::RoomMesh>(
+        fuseRoom(*a, PoseMode::GroundTruth, reconstruction::RoomOptions{}).model.mesh());
+    const Synthetic session = readSynthetic(name);
+    const auto& frames = session.frames;
+    const auto& truth = session.truth;
+    const MarkerSpec& marker = session.marker;
+    auto keyframes = makePoseSource(PoseMode::Odometry, marker, std::nullopt);
+    auto model = makePoseSource(PoseMode::Odometry, marker, std::nullopt);
+    model->useModel(room);
+    const Trajectory k = run(*keyframes, frames, truth), t = run(*model, frames, truth);
+    std::printf("%s, odometry: ATE RMSE %.2f mm against keyframes, %.2f mm against the room (last frame %.2f / %.2f mm)\n",
+                name.c_str(), 1e3 * k.ateRmseM, 1e3 * t.ateRmseM, 1e3 * k.lastDriftM, 1e3 * t.lastDriftM);
+    EXPECT_EQ(t.tracked, static_cast<int>(frames.size()));
+    for (size_t i = 1; i < t.poses.size(); ++i) EXPECT_EQ(t.poses[i].against, "model") << name << " " << i;
+    EXPECT_LT(t.ateRmseM, 3e-3) << name;
+    EXPECT_LT(t.ateRmseM, k.ateRmseM) << name;
   }
 }
 
