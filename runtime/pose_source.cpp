@@ -328,6 +328,7 @@ class OdometryPoses : public PoseSource {
       const reconstruction::RoomView view = reconstruction::renderRoomView(*model_, *modelRays_, predicted, k0, o_.odometry.maxDepthM);
       reconstruction::OdometryOptions mo = o_.odometry;
       mo.maxWidth = k0.width;
+      mo.method = o_.modelMethod;
       const reconstruction::OdometryFrame target(view.depth, view.luminance, k0, mo);
       const auto r = reconstruction::estimateOdometry(odo, target, capture::identityPose(), mo);
       if (r.solved && trusted(r)) {

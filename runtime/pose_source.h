@@ -89,6 +89,10 @@ struct TrackingOptions {
   double maxCorrectionM = 0.004, maxCorrectionDeg = 0.4;
   /// ORB relocalisation: at least this many PnP inliers, then confirmed by dense odometry against the keyframe.
   int relocaliseMinInliers = 25;
+  /// What a frame is aligned with the room model by (PoseSource::useModel): point to plane, as KinectFusion
+  /// does. The room's fused radiance is blurred over its 2 cm voxels: with the intensity term (hybrid) the
+  /// poses came out 10 mm off on tabletop-synth, against 1.9 mm by depth alone.
+  reconstruction::OdometryMethod modelMethod = reconstruction::OdometryMethod::PointToPlane;
   /// A recording without a marker: when its first frame shows no marker, the world is founded there (z up
   /// along the dominant plane under the view's centre: reconstruction::worldOnDominantPlane) instead of
   /// waiting for a marker. With `firstFrameT_world_camera` (a saved scene's world) the first frame is placed
