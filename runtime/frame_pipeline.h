@@ -151,6 +151,11 @@ class FramePipeline {
   lighting::LightingPipeline* lighting() { return pipeline_.get(); }
   /// Where the frames' camera poses come from (null without a setup).
   const PoseSource* poses() const { return poses_.get(); }
+  /// The room the pose source aligns the next frames with (PoseSource::useModel); only between frames, on the
+  /// thread that measures them.
+  void trackAgainst(std::shared_ptr<const reconstruction::RoomMesh> room) {
+    if (poses_) poses_->useModel(std::move(room));
+  }
   const LightingSetup* setup() const { return setup_ ? &*setup_ : nullptr; }
   /// The lights estimated from the room ("lights": "room"), else null.
   const reconstruction::RoomLights* roomLights() const { return roomLightEstimate_.get(); }

@@ -35,7 +35,7 @@ double RoomFusion::medianFuseMs() const { return median(fuseMs); }
 double RoomFusion::medianSurfaceMs() const { return median(surfaceMs); }
 
 RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstruction::RoomOptions& options,
-                    int64_t limit, int every,
+                    int64_t limit, int every, int trackEvery,
                     const std::function<void(const nlohmann::json&, const reconstruction::RoomModel&)>& onFrame) {
   const capture::SourceInfo& info = source.info();
   FrameOptions fo;
@@ -73,6 +73,14 @@ RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstru
       out.fuseMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
       out.surfaceMs.push_back(filterMs + out.fuseMs.back());
       line["integrated"] = result.integrated;
+      // Frame-to-model: the poses of the next frames are aligned with the room fused so far, its surface
+      // taken anew every `trackEvery` fused frames.
+      if (result.integrated && trackEvery > 0 && (pose == PoseMode::Odometry || pose == PoseMode::Tracked) &&
+          out.model.framesIntegrated() % trackEvery == 0) {
+        const auto t1 = std::chrono::steady_clock::now();
+        frames.trackAgainst(std::make_shared<const reconstruction::RoomMesh>(out.model.mesh()));
+        line["model_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
+      }
       if (!result.integrated) line["refused"] = result.refused;
       line["overlap"] = result.overlap;
       line["inconsistent"] = result.inconsistent;

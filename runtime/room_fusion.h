@@ -32,10 +32,11 @@ struct RoomFusion {
   double medianSurfaceMs() const;
 };
 
-/// Reads up to `limit` frames (< 0: all) of `source`, integrates every `every`-th. `onFrame` (optional) sees
-/// each frame's line as it is decided.
+/// Reads up to `limit` frames (< 0: all) of `source`, integrates every `every`-th. With odometry or tracked
+/// poses, every `trackEvery` fused frames (0: never) the room's surface becomes what the next frames are aligned
+/// with (frame-to-model). `onFrame` (optional) sees each frame's line as it is decided.
 RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstruction::RoomOptions& options,
-                    int64_t limit = -1, int every = 1,
+                    int64_t limit = -1, int every = 1, int trackEvery = 0,
                     const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
 
 /// Writes a fused room as mrgi room does (room.ply, room_appearance.npy, room.json naming `session`); the
