@@ -43,7 +43,7 @@ RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstru
   fo.gpu = false;
   fo.reuse = false;
   FramePipeline frames(markerSetup(source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
-  RoomFusion out{reconstruction::RoomModel(options)};
+  RoomFusion out{reconstruction::RoomModel(options), 0, 0, 0, 0, {}, {}, nlohmann::json::array()};
   gl::Profiler profiler;
   while (limit < 0 || out.frames < limit) {
     auto frame = source.next();
