@@ -21,11 +21,13 @@
 #include "evaluation/bench.h"
 #include "evaluation/metrics.h"
 #include "evaluation/tracking_metrics.h"
+#include "app/cli_checks.h"
 #include "app/commands.h"
 #include "runtime/frame_pipeline.h"
 #include "app/output.h"
 #include "evaluation/reference_scene.h"
 #include "compositor/compositor.h"
+#include "capture/checks.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -511,9 +513,8 @@ const cv::Vec3d kAxes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0,
 /// the lamp's direct light exactly (its sphere, with shadows), plus the bounce light path traced with
 /// `samples` cosine-weighted rays per normal (3 bounces) that do not see the lamp's sphere itself.
 std::optional<std::array<cv::Vec3d, 6>> trueIrradianceAt(const std::string& session, const cv::Vec3d& c, int samples = 8192) {
-  std::ifstream file(fs::path(session) / "manifest.json");
-  if (!file) return std::nullopt;
-  const json manifest = capture::parseJson(file, (fs::path(session) / "manifest.json").string());
+  const std::string path = (fs::path(session) / "manifest.json").string();
+  const json manifest = capture::parseJson(capture::readFileBounded(path, capture::kMaxTextFileBytes, "session manifest"), path);
   const json& gt = manifest.value("ground_truth", json::object());
   if (!gt.contains("scene") || gt.contains("environment") || !manifest.contains("marker") ||
       gt["scene"].value("generator", std::string()).rfind("mrgi synth", 0) != 0)
@@ -881,11 +882,11 @@ Action addBench(CLI::App& app) {
   app.add_option("--session", o->sessions, "sessions to measure on, their first frames (repeat the flag; default: the three bundled synthetic sessions)");
   app.add_option("--scene", o->scene, "scene file for every session: objects, lights, the knobs the sweep starts from (default: each session's reference scene, else recordings/scenes/tabletop.json)");
   app.add_option("--frames", o->frames, "consecutive frames per configuration (flicker; times exclude the first)")
-      ->check(CLI::Range(1, 1000));
+      ->check(numberIn(1, 1000));
   app.add_option("--ref-frames", o->refFrames, "frames with a path-traced reference, spread over --frames")
-      ->check(CLI::Range(1, 100));
-  app.add_option("--ref-spp", o->refSpp, "reference samples per pixel")->check(CLI::Range(1, 1 << 16));
-  app.add_option("--ref-bounces", o->refBounces, "reference bounces")->check(CLI::Range(0, 64));
+      ->check(numberIn(1, 100));
+  app.add_option("--ref-spp", o->refSpp, "reference samples per pixel")->check(numberIn(1, 1 << 16));
+  app.add_option("--ref-bounces", o->refBounces, "reference bounces")->check(numberIn(0, 64));
   app.add_flag("--quick", o->quick, "fewer knob values (small sessions, tests)");
   app.add_flag("--room", o->room,
                "also light each configuration from the session's fused room model (mrgi room over all its frames) and report "
@@ -895,13 +896,13 @@ Action addBench(CLI::App& app) {
       "session), marker, odometry or tracked");
   app.add_option("--model", o->model, "bruteforce: virtual object, resting on the marker plane at its centre");
   app.add_option("--scale", o->scale, "model scale (the bundled unit sphere: its radius in metres)")
-      ->check(CLI::Range(1e-3, 10.0));
+      ->check(numberIn(1e-3, 10.0));
   app.add_option("--occlusion", o->occlusion, "sparse runs with disc occlusion off, on or both")
       ->check(CLI::IsMember({"off", "on", "both"}));
   app.add_option("--vals", o->valCounts, "VAL counts to sweep (e.g. 1024,16384,262144)")->delimiter(',');
   app.add_option("--sparse", o->sparseCounts, "sparse point counts to sweep (e.g. 256,4096,16384)")->delimiter(',');
-  app.add_option("--k-cache", o->kCache, "VALs per shared-memory tile (16..512)")->check(CLI::Range(16, 512));
-  app.add_option("--repeats", o->repeats, "timing repeats (best is kept)")->check(CLI::PositiveNumber);
+  app.add_option("--k-cache", o->kCache, "VALs per shared-memory tile (16..512)")->check(numberIn(16, 512));
+  app.add_option("--repeats", o->repeats, "timing repeats (best is kept)")->check(numberIn(1, 1000));
   app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl")->check(CLI::IsMember({"osmesa", "egl"}));
   return [o] {
     // Nothing the user has is replaced: each file named here is new or an earlier output of mrgi bench.

@@ -2,19 +2,24 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <regex>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/output.h"
+#include "capture/checks.h"
 #include "capture/error.h"
+#include "capture/json_io.h"
 #include "capture/image_io.h"
 #include "capture/v4l2_source.h"
 #include "reconstruction/fisheye_calibration.h"
 #include "reconstruction/light_estimation.h"
+#include "reconstruction/room_lights.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -30,8 +35,8 @@ struct CalibrateOptions {
 int runCalibrate(const CalibrateOptions& o) {
   checkReplaceable(o.out, "--out", "mrgi calibrate-fisheye");
   std::smatch m;
-  if (!std::regex_match(o.board, m, std::regex(R"((\d+)[xX](\d+))")) || std::stoi(m[1]) < 2 || std::stoi(m[2]) < 2)
-    throw std::invalid_argument("--board: expected inner corners as COLSxROWS (e.g. 6x8), got '" + o.board + "'");
+  if (!std::regex_match(o.board, m, std::regex(R"((\d{1,3})[xX](\d{1,3}))")) || std::stoi(m[1]) < 2 || std::stoi(m[2]) < 2)
+    throw FlagError("--board", "expected inner corners as COLSxROWS, 2 to 999 each (e.g. 6x8), not '" + capture::excerpt(o.board, 40) + "'");
   if (!fs::is_directory(o.dir)) throw capture::CaptureError(o.dir, "is not a directory of checkerboard images");
   std::vector<std::string> paths;
   for (const auto& e : fs::directory_iterator(o.dir))
@@ -68,17 +73,22 @@ struct LightsOptions {
 };
 
 int runLights(const LightsOptions& o) {
-  const capture::FisheyeCalibration c = capture::readFisheyeCalibration(o.calib);
-  if (!fs::is_regular_file(o.image)) throw capture::CaptureError(o.image, "image is missing");
+  // With --calib the image is a fisheye view; without, an equirectangular (lat-long) probe of 2:1, as light
+  // probes are shared (Radiance .hdr or EXR).
+  std::optional<capture::FisheyeCalibration> c;
+  if (!o.calib.empty()) c = capture::readFisheyeCalibration(o.calib);
   cv::Mat img = capture::readAny(o.image);  // RGB
   if (img.depth() == CV_16U) img.convertTo(img, CV_32F, 1.0 / 65535.0);
-  if (img.cols != c.width || img.rows != c.height)
+  if (c && (img.cols != c->width || img.rows != c->height))
     throw capture::CaptureError(o.image, "is " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
-                                             " but the calibration " + o.calib + " is for " + std::to_string(c.width) +
-                                             "x" + std::to_string(c.height));
+                                             " but the calibration " + o.calib + " is for " + std::to_string(c->width) +
+                                             "x" + std::to_string(c->height));
+  if (!c && (img.cols != 2 * img.rows || img.cols < 8))
+    throw capture::CaptureError(o.image, "is " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
+                                             ": without --calib an equirectangular probe twice as wide as high is expected");
   cv::Mat saturated;
   const cv::Mat radiance = reconstruction::linearRadiance(img, o.exposure, &saturated);
-  const auto rays = reconstruction::fisheyeRays(c, o.maxThetaDeg * CV_PI / 180);
+  const auto rays = c ? reconstruction::fisheyeRays(*c, o.maxThetaDeg * CV_PI / 180) : reconstruction::latLongRays(img.cols);
   // Lights for the part above the threshold, SH for the remainder (LightSplit); threshold 0: all lights.
   reconstruction::LightSplitOptions so;
   so.medianCut.count = o.count;
@@ -93,25 +103,27 @@ int runLights(const LightsOptions& o) {
   const bool variance = so.medianCut.varianceSplit;
   const cv::Vec3d total = reconstruction::totalPower(radiance, rays);
   const double satFraction = static_cast<double>(cv::countNonZero(saturated)) / saturated.total();
+  json arr = json::array();
+  for (const auto& l : lights)
+    arr.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
+                   {"power", {l.power[0], l.power[1], l.power[2]}},
+                   {"solid_angle_sr", l.solidAngle}});
+  json sh = json::array();
+  for (const auto& c : split.ambientSh) sh.push_back({c[0], c[1], c[2]});
+  const json doc{{"lights", arr},
+                 {"ambient_sh", sh},
+                 {"ambient_threshold", o.ambientThreshold},
+                 {"total_power", {total[0], total[1], total[2]}},
+                 {"count", lights.size()},
+                 {"split", variance ? "variance" : "median"},
+                 {"solid_angle_sr", rays.totalSolidAngle},
+                 {"saturated_fraction", satFraction},
+                 {"frame", c ? "fisheye camera (x right, y down, z forward)"
+                            : "equirectangular probe (z up at the top row; x at the left edge turning towards y)"}};
+  // Huge pixel values over a tiny exposure overflow: an error naming the image, never a null in the output.
+  capture::requireFiniteJson(doc, o.image, "its radiance at --exposure " + capture::formatNumber(o.exposure));
   if (o.json) {
-    json arr = json::array();
-    for (const auto& l : lights)
-      arr.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
-                     {"power", {l.power[0], l.power[1], l.power[2]}},
-                     {"solid_angle_sr", l.solidAngle}});
-    json sh = json::array();
-    for (const auto& c : split.ambientSh) sh.push_back({c[0], c[1], c[2]});
-    std::printf("%s\n", json{{"lights", arr},
-                             {"ambient_sh", sh},
-                             {"ambient_threshold", o.ambientThreshold},
-                             {"total_power", {total[0], total[1], total[2]}},
-                             {"count", lights.size()},
-                             {"split", variance ? "variance" : "median"},
-                             {"solid_angle_sr", rays.totalSolidAngle},
-                             {"saturated_fraction", satFraction},
-                             {"frame", "fisheye camera (x right, y down, z forward)"}}
-                            .dump()
-                            .c_str());
+    std::printf("%s\n", doc.dump().c_str());
   } else {
     std::printf("%zu lights (%s split), total power (%.4g, %.4g, %.4g), %.1f%% pixels saturated\n", lights.size(),
                 variance ? "variance" : "median", total[0], total[1], total[2], 100 * satFraction);
@@ -133,28 +145,28 @@ Action addCalibrateFisheye(CLI::App& app) {
   auto o = std::make_shared<CalibrateOptions>();
   app.add_option("dir", o->dir, "folder of checkerboard images from the fisheye camera")->required();
   app.add_option("--board", o->board, "inner corners per row x per column")->capture_default_str();
-  app.add_option("--square", o->square, "checkerboard square edge in metres")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--square", o->square, "checkerboard square edge in metres")->check(numberAbove(0, 10))->capture_default_str();
   app.add_option("--out", o->out, "calibration YAML to write (ROS camera_calibration form)")->required();
   return [o] { return runCalibrate(*o); };
 }
 
 Action addLights(CLI::App& app) {
   auto o = std::make_shared<LightsOptions>();
-  app.add_option("image", o->image, "fisheye image: HDR (.exr/.hdr, linear) or LDR (sRGB)")->required();
-  app.add_option("--calib", o->calib, "fisheye calibration YAML (K, D)")->required();
+  app.add_option("image", o->image, "fisheye image or equirectangular probe: HDR (.exr, Radiance .hdr; linear) or LDR (sRGB)")->required();
+  app.add_option("--calib", o->calib, "fisheye calibration YAML (K, D); without it the image is an equirectangular probe (2:1)");
   app.add_option("--count", o->count, "number of lights; 0 = choose by energy concentration")
-      ->check(CLI::Range(0, 4096))
+      ->check(numberIn(0, 4096))
       ->capture_default_str();
   app.add_flag("--variance", o->variance, "variance-minimising split instead of the energy median (always with a remainder)");
   app.add_option("--ambient-threshold", o->ambientThreshold,
                  "light above this multiple of the mean luminance goes to the lights, the rest to ambient_sh (SH bands "
                  "0-2); 0: all of it to the lights")
-      ->check(CLI::Range(0.0, 1e6))
+      ->check(numberIn(0.0, 1e6))
       ->capture_default_str();
   app.add_option("--exposure", o->exposure, "relative exposure: radiance = linear value / exposure")
-      ->check(CLI::PositiveNumber);
+      ->check(numberIn(capture::kMinExposure, capture::kMaxExposure));
   app.add_option("--max-theta", o->maxThetaDeg, "ignore pixels further than this from the optical axis (degrees)")
-      ->check(CLI::Range(1.0, 180.0));
+      ->check(numberIn(1.0, 180.0));
   app.add_flag("--json", o->json, "one JSON object: lights [{direction, power}], total_power");
   return [o] { return runLights(*o); };
 }

@@ -6,12 +6,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include "app/cli_checks.h"
 #include "app/commands.h"
 #include "capture/error.h"
 #include "capture/json_io.h"
 #include "capture/image_io.h"
 #include "capture/npz.h"
 #include "capture/session.h"
+#include "capture/checks.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -26,12 +28,11 @@ struct ImportOptions {
 };
 
 json readJson(const fs::path& p) {
-  std::ifstream in(p);
-  if (!in) throw capture::CaptureError(p.string(), "cannot open");
-  return capture::parseJson(in, p.string());
+  return capture::parseJson(capture::readFileBounded(p.string(), capture::kMaxTextFileBytes, "JSON file"), p.string());
 }
 
 int runImport(const ImportOptions& o) {
+  checkTagId(o.family, o.tagId, "--tag-id");
   const fs::path dir(o.input);
   const json cam = readJson(dir / "cam.json");
   capture::SessionManifest m;
@@ -46,6 +47,7 @@ int runImport(const ImportOptions& o) {
     if (tags.is_object() && tags.contains("tag_size") && tags["tag_size"].is_number()) tagSize = tags["tag_size"].get<double>();
   }
   if (!(tagSize > 0)) throw capture::CaptureError((dir / "apriltag_data.json").string(), "no tag_size");
+  capture::checkNumber(tagSize, capture::kMinTagSizeM, capture::kMaxTagSizeM, (dir / "apriltag_data.json").string(), "tag_size");
   m.marker = capture::MarkerSpec{o.family, tagSize, o.tagId};
   capture::SessionWriter writer(o.out, m);
   const double scale = capture::jsonNumberOr(cam, "depthScale", 0.001, camFile);
@@ -81,7 +83,7 @@ Action addImportVisp(CLI::App& app) {
   app.add_option("DIR", o->input, "ViSP RGB-D sequence folder (e.g. ../shared/data/rgbd-visp-apriltag)")->required();
   app.add_option("--out", o->out, "new session directory")->required();
   app.add_option("--tag-id", o->tagId, "AprilTag id that anchors the scene (default 3: seen in every frame)");
-  app.add_option("--family", o->family, "AprilTag family");
+  app.add_option("--family", o->family, "AprilTag family")->check(tagFamily());
   return [o] { return runImport(*o); };
 }
 

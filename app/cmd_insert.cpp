@@ -10,11 +10,13 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 
+#include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/output.h"
 #include "app/window_ui.h"
 #include "runtime/debug_view.h"
 #include "runtime/frame_pipeline.h"
+#include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/json_io.h"
 #include "capture/image_io.h"
@@ -51,12 +53,9 @@ struct InsertOptions {
 };
 
 json readJson(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw capture::CaptureError(path, "cannot be read");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  lighting::parseScene(ss.str(), path);  // validates with key-named errors
-  return capture::parseJson(ss.str(), path);
+  const std::string text = capture::readFileBounded(path, capture::kMaxTextFileBytes, "scene file");
+  lighting::parseScene(text, path);  // validates with key-named errors
+  return capture::parseJson(text, path);
 }
 
 /// Euler angles (degrees) of R = Rz Ry Rx, the scene file's rotate_deg convention.
@@ -169,7 +168,7 @@ int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, j
   report["translate"] = obj["translate"];
   report["rotate_deg"] = obj["rotate_deg"];
   report["saved"] = !unsaved;
-  std::printf("%s\n", report.dump().c_str());
+  std::printf("%s\n", jsonText(report, o.session).c_str());
   return 0;
 }
 
@@ -328,7 +327,7 @@ int runInsert(const InsertOptions& o) {
     report["preview"] = o.preview;
   }
   saveScene(o.save, doc);
-  std::printf("%s\n", report.dump().c_str());
+  std::printf("%s\n", jsonText(report, o.session).c_str());
   return 0;
 }
 
@@ -338,26 +337,34 @@ Action addInsert(CLI::App& app) {
   auto o = std::make_shared<InsertOptions>();
   app.add_option("--session", o->session, "session (or TUM / .oni) whose marker anchors the object")->required();
   app.add_option("--model", o->model, "model file: OBJ, PLY or glTF")->required();
-  app.add_option("--translate", o->translate, "x,y,z in metres in the marker frame")->delimiter(',')->expected(3);
+  app.add_option("--translate", o->translate, "x,y,z in metres in the marker frame")
+      ->delimiter(',')
+      ->expected(3)
+      ->check(numberIn(lighting::kObjectTranslateM.lo, lighting::kObjectTranslateM.hi));
   app.add_option("--rotate-deg", o->rotateDeg, "x,y,z rotation in degrees about the marker axes (x, then y, then z)")
-      ->delimiter(',')->expected(3);
-  app.add_option("--scale", o->scale, "uniform scale of the model")->check(CLI::PositiveNumber);
-  app.add_option("--albedo", o->albedo, "r,g,b diffuse albedo in [0, 1]")->delimiter(',')->expected(3);
+      ->delimiter(',')
+      ->expected(3)
+      ->check(numberIn(lighting::kObjectRotateDeg.lo, lighting::kObjectRotateDeg.hi));
+  app.add_option("--scale", o->scale, "uniform scale of the model")->check(numberIn(lighting::kObjectScale.lo, lighting::kObjectScale.hi));
+  app.add_option("--albedo", o->albedo, "r,g,b diffuse albedo in [0, 1]")
+      ->delimiter(',')
+      ->expected(3)
+      ->check(numberIn(lighting::kAlbedo.lo, lighting::kAlbedo.hi));
   app.add_option("--scene", o->scene, "base scene file (lights, technique, other objects); default: --save if it exists");
   app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the preview's lighting");
   app.add_option("--save", o->save, "scene file to write (written atomically; existing objects are kept)")->required();
-  app.add_option("--replace", o->replace, "replace object N of the base scene instead of appending")->check(CLI::NonNegativeNumber);
+  app.add_option("--replace", o->replace, "replace object N of the base scene instead of appending")->check(numberIn(0, 1e6));
   app.add_option("--at", o->at, "u,v: put the object's origin on the surface seen at this pixel (overrides --translate)")
       ->delimiter(',')->expected(2);
   app.add_flag("--snap", o->snap, "rest the object on the plane below it (planes from the frame's depth)");
   addPoseOption(app, o->pose);
   app.add_option("--up", o->up, "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame");
-  app.add_option("--frame", o->frame, "frame of the session to measure and preview on")->check(CLI::NonNegativeNumber);
+  app.add_option("--frame", o->frame, "frame of the session to measure and preview on")->check(numberIn(0, 1e9));
   app.add_option("--preview", o->preview, "write the composite of that frame with the placed object (PNG)");
   app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl, window (interactive: sliders, snap, save)")
       ->check(CLI::IsMember({"osmesa", "egl", "window"}));
   app.add_option("--frames", o->frames, "--gl window: close after N frames, saving the placement (scripted runs)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(numberIn(0, 1e9));
   app.add_option("--screenshot", o->screenshot, "--gl window with --frames: save the window's last frame (PNG)");
   return [o] { return runInsert(*o); };
 }

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "runtime/presets.h"
+#include "app/cli_checks.h"
 #include "app/commands.h"
 #include "lighting/techniques/registry.h"
 #include "runtime/debug_view.h"
@@ -422,7 +423,7 @@ int runLive(const LiveOptions& o) {
     if (!o.saveRoom.empty() && fo.fuse->framesIntegrated() > 0 && !runtime::saveRoomModel(o.saveRoom, *fo.fuse, live.name()).positions.empty())
       summary["room"]["saved"] = o.saveRoom;
   }
-  std::printf("%s\n", summary.dump().c_str());
+  std::printf("%s\n", jsonText(summary, o.in.source.empty() ? o.in.device : o.in.source).c_str());
   return InterruptGuard::interrupted() ? 130 : 0;
 }
 
@@ -434,11 +435,11 @@ Action addLive(CLI::App& app) {
   app.add_option("--device", o->in.device, "depth sensor URI")->capture_default_str();
   app.add_option("--fisheye", o->in.fisheye, "V4L2 fisheye camera for live light estimation (e.g. /dev/video0)");
   app.add_option("--fisheye-calibration", o->in.fisheyeCalibration, "its calibration (YAML from mrgi calibrate-fisheye)");
-  app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")->check(CLI::PositiveNumber);
+  app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")->check(numberIn(1, 1e6));
   app.add_option("--scene", o->scene, "scene file: virtual objects relative to the marker, lights, technique, knobs");
   app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
   app.add_flag("--fuse-room", o->fuseRoom, "build the room model from the frames as they come (every frame with a pose fused; its surface lights the scene from the first such frame, refreshed every --fuse-refresh frames)");
-  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")->check(CLI::Range(1, 100000))->capture_default_str();
+  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")->check(numberIn(1, 100000))->capture_default_str();
   app.add_option("--save-room", o->saveRoom, "with --fuse-room: write the room when the demo ends (as mrgi room --out does)");
   app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")->check(techniqueValidator());
   app.add_option("--preset", o->preset, "measured preset (overrides the scene file's knobs)")
@@ -446,7 +447,7 @@ Action addLive(CLI::App& app) {
   app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();
   app.add_option("--gl", o->gl, "GL backend (the live demo needs a window; use mrgi replay headless)")
       ->check(CLI::IsMember({"window"}));
-  app.add_option("--frames", o->frames, "stop after N frames (0 = until the window closes)")->check(CLI::NonNegativeNumber);
+  app.add_option("--frames", o->frames, "stop after N frames (0 = until the window closes)")->check(numberIn(0, 1e9));
   app.add_option("--screenshot", o->screenshot, "with --frames: save the window's last frame (PNG)");
   app.add_option("--record", o->record, "folder the record toggle writes a session into (default: live-DATE-TIME)");
   app.add_flag("--record-now", o->recordNow, "start recording with the first frame (as if the toggle were on)");

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/live_source.h"
 #include "app/output.h"
@@ -79,11 +80,11 @@ Action addRecord(CLI::App& app) {
   app.add_option("--device", o->in.device, "depth sensor URI")->capture_default_str();
   app.add_option("--fisheye", o->in.fisheye, "V4L2 fisheye camera recorded alongside (e.g. /dev/video0)");
   app.add_option("--fisheye-calibration", o->in.fisheyeCalibration, "its calibration (YAML), stored in the manifest");
-  app.add_option("--fisheye-every", o->in.fisheyeEvery, "a fisheye frame every N depth frames")->check(CLI::PositiveNumber);
+  app.add_option("--fisheye-every", o->in.fisheyeEvery, "a fisheye frame every N depth frames")->check(numberIn(1, 1e6));
   app.add_option("--source", o->in.source, "re-record a session, TUM sequence or .oni file instead of the sensor");
-  app.add_option("--frames", o->frames, "stop after N frames (0 = until Ctrl-C or the end)")->check(CLI::NonNegativeNumber);
+  app.add_option("--frames", o->frames, "stop after N frames (0 = until Ctrl-C or the end)")->check(numberIn(0, 1e9));
   app.add_option("--rate", o->rate, "--source: read N frames per second, as a sensor would deliver them (0 = at once)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(numberIn(0, 1000));
   return [o] { return runRecord(*o); };
 }
 

@@ -19,6 +19,7 @@
 #include "runtime/background_writer.h"
 #include "runtime/presets.h"
 #include "runtime/debug_view.h"
+#include "app/cli_checks.h"
 #include "app/commands.h"
 #include "runtime/frame_pipeline.h"
 #include "runtime/room_fusion.h"
@@ -179,7 +180,7 @@ int runReplay(const ReplayOptions& o) {
     const Clock::time_point frameStart = awaiting.front().second;
     awaiting.pop_front();
     writer.push([path, image = composite, v = video ? &*video : nullptr, frameStart, &latency] {
-      writePng(path, image);
+      writePng(path, image, "mrgi replay");
       if (v) v->write(image);
       latency.add(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frameStart).count());
     });
@@ -262,7 +263,7 @@ int runReplay(const ReplayOptions& o) {
         for (const DebugView& v : debugViews(frames)) {
           if (v == Views::kComposite) continue;  // frame_NNNN.png
           const cv::Mat img = renderDebugView(v, frames, result, frame->rgbd->colourIntrinsics, lastFisheye, &frameInfo);
-          if (!img.empty()) writePng(base + debugViewName(v) + ".png", img);
+          if (!img.empty()) writePng(base + debugViewName(v) + ".png", img, "mrgi replay");
         }
       }
       if (o.dumpDelta) {
@@ -280,7 +281,7 @@ int runReplay(const ReplayOptions& o) {
         std::snprintf(name, sizeof name, "delta_%04lld.exr", static_cast<long long>(done));
         writeExr((fs::path(o.out) / name).string(), delta);
         std::snprintf(name, sizeof name, "mask_%04lld.png", static_cast<long long>(done));
-        writePng((fs::path(o.out) / name).string(), mask);
+        writePng((fs::path(o.out) / name).string(), mask, "mrgi replay");
       }
     }
     if (context->backend() == gl::Backend::Window) {
@@ -363,7 +364,7 @@ int runReplay(const ReplayOptions& o) {
     if (!o.saveRoom.empty() && live->framesIntegrated() > 0 && !runtime::saveRoomModel(o.saveRoom, *live, o.source).positions.empty())
       summary["room"]["saved"] = o.saveRoom;
   }
-  capture::writeFileAtomically(fs::path(o.out) / "summary.json", summary.dump(2) + "\n");
+  capture::writeFileAtomically(fs::path(o.out) / "summary.json", jsonText(summary, o.source, 2) + "\n");
   if (const LightingSetup* setup = frames.setup(); setup && posed == 0 && done > 0 && !interrupted)
     // The frames are written (the camera images), but nothing could be placed: say so and fail.
     throw capture::CaptureError(o.source, "no frame could be placed in " + std::to_string(done) + " frames (--pose " + toString(o.pose) +
@@ -383,7 +384,7 @@ Action addReplay(CLI::App& app) {
   auto o = std::make_shared<ReplayOptions>();
   app.add_option("SESSION", o->source, "session directory, TUM directory or .oni file")->required();
   app.add_option("--out", o->out, "output folder for frame_NNNN.png and summary.json")->required();
-  app.add_option("--frames", o->frames, "replay at most N frames (0 = all)")->check(CLI::NonNegativeNumber);
+  app.add_option("--frames", o->frames, "replay at most N frames (0 = all)")->check(numberIn(0, 1e9));
   app.add_option("--gl", o->gl, "GL backend: osmesa (headless, default), egl (headless GPU), window")
       ->check(CLI::IsMember({"osmesa", "egl", "window"}));
   app.add_option("--scene", o->scene, "scene file (JSON): virtual objects relative to the marker, lights, technique");
@@ -397,17 +398,17 @@ Action addReplay(CLI::App& app) {
                                      "median-cut lights; with --room the fused room seen from the camera (radiance, albedo) "
                                      "and, lit from the room, its environment at the object with its lights");
   addPoseOption(app, o->pose);
-  app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str();
+  allowEmpty(app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str());
   app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
   app.add_flag("--fuse-room", o->fuseRoom, "build the room model from the frames as they come (every frame with a pose fused; its surface lights the scene from the first such frame, refreshed every --fuse-refresh frames)");
-  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")->check(CLI::Range(1, 100000))->capture_default_str();
+  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")->check(numberIn(1, 100000))->capture_default_str();
   app.add_option("--save-room", o->saveRoom, "with --fuse-room: write the room at the end (as mrgi room --out does)");
   app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")
-      ->check(CLI::Range(capture::kMinFrameRate, capture::kMaxFrameRate));
+      ->check(numberIn(capture::kMinFrameRate, capture::kMaxFrameRate));
   app.add_flag("--recompute-all", o->recomputeAll, "run every stage on every frame (default: skip stages whose inputs did not change)");
   app.add_flag("--sequential", o->sequential, "work on each frame in the loop, one stage after another (default: the next frame's CPU "
                                              "half, marker to real mesh, runs on a worker while GL works on this one; the same composites)");
-  app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(CLI::Range(1, 16));
+  app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(numberIn(1, 16));
   return [o] { return runReplay(*o); };
 }
 

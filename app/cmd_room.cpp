@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "app/cli_checks.h"
+#include "capture/checks.h"
 #include "app/commands.h"
 #include "app/output.h"
 #include "capture/colour.h"
@@ -34,6 +36,9 @@ struct RoomCliOptions {
 };
 
 int runRoom(const RoomCliOptions& o) {
+  if (o.room.truncM < 2 * o.room.voxelM)
+    throw FlagError("--trunc", "must be at least 2 voxels (2 x --voxel = " + capture::formatNumber(2 * o.room.voxelM) + " m), not " +
+                                   capture::formatNumber(o.room.truncM));
   o.room.validate("mrgi room");
   auto source = capture::open(o.source);
   const capture::SourceInfo& info = source->info();
@@ -78,7 +83,7 @@ int runRoom(const RoomCliOptions& o) {
                  static_cast<long long>(fusion.lost + fusion.held), static_cast<long long>(seen), static_cast<long long>(fusion.lost),
                  static_cast<long long>(fusion.held), toString(o.pose));
   if (o.json)
-    std::printf("%s\n", summary.dump().c_str());
+    std::printf("%s\n", jsonText(summary, o.source).c_str());
   else
     std::printf(
         "wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms "
@@ -135,7 +140,7 @@ int runRoomLights(const RoomLightsCliOptions& o) {
                     {"coverage", l.coverage}};
   if (!o.map.empty()) writePng(o.map, runtime::roomLightsImage(l), "mrgi room-lights");
   if (o.json) {
-    std::printf("%s\n", out.dump().c_str());
+    std::printf("%s\n", jsonText(out, o.room).c_str());
   } else {
     std::printf("%zu lights at (%.3f, %.3f, %.3f); saturated gain %.3g (%s); room covers %.0f %% of the view\n", l.lights.size(), at[0],
                 at[1], at[2], l.gain, l.gainEstimated ? "estimated" : l.overExposed ? "over-exposed: not estimated" : "given",
@@ -152,13 +157,16 @@ int runRoomLights(const RoomLightsCliOptions& o) {
 Action addRoomLights(CLI::App& app) {
   auto o = std::make_shared<RoomLightsCliOptions>();
   app.add_option("room", o->room, "room folder (mrgi room)")->required();
-  app.add_option("--at", o->at, "where the virtual object will be, marker frame (metres)")->expected(3)->capture_default_str();
-  app.add_option("--count", o->count, "lights from the split")->check(CLI::Range(1, 16))->capture_default_str();
+  app.add_option("--at", o->at, "where the virtual object will be, marker frame (metres)")
+      ->expected(3)
+      ->check(numberIn(-1e4, 1e4))
+      ->capture_default_str();
+  app.add_option("--count", o->count, "lights from the split")->check(numberIn(1, 16))->capture_default_str();
   app.add_option("--gain", o->gain, "gain on saturated radiance (0 = estimate from the white-patch assumption)")
-      ->check(CLI::Range(0.0, 1e4))
+      ->check(numberIn(0.0, 1e4))
       ->capture_default_str();
   app.add_option("--white-albedo", o->whiteAlbedo, "the white patch's albedo for the estimate")
-      ->check(CLI::Range(0.05, 1.0))
+      ->check(numberIn(0.05, 1.0))
       ->capture_default_str();
   app.add_option("--map", o->map, "write the room's environment at that point (lat-long PNG, lights circled)");
   app.add_flag("--json", o->json, "print one JSON object");
@@ -170,21 +178,28 @@ Action addRoom(CLI::App& app) {
   app.add_option("source", o->source, "recording to build the room from (session, TUM sequence, .oni file)")->required();
   app.add_option("--out", o->out, "room folder to write (room.ply, room_appearance.npy, room.json)")->required();
   addPoseOption(app, o->pose);
-  app.add_option("--frames", o->frames, "read at most N frames (0 = all)")->check(CLI::NonNegativeNumber);
-  app.add_option("--every", o->every, "integrate every Nth frame")->check(CLI::PositiveNumber);
+  app.add_option("--frames", o->frames, "read at most N frames (0 = all)")->check(numberIn(0, 1e9));
+  app.add_option("--every", o->every, "integrate every Nth frame")->check(numberIn(1, 1e6));
   app.add_option("--track-every", o->trackEvery,
                  "with odometry or tracked poses, align the next frames with the room fused so far, its surface taken anew "
                  "every N fused frames (0 = keyframes only: on the bundled sessions, whose marker is in view, every 2 or 5 "
                  "frames moved the room 2.0 -> 2.4-2.8 mm (synth), 7.0 -> 6.6 (pt), 4.2 -> 5.9-7.8 (hdr) from the true one)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(numberIn(0, 1e6))
       ->capture_default_str();
-  app.add_option("--voxel", o->room.voxelM, "voxel edge in metres")->capture_default_str();
-  app.add_option("--trunc", o->room.truncM, "truncation distance of the signed distance, metres (at least 2 voxels)")->capture_default_str();
-  app.add_option("--max-blocks", o->room.maxBlocks, "memory budget in voxel blocks of 16^3 voxels")->capture_default_str();
-  app.add_option("--max-depth", o->room.maxDepthM, "depth beyond this (metres) is not integrated")->capture_default_str();
+  app.add_option("--voxel", o->room.voxelM, "voxel edge in metres")->check(numberIn(0.002, 0.2))->capture_default_str();
+  app.add_option("--trunc", o->room.truncM, "truncation distance of the signed distance, metres (at least 2 voxels)")
+      ->check(numberIn(0.004, 1.0))
+      ->capture_default_str();
+  app.add_option("--max-blocks", o->room.maxBlocks, "memory budget in voxel blocks of 16^3 voxels")
+      ->check(numberIn(1, 1 << 20))
+      ->capture_default_str();
+  app.add_option("--max-depth", o->room.maxDepthM, "depth beyond this (metres) is not integrated")
+      ->check(numberAbove(0.1, 20))
+      ->capture_default_str();
   app.add_option("--outlier", o->room.outlierM,
                  "a frame is not integrated when more than 30 % of its points in observed space lie farther than this "
                  "(metres) from the model (its pose disagrees)")
+      ->check(numberAbove(0, 1))
       ->capture_default_str();
   app.add_flag("--json", o->json, "print one JSON object (per-frame integration, blocks, timing) instead of lines");
   return [o] { return runRoom(*o); };

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/tabletop.h"
 #include "reconstruction/light_estimation.h"
@@ -368,23 +369,23 @@ int runSynth(const SynthOptions& o) {
 Action addSynth(CLI::App& app) {
   auto o = std::make_shared<SynthOptions>();
   app.add_option("--out", o->out, "new session directory (must not exist or be empty)")->required();
-  app.add_option("--frames", o->frames, "number of frames along the camera orbit")->check(CLI::Range(1, 100000));
+  app.add_option("--frames", o->frames, "number of frames along the camera orbit")->check(numberIn(1, 100000));
   app.add_option("--environment", o->environment, "outdoors under this HDR environment (equirectangular EXR) instead of the room");
   app.add_option("--environment-scale", o->environmentScale, "multiplies the environment (default: a white upward surface reads 0.6)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(numberIn(0, 1e6));
   app.add_flag("--static-camera", o->staticCamera, "keep the camera at the orbit's first pose (only the sensor noise changes)");
-  app.add_option("--width", o->width, "image width")->check(CLI::Range(16, 8192));
-  app.add_option("--height", o->height, "image height")->check(CLI::Range(12, 8192));
+  app.add_option("--width", o->width, "image width")->check(numberIn(16, 8192));
+  app.add_option("--height", o->height, "image height")->check(numberIn(12, 8192));
   app.add_option("--seed", o->seed, "noise seed (output is deterministic for a seed)");
-  app.add_option("--tag-id", o->tagId, "tag36h11 id of the marker on the table")->check(CLI::Range(0, 586));
-  app.add_option("--tag-size", o->tagSize, "marker black-square edge in metres")->check(CLI::PositiveNumber);
+  app.add_option("--tag-id", o->tagId, "tag36h11 id of the marker on the table")->check(numberIn(0, 586));
+  app.add_option("--tag-size", o->tagSize, "marker black-square edge in metres")->check(numberAbove(0, 10));
   app.add_option("--render", o->render, "pathtrace (global illumination, default) or raycast (direct light + ambient)")
       ->check(CLI::IsMember({"pathtrace", "raycast"}));
-  app.add_option("--spp", o->spp, "path-traced samples per pixel")->check(CLI::Range(1, 1 << 16));
-  app.add_option("--bounces", o->bounces, "path-traced bounces")->check(CLI::Range(0, 64));
+  app.add_option("--spp", o->spp, "path-traced samples per pixel")->check(numberIn(1, 1 << 16));
+  app.add_option("--bounces", o->bounces, "path-traced bounces")->check(numberIn(0, 64));
   app.add_option("--scene", o->scene, "also write each frame's reference composite with this scene's objects (reference/)");
   app.add_option("--scan", o->scan, "append N look-around frames (walls, ceiling, the lamp; no marker in view, no reference)")
-      ->check(CLI::Range(0, 100000));
+      ->check(numberIn(0, 100000));
   app.add_flag("--move-light", o->moveLight,
                "the lamp moves a third of the way round the table over the orbit (each frame records its lights)");
   app.add_flag("--move-box", o->moveBox, "the box moves to the front of the table a third of the way through (a room that changes: carving)");
@@ -400,7 +401,7 @@ Action addSynth(CLI::App& app) {
         return "must be auto or a positive number";
       });
   app.add_option("--fisheye-every", o->fisheyeEvery, "store a fisheye HDR frame every N frames (0 = no fisheye)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(numberIn(0, 1e6));
   return [o] { return runSynth(*o); };
 }
 

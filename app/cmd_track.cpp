@@ -7,7 +7,9 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "app/cli_checks.h"
 #include "app/commands.h"
+#include "app/output.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
@@ -76,6 +78,7 @@ int runCameraTrack(const TrackOptions& o) {
   if (!o.family.empty()) marker.family = o.family;
   if (o.size > 0) marker.size = o.size;
   if (o.id >= 0) marker.id = o.id;
+  if (o.id >= 0) checkTagId(marker.family, o.id, "--id");
   auto poses = runtime::makePoseSource(*o.pose, marker, T_world_marker, tracking);
   gl::Profiler profiler;
   std::map<std::string, int> counts;
@@ -91,7 +94,7 @@ int runCameraTrack(const TrackOptions& o) {
     if (p.fitness >= 0) line["fitness"] = p.fitness, line["inlier_rmse_m"] = p.inlierRmse;
     if (p.correctionM > 0 || p.correctionDeg > 0) line["correction_m"] = p.correctionM, line["correction_deg"] = p.correctionDeg;
     if (o.json) {
-      std::printf("%s\n", line.dump().c_str());
+      std::printf("%s\n", jsonText(line, o.input).c_str());
     } else if (p.tracked()) {
       const cv::Vec3d c = capture::translationOf(*p.T_world_camera);
       std::printf("frame %lld: tracked by %s, camera at (%.4f, %.4f, %.4f) m\n", static_cast<long long>(frame->index),
@@ -136,6 +139,7 @@ int runTrack(const TrackOptions& o) {
       }
   }
   if (!(size > 0)) size = 0.1;
+  if (o.id >= 0) checkTagId(family, o.id, "--id");
   reconstruction::DetectorOptions dopt;
   dopt.family = family;
   dopt.decimate = o.decimate;
@@ -168,7 +172,7 @@ int runTrack(const TrackOptions& o) {
     everSeen |= !measured.empty();
     if (tracks.empty()) {  // nothing seen yet and no id asked for
       const json line = {{"frame", frame.index}, {"status", "lost"}, {"id", nullptr}, {"T_camera_tag", nullptr}};
-      std::printf("%s\n", o.json ? line.dump().c_str() : ("frame " + std::to_string(frame.index) + ": no tag").c_str());
+      std::printf("%s\n", o.json ? jsonText(line, o.input).c_str() : ("frame " + std::to_string(frame.index) + ": no tag").c_str());
       return;
     }
     for (auto& [id, track] : tracks) {
@@ -184,7 +188,7 @@ int runTrack(const TrackOptions& o) {
         line["decision_margin"] = m->second.first.decisionMargin;
       }
       if (o.json) {
-        std::printf("%s\n", line.dump().c_str());
+        std::printf("%s\n", jsonText(line, o.input).c_str());
       } else if (track.pose() && status != reconstruction::TrackStatus::Lost) {
         const auto& T = *track.pose();
         std::printf("frame %lld: tag %d %s, t = (%.4f, %.4f, %.4f) m\n", static_cast<long long>(frame.index), id,
@@ -221,21 +225,21 @@ Action addTrack(CLI::App& app) {
   poseOption->description("the camera's pose per frame from this source (" + runtime::poseModeHelp() +
                     ") instead of each tag's pose: JSON lines frame, status (tracked|lost), by (marker|odometry|relocalised|ground-truth), "
                     "T_camera_world (row-major 4x4, metres; world = the marker frame)");
-  app.add_option("--family", o->family, "AprilTag family (default: the session's, else tag36h11)");
+  app.add_option("--family", o->family, "AprilTag family (default: the session's, else tag36h11)")->check(tagFamily());
   app.add_option("--size", o->size, "tag black-square edge in metres (default: the session's, else 0.1)")
-      ->check(CLI::PositiveNumber);
+      ->check(numberIn(1e-3, 10));
   app.add_option("--id", o->id, "track only this tag id (default: the session's marker, else every tag)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(numberIn(0, 1e6));
   app.add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy in pixels, for a single image input");
   app.add_option("--hold", o->hold, "seconds to hold the last pose after the tag disappears before 'lost'")
-      ->check(CLI::NonNegativeNumber);
+      ->check(numberIn(0, 3600));
   app.add_flag("--no-smooth", o->noSmooth, "report raw per-frame poses (no One-Euro smoothing)");
-  app.add_option("--smooth-cutoff", o->smoothCutoff, "One-Euro cutoff at rest, Hz")->check(CLI::PositiveNumber);
-  app.add_option("--smooth-beta", o->smoothBeta, "One-Euro cutoff added per unit of speed")->check(CLI::NonNegativeNumber);
-  app.add_option("--smooth-derivative", o->smoothDerivative, "One-Euro cutoff of the speed estimate, Hz")->check(CLI::PositiveNumber);
+  app.add_option("--smooth-cutoff", o->smoothCutoff, "One-Euro cutoff at rest, Hz")->check(numberAbove(0, 1e3));
+  app.add_option("--smooth-beta", o->smoothBeta, "One-Euro cutoff added per unit of speed")->check(numberIn(0, 1e3));
+  app.add_option("--smooth-derivative", o->smoothDerivative, "One-Euro cutoff of the speed estimate, Hz")->check(numberAbove(0, 1e3));
   app.add_flag("--refine-depth", o->refineDepth, "re-seat the pose on the depth plane under the tag (registered depth)");
   app.add_option("--decimate", o->decimate, "detect quads on an image decimated by this factor (faster)")
-      ->check(CLI::Range(1.0, 8.0));
+      ->check(numberIn(1.0, 8.0));
   return [o, pose, poseOption] {
     if (poseOption->count() > 0) o->pose = *pose;
     return runTrack(*o);

@@ -2,6 +2,7 @@
 // Subcommands of the mrgi executable. Each registers its options on the CLI11 app and returns the
 // action to run after parsing. Actions return the process exit code and throw for user errors.
 #include <functional>
+#include <map>
 
 #include <CLI/CLI.hpp>
 
@@ -17,6 +18,9 @@ using namespace mrgi::runtime;
 using namespace mrgi::evaluation;
 
 using Action = std::function<int()>;
+
+/// Registers every subcommand on `app` (the one mrgi CLI) and returns the action of each.
+std::map<CLI::App*, Action> addCommands(CLI::App& app);
 
 /// Checks a --technique value against the registry (a name, an alias, "REAL+VIRTUAL").
 CLI::Validator techniqueValidator();

@@ -2,12 +2,16 @@
 
 #include <algorithm>
 
+#include "app/cli_checks.h"
 #include "capture/error.h"
 #include "capture/v4l2_source.h"
 
 namespace mrgi::app {
 
 LiveSource::LiveSource(LiveSourceOptions o) : o_(std::move(o)) {
+  if (!o_.source.empty() && !o_.fisheye.empty())
+    throw FlagError("--fisheye", "a fisheye camera is read only beside a live depth sensor, not with --source (a recording's "
+                                 "fisheye frames come from the recording)");
   if (!o_.source.empty()) {
     source_ = capture::open(o_.source);
     name_ = o_.source;

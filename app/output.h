@@ -5,10 +5,15 @@
 #include <memory>
 #include <string>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
 
 namespace mrgi::app {
+
+/// The text of a JSON document about to be printed or written; a non-finite number in it (which would be
+/// written as null) is an error naming `input`, the file or flag its numbers came from.
+std::string jsonText(const nlohmann::json& j, const std::string& input, int indent = -1);
 
 /// Linear RGB float image -> EXR (atomically; errors name the file).
 void writeExr(const std::string& path, const cv::Mat& rgb);
@@ -19,7 +24,8 @@ void writePng(const std::string& path, const cv::Mat& rgb, const std::string& ge
 void createParentDirectory(const std::string& path);
 /// Creates `out`, or accepts it when empty or holding an earlier output of this command: its `marker` file
 /// (e.g. summary.json) is a JSON object whose "generated_by" is `generator` ("mrgi replay"). Refuses any
-/// other folder, so that nothing the user had is overwritten.
+/// other folder, so that nothing the user had is overwritten. In an earlier output, the files that say they
+/// were written by `generator` (PNG Software text, JSON generated_by) are removed first, the rest kept.
 void prepareOutputDirectory(const std::string& out, const std::string& marker, const std::string& generator);
 /// Before a command writes a single file the user named (`flag` PATH): refuses, in one line naming the file
 /// and the flag, to replace an existing file unless this command wrote it, as recognised by what it holds,

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/session.h"
 
@@ -45,6 +46,18 @@ std::string GroundTruthReference::pathFor(const std::string& sessionDir, const s
 
 std::vector<GroundTruthLight> lightsFromJson(const json& array, const std::string& file, const std::string& prefix) {
   if (!array.is_array()) throw CaptureError(file, prefix + " must be an array");
+  if (array.size() > static_cast<size_t>(kMaxLightCount))
+    throw CaptureError(file, prefix + ": " + std::to_string(array.size()) + " lights, at most " + std::to_string(kMaxLightCount) + " are supported");
+  // The same ranges as a scene file's lights (capture/checks.h).
+  auto inRange = [&](const cv::Vec3d& v, double lo, double hi, const std::string& key) {
+    for (int k = 0; k < 3; ++k) checkNumber(v[k], lo, hi, file, key + "[" + std::to_string(k) + "]");
+    return v;
+  };
+  auto direction = [&](const cv::Vec3d& v, const std::string& key) {
+    const std::string problem = directionProblem(v);
+    if (!problem.empty()) throw CaptureError(file, key + " " + problem);
+    return cv::normalize(v);
+  };
   std::vector<GroundTruthLight> out;
   for (size_t i = 0; i < array.size(); ++i) {
     const json& l = array[i];
@@ -54,20 +67,22 @@ std::vector<GroundTruthLight> lightsFromJson(const json& array, const std::strin
     const std::string type = l.contains("type") && l["type"].is_string() ? l["type"].get<std::string>() : "";
     if (type == "point" || type == "spot") {
       light.type = type == "point" ? GroundTruthLight::Type::Point : GroundTruthLight::Type::Spot;
-      light.position = vec3(need(l, "position", file, key), file, key + ".position");
-      light.intensity = vec3(need(l, "intensity_w_sr", file, key), file, key + ".intensity_w_sr");
+      light.position = inRange(vec3(need(l, "position", file, key), file, key + ".position"), -kMaxLightPositionM, kMaxLightPositionM, key + ".position");
+      light.intensity = inRange(vec3(need(l, "intensity_w_sr", file, key), file, key + ".intensity_w_sr"), 0, kMaxLightPower, key + ".intensity_w_sr");
       if (light.type == GroundTruthLight::Type::Spot) {
-        light.direction = cv::normalize(vec3(need(l, "direction", file, key), file, key + ".direction"));
-        if (l.contains("spot_half_angle_deg")) light.spotHalfAngleDeg = finiteNumber(l["spot_half_angle_deg"], file, key + ".spot_half_angle_deg");
+        light.direction = direction(vec3(need(l, "direction", file, key), file, key + ".direction"), key + ".direction");
+        if (l.contains("spot_half_angle_deg"))
+          light.spotHalfAngleDeg = checkNumber(finiteNumber(l["spot_half_angle_deg"], file, key + ".spot_half_angle_deg"), kMinSpotHalfAngleDeg,
+                                               kMaxSpotHalfAngleDeg, file, key + ".spot_half_angle_deg");
       }
     } else if (type == "directional") {
       light.type = GroundTruthLight::Type::Directional;
-      light.direction = cv::normalize(vec3(need(l, "direction", file, key), file, key + ".direction"));
-      light.irradiance = vec3(need(l, "irradiance_w_m2", file, key), file, key + ".irradiance_w_m2");
+      light.direction = direction(vec3(need(l, "direction", file, key), file, key + ".direction"), key + ".direction");
+      light.irradiance = inRange(vec3(need(l, "irradiance_w_m2", file, key), file, key + ".irradiance_w_m2"), 0, kMaxLightPower, key + ".irradiance_w_m2");
     } else {
       throw CaptureError(file, key + ".type '" + type + "' is not point, spot or directional");
     }
-    if (l.contains("radius_m")) light.radius = finiteNumber(l["radius_m"], file, key + ".radius_m");
+    if (l.contains("radius_m")) light.radius = checkNumber(finiteNumber(l["radius_m"], file, key + ".radius_m"), 0, 10, file, key + ".radius_m");
     out.push_back(light);
   }
   return out;

@@ -3,9 +3,11 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -32,6 +34,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/checks.h"
 #include "capture/error.h"
 
 namespace mrgi::capture {
@@ -46,10 +49,9 @@ namespace {
 
 std::vector<unsigned char> readBytes(const std::string& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw CaptureError(path, "file is missing");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw CaptureError(path, "cannot open for reading");
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (!std::filesystem::exists(path, ec)) throw CaptureError(path, "file is missing");
+  const std::string bytes = readFileBounded(path, kMaxBinaryFileBytes, "image");
+  return {bytes.begin(), bytes.end()};
 }
 
 /// libpng errors and warnings go to our handlers, never to the terminal: an error ends the decode through
@@ -323,6 +325,90 @@ cv::Mat decodeJpeg(const std::vector<unsigned char>& bytes, bool colour, const s
   return img;
 }
 
+/// Radiance RGBE (.hdr), the format light probes are shared in, decoded here from memory: OpenCV's decoder
+/// goes through a temporary file and a C parser we cannot bound. Reads what Greg Ward's reference reader
+/// (and OpenCV's, which is built on it) reads: a "#?" header up to its blank line (FORMAT must be
+/// 32-bit_rle_rgbe when given; EXPOSURE is ignored, as they ignore it), the standard "-Y H +X W"
+/// orientation, then scanlines either adaptive run-length encoded or flat; each pixel (r, g, b, e) is
+/// (r, g, b) * 2^(e - 136), 0 where e is 0. Returns 32-bit float BGR, as cv::imdecode gives.
+bool isRadiance(const std::vector<unsigned char>& bytes) {
+  return bytes.size() >= 2 && bytes[0] == '#' && bytes[1] == '?';
+}
+cv::Mat decodeRadiance(const std::vector<unsigned char>& bytes, const std::string& path) {
+  auto bad = [&](const std::string& why) -> void { throw CaptureError(path, "cannot decode Radiance HDR (" + why + ")"); };
+  size_t at = 0;
+  auto line = [&]() {
+    const size_t end = std::find(bytes.begin() + static_cast<std::ptrdiff_t>(at), bytes.end(), '\n') - bytes.begin();
+    if (end >= bytes.size()) bad("the header does not end");
+    std::string l(bytes.begin() + static_cast<std::ptrdiff_t>(at), bytes.begin() + static_cast<std::ptrdiff_t>(end));
+    at = end + 1;
+    if (!l.empty() && l.back() == '\r') l.pop_back();
+    return l;
+  };
+  line();  // "#?RADIANCE" or another program's name
+  for (int n = 0;; ++n) {
+    if (n > 1000) bad("a header of more than 1000 lines");
+    const std::string l = line();
+    if (l.empty()) break;
+    if (l.rfind("FORMAT=", 0) == 0 && l != "FORMAT=32-bit_rle_rgbe") bad("only 32-bit_rle_rgbe is supported, not " + excerpt(l.substr(7), 30));
+  }
+  const std::string resolution = line();
+  int h = 0, w = 0;
+  char tail = 0;
+  if (std::sscanf(resolution.c_str(), "-Y %d +X %d%c", &h, &w, &tail) != 2)
+    bad("the resolution line must read '-Y height +X width', not '" + excerpt(resolution, 40) + "'");
+  if (w <= 0 || h <= 0 || w > 16384 || h > 16384) bad("image of " + std::to_string(w) + "x" + std::to_string(h) + ", at most 16384 a side");
+  // Each scanline takes at least 4 bytes per 127 pixels and channel when run-length encoded: a file too
+  // short for its size is refused before memory is taken for it.
+  const size_t minLine = std::min<size_t>(4 * static_cast<size_t>(w), 4 + 8 * ((static_cast<size_t>(w) + 126) / 127));
+  if (bytes.size() - at < minLine * static_cast<size_t>(h)) bad("truncated: too short for " + std::to_string(w) + "x" + std::to_string(h));
+  cv::Mat out(h, w, CV_32FC3);
+  std::vector<unsigned char> rgbe(4 * static_cast<size_t>(w));
+  bool flat = w < 8 || w > 0x7fff;
+  for (int y = 0; y < h; ++y) {
+    if (!flat) {
+      if (at + 4 > bytes.size()) bad("truncated at scanline " + std::to_string(y));
+      const unsigned char* b = bytes.data() + at;
+      if (b[0] == 2 && b[1] == 2 && !(b[2] & 0x80)) {
+        if (((b[2] << 8) | b[3]) != w) bad("scanline " + std::to_string(y) + " has the wrong width");
+        at += 4;
+        for (int c = 0; c < 4; ++c)
+          for (int x = 0; x < w;) {
+            if (at >= bytes.size()) bad("truncated at scanline " + std::to_string(y));
+            int count = bytes[at++];
+            const bool run = count > 128;
+            if (run) count -= 128;
+            if (count == 0 || count > w - x) bad("a run of scanline " + std::to_string(y) + " is out of bounds");
+            if (run) {
+              if (at >= bytes.size()) bad("truncated at scanline " + std::to_string(y));
+              const unsigned char v = bytes[at++];
+              for (int k = 0; k < count; ++k) rgbe[4 * static_cast<size_t>(x++) + c] = v;
+            } else {
+              if (at + static_cast<size_t>(count) > bytes.size()) bad("truncated at scanline " + std::to_string(y));
+              for (int k = 0; k < count; ++k) rgbe[4 * static_cast<size_t>(x++) + c] = bytes[at++];
+            }
+          }
+      } else {
+        flat = true;  // not run-length encoded: this scanline and the rest are flat, as the reference reader has it
+      }
+    }
+    if (flat) {
+      if (at + rgbe.size() > bytes.size()) bad("truncated at scanline " + std::to_string(y));
+      std::memcpy(rgbe.data(), bytes.data() + at, rgbe.size());
+      at += rgbe.size();
+    }
+    float* row = out.ptr<float>(y);
+    for (int x = 0; x < w; ++x) {
+      const unsigned char* p = &rgbe[4 * static_cast<size_t>(x)];
+      const float f = p[3] == 0 ? 0.f : std::ldexp(1.f, p[3] - 136);
+      row[3 * x + 0] = p[2] * f;  // BGR
+      row[3 * x + 1] = p[1] * f;
+      row[3 * x + 2] = p[0] * f;
+    }
+  }
+  return out;
+}
+
 /// OpenCV's decoders print to std::cerr when a header throws; while they run, std::cerr goes nowhere.
 class SilenceCerr {
  public:
@@ -347,6 +433,10 @@ cv::Mat decode(const std::string& path, int flags) {
   if (png && flags == cv::IMREAD_COLOR) return decodePng(bytes, true, path);
   if (png) return decodePng(bytes, false, path);  // depth (ANYDEPTH|ANYCOLOR) and fisheye (UNCHANGED, alpha dropped)
   if (isExr(bytes)) return decodeExr(bytes, path);
+  if (isRadiance(bytes)) {
+    if (flags == cv::IMREAD_COLOR) throw CaptureError(path, "is a Radiance HDR image; an 8-bit colour image is expected here");
+    return decodeRadiance(bytes, path);
+  }
   if (bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF)
     return decodeJpeg(bytes, flags == cv::IMREAD_COLOR, path);
   // Only formats we name reach OpenCV (BMP, PNM, TIFF): Debian's OpenCV also carries GDAL and GDCM
@@ -355,7 +445,7 @@ cv::Mat decode(const std::string& path, int flags) {
   const bool pnm = bytes.size() >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '6';
   const bool tiff = bytes.size() >= 4 && ((bytes[0] == 'I' && bytes[1] == 'I' && bytes[2] == 42 && bytes[3] == 0) ||
                                           (bytes[0] == 'M' && bytes[1] == 'M' && bytes[2] == 0 && bytes[3] == 42));
-  if (!bmp && !pnm && !tiff) throw CaptureError(path, "cannot decode image: not a supported format (PNG, JPEG, EXR, BMP, PNM, TIFF)");
+  if (!bmp && !pnm && !tiff) throw CaptureError(path, "cannot decode image: not a supported format (PNG, JPEG, EXR, Radiance HDR, BMP, PNM, TIFF)");
   cv::Mat img;
   try {
     const SilenceCerr quiet;
@@ -408,6 +498,9 @@ void writeFileAtomically(const std::filesystem::path& path, const std::vector<un
 void quietOpenCv() {
   static const bool once = [] {
     cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+    // FFmpeg (OpenCV's video writer) prints its own errors ("encoder timebase is not set") unless OpenCV
+    // is told a log level before it loads FFmpeg: quiet (AV_LOG_QUIET), unless the user set one.
+    ::setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);
     return true;
   }();
   (void)once;
@@ -443,6 +536,12 @@ cv::Mat readDepth(const std::string& path, double unitsMetres) {
 
 cv::Mat readAny(const std::string& path) {
   cv::Mat img = decode(path, cv::IMREAD_UNCHANGED);
+  if (img.depth() == CV_32F || img.depth() == CV_64F) {
+    // NaN or inf in a float image would reach every sum made of it: refused here, naming the pixel.
+    cv::Point at;
+    if (!cv::checkRange(img.reshape(1), true, &at))
+      throw CaptureError(path, "holds a non-finite value at pixel (" + std::to_string(at.x / img.channels()) + ", " + std::to_string(at.y) + ")");
+  }
   if (img.channels() == 3) cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
   else if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2RGB);
   else if (img.channels() == 1) cv::cvtColor(img, img, cv::COLOR_GRAY2RGB);

@@ -74,4 +74,29 @@ std::string jsonStringOr(const nlohmann::json& j, const std::string& key, const 
   return j.is_object() && j.contains(key) ? jsonString(j, key, file, path) : fallback;
 }
 
+namespace {
+bool firstNonFinite(const nlohmann::json& j, std::string& path) {
+  if (j.is_number_float()) return !std::isfinite(j.get<double>());
+  if (j.is_object()) {
+    for (auto it = j.begin(); it != j.end(); ++it)
+      if (firstNonFinite(it.value(), path)) {
+        path = "." + it.key() + path;
+        return true;
+      }
+  } else if (j.is_array()) {
+    for (size_t i = 0; i < j.size(); ++i)
+      if (firstNonFinite(j[i], path)) {
+        path = "[" + std::to_string(i) + "]" + path;
+        return true;
+      }
+  }
+  return false;
+}
+}  // namespace
+
+void requireFiniteJson(const nlohmann::json& j, const std::string& where, const std::string& problem) {
+  std::string path;
+  if (firstNonFinite(j, path)) throw InputError(where, problem + " gives a non-finite " + (path.empty() ? "value" : path.substr(path[0] == '.' ? 1 : 0)));
+}
+
 }  // namespace mrgi::capture

@@ -30,4 +30,9 @@ int jsonIntOr(const nlohmann::json& j, const std::string& key, int fallback, con
 std::string jsonStringOr(const nlohmann::json& j, const std::string& key, const std::string& fallback, const std::string& file,
                        const std::string& path = "");
 
+/// Outputs are checked too: a JSON document about to be printed or written must hold only finite numbers
+/// (nlohmann writes nan as null). Throws InputError(where, "<problem> gives a non-finite <key path>") naming
+/// the first one; `where` names the input the numbers came from.
+void requireFiniteJson(const nlohmann::json& j, const std::string& where, const std::string& problem = "the input");
+
 }  // namespace mrgi::capture

@@ -7,6 +7,7 @@
 #include <regex>
 
 #include "capture/error.h"
+#include "capture/checks.h"
 
 namespace mrgi::capture {
 namespace {
@@ -70,9 +71,7 @@ cv::Mat parseNpy(const std::string& b, const std::string& where) {
 }
 
 cv::Mat readNpzArray(const std::string& path, const std::string& name) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw CaptureError(path, "cannot open");
-  const std::string b((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string b = readFileBounded(path, kMaxBinaryFileBytes, ".npz archive");
   // End of central directory: the last "PK\5\6" record.
   const size_t eocd = b.rfind(std::string("PK\x05\x06", 4));
   if (eocd == std::string::npos) throw CaptureError(path, "not a zip/npz archive (no end of central directory)");

@@ -60,6 +60,7 @@ void checkPlyFile(const std::string& path) {
     std::string name;
     uint64_t count = 0;
     std::vector<Property> properties;
+    std::vector<std::string> names;
   };
   std::vector<Element> elements;
   std::string format;
@@ -85,13 +86,23 @@ void checkPlyFile(const std::string& path) {
       if (rest.size() != 2 || rest[1].empty() || rest[1].find_first_not_of("0123456789") != std::string::npos ||
           rest[1].size() > 10)
         bad("element line '" + line + "' needs a name and a count");
-      elements.push_back({rest[0], std::stoull(rest[1]), {}});
+      // A name twice: readers bind to the first, this check would count the last (found by the room fuzzer:
+      // a second, larger "vertex" element let face indices past Open3D's vertices through).
+      for (const Element& e : elements)
+        if (e.name == rest[0]) bad("element '" + rest[0].substr(0, 40) + "' declared twice");
+      elements.push_back({rest[0], std::stoull(rest[1]), {}, {}});
     } else if (word == "property") {
       if (elements.empty()) bad("a property before any element");
       const bool list = !rest.empty() && rest[0] == "list";
       if (list ? (rest.size() != 4 || !kTypes.count(rest[1]) || !kTypes.count(rest[2]))
                : (rest.size() != 2 || !kTypes.count(rest[0])))
         bad("property line '" + line + "'");
+      const std::string& name = rest.back();
+      for (const std::string& other : elements.back().names)
+        if (other == name) bad("property '" + name.substr(0, 40) + "' declared twice");
+      elements.back().names.push_back(name);
+      if (list && elements.back().name == "vertex" && (name == "x" || name == "y" || name == "z"))
+        bad("vertex coordinate '" + name + "' declared as a list");
       Property prop = list ? Property{kTypes.at(rest[1]), kTypes.at(rest[2])} : Property{0, kTypes.at(rest[0])};
       if (list && elements.back().name == "face" && (rest[3] == "vertex_indices" || rest[3] == "vertex_index")) {
         if (rest[2] == "float" || rest[2] == "double" || rest[2] == "float32" || rest[2] == "float64")

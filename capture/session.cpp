@@ -17,6 +17,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
 
@@ -99,8 +100,7 @@ Pose poseFromJson(const json& j, const std::string& file, const std::string& key
   const auto v = numbers(j, 16, file, key);
   Pose p;
   for (int i = 0; i < 16; ++i) p(i / 4, i % 4) = v[i];
-  if (std::abs(p(3, 0)) + std::abs(p(3, 1)) + std::abs(p(3, 2)) > 1e-9 || std::abs(p(3, 3) - 1.0) > 1e-9)
-    throw CaptureError(file, "key '" + key + "' is not a rigid transform (last row must be 0 0 0 1)");
+  checkRigid(p, file, "key '" + key + "'");
   return p;
 }
 
@@ -165,7 +165,7 @@ SessionManifest SessionManifest::fromJsonChecked(const json& j, const std::strin
   const json& d = need(j, "depth", file, "");
   m.depth = intrinsicsFromJson(d, file, "depth.");
   m.depthUnitsMetres = number(d, "units_m", file, "depth.");
-  if (!(m.depthUnitsMetres > 0)) throw CaptureError(file, "key 'depth.units_m' must be positive");
+  checkNumber(m.depthUnitsMetres, kMinDepthUnitsM, kMaxDepthUnitsM, file, "key 'depth.units_m'");
   m.depthRegistered = optionalKey<bool>(d, "registered", true, file, "depth.");
   if (d.contains("T_colour_depth")) m.T_colour_depth = poseFromJson(d["T_colour_depth"], file, "depth.T_colour_depth");
   if (m.depthRegistered && (m.depth.width != m.colour.width || m.depth.height != m.colour.height))
@@ -193,7 +193,9 @@ SessionManifest SessionManifest::fromJsonChecked(const json& j, const std::strin
     s.family = mk["family"].get<std::string>();
     s.sizeMetres = number(mk, "size_m", file, "marker.");
     s.id = integer(mk, "id", file, "marker.");
-    if (!(s.sizeMetres > 0)) throw CaptureError(file, "key 'marker.size_m' must be positive");
+    checkNumber(s.sizeMetres, kMinTagSizeM, kMaxTagSizeM, file, "key 'marker.size_m'");
+    const std::string tag = s.id >= 0 ? tagProblem(s.family, s.id) : tagProblem(s.family);  // a negative id: any tag
+    if (!tag.empty()) throw CaptureError(file, "key 'marker': " + tag);
     m.marker = s;
   }
   if (j.contains("ground_truth")) {
@@ -289,18 +291,12 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
   if (!fs::is_directory(dir, ec)) throw CaptureError(directory, "session directory does not exist");
   if (!fs::is_regular_file(manifestPath, ec)) throw CaptureError(manifestPath, "missing: not an mrgi session");
   json mj;
-  {
-    std::ifstream in(manifestPath);
-    mj = parseJson(in, manifestPath);
-  }
+  mj = parseJson(readFileBounded(manifestPath, kMaxTextFileBytes, "session manifest"), manifestPath);
   manifest_ = SessionManifest::fromJson(mj, manifestPath);
 
   const std::string indexPath = (dir / kIndex).string();
   if (!fs::is_regular_file(indexPath, ec)) throw CaptureError(indexPath, "missing: the session has no frame index");
-  std::ifstream in(indexPath, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const std::string text = ss.str();
+  const std::string text = readFileBounded(indexPath, kMaxBinaryFileBytes, "frame index");
   size_t start = 0;
   int lineNo = 0;
   while (start < text.size()) {
@@ -326,8 +322,7 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
       throw CaptureError(where, "frame index " + std::to_string(e.index) + " out of sequence (expected " +
                                     std::to_string(entries_.size()) + ")");
     if (!entries_.empty() && !(e.t > entries_.back().t))
-      throw CaptureError(where, "timestamp " + std::to_string(e.t) + " does not increase (previous " +
-                                    std::to_string(entries_.back().t) + ")");
+      throw CaptureError(where, "timestamp " + formatNumber(e.t) + " does not increase (previous " + formatNumber(entries_.back().t) + ")");
     auto relPath = [&](const char* key) -> std::string {
       if (!j.contains(key)) return {};
       if (!j[key].is_string()) throw CaptureError(where, std::string("key '") + key + "' must be a string");
@@ -345,11 +340,11 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
       throw CaptureError(where, "frame has a fisheye image but the manifest has no fisheye calibration");
     if (j.contains("exposure")) {
       e.exposure = number(j, "exposure", where, "");
-      if (!(e.exposure > 0)) throw CaptureError(where, "exposure " + std::to_string(e.exposure) + " must be positive");
+      checkNumber(e.exposure, kMinExposure, kMaxExposure, where, "exposure");
     }
     if (j.contains("colour_exposure")) {
       e.colourExposure = number(j, "colour_exposure", where, "");
-      if (!(e.colourExposure > 0)) throw CaptureError(where, "colour_exposure " + std::to_string(e.colourExposure) + " must be positive");
+      checkNumber(e.colourExposure, kMinExposure, kMaxExposure, where, "colour_exposure");
     }
     if (j.contains("T_world_camera")) e.pose = poseFromJson(j["T_world_camera"], where, "T_world_camera");
     if (j.contains("lights")) e.lights = lightsFromJson(j["lights"], where, "lights");

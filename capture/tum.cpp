@@ -8,6 +8,7 @@
 
 #include <opencv2/core/quaternion.hpp>
 
+#include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
 
@@ -16,8 +17,7 @@ namespace fs = std::filesystem;
 namespace mrgi::capture {
 
 std::vector<TumEntry> readTumList(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw CaptureError(path, "cannot open");
+  std::istringstream in(readFileBounded(path, kMaxTextFileBytes, "TUM list"));
   std::vector<TumEntry> out;
   std::string line;
   int lineNo = 0;
@@ -33,8 +33,9 @@ std::vector<TumEntry> readTumList(const std::string& path) {
     const auto b = rest.find_first_not_of(" \t"), en = rest.find_last_not_of(" \t\r");
     if (b == std::string::npos) throw CaptureError(path + ":" + std::to_string(lineNo), "missing value after timestamp");
     e.value = rest.substr(b, en - b + 1);
+    e.line = lineNo;
     if (!out.empty() && !(e.t > out.back().t))
-      throw CaptureError(path + ":" + std::to_string(lineNo), "timestamp " + std::to_string(e.t) + " does not increase");
+      throw CaptureError(path + ":" + std::to_string(lineNo), "timestamp " + formatNumber(e.t) + " does not increase");
     out.push_back(std::move(e));
   }
   return out;
@@ -72,8 +73,22 @@ Intrinsics tumIntrinsics(const std::string& name, int width, int height) {
 TumSource::TumSource(const std::string& directory) : dir_(directory) {
   quietOpenCv();
   const fs::path dir(directory);
-  const auto rgb = readTumList((dir / "rgb.txt").string());
-  const auto depth = readTumList((dir / "depth.txt").string());
+  // Each image list names one file per line, every one of them present.
+  auto imageList = [&](const char* name) {
+    const std::string list = (dir / name).string();
+    auto entries = readTumList(list);
+    if (entries.empty()) throw CaptureError(list, "lists no frames");
+    for (const TumEntry& e : entries) {
+      const std::string where = list + ":" + std::to_string(e.line);
+      if (e.value.find_first_of(" \t") != std::string::npos)
+        throw CaptureError(where, "expected one image path after the timestamp, not '" + excerpt(e.value, 60) + "'");
+      std::error_code ec;
+      if (!fs::is_regular_file(dir / e.value, ec)) throw CaptureError(where, "names " + excerpt(e.value, 120) + ", which is missing");
+    }
+    return entries;
+  };
+  const auto rgb = imageList("rgb.txt");
+  const auto depth = imageList("depth.txt");
   std::vector<double> tr, td;
   for (const auto& e : rgb) tr.push_back(e.t);
   for (const auto& e : depth) td.push_back(e.t);
@@ -97,9 +112,10 @@ TumSource::TumSource(const std::string& directory) : dir_(directory) {
         std::istringstream ps(gt[best].value);
         double v[7];
         for (double& x : v)
-          if (!(ps >> x)) throw CaptureError(gtPath.string(), "pose line needs 7 numbers: " + gt[best].value);
+          if (!(ps >> x) || !std::isfinite(x))
+            throw CaptureError(gtPath.string() + ":" + std::to_string(gt[best].line), "a pose line needs 7 finite numbers, not '" + excerpt(gt[best].value, 80) + "'");
         const cv::Quatd q(v[6], v[3], v[4], v[5]);  // TUM order qx qy qz qw
-        if (!(q.norm() > 0.5)) throw CaptureError(gtPath.string(), "pose quaternion is not unit length: " + gt[best].value);
+        if (!(q.norm() > 0.5)) throw CaptureError(gtPath.string() + ":" + std::to_string(gt[best].line), "the pose's quaternion is not of unit length");
         it.pose = makePose(q.normalize().toRotMat3x3(), cv::Vec3d(v[0], v[1], v[2]));
       }
     }

@@ -15,6 +15,7 @@ inline constexpr double kTumMaxAssociationGap = 0.02;  ///< seconds, as in the b
 struct TumEntry {
   double t;
   std::string value;  ///< file path, or the 7 pose numbers as text
+  int line = 0;       ///< where it stands in its list (1-based), for errors
 };
 
 /// Reads a TUM list file; throws CaptureError("<file>:<line>: ...") for a malformed or non-monotonic line.

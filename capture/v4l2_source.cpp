@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
 
@@ -101,13 +102,13 @@ void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& 
 }
 
 FisheyeCalibration readFisheyeCalibration(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw CaptureError(path, "calibration file is missing");
   quietOpenCv();
+  std::string text = readFileBounded(path, 1 << 20, "calibration YAML");
+  if (yamlNestingDepth(text) > kMaxYamlDepth)
+    throw CaptureError(path, "calibration YAML nests deeper than " + std::to_string(kMaxYamlDepth) + " levels");
   cv::FileStorage fsr;
   try {
     // ROS writes YAML without OpenCV's "%YAML:1.0" directive; add it and parse from memory.
-    std::ifstream in(path);
-    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     if (text.rfind("%YAML", 0) != 0) text = "%YAML:1.0\n---\n" + text;
     fsr.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   } catch (const std::exception&) {

@@ -1,6 +1,6 @@
 // Frame images as the readers get them: colour (8-bit), depth (16-bit or float) and fisheye (any, HDR
 // included). The first byte picks the reader; the format comes from the bytes (PNG by libpng, JPEG by
-// libjpeg, EXR by OpenEXR, BMP/PNM/TIFF by OpenCV, anything else refused).
+// libjpeg, EXR by OpenEXR, Radiance HDR by our decoder, BMP/PNM/TIFF by OpenCV, anything else refused).
 #include "capture/image_io.h"
 #include "fuzz/fuzz_common.h"
 

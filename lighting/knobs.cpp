@@ -3,6 +3,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "capture/checks.h"
+
 namespace mrgi::lighting {
 
 const KnobInfo* KnobGroup::find(const std::string& name) const {
@@ -25,11 +27,9 @@ void KnobGroup::check(const KnobInfo& k, double x, const std::string& keyPath, c
   if (!std::isfinite(x)) fail(keyPath, "must be a finite number");
   if (k.type == KnobType::Int && x != std::floor(x)) fail(keyPath, "must be an integer");
   if (k.type == KnobType::Bool && x != 0.0 && x != 1.0) fail(keyPath, "must be true or false");
-  if (x < k.lo || x > k.hi) {
-    std::ostringstream s;
-    s << "value " << x << " out of range [" << k.lo << ", " << k.hi << "]";
-    fail(keyPath, s.str());
-  }
+  if (x < k.lo || x > k.hi)
+    fail(keyPath, std::string(k.type == KnobType::Int ? "must be an integer" : "must be a finite number") + " in [" +
+                      capture::formatNumber(k.lo) + ", " + capture::formatNumber(k.hi) + "], not " + capture::formatNumber(x));
 }
 
 double KnobGroup::read(const KnobInfo& k, const nlohmann::json& v, const std::string& keyPath, const KnobFail& fail) const {

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 
+#include "capture/checks.h"
 #include "capture/json_io.h"
 #include "capture/types.h"
 #include "lighting/techniques/registry.h"
@@ -83,8 +84,7 @@ void checkModelContent(const std::string& path, const std::string& ext) {
       throw SceneError(path, "not a binary glTF 2 file (no 'glTF' header of version 2)");
   } else if (ext == ".gltf") {
     // Parsed here with our depth bound (assimp's JSON reader recurses without one), then its asset version.
-    std::ifstream whole(path, std::ios::binary);
-    const nlohmann::json j = capture::parseJson(whole, path);
+    const nlohmann::json j = capture::parseJson(capture::readFileBounded(path, capture::kMaxTextFileBytes, "glTF file"), path);
     if (!j.is_object() || !j.contains("asset") || !j["asset"].is_object() || !j["asset"].contains("version") ||
         !j["asset"]["version"].is_string() || j["asset"]["version"].get<std::string>().rfind("2", 0) != 0)
       throw SceneError(path, "not a glTF 2 file (asset.version \"2.x\" missing)");
@@ -116,7 +116,7 @@ Mesh loadMesh(const std::string& path) {
   // post-processing — which trusts its input (out-of-range or truncated faces crash or abort inside it).
   const aiScene* scene = importer.ReadFile(path, aiProcess_ValidateDataStructure);
   if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
-    throw SceneError(path, std::string("cannot read model: ") + importer.GetErrorString());
+    throw SceneError(path, "cannot read model: " + capture::excerpt(importer.GetErrorString()));
   for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
     const aiMesh* mesh = scene->mMeshes[m];
     if (!mesh || !mesh->mVertices) throw SceneError(path, "model mesh " + std::to_string(m) + " has no vertices");
@@ -138,7 +138,7 @@ Mesh loadMesh(const std::string& path) {
   }
   scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_GenSmoothNormals | aiProcess_JoinIdenticalVertices |
                                        aiProcess_SortByPType | aiProcess_PreTransformVertices);
-  if (!scene || !scene->mRootNode) throw SceneError(path, std::string("cannot read model: ") + importer.GetErrorString());
+  if (!scene || !scene->mRootNode) throw SceneError(path, "cannot read model: " + capture::excerpt(importer.GetErrorString()));
   Mesh mesh;
   appendNode(scene, scene->mRootNode, aiMatrix4x4(), mesh);
   if (mesh.indices.empty()) throw SceneError(path, "model holds no triangles");
@@ -177,19 +177,16 @@ class Reader {
   double number(const json& v, const std::string& key, double lo, double hi) const {
     if (!v.is_number()) fail(key, "must be a number");
     const double x = v.get<double>();
-    if (!std::isfinite(x) || x < lo || x > hi) {
-      std::ostringstream s;
-      s << "value " << x << " out of range [" << lo << ", " << hi << "]";
-      fail(key, s.str());
-    }
+    const std::string problem = capture::numberProblem(x, lo, hi);
+    if (!problem.empty()) fail(key, problem);
     return x;
   }
 
   int integer(const json& v, const std::string& key, int lo, int hi) const {
     if (!v.is_number_integer()) fail(key, "must be an integer");
     const auto x = v.get<long long>();
-    if (x < lo || x > hi) fail(key, "value " + std::to_string(x) + " out of range [" + std::to_string(lo) + ", " +
-                                        std::to_string(hi) + "]");
+    if (x < lo || x > hi)
+      fail(key, "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], not " + std::to_string(x));
     return static_cast<int>(x);
   }
 
@@ -215,9 +212,9 @@ class Reader {
 };
 
 cv::Vec3d unit(const cv::Vec3d& v, const Reader& r, const std::string& key) {
-  const double n = cv::norm(v);
-  if (n < 1e-9) r.fail(key, "must not be the zero vector");
-  return v / n;
+  const std::string problem = capture::directionProblem(v);
+  if (!problem.empty()) r.fail(key, problem);
+  return v / cv::norm(v);
 }
 
 }  // namespace
@@ -247,14 +244,14 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
       VirtualObject obj;
       const std::string model = r.string(o["model"], key + ".model");
       obj.model = fs::path(model).is_absolute() ? fs::path(model).lexically_normal().string() : (base / model).lexically_normal().string();
-      const double scale = o.contains("scale") ? r.number(o["scale"], key + ".scale", 1e-6, 1e6) : 1.0;
-      const cv::Vec3d t = o.contains("translate") ? r.vec3(o["translate"], key + ".translate", -1e3, 1e3) : cv::Vec3d();
-      const cv::Vec3d rd = o.contains("rotate_deg") ? r.vec3(o["rotate_deg"], key + ".rotate_deg", -3600, 3600) : cv::Vec3d();
+      const double scale = o.contains("scale") ? r.number(o["scale"], key + ".scale", kObjectScale.lo, kObjectScale.hi) : 1.0;
+      const cv::Vec3d t = o.contains("translate") ? r.vec3(o["translate"], key + ".translate", kObjectTranslateM.lo, kObjectTranslateM.hi) : cv::Vec3d();
+      const cv::Vec3d rd = o.contains("rotate_deg") ? r.vec3(o["rotate_deg"], key + ".rotate_deg", kObjectRotateDeg.lo, kObjectRotateDeg.hi) : cv::Vec3d();
       if (o.contains("material")) {
         const json& m = o["material"];
         const std::string materialKey = key + ".material";
         r.allowOnly(m, materialKey, {"albedo", "roughness", "specular"});
-        if (m.contains("albedo")) obj.material.albedo = r.vec3(m["albedo"], key + ".material.albedo", 0, 1);
+        if (m.contains("albedo")) obj.material.albedo = r.vec3(m["albedo"], key + ".material.albedo", kAlbedo.lo, kAlbedo.hi);
         if (m.contains("roughness"))
           obj.material.roughness = static_cast<float>(r.number(m["roughness"], key + ".material.roughness", 0, 1));
         if (m.contains("specular"))
@@ -295,6 +292,8 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
       s.lightSource = v == "manifest" ? LightSource::Manifest : v == "fisheye" ? LightSource::Fisheye : LightSource::Room;
     } else if (l.is_array()) {
       s.lightSource = LightSource::Scene;
+      if (l.size() > static_cast<size_t>(capture::kMaxLightCount))
+        r.fail("lights", std::to_string(l.size()) + " lights, at most " + std::to_string(capture::kMaxLightCount) + " are supported");
       for (size_t i = 0; i < l.size(); ++i) {
         const std::string key = "lights[" + std::to_string(i) + "]";
         const json& j = l[i];
@@ -308,17 +307,17 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
         };
         if (type == "point" || type == "spot") {
           light.type = type == "point" ? LightType::Point : LightType::Spot;
-          light.position = r.vec3(need("position"), key + ".position", -1e3, 1e3);
-          light.intensity = r.vec3(need("intensity"), key + ".intensity", 0, 1e9);
+          light.position = r.vec3(need("position"), key + ".position", -capture::kMaxLightPositionM, capture::kMaxLightPositionM);
+          light.intensity = r.vec3(need("intensity"), key + ".intensity", 0, capture::kMaxLightPower);
           if (light.type == LightType::Spot) {
             light.direction = unit(r.vec3(need("direction"), key + ".direction", -1e3, 1e3), r, key + ".direction");
             if (j.contains("spot_half_angle_deg"))
-              light.spotHalfAngleDeg = r.number(j["spot_half_angle_deg"], key + ".spot_half_angle_deg", 0.1, 89.0);
+              light.spotHalfAngleDeg = r.number(j["spot_half_angle_deg"], key + ".spot_half_angle_deg", capture::kMinSpotHalfAngleDeg, capture::kMaxSpotHalfAngleDeg);
           }
         } else if (type == "directional") {
           light.type = LightType::Directional;
           light.direction = unit(r.vec3(need("direction"), key + ".direction", -1e3, 1e3), r, key + ".direction");
-          light.irradiance = r.vec3(need("irradiance"), key + ".irradiance", 0, 1e9);
+          light.irradiance = r.vec3(need("irradiance"), key + ".irradiance", 0, capture::kMaxLightPower);
         } else {
           r.fail(key + ".type", "unknown light type '" + type + "' (expected point, spot or directional)");
         }
@@ -392,11 +391,7 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
 }
 
 SceneDescription loadScene(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(path, "cannot open scene file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parseScene(ss.str(), path);
+  return parseScene(capture::readFileBounded(path, capture::kMaxTextFileBytes, "scene file"), path);
 }
 
 }  // namespace mrgi::lighting

@@ -18,6 +18,15 @@
 
 namespace mrgi::lighting {
 
+/// The ranges of an object's placement, the same in a scene file and on insert's flags.
+struct ValueRange {
+  double lo, hi;
+};
+inline constexpr ValueRange kObjectScale{1e-6, 1e6};
+inline constexpr ValueRange kObjectTranslateM{-1e3, 1e3};
+inline constexpr ValueRange kObjectRotateDeg{-3600, 3600};
+inline constexpr ValueRange kAlbedo{0, 1};
+
 /// Bad scene file or model: "path: key: problem" (the one input-error class, capture/error.h).
 using SceneError = capture::InputError;
 

@@ -6,6 +6,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/image_io.h"
+
 namespace mrgi::reconstruction {
 
 FisheyeCalibrationResult calibrateFisheye(const std::vector<std::string>& paths, cv::Size inner, double square) {
@@ -17,11 +19,9 @@ FisheyeCalibrationResult calibrateFisheye(const std::vector<std::string>& paths,
     for (int c = 0; c < inner.width; ++c) board.emplace_back(c * square, r * square, 0);
   cv::Size size;
   for (const auto& path : paths) {
-    const cv::Mat grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
-    if (grey.empty()) {
-      out.rejected.push_back(path + ": not a readable image");
-      continue;
-    }
+    // Decoded by our readers (a damaged file is an error naming it; libpng never prints).
+    cv::Mat grey;
+    cv::cvtColor(capture::readColour(path), grey, cv::COLOR_RGB2GRAY);
     if (size.area() == 0) size = grey.size();
     if (grey.size() != size) {
       out.rejected.push_back(path + ": size differs from the first image");

@@ -1,6 +1,8 @@
 #include "reconstruction/mesh_rays.h"
 
 #include <algorithm>
+#include <cmath>
+#include <stdexcept>
 
 #include <embree3/rtcore.h>
 
@@ -38,6 +40,12 @@ MeshRays::~MeshRays() = default;
 
 namespace {
 RTCRay makeRay(const cv::Vec3d& o, const cv::Vec3d& d, double far) {
+  // Embree asserts (aborts) on a ray it cannot trace; such a ray is the caller's error, never a signal.
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(o[k]) || std::abs(o[k]) > 1e6 || !std::isfinite(d[k]))
+      throw std::invalid_argument("MeshRays: a ray's origin or direction is not finite or lies beyond 1e6 m");
+  if (d[0] == 0 && d[1] == 0 && d[2] == 0) throw std::invalid_argument("MeshRays: a ray without a direction");
+  if (std::isnan(far)) throw std::invalid_argument("MeshRays: a ray's far distance is nan");
   RTCRay ray{};
   ray.org_x = static_cast<float>(o[0]), ray.org_y = static_cast<float>(o[1]), ray.org_z = static_cast<float>(o[2]);
   ray.dir_x = static_cast<float>(d[0]), ray.dir_y = static_cast<float>(d[1]), ray.dir_z = static_cast<float>(d[2]);

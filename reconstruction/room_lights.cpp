@@ -5,6 +5,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "capture/checks.h"
 #include "capture/colour.h"
 #include "reconstruction/mesh_rays.h"
 
@@ -36,6 +37,9 @@ FisheyeRays latLongRays(int width) {
 RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o) {
   if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");
   if (room.radiance.size() != room.positions.size()) throw std::invalid_argument("estimateRoomLights: no radiance per vertex");
+  for (int k = 0; k < 3; ++k)
+    capture::checkNumber(centre[k], -1e4, 1e4, "room lights", "the point they are seen from (" + capture::formatNumber(centre[0]) + ", " +
+                                                                 capture::formatNumber(centre[1]) + ", " + capture::formatNumber(centre[2]) + ")");
   if (!(o.saturatedGain >= 0) || !(o.whiteAlbedo > 0 && o.whiteAlbedo <= 1) || !(o.maxGain >= 1) || !(o.estimateRadius > 0) ||
       !(o.maxSaturatedFraction >= 0 && o.maxSaturatedFraction <= 1) || !(o.minPointDistance >= 0))
     throw std::invalid_argument("estimateRoomLights: options out of range");

@@ -25,6 +25,7 @@
 #include "capture/npz.h"
 #include "capture/ply_check.h"
 #include "reconstruction/mesh_rays.h"
+#include "capture/checks.h"
 
 namespace fs = std::filesystem;
 namespace o3d = open3d;
@@ -828,8 +829,7 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw capture::InputError(dir, "room folder is missing");
   if (!fs::is_regular_file(json, ec)) throw capture::InputError(json.string(), "missing (not a room folder written by mrgi room)");
-  std::ifstream in(json);
-  const nlohmann::json j = capture::parseJson(in, json.string());
+  const nlohmann::json j = capture::parseJson(capture::readFileBounded(json.string(), capture::kMaxTextFileBytes, "room description"), json.string());
   if (!j.is_object() || !j.contains("format") || !j["format"].is_string() || j["format"].get<std::string>() != "mrgi-room")
     throw capture::InputError(json.string(), "format: not \"mrgi-room\"");
   if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int64_t>() < 1 || j["version"].get<int64_t>() > 2)
@@ -874,8 +874,7 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   if (version >= 2) {
     const fs::path npy = fs::path(dir) / "room_appearance.npy";
     if (!fs::is_regular_file(npy, ec)) throw capture::InputError(npy.string(), "room appearance is missing");
-    std::ifstream a(npy, std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(a)), std::istreambuf_iterator<char>());
+    const std::string bytes = capture::readFileBounded(npy.string(), capture::kMaxBinaryFileBytes, "room appearance array");
     const cv::Mat rows = capture::parseNpy(bytes, npy.string());
     if (rows.type() != CV_32FC1 || rows.cols != kAppearanceColumns || static_cast<size_t>(rows.rows) != n)
       throw capture::InputError(npy.string(), "expected float32 (" + std::to_string(n) + ", " + std::to_string(kAppearanceColumns) +

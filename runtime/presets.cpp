@@ -5,6 +5,7 @@
 #include "capture/error.h"
 #include "capture/json_io.h"
 #include "lighting/techniques/registry.h"
+#include "capture/checks.h"
 
 using nlohmann::json;
 
@@ -20,9 +21,7 @@ void applyPreset(const json& preset, lighting::SceneDescription& scene) {
 }
 
 json loadPreset(const std::string& path, const std::string& name) {
-  std::ifstream in(path);
-  if (!in) throw capture::CaptureError(path, "cannot read the presets file");
-  const json doc = capture::parseJson(in, path);
+  const json doc = capture::parseJson(capture::readFileBounded(path, capture::kMaxTextFileBytes, "presets file"), path);
   const json& presets = doc.contains("presets") ? doc["presets"] : doc;
   if (!presets.is_object() || !presets.contains(name))
     throw capture::CaptureError(path, "has no preset \"" + name + "\" (fast, balanced, accurate)");

@@ -18,7 +18,7 @@ while [[ $# -gt 0 ]]; do
     *) targets+=("$1"); shift ;;
   esac
 done
-all=(manifest_fuzz session_fuzz scene_fuzz preset_fuzz model_fuzz image_fuzz npy_fuzz tum_fuzz fisheye_yaml_fuzz room_fuzz)
+all=(manifest_fuzz session_fuzz scene_fuzz preset_fuzz model_fuzz image_fuzz npy_fuzz tum_fuzz fisheye_yaml_fuzz room_fuzz fisheye_fuzz flag_fuzz)
 [[ ${#targets[@]} -eq 0 ]] && targets=("${all[@]}")
 
 # The fuzzing toolchain (not needed by the normal build or the tests).
@@ -36,7 +36,7 @@ cmake --build build-fuzz --target "${targets[@]}"
 # Seeds: the bundled files (targets whose first byte picks a mode get each seed with every prefix).
 seeds=build-fuzz/seeds
 rm -rf "$seeds"
-mkdir -p "$seeds"/{manifest_fuzz,session_fuzz,scene_fuzz,preset_fuzz,model_fuzz,image_fuzz,npy_fuzz,tum_fuzz,fisheye_yaml_fuzz,room_fuzz}
+mkdir -p "$seeds"/{manifest_fuzz,session_fuzz,scene_fuzz,preset_fuzz,model_fuzz,image_fuzz,npy_fuzz,tum_fuzz,fisheye_yaml_fuzz,room_fuzz,fisheye_fuzz,flag_fuzz}
 i=0; for f in recordings/*/manifest.json; do cp "$f" "$seeds/manifest_fuzz/m$i.json"; i=$((i + 1)); done
 cp recordings/scenes/*.json "$seeds/scene_fuzz/"
 cp recordings/presets.json "$seeds/preset_fuzz/"
@@ -123,6 +123,20 @@ PY
 printf '# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n1305031102.211214 rgb/1305031102.211214.png\n' > "$seeds/tum_fuzz/rgb.txt"
 printf '# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n' > "$seeds/tum_fuzz/groundtruth.txt"
 cp ../shared/data/fisheye-ros-calib/ost.yaml "$seeds/fisheye_yaml_fuzz/" 2>/dev/null || true
+# Fisheye frames: a 32x24 sky as half-float EXR, Radiance HDR and PNG, each under its own first byte.
+{ printf '\x00'; cat fuzz/seeds/fisheye/sky.exr; } > "$seeds/fisheye_fuzz/exr"
+{ printf '\x01'; cat fuzz/seeds/fisheye/sky.hdr; } > "$seeds/fisheye_fuzz/hdr"
+{ printf '\x02'; cat fuzz/seeds/fisheye/sky.png; } > "$seeds/fisheye_fuzz/png"
+{ printf '\x02'; cat fuzz/seeds/fisheye/sky.hdr; } > "$seeds/image_fuzz/sky.hdr-2"  # Radiance HDR through readAny
+# Flags: one argv per subcommand (arguments separated by NUL bytes).
+i=0
+for argv in "replay|s|--out|o|--fps|30|--technique|dlpv|--pose|tracked|--mp4|" "insert|--session|s|--model|m.ply|--save|x.json|--albedo|0.5,0.5,0.5|--translate|0,0,0.1" \
+            "room|s|--out|r|--voxel|0.02|--trunc|0.08|--max-depth|4" "room-lights|r|--at|0|0|0.06|--count|4" "lights|p.hdr|--exposure|1|--count|4" \
+            "track|s|--json|--size|0.1|--hold|0.5|--decimate|2|--family|tag36h11|--id|3" "bench|--quick|--repeats|2|--ref-spp|8" \
+            "record|--source|s|--out|o|--rate|30" "import-visp|d|--out|o|--tag-id|3" "synth|--out|o|--frames|3|--width|160|--height|120"; do
+  printf '%s' "$argv" | tr '|' '\0' > "$seeds/flag_fuzz/a$i"
+  i=$((i + 1))
+done
 
 export LSAN_OPTIONS="suppressions=$PWD/fuzz/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"

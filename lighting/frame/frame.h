@@ -13,6 +13,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "capture/checks.h"
 #include "capture/types.h"
 #include "gl/objects.h"
 #include "gl/profiler.h"
@@ -24,7 +25,7 @@
 
 namespace mrgi::lighting {
 
-constexpr int kMaxLights = 16;
+constexpr int kMaxLights = capture::kMaxLightCount;
 
 /// Interleaved vertex of every mesh the pipeline draws.
 struct MeshVertex {

@@ -11,6 +11,7 @@
 #include <set>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -131,8 +132,14 @@ TEST(Cli, ReplayWritesFramesAndSummary) {
   const cv::Mat composite = cv::imread((out / "frame_0001.png").string());
   const cv::Mat colour = cv::imread((session() / "colour/000001.png").string());
   EXPECT_LE(cv::norm(composite, colour, cv::NORM_INF), 1.0);
-  // Running again into the same folder (earlier output) works; a folder of user files is refused.
+  // Running again into the same folder (earlier output) works, and leaves none of the earlier run's frames
+  // beside the new summary; a file the user put there stays. A folder of user files is refused.
+  std::ofstream(out / "notes.txt") << "mine";
   EXPECT_EQ(runMrgi("replay " + session().string() + " --out " + out.string() + " --frames 1").exitCode, 0);
+  EXPECT_TRUE(fs::exists(out / "frame_0000.png"));
+  EXPECT_FALSE(fs::exists(out / "frame_0001.png")) << "a stale frame of the earlier run";
+  EXPECT_EQ(nlohmann::json::parse(slurp(out / "summary.json"))["frames"], 1);
+  EXPECT_EQ(slurp(out / "notes.txt"), "mine");
   const fs::path mine = out.string() + "_user";
   fs::create_directories(mine);
   std::ofstream(mine / "thesis.tex") << "precious";
@@ -154,6 +161,45 @@ TEST(Cli, ReplayWritesFramesAndSummary) {
   fs::remove(out.string() + "_video.mp4");
   fs::remove_all(out);
   fs::remove_all(mine);
+}
+
+TEST(Cli, LightsFromARadianceProbe) {
+  // The Debevec probes are shared as equirectangular Radiance .hdr files: without --calib, lights reads one
+  // as a lat-long map (z up at the top row). Its total power is the probe's radiance summed over the sphere,
+  // each pixel weighted by its solid angle, computed here from OpenCV's own decoding of the file.
+  const std::string probe = std::string(MRGI_SHARED_DATA) + "/hdr-probes/grace.hdr";
+  const Result r = runMrgi("lights " + probe + " --json --count 4");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["count"], 4);
+  cv::Mat img = cv::imread(probe, cv::IMREAD_UNCHANGED);  // BGR float
+  ASSERT_EQ(img.type(), CV_32FC3);
+  cv::Vec3d total(0, 0, 0);
+  const double dPhi = 2 * CV_PI / img.cols;
+  for (int v = 0; v < img.rows; ++v) {
+    const double omega = dPhi * (std::cos(CV_PI * v / img.rows) - std::cos(CV_PI * (v + 1) / img.rows));
+    for (int u = 0; u < img.cols; ++u) {
+      const cv::Vec3f bgr = img.at<cv::Vec3f>(v, u);
+      total += omega * cv::Vec3d(bgr[2], bgr[1], bgr[0]);
+    }
+  }
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(j["total_power"][c].get<double>(), total[c], 1e-4 * total[c]) << c;
+  // The lights and the SH remainder hold it all, and the brightest light comes from the sky above.
+  double lit = 0, best = 0, bestZ = 0;
+  for (const auto& l : j["lights"]) {
+    const double p = l["power"][1].get<double>();
+    lit += p;
+    if (p > best) best = p, bestZ = l["direction"][2].get<double>();
+  }
+  EXPECT_GT(bestZ, 0.5);
+  EXPECT_LT(lit, total[1] * 1.0001);
+  // Damaged, it is one line naming the file.
+  const fs::path cut = fs::temp_directory_path() / ("mrgi_cli_probe_" + std::to_string(::getpid()) + ".hdr");
+  const std::string bytes = slurp(probe);
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 3);
+  expectOneLineError(runMrgi("lights " + cut.string()), cut.string() + ": cannot decode Radiance HDR (truncated");
+  fs::remove(cut);
 }
 
 TEST(Cli, BadInputsAreOneLineErrors) {
@@ -481,7 +527,7 @@ TEST(Cli, ReplayWithEmptySceneEqualsTheBackground) {
 TEST(Cli, BadSceneFilesAreOneLineErrors) {
   fs::remove_all("/tmp/mrgi_never_written");
   const std::string base = "replay " + session().string() + " --out /tmp/mrgi_never_written --scene ";
-  expectOneLineError(runMrgi(base + "/nonexistent/scene.json"), "/nonexistent/scene.json: cannot open scene file");
+  expectOneLineError(runMrgi(base + "/nonexistent/scene.json"), "/nonexistent/scene.json: is missing");
   expectOneLineError(runMrgi(base + writeScene("typo.json", R"({"objets": []})").string()), "objets: unknown key");
   expectOneLineError(runMrgi(base + writeScene("nomodel.json", R"({"objects": [{"model": "gone.obj"}]})").string()),
                      "objects[0].model:");
@@ -1184,14 +1230,16 @@ TEST(Cli, FisheyeImagesOfNanNegativeOrNoLightAreRefused) {
   const cv::Mat original = cv::imread(exr.string(), cv::IMREAD_UNCHANGED);
   ASSERT_FALSE(original.empty());
   const std::string scene = (fs::path(MRGI_SOURCE_DIR) / "recordings/scenes/tabletop-fisheye.json").string();
-  const std::pair<float, const char*> cases[] = {{std::numeric_limits<float>::quiet_NaN(), "non-finite"},
-                                                 {-1.f, "negative radiance"},
-                                                 {0.f, "black everywhere"}};
-  for (const auto& [value, message] : cases) {
+  // NaN is refused by the image reader (every float image), the others by the fisheye's own checks.
+  const std::tuple<float, const char*, const char*> cases[] = {
+      {std::numeric_limits<float>::quiet_NaN(), ": holds a non-finite value at pixel (0, 0)", ""},
+      {-1.f, ": fisheye image", "negative radiance"},
+      {0.f, ": fisheye image", "black everywhere"}};
+  for (const auto& [value, prefix, message] : cases) {
     cv::imwrite(exr.string(), cv::Mat(original.size(), original.type(), cv::Scalar::all(value)));
     fs::remove_all(dir / "out");
     const Result r = runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --mp4 \"\" --out " + (dir / "out").string());
-    expectOneLineError(r, exr.string() + ": fisheye image");
+    expectOneLineError(r, exr.string() + prefix);
     EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
   }
   fs::remove_all(dir);
@@ -1622,7 +1670,7 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
   EXPECT_EQ(slurp(mine / "notes.txt"), "mine");
   EXPECT_FALSE(fs::exists(mine / "room.ply"));
   // Bad options and a session without any marker pose are one line each.
-  expectOneLineError(runMrgi("room " + session + " --out " + out.string() + "_x --voxel 0.02 --trunc 0.01"), "trunc_m");
+  expectOneLineError(runMrgi("room " + session + " --out " + out.string() + "_x --voxel 0.02 --trunc 0.01"), "--trunc: must be at least 2 voxels");
   const fs::path noTag = scratchSession("mrgi_cli_room_notag_", ::session(), 2);
   for (const auto& e : fs::directory_iterator(noTag / "s" / "colour"))  // flat grey frames: no tag to see
     cv::imwrite(e.path().string(), cv::Mat(120, 160, CV_8UC3, cv::Scalar(90, 90, 90)));

@@ -94,6 +94,7 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
   auto expand = [&](std::string s) {
     s = replaceAll(s, "{session}", session.string());
     s = replaceAll(s, "{data}", data.string());
+    s = replaceAll(s, "{models}", models);
     return replaceAll(s, "{out}", out.string());
   };
 
@@ -138,6 +139,12 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
     }
   if (c.contains("make"))
     for (const auto& [target, text] : c["make"].items()) spit(expand(target), expand(text.get<std::string>()));
+  if (c.contains("generate"))  // [head, unit, times, tail]: large inputs kept small in cases.json
+    for (const auto& [target, g] : c["generate"].items()) {
+      std::string text = g[0].get<std::string>();
+      for (int i = 0; i < g[2].get<int>(); ++i) text += g[1].get<std::string>();
+      spit(expand(target), text + g[3].get<std::string>());
+    }
 
   const bool outIsInput = c.value("out_is_input", false);
   const auto before = snapshot(root, outIsInput ? fs::path() : out);
@@ -157,6 +164,9 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
   EXPECT_LE(code, 127) << err;
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
   EXPECT_NE(err.find(expand(c["names"])), std::string::npos) << err;
+  if (c.contains("says")) EXPECT_NE(err.find(c["says"].get<std::string>()), std::string::npos) << err;
+  if (c.contains("exit")) EXPECT_EQ(code, c["exit"].get<int>()) << err;  // 2: a bad flag
+  EXPECT_LE(err.size(), expand(c["names"]).size() + 700) << "a short line";
   const auto after = snapshot(root, outIsInput ? fs::path() : out);
   EXPECT_EQ(after.size(), before.size());
   for (const auto& [path, bytes] : before) {

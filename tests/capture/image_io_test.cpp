@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
+#include <tuple>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -234,4 +236,94 @@ TEST(ImageIo, ExrHeaderAttributesLongerThanTheFileAreRefusedBeforeAllocation) {
     ++attributes;
   }
   EXPECT_GE(attributes, 6);  // channels, compression, dataWindow, displayWindow, lineOrder, ...
+}
+
+TEST(ImageIo, RadianceHdrProbesDecodeAsOpenCvDoes) {
+  // The light probes in ../shared/data/hdr-probes are Radiance RGBE, run-length encoded. Our decoder (from
+  // memory, bounded) against OpenCV's reference-derived one: identical floats, RGB order.
+  for (const char* name : {"grace", "pisa", "uffizi"}) {
+    const std::string path = std::string(MRGI_SHARED_DATA) + "/hdr-probes/" + name + ".hdr";
+    cv::Mat expected = cv::imread(path, cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(expected.type(), CV_32FC3) << name;
+    cv::cvtColor(expected, expected, cv::COLOR_BGR2RGB);
+    const cv::Mat ours = readAny(path);
+    ASSERT_EQ(ours.type(), CV_32FC3) << name;
+    ASSERT_EQ(ours.size(), expected.size()) << name;
+    EXPECT_EQ(cv::norm(ours, expected, cv::NORM_INF), 0.0) << name;
+    double hi = 0;
+    cv::minMaxLoc(ours.reshape(1), nullptr, &hi);
+    EXPECT_GT(hi, 1.0) << name << ": a probe's sky is brighter than 1";
+  }
+}
+
+TEST(ImageIo, FlatRadianceHdrDecodesAndDamagedOnesAreOneErrorNamingTheFile) {
+  // A 4x2 flat (not run-length encoded) file written by hand: pixel (r, g, b, e) = (r, g, b) * 2^(e - 136).
+  std::string text = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 4\n";
+  std::vector<unsigned char> bytes(text.begin(), text.end());
+  for (int i = 0; i < 8; ++i)
+    for (unsigned char b : {static_cast<unsigned char>(16 * i), static_cast<unsigned char>(128), static_cast<unsigned char>(255),
+                            static_cast<unsigned char>(i == 3 ? 0 : 129 + i)})
+      bytes.push_back(b);
+  const fs::path p = scratch("flat.hdr");
+  writeBytes(p, bytes);
+  const cv::Mat img = readAny(p.string());
+  ASSERT_EQ(img.type(), CV_32FC3);
+  ASSERT_EQ(img.size(), cv::Size(4, 2));
+  EXPECT_FLOAT_EQ(img.at<cv::Vec3f>(0, 1)[0], 16.f * std::ldexp(1.f, 130 - 136));
+  EXPECT_FLOAT_EQ(img.at<cv::Vec3f>(0, 1)[2], 255.f * std::ldexp(1.f, 130 - 136));
+  EXPECT_EQ(img.at<cv::Vec3f>(0, 3), cv::Vec3f(0, 0, 0));  // exponent 0: black
+  EXPECT_FLOAT_EQ(img.at<cv::Vec3f>(1, 3)[1], 128.f * std::ldexp(1.f, 136 - 136));
+  // Damaged: cut short, a run past the scanline, an absurd size, another pixel format, a missing resolution.
+  const std::string probe = std::string(MRGI_SHARED_DATA) + "/hdr-probes/grace.hdr";
+  std::ifstream in(probe, std::ios::binary);
+  const std::vector<unsigned char> good((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<unsigned char> cut(good.begin(), good.begin() + static_cast<long>(good.size() / 2));
+  std::vector<unsigned char> run = good;
+  const size_t body = std::string(good.begin(), good.end()).find("+X 256\n") + 7;
+  ASSERT_EQ(run[body], 2);  // run-length encoded
+  run[body + 4] = 128;     // the first run of the first scanline: a run of nothing
+  const std::string huge = "#?RADIANCE\n\n-Y 100000 +X 100000\n", xyze = "#?RADIANCE\nFORMAT=32-bit_rle_xyze\n\n-Y 1 +X 1\n0000",
+                    nores = "#?RADIANCE\n\n+Y 2 -X 2\n00000000";
+  int cases = 0;
+  for (const auto& [name, data, message] : std::vector<std::tuple<std::string, std::vector<unsigned char>, std::string>>{
+           {"cut.hdr", cut, "truncated"},
+           {"run.hdr", run, "out of bounds"},
+           {"huge.hdr", {huge.begin(), huge.end()}, "at most 16384 a side"},
+           {"xyze.hdr", {xyze.begin(), xyze.end()}, "only 32-bit_rle_rgbe"},
+           {"orientation.hdr", {nores.begin(), nores.end()}, "'-Y height +X width'"}}) {
+    const fs::path f = scratch(name);
+    writeBytes(f, data);
+    try {
+      (void)readAny(f.string());
+      ADD_FAILURE() << name << " decoded";
+    } catch (const InputError& e) {
+      const std::string m = e.what();
+      EXPECT_EQ(m.rfind(f.string() + ": cannot decode Radiance HDR (", 0), 0u) << m;
+      EXPECT_NE(m.find(message), std::string::npos) << m;
+      ++cases;
+    }
+  }
+  EXPECT_EQ(cases, 5);
+}
+
+TEST(ImageIo, FloatImagesWithNanOrInfAreRefusedNamingThePixel) {
+  cv::Mat img = ramp(8, 4);
+  img.at<cv::Vec3f>(2, 5)[1] = std::numeric_limits<float>::quiet_NaN();
+  const fs::path p = scratch("nan.exr");
+  writeBytes(p, encodeExr(img, false, p.string()));
+  try {
+    (void)readAny(p.string());
+    ADD_FAILURE() << "decoded";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), p.string() + ": holds a non-finite value at pixel (5, 2)");
+  }
+  img.at<cv::Vec3f>(2, 5)[1] = 0;
+  img.at<cv::Vec3f>(3, 7)[2] = std::numeric_limits<float>::infinity();
+  writeBytes(p, encodeExr(img, false, p.string()));
+  try {
+    (void)readAny(p.string());
+    ADD_FAILURE() << "decoded";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), p.string() + ": holds a non-finite value at pixel (7, 3)");
+  }
 }

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <set>
 
+#include "capture/checks.h"
 #include "lighting/scene_file.h"
 #include "lighting/techniques/registry.h"
 
@@ -101,8 +102,11 @@ TEST(Knobs, OutOfRangeOrMistypedValuesNameTheFileAndTheKey) {
         bad.push_back({"1", key + ": must be true or false"});
       } else {
         const double below = k.lo - (k.type == KnobType::Int ? 1 : std::max(1e-3, std::abs(k.lo)));
-        bad.push_back({literal(k, below), key + ": value "});
-        bad.push_back({literal(k, k.hi + std::max(1.0, std::abs(k.hi))), key + ": value "});
+        const double above = k.hi + std::max(1.0, std::abs(k.hi));
+        const std::string range = std::string(k.type == KnobType::Int ? ": must be an integer in [" : ": must be a finite number in [") +
+                                  mrgi::capture::formatNumber(k.lo) + ", " + mrgi::capture::formatNumber(k.hi) + "], not ";
+        bad.push_back({literal(k, below), key + range + mrgi::capture::formatNumber(below)});
+        bad.push_back({literal(k, above), key + range + mrgi::capture::formatNumber(above)});
         bad.push_back({"\"x\"", key + ": must be"});
         if (k.type == KnobType::Int) bad.push_back({"2.5", key + ": must be an integer"});
       }

@@ -1,0 +1,82 @@
+#include "app/cli_checks.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+
+#include "capture/checks.h"
+
+namespace mrgi::app {
+namespace {
+
+/// The value as a number, or the reason it is not one.
+bool parseNumber(const std::string& text, double& v) {
+  if (text.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  v = std::strtod(text.c_str(), &end);
+  return end != text.c_str() && *end == '\0';
+}
+
+CLI::Validator rangeValidator(double lo, double hi, bool openLo) {
+  const std::string range = std::string(openLo ? "(" : "[") + capture::formatNumber(lo) + ", " + capture::formatNumber(hi) + "]";
+  return CLI::Validator(
+      [lo, hi, openLo, range](std::string& value) -> std::string {
+        double v = 0;
+        if (!parseNumber(value, v)) return "'" + capture::excerpt(value, 40) + "' is not a number";
+        std::string problem = capture::numberProblem(v, lo, hi);
+        if (problem.empty() && openLo && v <= lo) problem = "must be a finite number in " + range + ", not " + capture::formatNumber(v);
+        return problem;
+      },
+      "in " + range, "number");
+}
+
+constexpr const char* kAllowEmpty = "allow-empty";
+
+bool emptyAllowed(CLI::Option* option) {
+  try {
+    option->get_validator(kAllowEmpty);
+    return true;
+  } catch (const CLI::OptionNotFound&) {
+    return false;
+  }
+}
+
+}  // namespace
+
+void allowEmpty(CLI::Option* option) {
+  option->check(CLI::Validator([](std::string&) { return std::string(); }, "", kAllowEmpty));  // a mark, checks nothing
+}
+
+CLI::Validator numberIn(double lo, double hi) { return rangeValidator(lo, hi, false); }
+CLI::Validator numberAbove(double lo, double hi) { return rangeValidator(lo, hi, true); }
+
+CLI::Validator tagFamily() {
+  return CLI::Validator([](std::string& value) -> std::string { return capture::tagProblem(value); }, "FAMILY", "tag family");
+}
+
+void checkTagId(const std::string& family, int id, const std::string& idFlag) {
+  const std::string problem = capture::tagProblem(family, id);
+  if (!problem.empty()) throw FlagError(idFlag, problem);
+}
+
+void checkEveryValue(CLI::App& app) {
+  static const CLI::Validator finite(
+      [](std::string& value) -> std::string {
+        double v = 0;
+        if (parseNumber(value, v) && !std::isfinite(v)) return "must be a finite number, not " + capture::excerpt(value, 40);
+        if (!parseNumber(value, v) && (value == "nan" || value == "inf")) return "must be a finite number";
+        return {};
+      },
+      "", "finite");
+  static const CLI::Validator nonEmpty([](std::string& value) -> std::string { return value.empty() ? "must not be empty" : ""; },
+                                       "", "non-empty");
+  for (CLI::Option* opt : app.get_options()) {
+    if (opt->get_items_expected_max() == 0) continue;  // flags take no value
+    if (!emptyAllowed(opt)) opt->check(nonEmpty);
+    if (opt->get_type_name().find("FLOAT") != std::string::npos) opt->check(finite);
+  }
+  for (CLI::App* sub : app.get_subcommands({})) checkEveryValue(*sub);
+}
+
+}  // namespace mrgi::app
