@@ -1,5 +1,7 @@
 #include "capture/ply_check.h"
 
+#include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
@@ -117,6 +119,18 @@ void checkPlyFile(const std::string& path) {
     }
   }
   if (!header) bad("no end_header");
+  // Readers index the vertex callbacks by coordinate: a vertex element without one of x, y, z (or with some
+  // of a normal's or a colour's components and not the others) crashed Open3D's reader (found by the room
+  // fuzzer: "property float x", "property float z").
+  for (const Element& e : elements) {
+    if (e.name != "vertex") continue;
+    auto has = [&](const char* n) { return std::find(e.names.begin(), e.names.end(), n) != e.names.end(); };
+    if (!has("x") || !has("y") || !has("z")) bad("a vertex element needs the properties x, y and z");
+    for (const auto& group : {std::array<const char*, 3>{"nx", "ny", "nz"}, std::array<const char*, 3>{"red", "green", "blue"}}) {
+      const int n = has(group[0]) + has(group[1]) + has(group[2]);
+      if (n != 0 && n != 3) bad(std::string("a vertex element with some of ") + group[0] + ", " + group[1] + ", " + group[2] + " needs all three");
+    }
+  }
   uint64_t vertices = 0;
   for (const Element& e : elements)
     if (e.name == "vertex") vertices = e.count;

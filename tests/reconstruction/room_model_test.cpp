@@ -393,6 +393,23 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
     return std::string(std::istreambuf_iterator<char>(in), {});
   }();
   EXPECT_NE(with(clipped, json).find((dir / "room.ply").string() + ": malformed PLY: face"), std::string::npos) << with(clipped, json);
+  // Found by the room fuzzer (CI): a vertex element of x and z only crashed Open3D's reader (a read at
+  // address 8); so did, unchecked, a second vertex element or part of a normal.
+  const std::string noY = [&] {
+    std::ifstream in(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/room_ply_vertex_without_y.ply", std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  EXPECT_NE(with(noY, json).find((dir / "room.ply").string() + ": malformed PLY header: a vertex element needs the properties x, y and z"),
+            std::string::npos)
+      << with(noY, json);
+  const std::string twice = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+                            "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                            "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  EXPECT_NE(with(twice, json).find("element 'vertex' declared twice"), std::string::npos) << with(twice, json);
+  const std::string halfNormal = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                                 "property float nx\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                                 "0 0 0 1\n1 0 0 1\n0 1 0 1\n3 0 1 2\n";
+  EXPECT_NE(with(halfNormal, json).find("with some of nx, ny, nz needs all three"), std::string::npos) << with(halfNormal, json);
   // Found by the room fuzzer under UBSan: a count of 1e30 converted to int (undefined behaviour); typed keys
   // refuse it in one line.
   const std::string overflow = [&] {
