@@ -102,7 +102,8 @@ void checkModelContent(const std::string& path, const std::string& ext) {
 
 Mesh loadMesh(const std::string& path) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw SceneError(path, "model file not found");
+  if (!fs::exists(path, ec)) throw SceneError(path, "model file not found");
+  capture::checkFileBounded(path, capture::kMaxBinaryFileBytes, "model");
   // The formats we name, by extension, so that assimp picks its reader by name and never by guessing
   // from the content (its PLY reader claims any file with "ply" near the start).
   std::string ext = fs::path(path).extension().string();
