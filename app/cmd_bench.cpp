@@ -453,6 +453,16 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
         shadeLike.at<cv::Vec4f>(i) = {v[0], v[1], v[2], again.mask.at<uchar>(i) ? 1.f : 0.f};
       }
       const ErrorSums e = errorSums(shadeLike, t);
+      t.second = d2;
+      // The noise itself as an RMS: (r1 - r2)^2 / 2 per real pixel and channel is each render's variance,
+      // relative to the mean r1 r2 (unbiased for the truth's square).
+      cv::Mat real;
+      cv::compare(t.images.mask, 0, real, cv::CMP_EQ);
+      const double pixels = 3.0 * std::max(cv::countNonZero(real), 1);
+      const double variance = cv::norm(t.delta, d2, cv::NORM_L2SQR, real) / 2.0 / pixels;
+      const cv::Scalar products = cv::mean(t.delta.mul(d2), real);
+      const double truthSq = (products[0] + products[1] + products[2]) / 3.0;
+      bs.refInfo["noise_rel_rms_delta"] = truthSq > 0 ? std::sqrt(variance / truthSq) : 0.0;
       bs.refInfo["noise_rel_error_delta"] = e.absRef > 0 ? e.abs / e.absRef / std::sqrt(2.0) : 0.0;
       bs.refInfo["noise_rel_error_virtual"] = e.virtRef > 0 ? e.virtAbs / e.virtRef / std::sqrt(2.0) : 0.0;
       std::printf("%s: reference noise (two seeds, / sqrt 2): delta %.3f, virtual %.3f\n", path.c_str(),
@@ -665,6 +675,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   int wholeFrames = 0;
   size_t gpuBytes = 0;
   std::optional<FrameState> prev;
+  std::optional<UnbiasedError> unbiased;  // on the reference frame rendered twice
   nlohmann::json techniqueStats = nlohmann::json::object();  // the last lit frame's (counts: points, voxels, ...)
   const std::string name = c.technique.name;
   for (int f = 0; f < n; ++f) {
@@ -698,6 +709,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     if (const auto it = bs.truths.find(f); it != bs.truths.end()) {
       const ErrorSums e = errorSums(st.shade, it->second, near ? &*near : nullptr);
       err.add(e);
+      if (const auto u = unbiasedDeltaError(st.shade, it->second)) unbiased = u;
       ssimSum += ssimOf(r.composite, it->second.composite);
       if (images && c.varied.empty() && it == bs.truths.begin()) {
         images->push_back({name + " (defaults), frame " + std::to_string(f), r.composite});
@@ -751,6 +763,9 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
             {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
             {"silhouette_mismatch_pixels", err.mismatched},
             {"technique_stats", techniqueStats}};
+  // The real-pixel delta's relative RMS error without the reference's noise, with its 95 % interval.
+  if (unbiased)
+    r["rel_rms_delta_unbiased"] = {{"value", unbiased->rel()}, {"lo", unbiased->relLo()}, {"hi", unbiased->relHi()}, {"pixels", unbiased->pixels}};
   if (wholeFrames > 0)
     r["whole_pipeline"] = {{"frames", wholeFrames},
                            {"rel_error_delta", whole.relDelta()},
@@ -810,6 +825,15 @@ int runSweep(const BenchOptions& o) {
       r["ms_stages"] = stages;
       r["sessions"] = perSession;
       std::string wholeText;
+      for (const auto& p : perSession)
+        if (p.contains("rel_rms_delta_unbiased")) {
+          char buf[120];
+          const json& u = p["rel_rms_delta_unbiased"];
+          std::snprintf(buf, sizeof buf, ", delta RMS without the reference's noise (%s) %.3f [%.3f, %.3f]",
+                        fs::path(p["session"].get<std::string>()).filename().c_str(), u["value"].get<double>(), u["lo"].get<double>(),
+                        u["hi"].get<double>());
+          wholeText += buf;
+        }
       for (const auto& p : perSession)
         if (p.contains("whole_pipeline")) {
           char buf[160];

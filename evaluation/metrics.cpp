@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/quality.hpp>
@@ -113,6 +114,77 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects*
 }
 
 // (metrics.h)
+UnbiasedError unbiasedSquaredError(const cv::Mat& x, const cv::Mat& r1, const cv::Mat& r2, const cv::Mat& mask, int tile) {
+  CV_Assert(x.size() == r1.size() && x.size() == r2.size() && tile >= 1);
+  CV_Assert((x.type() == CV_32FC3 || x.type() == CV_32FC4) && r1.type() == CV_32FC3 && r2.type() == CV_32FC3);
+  CV_Assert(mask.empty() || (mask.type() == CV_8UC1 && mask.size() == x.size()));
+  const int xc = x.channels();
+  UnbiasedError u;
+  std::vector<double> blockMean;  // per block: mean product per pixel and channel
+  std::vector<size_t> blockCount;
+  double sumProd = 0, sumRef = 0;
+  for (int by = 0; by < x.rows; by += tile)
+    for (int bx = 0; bx < x.cols; bx += tile) {
+      double prod = 0;
+      size_t n = 0;
+      for (int y = by; y < std::min(by + tile, x.rows); ++y) {
+        const float* px = x.ptr<float>(y);
+        const float* p1 = r1.ptr<float>(y);
+        const float* p2 = r2.ptr<float>(y);
+        for (int xx = bx; xx < std::min(bx + tile, x.cols); ++xx) {
+          if (!mask.empty() && !mask.at<uchar>(y, xx)) continue;
+          for (int c = 0; c < 3; ++c) {
+            const double v = px[xc * xx + c], a = p1[3 * xx + c], b = p2[3 * xx + c];
+            prod += (v - a) * (v - b);
+            sumRef += a * b;
+          }
+          ++n;
+        }
+      }
+      if (n == 0) continue;
+      sumProd += prod;
+      u.pixels += n;
+      blockMean.push_back(prod / (3.0 * static_cast<double>(n)));
+      blockCount.push_back(n);
+    }
+  u.blocks = blockMean.size();
+  if (u.pixels == 0) return u;
+  u.meanSq = sumProd / (3.0 * static_cast<double>(u.pixels));
+  u.refSq = sumRef / (3.0 * static_cast<double>(u.pixels));
+  // The pixel-weighted mean of the block means is meanSq; its standard error from the blocks' spread
+  // (weights n_b / N: var = sum w_b^2 (m_b - mean)^2 * B / (B - 1)).
+  if (u.blocks > 1) {
+    double var = 0;
+    for (size_t b = 0; b < u.blocks; ++b) {
+      const double w = static_cast<double>(blockCount[b]) / static_cast<double>(u.pixels);
+      var += w * w * (blockMean[b] - u.meanSq) * (blockMean[b] - u.meanSq);
+    }
+    var *= static_cast<double>(u.blocks) / static_cast<double>(u.blocks - 1);
+    const double half = 1.96 * std::sqrt(var);
+    u.meanSqLo = u.meanSq - half;
+    u.meanSqHi = u.meanSq + half;
+  } else {
+    u.meanSqLo = u.meanSqHi = u.meanSq;
+  }
+  return u;
+}
+
+std::optional<UnbiasedError> unbiasedDeltaError(const cv::Mat& shade, const Truth& truth) {
+  if (truth.second.empty()) return std::nullopt;
+  cv::Mat real(shade.size(), CV_8UC1);
+  for (int y = 0; y < shade.rows; ++y)
+    for (int x = 0; x < shade.cols; ++x)
+      real.at<uchar>(y, x) = shade.at<cv::Vec4f>(y, x)[3] <= 0.5f && !truth.images.mask.at<uchar>(y, x) ? 255 : 0;
+  return unbiasedSquaredError(shade, truth.delta, truth.second, real);
+}
+
+namespace {
+double relOf(double sq, double ref) { return ref > 0 ? std::sqrt(std::max(sq, 0.0) / ref) : 0.0; }
+}  // namespace
+double UnbiasedError::rel() const { return relOf(meanSq, refSq); }
+double UnbiasedError::relLo() const { return relOf(meanSqLo, refSq); }
+double UnbiasedError::relHi() const { return relOf(meanSqHi, refSq); }
+
 cv::Mat errorImage(const cv::Mat& shade, const Truth& truth, double scale) {
   cv::Mat out(shade.size(), CV_8UC3);
   for (int y = 0; y < shade.rows; ++y)

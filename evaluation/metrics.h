@@ -3,6 +3,7 @@
 // of the real-pixel delta and the virtual radiance, SSIM of the composites, error images), the frame-to-frame
 // flicker of the real-pixel delta, and stage timings of full pipeline runs.
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -29,7 +30,9 @@ struct Truth {
   int frame = 0;
   groundtruth::DifferentialImages images;
   cv::Mat delta, composite;  ///< the compositor's delta input; the reference composite (RGB8)
+  cv::Mat second;            ///< where rendered: the delta of a second, independent render (another seed)
 };
+
 
 /// What one frame of a configuration left behind for the flicker of the next.
 struct FrameState {
@@ -72,6 +75,29 @@ struct NearObjects {
   double radii = 2.0;
 };
 ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects* near = nullptr);
+
+/// The squared error of an image against a truth known only through two independent noisy renders of it
+/// (r1, r2: the truth plus zero-mean noise of any variance, as path-traced references with two seeds are).
+/// Against either render alone the squared error carries that render's noise variance; the product
+/// (x - r1)(x - r2) has the expectation (x - t)^2 itself, so its mean over pixels is unbiased for the squared
+/// error, and r1 r2 for t^2 (the scale of a relative error). The pixels of a `tile` x `tile` block are
+/// summed into one sample (neighbouring pixels' noise and errors correlate, blocks much less); the 95 %
+/// interval is the normal one over the blocks (1.96 standard errors of their mean).
+struct UnbiasedError {
+  double meanSq = 0, meanSqLo = 0, meanSqHi = 0;  ///< per pixel and channel; may dip below 0 within the noise
+  double refSq = 0;                                ///< mean r1 r2 per pixel and channel (unbiased for mean t^2)
+  size_t pixels = 0, blocks = 0;
+  /// The relative RMS error sqrt(meanSq / refSq) and its interval (clamped at 0).
+  double rel() const;
+  double relLo() const;
+  double relHi() const;
+};
+/// x, r1, r2: CV_32FC3 (or CV_32FC4, alpha ignored) of one size; mask CV_8UC1, non-zero where a pixel counts
+/// (empty: every pixel).
+UnbiasedError unbiasedSquaredError(const cv::Mat& x, const cv::Mat& r1, const cv::Mat& r2, const cv::Mat& mask, int tile = 16);
+/// The real-pixel delta's error against a truth rendered twice (unbiasedSquaredError over the pixels real in
+/// both the result and the reference); nullopt without a second render.
+std::optional<UnbiasedError> unbiasedDeltaError(const cv::Mat& shade, const Truth& truth);
 
 /// The error as an image (RGB8): real pixels |delta_rt - delta_ref| (black = 0, white = `scale`; red: too dark,
 /// green: too bright), virtual pixels their radiance's relative error (white = 10 %; blue: too dark, yellow:

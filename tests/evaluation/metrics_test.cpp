@@ -60,6 +60,49 @@ TEST(Metrics, ErrorSumsAgainstAKnownTruth) {
   EXPECT_EQ(errorSums(off, t).relDeltaNear(), 0.0);  // none asked for
 }
 
+TEST(Metrics, TwoNoisyReferencesGiveTheSquaredErrorWithoutTheirNoise) {
+  // A known truth t (a smooth delta-like image), a result x = t + e with a known error pattern, and two
+  // references r1, r2 = t + independent Gaussian noise far larger than e (as a few samples per pixel are).
+  const int W = 320, H = 240;
+  cv::Mat t(H, W, CV_32FC3), x(H, W, CV_32FC3), r1(H, W, CV_32FC3), r2(H, W, CV_32FC3), noise1(H, W, CV_32FC3), noise2(H, W, CV_32FC3);
+  cv::RNG rng(7);
+  rng.fill(noise1, cv::RNG::NORMAL, 0.0, 0.2);
+  rng.fill(noise2, cv::RNG::NORMAL, 0.0, 0.3);
+  double trueSq = 0, trueRef = 0;
+  for (int y = 0; y < H; ++y)
+    for (int i = 0; i < W; ++i) {
+      const float v = -0.5f * std::exp(-((i - 160.f) * (i - 160.f) + (y - 120.f) * (y - 120.f)) / 4000.f) + 0.05f;
+      const float e = 0.05f * std::sin(0.05f * i) * std::cos(0.07f * y);
+      t.at<cv::Vec3f>(y, i) = {v, 0.8f * v, 0.6f * v};
+      x.at<cv::Vec3f>(y, i) = t.at<cv::Vec3f>(y, i) + cv::Vec3f(e, e, e);
+      for (int c = 0; c < 3; ++c) trueSq += e * e, trueRef += t.at<cv::Vec3f>(y, i)[c] * t.at<cv::Vec3f>(y, i)[c];
+    }
+  trueSq /= 3.0 * W * H;
+  trueRef /= 3.0 * W * H;
+  r1 = t + noise1;
+  r2 = t + noise2;
+  const mrgi::evaluation::UnbiasedError u = mrgi::evaluation::unbiasedSquaredError(x, r1, r2, cv::Mat());
+  EXPECT_EQ(u.pixels, static_cast<size_t>(W * H));
+  EXPECT_EQ(u.blocks, static_cast<size_t>(20 * 15));
+  EXPECT_LE(u.meanSqLo, trueSq);
+  EXPECT_GE(u.meanSqHi, trueSq);
+  EXPECT_NEAR(u.meanSq, trueSq, 0.15 * trueSq);
+  EXPECT_NEAR(u.refSq, trueRef, 0.02 * trueRef);
+  EXPECT_NEAR(u.rel(), std::sqrt(trueSq / trueRef), 0.1 * std::sqrt(trueSq / trueRef));
+  // Against one reference the squared error carries its noise variance (0.04): 30 times the true error.
+  const double naive = cv::norm(x, r1, cv::NORM_L2SQR) / (3.0 * W * H);
+  EXPECT_NEAR(naive, trueSq + 0.04, 0.002);
+  // x equal to the truth: zero within the interval; a mask counts only its pixels.
+  const mrgi::evaluation::UnbiasedError zero = mrgi::evaluation::unbiasedSquaredError(t, r1, r2, cv::Mat());
+  EXPECT_LE(zero.meanSqLo, 0.0);
+  EXPECT_GE(zero.meanSqHi, 0.0);
+  EXPECT_LT(std::abs(zero.meanSq), 0.2 * trueSq);
+  cv::Mat mask(H, W, CV_8UC1, cv::Scalar(0));
+  mask(cv::Rect(0, 0, 40, 40)).setTo(255);
+  EXPECT_EQ(mrgi::evaluation::unbiasedSquaredError(x, r1, r2, mask).pixels, 1600u);
+  EXPECT_EQ(mrgi::evaluation::unbiasedSquaredError(x, r1, r2, mask).blocks, 9u);
+}
+
 TEST(Metrics, FlickerIsZeroForAnUnchangedDeltaAndRelativeOtherwise) {
   const int w = 16, h = 12;
   cv::Mat positions(h, w, CV_32FC4);
