@@ -872,6 +872,7 @@ int runSweep(const BenchOptions& o) {
               {"references", sessionInfo},
               {"records", records}};
   doc["presets"] = choosePresets(records);
+  doc["preset_differences"] = presetDifferences(doc["presets"]);
   auto write = [](const std::string& path, const std::function<void()>& fn) {
     if (path.empty()) return;
     createParentDirectory(path);
@@ -881,13 +882,29 @@ int runSweep(const BenchOptions& o) {
   write(o.csv, [&] { writeCsv(o.csv, records); });
   write(o.html, [&] { writeHtml(o.html, doc, images); });
   write(o.presets, [&] {
-    json p = {{"generated_by", "mrgi bench"}, {"session", doc["session"]}, {"gl", context->renderer()}, {"presets", doc["presets"]}};
+    json p = {{"generated_by", "mrgi bench"}, {"session", doc["session"]}, {"gl", context->renderer()}, {"presets", doc["presets"]},
+              {"preset_differences", doc["preset_differences"]}};
     capture::writeFileAtomically(o.presets, p.dump(2) + "\n");
   });
   for (const char* name : {"fast", "balanced", "accurate"})
     if (doc["presets"].contains(name))
       std::printf("preset %-8s: %s %s\n", name, doc["presets"][name]["technique"].get<std::string>().c_str(),
                   doc["presets"][name]["knobs"].dump().c_str());
+  // Neighbouring presets told apart by the real-pixel delta only where their 95 % intervals do not overlap.
+  for (const char* pair : {"fast_vs_balanced", "balanced_vs_accurate"}) {
+    if (!doc["preset_differences"].contains(pair)) continue;
+    const json& d = doc["preset_differences"][pair];
+    std::string text;
+    for (const json& s : d["sessions"]) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "%s%s %.3f [%.3f, %.3f] against %.3f [%.3f, %.3f]", text.empty() ? "" : "; ",
+                    fs::path(s["session"].get<std::string>()).filename().c_str(), s["a"][0].get<double>(), s["a"][1].get<double>(),
+                    s["a"][2].get<double>(), s["b"][0].get<double>(), s["b"][1].get<double>(), s["b"][2].get<double>());
+      text += buf;
+    }
+    std::printf("presets %s: %s (real-pixel delta without the reference's noise: %s)\n", pair,
+                d["resolved"].get<bool>() ? "told apart" : "within each other's 95 % intervals, not told apart", text.c_str());
+  }
   return 0;
 }
 

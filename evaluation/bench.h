@@ -44,6 +44,13 @@ std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs
 /// Returns {"fast": record, "balanced": record, "accurate": record} (empty object without records).
 nlohmann::json choosePresets(const nlohmann::json& records);
 
+/// Whether neighbouring presets (fast / balanced, balanced / accurate) are told apart by the real-pixel delta
+/// error measured without the reference's noise: per session where both records hold
+/// rel_rms_delta_unbiased, their 95 % intervals; "resolved" only when no session's intervals overlap.
+/// {"fast_vs_balanced": {"resolved": bool, "sessions": [{"session", "a": [v, lo, hi], "b": [...]}]}, ...};
+/// a pair of the same record, or without intervals, is left out.
+nlohmann::json presetDifferences(const nlohmann::json& presets);
+
 /// Images the HTML report shows, PNG-encoded.
 struct ReportImage {
   std::string caption;

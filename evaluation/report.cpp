@@ -143,6 +143,32 @@ json choosePresets(const json& records) {
   return {{"fast", records[fast]}, {"balanced", records[balanced]}, {"accurate", records[accurate]}};
 }
 
+json presetDifferences(const json& presets) {
+  json out = json::object();
+  const std::pair<const char*, const char*> pairs[] = {{"fast", "balanced"}, {"balanced", "accurate"}};
+  for (const auto& [a, b] : pairs) {
+    if (!presets.contains(a) || !presets.contains(b) || presets[a] == presets[b]) continue;
+    if (!presets[a].contains("sessions") || !presets[b].contains("sessions")) continue;
+    json sessions = json::array();
+    bool resolved = true;
+    for (const json& sa : presets[a]["sessions"])
+      for (const json& sb : presets[b]["sessions"]) {
+        if (sa["session"] != sb["session"] || !sa.contains("rel_rms_delta_unbiased") || !sb.contains("rel_rms_delta_unbiased")) continue;
+        const json& ua = sa["rel_rms_delta_unbiased"];
+        const json& ub = sb["rel_rms_delta_unbiased"];
+        const bool overlap = ua["lo"].get<double>() <= ub["hi"].get<double>() && ub["lo"].get<double>() <= ua["hi"].get<double>();
+        resolved = resolved && !overlap;
+        sessions.push_back({{"session", sa["session"]},
+                            {"a", {ua["value"], ua["lo"], ua["hi"]}},
+                            {"b", {ub["value"], ub["lo"], ub["hi"]}},
+                            {"overlap", overlap}});
+      }
+    if (sessions.empty()) continue;
+    out[std::string(a) + "_vs_" + b] = {{"resolved", resolved}, {"sessions", sessions}};
+  }
+  return out;
+}
+
 const char* const kCsvHeader =
     "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_delta_near,rel_error_virtual,ssim,flicker";
 

@@ -103,6 +103,23 @@ TEST(Metrics, TwoNoisyReferencesGiveTheSquaredErrorWithoutTheirNoise) {
   EXPECT_EQ(mrgi::evaluation::unbiasedSquaredError(x, r1, r2, mask).blocks, 9u);
 }
 
+TEST(Metrics, PresetsAreToldApartOnlyWhereTheirIntervalsDoNotOverlap) {
+  auto record = [](double ms, double v, double lo, double hi) {
+    return nlohmann::json{{"technique", "dlpv"}, {"ms_lighting", ms},
+                          {"sessions", {{{"session", "s"}, {"rel_rms_delta_unbiased", {{"value", v}, {"lo", lo}, {"hi", hi}}}}}}};
+  };
+  nlohmann::json presets = {{"fast", record(10, 0.6, 0.5, 0.7)}, {"balanced", record(20, 0.3, 0.25, 0.35)},
+                            {"accurate", record(40, 0.28, 0.2, 0.33)}};
+  const nlohmann::json d = mrgi::evaluation::presetDifferences(presets);
+  EXPECT_TRUE(d["fast_vs_balanced"]["resolved"].get<bool>());
+  EXPECT_FALSE(d["balanced_vs_accurate"]["resolved"].get<bool>());
+  EXPECT_EQ(d["balanced_vs_accurate"]["sessions"][0]["a"][0].get<double>(), 0.3);
+  // The same record twice, or no intervals: nothing to say.
+  presets["accurate"] = presets["balanced"];
+  presets["fast"].erase("sessions");
+  EXPECT_TRUE(mrgi::evaluation::presetDifferences(presets).empty());
+}
+
 TEST(Metrics, FlickerIsZeroForAnUnchangedDeltaAndRelativeOtherwise) {
   const int w = 16, h = 12;
   cv::Mat positions(h, w, CV_32FC4);
