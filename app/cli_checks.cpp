@@ -51,6 +51,45 @@ void allowEmpty(CLI::Option* option) {
 CLI::Validator numberIn(double lo, double hi) { return rangeValidator(lo, hi, false); }
 CLI::Validator numberAbove(double lo, double hi) { return rangeValidator(lo, hi, true); }
 
+std::vector<double> parseNumbers(const std::string& text) {
+  std::vector<double> out;
+  size_t at = 0;
+  while (true) {
+    const size_t comma = text.find(',', at);
+    const std::string item = text.substr(at, comma == std::string::npos ? std::string::npos : comma - at);
+    double v = 0;
+    if (!parseNumber(item, v)) throw FlagError("value", "'" + capture::excerpt(item, 40) + "' is not a number");
+    out.push_back(v);
+    if (comma == std::string::npos) break;
+    at = comma + 1;
+  }
+  return out;
+}
+
+CLI::Validator numberList(int count, double lo, double hi, std::vector<std::string> words) {
+  const std::string range = "[" + capture::formatNumber(lo) + ", " + capture::formatNumber(hi) + "]";
+  std::string what = count == 1 ? "a number in " + range : std::to_string(count) + " comma-separated numbers in " + range;
+  for (const std::string& w : words) what += " or " + w;
+  return CLI::Validator(
+      [count, lo, hi, words, what](std::string& value) -> std::string {
+        for (const std::string& w : words)
+          if (value == w) return {};
+        std::vector<double> v;
+        try {
+          v = parseNumbers(value);
+        } catch (const FlagError&) {
+          return "expected " + what + ", not '" + capture::excerpt(value, 60) + "'";
+        }
+        if (static_cast<int>(v.size()) != count) return "expected " + what + ", not '" + capture::excerpt(value, 60) + "'";
+        for (double x : v) {
+          const std::string problem = capture::numberProblem(x, lo, hi);
+          if (!problem.empty()) return count == 1 ? problem : "each of the " + std::to_string(count) + " numbers " + problem;
+        }
+        return {};
+      },
+      what, "number list");
+}
+
 CLI::Validator tagFamily() {
   return CLI::Validator([](std::string& value) -> std::string { return capture::tagProblem(value); }, "FAMILY", "tag family");
 }

@@ -3,6 +3,7 @@
 // and in its range, every value non-empty, each error one line naming the flag (exit 2).
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -20,6 +21,11 @@ class FlagError : public std::runtime_error {
 CLI::Validator numberIn(double lo, double hi);
 /// A number strictly above lo and at most hi.
 CLI::Validator numberAbove(double lo, double hi);
+
+/// Comma-separated numbers in one value ("fx,fy,cx,cy"): exactly `count` of them, each finite and in
+/// [lo, hi]; `words` are accepted as they are ("camera", "marker"). parseNumbers reads a value it passed.
+CLI::Validator numberList(int count, double lo, double hi, std::vector<std::string> words = {});
+std::vector<double> parseNumbers(const std::string& text);
 
 /// An AprilTag family libapriltag ships (capture::kTagFamilies).
 CLI::Validator tagFamily();

@@ -293,11 +293,9 @@ int runInsert(const InsertOptions& o) {
     } else if (o.up == "marker") {
       up = {0, 0, 1};
     } else {
-      std::stringstream ss(o.up);
-      std::string item;
-      int n = 0;
-      while (std::getline(ss, item, ',') && n < 3) up[n++] = std::stod(item);
-      if (n != 3) throw std::invalid_argument("--up: expected camera, marker or x,y,z, got '" + o.up + "'");
+      const std::vector<double> v = parseNumbers(o.up);  // three finite numbers, checked by the flag's validator
+      up = {v[0], v[1], v[2]};
+      if (cv::norm(up) < 1e-9) throw FlagError("--up", "must not be the zero vector");
     }
     const auto plane = reconstruction::supportPlane(inMarker, capture::translationOf(obj.T_marker_object), up, labels,
                                                     capture::inversePose(T_marker_camera), frame->rgbd->colourIntrinsics);
@@ -358,7 +356,8 @@ Action addInsert(CLI::App& app) {
       ->delimiter(',')->expected(2);
   app.add_flag("--snap", o->snap, "rest the object on the plane below it (planes from the frame's depth)");
   addPoseOption(app, o->pose);
-  app.add_option("--up", o->up, "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame");
+  app.add_option("--up", o->up, "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame")
+      ->check(numberList(3, -1e6, 1e6, {"camera", "marker"}));
   app.add_option("--frame", o->frame, "frame of the session to measure and preview on")->check(numberIn(0, 1e9));
   app.add_option("--preview", o->preview, "write the composite of that frame with the placed object (PNG)");
   app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl, window (interactive: sliders, snap, save)")

@@ -13,6 +13,7 @@
 #include "app/commands.h"
 #include "app/tabletop.h"
 #include "reconstruction/light_estimation.h"
+#include "capture/checks.h"
 #include "capture/sensor_model.h"
 #include "capture/session.h"
 #include "capture/colour.h"
@@ -66,7 +67,7 @@ capture::Pose scanCamera(int i, int n) {
 /// The exposure at which at most 1 % of the pixels have a channel at or above the 8-bit level 250 (the
 /// sensor's noise aside), never above 1; "1" or a number: that exposure.
 double pickExposure(const std::string& mode, const cv::Mat& radiance) {
-  if (mode != "auto") return std::stod(mode);
+  if (mode != "auto") return parseNumbers(mode)[0];  // checked by the flag's validator
   std::vector<float> peak(radiance.total());
   for (size_t i = 0; i < peak.size(); ++i) {
     const cv::Vec3f v = radiance.at<cv::Vec3f>(static_cast<int>(i));
@@ -390,16 +391,7 @@ Action addSynth(CLI::App& app) {
                "the lamp moves a third of the way round the table over the orbit (each frame records its lights)");
   app.add_flag("--move-box", o->moveBox, "the box moves to the front of the table a third of the way through (a room that changes: carving)");
   app.add_option("--exposure", o->exposure, "auto (at most 1 % of pixels clip; recorded per frame) or a relative exposure")
-      ->check([](const std::string& v) -> std::string {
-        if (v == "auto") return "";
-        try {
-          size_t used = 0;
-          const double e = std::stod(v, &used);
-          if (used == v.size() && e > 0 && e <= 1e6) return "";
-        } catch (const std::exception&) {
-        }
-        return "must be auto or a positive number";
-      });
+      ->check(numberList(1, capture::kMinExposure, capture::kMaxExposure, {"auto"}));
   app.add_option("--fisheye-every", o->fisheyeEvery, "store a fisheye HDR frame every N frames (0 = no fisheye)")
       ->check(numberIn(0, 1e6));
   return [o] { return runSynth(*o); };

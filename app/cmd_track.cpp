@@ -40,20 +40,8 @@ struct TrackOptions {
 };
 
 capture::Intrinsics parseIntrinsics(const std::string& text, const cv::Size& size) {
-  std::stringstream ss(text);
-  std::vector<double> v;
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      size_t used = 0;
-      v.push_back(std::stod(item, &used));
-      if (used != item.size()) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      throw std::invalid_argument("--intrinsics: '" + item + "' is not a number (expected fx,fy,cx,cy)");
-    }
-  }
-  if (v.size() != 4 || !(v[0] > 0) || !(v[1] > 0))
-    throw std::invalid_argument("--intrinsics: expected fx,fy,cx,cy with positive focal lengths, got '" + text + "'");
+  const std::vector<double> v = parseNumbers(text);  // four finite numbers, checked by the flag's validator
+  if (!(v[0] > 0) || !(v[1] > 0)) throw FlagError("--intrinsics", "the focal lengths fx, fy must be positive, not '" + text + "'");
   return {size.width, size.height, v[0], v[1], v[2], v[3]};
 }
 
@@ -230,7 +218,7 @@ Action addTrack(CLI::App& app) {
       ->check(numberIn(1e-3, 10));
   app.add_option("--id", o->id, "track only this tag id (default: the session's marker, else every tag)")
       ->check(numberIn(0, 1e6));
-  app.add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy in pixels, for a single image input");
+  app.add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy in pixels, for a single image input")->check(numberList(4, -1e6, 1e6));
   app.add_option("--hold", o->hold, "seconds to hold the last pose after the tag disappears before 'lost'")
       ->check(numberIn(0, 3600));
   app.add_flag("--no-smooth", o->noSmooth, "report raw per-frame poses (no One-Euro smoothing)");
