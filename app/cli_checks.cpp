@@ -77,8 +77,9 @@ CLI::Validator numberList(int count, double lo, double hi, std::vector<std::stri
         std::vector<double> v;
         try {
           v = parseNumbers(value);
-        } catch (const FlagError&) {
-          return "expected " + what + ", not '" + capture::excerpt(value, 60) + "'";
+        } catch (const FlagError& e) {
+          const std::string why = e.what();
+          return why.substr(why.find(": ") + 2) + " (expected " + what + ")";  // "'x' is not a number (expected ...)"
         }
         if (static_cast<int>(v.size()) != count) return "expected " + what + ", not '" + capture::excerpt(value, 60) + "'";
         for (double x : v) {
