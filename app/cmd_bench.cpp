@@ -58,6 +58,7 @@ struct BenchOptions {
   std::string technique;  ///< empty: all (reference mode)
   std::string against = "reference";
   std::string json, csv, html, presets;
+  std::string gallery;  ///< folder: per session, every technique's crop around the objects beside the reference's
   std::string scene;  ///< empty: per session, the scene of its true references, else recordings/scenes/tabletop.json
   int frames = 4;
   int refFrames = 2;
@@ -658,7 +659,7 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
 
 /// A configuration's measurements on one session.
 json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o, double errScale,
-                   std::vector<ReportImage>* images) {
+                   std::vector<ReportImage>* images, std::vector<GalleryRow>* gallery = nullptr) {
   LightingSetup s = bs.setup;
   s.scene.technique = c.technique;
   s.scene.knobs = c.knobs;
@@ -710,6 +711,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
       const ErrorSums e = errorSums(st.shade, it->second, near ? &*near : nullptr);
       err.add(e);
       if (const auto u = unbiasedDeltaError(st.shade, it->second)) unbiased = u;
+      if (gallery && c.varied.empty() && it == bs.truths.begin()) gallery->push_back({name, r.composite.clone(), st.shade.clone()});
       ssimSum += ssimOf(r.composite, it->second.composite);
       if (images && c.varied.empty() && it == bs.truths.begin()) {
         images->push_back({name + " (defaults), frame " + std::to_string(f), r.composite});
@@ -790,6 +792,7 @@ int runSweep(const BenchOptions& o) {
   auto context = gl::createContext(cfg);
   for (auto& bs : sessions) bs.compositor = std::make_unique<compositor::Compositor>(bs.W, bs.H);
   std::vector<ReportImage> images;
+  std::vector<std::vector<GalleryRow>> galleries(sessions.size());  // --gallery: per session, a row per technique
   const BenchSession& first = sessions.front();
   for (const auto& [f, t] : first.truths) images.push_back({"reference composite, frame " + std::to_string(f), t.composite});
   double errScale = 0;  // one error-image scale for all: the reference delta's 99th percentile magnitude
@@ -809,7 +812,8 @@ int runSweep(const BenchOptions& o) {
       const BenchConfig& c = configs[ci];
       json perSession = json::array();
       for (size_t si = 0; si < sessions.size(); ++si)
-        perSession.push_back(measureConfig(c, sessions[si], o, errScale, si == 0 ? &images : nullptr));
+        perSession.push_back(measureConfig(c, sessions[si], o, errScale, si == 0 ? &images : nullptr,
+                                           o.gallery.empty() ? nullptr : &galleries[si]));
       // The record: each measure's mean over the sessions (each session weighs the same), per session below.
       json r = {{"technique", c.technique.name}, {"varied", c.varied}, {"knobs", knobsJson(c)}};
       for (const char* key : {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_delta_near", "rel_error_virtual", "ssim",
@@ -881,6 +885,18 @@ int runSweep(const BenchOptions& o) {
   write(o.json, [&] { capture::writeFileAtomically(o.json, doc.dump(2) + "\n"); });
   write(o.csv, [&] { writeCsv(o.csv, records); });
   write(o.html, [&] { writeHtml(o.html, doc, images); });
+  for (size_t si = 0; si < sessions.size() && !o.gallery.empty(); ++si) {
+    const BenchSession& bs = sessions[si];
+    if (galleries[si].empty() || bs.truths.empty()) continue;
+    const auto& [f, t] = *bs.truths.begin();
+    const std::string name = fs::path(bs.path).filename().string();
+    const std::string file = (fs::path(o.gallery) / (name + ".png")).string();
+    writePng(file,
+             galleryImage(name + ", frame " + std::to_string(f) + ": each technique's defaults against the path-traced reference", t.composite,
+                          t.delta, t.images.mask, galleries[si]),
+             "mrgi bench");
+    std::printf("gallery: %s\n", file.c_str());
+  }
   write(o.presets, [&] {
     json p = {{"generated_by", "mrgi bench"}, {"session", doc["session"]}, {"gl", context->renderer()}, {"presets", doc["presets"]},
               {"preset_differences", doc["preset_differences"]}};
@@ -919,6 +935,9 @@ Action addBench(CLI::App& app) {
   app.add_option("--json", o->json, "write one record per configuration (JSON)");
   app.add_option("--csv", o->csv, "write the records as CSV");
   app.add_option("--html", o->html, "write a self-contained HTML report (SVG plots, images)");
+  app.add_option("--gallery", o->gallery,
+                 "write DIR/SESSION.png per session: the crop around the objects, composite and real-pixel delta, of every "
+                 "technique's defaults beside the reference's");
   app.add_option("--presets", o->presets, "write the fast/balanced/accurate presets chosen from the front (JSON)");
   app.add_option("--session", o->sessions, "sessions to measure on, their first frames (repeat the flag; default: the three bundled synthetic sessions)");
   app.add_option("--scene", o->scene, "scene file for every session: objects, lights, the knobs the sweep starts from (default: each session's reference scene, else recordings/scenes/tabletop.json)");
@@ -951,6 +970,15 @@ Action addBench(CLI::App& app) {
     checkReplaceable(o->csv, "--csv", "mrgi bench", evaluation::kCsvHeader);
     checkReplaceable(o->html, "--html", "mrgi bench");
     checkReplaceable(o->presets, "--presets", "mrgi bench");
+    if (!o->gallery.empty()) {
+      std::error_code ec;
+      if (fs::exists(o->gallery, ec) && !fs::is_directory(o->gallery, ec))
+        throw capture::CaptureError(o->gallery, "exists and is not a folder (--gallery)");
+      fs::create_directories(o->gallery, ec);
+      if (ec) throw capture::CaptureError(o->gallery, "cannot create the folder (--gallery): " + ec.message());
+      for (const std::string& s : o->sessions)
+        checkReplaceable((fs::path(o->gallery) / (fs::path(s).filename().string() + ".png")).string(), "--gallery", "mrgi bench");
+    }
     if (o->against == "bruteforce") {
       if (o->technique.empty()) throw std::invalid_argument("--against bruteforce needs --technique");
       o->session = o->sessions.front();

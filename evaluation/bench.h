@@ -57,6 +57,22 @@ struct ReportImage {
   cv::Mat rgb;  ///< RGB8
 };
 
+/// A gallery row: one technique's composite (RGB8) and shading result (RGBA32F: real-pixel delta, a = virtual)
+/// of a frame that has a reference.
+struct GalleryRow {
+  std::string label;
+  cv::Mat composite, shade;
+};
+/// The crop around the objects that a gallery shows: the reference's virtual pixels' bounding box grown by
+/// `grow` times its size on every side, within the image (the whole image when the frame shows no object).
+cv::Rect galleryCrop(const cv::Mat& virtualMask, double grow = 1.0);
+/// One PNG-ready image (RGB8): a labelled cell for the reference and one per technique in a grid of three
+/// columns, each the crop of the composite beside the crop of the real-pixel delta (mid grey = no change,
+/// black = the reference's darkest change or more, white as bright the other way, on a square-root scale so
+/// that a shadow's faint wide part shows; the objects' own pixels blue); tiles at least 160 pixels high.
+cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite, const cv::Mat& referenceDelta, const cv::Mat& virtualMask,
+                     const std::vector<GalleryRow>& rows);
+
 /// The first line of the CSV writeCsv writes (its column names).
 extern const char* const kCsvHeader;
 void writeCsv(const std::string& path, const nlohmann::json& records);

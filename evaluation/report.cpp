@@ -8,6 +8,8 @@
 
 #include "evaluation/bench.h"
 #include "lighting/techniques/registry.h"
+#include "capture/checks.h"
+#include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
 #include <opencv2/imgcodecs.hpp>
@@ -166,6 +168,74 @@ json presetDifferences(const json& presets) {
     if (sessions.empty()) continue;
     out[std::string(a) + "_vs_" + b] = {{"resolved", resolved}, {"sessions", sessions}};
   }
+  return out;
+}
+
+cv::Rect galleryCrop(const cv::Mat& virtualMask, double grow) {
+  const cv::Rect whole(0, 0, virtualMask.cols, virtualMask.rows);
+  std::vector<cv::Point> on;
+  cv::findNonZero(virtualMask, on);
+  if (on.empty()) return whole;
+  const cv::Rect box = cv::boundingRect(on);
+  const int dx = static_cast<int>(std::lround(grow * box.width)), dy = static_cast<int>(std::lround(grow * box.height));
+  return cv::Rect(box.x - dx, box.y - dy, box.width + 2 * dx, box.height + 2 * dy) & whole;
+}
+
+namespace {
+/// The real-pixel delta as grey (0.5 = no change, 0 or 1 at `scale` either way, square-root scale), the
+/// objects' pixels blue.
+cv::Mat deltaTile(const cv::Mat& delta, int channels, const cv::Mat& virtualMask, double scale) {
+  cv::Mat out(delta.size(), CV_8UC3);
+  for (int y = 0; y < delta.rows; ++y)
+    for (int x = 0; x < delta.cols; ++x) {
+      if (virtualMask.at<uchar>(y, x)) {
+        out.at<cv::Vec3b>(y, x) = {60, 90, 200};
+        continue;
+      }
+      const float* d = delta.ptr<float>(y) + channels * x;
+      const double lum = capture::luminance(cv::Vec3d(d[0], d[1], d[2]));
+      // Square-root scale: the faint, wide part of a shadow shows beside its dark core.
+      const double t = std::min(1.0, std::sqrt(std::abs(lum) / scale));
+      const auto g = static_cast<uchar>(std::clamp(127.5 + (lum < 0 ? -127.5 : 127.5) * t, 0.0, 255.0));
+      out.at<cv::Vec3b>(y, x) = {g, g, g};
+    }
+  return out;
+}
+}  // namespace
+
+cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite, const cv::Mat& referenceDelta, const cv::Mat& virtualMask,
+                     const std::vector<GalleryRow>& rows) {
+  const cv::Rect crop = galleryCrop(virtualMask);
+  const cv::Mat mask = virtualMask(crop);
+  // The scale: the reference's largest change in the crop (its darkest shadow, usually).
+  double scale = 1e-6;
+  const cv::Mat ref = referenceDelta(crop);
+  for (int y = 0; y < ref.rows; ++y)
+    for (int x = 0; x < ref.cols; ++x)
+      if (!mask.at<uchar>(y, x)) scale = std::max(scale, std::abs(capture::luminance(cv::Vec3d(ref.at<cv::Vec3f>(y, x)))));
+  const double zoom = std::max(1.0, 160.0 / crop.height);
+  const cv::Size tile(static_cast<int>(std::lround(crop.width * zoom)), static_cast<int>(std::lround(crop.height * zoom)));
+  // Cells (a label over composite | delta) in a grid of three columns, the reference first.
+  const int label = 20, gap = 8, header = 48, cols = 3;
+  const int cellW = 2 * tile.width + gap, cellH = label + tile.height;
+  const int n = static_cast<int>(rows.size()) + 1, gridRows = (n + cols - 1) / cols;
+  cv::Mat out(header + gridRows * (cellH + gap) + gap, gap + cols * (cellW + gap), CV_8UC3, cv::Scalar(255, 255, 255));
+  cv::putText(out, title, {gap, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::putText(out, "composite | real-pixel delta, square-root scale: grey = none, black = -" + capture::formatNumber(scale) +
+                       " W/m^2/sr (the reference's darkest), objects blue",
+              {gap, 38}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
+  auto place = [&](int cell, const std::string& text, const cv::Mat& composite, const cv::Mat& delta) {
+    const int x = gap + (cell % cols) * (cellW + gap), y = header + (cell / cols) * (cellH + gap);
+    cv::putText(out, text, {x, y + 14}, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    cv::Mat a, b;
+    cv::resize(composite(crop), a, tile, 0, 0, cv::INTER_NEAREST);
+    cv::resize(delta, b, tile, 0, 0, cv::INTER_NEAREST);
+    a.copyTo(out(cv::Rect(x, y + label, tile.width, tile.height)));
+    b.copyTo(out(cv::Rect(x + tile.width + gap, y + label, tile.width, tile.height)));
+  };
+  place(0, "reference (path traced)", referenceComposite, deltaTile(ref, 3, mask, scale));
+  for (size_t i = 0; i < rows.size(); ++i)
+    place(static_cast<int>(i) + 1, rows[i].label, rows[i].composite, deltaTile(rows[i].shade(crop), rows[i].shade.channels(), mask, scale));
   return out;
 }
 

@@ -3,6 +3,8 @@
 // are full runs.
 #include <gtest/gtest.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include "evaluation/bench.h"
 #include "evaluation/metrics.h"
 #include "lighting/techniques/registry.h"
@@ -118,6 +120,32 @@ TEST(Metrics, PresetsAreToldApartOnlyWhereTheirIntervalsDoNotOverlap) {
   presets["accurate"] = presets["balanced"];
   presets["fast"].erase("sessions");
   EXPECT_TRUE(mrgi::evaluation::presetDifferences(presets).empty());
+}
+
+TEST(Metrics, TheGalleryCropsAroundTheObjectsAndShowsEachTechnique) {
+  cv::Mat mask(240, 320, CV_8UC1, cv::Scalar(0));
+  cv::circle(mask, {200, 100}, 20, cv::Scalar(255), cv::FILLED);  // a box of 41 x 41 at (180, 80)
+  EXPECT_EQ(mrgi::evaluation::galleryCrop(mask), cv::Rect(139, 39, 123, 123));
+  EXPECT_EQ(mrgi::evaluation::galleryCrop(cv::Mat(240, 320, CV_8UC1, cv::Scalar(0))), cv::Rect(0, 0, 320, 240));
+  cv::Mat nearEdge(240, 320, CV_8UC1, cv::Scalar(0));
+  nearEdge(cv::Rect(300, 0, 20, 10)).setTo(255);
+  EXPECT_EQ(mrgi::evaluation::galleryCrop(nearEdge), cv::Rect(280, 0, 40, 20));
+  // The reference's shadow under the object, a technique with none: the reference's delta tile is black
+  // there, the technique's mid grey.
+  cv::Mat composite(240, 320, CV_8UC3, cv::Scalar(200, 180, 160)), delta(240, 320, CV_32FC3, cv::Scalar::all(0));
+  cv::circle(delta, {200, 130}, 15, cv::Scalar::all(-0.5), cv::FILLED);
+  cv::Mat none(240, 320, CV_32FC4, cv::Scalar::all(0));
+  for (int y = 0; y < 240; ++y)
+    for (int x = 0; x < 320; ++x) none.at<cv::Vec4f>(y, x)[3] = mask.at<uchar>(y, x) ? 1.f : 0.f;
+  const cv::Mat g = mrgi::evaluation::galleryImage("test", composite, delta, mask, {{"none", composite, none}, {"none again", composite, none}});
+  ASSERT_EQ(g.type(), CV_8UC3);
+  const int tile = 160;  // the 123-pixel crop, enlarged to 160
+  EXPECT_EQ(g.cols, 8 + 3 * (2 * tile + 8 + 8));
+  EXPECT_EQ(g.rows, 48 + 1 * (20 + tile + 8) + 8);
+  // The shadow's centre (200, 130) is at (61, 91) in the crop, (79, 118) in a tile.
+  const cv::Point refDelta(8 + tile + 8 + 79, 48 + 20 + 118), techDelta(8 + (2 * tile + 8 + 8) + tile + 8 + 79, 48 + 20 + 118);
+  EXPECT_EQ(g.at<cv::Vec3b>(refDelta), cv::Vec3b(0, 0, 0));
+  EXPECT_EQ(g.at<cv::Vec3b>(techDelta), cv::Vec3b(127, 127, 127));
 }
 
 TEST(Metrics, FlickerIsZeroForAnUnchangedDeltaAndRelativeOtherwise) {
