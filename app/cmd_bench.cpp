@@ -625,6 +625,7 @@ json lightsAgainstTruth(const LightingSetup& est, const reconstruction::RoomLigh
 std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo, BenchSession& bs, const LightingSetup* truth = nullptr) {
   FramePipeline rp(s, bs.W, bs.H, fo);
   ErrorSums whole;
+  ShadowSums shadow;  // the object's shadow within three object radii
   BrightnessSums brightness;
   double ssim = 0, ms = 0;
   int frames = 0, timed = 0;
@@ -641,6 +642,14 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
     if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
       const FrameState st = frameState(rp.lighting()->downloadShade(), rp.lighting()->downloadGBuffer(0), *r.T_marker_camera);
       whole.add(errorSums(st.shade, it->second));
+      if (const auto b = rp.lighting()->frame().objectBounds()) {
+        NearObjects three;
+        three.positions = st.positions;
+        three.centre = 0.5 * (b->first + b->second);
+        three.radius = 0.5 * cv::norm(b->second - b->first);
+        three.radii = 3;
+        shadow.add(shadowSums(st.shade, it->second, three));
+      }
       ssim += ssimOf(r.composite, it->second.composite);
       brightness.add(r.composite, it->second);
       ++frames;
@@ -652,6 +661,7 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
               {"rel_error_virtual", whole.relVirtual()},
               {"ssim", ssim / frames},
               {"virtual_brightness", brightness.ratio()},
+              {"shadow", {{"energy", shadow.energy()}, {"near_l1", shadow.nearL1()}, {"pixels", shadow.pixels}}},
               {"ms_total", ms / std::max(timed, 1)}};
   if (truth && rp.setup()) out["lights_vs_truth"] = lightsAgainstTruth(*rp.setup(), rp.roomLights(), *truth, bs);
   return out;
@@ -677,6 +687,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   size_t gpuBytes = 0;
   std::optional<FrameState> prev;
   std::optional<UnbiasedError> unbiased;  // on the reference frame rendered twice
+  ShadowSums shadow, wholeShadow;          // the object's shadow within three object radii
   nlohmann::json techniqueStats = nlohmann::json::object();  // the last lit frame's (counts: points, voxels, ...)
   const std::string name = c.technique.name;
   for (int f = 0; f < n; ++f) {
@@ -710,6 +721,11 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     if (const auto it = bs.truths.find(f); it != bs.truths.end()) {
       const ErrorSums e = errorSums(st.shade, it->second, near ? &*near : nullptr);
       err.add(e);
+      if (near) {
+        NearObjects three = *near;
+        three.radii = 3;  // the object's shadow of the room reaches further than its contact shadow
+        shadow.add(shadowSums(st.shade, it->second, three));
+      }
       if (const auto u = unbiasedDeltaError(st.shade, it->second)) unbiased = u;
       if (gallery && c.varied.empty() && it == bs.truths.begin()) gallery->push_back({name, r.composite.clone(), st.shade.clone()});
       ssimSum += ssimOf(r.composite, it->second.composite);
@@ -722,6 +738,11 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     }
     if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
       whole.add(errorSums(st.shade, it->second));
+      if (near) {
+        NearObjects three = *near;
+        three.radii = 3;
+        wholeShadow.add(shadowSums(st.shade, it->second, three));
+      }
       wholeSsim += ssimOf(r.composite, it->second.composite);
       brightness.add(r.composite, it->second);
       ++wholeFrames;
@@ -765,6 +786,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
             {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
             {"silhouette_mismatch_pixels", err.mismatched},
             {"technique_stats", techniqueStats}};
+  if (shadow.pixels > 0) r["shadow"] = {{"energy", shadow.energy()}, {"near_l1", shadow.nearL1()}, {"pixels", shadow.pixels}};
   // The real-pixel delta's relative RMS error without the reference's noise, with its 95 % interval.
   if (unbiased)
     r["rel_rms_delta_unbiased"] = {{"value", unbiased->rel()}, {"lo", unbiased->relLo()}, {"hi", unbiased->relHi()}, {"pixels", unbiased->pixels}};
@@ -774,7 +796,8 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
                            {"rel_error_virtual", whole.relVirtual()},
                            {"ssim", wholeSsim / wholeFrames},
                            {"virtual_brightness", brightness.ratio()},
-                           {"silhouette_mismatch_pixels", whole.mismatched}};
+                           {"silhouette_mismatch_pixels", whole.mismatched},
+                           {"shadow", {{"energy", wholeShadow.energy()}, {"near_l1", wholeShadow.nearL1()}, {"pixels", wholeShadow.pixels}}}};
   if (roomRecord) r["whole_pipeline_room"] = *roomRecord;
   if (roomLightsRecord) r["whole_pipeline_room_lights"] = *roomLightsRecord;
   return r;
@@ -829,6 +852,13 @@ int runSweep(const BenchOptions& o) {
       r["ms_stages"] = stages;
       r["sessions"] = perSession;
       std::string wholeText;
+      for (const auto& p : perSession)
+        if (p.contains("shadow")) {
+          char buf[120];
+          std::snprintf(buf, sizeof buf, ", shadow (%s) energy %.2f near L1 %.2f", fs::path(p["session"].get<std::string>()).filename().c_str(),
+                        p["shadow"]["energy"].get<double>(), p["shadow"]["near_l1"].get<double>());
+          wholeText += buf;
+        }
       for (const auto& p : perSession)
         if (p.contains("rel_rms_delta_unbiased")) {
           char buf[120];

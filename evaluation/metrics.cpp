@@ -114,6 +114,40 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects*
 }
 
 // (metrics.h)
+ShadowSums shadowSums(const cv::Mat& shade, const Truth& truth, const NearObjects& near) {
+  ShadowSums out;
+  if (!(near.radius > 0)) return out;
+  cv::Mat lum(shade.size(), CV_32F, cv::Scalar(0)), lumRef(shade.size(), CV_32F, cv::Scalar(0)), m(shade.size(), CV_32F, cv::Scalar(0));
+  for (int y = 0; y < shade.rows; ++y)
+    for (int x = 0; x < shade.cols; ++x) {
+      const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
+      const cv::Vec4f p = near.positions.at<cv::Vec4f>(y, x);
+      const bool real = s[3] <= 0.5f && !truth.images.mask.at<uchar>(y, x);
+      if (!real || p[3] < 0.5f || cv::norm(cv::Vec3d(p[0], p[1], p[2]) - near.centre) > near.radii * near.radius) continue;
+      const double a = capture::luminance(cv::Vec3d(s[0], s[1], s[2]));
+      const double b = capture::luminance(cv::Vec3d(truth.delta.at<cv::Vec3f>(y, x)));
+      lum.at<float>(y, x) = static_cast<float>(a);
+      lumRef.at<float>(y, x) = static_cast<float>(b);
+      m.at<float>(y, x) = 1.f;
+      out.dark += std::min(a, 0.0);
+      out.darkRef += std::min(b, 0.0);
+      ++out.pixels;
+    }
+  if (out.pixels == 0) return out;
+  cv::Mat gl, gr, gm;
+  cv::GaussianBlur(lum, gl, {0, 0}, 2.0);
+  cv::GaussianBlur(lumRef, gr, {0, 0}, 2.0);
+  cv::GaussianBlur(m, gm, {0, 0}, 2.0);
+  for (int y = 0; y < shade.rows; ++y)
+    for (int x = 0; x < shade.cols; ++x) {
+      if (m.at<float>(y, x) < 0.5f || gm.at<float>(y, x) <= 1e-6f) continue;
+      const double a = gl.at<float>(y, x) / gm.at<float>(y, x), b = gr.at<float>(y, x) / gm.at<float>(y, x);
+      out.l1 += std::abs(a - b);
+      out.l1Ref += std::abs(b);
+    }
+  return out;
+}
+
 UnbiasedError unbiasedSquaredError(const cv::Mat& x, const cv::Mat& r1, const cv::Mat& r2, const cv::Mat& mask, int tile) {
   CV_Assert(x.size() == r1.size() && x.size() == r2.size() && tile >= 1);
   CV_Assert((x.type() == CV_32FC3 || x.type() == CV_32FC4) && r1.type() == CV_32FC3 && r2.type() == CV_32FC3);

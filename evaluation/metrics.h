@@ -76,6 +76,20 @@ struct NearObjects {
 };
 ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects* near = nullptr);
 
+/// The object's shadow on the real pixels near it (within near.radii object radii; 3 is the measure),
+/// luminance of the delta: `energy` = the darkening's sum (negative parts) over the reference's, and
+/// `nearL1` = sum |G(delta) - G(reference)| / sum |G(reference)| with G a Gaussian of sigma 2 px over the
+/// near real pixels only (normalised convolution), which takes most of the reference's per-pixel noise out.
+/// Sums add over frames (ratio() of the totals).
+struct ShadowSums {
+  double dark = 0, darkRef = 0, l1 = 0, l1Ref = 0;
+  size_t pixels = 0;
+  void add(const ShadowSums& o) { dark += o.dark, darkRef += o.darkRef, l1 += o.l1, l1Ref += o.l1Ref, pixels += o.pixels; }
+  double energy() const { return darkRef < 0 ? dark / darkRef : 0.0; }
+  double nearL1() const { return l1Ref > 0 ? l1 / l1Ref : 0.0; }
+};
+ShadowSums shadowSums(const cv::Mat& shade, const Truth& truth, const NearObjects& near);
+
 /// The squared error of an image against a truth known only through two independent noisy renders of it
 /// (r1, r2: the truth plus zero-mean noise of any variance, as path-traced references with two seeds are).
 /// Against either render alone the squared error carries that render's noise variance; the product

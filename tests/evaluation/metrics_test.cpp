@@ -122,6 +122,53 @@ TEST(Metrics, PresetsAreToldApartOnlyWhereTheirIntervalsDoNotOverlap) {
   EXPECT_TRUE(mrgi::evaluation::presetDifferences(presets).empty());
 }
 
+TEST(Metrics, ShadowEnergyAndNearL1AgainstAKnownShadow) {
+  // A flat table (positions on z = 0, the object of radius 0.1 at the origin), the reference's shadow a
+  // smooth disc of darkening around it; a result with half of it: energy 0.5 and near L1 0.5 whatever the
+  // reference's per-pixel noise (blurred out), and nothing counted beyond three radii or on the object.
+  const int W = 200, H = 200;
+  mrgi::evaluation::Truth truth;
+  truth.images.mask = cv::Mat(H, W, CV_8UC1, cv::Scalar(0));
+  truth.delta = cv::Mat(H, W, CV_32FC3, cv::Scalar::all(0));
+  cv::Mat shade(H, W, CV_32FC4, cv::Scalar::all(0)), positions(H, W, CV_32FC4);
+  cv::RNG rng(3);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const double px = (x - 100) * 0.003, py = (y - 100) * 0.003, r = std::hypot(px, py);  // 0.3 m across at the edge
+      positions.at<cv::Vec4f>(y, x) = {static_cast<float>(px), static_cast<float>(py), 0.f, 1.f};
+      if (r < 0.05) {  // the object itself
+        truth.images.mask.at<uchar>(y, x) = 255;
+        shade.at<cv::Vec4f>(y, x)[3] = 1.f;
+        continue;
+      }
+      const float d = static_cast<float>(-0.4 * std::exp(-r * r / (2 * 0.08 * 0.08)));
+      const float noise = static_cast<float>(rng.gaussian(0.002));
+      truth.delta.at<cv::Vec3f>(y, x) = cv::Vec3f(d + noise, d + noise, d + noise);
+      shade.at<cv::Vec4f>(y, x) = {0.5f * d, 0.5f * d, 0.5f * d, 0.f};
+    }
+  mrgi::evaluation::NearObjects near;
+  near.positions = positions;
+  near.radius = 0.1;
+  near.radii = 3;
+  const auto s = mrgi::evaluation::shadowSums(shade, truth, near);
+  EXPECT_NEAR(s.energy(), 0.5, 0.01);
+  EXPECT_NEAR(s.nearL1(), 0.5, 0.01);
+  // The same shadow: energy 1, near L1 within the noise left after the blur.
+  cv::Mat same = shade.clone();
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      if (same.at<cv::Vec4f>(y, x)[3] < 0.5f) {
+        const float d = 2 * same.at<cv::Vec4f>(y, x)[0];
+        same.at<cv::Vec4f>(y, x) = {d, d, d, 0.f};
+      }
+  const auto t = mrgi::evaluation::shadowSums(same, truth, near);
+  EXPECT_NEAR(t.energy(), 1.0, 0.01);
+  EXPECT_LT(t.nearL1(), 0.01);
+  // Within one radius only fewer pixels count.
+  near.radii = 1;
+  EXPECT_LT(mrgi::evaluation::shadowSums(shade, truth, near).pixels, s.pixels);
+}
+
 TEST(Metrics, TheGalleryCropsAroundTheObjectsAndShowsEachTechnique) {
   cv::Mat mask(240, 320, CV_8UC1, cv::Scalar(0));
   cv::circle(mask, {200, 100}, 20, cv::Scalar(255), cv::FILLED);  // a box of 41 x 41 at (180, 80)
