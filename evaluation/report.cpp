@@ -548,21 +548,36 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   // Per session, with the whole pipeline against a synthetic session's own true reference where it has one.
   h << "<h2>Per session</h2><p>Technique error: against the path-traced reference of the inputs the pipeline sees "
        "(measured depth, estimated albedo). Whole pipeline: against the synthetic session's true reference composites "
-       "(the true room, albedos and lights), so depth noise, albedo and light estimation count too.</p>"
+       "(the true room, albedos and lights), so depth noise, albedo and light estimation count too. Delta RMS: the real-pixel "
+       "delta's relative RMS error without the reference's noise (two renders), with its 95 % interval. Shadow: within three "
+       "object radii, the darkening's energy over the reference's / the near L1 of the blurred delta.</p>"
        "<table><tr><th>technique</th><th>varied</th><th class='l'>session</th><th>ms lighting</th><th>rel. err. delta</th>"
-       "<th>rel. err. virtual</th><th>SSIM</th><th>flicker</th><th>whole: delta</th><th>whole: virtual</th><th>whole: SSIM</th></tr>";
+       "<th>delta RMS [95 %]</th><th>shadow</th>"
+       "<th>rel. err. virtual</th><th>SSIM</th><th>flicker</th><th>whole: delta</th><th>whole: shadow</th><th>whole: virtual</th>"
+       "<th>whole: SSIM</th></tr>";
   for (const auto& r : records)
     for (const auto& p : r.value("sessions", json::array())) {
       h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>" << esc(r.value("varied", ""))
         << "</td><td class='l'>" << esc(p.value("session", "")) << "</td><td>" << fmt(msOf(p)) << "</td><td>"
-        << fmt(p["rel_error_delta"].get<double>()) << "</td><td>" << fmt(p["rel_error_virtual"].get<double>()) << "</td><td>"
+        << fmt(p["rel_error_delta"].get<double>()) << "</td><td>";
+      if (p.contains("rel_rms_delta_unbiased")) {
+        const json& u = p["rel_rms_delta_unbiased"];
+        h << fmt(u["value"].get<double>()) << " [" << fmt(u["lo"].get<double>()) << ", " << fmt(u["hi"].get<double>()) << "]";
+      } else {
+        h << "-";
+      }
+      auto shadow = [&](const json& record) {
+        if (!record.contains("shadow")) return std::string("-");
+        return fmt(record["shadow"]["energy"].get<double>()) + " / " + fmt(record["shadow"]["near_l1"].get<double>());
+      };
+      h << "</td><td>" << shadow(p) << "</td><td>" << fmt(p["rel_error_virtual"].get<double>()) << "</td><td>"
         << fmt(p["ssim"].get<double>(), 4) << "</td><td>" << fmt(p["flicker"].get<double>()) << "</td>";
       if (p.contains("whole_pipeline")) {
         const json& w = p["whole_pipeline"];
-        h << "<td>" << fmt(w["rel_error_delta"].get<double>()) << "</td><td>" << fmt(w["rel_error_virtual"].get<double>())
-          << "</td><td>" << fmt(w["ssim"].get<double>(), 4) << "</td>";
+        h << "<td>" << fmt(w["rel_error_delta"].get<double>()) << "</td><td>" << shadow(w) << "</td><td>"
+          << fmt(w["rel_error_virtual"].get<double>()) << "</td><td>" << fmt(w["ssim"].get<double>(), 4) << "</td>";
       } else {
-        h << "<td>-</td><td>-</td><td>-</td>";
+        h << "<td>-</td><td>-</td><td>-</td><td>-</td>";
       }
       h << "</tr>";
     }
