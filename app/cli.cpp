@@ -15,32 +15,41 @@ std::map<CLI::App*, Action> addCommands(CLI::App& app) {
     CLI::App* sub = app.add_subcommand(name, help);
     actions[sub] = fn(*sub);
   };
-  add("live", "Interactive AR demo: depth sensor (or --source recording) in a window with technique, knobs, debug views, timings",
+  add("live",
+      "Interactive AR demo: depth sensor (or --source recording) in a window with technique, knobs, debug views, "
+      "timings",
       addLive);
   add("record", "Record the depth sensor (and fisheye camera) into a crash-safe session; Ctrl-C keeps every frame",
       addRecord);
   add("info", "Print one JSON object describing a session, TUM sequence, .oni file or device", addInfo);
-  add("replay", "Replay a recording headless (or in a window) and write composited frames + summary.json",
-      addReplay);
-  add("synth", "Generate a synthetic tabletop session with ground truth (AprilTag, walls, a box, a light; or outdoors under an HDR environment)",
+  add("replay", "Replay a recording headless (or in a window) and write composited frames + summary.json", addReplay);
+  add("synth",
+      "Generate a synthetic tabletop session with ground truth (AprilTag, walls, a box, a light; or outdoors under an "
+      "HDR environment)",
       addSynth);
-  add("track", "Track an AprilTag marker: camera-from-tag pose per frame (JSON lines with --json)",
-      addTrack);
-  add("lights", "Estimate distant lights from a calibrated fisheye image or an equirectangular probe (solid-angle-weighted median cut)",
+  add("track", "Track an AprilTag marker: camera-from-tag pose per frame (JSON lines with --json)", addTrack);
+  add("lights",
+      "Estimate distant lights from a calibrated fisheye image or an equirectangular probe (solid-angle-weighted "
+      "median cut)",
       addLights);
   add("calibrate-fisheye", "Calibrate a fisheye camera from checkerboard images (OpenCV fisheye model)",
       addCalibrateFisheye);
-  add("import-visp", "Convert a ViSP RGB-D AprilTag sequence (PNG + NPZ depth) into an mrgi session",
-      addImportVisp);
-  add("insert", "Place a virtual object relative to the marker (optionally snapped onto the table plane) and save it into a scene file",
+  add("import-visp", "Convert a ViSP RGB-D AprilTag sequence (PNG + NPZ depth) into an mrgi session", addImportVisp);
+  add("insert",
+      "Place a virtual object relative to the marker (optionally snapped onto the table plane) and save it into a "
+      "scene file",
       addInsert);
-  add("room", "Build the model of the real room from a recording (depth fused over every frame's marker pose) and save it",
+  add("room",
+      "Build the model of the real room from a recording (depth fused over every frame's marker pose) and save it",
       addRoom);
-  add("room-lights", "Lights from a room model as seen from a point: a few point lights and an SH remainder; the map as PNG",
+  add("room-lights",
+      "Lights from a room model as seen from a point: a few point lights and an SH remainder; the map as PNG",
       addRoomLights);
   add("reference", "Path-trace the ground truth of one frame (rho, mu, delta EXR and the reference composite)",
       addReference);
-  add("bench", "Measure speed against accuracy of every technique's knobs against the path-traced reference; JSON, CSV, HTML, presets",
+  add("bench",
+      "Measure speed against accuracy of every technique's knobs against the path-traced reference; JSON, CSV, HTML, "
+      "presets",
       addBench);
   checkEveryValue(app);
   return actions;

@@ -1,6 +1,5 @@
 #include "app/cli_checks.h"
 
-#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 
@@ -9,23 +8,24 @@
 namespace mrgi::app {
 namespace {
 
-/// The value as a number, or the reason it is not one.
+/// Whether the whole of text is a number (strtod's syntax, nan and inf included), read into v.
 bool parseNumber(const std::string& text, double& v) {
   if (text.empty()) return false;
   char* end = nullptr;
-  errno = 0;
   v = std::strtod(text.c_str(), &end);
   return end != text.c_str() && *end == '\0';
 }
 
 CLI::Validator rangeValidator(double lo, double hi, bool openLo) {
-  const std::string range = std::string(openLo ? "(" : "[") + capture::formatNumber(lo) + ", " + capture::formatNumber(hi) + "]";
+  const std::string range =
+      std::string(openLo ? "(" : "[") + capture::formatNumber(lo) + ", " + capture::formatNumber(hi) + "]";
   return CLI::Validator(
       [lo, hi, openLo, range](std::string& value) -> std::string {
         double v = 0;
         if (!parseNumber(value, v)) return "'" + capture::excerpt(value, 40) + "' is not a number";
         std::string problem = capture::numberProblem(v, lo, hi);
-        if (problem.empty() && openLo && v <= lo) problem = "must be a finite number in " + range + ", not " + capture::formatNumber(v);
+        if (problem.empty() && openLo && v <= lo)
+          problem = "must be a finite number in " + range + ", not " + capture::formatNumber(v);
         return problem;
       },
       "in " + range, "number");
@@ -68,7 +68,8 @@ std::vector<double> parseNumbers(const std::string& text) {
 
 CLI::Validator numberList(int count, double lo, double hi, std::vector<std::string> words) {
   const std::string range = "[" + capture::formatNumber(lo) + ", " + capture::formatNumber(hi) + "]";
-  std::string what = count == 1 ? "a number in " + range : std::to_string(count) + " comma-separated numbers in " + range;
+  std::string what =
+      count == 1 ? "a number in " + range : std::to_string(count) + " comma-separated numbers in " + range;
   for (const std::string& w : words) what += " or " + w;
   return CLI::Validator(
       [count, lo, hi, words, what](std::string& value) -> std::string {
@@ -81,10 +82,12 @@ CLI::Validator numberList(int count, double lo, double hi, std::vector<std::stri
           const std::string why = e.what();
           return why.substr(why.find(": ") + 2) + " (expected " + what + ")";  // "'x' is not a number (expected ...)"
         }
-        if (static_cast<int>(v.size()) != count) return "expected " + what + ", not '" + capture::excerpt(value, 60) + "'";
+        if (static_cast<int>(v.size()) != count)
+          return "expected " + what + ", not '" + capture::excerpt(value, 60) + "'";
         for (double x : v) {
           const std::string problem = capture::numberProblem(x, lo, hi);
-          if (!problem.empty()) return count == 1 ? problem : "each of the " + std::to_string(count) + " numbers " + problem;
+          if (!problem.empty())
+            return count == 1 ? problem : "each of the " + std::to_string(count) + " numbers " + problem;
         }
         return {};
       },
@@ -92,7 +95,8 @@ CLI::Validator numberList(int count, double lo, double hi, std::vector<std::stri
 }
 
 CLI::Validator tagFamily() {
-  return CLI::Validator([](std::string& value) -> std::string { return capture::tagProblem(value); }, "FAMILY", "tag family");
+  return CLI::Validator([](std::string& value) -> std::string { return capture::tagProblem(value); }, "FAMILY",
+                        "tag family");
 }
 
 void checkTagId(const std::string& family, int id, const std::string& idFlag) {
@@ -104,13 +108,13 @@ void checkEveryValue(CLI::App& app) {
   static const CLI::Validator finite(
       [](std::string& value) -> std::string {
         double v = 0;
-        if (parseNumber(value, v) && !std::isfinite(v)) return "must be a finite number, not " + capture::excerpt(value, 40);
-        if (!parseNumber(value, v) && (value == "nan" || value == "inf")) return "must be a finite number";
+        if (parseNumber(value, v) && !std::isfinite(v))
+          return "must be a finite number, not " + capture::excerpt(value, 40);
         return {};
       },
       "", "finite");
-  static const CLI::Validator nonEmpty([](std::string& value) -> std::string { return value.empty() ? "must not be empty" : ""; },
-                                       "", "non-empty");
+  static const CLI::Validator nonEmpty(
+      [](std::string& value) -> std::string { return value.empty() ? "must not be empty" : ""; }, "", "non-empty");
   for (CLI::Option* opt : app.get_options()) {
     if (opt->get_items_expected_max() == 0) continue;  // flags take no value
     if (!emptyAllowed(opt)) opt->check(nonEmpty);

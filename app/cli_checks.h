@@ -1,11 +1,10 @@
 #pragma once
 // The flags' side of the one rule at the boundary (capture/checks.h): every number a flag takes is finite
 // and in its range, every value non-empty, each error one line naming the flag (exit 2).
+#include <CLI/CLI.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 namespace mrgi::app {
 
@@ -37,6 +36,5 @@ void checkTagId(const std::string& family, int id, const std::string& idFlag);
 /// allowEmpty (replay --mp4 "" writes no video).
 void allowEmpty(CLI::Option* option);
 void checkEveryValue(CLI::App& app);
-
 
 }  // namespace mrgi::app

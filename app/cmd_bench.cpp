@@ -620,6 +620,21 @@ json lightsAgainstTruth(const LightingSetup& est, const reconstruction::RoomLigh
   return out;
 }
 
+/// The real pixels within `radii` object radii of the objects of the pipeline's last frame (positions: its
+/// G-buffer positions); nullopt when the frame has no object.
+std::optional<NearObjects> nearObjects(lighting::LightingPipeline& pipe, const cv::Mat& positions, double radii) {
+  const auto b = pipe.frame().objectBounds();
+  if (!b) return std::nullopt;
+  NearObjects near;
+  near.positions = positions;
+  near.centre = 0.5 * (b->first + b->second);
+  near.radius = 0.5 * cv::norm(b->second - b->first);
+  near.radii = radii;
+  return near;
+}
+
+json shadowJson(const ShadowSums& s) { return {{"energy", s.energy()}, {"near_l1", s.nearL1()}, {"pixels", s.pixels}}; }
+
 /// The whole pipeline (a session's true reference composites) with these frame options: errors, SSIM,
 /// the object's brightness, time. `truth` (lights from the room): also the lights against the true ones.
 std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo, BenchSession& bs, const LightingSetup* truth = nullptr) {
@@ -642,14 +657,7 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
     if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
       const FrameState st = frameState(rp.lighting()->downloadShade(), rp.lighting()->downloadGBuffer(0), *r.T_marker_camera);
       whole.add(errorSums(st.shade, it->second));
-      if (const auto b = rp.lighting()->frame().objectBounds()) {
-        NearObjects three;
-        three.positions = st.positions;
-        three.centre = 0.5 * (b->first + b->second);
-        three.radius = 0.5 * cv::norm(b->second - b->first);
-        three.radii = 3;
-        shadow.add(shadowSums(st.shade, it->second, three));
-      }
+      if (const auto three = nearObjects(*rp.lighting(), st.positions, 3)) shadow.add(shadowSums(st.shade, it->second, *three));
       ssim += ssimOf(r.composite, it->second.composite);
       brightness.add(r.composite, it->second);
       ++frames;
@@ -661,7 +669,7 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
               {"rel_error_virtual", whole.relVirtual()},
               {"ssim", ssim / frames},
               {"virtual_brightness", brightness.ratio()},
-              {"shadow", {{"energy", shadow.energy()}, {"near_l1", shadow.nearL1()}, {"pixels", shadow.pixels}}},
+              {"shadow", shadowJson(shadow)},
               {"ms_total", ms / std::max(timed, 1)}};
   if (truth && rp.setup()) out["lights_vs_truth"] = lightsAgainstTruth(*rp.setup(), rp.roomLights(), *truth, bs);
   return out;
@@ -707,13 +715,9 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     gpuBytes = std::max(gpuBytes, pipe.gpuBytes());
     if (r.info.contains("techniques")) techniqueStats = r.info["techniques"];
     FrameState st = frameState(pipe.downloadShade(), pipe.downloadGBuffer(0), *r.T_marker_camera);
-    std::optional<NearObjects> near;
-    if (const auto b = pipe.frame().objectBounds()) {
-      near.emplace();
-      near->positions = st.positions;
-      near->centre = 0.5 * (b->first + b->second);
-      near->radius = 0.5 * cv::norm(b->second - b->first);
-    }
+    const std::optional<NearObjects> near = nearObjects(pipe, st.positions, 2);  // the contact shadow and bounce
+    // The object's shadow of the room reaches further than its contact shadow.
+    const std::optional<NearObjects> three = nearObjects(pipe, st.positions, 3);
     if (prev) {
       const auto [a, b] = flickerSums(*prev, st, frame.rgbd->colourIntrinsics);
       flickNum += a, flickDen += b;
@@ -721,11 +725,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     if (const auto it = bs.truths.find(f); it != bs.truths.end()) {
       const ErrorSums e = errorSums(st.shade, it->second, near ? &*near : nullptr);
       err.add(e);
-      if (near) {
-        NearObjects three = *near;
-        three.radii = 3;  // the object's shadow of the room reaches further than its contact shadow
-        shadow.add(shadowSums(st.shade, it->second, three));
-      }
+      if (three) shadow.add(shadowSums(st.shade, it->second, *three));
       if (const auto u = unbiasedDeltaError(st.shade, it->second)) unbiased = u;
       if (gallery && c.varied.empty() && it == bs.truths.begin()) gallery->push_back({name, r.composite.clone(), st.shade.clone()});
       ssimSum += ssimOf(r.composite, it->second.composite);
@@ -738,11 +738,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     }
     if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
       whole.add(errorSums(st.shade, it->second));
-      if (near) {
-        NearObjects three = *near;
-        three.radii = 3;
-        wholeShadow.add(shadowSums(st.shade, it->second, three));
-      }
+      if (three) wholeShadow.add(shadowSums(st.shade, it->second, *three));
       wholeSsim += ssimOf(r.composite, it->second.composite);
       brightness.add(r.composite, it->second);
       ++wholeFrames;
@@ -786,7 +782,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
             {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
             {"silhouette_mismatch_pixels", err.mismatched},
             {"technique_stats", techniqueStats}};
-  if (shadow.pixels > 0) r["shadow"] = {{"energy", shadow.energy()}, {"near_l1", shadow.nearL1()}, {"pixels", shadow.pixels}};
+  if (shadow.pixels > 0) r["shadow"] = shadowJson(shadow);
   // The real-pixel delta's relative RMS error without the reference's noise, with its 95 % interval.
   if (unbiased)
     r["rel_rms_delta_unbiased"] = {{"value", unbiased->rel()}, {"lo", unbiased->relLo()}, {"hi", unbiased->relHi()}, {"pixels", unbiased->pixels}};
@@ -797,7 +793,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
                            {"ssim", wholeSsim / wholeFrames},
                            {"virtual_brightness", brightness.ratio()},
                            {"silhouette_mismatch_pixels", whole.mismatched},
-                           {"shadow", {{"energy", wholeShadow.energy()}, {"near_l1", wholeShadow.nearL1()}, {"pixels", wholeShadow.pixels}}}};
+                           {"shadow", shadowJson(wholeShadow)}};
   if (roomRecord) r["whole_pipeline_room"] = *roomRecord;
   if (roomLightsRecord) r["whole_pipeline_room_lights"] = *roomLightsRecord;
   return r;

@@ -1,5 +1,6 @@
 #include "capture/checks.h"
 
+#include <algorithm>
 #include <cfloat>
 #include <cmath>
 #include <cstdio>
@@ -8,7 +9,6 @@
 #include <iterator>
 #include <string_view>
 #include <vector>
-#include <algorithm>
 
 #include "capture/error.h"
 
@@ -28,10 +28,14 @@ std::string numberProblem(double v, double lo, double hi) {
   if (std::isfinite(v) && v >= lo && v <= hi) return {};
   const bool noLo = lo <= -DBL_MAX, noHi = hi >= DBL_MAX;
   std::string range;
-  if (noLo && noHi) range = "a finite number";
-  else if (noLo) range = "a finite number at most " + formatNumber(hi);
-  else if (noHi) range = "a finite number of at least " + formatNumber(lo);
-  else range = "a finite number in [" + formatNumber(lo) + ", " + formatNumber(hi) + "]";
+  if (noLo && noHi)
+    range = "a finite number";
+  else if (noLo)
+    range = "a finite number at most " + formatNumber(hi);
+  else if (noHi)
+    range = "a finite number of at least " + formatNumber(lo);
+  else
+    range = "a finite number in [" + formatNumber(lo) + ", " + formatNumber(hi) + "]";
   return "must be " + range + ", not " + formatNumber(v);
 }
 
@@ -72,7 +76,8 @@ std::string tagProblem(const std::string& family, int id) {
   for (const TagFamily& f : kTagFamilies)
     if (family == f.name)
       return id >= 0 && id < f.codes ? std::string()
-                                     : "id " + std::to_string(id) + " is not one of " + family + "'s ids (0 to " + std::to_string(f.codes - 1) + ")";
+                                     : "id " + std::to_string(id) + " is not one of " + family + "'s ids (0 to " +
+                                           std::to_string(f.codes - 1) + ")";
   return tagProblem(family);
 }
 
@@ -85,37 +90,44 @@ std::string directionProblem(const cv::Vec3d& d) {
 namespace {
 std::string sizeText(std::uintmax_t bytes) {
   char buf[32];
-  if (bytes >= (1ull << 30)) std::snprintf(buf, sizeof buf, "%.1f GiB", static_cast<double>(bytes) / (1ull << 30));
-  else if (bytes >= (1ull << 20)) std::snprintf(buf, sizeof buf, "%.1f MiB", static_cast<double>(bytes) / (1ull << 20));
-  else std::snprintf(buf, sizeof buf, "%ju bytes", bytes);
+  if (bytes >= (1ull << 30))
+    std::snprintf(buf, sizeof buf, "%.1f GiB", static_cast<double>(bytes) / (1ull << 30));
+  else if (bytes >= (1ull << 20))
+    std::snprintf(buf, sizeof buf, "%.1f MiB", static_cast<double>(bytes) / (1ull << 20));
+  else
+    std::snprintf(buf, sizeof buf, "%ju bytes", bytes);
   return buf;
 }
 }  // namespace
 
-void checkFileBounded(const std::string& path, std::uintmax_t maxBytes, const std::string& kind) {
+std::uintmax_t checkFileBounded(const std::string& path, std::uintmax_t maxBytes, const std::string& kind) {
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (ec || !fs::exists(st)) throw InputError(path, "is missing");
   if (fs::is_directory(st)) throw InputError(path, "is a folder, not a " + kind);
-  if (!fs::is_regular_file(st)) throw InputError(path, "is not a regular file (a device, pipe or socket), not a " + kind);
+  if (!fs::is_regular_file(st))
+    throw InputError(path, "is not a regular file (a device, pipe or socket), not a " + kind);
   const std::uintmax_t size = fs::file_size(path, ec);
   if (ec) throw InputError(path, "cannot read its size: " + ec.message());
   if (size > maxBytes)
     throw InputError(path, "is " + sizeText(size) + ", more than the " + sizeText(maxBytes) + " a " + kind + " may be");
+  return size;
 }
 
 std::string readFileBounded(const std::string& path, std::uintmax_t maxBytes, const std::string& kind) {
-  checkFileBounded(path, maxBytes, kind);
+  const std::uintmax_t size = checkFileBounded(path, maxBytes, kind);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open for reading");
   std::string bytes;
+  bytes.reserve(static_cast<std::size_t>(size));
   char buf[1 << 16];
   // Read no more than the bound even if the file grew after it was checked.
   while (in && bytes.size() <= maxBytes) {
     in.read(buf, sizeof buf);
     bytes.append(buf, static_cast<size_t>(in.gcount()));
   }
-  if (bytes.size() > maxBytes) throw InputError(path, "grew past the " + sizeText(maxBytes) + " a " + kind + " may be while it was read");
+  if (bytes.size() > maxBytes)
+    throw InputError(path, "grew past the " + sizeText(maxBytes) + " a " + kind + " may be while it was read");
   return bytes;
 }
 
@@ -146,14 +158,20 @@ int yamlNestingDepth(const std::string& text) {
     for (std::size_t k = i == std::string_view::npos ? line.size() : i; k < line.size(); ++k) {
       const char c = line[k];
       if (quote) {
-        if (c == '\\' && quote == '"') ++k;
-        else if (c == quote) quote = 0;
+        if (c == '\\' && quote == '"')
+          ++k;
+        else if (c == quote)
+          quote = 0;
         continue;
       }
-      if (c == '"' || c == '\'') quote = c;
-      else if (c == '#' && (k == 0 || line[k - 1] == ' ' || line[k - 1] == '\t')) break;
-      else if (c == '[' || c == '{') deepest = std::max(deepest, block + ++flow);
-      else if ((c == ']' || c == '}') && flow > 0) --flow;
+      if (c == '"' || c == '\'')
+        quote = c;
+      else if (c == '#' && (k == 0 || line[k - 1] == ' ' || line[k - 1] == '\t'))
+        break;
+      else if (c == '[' || c == '{')
+        deepest = std::max(deepest, block + ++flow);
+      else if ((c == ']' || c == '}') && flow > 0)
+        --flow;
     }
     deepest = std::max(deepest, block + flow);
   }

@@ -38,10 +38,14 @@ struct TagFamily {
   const char* name;
   int codes;
 };
-inline constexpr TagFamily kTagFamilies[] = {{"tag36h11", 587},         {"tag25h9", 35},
-                                             {"tag16h5", 30},           {"tagCircle21h7", 38},
-                                             {"tagCircle49h12", 65535}, {"tagCustom48h12", 42211},
-                                             {"tagStandard41h12", 2115}, {"tagStandard52h13", 48714}};
+inline constexpr TagFamily kTagFamilies[] = {{"tag36h11", 587},
+                                             {"tag25h9", 35},
+                                             {"tag16h5", 30},
+                                             {"tagCircle21h7", 38},
+                                             {"tagCircle49h12", 65535},
+                                             {"tagCustom48h12", 42211},
+                                             {"tagStandard41h12", 2115},
+                                             {"tagStandard52h13", 48714}};
 /// Empty when family is one of them, else the problem naming the known ones.
 std::string tagProblem(const std::string& family);
 /// Empty when family is known and id one of its ids, else the problem.
@@ -61,15 +65,15 @@ constexpr double kMinSpotHalfAngleDeg = 0.1, kMaxSpotHalfAngleDeg = 89.0;
 std::string directionProblem(const cv::Vec3d& d);
 
 /// Bounds on the files users give, by kind; a file past its bound is refused before it is read.
-constexpr std::uintmax_t kMaxTextFileBytes = 64ull << 20;    ///< JSON, YAML, TUM lists, presets, scenes
-constexpr std::uintmax_t kMaxBinaryFileBytes = 2ull << 30;   ///< images, models, arrays, meshes
+constexpr std::uintmax_t kMaxTextFileBytes = 64ull << 20;   ///< JSON, YAML, TUM lists, presets, scenes
+constexpr std::uintmax_t kMaxBinaryFileBytes = 2ull << 30;  ///< images, models, arrays, meshes
 
 /// The file's whole content: it must be a regular file (not a folder, FIFO or device: /dev/zero would never
 /// end) of at most maxBytes. Errors: "<path>: is missing", "...: is not a regular file",
 /// "...: is 80 MiB, more than the 64 MiB a <kind> may be", "...: cannot open for reading".
 std::string readFileBounded(const std::string& path, std::uintmax_t maxBytes, const std::string& kind);
-/// Throws like readFileBounded (missing, not regular, too large) without reading the file.
-void checkFileBounded(const std::string& path, std::uintmax_t maxBytes, const std::string& kind);
+/// Throws like readFileBounded (missing, not regular, too large) without reading the file; returns its size.
+std::uintmax_t checkFileBounded(const std::string& path, std::uintmax_t maxBytes, const std::string& kind);
 
 /// YAML handed to OpenCV's FileStorage is checked first: its parser recurses once per level of nesting and
 /// overflows the stack on a few tens of thousands (a flow sequence "[[[[..." or block maps indented deeper

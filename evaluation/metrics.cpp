@@ -91,11 +91,7 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects*
         ++e.mismatched;
         continue;
       }
-      bool isNear = false;
-      if (near && !virtRt && near->radius > 0) {
-        const cv::Vec4f p = near->positions.at<cv::Vec4f>(y, x);
-        isNear = p[3] > 0.5f && cv::norm(cv::Vec3d(p[0], p[1], p[2]) - near->centre) <= near->radii * near->radius;
-      }
+      const bool isNear = near && !virtRt && near->contains(near->positions.at<cv::Vec4f>(y, x));
       for (int c = 0; c < 3; ++c) {
         const double d = s[c] - r[c];
         if (isNear) e.nearAbs += std::abs(d), e.nearRef += std::abs(r[c]);
@@ -121,9 +117,8 @@ ShadowSums shadowSums(const cv::Mat& shade, const Truth& truth, const NearObject
   for (int y = 0; y < shade.rows; ++y)
     for (int x = 0; x < shade.cols; ++x) {
       const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
-      const cv::Vec4f p = near.positions.at<cv::Vec4f>(y, x);
       const bool real = s[3] <= 0.5f && !truth.images.mask.at<uchar>(y, x);
-      if (!real || p[3] < 0.5f || cv::norm(cv::Vec3d(p[0], p[1], p[2]) - near.centre) > near.radii * near.radius) continue;
+      if (!real || !near.contains(near.positions.at<cv::Vec4f>(y, x))) continue;
       const double a = capture::luminance(cv::Vec3d(s[0], s[1], s[2]));
       const double b = capture::luminance(cv::Vec3d(truth.delta.at<cv::Vec3f>(y, x)));
       lum.at<float>(y, x) = static_cast<float>(a);

@@ -73,6 +73,10 @@ struct NearObjects {
   cv::Vec3d centre{0, 0, 0};
   double radius = 0;
   double radii = 2.0;
+  /// Whether the G-buffer position p (w = valid) lies within radii x radius of the centre.
+  bool contains(const cv::Vec4f& p) const {
+    return radius > 0 && p[3] > 0.5f && cv::norm(cv::Vec3d(p[0], p[1], p[2]) - centre) <= radii * radius;
+  }
 };
 ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects* near = nullptr);
 

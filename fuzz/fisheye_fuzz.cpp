@@ -35,7 +35,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const char* kNames[] = {"fisheye/000000.exr", "fisheye/000000.hdr", "fisheye/000000.png"};
   const char* name = kNames[data[0] % 3];
   const fs::path& dir = session();
-  std::ofstream(dir / name, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(data + 1), static_cast<std::streamsize>(size - 1));
+  std::ofstream(dir / name, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(data + 1), static_cast<std::streamsize>(size - 1));
   std::ofstream(dir / "frames.jsonl", std::ios::trunc) << R"({"index": 0, "t": 0, "fisheye": ")" << name << "\"}\n";
   mrgi::fuzz::expectInputErrorOnly([&] {
     mrgi::capture::SessionSource source(dir.string());
@@ -45,10 +46,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const auto rays = mrgi::reconstruction::fisheyeRays(f.calibration);
     mrgi::reconstruction::LightSplitOptions so;
     so.medianCut.count = 4;
-    const auto split = mrgi::reconstruction::splitLights(mrgi::reconstruction::linearRadiance(f.image, f.exposure), rays, so);
+    const auto split =
+        mrgi::reconstruction::splitLights(mrgi::reconstruction::linearRadiance(f.image, f.exposure), rays, so);
     for (const auto& l : split.lights)
       for (int c = 0; c < 3; ++c)
-        if (!std::isfinite(l.power[c]) || !std::isfinite(l.direction[c])) std::abort();  // lights from an accepted image
+        if (!std::isfinite(l.power[c]) || !std::isfinite(l.direction[c]))
+          std::abort();  // lights from an accepted image
     for (const auto& c : split.ambientSh)
       for (int k = 0; k < 3; ++k)
         if (!std::isfinite(c[k])) std::abort();
