@@ -366,9 +366,10 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   json roomInfo;
   if (o.room) {
     // The whole recording fused (a scan of the room), with the poses the pipeline uses.
-    auto all = capture::open(path);
     const auto t0 = std::chrono::steady_clock::now();
-    RoomFusion fusion = fuseRoom(*all, o.pose, reconstruction::RoomOptions{});
+    runtime::RoomFusionOptions fo;
+    fo.pose = o.pose;
+    RoomFusion fusion = fuseRoom(path, fo);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (fusion.model.framesIntegrated() == 0) throw capture::CaptureError(path, "--room: no frame could be fused into a room");
     bs.room = std::make_shared<const reconstruction::RoomMesh>(fusion.model.mesh());
@@ -383,8 +384,8 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     if (o.pose != PoseMode::Tracked) {
       // The same recording fused from tracked poses, next to this one: how far its surface lies from it and
       // how much of it it covers (a scan's frames that tracking loses are refused, never fused at a guess).
-      auto again = capture::open(path);
-      RoomFusion tracked = fuseRoom(*again, PoseMode::Tracked, reconstruction::RoomOptions{});
+      runtime::RoomFusionOptions to;
+      RoomFusion tracked = fuseRoom(path, to);
       const auto mesh = tracked.model.mesh();
       const SurfaceDistance accuracy = surfaceDistance(mesh, *bs.room), coverage = surfaceDistance(*bs.room, mesh);
       roomInfo["tracked"] = {{"frames", tracked.model.framesIntegrated()}, {"lost", tracked.lost},

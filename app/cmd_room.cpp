@@ -31,6 +31,7 @@ struct RoomCliOptions {
   int frames = 0;
   int every = 1;
   int trackEvery = 0;
+  bool noOptimise = false;
   reconstruction::RoomOptions room;
   bool json = false;
 };
@@ -51,7 +52,14 @@ int runRoom(const RoomCliOptions& o) {
   ProgressBar bar("room");
   const int64_t total = info.frameCount ? *info.frameCount : -1;
   const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
-  RoomFusion fusion = fuseRoom(*source, o.pose, o.room, limit, o.every, o.trackEvery, [&](const json& line, const reconstruction::RoomModel& model) {
+  runtime::RoomFusionOptions fo;
+  fo.pose = o.pose;
+  fo.room = o.room;
+  fo.limit = limit;
+  fo.every = o.every;
+  fo.trackEvery = o.trackEvery;
+  fo.optimise = !o.noOptimise;
+  RoomFusion fusion = fuseRoom(o.source, fo, [&](const json& line, const reconstruction::RoomModel& model) {
     if (!o.json)
       std::printf("frame %lld: %s%s, %zu blocks\n", static_cast<long long>(line["frame"].get<int64_t>()),
                   line["integrated"].get<bool>() ? "integrated" : "not integrated: ",
@@ -69,6 +77,7 @@ int runRoom(const RoomCliOptions& o) {
                         {"integrated", room.framesIntegrated()},
                         {"refused", room.framesRefused()},
                         {"pose", {{"mode", toString(o.pose)}, {"lost", fusion.lost}, {"held", fusion.held}}},
+                        {"trajectory", fusion.trajectory},
                         {"blocks", room.blocks()},
                         {"voxel_mib", static_cast<double>(room.bytes()) / (1 << 20)},
                         {"appearance_mib", static_cast<double>(room.appearanceBytes()) / (1 << 20)},
@@ -84,7 +93,13 @@ int runRoom(const RoomCliOptions& o) {
                  static_cast<long long>(fusion.held), toString(o.pose));
   if (o.json)
     std::printf("%s\n", jsonText(summary, o.source).c_str());
-  else
+  else if (!fusion.trajectory.is_null())
+    std::printf("trajectory optimised: %d odometry, %d loop-closure and %d marker edges (%d pruned); frames moved %.1f mm on average, "
+                "%.1f mm at most\n",
+                fusion.trajectory["odometry_edges"].get<int>(), fusion.trajectory["loop_edges"].get<int>(),
+                fusion.trajectory["marker_edges"].get<int>(), fusion.trajectory["pruned_edges"].get<int>(),
+                1e3 * fusion.trajectory["mean_shift_m"].get<double>(), 1e3 * fusion.trajectory["max_shift_m"].get<double>());
+  if (!o.json)
     std::printf(
         "wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms "
         "median, %.1f ms with the depth filter\n",
@@ -186,6 +201,9 @@ Action addRoom(CLI::App& app) {
                  "frames moved the room 2.0 -> 2.4-2.8 mm (synth), 7.0 -> 6.6 (pt), 4.2 -> 5.9-7.8 (hdr) from the true one)")
       ->check(numberIn(0, 1e6))
       ->capture_default_str();
+  app.add_flag("--no-optimise", o->noOptimise,
+               "with odometry or tracked poses, fuse each frame at the tracker's pose instead of optimising the whole "
+               "trajectory first (a pose graph of odometry, loop-closure and marker edges; off with --track-every)");
   app.add_option("--voxel", o->room.voxelM, "voxel edge in metres")->check(numberIn(0.002, 0.2))->capture_default_str();
   app.add_option("--trunc", o->room.truncM, "truncation distance of the signed distance, metres (at least 2 voxels)")
       ->check(numberIn(0.004, 1.0))

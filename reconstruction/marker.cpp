@@ -226,12 +226,24 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> fitTagPlane(const TagDetection& d
   return plane;
 }
 
+std::pair<double, double> depthGateLimits(const DepthGate& gate, const TagDetection& detection, double z) {
+  double side = 0;
+  for (int i = 0; i < 4; ++i) side += cv::norm(detection.corners[static_cast<size_t>(i)] - detection.corners[static_cast<size_t>((i + 1) % 4)]);
+  side /= 4;
+  const double dz = side > 0 && std::isfinite(z) ? z * std::sqrt(2.0) * gate.cornerNoisePx / side : 0.0;
+  const double scale = std::max(1.0, 3.0 * dz / gate.maxShiftMetres);
+  return {gate.maxAngleDeg * scale, gate.maxShiftMetres * scale};
+}
+
 std::optional<TagPose> measureTagPose(const TagDetection& detection, double tagSize, const capture::Intrinsics& k,
                                       const cv::Mat& depth, const capture::Pose* previous, const DepthGate& gate) {
   std::optional<std::pair<cv::Vec3d, cv::Vec3d>> plane;
   if (!depth.empty()) plane = fitTagPlane(detection, depth, k);
   auto pose = estimateTagPose(detection, tagSize, k, {}, previous, plane ? &plane->first : nullptr);
-  if (pose && plane) *pose = refinePoseWithDepth(*pose, *plane, gate.maxAngleDeg, gate.maxShiftMetres);
+  if (pose && plane) {
+    const auto [angle, shift] = depthGateLimits(gate, detection, pose->T_camera_tag(2, 3));
+    *pose = refinePoseWithDepth(*pose, *plane, angle, shift);
+  }
   return pose;
 }
 

@@ -102,11 +102,19 @@ TagPose refinePoseWithDepth(const TagPose& pose, const std::pair<cv::Vec3d, cv::
 
 /// The agreement measureTagPose asks of the depth plane before re-seating a pose on it: a sensor whose
 /// depth on the tag is biased (printed black and white fool some sensors by centimetres and degrees) must
-/// not pull a good image pose away; a noisy image pose (small tag in the image) gets corrected.
+/// not pull a good image pose away; a noisy image pose (small tag in the image) gets corrected. The limits
+/// grow with the image pose's own uncertainty: its distance from the tag's apparent size is uncertain by
+/// dz = z sqrt(2) cornerNoisePx / side (side: the tag's mean side in pixels), and where 3 dz exceeds
+/// maxShiftMetres both limits are scaled by 3 dz / maxShiftMetres (a 25-pixel tag at 0.9 m: dz = 10 mm,
+/// limits 31 mm and 3.1 degrees; the real ViSP sequence, whose sensor's depth on the printed tag is biased,
+/// keeps the base limits).
 struct DepthGate {
   double maxAngleDeg = 2.5;       ///< between the pose's tag normal and the plane's
   double maxShiftMetres = 0.025;  ///< of the tag centre along its viewing ray
+  double cornerNoisePx = 0.2;
 };
+/// The gate's limits for one detection at distance `z` (metres): {angle in degrees, shift in metres}.
+std::pair<double, double> depthGateLimits(const DepthGate& gate, const TagDetection& detection, double z);
 
 /// One frame's measurement of a tag: estimateTagPose, disambiguated and re-seated by the depth plane under
 /// the tag when `depth` (registered to the colour image, metres) is given, holds enough samples there and

@@ -151,6 +151,8 @@ class FramePipeline {
   lighting::LightingPipeline* lighting() { return pipeline_.get(); }
   /// Where the frames' camera poses come from (null without a setup).
   const PoseSource* poses() const { return poses_.get(); }
+  /// Replaces where the next frames' poses come from (a trajectory decided beforehand: makeGivenPoseSource).
+  void usePoses(std::unique_ptr<PoseSource> poses) { poses_ = std::move(poses); }
   /// The room the pose source aligns the next frames with (PoseSource::useModel); only between frames, on the
   /// thread that measures them.
   void trackAgainst(std::shared_ptr<const reconstruction::RoomMesh> room) {

@@ -130,6 +130,7 @@ class MarkerPoses : public PoseSource {
     const auto status = track_.update(frame.timestamp, measured);
     CameraPose out;
     out.marker = reconstruction::toString(status);
+    if (measured) out.markerT_world_camera = capture::inversePose(*measured);
     if (status != reconstruction::TrackStatus::Lost && track_.pose()) {
       out.T_world_camera = capture::inversePose(*track_.pose());
       out.by = PosedBy::Marker;
@@ -209,6 +210,7 @@ class OdometryPoses : public PoseSource {
       marker = measurement_.measure(rgbd, lastMarker_ ? &*lastMarker_ : nullptr);
       lastMarker_ = marker;
       out.marker = marker ? "tracked" : "lost";
+      if (marker) out.markerT_world_camera = capture::inversePose(*marker);
     }
     std::optional<reconstruction::OdometryFrame> odo;
     {
@@ -454,7 +456,24 @@ class OdometryPoses : public PoseSource {
   std::shared_ptr<reconstruction::MeshRays> modelRays_;
 };
 
+/// Poses decided beforehand, in the order the frames come.
+class GivenPoses : public PoseSource {
+ public:
+  GivenPoses(PoseMode mode, std::vector<CameraPose> poses) : mode_(mode), poses_(std::move(poses)) {}
+  PoseMode mode() const override { return mode_; }
+  CameraPose locate(const capture::Frame&, gl::Profiler&) override { return next_ < poses_.size() ? poses_[next_++] : CameraPose{}; }
+
+ private:
+  PoseMode mode_;
+  std::vector<CameraPose> poses_;
+  size_t next_ = 0;
+};
+
 }  // namespace
+
+std::unique_ptr<PoseSource> makeGivenPoseSource(PoseMode mode, std::vector<CameraPose> poses) {
+  return std::make_unique<GivenPoses>(mode, std::move(poses));
+}
 
 std::unique_ptr<PoseSource> makePoseSource(PoseMode mode, const MarkerSpec& marker,
                                            const std::optional<capture::Pose>& T_world_marker, const TrackingOptions& options) {

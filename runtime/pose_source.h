@@ -49,6 +49,9 @@ struct CameraPose {
   /// What odometry aligned the frame with: "model" (the room seen from the predicted pose), "keyframe" or
   /// "previous" (the frame before); empty when it did not place the frame.
   std::string against;
+  /// The camera-to-world pose the marker alone gives this frame, when its tag was seen (unsmoothed): what an
+  /// offline optimisation of the trajectory weighs against odometry (reconstruction/pose_graph.h).
+  std::optional<capture::Pose> markerT_world_camera;
   /// Marker correction applied to the odometry pose this frame (metres, degrees), when the tag was seen.
   double correctionM = 0, correctionDeg = 0;
   bool tracked() const { return T_world_camera.has_value(); }
@@ -121,5 +124,9 @@ class PoseSource {
 std::unique_ptr<PoseSource> makePoseSource(PoseMode mode, const MarkerSpec& marker,
                                            const std::optional<capture::Pose>& T_world_marker,
                                            const TrackingOptions& options = {});
+
+/// Poses decided beforehand (a trajectory optimised offline): the n-th frame located gets the n-th pose, a
+/// frame past the last is lost. `mode` is what it reports as its mode.
+std::unique_ptr<PoseSource> makeGivenPoseSource(PoseMode mode, std::vector<CameraPose> poses);
 
 }  // namespace mrgi::runtime

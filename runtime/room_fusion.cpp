@@ -34,28 +34,76 @@ double median(std::vector<double> sorted) {
 double RoomFusion::medianFuseMs() const { return median(fuseMs); }
 double RoomFusion::medianSurfaceMs() const { return median(surfaceMs); }
 
-RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstruction::RoomOptions& options,
-                    int64_t limit, int every, int trackEvery,
-                    const std::function<void(const nlohmann::json&, const reconstruction::RoomModel&)>& onFrame) {
-  const capture::SourceInfo& info = source.info();
+namespace {
+
+/// The tracker's poses of every measured frame (the first pass of an optimised fusion), each posed frame
+/// added to the trajectory's graph; then the optimised poses, with the tracker's facts of each frame.
+std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusionOptions& o, nlohmann::json& facts) {
+  auto source = capture::open(path);
+  const capture::SourceInfo& info = source->info();
   FrameOptions fo;
-  fo.pose = pose;
+  fo.pose = o.pose;
   fo.gpu = false;
   fo.reuse = false;
-  FramePipeline frames(markerSetup(source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
-  RoomFusion out{reconstruction::RoomModel(options), 0, 0, 0, 0, {}, {}, nlohmann::json::array()};
+  FramePipeline frames(markerSetup(*source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
+  reconstruction::TrajectoryOptions to = o.trajectory;
+  to.odometry = fo.tracking.odometry;
+  reconstruction::TrajectoryOptimiser graph(to);
+  std::vector<CameraPose> poses;
   gl::Profiler profiler;
-  while (limit < 0 || out.frames < limit) {
-    auto frame = source.next();
+  for (int64_t index = 0; o.limit < 0 || index < o.limit; ++index) {
+    auto frame = source->next();
+    if (!frame) break;
+    if (index % o.every != 0 || !frame->rgbd) continue;
+    const FrameResult r = frames.measure(*frame, profiler);
+    const bool posed = r.pose.tracked() && !r.pose.held();
+    graph.add(reconstruction::OdometryFrame(frame->rgbd->depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, to.odometry,
+                                            frame->rgbd->exposure),
+              {posed ? r.pose.T_world_camera : std::nullopt, r.pose.markerT_world_camera});
+    poses.push_back(r.pose);
+  }
+  const reconstruction::TrajectoryResult t = graph.optimise();
+  for (size_t i = 0; i < poses.size(); ++i)
+    if (t.T_world_camera[i]) poses[i].T_world_camera = t.T_world_camera[i];
+  facts = {{"odometry_edges", t.odometryEdges}, {"loop_edges", t.loopEdges}, {"marker_edges", t.markerEdges},
+           {"pruned_edges", t.prunedEdges}, {"refused_alignments", t.refusedAlignments},
+           {"mean_shift_m", t.meanShiftM}, {"max_shift_m", t.maxShiftM}};
+  return poses;
+}
+
+}  // namespace
+
+RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
+                    const std::function<void(const nlohmann::json&, const reconstruction::RoomModel&)>& onFrame) {
+  const bool tracks = o.pose == PoseMode::Odometry || o.pose == PoseMode::Tracked;
+  RoomFusion out{reconstruction::RoomModel(o.room), 0, 0, 0, 0, {}, {}, nlohmann::json::array(), {}, nullptr};
+  std::optional<std::vector<CameraPose>> given;
+  if (o.optimise && tracks && o.trackEvery == 0) {
+    nlohmann::json facts;
+    given = optimisedPoses(path, o, facts);
+    out.trajectory = facts;
+  }
+  auto source = capture::open(path);
+  const capture::SourceInfo& info = source->info();
+  FrameOptions fo;
+  fo.pose = o.pose;
+  fo.gpu = false;
+  fo.reuse = false;
+  FramePipeline frames(markerSetup(*source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
+  if (given) frames.usePoses(makeGivenPoseSource(o.pose, *given));
+  gl::Profiler profiler;
+  while (o.limit < 0 || out.frames < o.limit) {
+    auto frame = source->next();
     if (!frame) break;
     const int64_t index = out.frames++;
-    if (index % every != 0 || !frame->rgbd) continue;
+    if (index % o.every != 0 || !frame->rgbd) continue;
     const FrameResult r = frames.measure(*frame, profiler);
     // What the frame's depth cost before fusion: the guided filter and the normals.
     double filterMs = 0;
     for (const auto& [stage, t] : profiler.resolve())
       if (stage == "depth_filter" || stage == "normals") filterMs += t.cpuMs;
     nlohmann::json line = {{"frame", index}, {"pose", r.pose.facts()}};
+    out.poses.push_back(r.T_marker_camera && !r.positions.empty() && !r.pose.held() ? r.T_marker_camera : std::nullopt);
     if (!r.T_marker_camera || r.positions.empty()) {
       line["integrated"] = false;
       line["refused"] = "lost: no trusted camera pose";
@@ -75,8 +123,7 @@ RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstru
       line["integrated"] = result.integrated;
       // Frame-to-model: the poses of the next frames are aligned with the room fused so far, its surface
       // taken anew every `trackEvery` fused frames.
-      if (result.integrated && trackEvery > 0 && (pose == PoseMode::Odometry || pose == PoseMode::Tracked) &&
-          out.model.framesIntegrated() % trackEvery == 0) {
+      if (!given && result.integrated && o.trackEvery > 0 && tracks && out.model.framesIntegrated() % o.trackEvery == 0) {
         const auto t1 = std::chrono::steady_clock::now();
         frames.trackAgainst(std::make_shared<const reconstruction::RoomMesh>(out.model.mesh()));
         line["model_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();

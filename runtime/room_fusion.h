@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "capture/frame_source.h"
+#include "reconstruction/pose_graph.h"
 #include "reconstruction/room_model.h"
 #include "runtime/frame_pipeline.h"
 
@@ -26,17 +27,34 @@ struct RoomFusion {
   std::vector<double> fuseMs;                    ///< per integrated-or-refused frame with a pose
   std::vector<double> surfaceMs;                 ///< the same frames: depth filter and normals + fusion
   nlohmann::json perFrame = nlohmann::json::array();  ///< frame, integrated, refused, overlap, inconsistent, new_blocks, fuse_ms
+  /// Each measured frame's camera-to-world pose as it was fused (nullopt: refused for its pose).
+  std::vector<std::optional<capture::Pose>> poses;
+  /// The optimised trajectory's facts (edges, pruned, how far frames moved), when it was optimised; else null.
+  nlohmann::json trajectory;
   /// Median of fuseMs (0 without any).
   double medianFuseMs() const;
   /// Median of surfaceMs: a frame's whole real-surface cost (filter, normals, fusion, appearance).
   double medianSurfaceMs() const;
 };
 
-/// Reads up to `limit` frames (< 0: all) of `source`, integrates every `every`-th. With odometry or tracked
-/// poses, every `trackEvery` fused frames (0: never) the room's surface becomes what the next frames are aligned
-/// with (frame-to-model). `onFrame` (optional) sees each frame's line as it is decided.
-RoomFusion fuseRoom(capture::FrameSource& source, PoseMode pose, const reconstruction::RoomOptions& options,
-                    int64_t limit = -1, int every = 1, int trackEvery = 0,
+struct RoomFusionOptions {
+  PoseMode pose = PoseMode::Tracked;
+  reconstruction::RoomOptions room;
+  int64_t limit = -1;  ///< frames read (< 0: all)
+  int every = 1;       ///< every `every`-th frame is integrated
+  /// With odometry or tracked poses, every `trackEvery` fused frames (0: never) the room's surface becomes
+  /// what the next frames are aligned with (frame-to-model).
+  int trackEvery = 0;
+  /// With odometry or tracked poses: the whole trajectory optimised before anything is fused (a pose graph of
+  /// odometry, loop-closure and marker edges: reconstruction/pose_graph.h), the recording read twice. Not
+  /// with trackEvery (frame-to-model against the room fused so far needs the poses as the frames come).
+  bool optimise = true;
+  reconstruction::TrajectoryOptions trajectory;
+};
+
+/// Fuses the recording at `path` (opened with capture::open; opened again for an optimised trajectory).
+/// `onFrame` (optional) sees each frame's line as it is decided.
+RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& options,
                     const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
 
 /// Writes a fused room as mrgi room does (room.ply, room_appearance.npy, room.json naming `session`); the
