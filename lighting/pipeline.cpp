@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "gl/error.h"
+#include "lighting/object_shadow.h"
 
 namespace mrgi::lighting {
 
@@ -52,6 +53,18 @@ size_t estimateGpuBytes(const PipelineConfig& config, size_t lights) {
 }
 
 namespace {
+
+/// The objects as spheres for the shading pass's shadow of the ambient (lighting/object_shadow.glsl).
+void setOccluderUniforms(const gl::Program& p, const FrameResources& frame) {
+  constexpr size_t kMaxOccluders = 16;  // MAX_OCCLUDERS
+  size_t n = 0;
+  for (const auto& o : frame.objects()) {
+    if (n == kMaxOccluders) break;
+    const OccluderSphere s = occluderSphere(o.source.mesh, o.T_world_object);
+    p.set("uOccluders[" + std::to_string(n++) + "]", s.centre[0], s.centre[1], s.centre[2], s.radius);
+  }
+  p.set("uOccluderCount", static_cast<int>(n));
+}
 /// The inputs a consumer depends on changed between two version snapshots.
 bool changed(const std::optional<FrameVersions>& at, const FrameVersions& now, unsigned inputs) {
   if (!at) return true;
@@ -194,6 +207,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   p.use();
   p.set("uLighting", lit ? 1 : 0);
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
+  p.set("uAddAmbientShadow", real_ && real_->accountsForAmbientShadow() ? 0 : 1);
+  setOccluderUniforms(p, *frame_);
   setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
   p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
   setLightUniforms(p, kept, frame_->lightViews());

@@ -3,7 +3,8 @@
 // it does the direct light, the shadows and the ambient, then adds what the techniques handed out.
 //   real pixel:    rgb = E_delta * albedo / pi, a = 0   (the compositor adds it to the background)
 //                  E_delta = the real-role technique's delta, plus (when that technique does not already
-//                  account for it) the direct light the object blocks, sum_i E_i (vis_i(rho) - vis_i(mu)) (lighting/direct_light.glsl)
+//                  account for it) the direct light the object blocks, sum_i E_i (vis_i(rho) - vis_i(mu)) (lighting/direct_light.glsl),
+//                  and (likewise) the ambient the objects hide, -integral_objects L_ambient cos (lighting/object_shadow.glsl)
 //   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
 //                  E_indirect, L_indirect from the virtual-role technique; none when the ambient is an
@@ -27,6 +28,8 @@ uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
 uniform vec3 uAmbientSh[9];     // radiance as SH bands 0-2, lighting world (reconstruction::shBasis2's basis); 0 = none
 #include "lighting/ambient_sh.glsl"
+uniform int uAddAmbientShadow;  // 1: the real-role technique leaves the ambient the objects hide to this pass
+#include "lighting/object_shadow.glsl"
 
 layout(location = 0) out vec4 outShade;
 layout(location = 1) out vec4 outIrradiance;
@@ -53,6 +56,7 @@ void main() {
   } else {
     vec3 delta = texelFetch(uRealDelta, p, 0).rgb;
     if (uAddDirectShadow == 1) delta += directIrradiance(true, pos.xyz, n) - directIrradiance(false, pos.xyz, n);
+    if (uAddAmbientShadow == 1) delta -= ambientShadow(uAmbient, uAmbientSh, pos.xyz, n);
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }

@@ -51,6 +51,9 @@ class Program {
     glProgramUniform3f(id(), location(name), x, y, z);
   }
   void set(const std::string& name, int x, int y, int z) const { glProgramUniform3i(id(), location(name), x, y, z); }
+  void set(const std::string& name, float x, float y, float z, float w) const {
+    glProgramUniform4f(id(), location(name), x, y, z, w);
+  }
   void setMat4(const std::string& name, const float* columnMajor) const {
     glProgramUniformMatrix4fv(id(), location(name), 1, GL_FALSE, columnMajor);
   }

@@ -98,6 +98,9 @@ class Technique {
   /// Whether the real-pixel delta already contains the object's direct shadow on real surfaces (otherwise
   /// the shading pass adds it from the shadow maps).
   virtual bool accountsForDirectShadow() const { return false; }
+  /// Whether the real-pixel delta already contains the ambient the objects hide from real surfaces (otherwise
+  /// the shading pass subtracts it: lighting/object_shadow.h).
+  virtual bool accountsForAmbientShadow() const { return false; }
 
   virtual void beginLights(const FrameResources& frame, gl::Profiler* profiler) {}
   virtual void light(const FrameResources& frame, size_t index, gl::Profiler* profiler) {}

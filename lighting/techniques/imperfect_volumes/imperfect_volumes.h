@@ -49,6 +49,8 @@ IvPoints ivOuterPoints(const FrameResources& frame, const iv::Grid& inner, const
 
 class ImperfectVolumesTechnique final : public Technique {
  public:
+  /// Its delta holds the ambient the objects hide (their surfels block it as negative lights / in the gather).
+  bool accountsForAmbientShadow() const override { return true; }
   explicit ImperfectVolumesTechnique(const TechniqueSetup& setup);
 
   std::string name() const override { return "imperfect-volumes"; }

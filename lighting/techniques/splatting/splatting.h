@@ -29,6 +29,8 @@ const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable();
 
 class SplattingTechnique final : public Technique {
  public:
+  /// Its delta holds the ambient the objects hide (their surfels block it as negative lights / in the gather).
+  bool accountsForAmbientShadow() const override { return true; }
   explicit SplattingTechnique(const TechniqueSetup& setup);
 
   std::string name() const override { return "splatting"; }

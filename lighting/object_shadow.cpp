@@ -1,0 +1,62 @@
+#include "lighting/object_shadow.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace mrgi::lighting {
+
+OccluderSphere occluderSphere(const Mesh& mesh, const cv::Matx44d& T) {
+  OccluderSphere s;
+  if (mesh.positions.empty()) return s;
+  cv::Vec3f lo = mesh.positions[0], hi = lo;
+  for (const auto& p : mesh.positions)
+    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], p[c]), hi[c] = std::max(hi[c], p[c]);
+  const cv::Vec3d c = 0.5 * (cv::Vec3d(lo) + cv::Vec3d(hi));
+  const cv::Vec4d w = T * cv::Vec4d(c[0], c[1], c[2], 1.0);
+  // The transform's scale (uniform in practice: the cube root of its determinant) scales the area.
+  const cv::Matx33d R(T(0, 0), T(0, 1), T(0, 2), T(1, 0), T(1, 1), T(1, 2), T(2, 0), T(2, 1), T(2, 2));
+  const double scale = std::cbrt(std::abs(cv::determinant(R)));
+  double area = 0;
+  for (size_t i = 0; i + 2 < mesh.indices.size(); i += 3) {
+    const cv::Vec3d a(mesh.positions[mesh.indices[i]]), b(mesh.positions[mesh.indices[i + 1]]), d(mesh.positions[mesh.indices[i + 2]]);
+    area += 0.5 * cv::norm((b - a).cross(d - a));
+  }
+  s.centre = cv::Vec3f(static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2]));
+  const double r = std::sqrt(area / (4 * CV_PI)) * scale;
+  s.radius = std::isfinite(r) ? static_cast<float>(r) : 0.f;
+  return s;
+}
+
+double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSphere& s) {
+  const cv::Vec3d d = cv::Vec3d(s.centre) - x;
+  const double dist = cv::norm(d), r = s.radius;
+  if (!(r > 0) || !std::isfinite(dist)) return 0.0;
+  if (dist <= r) return 1.0;
+  const double H = dist / r, cosT = std::clamp(n.dot(d) / dist, -1.0, 1.0);
+  if (H * cosT >= 1.0) return cosT / (H * H);  // the whole sphere above the element's plane
+  if (H * cosT <= -1.0) return 0.0;            // the whole sphere below it
+  // Partly below the horizon: the closed form of the view factor from a tilted planar element to a sphere
+  // (Howell's catalogue of configuration factors), continuous with the two cases above at their boundaries.
+  const double sinT = std::sqrt(std::max(0.0, 1.0 - cosT * cosT)), g = std::sqrt(H * H - 1.0);
+  const double a = std::asin(std::clamp(g / (H * sinT), -1.0, 1.0));
+  const double b = std::acos(std::clamp(-g * cosT / sinT, -1.0, 1.0));
+  const double f = 0.5 - a / CV_PI + (cosT * b - g * std::sqrt(std::max(0.0, 1.0 - H * H * cosT * cosT))) / (CV_PI * H * H);
+  return std::clamp(f, 0.0, 1.0);
+}
+
+cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n, const std::vector<OccluderSphere>& spheres) {
+  cv::Vec3f e(0, 0, 0);
+  for (const auto& s : spheres) {
+    const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);
+    if (f <= 0) continue;
+    const cv::Vec3f d = s.centre - x;
+    const float len = static_cast<float>(cv::norm(d));
+    const cv::Vec3f w = len > 0 ? d / len : n;
+    e += static_cast<float>(CV_PI * f) * ambient.radiance(w);
+  }
+  const cv::Vec3f full = ambient.irradiance(n);
+  for (int c = 0; c < 3; ++c) e[c] = std::isfinite(e[c]) ? std::clamp(e[c], 0.0f, full[c]) : 0.0f;
+  return e;
+}
+
+}  // namespace mrgi::lighting

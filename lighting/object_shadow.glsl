@@ -1,0 +1,40 @@
+// The objects' shadow of the ambient on real surfaces (lighting/object_shadow.h is the C++ twin): each
+// object a sphere, its view factor from the surface element times the ambient's radiance towards its centre,
+// the total clamped at the ambient's irradiance. Needs lighting/ambient_sh.glsl.
+#define MAX_OCCLUDERS 16
+
+uniform int uOccluderCount;
+uniform vec4 uOccluders[MAX_OCCLUDERS];  // xyz centre (lighting world), w radius; object_shadow.h occluderSphere
+
+float sphereViewFactor(vec3 x, vec3 n, vec4 s) {
+  const float pi = 3.14159265358979;
+  vec3 d = s.xyz - x;
+  float dist = length(d), r = s.w;
+  if (!(r > 0.0)) return 0.0;
+  if (dist <= r) return 1.0;
+  float H = dist / r, cosT = clamp(dot(n, d) / dist, -1.0, 1.0);
+  if (H * cosT >= 1.0) return cosT / (H * H);
+  if (H * cosT <= -1.0) return 0.0;
+  float sinT = sqrt(max(0.0, 1.0 - cosT * cosT)), g = sqrt(H * H - 1.0);
+  float a = asin(clamp(g / (H * sinT), -1.0, 1.0));
+  float b = acos(clamp(-g * cosT / sinT, -1.0, 1.0));
+  float f = 0.5 - a / pi + (cosT * b - g * sqrt(max(0.0, 1.0 - H * H * cosT * cosT))) / (pi * H * H);
+  return clamp(f, 0.0, 1.0);
+}
+
+// The irradiance the objects take from (x, n) under the ambient (>= 0: subtract it).
+vec3 ambientShadow(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n) {
+  const float pi = 3.14159265358979;
+  vec3 e = vec3(0.0);
+  for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
+    float f = sphereViewFactor(x, n, uOccluders[i]);
+    if (f <= 0.0) continue;
+    vec3 d = uOccluders[i].xyz - x;
+    float len = length(d);
+    vec3 w = len > 0.0 ? d / len : n;
+    e += pi * f * ambientRadiance(uniformPart, sh, w);
+  }
+  vec3 full = max(pi * uniformPart + ambientShIrradiance(sh, n), vec3(0.0));
+  e = clamp(e, vec3(0.0), full);
+  return (any(isnan(e)) || any(isinf(e))) ? vec3(0.0) : e;
+}

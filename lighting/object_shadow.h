@@ -1,0 +1,37 @@
+#pragma once
+/// The objects' shadow of the ambient on real surfaces (the shading pass, lighting/object_shadow.glsl is the
+/// GPU twin): a real surface point x with normal n loses what the ambient sends it through the solid angle the
+/// objects cover, dE(x) = -integral over the objects of L_ambient(w) cos(theta) dw. Each object stands as
+/// one sphere (occluderSphere); a sphere's integral is its view factor from the surface element (the exact
+/// closed form, the sphere partly below the horizon included) times the ambient's radiance towards its
+/// centre. Error: exact for a sphere under a uniform ambient; the SH part varies across a large sphere's
+/// cap by its bands 1-2 (a sphere 1.5 radii away covers a cap of 42 degrees); overlapping objects are
+/// counted twice, so the total is clamped at the point's ambient irradiance.
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "lighting/ambient.h"
+#include "lighting/scene_file.h"
+
+namespace mrgi::lighting {
+
+struct OccluderSphere {
+  cv::Vec3f centre{0, 0, 0};
+  float radius = 0;
+};
+
+/// The sphere an object stands as: centred on its bounding box, with the object's mean solid angle from
+/// afar (Cauchy: a convex body's mean projected area is a quarter of its surface area, so r = sqrt(A / 4 pi));
+/// a sphere's mesh gives itself (to its tessellation), a flat or thin object a smaller sphere than its box.
+OccluderSphere occluderSphere(const Mesh& mesh, const cv::Matx44d& T_world_object);
+
+/// The view factor from a surface element at x with unit normal n to a sphere: the fraction of the
+/// element's cosine-weighted hemisphere (pi) the sphere covers. 0 behind the element, 1 when x is inside.
+double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSphere& s);
+
+/// The irradiance the spheres take from (x, n) under `ambient` (W/m^2, >= 0: subtract it), at most the
+/// ambient's irradiance about n.
+cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n, const std::vector<OccluderSphere>& spheres);
+
+}  // namespace mrgi::lighting

@@ -1,0 +1,144 @@
+// The objects' shadow of the ambient on real surfaces (lighting/object_shadow.h): the sphere's view factor
+// against a numerical integral over the hemisphere, the analytic cases, the sphere an object stands as, the
+// extremes, and the shading pass against its C++ twin per pixel.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "lighting/object_shadow.h"
+#include "test_scene.h"
+
+namespace mrgi::lighting {
+namespace {
+
+/// (1 / pi) x the integral of cos(theta) over the directions of the hemisphere about n whose ray from x hits
+/// the sphere: a midpoint rule in (cos^2 theta, phi), which weighs each cell by its projected solid angle.
+double numericalViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSphere& s, int steps = 1200) {
+  cv::Vec3d t = std::abs(n[2]) < 0.9 ? n.cross(cv::Vec3d(0, 0, 1)) : n.cross(cv::Vec3d(1, 0, 0));
+  t = cv::normalize(t);
+  const cv::Vec3d b = n.cross(t);
+  const cv::Vec3d c = cv::Vec3d(s.centre) - x;
+  const double r2 = double(s.radius) * s.radius;
+  long hits = 0;
+  for (int i = 0; i < steps; ++i) {
+    const double u = (i + 0.5) / steps;  // sin^2 theta: uniform in it is uniform in projected solid angle
+    const double sinT = std::sqrt(u), cosT = std::sqrt(1 - u);
+    for (int j = 0; j < steps; ++j) {
+      const double phi = 2 * CV_PI * (j + 0.5) / steps;
+      const cv::Vec3d w = cosT * n + sinT * (std::cos(phi) * t + std::sin(phi) * b);
+      const double along = c.dot(w);
+      if (along > 0 && c.dot(c) - along * along <= r2) ++hits;
+    }
+  }
+  return static_cast<double>(hits) / (double(steps) * steps);
+}
+
+TEST(ObjectShadow, SphereViewFactorMatchesTheHemisphereIntegral) {
+  const OccluderSphere s{{0, 0, 0.3f}, 0.1f};
+  // Directly below the centre: (r / h)^2.
+  EXPECT_NEAR(sphereViewFactor({0, 0, 0}, {0, 0, 1}, s), (0.1 / 0.3) * (0.1 / 0.3), 1e-7);  // float centre and radius
+  // Every regime: above the horizon, straddling it (tilted elements and points far to the side), below it.
+  const struct {
+    cv::Vec3d x, n;
+  } cases[] = {{{0, 0, 0}, {0, 0, 1}},       {{0.2, 0, 0}, {0, 0, 1}},          {{0.5, 0.1, 0.25}, {0, 0, 1}},
+               {{0.4, 0, 0.3}, {0, 0, 1}},   {{0.4, 0, 0.35}, {0, 0, 1}},       {{0, 0, 0}, {0.8, 0, 0.6}},
+               {{0, 0, 0}, {1, 0, 0}},       {{0.3, 0.2, 0.2}, {-0.6, 0, 0.8}}, {{0.12, 0, 0.3}, {0, 0, 1}},
+               {{0, 0, 0}, {0, 0, -1}}};
+  int straddling = 0;
+  for (const auto& c : cases) {
+    const cv::Vec3d n = cv::normalize(c.n);
+    const double f = sphereViewFactor(c.x, n, s), g = numericalViewFactor(c.x, n, s);
+    const cv::Vec3d d = cv::Vec3d(s.centre) - c.x;
+    const double h = n.dot(d) / cv::norm(d) * cv::norm(d) / s.radius;
+    straddling += std::abs(h) < 1;
+    EXPECT_NEAR(f, g, 2e-4 + 2e-3 * g) << c.x << " " << n;
+  }
+  EXPECT_GE(straddling, 4);
+  // Inside the sphere: everything covered; a sphere of no size: nothing.
+  EXPECT_EQ(sphereViewFactor({0, 0, 0.3}, {0, 0, 1}, s), 1.0);
+  EXPECT_EQ(sphereViewFactor({0, 0, 0}, {0, 0, 1}, OccluderSphere{{0, 0, 0.3f}, 0.f}), 0.0);
+}
+
+TEST(ObjectShadow, AnObjectStandsAsTheSphereOfItsMeanSolidAngle) {
+  // The bundled sphere model (unit radius tessellated) scaled by 0.05 and moved: a sphere of 0.05 at its place.
+  const Mesh sphere = loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
+  cv::Matx44d T = capture::makePose(cv::Matx33d::eye() * 0.05, {0.1, 0.2, 0.3});
+  const OccluderSphere s = occluderSphere(sphere, T);
+  EXPECT_NEAR(s.centre[0], 0.1, 1e-4);
+  EXPECT_NEAR(s.centre[2], 0.3, 1e-4);
+  double far = 0;
+  for (const auto& p : sphere.positions) far = std::max(far, cv::norm(cv::Vec3d(p)));
+  EXPECT_NEAR(s.radius, 0.05 * far, 0.02 * 0.05 * far);  // the tessellation's area
+  // A unit cube: area 6, r = sqrt(6 / 4 pi) = 0.691 (between its inscribed 0.5 and bounding 0.866 spheres).
+  const Mesh cube = loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/cube.obj");
+  EXPECT_NEAR(occluderSphere(cube, cv::Matx44d::eye()).radius, std::sqrt(6.0 / (4 * CV_PI)), 1e-3);
+}
+
+TEST(ObjectShadow, TheAmbientShadowIsThePiLFOfAUniformSkyAndStaysBounded) {
+  Ambient sky;
+  sky.uniform = {0.5f, 0.4f, 0.3f};
+  const std::vector<OccluderSphere> one{{{0, 0, 0.3f}, 0.1f}};
+  const cv::Vec3f e = ambientShadow(sky, {0, 0, 0}, {0, 0, 1}, one);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(e[c], CV_PI * sky.uniform[c] / 9.0, 1e-6);
+  // Inside an object, or under many overlapping ones: never more than the ambient's irradiance.
+  const std::vector<OccluderSphere> many(40, OccluderSphere{{0, 0, 0.12f}, 0.1f});
+  const cv::Vec3f all = ambientShadow(sky, {0, 0, 0}, {0, 0, 1}, many), full = sky.irradiance({0, 0, 1});
+  for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(all[c], full[c]);
+  // Extremes: zero and huge radiance, a point on the surface of the sphere, a grazing normal, a huge sphere.
+  Ambient huge;
+  huge.uniform = {1e30f, 1e30f, 1e30f};
+  for (const auto& [x, n, s] : {std::tuple<cv::Vec3f, cv::Vec3f, OccluderSphere>{{0, 0, 0.2f}, {0, 0, 1}, {{0, 0, 0.3f}, 0.1f}},
+                                {{0, 0, 0}, {1, 0, 0}, {{0, 0, 0.3f}, 0.1f}},
+                                {{0, 0, 0}, {0, 0, 1}, {{0, 0, 1e6f}, 1e6f - 1e-3f}},
+                                {{0, 0, 0}, {0, 0, 1}, {{0, 0, 1e-20f}, 1e-30f}}}) {
+    const Ambient none;
+    for (const Ambient* a : std::vector<const Ambient*>{&sky, &huge, &none}) {
+      const cv::Vec3f v = ambientShadow(*a, x, n, {s});
+      const cv::Vec3f lim = a->irradiance(n);
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_TRUE(std::isfinite(v[c]));
+        EXPECT_GE(v[c], 0.f);
+        EXPECT_LE(v[c], lim[c]);
+      }
+    }
+  }
+}
+
+TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
+  // The floor around a cube under a directional sky (SH) and a uniform part, no light: each real pixel's
+  // delta is minus the ambient the cube hides, as lighting::ambientShadow has it.
+  auto ctx = test::makeContext();
+  const test::TestScene s = test::makeScene(false, 0.2, {0.0, 0.0, 0.25});
+  LightingPipeline pipe = test::makePipeline(test::testConfig(64, 64, 16, 64, "none"), s);
+  std::array<cv::Vec3d, 9> sh{};
+  sh[0] = {0.8, 0.7, 0.6};
+  sh[2] = {0.5, 0.4, 0.3};
+  sh[3] = {0.2, 0.25, 0.1};
+  pipe.setAmbientSh(sh);
+  const CameraView camera = test::topCamera(64, 64);
+  const cv::Vec3d uniform(0.1, 0.1, 0.1);
+  pipe.run(camera, {}, uniform, nullptr);
+  const cv::Mat shade = pipe.downloadShade(), positions = pipe.downloadGBuffer(0), normals = pipe.downloadGBuffer(1);
+  Ambient a;
+  a.uniform = cv::Vec3f(uniform);
+  for (size_t k = 0; k < 9; ++k) a.sh[k] = cv::Vec3f(sh[k]);
+  const std::vector<OccluderSphere> spheres{occluderSphere(s.objects[0].mesh, s.objects[0].T_marker_object)};
+  int shadowed = 0, real = 0;
+  double worst = 0;
+  for (int y = 0; y < shade.rows; ++y)
+    for (int x = 0; x < shade.cols; ++x) {
+      const cv::Vec4f v = shade.at<cv::Vec4f>(y, x), p = positions.at<cv::Vec4f>(y, x), n = normals.at<cv::Vec4f>(y, x);
+      if (p[3] < 0.5f || v[3] > 0.5f) continue;
+      ++real;
+      const cv::Vec3f e = ambientShadow(a, {p[0], p[1], p[2]}, cv::normalize(cv::Vec3f(n[0], n[1], n[2])), spheres);
+      const cv::Vec3f expected = -e * (test::kFloorAlbedo[0] / CV_PI);
+      shadowed += e[0] > 1e-3f;
+      for (int c = 0; c < 3; ++c) worst = std::max(worst, double(std::abs(v[c] - expected[c])) / std::max(double(std::abs(expected[c])), 1e-3));
+    }
+  EXPECT_GT(real, 1000);
+  EXPECT_GT(shadowed, 500);
+  EXPECT_LT(worst, 2e-3);
+}
+
+}  // namespace
+}  // namespace mrgi::lighting
