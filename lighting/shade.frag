@@ -4,7 +4,8 @@
 //   real pixel:    rgb = E_delta * albedo / pi, a = 0   (the compositor adds it to the background)
 //                  E_delta = the real-role technique's delta, plus (when that technique does not already
 //                  account for it) the direct light the object blocks, sum_i E_i (vis_i(rho) - vis_i(mu)) (lighting/direct_light.glsl),
-//                  and (likewise) the ambient the objects hide, -integral_objects L_ambient cos (lighting/object_shadow.glsl)
+//                  and (likewise) the ambient the objects hide, -integral_objects L_ambient cos (lighting/object_shadow.glsl),
+//                  unless the ambient is the room seen at the object (uEnvironmentHoldsBounce)
 //   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
 //                  E_indirect, L_indirect from the virtual-role technique; none when the ambient is an
@@ -56,7 +57,9 @@ void main() {
   } else {
     vec3 delta = texelFetch(uRealDelta, p, 0).rgb;
     if (uAddDirectShadow == 1) delta += directIrradiance(true, pos.xyz, n) - directIrradiance(false, pos.xyz, n);
-    if (uAddAmbientShadow == 1) delta -= ambientShadow(uAmbient, uAmbientSh, pos.xyz, n);
+    // An ambient that is the room seen at the object holds the real surfaces' bounce, whose occlusion the
+    // real-role technique's delta already has (from its own VALs, volumes or splats): not taken twice.
+    if (uAddAmbientShadow == 1 && uEnvironmentHoldsBounce == 0) delta -= ambientShadow(uAmbient, uAmbientSh, pos.xyz, n);
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }
