@@ -138,9 +138,10 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
                                 "world: the scene's objects are placed in a recording's first frame, but this source has a marker");
   if (setup_->scene.firstFrameT_world_camera && !options_.foundWorldAnew) tracking.firstFrameT_world_camera = *setup_->scene.firstFrameT_world_camera;
   poses_ = makePoseSource(options_.pose, setup_->marker(), setup_->T_world_marker, tracking);
-  // A saved room (static) is what odometry aligns frames with first; a room being fused is not (it changes
-  // on the render thread while the next frame is measured on the prepare worker).
-  if (options_.room && !options_.fuse) poses_->useModel(options_.room);
+  // A saved room is what odometry aligns frames with first; so is a room being fused (trackFusedRoom), each
+  // refreshed surface handed to the measuring thread between frames (locate()), since fusion runs on the
+  // render thread while the next frame is measured on the prepare worker.
+  if (options_.room && (!options_.fuse || options_.trackFusedRoom)) poses_->useModel(options_.room);
 }
 
 void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler) {
@@ -220,6 +221,15 @@ void FramePipeline::estimateRoomLights() {
 }
 
 void FramePipeline::locate(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler) {
+  std::shared_ptr<const reconstruction::RoomMesh> model;
+  {
+    std::lock_guard<std::mutex> lock(pendingModelMutex_);
+    model = std::move(pendingModel_);
+  }
+  if (model) {
+    auto s = profiler.cpu("track_model");
+    poses_->useModel(std::move(model));
+  }
   r.pose = poses_->locate(frame, profiler);
   r.T_marker_camera = r.pose.T_world_camera;
   r.info["marker"] = r.pose.by == PosedBy::GroundTruth ? std::string("ground-truth") : r.pose.marker;
@@ -327,6 +337,10 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl
   roomIndex_.reset();
   roomRays_.reset();
   framesSinceRefresh_ = 0;
+  if (options_.trackFusedRoom && (options_.pose == PoseMode::Odometry || options_.pose == PoseMode::Tracked)) {
+    std::lock_guard<std::mutex> lock(pendingModelMutex_);
+    pendingModel_ = options_.room;
+  }
   if (setup_ && setup_->scene.lightSource == lighting::LightSource::Room) estimateRoomLights();
   r.info["room_fusion"]["refreshed"] = options_.room->positions.size();
 }

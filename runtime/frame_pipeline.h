@@ -5,6 +5,7 @@
 #include <functional>
 #include <future>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -85,6 +86,11 @@ struct FrameOptions {
   /// from the room and the room's VALs follow). Null: none.
   std::shared_ptr<reconstruction::RoomModel> fuse;
   int fuseRefresh = 30;
+  /// With `fuse` and odometry or tracked poses: each refreshed surface becomes what the next frames are
+  /// aligned with first (frame-to-model, PoseSource::useModel), handed to the measuring thread between frames.
+  /// Off by default: on the bundled sessions (marker in view) it placed frames worse than the keyframes
+  /// (ATE 5.95 -> 10.0 mm on tabletop-pt; Tracking.ARoomFusedAsTheFramesComeIsTrackedAgainst).
+  bool trackFusedRoom = false;
   /// Each technique's facts of a frame (counts, mean irradiance, flicker) in FrameResult::info["techniques"].
   /// Some are read back from the GPU: a frame loop that writes and shows none turns them off. (Whether the
   /// composite is read back is the compositor's setting: compositor::Compositor::setReadback.)
@@ -199,6 +205,9 @@ class FramePipeline {
   std::shared_ptr<RoomIndex> roomIndex_;
   std::shared_ptr<reconstruction::MeshRays> roomRays_;
   int framesSinceRefresh_ = 0;
+  /// A refreshed fused room for the pose source, from the thread that fuses to the one that measures.
+  std::mutex pendingModelMutex_;
+  std::shared_ptr<const reconstruction::RoomMesh> pendingModel_;
   /// FrameOptions::fuse: the measured frame into the live room, and the room's surface refreshed when due.
   void fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
   void useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Profiler& profiler);
