@@ -63,6 +63,7 @@ struct BenchOptions {
   int frames = 4;
   int refFrames = 2;
   int refSpp = 64;
+  int refFocusSpp = 0;  ///< samples per pixel near the objects (groundtruth::virtualFocus); 0: 16 x refSpp
   int refBounces = 3;
   bool quick = false;
   bool room = false;  ///< also light from each session's fused room model, side by side
@@ -408,7 +409,8 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   for (int i = 0; i < refs; ++i) refFrames.push_back(refs == 1 ? 0 : i * (n - 1) / (refs - 1));
 
   // Ground truth: the same inputs, path traced.
-  bs.refInfo = {{"session", path}, {"scene", bs.scene}, {"spp", o.refSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
+  bs.refInfo = {{"session", path},   {"scene", bs.scene},     {"spp", o.refSpp},
+                {"focus_spp", o.refFocusSpp > 0 ? o.refFocusSpp : 16 * o.refSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
   if (!roomInfo.is_null()) bs.refInfo["room"] = roomInfo;
   FrameOptions mo;
   mo.pose = o.pose;
@@ -432,6 +434,8 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
                                                        frame.rgbd->colourIntrinsics, *r.T_marker_camera);
     groundtruth::PathTraceOptions po;
     po.spp = o.refSpp;
+    po.focusSpp = o.refFocusSpp > 0 ? o.refFocusSpp : 16 * o.refSpp;
+    po.focus = groundtruth::virtualFocus(scenes.withObjects, scenes.camera);
     po.bounces = o.refBounces;
     ProgressBar bar(fs::path(path).filename().string() + ": reference frame " + std::to_string(f));
     po.progress = [&bar](double x) { bar(x); };
@@ -973,6 +977,10 @@ Action addBench(CLI::App& app) {
   app.add_option("--ref-frames", o->refFrames, "frames with a path-traced reference, spread over --frames")
       ->check(numberIn(1, 100));
   app.add_option("--ref-spp", o->refSpp, "reference samples per pixel")->check(numberIn(1, 1 << 16));
+  app.add_option("--ref-focus-spp", o->refFocusSpp,
+                 "reference samples per pixel in the box around the objects grown by three radii, where their shadow and "
+                 "bounce fall (0 = 16 x --ref-spp)")
+      ->check(numberIn(0, 1 << 20));
   app.add_option("--ref-bounces", o->refBounces, "reference bounces")->check(numberIn(0, 64));
   app.add_flag("--quick", o->quick, "fewer knob values (small sessions, tests)");
   app.add_flag("--room", o->room,

@@ -148,9 +148,10 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng, bool 
 cv::Mat PathTracer::render(const PinholeCamera& camera) const {
   const int W = camera.intrinsics.width, H = camera.intrinsics.height;
   cv::Mat out(H, W, CV_32FC3, cv::Scalar::all(0));
-  const int spp = std::max(1, options_.spp);
+  const int base = std::max(1, options_.spp), focused = std::max(base, options_.focusSpp);
   forEachRow(H, options_.threads, options_.progress, [&](int y) {
     for (int x = 0; x < W; ++x) {
+      const int spp = options_.focus.contains(cv::Point(x, y)) ? focused : base;
       cv::Vec3f sum(0, 0, 0);
       const uint64_t pixel = mix(options_.seed ^ mix(static_cast<uint64_t>(y) * 65536u + static_cast<uint64_t>(x)));
       for (int s = 0; s < spp; ++s) {
@@ -183,6 +184,37 @@ cv::Mat virtualMask(const RayCaster& caster, const PinholeCamera& camera) {
       if (hit && caster.scene().materials[hit->material].isVirtual) mask.at<uchar>(y, x) = 255;
     }
   return mask;
+}
+
+cv::Rect virtualFocus(const Scene& scene, const PinholeCamera& camera, double grow) {
+  cv::Vec3d lo(1e30, 1e30, 1e30), hi(-1e30, -1e30, -1e30);
+  bool any = false;
+  for (size_t t = 0; t < scene.triangles.size(); ++t) {
+    if (!scene.materials[static_cast<size_t>(scene.triangleMaterial[t])].isVirtual) continue;
+    for (int k = 0; k < 3; ++k) {
+      const cv::Vec3d p(scene.vertices[static_cast<size_t>(scene.triangles[t][k])]);
+      for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], p[c]), hi[c] = std::max(hi[c], p[c]);
+      any = true;
+    }
+  }
+  if (!any) return {};
+  const cv::Vec3d centre = 0.5 * (lo + hi);
+  const double r = 0.5 * cv::norm(hi - lo) * (1.0 + grow);
+  // The grown sphere's corners of its box, projected; a corner behind the camera makes the whole image the focus.
+  const capture::Pose T = capture::inversePose(camera.T_world_camera);
+  const capture::Intrinsics& k = camera.intrinsics;
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  for (int c = 0; c < 8; ++c) {
+    const cv::Vec3d p = centre + cv::Vec3d(c & 1 ? r : -r, c & 2 ? r : -r, c & 4 ? r : -r);
+    const cv::Vec4d q = T * cv::Vec4d(p[0], p[1], p[2], 1.0);
+    if (q[2] <= 1e-3) return cv::Rect(0, 0, k.width, k.height);
+    const double u = k.fx * q[0] / q[2] + k.cx, v = k.fy * q[1] / q[2] + k.cy;
+    x0 = std::min(x0, u), x1 = std::max(x1, u), y0 = std::min(y0, v), y1 = std::max(y1, v);
+  }
+  const cv::Rect box(cv::Point(static_cast<int>(std::floor(std::max(x0, -1.0))), static_cast<int>(std::floor(std::max(y0, -1.0)))),
+                     cv::Point(static_cast<int>(std::ceil(std::min(x1, k.width + 1.0))) + 1,
+                               static_cast<int>(std::ceil(std::min(y1, k.height + 1.0))) + 1));
+  return box & cv::Rect(0, 0, k.width, k.height);
 }
 
 DifferentialImages renderDifferential(const Scene& withObjects, const Scene& realOnly, const PinholeCamera& camera,

@@ -19,6 +19,10 @@ struct PathTraceOptions {
   uint64_t seed = 1;    ///< the image is a function of the seed alone (not of the thread count)
   bool jitter = false;  ///< spread samples over the pixel (anti-aliased) instead of through its centre
   int threads = 0;      ///< worker threads, 0 = all hardware threads
+  /// Pixels inside `focus` take `focusSpp` samples instead of `spp` (where the objects' shadow and bounce
+  /// fall: a reference's noise on the real-pixel delta gathers there); empty or focusSpp <= spp: none.
+  cv::Rect focus;
+  int focusSpp = 0;
   /// Called on the calling thread with the fraction of rows done (0..1), for a progress bar.
   std::function<void(double)> progress;
 };
@@ -64,6 +68,10 @@ struct DifferentialImages {
 
 /// 255 where the pixel's centre ray first meets a material marked virtual, else 0 (CV_8UC1).
 cv::Mat virtualMask(const RayCaster& caster, const PinholeCamera& camera);
+
+/// The image box around the virtual objects (materials marked virtual) grown by `grow` times their bounding
+/// sphere's radius on every side in the world, clipped to the image; empty when none is in front of the camera.
+cv::Rect virtualFocus(const Scene& scene, const PinholeCamera& camera, double grow = 3.0);
 
 /// Renders ρ from `withObjects` and μ from `realOnly` (progress reported over both, 0..1).
 DifferentialImages renderDifferential(const Scene& withObjects, const Scene& realOnly, const PinholeCamera& camera,

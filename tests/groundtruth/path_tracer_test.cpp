@@ -312,6 +312,48 @@ TEST(PathTracer, DifferentialImagesShadowAndMaskTheVirtualObject) {
   EXPECT_GT(shadowed, 5);
 }
 
+TEST(PathTracer, TheFocusAroundTheObjectsTakesItsOwnSamples) {
+  // Pixels in the focus box take focusSpp samples: the same values as a render at focusSpp there, and as
+  // one at spp elsewhere (each sample draws from its own stream). The focus holds the object's box grown by
+  // three radii; nothing outside its grown sphere's projected box.
+  Scene real;
+  const int floor = real.addMaterial({"floor", {0.5f, 0.5f, 0.5f}});
+  real.addQuad({-5, -5, 0}, {10, 0, 0}, {0, 10, 0}, floor);
+  real.lights.push_back({{0.8f, 0, 2}, {4, 4, 4}, 0.0f});
+  Scene with = real;
+  Material v{"object", {0.8f, 0.8f, 0.8f}};
+  v.isVirtual = true;
+  const int obj = with.addMaterial(v);
+  const lighting::Mesh sphere = unitSphere();
+  with.addMesh(sphere.positions, sphere.normals, sphere.indices, obj, capture::makePose(cv::Matx33d::eye() * 0.05, {0.0, 0.0, 0.1}));
+  const PinholeCamera cam = downCamera(1.5, 60, 40);
+  const cv::Rect focus = virtualFocus(with, cam);
+  ASSERT_FALSE(focus.empty());
+  EXPECT_LT(focus.area(), 60 * 40 * 3 / 4);
+  const cv::Mat mask = virtualMask(RayCaster(with), cam);
+  EXPECT_EQ(cv::countNonZero(mask(focus)), cv::countNonZero(mask)) << "the object lies inside its focus";
+  const RayCaster rc(with);
+  PathTraceOptions o;
+  o.spp = 2;
+  o.bounces = 1;
+  o.threads = 1;
+  const cv::Mat low = PathTracer(rc, o).render(cam);
+  o.spp = 8;
+  const cv::Mat high = PathTracer(rc, o).render(cam);
+  o.spp = 2;
+  o.focus = focus;
+  o.focusSpp = 8;
+  const cv::Mat both = PathTracer(rc, o).render(cam);
+  cv::Mat inside(both.size(), CV_8U, cv::Scalar(0));
+  inside(focus).setTo(255);
+  cv::Mat outside;
+  cv::bitwise_not(inside, outside);
+  EXPECT_EQ(cv::norm(both, high, cv::NORM_INF, inside), 0.0);
+  EXPECT_EQ(cv::norm(both, low, cv::NORM_INF, outside), 0.0);
+  EXPECT_GT(cv::norm(high, low, cv::NORM_INF, inside), 0.0);
+  // No virtual material: no focus.
+  EXPECT_TRUE(virtualFocus(real, cam).empty());
+}
 
 namespace env {
 /// A 2:1 map: a dim uniform sky above the horizon, black below, and a small hot "sun" of `sun` radiance
