@@ -42,6 +42,9 @@ struct SynthOptions {
   int fisheyeEvery = 30;  ///< a fisheye frame every N frames (the room is static), 0 = none
   std::string render = "pathtrace";  ///< pathtrace (global illumination) | raycast (direct light + constant ambient)
   int spp = 64, bounces = 3;
+  /// The reference delta's samples per pixel around the objects (groundtruth::virtualFocus); 0: the delta is
+  /// the composite's render minus the frame's own (spp, one seed, the camera's noise in both).
+  int referenceFocusSpp = 0;
   std::string scene;  ///< virtual objects whose path-traced reference composite each frame gets
   std::string environment;        ///< HDR equirect EXR: outdoors under it instead of the room
   double environmentScale = 0;    ///< 0: a white upward surface in the open reads 0.6
@@ -337,17 +340,33 @@ int runSynth(const SynthOptions& o) {
       groundtruth::PathTraceOptions rhoOptions = po;
       rhoOptions.progress = [&bar, i, total](double x) { bar((i + 0.5 + 0.5 * x) / total); };
       const RayCaster& withObjects = litAugmentedRc ? *litAugmentedRc : *augmentedCaster;
-      const cv::Mat rho = pathTrace ? PathTracer(withObjects, rhoOptions).render(cam) : r.radiance;
       const cv::Mat mask = groundtruth::virtualMask(withObjects, cam);
-      cv::Mat delta = rho - r.radiance;
-      rho.copyTo(delta, mask);
+      cv::Mat rho, delta;
+      if (pathTrace && o.referenceFocusSpp > 0) {
+        // The delta from its own pair of renders with more samples around the objects (common random
+        // numbers in both); the composite is the frame's image plus that delta (the camera's noise kept).
+        groundtruth::PathTraceOptions focused = rhoOptions;
+        focused.focus = groundtruth::virtualFocus(litAugmented ? *litAugmented : augmented, cam);
+        focused.focusSpp = o.referenceFocusSpp;
+        const cv::Mat rhoN = PathTracer(withObjects, focused).render(cam);
+        focused.progress = nullptr;
+        const cv::Mat muN = PathTracer(room, focused).render(cam);
+        delta = rhoN - muN;
+        rhoN.copyTo(delta, mask);
+        rho = r.radiance + delta;
+        rhoN.copyTo(rho, mask);
+      } else {
+        rho = pathTrace ? PathTracer(withObjects, rhoOptions).render(cam) : r.radiance;
+        delta = rho - r.radiance;
+        rho.copyTo(delta, mask);
+      }
       char name[64];
       const fs::path dir = fs::path(o.out) / "reference";
       fs::create_directories(dir);
       std::snprintf(name, sizeof name, "%06d.png", i);
       writePng((dir / name).string(), cameraImage(exposure == 1.0 ? rho : cv::Mat(rho * exposure), noiseSeed));
       std::snprintf(name, sizeof name, "delta_%06d.exr", i);
-      writeExr((dir / name).string(), delta);
+      writeExr((dir / name).string(), delta, o.referenceFocusSpp > 0);
       std::snprintf(name, sizeof name, "mask_%06d.png", i);
       writePng((dir / name).string(), mask);
     }
@@ -383,6 +402,11 @@ Action addSynth(CLI::App& app) {
   app.add_option("--render", o->render, "pathtrace (global illumination, default) or raycast (direct light + ambient)")
       ->check(CLI::IsMember({"pathtrace", "raycast"}));
   app.add_option("--spp", o->spp, "path-traced samples per pixel")->check(numberIn(1, 1 << 16));
+  app.add_option("--reference-focus-spp", o->referenceFocusSpp,
+                 "with --scene: the reference delta from its own two renders, this many samples per pixel around the "
+                 "objects (three radii), --spp elsewhere, written as half floats (0 = the composite's render minus the "
+                 "frame's)")
+      ->check(numberIn(0, 1 << 20));
   app.add_option("--bounces", o->bounces, "path-traced bounces")->check(numberIn(0, 64));
   app.add_option("--scene", o->scene, "also write each frame's reference composite with this scene's objects (reference/)");
   app.add_option("--scan", o->scan, "append N look-around frames (walls, ceiling, the lamp; no marker in view, no reference)")

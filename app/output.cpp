@@ -27,13 +27,13 @@ namespace fs = std::filesystem;
 
 namespace mrgi::app {
 
-void writeExr(const std::string& path, const cv::Mat& rgb) {
+void writeExr(const std::string& path, const cv::Mat& rgb, bool half) {
   // Outputs hold only finite numbers: a computation that gave nan or inf is an error, never a file of them.
   cv::Point at;
   if (!rgb.empty() && !cv::checkRange(rgb.reshape(1), true, &at))
     throw capture::CaptureError(path, "not written: pixel (" + std::to_string(at.x / rgb.channels()) + ", " + std::to_string(at.y) +
                                           ") came out non-finite");
-  capture::writeFileAtomically(path, capture::encodeExr(rgb, false, path));
+  capture::writeFileAtomically(path, capture::encodeExr(rgb, half, path));
 }
 
 namespace {

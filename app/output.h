@@ -16,7 +16,8 @@ namespace mrgi::app {
 std::string jsonText(const nlohmann::json& j, const std::string& input, int indent = -1);
 
 /// Linear RGB float image -> EXR (atomically; errors name the file).
-void writeExr(const std::string& path, const cv::Mat& rgb);
+/// `half`: 16-bit floats (a path-traced reference's precision, half the bytes).
+void writeExr(const std::string& path, const cv::Mat& rgb, bool half = false);
 /// RGB8 or grey 8/16-bit image -> PNG (atomically). A non-empty `generator` ("mrgi room-lights") is stored in
 /// the PNG's Software text chunk, by which checkReplaceable knows the file again.
 void writePng(const std::string& path, const cv::Mat& rgb, const std::string& generator = {});

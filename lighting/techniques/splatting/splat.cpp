@@ -88,8 +88,19 @@ bool insideBox(const SplatBox& b, const cv::Vec3f& x) {
   return true;
 }
 
+float boxCoverage(const SplatBox& b, const cv::Vec3f& x) {
+  const cv::Vec3f v = x - b.centre;
+  float u = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (!(b.half[k] > 0)) return 0.f;
+    u = std::max(u, std::abs(v.dot(b.axes[k])) / b.half[k]);
+  }
+  return std::clamp((1.f + kBoxFade - u) / kBoxFade, 0.f, 1.f);
+}
+
 cv::Vec3f splatIrradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow) {
-  return insideBox(splatBox(l, iLow), x) ? irradiance(l, x, n) : cv::Vec3f(0, 0, 0);
+  const float f = boxCoverage(splatBox(l, iLow), x);
+  return f > 0 ? f * irradiance(l, x, n) : cv::Vec3f(0, 0, 0);
 }
 
 Pyramid buildPyramid(const cv::Mat& importance) {
@@ -246,15 +257,14 @@ float farWeight(int count, int level) {
 cv::Vec3f splatFar(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow, int sample, int count,
                    int levels) {
   if (!(iLow > 0)) return {0, 0, 0};
-  cv::Vec3f e(0, 0, 0);
-  float cut = iLow;
+  float weight = 0, inner = 0, cut = iLow;
   for (int k = 0; k <= levels; ++k, cut /= kFarStride) {
     if (sample >= farSamples(count, k)) break;
-    if (!insideBox(splatBox(l, cut), x)) continue;
-    if (k > 0 && insideBox(splatBox(l, cut * kFarStride), x)) continue;
-    e += farWeight(count, k) * irradiance(l, x, n);
+    const float outer = boxCoverage(splatBox(l, cut), x);
+    weight += farWeight(count, k) * (outer - inner);
+    inner = outer;
   }
-  return e;
+  return weight != 0 ? weight * irradiance(l, x, n) : cv::Vec3f(0, 0, 0);
 }
 
 namespace {

@@ -2,7 +2,8 @@
 // Splatting: a pixel light's bounded contribution to the G-buffer point under the fragment (splat.h
 // splatIrradiance), added by blending: uTarget 0 onto real pixels (the delta's signed lights), 1 onto
 // virtual pixels (the object's indirect light). Alpha counts the splats that reached the pixel (overdraw).
-// At far level uLevel > 0 only the shell between level uLevel - 1's box and its own, weighted (splat.h splatFar).
+// At far level uLevel > 0 only the shell between level uLevel - 1's box and its own, weighted and cross-faded
+// (splat.h splatFar: coverage of its box minus that of the level before).
 #include "lighting/techniques/splatting/splat.glsl"
 layout(std430, binding = 2) readonly buffer Lights { PixelLight lights[]; };
 layout(binding = 0) uniform sampler2D uGPosition;
@@ -27,9 +28,11 @@ void main() {
   if (isVirtual != (uTarget == 1)) return;
   PixelLight l = lights[vLight];
   float iLow = splatScaledILow(l, uILowScale);
-  if (!splatInsideBox(splatBox(l, iLow), pos.xyz)) return;
-  if (uLevel > 0 && splatInsideBox(splatBox(l, iLow * float(SPLAT_FAR_STRIDE)), pos.xyz)) return;
-  vec3 e = uWeight * splatIrradiance(l, pos.xyz, texelFetch(uGNormal, px, 0).xyz);
+  float outer = splatBoxCoverage(splatBox(l, iLow), pos.xyz);
+  if (!(outer > 0.0)) return;
+  float w = outer - (uLevel > 0 ? splatBoxCoverage(splatBox(l, iLow * float(SPLAT_FAR_STRIDE)), pos.xyz) : 0.0);
+  if (w == 0.0) return;
+  vec3 e = (uWeight * w) * splatIrradiance(l, pos.xyz, texelFetch(uGNormal, px, 0).xyz);
   if (uTarget == 0)
     outRealDelta = vec4(e, 1.0);
   else

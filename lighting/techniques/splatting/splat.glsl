@@ -78,6 +78,15 @@ SplatBox splatBox(PixelLight l, float iLow) {
   return b;
 }
 
+// splat.h boxCoverage: 1 in the box, falling linearly to 0 at SPLAT_BOX_FADE times its half extents beyond it.
+#define SPLAT_BOX_FADE 0.1
+float splatBoxCoverage(SplatBox b, vec3 x) {
+  vec3 v = x - b.centre;
+  if (!(b.halfExtent.x > 0.0 && b.halfExtent.y > 0.0 && b.halfExtent.z > 0.0)) return 0.0;
+  float u = max(abs(dot(v, b.a0)) / b.halfExtent.x, max(abs(dot(v, b.a1)) / b.halfExtent.y, abs(dot(v, b.a2)) / b.halfExtent.z));
+  return clamp((1.0 + SPLAT_BOX_FADE - u) / SPLAT_BOX_FADE, 0.0, 1.0);
+}
+
 bool splatInsideBox(SplatBox b, vec3 x) {
   vec3 v = x - b.centre;
   return abs(dot(v, b.a0)) <= b.halfExtent.x && abs(dot(v, b.a1)) <= b.halfExtent.y && abs(dot(v, b.a2)) <= b.halfExtent.z;

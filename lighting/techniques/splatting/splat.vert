@@ -1,5 +1,5 @@
 #version 450 core
-// Splatting: one instance per pixel light, a screen rectangle around its splat box (the 8 corners projected;
+// Splatting: one instance per pixel light, a screen rectangle around its splat box and fade band (the 8 corners projected;
 // the whole screen when the box reaches behind the camera's near plane; nothing for a light without flux).
 // At far level k the box is that of I_low / 16^k, uILowScale already divided (splat.h splatFar).
 #include "lighting/techniques/splatting/splat.glsl"
@@ -25,7 +25,9 @@ void main() {
   bool behind = false;
   for (int k = 0; k < 8; ++k) {
     vec3 s = vec3((k & 1) != 0 ? 1.0 : -1.0, (k & 2) != 0 ? 1.0 : -1.0, (k & 4) != 0 ? 1.0 : -1.0);
-    vec3 p = b.centre + s.x * b.halfExtent.x * b.a0 + s.y * b.halfExtent.y * b.a1 + s.z * b.halfExtent.z * b.a2;
+    // The box grown by its fade band (splatBoxCoverage reaches 0 only there).
+    vec3 h = (1.0 + SPLAT_BOX_FADE) * b.halfExtent;
+    vec3 p = b.centre + s.x * h.x * b.a0 + s.y * h.y * b.a1 + s.z * h.z * b.a2;
     vec4 c = uViewProj * vec4(p, 1.0);
     if (c.w <= 1e-6) {
       behind = true;
