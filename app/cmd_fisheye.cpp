@@ -69,7 +69,7 @@ struct LightsOptions {
   int count = 16;
   bool json = false, variance = false;
   double exposure = 1.0, maxThetaDeg = 108;
-  double ambientThreshold = 1.0;  ///< 0: every bit of light to the lights, no SH remainder
+  double ambientThreshold = -1;  ///< 0: every bit of light to the lights, no SH remainder; < 0: by the field
 };
 
 int runLights(const LightsOptions& o) {
@@ -92,10 +92,10 @@ int runLights(const LightsOptions& o) {
   // Lights for the part above the threshold, SH for the remainder (LightSplit); threshold 0: all lights.
   reconstruction::LightSplitOptions so;
   so.medianCut.count = o.count;
-  so.medianCut.varianceSplit = o.variance || o.ambientThreshold > 0;
-  so.threshold = o.ambientThreshold;
+  so.medianCut.varianceSplit = o.variance || o.ambientThreshold != 0;
+  so.threshold = std::max(0.0, o.ambientThreshold);
   reconstruction::LightSplit split;
-  if (o.ambientThreshold > 0)
+  if (o.ambientThreshold != 0)
     split = reconstruction::splitLights(radiance, rays, so);
   else
     split.lights = reconstruction::medianCut(radiance, rays, so.medianCut);
@@ -112,7 +112,7 @@ int runLights(const LightsOptions& o) {
   for (const auto& c : split.ambientSh) sh.push_back({c[0], c[1], c[2]});
   const json doc{{"lights", arr},
                  {"ambient_sh", sh},
-                 {"ambient_threshold", o.ambientThreshold},
+                 {"ambient_threshold", o.ambientThreshold != 0 ? reconstruction::splitThreshold(so, rays) : 0.0},
                  {"total_power", {total[0], total[1], total[2]}},
                  {"count", lights.size()},
                  {"split", variance ? "variance" : "median"},
@@ -160,9 +160,9 @@ Action addLights(CLI::App& app) {
   app.add_flag("--variance", o->variance, "variance-minimising split instead of the energy median (always with a remainder)");
   app.add_option("--ambient-threshold", o->ambientThreshold,
                  "light above this multiple of the mean luminance goes to the lights, the rest to ambient_sh (SH bands "
-                 "0-2); 0: all of it to the lights")
-      ->check(numberIn(0.0, 1e6))
-      ->capture_default_str();
+                 "0-2, fitted to the irradiance); 0: all of it to the lights (default: 2 for a whole-sphere probe, 1 for a "
+                 "fisheye's field)")
+      ->check(numberIn(0.0, 1e6));
   app.add_option("--exposure", o->exposure, "relative exposure: radiance = linear value / exposure")
       ->check(numberIn(capture::kMinExposure, capture::kMaxExposure));
   app.add_option("--max-theta", o->maxThetaDeg, "ignore pixels further than this from the optical axis (degrees)")

@@ -62,8 +62,7 @@ struct MedianCutOptions {
 std::vector<EstimatedLight> medianCut(const cv::Mat& radiance, const FisheyeRays& rays, const MedianCutOptions& options = {});
 
 /// Lights for what casts shadows, spherical harmonics for the rest. The radiance is split per pixel at a
-/// luminance threshold T = `threshold` x the image's solid-angle-weighted mean luminance (1 measured best
-/// over 0.5-8 on the five bundled environment maps): the part above T
+/// luminance threshold T = `threshold` x the image's solid-angle-weighted mean luminance: the part above T
 /// (lamps, windows, the sun: compact and bright) goes to the median cut's lights, the part up to T (the dim
 /// ceiling, walls, sky) is projected onto SH bands 0-2. Equal-energy median cut alone gives a whole dim
 /// region one light, which is far off for normals facing away from the bright parts.
@@ -75,7 +74,21 @@ struct LightSplitOptions {
     m.varianceSplit = true;
     return m;
   }();
-  double threshold = 1.0;
+  /// 0: by the field. A whole sphere (a probe, the room seen from the object) takes 2, measured best over
+  /// 0.5-8 with the irradiance fit on the five Blender worlds and three Radiance probes; a fisheye's partial
+  /// field takes 1, as measured on the Blender worlds seen through it (2 left its near-horizon normals
+  /// 1.5-3 points further off).
+  double threshold = 0;
+  /// The remainder's SH bands 1-2 fitted to what the lights leave of the irradiance, relative error weighed
+  /// (fitIrradiance): at `fitNormals` normals over the sphere (a Fibonacci lattice), the image's irradiance
+  /// minus the lights' is matched by the SH's clamped-cosine irradiance, each normal weighed by 1 / the
+  /// image's irradiance there squared; band 0 stays the remainder's projection, so lights and remainder still
+  /// hold the image's total. The projection alone is the best SH of the radiance, not of the irradiance: its
+  /// missing bands, and the lights' point directions for regions that straddle a normal's horizon, left the
+  /// dark side of a map with a bright window or sky 14-34 % off (`LightSplit.EveryNormalOfAWholeSphereMap…`;
+  /// with it and threshold 2: 1.4-8.9 %).
+  bool fitIrradiance = true;
+  int fitNormals = 256;
 };
 struct LightSplit {
   std::vector<EstimatedLight> lights;
@@ -86,6 +99,8 @@ struct LightSplit {
   double thresholdLuminance = 0;  ///< T
 };
 LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const LightSplitOptions& options = {});
+/// The threshold multiple splitLights uses for this field (LightSplitOptions::threshold, or by the field when 0).
+double splitThreshold(const LightSplitOptions& options, const FisheyeRays& rays);
 /// Irradiance at unit normal n from the split: the lights' sum plus the remainder's SH irradiance.
 cv::Vec3d irradianceFromSplit(const LightSplit& split, const cv::Vec3d& n);
 /// The 9 real SH basis values of bands 0-2 at unit direction d (lighting/sh.h's convention).

@@ -25,6 +25,9 @@ struct RoomLightOptions {
   LightSplitOptions split = [] {
     LightSplitOptions s;
     s.medianCut.count = 4;
+    // Threshold 1, not a whole sphere's 2: with four lights, 2 leaves the lamp alone above it and the median
+    // cut splits it into all four, the dominant one a third of its intensity (RoomLights.OneLamp…).
+    s.threshold = 1.0;
     return s;
   }();
   double saturatedGain = 0;    ///< > 0: the gain on saturated radiance; 0: estimated (white patch)
