@@ -243,6 +243,12 @@ int runSynth(const SynthOptions& o) {
                                       {"delta", "reference/delta_NNNNNN.exr"},
                                       {"mask", "reference/mask_NNNNNN.png"},
                                       {"note", "the camera image of the room with the scene's objects, same noise"}};
+  if (!o.scene.empty() && o.referenceFocusSpp > 0) {
+    table.groundTruth["reference"]["delta_focus_spp"] = o.referenceFocusSpp;
+    table.groundTruth["reference"]["note"] =
+        "the camera image of the room with the scene's objects, same noise; the delta from its own two renders, " +
+        std::to_string(o.referenceFocusSpp) + " samples per pixel around the objects (" + std::to_string(o.spp) + " elsewhere)";
+  }
   const RayCaster rc(table.scene);
   // --move-box: from frame `moveAt` on, the room is the same but for the box, moved to the front of the table.
   std::optional<Tabletop> movedTable;  // outlives its ray caster, which refers to its scene

@@ -18,7 +18,8 @@ OccluderSphere occluderSphere(const Mesh& mesh, const cv::Matx44d& T) {
   const double scale = std::cbrt(std::abs(cv::determinant(R)));
   double area = 0;
   for (size_t i = 0; i + 2 < mesh.indices.size(); i += 3) {
-    const cv::Vec3d a(mesh.positions[mesh.indices[i]]), b(mesh.positions[mesh.indices[i + 1]]), d(mesh.positions[mesh.indices[i + 2]]);
+    const cv::Vec3d a(mesh.positions[mesh.indices[i]]), b(mesh.positions[mesh.indices[i + 1]]),
+        d(mesh.positions[mesh.indices[i + 2]]);
     area += 0.5 * cv::norm((b - a).cross(d - a));
   }
   s.centre = cv::Vec3f(static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2]));
@@ -40,11 +41,13 @@ double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSp
   const double sinT = std::sqrt(std::max(0.0, 1.0 - cosT * cosT)), g = std::sqrt(H * H - 1.0);
   const double a = std::asin(std::clamp(g / (H * sinT), -1.0, 1.0));
   const double b = std::acos(std::clamp(-g * cosT / sinT, -1.0, 1.0));
-  const double f = 0.5 - a / CV_PI + (cosT * b - g * std::sqrt(std::max(0.0, 1.0 - H * H * cosT * cosT))) / (CV_PI * H * H);
+  const double f =
+      0.5 - a / CV_PI + (cosT * b - g * std::sqrt(std::max(0.0, 1.0 - H * H * cosT * cosT))) / (CV_PI * H * H);
   return std::clamp(f, 0.0, 1.0);
 }
 
-cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n, const std::vector<OccluderSphere>& spheres) {
+cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
+                        const std::vector<OccluderSphere>& spheres) {
   cv::Vec3f e(0, 0, 0);
   for (const auto& s : spheres) {
     const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);

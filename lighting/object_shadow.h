@@ -7,9 +7,8 @@
 /// centre. Error: exact for a sphere under a uniform ambient; the SH part varies across a large sphere's
 /// cap by its bands 1-2 (a sphere 1.5 radii away covers a cap of 42 degrees); overlapping objects are
 /// counted twice, so the total is clamped at the point's ambient irradiance.
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "lighting/ambient.h"
 #include "lighting/scene_file.h"
@@ -32,6 +31,7 @@ double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSp
 
 /// The irradiance the spheres take from (x, n) under `ambient` (W/m^2, >= 0: subtract it), at most the
 /// ambient's irradiance about n.
-cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n, const std::vector<OccluderSphere>& spheres);
+cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
+                        const std::vector<OccluderSphere>& spheres);
 
 }  // namespace mrgi::lighting

@@ -1,16 +1,16 @@
 #include "reconstruction/pose_graph.h"
 
-#include <algorithm>
-#include <cmath>
-#include <cstring>
-#include <deque>
-
 #include <open3d/core/Tensor.h>
 #include <open3d/pipelines/registration/GlobalOptimization.h>
 #include <open3d/pipelines/registration/PoseGraph.h>
 #include <open3d/t/geometry/PointCloud.h>
 #include <open3d/t/pipelines/registration/Registration.h>
 #include <open3d/utility/Logging.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <deque>
 
 #include "reconstruction/marker.h"
 
@@ -87,7 +87,8 @@ void TrajectoryOptimiser::add(const OdometryFrame& frame, const TrajectoryFrame&
   if (poses.markerT_world_camera) {
     Eigen::Matrix<double, 6, 6> info = Eigen::Matrix<double, 6, 6>::Zero();
     const double sr = o_.markerSigmaDeg * M_PI / 180.0;
-    for (int i = 0; i < 3; ++i) info(i, i) = 1.0 / (sr * sr), info(i + 3, i + 3) = 1.0 / (o_.markerSigmaM * o_.markerSigmaM);
+    for (int i = 0; i < 3; ++i)
+      info(i, i) = 1.0 / (sr * sr), info(i + 3, i + 3) = 1.0 / (o_.markerSigmaM * o_.markerSigmaM);
     s.edges.push_back({index, Impl::kWorld, *poses.markerT_world_camera, info, true});
   }
   const int level = std::min(o_.informationLevel, frame.levels() - 1);
@@ -96,7 +97,8 @@ void TrajectoryOptimiser::add(const OdometryFrame& frame, const TrajectoryFrame&
   const auto align = [&](const Impl::Kept& target, bool loop) {
     const capture::Pose init = capture::inversePose(target.T_world_camera) * T;
     const OdometryResult r = estimateOdometry(frame, target.frame, init, o_.odometry);
-    if (!r.solved || r.fitness < o_.minFitness || r.inlierRmse > o_.maxRmseM || kept.cloud.IsEmpty() || target.cloud.IsEmpty()) {
+    if (!r.solved || r.fitness < o_.minFitness || r.inlierRmse > o_.maxRmseM || kept.cloud.IsEmpty() ||
+        target.cloud.IsEmpty()) {
       ++s.refused;
       return;
     }
@@ -164,8 +166,8 @@ TrajectoryResult TrajectoryOptimiser::optimise() const {
     // in its information's units and mu = d^2 times the edges' mean translation information, and prunes it
     // below 0.25: with information 1 / sigma^2, a loop closure more than about d off the rest is pruned.
     const o3r::GlobalOptimizationOption option(0.01, 0.25, 1.0, 0);
-    o3r::GlobalOptimization(graph, o3r::GlobalOptimizationLevenbergMarquardt(), o3r::GlobalOptimizationConvergenceCriteria(),
-                            option);
+    o3r::GlobalOptimization(graph, o3r::GlobalOptimizationLevenbergMarquardt(),
+                            o3r::GlobalOptimizationConvergenceCriteria(), option);
   }
   out.prunedEdges = static_cast<int>(before - graph.edges_.size());
   double sum = 0;

@@ -36,18 +36,23 @@ double RoomFusion::medianSurfaceMs() const { return median(surfaceMs); }
 
 namespace {
 
+/// A pipeline that only measures frames (camera pose, filtered depth), as fusion needs them.
+FramePipeline measuringPipeline(const capture::FrameSource& source, PoseMode pose) {
+  const capture::SourceInfo& info = source.info();
+  FrameOptions fo;
+  fo.pose = pose;
+  fo.gpu = false;
+  fo.reuse = false;
+  return FramePipeline(markerSetup(source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
+}
+
 /// The tracker's poses of every measured frame (the first pass of an optimised fusion), each posed frame
 /// added to the trajectory's graph; then the optimised poses, with the tracker's facts of each frame.
 std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusionOptions& o, nlohmann::json& facts) {
   auto source = capture::open(path);
-  const capture::SourceInfo& info = source->info();
-  FrameOptions fo;
-  fo.pose = o.pose;
-  fo.gpu = false;
-  fo.reuse = false;
-  FramePipeline frames(markerSetup(*source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
+  FramePipeline frames = measuringPipeline(*source, o.pose);
   reconstruction::TrajectoryOptions to = o.trajectory;
-  to.odometry = fo.tracking.odometry;
+  to.odometry = FrameOptions{}.tracking.odometry;
   reconstruction::TrajectoryOptimiser graph(to);
   std::vector<CameraPose> poses;
   gl::Profiler profiler;
@@ -84,12 +89,7 @@ RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
     out.trajectory = facts;
   }
   auto source = capture::open(path);
-  const capture::SourceInfo& info = source->info();
-  FrameOptions fo;
-  fo.pose = o.pose;
-  fo.gpu = false;
-  fo.reuse = false;
-  FramePipeline frames(markerSetup(*source), info.colourIntrinsics.width, info.colourIntrinsics.height, fo);
+  FramePipeline frames = measuringPipeline(*source, o.pose);
   if (given) frames.usePoses(makeGivenPoseSource(o.pose, *given));
   gl::Profiler profiler;
   while (o.limit < 0 || out.frames < o.limit) {

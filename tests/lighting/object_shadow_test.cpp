@@ -1,11 +1,12 @@
 // The objects' shadow of the ambient on real surfaces (lighting/object_shadow.h): the sphere's view factor
 // against a numerical integral over the hemisphere, the analytic cases, the sphere an object stands as, the
 // extremes, and the shading pass against its C++ twin per pixel.
-#include <cmath>
+#include "lighting/object_shadow.h"
 
 #include <gtest/gtest.h>
 
-#include "lighting/object_shadow.h"
+#include <cmath>
+
 #include "test_scene.h"
 
 namespace mrgi::lighting {
@@ -40,9 +41,9 @@ TEST(ObjectShadow, SphereViewFactorMatchesTheHemisphereIntegral) {
   // Every regime: above the horizon, straddling it (tilted elements and points far to the side), below it.
   const struct {
     cv::Vec3d x, n;
-  } cases[] = {{{0, 0, 0}, {0, 0, 1}},       {{0.2, 0, 0}, {0, 0, 1}},          {{0.5, 0.1, 0.25}, {0, 0, 1}},
-               {{0.4, 0, 0.3}, {0, 0, 1}},   {{0.4, 0, 0.35}, {0, 0, 1}},       {{0, 0, 0}, {0.8, 0, 0.6}},
-               {{0, 0, 0}, {1, 0, 0}},       {{0.3, 0.2, 0.2}, {-0.6, 0, 0.8}}, {{0.12, 0, 0.3}, {0, 0, 1}},
+  } cases[] = {{{0, 0, 0}, {0, 0, 1}},     {{0.2, 0, 0}, {0, 0, 1}},          {{0.5, 0.1, 0.25}, {0, 0, 1}},
+               {{0.4, 0, 0.3}, {0, 0, 1}}, {{0.4, 0, 0.35}, {0, 0, 1}},       {{0, 0, 0}, {0.8, 0, 0.6}},
+               {{0, 0, 0}, {1, 0, 0}},     {{0.3, 0.2, 0.2}, {-0.6, 0, 0.8}}, {{0.12, 0, 0.3}, {0, 0, 1}},
                {{0, 0, 0}, {0, 0, -1}}};
   int straddling = 0;
   for (const auto& c : cases) {
@@ -87,10 +88,11 @@ TEST(ObjectShadow, TheAmbientShadowIsThePiLFOfAUniformSkyAndStaysBounded) {
   // Extremes: zero and huge radiance, a point on the surface of the sphere, a grazing normal, a huge sphere.
   Ambient huge;
   huge.uniform = {1e30f, 1e30f, 1e30f};
-  for (const auto& [x, n, s] : {std::tuple<cv::Vec3f, cv::Vec3f, OccluderSphere>{{0, 0, 0.2f}, {0, 0, 1}, {{0, 0, 0.3f}, 0.1f}},
-                                {{0, 0, 0}, {1, 0, 0}, {{0, 0, 0.3f}, 0.1f}},
-                                {{0, 0, 0}, {0, 0, 1}, {{0, 0, 1e6f}, 1e6f - 1e-3f}},
-                                {{0, 0, 0}, {0, 0, 1}, {{0, 0, 1e-20f}, 1e-30f}}}) {
+  for (const auto& [x, n, s] :
+       {std::tuple<cv::Vec3f, cv::Vec3f, OccluderSphere>{{0, 0, 0.2f}, {0, 0, 1}, {{0, 0, 0.3f}, 0.1f}},
+        {{0, 0, 0}, {1, 0, 0}, {{0, 0, 0.3f}, 0.1f}},
+        {{0, 0, 0}, {0, 0, 1}, {{0, 0, 1e6f}, 1e6f - 1e-3f}},
+        {{0, 0, 0}, {0, 0, 1}, {{0, 0, 1e-20f}, 1e-30f}}}) {
     const Ambient none;
     for (const Ambient* a : std::vector<const Ambient*>{&sky, &huge, &none}) {
       const cv::Vec3f v = ambientShadow(*a, x, n, {s});
@@ -133,7 +135,8 @@ TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
       const cv::Vec3f e = ambientShadow(a, {p[0], p[1], p[2]}, cv::normalize(cv::Vec3f(n[0], n[1], n[2])), spheres);
       const cv::Vec3f expected = -e * (test::kFloorAlbedo[0] / CV_PI);
       shadowed += e[0] > 1e-3f;
-      for (int c = 0; c < 3; ++c) worst = std::max(worst, double(std::abs(v[c] - expected[c])) / std::max(double(std::abs(expected[c])), 1e-3));
+      for (int c = 0; c < 3; ++c)
+        worst = std::max(worst, double(std::abs(v[c] - expected[c])) / std::max(double(std::abs(expected[c])), 1e-3));
     }
   EXPECT_GT(real, 1000);
   EXPECT_GT(shadowed, 500);
