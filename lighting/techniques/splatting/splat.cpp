@@ -99,8 +99,7 @@ float boxCoverage(const SplatBox& b, const cv::Vec3f& x) {
 }
 
 cv::Vec3f splatIrradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow) {
-  const float f = boxCoverage(splatBox(l, iLow), x);
-  return f > 0 ? f * irradiance(l, x, n) : cv::Vec3f(0, 0, 0);
+  return insideBox(splatBox(l, iLow), x) ? irradiance(l, x, n) : cv::Vec3f(0, 0, 0);
 }
 
 Pyramid buildPyramid(const cv::Mat& importance) {
@@ -260,7 +259,8 @@ cv::Vec3f splatFar(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, 
   float weight = 0, inner = 0, cut = iLow;
   for (int k = 0; k <= levels; ++k, cut /= kFarStride) {
     if (sample >= farSamples(count, k)) break;
-    const float outer = boxCoverage(splatBox(l, cut), x);
+    const SplatBox box = splatBox(l, cut);
+    const float outer = k < levels ? boxCoverage(box, x) : (insideBox(box, x) ? 1.f : 0.f);
     weight += farWeight(count, k) * (outer - inner);
     inner = outer;
   }

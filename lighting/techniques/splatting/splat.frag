@@ -13,6 +13,7 @@ layout(binding = 2) uniform sampler2D uGAlbedo;
 uniform int uTarget;
 uniform float uILowScale;  // at far level k: the knob's / 16^k
 uniform int uLevel;
+uniform int uFarLevels;  // the knob far_levels: level uFarLevels is the outermost
 uniform float uWeight;  // the far level's weight n / farSamples(n, level)
 
 flat in int vLight;
@@ -28,7 +29,9 @@ void main() {
   if (isVirtual != (uTarget == 1)) return;
   PixelLight l = lights[vLight];
   float iLow = splatScaledILow(l, uILowScale);
-  float outer = splatBoxCoverage(splatBox(l, iLow), pos.xyz);
+  // Below the outermost level the box's coverage, at it the box itself (splat.h splatFar).
+  SplatBox b = splatBox(l, iLow);
+  float outer = uLevel < uFarLevels ? splatBoxCoverage(b, pos.xyz) : (splatInsideBox(b, pos.xyz) ? 1.0 : 0.0);
   if (!(outer > 0.0)) return;
   float w = outer - (uLevel > 0 ? splatBoxCoverage(splatBox(l, iLow * float(SPLAT_FAR_STRIDE)), pos.xyz) : 0.0);
   if (w == 0.0) return;

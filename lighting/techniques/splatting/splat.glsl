@@ -79,7 +79,7 @@ SplatBox splatBox(PixelLight l, float iLow) {
 }
 
 // splat.h boxCoverage: 1 in the box, falling linearly to 0 at SPLAT_BOX_FADE times its half extents beyond it.
-#define SPLAT_BOX_FADE 0.1
+#define SPLAT_BOX_FADE 0.04
 float splatBoxCoverage(SplatBox b, vec3 x) {
   vec3 v = x - b.centre;
   if (!(b.halfExtent.x > 0.0 && b.halfExtent.y > 0.0 && b.halfExtent.z > 0.0)) return 0.0;

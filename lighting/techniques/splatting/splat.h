@@ -84,12 +84,14 @@ SplatBox splatBox(const PixelLight& l, float iLow);
 float scaledILow(const PixelLight& l, float scale);
 /// Whether x lies in the box.
 bool insideBox(const SplatBox& b, const cv::Vec3f& x);
-/// How far inside the box x lies, as a splat's weight: 1 in the box, falling linearly to 0 at kBoxFade times
-/// its half extents beyond its faces (a face would otherwise cut a light's contribution off, a seam across the
-/// surfaces it crosses; beyond the box the light is below I_low, so nothing above I_low is cut).
-constexpr float kBoxFade = 0.1f;
+/// A far level's weight at x: 1 in the box, falling linearly to 0 at kBoxFade times its half extents beyond
+/// its faces (splatFar cross-fades the levels with it: a face would otherwise step a far representative's
+/// weight, a seam across the surfaces it crosses). The band lies outside the box, where the light is below
+/// I_low: a fade inside it would hand light above I_low to the far levels, whose few representatives stand
+/// for the other samples' lobes only on average (a glossy caustic moved 3 cm).
+constexpr float kBoxFade = 0.04f;
 float boxCoverage(const SplatBox& b, const cv::Vec3f& x);
-/// The bounded splat: irradiance() weighted by boxCoverage(splatBox(l, iLow), x) (0 outside the box).
+/// The bounded splat: irradiance() where x lies in splatBox(l, iLow), 0 elsewhere.
 cv::Vec3f splatIrradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow);
 
 /// Far-field levels. A light's significant region at a fixed I_low cuts its faint, wide tail; the tail of a
@@ -97,9 +99,10 @@ cv::Vec3f splatIrradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec
 /// but cost their area. Level 0 splats every sample of a light over splatBox(l, iLow); level k >= 1 splats only
 /// the first farSamples(n, k) = ceil(n / 16^k) of the light's n samples over the shell splatBox(l, iLow / 16^k)
 /// minus level k - 1's box, weighted n / farSamples(n, k). The shells are cross-faded: level k weighs a point
-/// by F_k - F_{k-1} (F_k = boxCoverage of its box, F_{-1} = 0), which telescope to F_K over the levels, so a
-/// far representative's weight ramps in as its exact splat ramps out instead of jumping n / farSamples(n, 1)
-/// times at its level-0 box (a seam across the object). The first samples of a light are a contiguous run of
+/// by F_k - F_{k-1} (F_k = boxCoverage of its box below the outermost level, the box's indicator at it,
+/// F_{-1} = 0), which telescope to the outermost box's indicator, so a far representative's weight ramps in
+/// as its exact splat ramps out instead of stepping n / farSamples(n, 1) times at its level-0 box (a seam
+/// across the object); the splats below the outermost level cover their band. The first samples of a light are a contiguous run of
 /// the R2 sequence (themselves low-discrepancy), and a level's weighted subset estimates the same sum as all n
 /// (their weights already hold 1/n), so over the levels each sample's expected splat is the bounded splat over
 /// the outermost box, which reaches 4^k times as far as level 0's, for about k + 1 times level 0's cost (16x the

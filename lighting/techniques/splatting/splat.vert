@@ -1,5 +1,5 @@
 #version 450 core
-// Splatting: one instance per pixel light, a screen rectangle around its splat box and fade band (the 8 corners projected;
+// Splatting: one instance per pixel light, a screen rectangle around its splat box (the 8 corners projected;
 // the whole screen when the box reaches behind the camera's near plane; nothing for a light without flux).
 // At far level k the box is that of I_low / 16^k, uILowScale already divided (splat.h splatFar).
 #include "lighting/techniques/splatting/splat.glsl"
@@ -8,6 +8,8 @@ layout(std430, binding = 2) readonly buffer Lights { PixelLight lights[]; };
 uniform int uFirstRecord;
 uniform mat4 uViewProj;  // the camera's clip <- world
 uniform float uILowScale;  // I_low of a light = uILowScale x lum(|Phi|) (at far level k: the knob's / 16^k)
+uniform int uLevel;
+uniform int uFarLevels;
 
 flat out int vLight;
 
@@ -25,8 +27,8 @@ void main() {
   bool behind = false;
   for (int k = 0; k < 8; ++k) {
     vec3 s = vec3((k & 1) != 0 ? 1.0 : -1.0, (k & 2) != 0 ? 1.0 : -1.0, (k & 4) != 0 ? 1.0 : -1.0);
-    // The box grown by its fade band (splatBoxCoverage reaches 0 only there).
-    vec3 h = (1.0 + SPLAT_BOX_FADE) * b.halfExtent;
+    // Below the outermost level the box with its fade band (splat.frag, splatBoxCoverage).
+    vec3 h = (uLevel < uFarLevels ? 1.0 + SPLAT_BOX_FADE : 1.0) * b.halfExtent;
     vec3 p = b.centre + s.x * h.x * b.a0 + s.y * h.y * b.a1 + s.z * h.z * b.a2;
     vec4 c = uViewProj * vec4(p, 1.0);
     if (c.w <= 1e-6) {

@@ -279,6 +279,7 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
     p.set("uTarget", target);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, records.id());
     p.set("uLevel", 0);
+    p.set("uFarLevels", knobs_.farLevels);
     p.set("uWeight", 1.0f);
     p.set("uILowScale", iLowScale_);
     p.set("uFirstRecord", 0);
