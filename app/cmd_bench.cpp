@@ -408,9 +408,10 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   const int refs = std::min(o.refFrames, n);
   for (int i = 0; i < refs; ++i) refFrames.push_back(refs == 1 ? 0 : i * (n - 1) / (refs - 1));
 
-  // Ground truth: the same inputs, path traced.
-  bs.refInfo = {{"session", path},   {"scene", bs.scene},     {"spp", o.refSpp},
-                {"focus_spp", o.refFocusSpp > 0 ? o.refFocusSpp : 16 * o.refSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
+  // Ground truth: the same inputs, path traced, with more samples around the objects.
+  const int focusSpp = o.refFocusSpp > 0 ? o.refFocusSpp : 16 * o.refSpp;
+  bs.refInfo = {{"session", path},         {"scene", bs.scene},         {"spp", o.refSpp},
+                {"focus_spp", focusSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
   if (!roomInfo.is_null()) bs.refInfo["room"] = roomInfo;
   FrameOptions mo;
   mo.pose = o.pose;
@@ -434,7 +435,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
                                                        frame.rgbd->colourIntrinsics, *r.T_marker_camera);
     groundtruth::PathTraceOptions po;
     po.spp = o.refSpp;
-    po.focusSpp = o.refFocusSpp > 0 ? o.refFocusSpp : 16 * o.refSpp;
+    po.focusSpp = focusSpp;
     po.focus = groundtruth::virtualFocus(scenes.withObjects, scenes.camera);
     po.bounces = o.refBounces;
     ProgressBar bar(fs::path(path).filename().string() + ": reference frame " + std::to_string(f));

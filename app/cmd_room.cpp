@@ -91,21 +91,20 @@ int runRoom(const RoomCliOptions& o) {
     std::fprintf(stderr, "warning: %s: %lld of %lld frames not fused for their pose (%lld lost, %lld held: --pose %s)\n", o.source.c_str(),
                  static_cast<long long>(fusion.lost + fusion.held), static_cast<long long>(seen), static_cast<long long>(fusion.lost),
                  static_cast<long long>(fusion.held), toString(o.pose));
-  if (o.json)
+  if (o.json) {
     std::printf("%s\n", jsonText(summary, o.source).c_str());
-  else if (!fusion.trajectory.is_null())
+    return 0;
+  }
+  if (const json& t = fusion.trajectory; !t.is_null())
     std::printf("trajectory optimised: %d odometry, %d loop-closure and %d marker edges (%d pruned); frames moved %.1f mm on average, "
                 "%.1f mm at most\n",
-                fusion.trajectory["odometry_edges"].get<int>(), fusion.trajectory["loop_edges"].get<int>(),
-                fusion.trajectory["marker_edges"].get<int>(), fusion.trajectory["pruned_edges"].get<int>(),
-                1e3 * fusion.trajectory["mean_shift_m"].get<double>(), 1e3 * fusion.trajectory["max_shift_m"].get<double>());
-  if (!o.json)
-    std::printf(
-        "wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms "
-        "median, %.1f ms with the depth filter\n",
-        o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(),
-        static_cast<double>(room.bytes()) / (1 << 20), room.framesIntegrated(), static_cast<long long>(seen),
-        fusion.medianFuseMs(), fusion.medianSurfaceMs());
+                t["odometry_edges"].get<int>(), t["loop_edges"].get<int>(), t["marker_edges"].get<int>(), t["pruned_edges"].get<int>(),
+                1e3 * t["mean_shift_m"].get<double>(), 1e3 * t["max_shift_m"].get<double>());
+  std::printf(
+      "wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms "
+      "median, %.1f ms with the depth filter\n",
+      o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(), static_cast<double>(room.bytes()) / (1 << 20),
+      room.framesIntegrated(), static_cast<long long>(seen), fusion.medianFuseMs(), fusion.medianSurfaceMs());
   return 0;
 }
 

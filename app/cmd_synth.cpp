@@ -243,7 +243,9 @@ int runSynth(const SynthOptions& o) {
                                       {"delta", "reference/delta_NNNNNN.exr"},
                                       {"mask", "reference/mask_NNNNNN.png"},
                                       {"note", "the camera image of the room with the scene's objects, same noise"}};
-  if (!o.scene.empty() && o.referenceFocusSpp > 0) {
+  // A reference delta of its own two renders, more samples around the objects (path-traced frames only).
+  const bool focusedReference = !o.scene.empty() && o.referenceFocusSpp > 0 && pathTrace;
+  if (focusedReference) {
     table.groundTruth["reference"]["delta_focus_spp"] = o.referenceFocusSpp;
     table.groundTruth["reference"]["note"] =
         "the camera image of the room with the scene's objects, same noise; the delta from its own two renders, " +
@@ -348,7 +350,7 @@ int runSynth(const SynthOptions& o) {
       const RayCaster& withObjects = litAugmentedRc ? *litAugmentedRc : *augmentedCaster;
       const cv::Mat mask = groundtruth::virtualMask(withObjects, cam);
       cv::Mat rho, delta;
-      if (pathTrace && o.referenceFocusSpp > 0) {
+      if (focusedReference) {
         // The delta from its own pair of renders with more samples around the objects (common random
         // numbers in both); the composite is the frame's image plus that delta (the camera's noise kept).
         groundtruth::PathTraceOptions focused = rhoOptions;
@@ -372,7 +374,7 @@ int runSynth(const SynthOptions& o) {
       std::snprintf(name, sizeof name, "%06d.png", i);
       writePng((dir / name).string(), cameraImage(exposure == 1.0 ? rho : cv::Mat(rho * exposure), noiseSeed));
       std::snprintf(name, sizeof name, "delta_%06d.exr", i);
-      writeExr((dir / name).string(), delta, o.referenceFocusSpp > 0);
+      writeExr((dir / name).string(), delta, focusedReference);
       std::snprintf(name, sizeof name, "mask_%06d.png", i);
       writePng((dir / name).string(), mask);
     }

@@ -5,25 +5,31 @@
 
 namespace mrgi::lighting {
 
-OccluderSphere occluderSphere(const Mesh& mesh, const cv::Matx44d& T) {
+OccluderSphere occluderSphere(const Mesh& mesh) {
   OccluderSphere s;
   if (mesh.positions.empty()) return s;
   cv::Vec3f lo = mesh.positions[0], hi = lo;
   for (const auto& p : mesh.positions)
     for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], p[c]), hi[c] = std::max(hi[c], p[c]);
-  const cv::Vec3d c = 0.5 * (cv::Vec3d(lo) + cv::Vec3d(hi));
-  const cv::Vec4d w = T * cv::Vec4d(c[0], c[1], c[2], 1.0);
-  // The transform's scale (uniform in practice: the cube root of its determinant) scales the area.
-  const cv::Matx33d R(T(0, 0), T(0, 1), T(0, 2), T(1, 0), T(1, 1), T(1, 2), T(2, 0), T(2, 1), T(2, 2));
-  const double scale = std::cbrt(std::abs(cv::determinant(R)));
   double area = 0;
   for (size_t i = 0; i + 2 < mesh.indices.size(); i += 3) {
     const cv::Vec3d a(mesh.positions[mesh.indices[i]]), b(mesh.positions[mesh.indices[i + 1]]),
         d(mesh.positions[mesh.indices[i + 2]]);
     area += 0.5 * cv::norm((b - a).cross(d - a));
   }
+  s.centre = 0.5f * (lo + hi);
+  const double r = std::sqrt(area / (4 * CV_PI));
+  s.radius = std::isfinite(r) ? static_cast<float>(r) : 0.f;
+  return s;
+}
+
+OccluderSphere placeSphere(const OccluderSphere& model, const cv::Matx44d& T) {
+  const cv::Vec4d w = T * cv::Vec4d(model.centre[0], model.centre[1], model.centre[2], 1.0);
+  // The transform's scale (uniform in practice: the cube root of its determinant) scales the radius.
+  const cv::Matx33d R(T(0, 0), T(0, 1), T(0, 2), T(1, 0), T(1, 1), T(1, 2), T(2, 0), T(2, 1), T(2, 2));
+  const double r = model.radius * std::cbrt(std::abs(cv::determinant(R)));
+  OccluderSphere s;
   s.centre = cv::Vec3f(static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2]));
-  const double r = std::sqrt(area / (4 * CV_PI)) * scale;
   s.radius = std::isfinite(r) ? static_cast<float>(r) : 0.f;
   return s;
 }

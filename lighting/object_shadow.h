@@ -20,10 +20,17 @@ struct OccluderSphere {
   float radius = 0;
 };
 
-/// The sphere an object stands as: centred on its bounding box, with the object's mean solid angle from
-/// afar (Cauchy: a convex body's mean projected area is a quarter of its surface area, so r = sqrt(A / 4 pi));
-/// a sphere's mesh gives itself (to its tessellation), a flat or thin object a smaller sphere than its box.
-OccluderSphere occluderSphere(const Mesh& mesh, const cv::Matx44d& T_world_object);
+/// The sphere an object stands as, in its model space: centred on its bounding box, with the object's mean
+/// solid angle from afar (Cauchy: a convex body's mean projected area is a quarter of its surface area, so
+/// r = sqrt(A / 4 pi)); a sphere's mesh gives itself (to its tessellation), a flat or thin object a smaller
+/// sphere than its box. Computed once per mesh (it sums every triangle's area).
+OccluderSphere occluderSphere(const Mesh& mesh);
+/// A model-space sphere placed by the object's transform (its scale: the cube root of the determinant).
+OccluderSphere placeSphere(const OccluderSphere& model, const cv::Matx44d& T_world_object);
+/// occluderSphere(mesh) placed by T_world_object.
+inline OccluderSphere occluderSphere(const Mesh& mesh, const cv::Matx44d& T_world_object) {
+  return placeSphere(occluderSphere(mesh), T_world_object);
+}
 
 /// The view factor from a surface element at x with unit normal n to a sphere: the fraction of the
 /// element's cosine-weighted hemisphere (pi) the sphere covers. 0 behind the element, 1 when x is inside.

@@ -60,7 +60,7 @@ void setOccluderUniforms(const gl::Program& p, const FrameResources& frame) {
   size_t n = 0;
   for (const auto& o : frame.objects()) {
     if (n == kMaxOccluders) break;
-    const OccluderSphere s = occluderSphere(o.source.mesh, o.T_world_object);
+    const OccluderSphere s = placeSphere(o.sphere, o.T_world_object);
     p.set("uOccluders[" + std::to_string(n++) + "]", s.centre[0], s.centre[1], s.centre[2], s.radius);
   }
   p.set("uOccluderCount", static_cast<int>(n));

@@ -354,6 +354,10 @@ std::array<double, 9> shBasis2(const cv::Vec3d& d) {
 
 namespace {
 
+/// The clamped cosine's SH coefficients per basis function of bands 0-2 (A_l = pi, 2 pi / 3, pi / 4): the
+/// remainder's irradiance about n is sum_k kClampedCosine[k] c_k y_k(n).
+constexpr double kClampedCosine[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
+
 /// The image as at most 64 x 32 direction bins (flux L dOmega and its flux-weighted mean direction): enough
 /// for the irradiance at a normal (a smooth function), at a few thousand terms instead of every pixel.
 struct FluxBin {
@@ -390,9 +394,8 @@ std::vector<FluxBin> fluxBins(const cv::Mat& radiance, const FisheyeRays& rays) 
 /// bring the largest error down (courtyard 15.7 -> 8.9 %), the best round kept.
 void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, int count, LightSplit& split) {
   const std::vector<FluxBin> bins = fluxBins(radiance, rays);
-  static const double A[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
-  constexpr int k0 = 1;  // band 0 kept: lights and remainder hold the image's total
-  cv::Mat M(count, 9 - k0, CV_64F), rhs(count, 3, CV_64F);
+  // Unknowns: bands 1-2 (8 coefficients); band 0 is kept, so lights and remainder hold the image's total.
+  cv::Mat M(count, 8, CV_64F), rhs(count, 3, CV_64F);
   int rows = 0;
   for (int i = 0; i < count; ++i) {
     const double z = 1 - (2 * i + 1) / static_cast<double>(count), r = std::sqrt(std::max(0.0, 1 - z * z));
@@ -412,8 +415,8 @@ void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, 
     // Rows scaled by 1 / E: squared relative error, where the image sees the normal's hemisphere (a
     // fisheye's normals facing away from its field see only its rim: their irradiance is not the room's).
     const double w = std::min(seen, 1.0) / lum;
-    for (int k = k0; k < 9; ++k) M.at<double>(rows, k - k0) = w * A[k] * y[static_cast<size_t>(k)];
-    for (int c = 0; c < 3; ++c) rhs.at<double>(rows, c) = w * (want[c] - (k0 ? A[0] * y[0] * split.ambientSh[0][c] : 0.0));
+    for (int k = 1; k < 9; ++k) M.at<double>(rows, k - 1) = w * kClampedCosine[k] * y[static_cast<size_t>(k)];
+    for (int c = 0; c < 3; ++c) rhs.at<double>(rows, c) = w * (want[c] - kClampedCosine[0] * y[0] * split.ambientSh[0][c]);
     ++rows;
   }
   if (rows < 16) return;
@@ -423,8 +426,8 @@ void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, 
   std::vector<double> weight(static_cast<size_t>(rows), 1.0);
   cv::Mat best;
   double bestWorst = 1e300;
-  const int rounds = 10;
-  for (int round = 0; round <= rounds; ++round) {
+  constexpr int kRounds = 10;
+  for (int round = 0; round <= kRounds; ++round) {
     cv::Mat Mw = Mr.clone(), Rw = Rr.clone();
     for (int j = 0; j < rows; ++j) {
       const double sw = std::sqrt(weight[static_cast<size_t>(j)]);
@@ -446,8 +449,8 @@ void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, 
     for (int j = 0; j < rows; ++j) weight[static_cast<size_t>(j)] *= e[static_cast<size_t>(j)] / sum * rows;
   }
   if (best.empty()) return;
-  for (int k = k0; k < 9; ++k)
-    for (int c = 0; c < 3; ++c) split.ambientSh[static_cast<size_t>(k)][c] = best.at<double>(k - k0, c);
+  for (int k = 1; k < 9; ++k)
+    for (int c = 0; c < 3; ++c) split.ambientSh[static_cast<size_t>(k)][c] = best.at<double>(k - 1, c);
 }
 
 }  // namespace
@@ -491,9 +494,8 @@ LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const L
 
 cv::Vec3d shIrradiance(const std::array<cv::Vec3d, 9>& sh, const cv::Vec3d& n) {
   const auto b = shBasis2(n);
-  static const double A[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
   cv::Vec3d E(0, 0, 0);
-  for (int k = 0; k < 9; ++k) E += sh[k] * (A[k] * b[k]);
+  for (int k = 0; k < 9; ++k) E += sh[k] * (kClampedCosine[k] * b[k]);
   return E;
 }
 

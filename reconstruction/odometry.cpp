@@ -11,6 +11,7 @@
 
 #include "capture/colour.h"
 #include "reconstruction/depth.h"
+#include "reconstruction/open3d_pose.h"
 
 namespace mrgi::reconstruction {
 
@@ -38,18 +39,6 @@ o3c::Tensor toTensor(const cv::Mat& m) {
 
 o3c::Tensor intrinsicsTensor(const capture::Intrinsics& k) {
   return o3c::Tensor(std::vector<double>{k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1}, {3, 3}, o3c::Float64);
-}
-
-o3c::Tensor poseTensor(const capture::Pose& T) {
-  return o3c::Tensor(std::vector<double>(T.val, T.val + 16), {4, 4}, o3c::Float64);
-}
-
-capture::Pose poseOf(const o3c::Tensor& t) {
-  const o3c::Tensor c = t.To(o3c::Float64).Contiguous();
-  const double* p = c.GetDataPtr<double>();
-  capture::Pose T;
-  for (int i = 0; i < 16; ++i) T.val[i] = p[i];
-  return T;
 }
 
 /// Intrinsics of an image halved by 2 x 2 blocks (pixel centres: u' = (u + 0.5) / 2 - 0.5).

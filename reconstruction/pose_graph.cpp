@@ -13,6 +13,7 @@
 #include <deque>
 
 #include "reconstruction/marker.h"
+#include "reconstruction/open3d_pose.h"
 
 namespace mrgi::reconstruction {
 
@@ -20,20 +21,6 @@ namespace o3c = open3d::core;
 namespace o3r = open3d::pipelines::registration;
 
 namespace {
-
-Eigen::Matrix4d toEigen(const capture::Pose& T) {
-  Eigen::Matrix4d m;
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) m(r, c) = T(r, c);
-  return m;
-}
-
-capture::Pose fromEigen(const Eigen::Matrix4d& m) {
-  capture::Pose T;
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) T(r, c) = m(r, c);
-  return T;
-}
 
 /// The finite vertices of a vertex map (CV_32FC3, NaN = none) as an Open3D point cloud.
 open3d::t::geometry::PointCloud cloudOf(const cv::Mat& vertices) {
@@ -75,8 +62,9 @@ struct TrajectoryOptimiser::Impl {
   int refused = 0;
 };
 
-TrajectoryOptimiser::TrajectoryOptimiser(const TrajectoryOptions& options) : o_(options), impl_(new Impl) {}
-TrajectoryOptimiser::~TrajectoryOptimiser() { delete impl_; }
+TrajectoryOptimiser::TrajectoryOptimiser(const TrajectoryOptions& options)
+    : o_(options), impl_(std::make_unique<Impl>()) {}
+TrajectoryOptimiser::~TrajectoryOptimiser() = default;
 
 void TrajectoryOptimiser::add(const OdometryFrame& frame, const TrajectoryFrame& poses) {
   Impl& s = *impl_;
@@ -103,8 +91,7 @@ void TrajectoryOptimiser::add(const OdometryFrame& frame, const TrajectoryFrame&
       return;
     }
     const o3c::Tensor info = open3d::t::pipelines::registration::GetInformationMatrix(
-        kept.cloud, target.cloud, o_.informationDistanceM,
-        o3c::Tensor(std::vector<double>(r.T_target_source.val, r.T_target_source.val + 16), {4, 4}, o3c::Float64));
+        kept.cloud, target.cloud, o_.informationDistanceM, poseTensor(r.T_target_source));
     const o3c::Tensor c = info.To(o3c::Float64).Contiguous();
     Eigen::Matrix<double, 6, 6> m;
     const double* p = c.GetDataPtr<double>();

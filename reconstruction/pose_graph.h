@@ -11,6 +11,7 @@
 /// trajectory, before and after it, instead of pulling the next frames a bounded step (so a first sighting
 /// that is off is averaged with the later ones), and loop closures tie a trajectory that comes back to
 /// where it was.
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -82,7 +83,7 @@ class TrajectoryOptimiser {
  private:
   struct Impl;
   TrajectoryOptions o_;
-  Impl* impl_;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace mrgi::reconstruction

@@ -25,6 +25,7 @@
 #include "capture/npz.h"
 #include "capture/ply_check.h"
 #include "reconstruction/mesh_rays.h"
+#include "reconstruction/open3d_pose.h"
 #include "capture/checks.h"
 
 namespace fs = std::filesystem;
@@ -35,13 +36,6 @@ namespace mrgi::reconstruction {
 namespace {
 
 constexpr int kBlockResolution = 16;  // voxels per block edge (Open3D's volume unit)
-
-Eigen::Matrix4d toEigen(const capture::Pose& T) {
-  Eigen::Matrix4d m;
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) m(r, c) = T(r, c);
-  return m;
-}
 
 Eigen::Vector3i floorDiv(const Eigen::Vector3i& a, int b) {
   Eigen::Vector3i q;

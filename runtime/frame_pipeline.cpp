@@ -345,6 +345,16 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl
   r.info["room_fusion"]["refreshed"] = options_.room->positions.size();
 }
 
+CameraPose FramePipeline::locatePose(capture::Frame& frame, gl::Profiler& profiler) {
+  if (!frame.rgbd->depthRegistered) {
+    auto s = profiler.cpu("register");
+    capture::ensureRegistered(*frame.rgbd);
+  }
+  FrameResult r;
+  locate(frame, r, profiler);
+  return r.pose;
+}
+
 FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler) {
   FrameResult r;
   capture::RgbdFrame& rgbd = *frame.rgbd;

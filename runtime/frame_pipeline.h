@@ -150,6 +150,9 @@ class FramePipeline {
   void render(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor, gl::Profiler& profiler);
   /// The measuring half: registration, fisheye lights, marker pose, filtered depth, normals.
   FrameResult measure(capture::Frame& frame, gl::Profiler& profiler);
+  /// The next frame's camera pose alone (depth registered, then the pose source; no depth filter or normals):
+  /// for a pass that only needs the trajectory. Frames in order, as measure().
+  CameraPose locatePose(capture::Frame& frame, gl::Profiler& profiler);
   /// A measured frame rendered: albedo, real mesh, lighting, composite (prepare()'s rest, then render()).
   void render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor, gl::Profiler& profiler);
   /// Albedo and real mesh of a measured frame with a marker pose (what prepare() adds to measure()).

@@ -60,12 +60,12 @@ std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusion
     auto frame = source->next();
     if (!frame) break;
     if (index % o.every != 0 || !frame->rgbd) continue;
-    const FrameResult r = frames.measure(*frame, profiler);
-    const bool posed = r.pose.tracked() && !r.pose.held();
+    const CameraPose pose = frames.locatePose(*frame, profiler);
+    const bool posed = pose.tracked() && !pose.held();
     graph.add(reconstruction::OdometryFrame(frame->rgbd->depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, to.odometry,
                                             frame->rgbd->exposure),
-              {posed ? r.pose.T_world_camera : std::nullopt, r.pose.markerT_world_camera});
-    poses.push_back(r.pose);
+              {posed ? pose.T_world_camera : std::nullopt, pose.markerT_world_camera});
+    poses.push_back(pose);
   }
   const reconstruction::TrajectoryResult t = graph.optimise();
   for (size_t i = 0; i < poses.size(); ++i)

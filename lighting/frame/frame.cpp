@@ -304,6 +304,7 @@ FrameResources::FrameResources(const FrameConfig& config, const std::vector<Virt
     FrameObject fo;
     fo.source = o;
     fo.gpu = GpuMesh(v, o.mesh.indices);
+    fo.sphere = occluderSphere(o.mesh);
     fo.T_world_object = o.T_marker_object;
     objects_.push_back(std::move(fo));
   }

@@ -20,6 +20,7 @@
 #include "gl/program.h"
 #include "lighting/frame/real_scene.h"
 #include "lighting/knobs.h"
+#include "lighting/object_shadow.h"
 #include "lighting/scene_file.h"
 #include "reconstruction/depth_filter.h"
 
@@ -170,6 +171,7 @@ enum FrameInput : unsigned {
 struct FrameObject {
   VirtualObject source;  ///< mesh (model space, scaled) and material (a copy)
   GpuMesh gpu;
+  OccluderSphere sphere;  ///< the sphere it stands as for the shadow of the ambient, model space (object_shadow.h)
   cv::Matx44d T_world_object = cv::Matx44d::eye();
 };
 
