@@ -29,6 +29,7 @@ OccluderSphere placeSphere(const OccluderSphere& model, const cv::Matx44d& T) {
   const cv::Matx33d R(T(0, 0), T(0, 1), T(0, 2), T(1, 0), T(1, 1), T(1, 2), T(2, 0), T(2, 1), T(2, 2));
   const double r = model.radius * std::cbrt(std::abs(cv::determinant(R)));
   OccluderSphere s;
+  s.albedo = model.albedo;
   s.centre = cv::Vec3f(static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2]));
   s.radius = std::isfinite(r) ? static_cast<float>(r) : 0.f;
   return s;
@@ -61,10 +62,11 @@ cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Ve
     const cv::Vec3f d = s.centre - x;
     const float len = static_cast<float>(cv::norm(d));
     const cv::Vec3f w = len > 0 ? d / len : n;
-    e += static_cast<float>(CV_PI * f) * ambient.radiance(w);
+    const cv::Vec3f hidden = ambient.radiance(w), reflected = s.albedo.mul(ambient.irradiance(-w)) * static_cast<float>(1 / CV_PI);
+    e += static_cast<float>(CV_PI * f) * (hidden - reflected);
   }
   const cv::Vec3f full = ambient.irradiance(n);
-  for (int c = 0; c < 3; ++c) e[c] = std::isfinite(e[c]) ? std::clamp(e[c], 0.0f, full[c]) : 0.0f;
+  for (int c = 0; c < 3; ++c) e[c] = std::isfinite(e[c]) ? std::clamp(e[c], -full[c], full[c]) : 0.0f;
   return e;
 }
 

@@ -61,6 +61,7 @@ void setOccluderUniforms(const gl::Program& p, const FrameResources& frame) {
   for (const auto& o : frame.objects()) {
     if (n == kMaxOccluders) break;
     const OccluderSphere s = placeSphere(o.sphere, o.T_world_object);
+    p.set("uOccluderAlbedo[" + std::to_string(n) + "]", s.albedo[0], s.albedo[1], s.albedo[2]);
     p.set("uOccluders[" + std::to_string(n++) + "]", s.centre[0], s.centre[1], s.centre[2], s.radius);
   }
   p.set("uOccluderCount", static_cast<int>(n));
@@ -207,9 +208,21 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   p.use();
   p.set("uLighting", lit ? 1 : 0);
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
-  p.set("uAddAmbientShadow", real_ && real_->accountsForAmbientShadow() ? 0 : 1);
+  p.set("uAddAmbientShadow", real_ && real_->accountsForAmbientShadow() ? 2 : 1);
+  p.set("uHiddenDiffers", hiddenAmbient_ ? 1 : 0);
   setOccluderUniforms(p, *frame_);
   setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
+  {
+    Ambient hidden;
+    if (hiddenAmbient_) {
+      hidden = *hiddenAmbient_;
+    } else {
+      hidden.uniform = cv::Vec3f(frame_->ambient());
+      for (size_t k = 0; k < 9; ++k) hidden.sh[k] = cv::Vec3f(frame_->ambientSh()[k]);
+    }
+    p.set("uHiddenUniform", hidden.uniform[0], hidden.uniform[1], hidden.uniform[2]);
+    for (size_t k = 0; k < 9; ++k) p.set("uHiddenSh[" + std::to_string(k) + "]", hidden.sh[k][0], hidden.sh[k][1], hidden.sh[k][2]);
+  }
   p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
   setLightUniforms(p, kept, frame_->lightViews());
   frame_->gPosition().bind(0);

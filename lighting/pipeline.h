@@ -21,6 +21,7 @@
 
 #include "gl/objects.h"
 #include "gl/profiler.h"
+#include "lighting/ambient.h"
 #include "gl/program.h"
 #include "lighting/frame/frame.h"
 #include "lighting/scene_file.h"
@@ -65,6 +66,8 @@ class LightingPipeline {
   void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
     frame_->setViewMesh(vertices, indices);
   }
+  /// The real surfaces' albedo per camera pixel for the G-buffer (FrameResources::setRealPixelAlbedo).
+  void setRealPixelAlbedo(const cv::Mat& albedo) { frame_->setRealPixelAlbedo(albedo); }
   /// Where object i sits in the lighting world.
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) { frame_->setObjectTransform(i, T_world_object); }
   /// The ambient's directional part for the next runs: radiance as SH bands 0-2 (index l(l+1)+m, the basis
@@ -87,6 +90,18 @@ class LightingPipeline {
     for (auto& at : techniqueAt_) at.reset();
   }
   bool environment() const { return environment_; }
+  /// What the objects hide from the real surfaces around them, for the shading pass's shadow of the ambient
+  /// (lighting/object_shadow.h): radiance, lighting world. nullopt (the default): the ambient itself. A room
+  /// lit by listed lights hands its surfaces seen from the objects, whose light the listed ambient only stands
+  /// in for. A change reruns the shading pass.
+  void setHiddenAmbient(const std::optional<Ambient>& hidden) {
+    const auto same = [](const std::optional<Ambient>& a, const std::optional<Ambient>& b) {
+      return a.has_value() == b.has_value() && (!a || (a->uniform == b->uniform && a->sh == b->sh));
+    };
+    if (same(hidden, hiddenAmbient_)) return;
+    hiddenAmbient_ = hidden;
+    shadeAt_.reset();
+  }
   /// The real-surface area lights (lighting world) of the next runs, for techniques that need them.
   void setRealVals(std::vector<Val> vals) { frame_->setRealVals(std::move(vals)); }
   /// What the techniques need from the application (real VALs and how to build them).
@@ -144,6 +159,7 @@ class LightingPipeline {
   std::optional<FrameVersions> gbufferAt_, lightsAt_, shadeAt_;
   std::array<cv::Vec3d, 9> ambientSh_{};
   bool environment_ = false;
+  std::optional<Ambient> hiddenAmbient_;
   /// A technique with nothing to do: it serves only the virtual role and the environment holds its bounce.
   bool idle(const Technique& t) const;
   std::vector<std::optional<FrameVersions>> techniqueAt_;

@@ -4,8 +4,10 @@
 //   real pixel:    rgb = E_delta * albedo / pi, a = 0   (the compositor adds it to the background)
 //                  E_delta = the real-role technique's delta, plus (when that technique does not already
 //                  account for it) the direct light the object blocks, sum_i E_i (vis_i(rho) - vis_i(mu)) (lighting/direct_light.glsl),
-//                  and (likewise) the ambient the objects hide, -integral_objects L_ambient cos (lighting/object_shadow.glsl),
-//                  unless the ambient is the room seen at the object (uEnvironmentHoldsBounce)
+//                  and (likewise) what the objects hide of the light around them net of what they reflect of it,
+//                  -integral_objects (L_hidden - L_object) cos (lighting/object_shadow.glsl); L_hidden is the ambient,
+//                  or the room's surfaces seen from the objects when lights are listed beside a room (uHidden*);
+//                  a technique that blocks the ambient itself gets only the difference between the two
 //   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
 //                  E_indirect, L_indirect from the virtual-role technique; none when the ambient is an
@@ -29,7 +31,10 @@ uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
 uniform vec3 uAmbientSh[9];     // radiance as SH bands 0-2, lighting world (reconstruction::shBasis2's basis); 0 = none
 #include "lighting/ambient_sh.glsl"
-uniform int uAddAmbientShadow;  // 1: the real-role technique leaves the ambient the objects hide to this pass
+uniform int uAddAmbientShadow;  // 1: the real-role technique leaves the ambient the objects hide to this pass; 2: it blocks the ambient itself
+uniform int uHiddenDiffers;     // 1: what the objects hide is not the ambient (a room's surfaces beside listed lights)
+uniform vec3 uHiddenUniform;    // what the objects hide: radiance, uniform part (the ambient unless a room's surfaces)
+uniform vec3 uHiddenSh[9];      // ... and its SH bands 1-2
 #include "lighting/object_shadow.glsl"
 
 layout(location = 0) out vec4 outShade;
@@ -59,7 +64,10 @@ void main() {
     if (uAddDirectShadow == 1) delta += directIrradiance(true, pos.xyz, n) - directIrradiance(false, pos.xyz, n);
     // An ambient that is the room seen at the object holds the real surfaces' bounce, whose occlusion the
     // real-role technique's delta already has (from its own VALs, volumes or splats): not taken twice.
-    if (uAddAmbientShadow == 1 && uEnvironmentHoldsBounce == 0) delta -= ambientShadow(uAmbient, uAmbientSh, pos.xyz, n);
+    if (uAddAmbientShadow == 1) delta -= ambientShadow(uHiddenUniform, uHiddenSh, pos.xyz, n);
+    // A technique that blocks the ambient itself: only what the hidden light has beyond the ambient.
+    if (uAddAmbientShadow == 2 && uHiddenDiffers == 1)
+      delta -= ambientShadow(uHiddenUniform, uHiddenSh, pos.xyz, n) - ambientShadow(uAmbient, uAmbientSh, pos.xyz, n);
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }

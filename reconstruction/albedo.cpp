@@ -89,6 +89,10 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
   AlbedoResult out;
   out.albedo.create(colour.size(), CV_32FC3);
   out.status.create(colour.size(), CV_8UC1);
+  // A clipped pixel's value is a lower bound of its radiance, so pi I / E bounds its albedo from below: after
+  // the fill it takes at least that (a white patch filled from dark neighbours would darken less under a
+  // virtual shadow than it should).
+  cv::Mat bound(colour.size(), CV_32FC3, cv::Scalar::all(0));
   // Rows are independent: split over the CPU's threads (the same values as one thread).
   cv::parallel_for_(cv::Range(0, colour.rows), [&](const cv::Range& rows) {
     std::vector<Contribution> c;
@@ -102,12 +106,10 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
           status = uchar(AlbedoStatus::NoGeometry);
           continue;
         }
+        bool clipped = false;
         if (colour.type() == CV_8UC3) {
           const cv::Vec3b px = colour.at<cv::Vec3b>(y, x);
-          if (px[0] >= o.saturationLevel || px[1] >= o.saturationLevel || px[2] >= o.saturationLevel) {
-            status = uchar(AlbedoStatus::Saturated);
-            continue;
-          }
+          clipped = px[0] >= o.saturationLevel || px[1] >= o.saturationLevel || px[2] >= o.saturationLevel;
         }
         c.clear();
         for (const auto& l : lights.points) {
@@ -150,12 +152,18 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
           albedo[ch] = static_cast<float>(std::clamp(std::isfinite(kd) ? kd : 0.0, 0.0, 1.0));
         }
         status = uchar(AlbedoStatus::Measured);
+        if (clipped) {
+          bound.at<cv::Vec3f>(y, x) = albedo;
+          albedo = {0, 0, 0};
+          status = uchar(AlbedoStatus::Saturated);
+        }
       }
   });
   if (o.fill) {
     const cv::Mat rejected = out.status != uchar(AlbedoStatus::Measured);
     if (cv::countNonZero(rejected) > 0 && cv::countNonZero(~rejected) > 0) fillRejected(out.albedo, rejected, o.fillScale);
   }
+  out.albedo = cv::max(out.albedo, bound);
   return out;
 }
 

@@ -78,21 +78,23 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
     for (int u = 0; u < W; ++u)
       if (!hit.at<uchar>(v, u)) L.at<cv::Vec3f>(v, u) = fill;
 
+  // The unsaturated environment as SH (what the room's surfaces other than lamps and windows send the centre;
+  // E_rest at any normal for the gain below).
+  std::array<cv::Vec3d, 9> restSh{};
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      if (saturated.at<uchar>(v, u)) continue;
+      const auto b = shBasis2(cv::Vec3d(rays.directions.at<cv::Vec3f>(v, u)));
+      const cv::Vec3d Lw = cv::Vec3d(L.at<cv::Vec3f>(v, u)) * rays.solidAngle.at<double>(v, u);
+      for (int k = 0; k < 9; ++k) restSh[k] += Lw * b[k];
+    }
+  out.surfacesSh = restSh;
   out.saturatedFraction = covered > 0 ? satOmega / covered : 0.0;
   out.overExposed = out.saturatedFraction > o.maxSaturatedFraction;
   out.gain = o.saturatedGain > 0 ? o.saturatedGain : 1.0;
   if (o.saturatedGain <= 0 && satOmega > 0 && !out.overExposed) {
     out.gainEstimated = true;
-    // The unsaturated environment as SH (for E_rest at any normal) ...
-    std::array<cv::Vec3d, 9> restSh{};
-    for (int v = 0; v < H; ++v)
-      for (int u = 0; u < W; ++u) {
-        if (saturated.at<uchar>(v, u)) continue;
-        const auto b = shBasis2(cv::Vec3d(rays.directions.at<cv::Vec3f>(v, u)));
-        const cv::Vec3d Lw = cv::Vec3d(L.at<cv::Vec3f>(v, u)) * rays.solidAngle.at<double>(v, u);
-        for (int k = 0; k < 9; ++k) restSh[k] += Lw * b[k];
-      }
-    // ... and the saturated texels grouped into 5 cm cells of their hit positions: each a small source of
+    // The saturated texels grouped into 5 cm cells of their hit positions: each a small source of
     // intensity (luminance) sum(L dOmega) d_centre^2 at its power-weighted position.
     struct Source {
       cv::Vec3d position{0, 0, 0};

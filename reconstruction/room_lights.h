@@ -55,6 +55,10 @@ struct RoomLight {
 struct RoomLights {
   std::vector<RoomLight> lights;
   std::array<cv::Vec3d, 9> ambientSh{};  ///< remainder, lighting/sh.h convention, world directions
+  /// The room seen from the centre without its saturated surfaces (lamps, windows) as SH bands 0-2, the
+  /// directions it does not cover filled as in `environment`: what the surfaces alone send (lights listed
+  /// apart from the room leave this).
+  std::array<cv::Vec3d, 9> surfacesSh{};
   cv::Vec3d ambientRadiance{0, 0, 0};    ///< the remainder's mean radiance (SH band 0)
   double gain = 1;                       ///< applied to saturated radiance
   bool gainEstimated = false;

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <stdexcept>
 #include <unordered_set>
 
 #include <open3d/camera/PinholeCameraIntrinsic.h>
@@ -635,15 +636,24 @@ std::vector<uint8_t> RoomAlbedoCache::shadows(const RoomMesh& mesh, const Albedo
 
 cv::Vec3f albedoDetail(const cv::Vec3b& rgb8, const cv::Vec3f& pixelRadiance, const cv::Vec3f& roomRadiance) {
   constexpr float kClip = 250, kDark = 1e-3f, kMin = 0.25f, kMax = 4.0f;
-  for (int c = 0; c < 3; ++c)
-    if (rgb8[c] >= kClip || !(roomRadiance[c] >= kDark) || !std::isfinite(pixelRadiance[c])) return {1, 1, 1};
+  bool clipped = false;
+  for (int c = 0; c < 3; ++c) {
+    if (!(roomRadiance[c] >= kDark) || !std::isfinite(pixelRadiance[c])) return {1, 1, 1};
+    clipped = clipped || rgb8[c] >= kClip;
+  }
   cv::Vec3f detail;
   for (int c = 0; c < 3; ++c) detail[c] = std::clamp(pixelRadiance[c] / roomRadiance[c], kMin, kMax);
+  // A clipped pixel's radiance is a lower bound: so is its ratio, which only raises the room's albedo.
+  if (clipped)
+    for (int c = 0; c < 3; ++c) detail[c] = std::max(detail[c], 1.0f);
   return detail;
 }
 
 RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, const AlbedoOptions& options,
-                              RoomAlbedoCache* cache) {
+                              RoomAlbedoCache* cache, const std::vector<cv::Vec3f>* bounce) {
+  if (bounce && bounce->size() != mesh.positions.size())
+    throw std::invalid_argument("estimateRoomAlbedo(): " + std::to_string(bounce->size()) + " bounce irradiances for " +
+                                std::to_string(mesh.positions.size()) + " vertices");
   quietOpen3d();
   const size_t n = mesh.positions.size();
   RoomAlbedo out;
@@ -657,10 +667,13 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
     occluded = (cache ? *cache : once).shadows(mesh, lights);
   }
   const double saturated = capture::srgbToLinear(options.saturationLevel / 255.f);
+  // pi L / E: the albedo where measured; where saturated (L a lower bound) a lower bound of it, which the
+  // vertex takes after the fill if its neighbours' albedo is less (a white patch beside black ones).
+  std::vector<cv::Vec3f> bound(n, cv::Vec3f(0, 0, 0));
   for (size_t i = 0; i < n; ++i) {
     const cv::Vec3d p(mesh.positions[i]), nrm(mesh.normals[i]);
     const cv::Vec3d Lr(mesh.radiance[i]);
-    cv::Vec3d E = lights.ambientIrradiance, direct(0, 0, 0), normalSum(0, 0, 0), blocked(0, 0, 0);
+    cv::Vec3d E = bounce ? cv::Vec3d((*bounce)[i]) : lights.ambientIrradiance, direct(0, 0, 0), normalSum(0, 0, 0), blocked(0, 0, 0);
     for (size_t l = 0; l < L; ++l) {
       cv::Vec3d e;
       double c;
@@ -694,8 +707,9 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
     else if (E[0] + E[1] + E[2] <= 1e-9)
       st = AlbedoStatus::Unlit;
     out.status[i] = st;
-    if (st == AlbedoStatus::Measured)
-      for (int k = 0; k < 3; ++k) out.albedo[i][k] = static_cast<float>(std::clamp(CV_PI * Lr[k] / std::max(E[k], 1e-9), 0.0, 1.0));
+    if (st == AlbedoStatus::Measured || st == AlbedoStatus::Saturated)
+      for (int k = 0; k < 3; ++k) bound[i][k] = static_cast<float>(std::clamp(CV_PI * Lr[k] / std::max(E[k], 1e-9), 0.0, 1.0));
+    if (st == AlbedoStatus::Measured) out.albedo[i] = bound[i];
   }
   std::vector<std::vector<uint32_t>> neighbours(n);
   for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
@@ -735,6 +749,9 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
       for (size_t k = 0; k < filled.size(); ++k) out.albedo[filled[k]] = values[k], known[filled[k]] = 1;
     }
   }
+  for (size_t i = 0; i < n; ++i)
+    if (out.status[i] == AlbedoStatus::Saturated)
+      for (int k = 0; k < 3; ++k) out.albedo[i][k] = std::max(out.albedo[i][k], bound[i][k]);
   return out;
 }
 

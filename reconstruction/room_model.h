@@ -145,14 +145,17 @@ class RoomAlbedoCache {
 };
 /// With a cache, the shadow rays of vertices and lights the change since the cache's last mesh cannot affect
 /// are not cast again (RoomAlbedoCache).
+/// `bounce` (roomBounceIrradiance, one per vertex): the irradiance the room sends each vertex, in E instead of
+/// the lights' ambient.
 RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld, const AlbedoOptions& options = {},
-                              RoomAlbedoCache* cache = nullptr);
+                              RoomAlbedoCache* cache = nullptr, const std::vector<cv::Vec3f>* bounce = nullptr);
 
 /// The texture the fused room blurs over its voxels, recovered from a frame: the ratio of the radiance a pixel
 /// observes (rgb8 its 8-bit value, pixelRadiance the same at exposure 1) to the fused radiance of the room
 /// vertex it sees, per channel, clamped to [1/4, 4]. The room vertex's albedo times it is π L_pixel / E, the
-/// pixel's own albedo under the room's irradiance. 1 where a channel of the pixel is clipped (>= 250) or the
-/// room's radiance is too dark to divide by (< 1e-3).
+/// pixel's own albedo under the room's irradiance. Where a channel of the pixel is clipped (>= 250) the ratio
+/// is a lower bound and only raises: at least 1 (a clipped white patch the voxels blurred with black ones
+/// takes its white back). 1 where the room's radiance is too dark to divide by (< 1e-3).
 cv::Vec3f albedoDetail(const cv::Vec3b& rgb8, const cv::Vec3f& pixelRadiance, const cv::Vec3f& roomRadiance);
 
 /// A saved room: ROOM/room.ply (binary PLY: positions, normals, 8-bit sRGB colour for viewers),

@@ -14,6 +14,7 @@
 #include "reconstruction/albedo.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
+#include "reconstruction/room_bounce.h"
 
 using nlohmann::json;
 
@@ -190,14 +191,20 @@ void FramePipeline::takeLights(PreparedFrame& p) const {
   p.ambientSh = setup_->ambientSh;
 }
 
-void FramePipeline::estimateRoomLights() {
-  // Seen from the virtual objects' centre (the mean of their bounding boxes' centres in the marker frame).
+cv::Vec3d FramePipeline::objectsCentre() const {
+  // The mean of the objects' bounding boxes' centres in the marker frame.
   cv::Vec3d centre(0, 0, 0);
   for (const auto& o : setup_->scene.objects) {
     const cv::Vec3d c = 0.5 * (cv::Vec3d(o.mesh.boundsMin) + cv::Vec3d(o.mesh.boundsMax));
     centre += capture::transformPoint(capture::Pose(o.T_marker_object), c);
   }
   if (!setup_->scene.objects.empty()) centre /= static_cast<double>(setup_->scene.objects.size());
+  return centre;
+}
+
+void FramePipeline::estimateRoomLights() {
+  // Seen from the virtual objects' centre.
+  const cv::Vec3d centre = objectsCentre();
   reconstruction::RoomLightOptions ro;
   ro.split.medianCut.count = setup_->scene.roomLightCount;
   ro.saturatedGain = setup_->scene.roomSaturatedGain;
@@ -450,6 +457,7 @@ RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameR
     const auto mesh = reconstruction::buildDepthMesh(r.positions, r.normals, options_.meshStride);
     lighting::buildRealVertices(mesh, albedo, *r.T_marker_camera, out.vertices, out.indices);
   }
+  out.pixelAlbedo = albedo;
   return out;
 }
 
@@ -483,14 +491,37 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
     }
   }
   const size_t cleared = (options_.room->indices.size() - room.indices.size()) / 3;
+  // Lights listed apart from the room: what the objects hide from the real surfaces beside those lights is the
+  // room's surfaces seen from the objects (lamps cleared above, saturated ones left out), not the listed ambient.
+  if (setup_->scene.lightSource != lighting::LightSource::Room && !setup_->scene.objects.empty() && !room.indices.empty()) {
+    auto sh = profiler.cpu("room_hidden");
+    reconstruction::RoomLightOptions ro;
+    ro.mapWidth = 64;
+    ro.saturatedGain = 1;
+    const reconstruction::RoomLights seen = reconstruction::estimateRoomLights(room, objectsCentre(), ro);
+    lighting::Ambient hidden;
+    hidden.uniform = cv::Vec3f(seen.surfacesSh[0] * 0.28209479177387814);  // Y_00
+    for (size_t k = 1; k < 9; ++k) hidden.sh[k] = cv::Vec3f(seen.surfacesSh[k]);
+    pipeline_->setHiddenAmbient(hidden);
+  }
   roomIndices_ = room.indices;
   roomValsSet_ = false;
   // The lighting world (marker frame), as the room.
   if (!roomAlbedoCache_)
     roomAlbedoCache_ = std::make_shared<reconstruction::RoomAlbedoCache>(options_.fuse ? options_.fuse->options().voxelM
                                                                                       : reconstruction::RoomOptions{}.voxelM);
-  const reconstruction::RoomAlbedo albedo =
-      reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose(), p.lights, p.ambient), {}, roomAlbedoCache_.get());
+  // What the room sends itself (its fused radiance, every bounce the camera saw) is the rest of each vertex's
+  // irradiance beside the lights: without it a closed room's albedo comes out too bright by a half or more.
+  std::vector<cv::Vec3f> bounce;
+  {
+    auto sb = profiler.cpu("room_bounce");
+    const reconstruction::MeshRays rays(room.positions, room.indices);
+    reconstruction::RoomBounceOptions bo;
+    bo.outside = p.ambient;
+    bounce = reconstruction::roomBounceIrradiance(room, rays, bo);
+  }
+  const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(
+      room, albedoLights(capture::identityPose(), p.lights, p.ambient), {}, roomAlbedoCache_.get(), &bounce);
   const auto& rays = roomAlbedoCache_->lastStats();
   roomAlbedo_ = albedo.albedo;
   roomAlbedoStatus_ = albedo.status;
@@ -535,24 +566,38 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
   const auto mesh = reconstruction::buildDepthMesh(r.positions, r.normals, options_.meshStride);
   lighting::buildRealVertices(mesh, cv::Mat(), *r.T_marker_camera, vertices, indices);
   const cv::Mat radiance = capture::radianceOf(rgbd.colour, rgbd.exposure);
-  size_t detailed = 0;
+  // Each pixel's albedo: its nearest room vertex's (the room vertex of the mesh vertex whose block of
+  // meshStride x meshStride pixels it lies in) times the texture the voxels blurred (albedoDetail).
+  cv::Mat pixelAlbedo(rgbd.colour.size(), CV_32FC3, cv::Scalar::all(-1));
+  const cv::Rect frameRect(0, 0, radiance.cols, radiance.rows);
+  const int stride = std::max(1, options_.meshStride);
+  size_t detailedVertices = 0;
+  const auto detailed = [&](const cv::Point& px, uint32_t nearest) {
+    cv::Vec3f a = roomAlbedo_[nearest];
+    const auto st = roomAlbedoStatus_[nearest];
+    if (st != reconstruction::AlbedoStatus::Measured && st != reconstruction::AlbedoStatus::Saturated) return a;
+    const cv::Vec3f detail =
+        reconstruction::albedoDetail(rgbd.colour.at<cv::Vec3b>(px), radiance.at<cv::Vec3f>(px), options_.room->radiance[nearest]);
+    for (int c = 0; c < 3; ++c) a[c] = std::min(1.0f, a[c] * detail[c]);
+    return a;
+  };
   for (size_t i = 0; i < vertices.size(); ++i) {
     auto& v = vertices[i];
     uint32_t nearest = 0;
     float d2 = 0;
     if (roomIndex_->tree.knnSearch(&v.position[0], 1, &nearest, &d2) != 1) continue;
     v.albedo = roomAlbedo_[nearest];
-    if (i < mesh.pixels.size() && roomAlbedoStatus_[nearest] == reconstruction::AlbedoStatus::Measured) {
-      const cv::Point px(cvRound(mesh.pixels[i][0]), cvRound(mesh.pixels[i][1]));
-      if (!cv::Rect(0, 0, radiance.cols, radiance.rows).contains(px)) continue;
-      const cv::Vec3f detail = reconstruction::albedoDetail(rgbd.colour.at<cv::Vec3b>(px), radiance.at<cv::Vec3f>(px),
-                                                            options_.room->radiance[nearest]);
-      if (detail != cv::Vec3f(1, 1, 1)) ++detailed;
-      for (int c = 0; c < 3; ++c) v.albedo[c] = std::min(1.0f, v.albedo[c] * detail[c]);
-    }
+    if (i >= mesh.pixels.size()) continue;
+    const cv::Point px(cvRound(mesh.pixels[i][0]), cvRound(mesh.pixels[i][1]));
+    if (!frameRect.contains(px)) continue;
+    v.albedo = detailed(px, nearest);
+    if (v.albedo != roomAlbedo_[nearest]) ++detailedVertices;
+    for (int y = px.y; y < std::min(px.y + stride, radiance.rows); ++y)
+      for (int x = px.x; x < std::min(px.x + stride, radiance.cols); ++x) pixelAlbedo.at<cv::Vec3f>(y, x) = detailed({x, y}, nearest);
   }
-  r.info["view_mesh_detailed"] = detailed;
+  r.info["view_mesh_detailed"] = detailedVertices;
   pipeline_->setViewMesh(vertices, indices);
+  pipeline_->setRealPixelAlbedo(pixelAlbedo);
 }
 
 void FramePipeline::render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor,
@@ -584,6 +629,7 @@ void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compos
   } else {
     buildSurface(frame, p, profiler);  // prepared already, unless measured only
     pipeline_->setRealMesh(std::move(p.surface->vertices), std::move(p.surface->indices));
+    pipeline_->setRealPixelAlbedo(p.surface->pixelAlbedo);
     p.surface.reset();
     if (p.realVals) pipeline_->setRealVals(std::move(*p.realVals));
     p.realVals.reset();

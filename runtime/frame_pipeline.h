@@ -121,6 +121,7 @@ cv::Mat measuredDepth(const FrameResult& r);
 struct RealSurface {
   std::vector<lighting::MeshVertex> vertices;
   std::vector<uint32_t> indices;
+  cv::Mat pixelAlbedo;  ///< CV_32FC3 per colour pixel (the vertices sample it every meshStride pixels)
 };
 
 /// The CPU half of a frame (FramePipeline::prepare): its measurement and, lit from its own depth, its real
@@ -224,6 +225,7 @@ class FramePipeline {
   /// The setup's lights and ambient as they are now, for a frame to be lit under.
   void takeLights(PreparedFrame& p) const;
   std::shared_ptr<const reconstruction::RoomLights> roomLightEstimate_;
+  cv::Vec3d objectsCentre() const;  ///< the scene's objects' centre, marker frame
   /// The setup's lights and ambient as the albedo estimate takes them, in the frame T_frame_marker maps to
   /// (the camera for a frame's pixels, the marker frame itself for the room).
   reconstruction::AlbedoLights albedoLights(const capture::Pose& T_frame_marker, const std::vector<lighting::SceneLight>& lights,

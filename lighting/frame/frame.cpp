@@ -305,6 +305,7 @@ FrameResources::FrameResources(const FrameConfig& config, const std::vector<Virt
     fo.source = o;
     fo.gpu = GpuMesh(v, o.mesh.indices);
     fo.sphere = occluderSphere(o.mesh);
+    fo.sphere.albedo = o.material.albedo;
     fo.T_world_object = o.T_marker_object;
     objects_.push_back(std::move(fo));
   }
@@ -334,6 +335,20 @@ void FrameResources::setRealMesh(std::vector<MeshVertex> vertices, std::vector<u
 void FrameResources::setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
   viewMesh_ = GpuMesh(vertices, indices);
   viewDirty_ = true;
+}
+
+void FrameResources::setRealPixelAlbedo(const cv::Mat& albedo) {
+  const bool use = !albedo.empty() && albedo.type() == CV_32FC3 && albedo.cols == config_.width && albedo.rows == config_.height;
+  if (!use && !hasPixelAlbedo_) return;
+  hasPixelAlbedo_ = use;
+  viewDirty_ = true;
+  if (!use) return;
+  if (pixelAlbedo_.id() == 0) {
+    pixelAlbedo_ = gl::Texture(GL_TEXTURE_2D, GL_RGB32F, config_.width, config_.height);
+    pixelAlbedo_.setFilter(GL_NEAREST, GL_NEAREST);
+  }
+  const cv::Mat packed = albedo.isContinuous() ? albedo : albedo.clone();
+  pixelAlbedo_.upload(GL_RGB, GL_FLOAT, packed.data, 4);
 }
 
 void FrameResources::setObjectTransform(size_t i, const cv::Matx44d& T) { objects_.at(i).T_world_object = T; }
@@ -471,6 +486,8 @@ void FrameResources::renderGBuffer() {
   glClearNamedFramebufferfv(gbufferFb_.id(), GL_DEPTH, 0, &one);
   const cv::Matx44d view = capture::inversePose(camera_.T_world_camera);
   setVec3(gbufferProgram_, "uEye", capture::translationOf(camera_.T_world_camera));
+  gbufferProgram_.set("uPixelAlbedo", hasPixelAlbedo_ ? 1 : 0);
+  if (hasPixelAlbedo_) pixelAlbedo_.bind(0);
   drawScene(gbufferProgram_, true, projectionFromIntrinsics(camera_.intrinsics, camera_.nearPlane, camera_.farPlane) * view, true);
   glDisable(GL_DEPTH_TEST);
 }

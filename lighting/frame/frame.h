@@ -192,6 +192,11 @@ class FrameResources {
   /// the real mesh, which still casts the shadows and fills the RSMs (a fused room model). Sharper where
   /// real surfaces occlude virtual ones. Empty: the real mesh everywhere. A change counts as a camera change.
   void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
+  /// The real surfaces' albedo per camera pixel (CV_32FC3 linear, the G-buffer's size; a negative value:
+  /// none at that pixel), which the G-buffer takes instead of the vertices' interpolated albedo: a mesh over
+  /// every other depth pixel blurs a texture (a tag's cells) that the camera sees sharp, and a shadow drawn
+  /// over it with it. Empty (or another size): the vertices'. A change counts as a camera change.
+  void setRealPixelAlbedo(const cv::Mat& albedo);
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object);
   /// The ambient's directional part (radiance as SH bands 0-2, lighting world; LightingPipeline::setAmbientSh);
   /// a change counts as an ambient change at the next update().
@@ -265,6 +270,8 @@ class FrameResources {
   FrameConfig config_;
   std::vector<FrameObject> objects_;
   GpuMesh realMesh_, viewMesh_;
+  gl::Texture pixelAlbedo_;  ///< setRealPixelAlbedo's, RGB32F
+  bool hasPixelAlbedo_ = false;
   bool viewDirty_ = false;
   std::vector<Val> realVals_;
   std::optional<Region> region_;

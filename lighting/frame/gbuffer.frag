@@ -7,6 +7,8 @@ in vec3 vAlbedo;
 uniform vec3 uEye;       // camera centre, world
 uniform float uVirtual;  // 1 for virtual objects, 0 for the real mesh
 uniform float uObject;   // 0 for the real mesh, 1 + index for virtual object index
+uniform int uPixelAlbedo;  // 1: real surfaces take their albedo per camera pixel (FrameResources::setRealPixelAlbedo)
+layout(binding = 0) uniform sampler2D uAlbedoImage;  // rgb albedo per pixel, negative: none there
 
 layout(location = 0) out vec4 outPosition;  // xyz world, w = 1
 layout(location = 1) out vec4 outNormal;    // xyz unit world normal towards the camera, w = uObject
@@ -18,5 +20,10 @@ void main() {
   if (dot(n, uEye - vPosition) < 0.0) n = -n;
   outPosition = vec4(vPosition, 1.0);
   outNormal = vec4(n, uObject);
-  outAlbedo = vec4(vAlbedo, uVirtual);
+  vec3 albedo = vAlbedo;
+  if (uPixelAlbedo == 1 && uVirtual < 0.5) {
+    vec3 a = texelFetch(uAlbedoImage, ivec2(gl_FragCoord.xy), 0).rgb;
+    if (a.r >= 0.0) albedo = a;
+  }
+  outAlbedo = vec4(albedo, uVirtual);
 }

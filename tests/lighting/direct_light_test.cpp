@@ -51,7 +51,7 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   const cv::Mat pos = pipe.downloadGBuffer(0), nrm = pipe.downloadGBuffer(1), alb = pipe.downloadGBuffer(2);
   lighting::Ambient sky;
   sky.uniform = cv::Vec3f(ambient);
-  const std::vector<lighting::OccluderSphere> spheres{lighting::occluderSphere(s.objects[0].mesh, s.objects[0].T_marker_object)};
+  const std::vector<lighting::OccluderSphere> spheres{lighting::occluderSphere(s.objects[0])};
   int real = 0, shadowed = 0, virt = 0, differ = 0;
   for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
     const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i), a = alb.at<cv::Vec4f>(i);

@@ -181,3 +181,23 @@ TEST(Albedo, AnalyticPlaneAndRejections) {
   r = estimateAlbedo(white, pos, nrm, k, lights, o);
   EXPECT_EQ(r.status.at<uchar>(15, 20), uchar(AlbedoStatus::Saturated));
 }
+
+TEST(Albedo, AClippedPatchTakesAtLeastTheAlbedoItsClippedValueBounds) {
+  // A white card clipped by the camera on a dark table: filled from its dark neighbours alone it would read
+  // dark (and a virtual shadow over it would darken it too little); its clipped value bounds it from below.
+  const capture::Intrinsics k{40, 30, 40, 40, 19.5, 14.5};
+  const cv::Mat depth(30, 40, CV_32F, cv::Scalar(1.0f)), pos = backProject(depth, k);
+  const cv::Mat nrm(30, 40, CV_32FC3, cv::Scalar(0, 0, -1));
+  AlbedoLights lights;
+  lights.points.push_back(AlbedoPointLight{cv::Vec3d(0, 0, 0), cv::Vec3d(2, 2, 2)});
+  cv::Mat colour(30, 40, CV_8UC3, cv::Scalar(20, 20, 20));
+  colour(cv::Rect(15, 10, 10, 10)).setTo(cv::Scalar(255, 255, 255));
+  AlbedoOptions o;
+  o.shadowTest = false;
+  const auto r = estimateAlbedo(colour, pos, nrm, k, lights, o);
+  const double clipBound = CV_PI * capture::srgbToLinear(1.0f) / 2.0;  // pi I_clip / E at the centre, > 1
+  ASSERT_GT(clipBound, 1.0);
+  EXPECT_EQ(r.status.at<uchar>(15, 20), uchar(AlbedoStatus::Saturated));
+  EXPECT_FLOAT_EQ(r.albedo.at<cv::Vec3f>(15, 20)[0], 1.0f);
+  EXPECT_LT(r.albedo.at<cv::Vec3f>(2, 2)[0], 0.1f);  // the table
+}

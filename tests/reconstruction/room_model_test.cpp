@@ -633,8 +633,10 @@ TEST(RoomModel, AFramesPixelsRestoreTheTextureTheRoomBlurs) {
   ASSERT_GT(checked, 300);
   EXPECT_LT(blurredGood, checked / 2) << "the room alone blurs the stripes";
   EXPECT_GT(detailedGood, static_cast<int>(0.9 * checked)) << detailedGood << " of " << checked;
-  // Clipped pixels and a room too dark to divide by keep the room's albedo; the ratio is bounded.
-  EXPECT_EQ(reconstruction::albedoDetail({255, 100, 100}, {1.2f, 0.1f, 0.1f}, {0.5f, 0.5f, 0.5f}), cv::Vec3f(1, 1, 1));
+  // A clipped pixel's ratio is a lower bound: it only raises the room's albedo; a room too dark to divide by
+  // keeps its albedo; the ratio is bounded.
+  EXPECT_EQ(reconstruction::albedoDetail({255, 100, 100}, {1.2f, 0.1f, 0.1f}, {0.5f, 0.5f, 0.5f}), cv::Vec3f(2.4f, 1, 1));
+  EXPECT_EQ(reconstruction::albedoDetail({255, 255, 255}, {0.4f, 0.4f, 0.4f}, {0.5f, 0.5f, 0.5f}), cv::Vec3f(1, 1, 1));
   EXPECT_EQ(reconstruction::albedoDetail({10, 10, 10}, {0.01f, 0.01f, 0.01f}, {0.f, 0.5f, 0.5f}), cv::Vec3f(1, 1, 1));
   EXPECT_EQ(reconstruction::albedoDetail({200, 1, 10}, {0.6f, 1e-6f, 0.01f}, {0.01f, 0.5f, 0.01f}), cv::Vec3f(4, 0.25f, 1));
   EXPECT_EQ(reconstruction::albedoDetail({200, 1, 10}, {NAN, 0.1f, 0.1f}, {0.1f, 0.1f, 0.1f}), cv::Vec3f(1, 1, 1));

@@ -199,7 +199,7 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
   const float lost = 8.0f * kFloorAlbedo[0] / static_cast<float>(CV_PI);
   Ambient sky;
   sky.uniform = cv::Vec3f::all(static_cast<float>(ambient));
-  const std::vector<OccluderSphere> spheres{occluderSphere(s.objects[0].mesh, s.objects[0].T_marker_object)};
+  const std::vector<OccluderSphere> spheres{occluderSphere(s.objects[0])};
   int inside = 0, outside = 0, wrong = 0;
   for (int i = 0; i < static_cast<int>(shade.total()); ++i) {
     const cv::Vec4f v = shade.at<cv::Vec4f>(i), p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i);

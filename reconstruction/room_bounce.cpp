@@ -1,0 +1,122 @@
+#include "reconstruction/room_bounce.h"
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+namespace mrgi::reconstruction {
+
+namespace {
+
+/// A unit tangent frame (t, b) perpendicular to n.
+void tangentFrame(const cv::Vec3d& n, cv::Vec3d& t, cv::Vec3d& b) {
+  const cv::Vec3d a = std::abs(n[0]) < 0.9 ? cv::Vec3d(1, 0, 0) : cv::Vec3d(0, 1, 0);
+  t = cv::normalize(a.cross(n));
+  b = n.cross(t);
+}
+
+/// A fraction in [0, 1) from an integer (the vertex's turn of its ray set about the normal).
+double hashToUnit(uint64_t x) {
+  x ^= x >> 33, x *= 0xff51afd7ed558ccdULL, x ^= x >> 33, x *= 0xc4ceb9fe1a85ec53ULL, x ^= x >> 33;
+  return static_cast<double>(x >> 11) * (1.0 / 9007199254740992.0);
+}
+
+}  // namespace
+
+std::vector<cv::Vec3f> roomBounceIrradiance(const RoomMesh& mesh, const MeshRays& rays,
+                                            const RoomBounceOptions& options) {
+  const size_t n = mesh.positions.size();
+  std::vector<cv::Vec3f> E(n, cv::Vec3f(0, 0, 0));
+  if (n == 0 || options.rays <= 0) return E;
+  // The ray set in the tangent frame: a Fibonacci spiral over the unit disc lifted to the hemisphere
+  // (Malley's method: uniform over the disc is cosine-weighted over the hemisphere, so E = pi * mean L).
+  const int R = options.rays;
+  const double golden = CV_PI * (3.0 - std::sqrt(5.0));
+  std::vector<cv::Vec3d> local(static_cast<size_t>(R));
+  for (int k = 0; k < R; ++k) {
+    const double r = std::sqrt((k + 0.5) / R), phi = k * golden;
+    local[static_cast<size_t>(k)] = {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0, 1.0 - r * r))};
+  }
+  const auto sent = [&](uint32_t v) -> cv::Vec3d {
+    if (v < mesh.saturated.size() && mesh.saturated[v]) return {0, 0, 0};
+    return cv::Vec3d(mesh.radiance[v]);
+  };
+  const size_t stride = static_cast<size_t>(std::max(1, options.vertexStride));
+  std::vector<uint8_t> known(n, 0);
+  const auto gather = [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      if (i % stride != 0) continue;
+      const cv::Vec3d nrm(mesh.normals[i]), p(mesh.positions[i]);
+      const double len = cv::norm(nrm);
+      if (!(len > 0.5) || !std::isfinite(len) || !std::isfinite(p.dot(p)) ||
+          std::abs(p[0]) + std::abs(p[1]) + std::abs(p[2]) > 1e5)
+        continue;
+      const cv::Vec3d z = nrm / len;
+      cv::Vec3d t, b;
+      tangentFrame(z, t, b);
+      const double turn = 2 * CV_PI * hashToUnit(i), c = std::cos(turn), s = std::sin(turn);
+      const cv::Vec3d o = p + options.offsetM * z;
+      cv::Vec3d sum(0, 0, 0);
+      int hits = 0;
+      for (const cv::Vec3d& l : local) {
+        const double x = c * l[0] - s * l[1], y = s * l[0] + c * l[1];
+        const cv::Vec3d d = x * t + y * b + l[2] * z;
+        const MeshRays::Hit h = rays.intersect(o, d);
+        if (!h.hit) continue;
+        const uint32_t* tri = &mesh.indices[3 * static_cast<size_t>(h.triangle)];
+        sum += (1 - h.u - h.v) * sent(tri[0]) + h.u * sent(tri[1]) + h.v * sent(tri[2]);
+        ++hits;
+      }
+      // What was never seen sends what the seen part of the hemisphere sends, once enough of it was seen.
+      const cv::Vec3d missed = hits * 4 >= R ? sum / hits : options.outside;
+      const cv::Vec3d e = (sum + static_cast<double>(R - hits) * missed) * (CV_PI / R);
+      E[i] = cv::Vec3f(static_cast<float>(e[0]), static_cast<float>(e[1]), static_cast<float>(e[2]));
+      known[i] = 1;
+    }
+  };
+  const size_t threads = std::clamp<size_t>(
+      options.threads > 0 ? static_cast<size_t>(options.threads) : std::max(1u, std::thread::hardware_concurrency()), 1,
+      std::max<size_t>(1, n / 256));
+  if (threads <= 1) {
+    gather(0, n);
+  } else {
+    std::vector<std::thread> pool;
+    for (size_t w = 0; w < threads; ++w) pool.emplace_back(gather, n * w / threads, n * (w + 1) / threads);
+    for (auto& th : pool) th.join();
+  }
+  std::vector<std::vector<uint32_t>> neighbours(n);
+  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
+    for (int a = 0; a < 3; ++a) {
+      const uint32_t u = mesh.indices[t + a], v = mesh.indices[t + (a + 1) % 3];
+      if (u < n && v < n) neighbours[u].push_back(v), neighbours[v].push_back(u);
+    }
+  // Vertices without rays (between the sampled ones, or with no usable normal) take their known neighbours'
+  // mean, ring by ring.
+  for (int pass = 0; pass < 64; ++pass) {
+    std::vector<std::pair<size_t, cv::Vec3f>> filled;
+    for (size_t i = 0; i < n; ++i) {
+      if (known[i]) continue;
+      cv::Vec3f sum(0, 0, 0);
+      int count = 0;
+      for (uint32_t j : neighbours[i])
+        if (known[j]) sum += E[j], ++count;
+      if (count > 0) filled.emplace_back(i, sum / static_cast<float>(count));
+    }
+    if (filled.empty()) break;
+    for (const auto& [i, e] : filled) E[i] = e, known[i] = 1;
+  }
+  if (options.smoothing > 0) {
+    std::vector<cv::Vec3f> next(n);
+    for (int pass = 0; pass < options.smoothing; ++pass) {
+      for (size_t i = 0; i < n; ++i) {
+        cv::Vec3f sum = E[i];
+        for (uint32_t j : neighbours[i]) sum += E[j];
+        next[i] = sum / static_cast<float>(1 + neighbours[i].size());
+      }
+      E.swap(next);
+    }
+  }
+  return E;
+}
+
+}  // namespace mrgi::reconstruction

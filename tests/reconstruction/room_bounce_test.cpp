@@ -1,0 +1,152 @@
+// The light a room sends itself (reconstruction/room_bounce.h) and the albedo it gives (estimateRoomAlbedo).
+#include "reconstruction/room_bounce.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "reconstruction/room_model.h"
+
+using namespace mrgi;
+using reconstruction::RoomMesh;
+
+namespace {
+
+/// The inside of a sphere of radius R about the origin: a latitude-longitude mesh, normals inwards.
+RoomMesh insideSphere(double R, int rings = 48, int segments = 96) {
+  RoomMesh m;
+  for (int i = 0; i <= rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const double t = CV_PI * i / rings, p = 2 * CV_PI * j / segments;
+      const cv::Vec3d d(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t));
+      m.positions.emplace_back(R * d);
+      m.normals.emplace_back(-d);
+    }
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const uint32_t a = static_cast<uint32_t>(i * segments + j),
+                     b = static_cast<uint32_t>(i * segments + (j + 1) % segments);
+      const uint32_t c = a + static_cast<uint32_t>(segments), d = b + static_cast<uint32_t>(segments);
+      m.indices.insert(m.indices.end(), {a, c, b, b, c, d});
+    }
+  const size_t n = m.positions.size();
+  m.radiance.assign(n, cv::Vec3f(0, 0, 0));
+  m.confidence.assign(n, 1.f);
+  m.saturated.assign(n, 0);
+  return m;
+}
+
+TEST(RoomBounce, AClosedRoomOfUniformRadianceSendsEachPointPiL) {
+  // Every ray from inside hits the room: E = pi L exactly, whatever the rays (stratified or not).
+  RoomMesh m = insideSphere(1.5);
+  m.radiance.assign(m.positions.size(), cv::Vec3f(0.2f, 0.4f, 0.8f));
+  const reconstruction::MeshRays rays(m.positions, m.indices);
+  reconstruction::RoomBounceOptions o;
+  o.rays = 16;
+  const auto E = reconstruction::roomBounceIrradiance(m, rays, o);
+  ASSERT_EQ(E.size(), m.positions.size());
+  for (size_t i = 0; i < E.size(); i += 37)
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(E[i][c], CV_PI * m.radiance[i][c], 1e-4 * CV_PI) << i;
+}
+
+TEST(RoomBounce, HalfBrightRoomGivesTheCosineWeightedIntegral) {
+  // The upper half (z > 0) at radiance 1, the lower dark. The ceiling's pole looks straight down at the dark
+  // half through a hemisphere centred on its normal: by symmetry of the inside of a sphere, a point sees the
+  // sphere's area uniformly weighted (the form factor from a point on a sphere's inside to dA is
+  // dA / (4 pi R^2)), so E = pi x (the bright fraction of the area) = pi / 2 everywhere.
+  RoomMesh m = insideSphere(1.0, 64, 128);
+  for (size_t i = 0; i < m.positions.size(); ++i)
+    m.radiance[i] = m.positions[i][2] > 0 ? cv::Vec3f(1, 1, 1) : cv::Vec3f(0, 0, 0);
+  const reconstruction::MeshRays rays(m.positions, m.indices);
+  reconstruction::RoomBounceOptions o;
+  o.rays = 256;
+  o.offsetM = 1e-3;
+  const auto E = reconstruction::roomBounceIrradiance(m, rays, o);
+  double worst = 0;
+  for (size_t i = 0; i < E.size(); i += 11) worst = std::max(worst, std::abs(E[i][0] - CV_PI / 2) / (CV_PI / 2));
+  EXPECT_LT(worst, 0.05);  // 256 stratified rays and the 1 mm offset; the smoothing mixes neighbours only
+}
+
+TEST(RoomBounce, SaturatedSurfacesSendNothingAndUnseenDirectionsSendWhatTheSeenOnesSend) {
+  RoomMesh m = insideSphere(1.0);
+  m.radiance.assign(m.positions.size(), cv::Vec3f(0.5f, 0.5f, 0.5f));
+  // A lamp (saturated) over the north cap: its light is a listed light's, not the room's.
+  for (size_t i = 0; i < m.positions.size(); ++i)
+    if (m.positions[i][2] > 0.9f) m.saturated[i] = 1, m.radiance[i] = cv::Vec3f(100, 100, 100);
+  const reconstruction::MeshRays rays(m.positions, m.indices);
+  reconstruction::RoomBounceOptions o;
+  o.rays = 64;
+  o.smoothing = 0;
+  const auto E = reconstruction::roomBounceIrradiance(m, rays, o);
+  for (size_t i = 0; i < E.size(); ++i)
+    ASSERT_LE(E[i][0], CV_PI * 0.5f * 1.0001f) << "a saturated surface sent light, vertex " << i;
+  // The southern half only (a room scanned from below the equator): its points still see the half of the
+  // sphere that is there and nothing else, so unseen directions take the seen mean, pi 0.5.
+  RoomMesh half = insideSphere(1.0);
+  RoomMesh kept;
+  std::vector<int> map(half.positions.size(), -1);
+  for (size_t i = 0; i < half.positions.size(); ++i)
+    if (half.positions[i][2] < 0.2f) {
+      map[i] = static_cast<int>(kept.positions.size());
+      kept.positions.push_back(half.positions[i]);
+      kept.normals.push_back(half.normals[i]);
+      kept.radiance.emplace_back(0.5f, 0.5f, 0.5f);
+      kept.confidence.push_back(1);
+      kept.saturated.push_back(0);
+    }
+  for (size_t t = 0; t + 2 < half.indices.size(); t += 3)
+    if (map[half.indices[t]] >= 0 && map[half.indices[t + 1]] >= 0 && map[half.indices[t + 2]] >= 0)
+      for (int k = 0; k < 3; ++k) kept.indices.push_back(static_cast<uint32_t>(map[half.indices[t + k]]));
+  const reconstruction::MeshRays keptRays(kept.positions, kept.indices);
+  o.outside = {7, 7, 7};
+  const auto Ek = reconstruction::roomBounceIrradiance(kept, keptRays, o);
+  int bottom = 0;
+  for (size_t i = 0; i < Ek.size(); ++i)
+    if (kept.positions[i][2] < -0.9f) {
+      ++bottom;
+      EXPECT_NEAR(Ek[i][0], CV_PI * 0.5, 1e-3) << "the floor sees the walls, fills the rest with them";
+    }
+  EXPECT_GT(bottom, 10);
+}
+
+TEST(RoomBounce, TheRoomsAlbedoUnderALampAndItsOwnBounceIsTheTrueAlbedo) {
+  // A lamp of intensity I at the centre of a closed sphere of albedo rho: every point receives E_d = I / R^2
+  // directly and pi <L> from the rest, so L = rho (E_d + pi L) / pi, L = rho E_d / (pi (1 - rho)). Without the
+  // room's bounce the albedo reads pi L / E_d = rho / (1 - rho): 1 (clamped) for rho = 0.5.
+  const double R = 1.5, I = 9.0, rho = 0.5, Ed = I / (R * R);
+  RoomMesh m = insideSphere(R);
+  const float L = static_cast<float>(rho * Ed / (CV_PI * (1 - rho)));
+  m.radiance.assign(m.positions.size(), cv::Vec3f(L, L, L));
+  reconstruction::AlbedoLights lights;
+  lights.points.push_back({{0, 0, 0}, cv::Vec3d::all(I)});
+  const reconstruction::MeshRays rays(m.positions, m.indices);
+  const auto bounce = reconstruction::roomBounceIrradiance(m, rays);
+  const auto with = reconstruction::estimateRoomAlbedo(m, lights, {}, nullptr, &bounce);
+  const auto without = reconstruction::estimateRoomAlbedo(m, lights);
+  size_t measured = 0;
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    if (with.status[i] != reconstruction::AlbedoStatus::Measured) continue;
+    ++measured;
+    EXPECT_NEAR(with.albedo[i][0], rho, 0.01) << i;
+    EXPECT_GT(without.albedo[i][0], 0.95f) << i;
+  }
+  EXPECT_GT(measured, m.positions.size() * 9 / 10);
+  const std::vector<cv::Vec3f> wrongSize(3);
+  EXPECT_THROW(reconstruction::estimateRoomAlbedo(m, lights, {}, nullptr, &wrongSize), std::invalid_argument);
+}
+
+TEST(RoomBounce, EmptyAndDegenerateRoomsGiveFiniteZeros) {
+  RoomMesh empty;
+  const reconstruction::MeshRays none(empty.positions, empty.indices);
+  EXPECT_TRUE(reconstruction::roomBounceIrradiance(empty, none).empty());
+  RoomMesh m = insideSphere(1.0, 8, 16);
+  m.radiance.assign(m.positions.size(), cv::Vec3f(1e30f, 0, 1));
+  m.normals[0] = {0, 0, 0};
+  m.positions[1] = {NAN, 0, 0};
+  const reconstruction::MeshRays rays(m.positions, m.indices);
+  const auto E = reconstruction::roomBounceIrradiance(m, rays);
+  for (const auto& e : E)
+    for (int c = 0; c < 3; ++c) EXPECT_TRUE(std::isfinite(e[c]));
+}
+
+}  // namespace
