@@ -6,6 +6,8 @@
 #include <numeric>
 #include <stdexcept>
 
+#include <opencv2/imgproc.hpp>
+
 #include "gl/error.h"
 #include "lighting/material.h"
 
@@ -344,11 +346,15 @@ void FrameResources::setRealPixelAlbedo(const cv::Mat& albedo) {
   viewDirty_ = true;
   if (!use) return;
   if (pixelAlbedo_.id() == 0) {
-    pixelAlbedo_ = gl::Texture(GL_TEXTURE_2D, GL_RGB32F, config_.width, config_.height);
+    pixelAlbedo_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA16F, config_.width, config_.height);
     pixelAlbedo_.setFilter(GL_NEAREST, GL_NEAREST);
   }
-  const cv::Mat packed = albedo.isContinuous() ? albedo : albedo.clone();
-  pixelAlbedo_.upload(GL_RGB, GL_FLOAT, packed.data, 4);
+  // Half floats, four channels: what the texture holds, so the driver converts nothing (an albedo needs no
+  // more than half precision: 2^-11 relative).
+  cv::Mat rgba, half;
+  cv::cvtColor(albedo, rgba, cv::COLOR_RGB2RGBA);
+  rgba.convertTo(half, CV_16F);
+  pixelAlbedo_.upload(GL_RGBA, GL_HALF_FLOAT, half.data, 8);
 }
 
 void FrameResources::setObjectTransform(size_t i, const cv::Matx44d& T) { objects_.at(i).T_world_object = T; }

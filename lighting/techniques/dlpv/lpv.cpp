@@ -107,7 +107,8 @@ float dampingFactor(const std::array<float, 4>& c, const cv::Vec3f& d, float dam
 }
 
 LpvVolumeCpu propagateReference(const LpvGrid& grid, const LpvVolumeCpu& injected, int steps, float damping,
-                                bool clampNegative, const LpvVolumeCpu* late, int lateSteps) {
+                                bool clampNegative, const LpvVolumeCpu* late, int lateSteps,
+                                const std::function<void(int, const LpvVolumeCpu&)>& afterEachStep) {
   const int res = grid.resolution;
   LpvVolumeCpu accum = injected, current = injected, next(res);
   const float sideDen = 1.0f / std::sqrt(1.25f);
@@ -156,6 +157,7 @@ LpvVolumeCpu propagateReference(const LpvGrid& grid, const LpvVolumeCpu& injecte
       for (int ch = 0; ch < 3; ++ch)
         for (int c = 0; c < 4; ++c) accum.cells[n][ch][c] += next.cells[n][ch][c];
     std::swap(current, next);
+    if (afterEachStep) afterEachStep(step + 1, accum);
   }
   return accum;
 }

@@ -4,6 +4,7 @@
 /// lpv_propagate.comp), and the irradiance readout. Two SH bands (4 coefficients) per colour channel,
 /// convention of lighting/sh.h. A cell stores radiant intensity (W/sr) as SH; radiance = intensity / cell².
 #include <array>
+#include <functional>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -80,9 +81,12 @@ float dampingFactor(const std::array<float, 4>& luminanceSh, const cv::Vec3f& d,
 /// `steps` propagation steps (Kaplanyan & Dachsbacher gather over 6 neighbours x 5 faces); returns the
 /// accumulated volume (injected + every step). clampNegative: regular LPVs drop negative face flux; delta
 /// volumes keep it. late (optional, the direct delta) joins the propagation lateSteps steps before the end
-/// (all of them when lateSteps >= steps), so shadows blur less than bounce light.
+/// (all of them when lateSteps >= steps), so shadows blur less than bounce light. afterEachStep (optional):
+/// called with the accumulated volume after each step, 1 to `steps` (without a late volume, what a call
+/// with that many steps returns).
 LpvVolumeCpu propagateReference(const LpvGrid& grid, const LpvVolumeCpu& injected, int steps, float damping,
-                                bool clampNegative, const LpvVolumeCpu* late = nullptr, int lateSteps = 0);
+                                bool clampNegative, const LpvVolumeCpu* late = nullptr, int lateSteps = 0,
+                                const std::function<void(int step, const LpvVolumeCpu& accumulated)>& afterEachStep = {});
 
 /// Irradiance (W/m²) at a surface point with unit normal n: trilinear SH at position + n * cell / 2, read as
 /// E = (1/cell²) sum_l A_l c_lm y_lm(-n), A = (pi, 2 pi / 3); 0 outside the grid.

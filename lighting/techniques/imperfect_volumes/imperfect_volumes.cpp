@@ -169,6 +169,7 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
       reflectProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_reflect.comp",
                                            {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       hiddenProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_hidden.comp")),
+      coneProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_cone.comp", {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/imperfect_volumes/iv_readout.frag",
                                             {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       out_(setup.frame->width(), setup.frame->height()) {}
@@ -256,19 +257,8 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
   if (virtual_ && knobs_.objectRays > 0) {
     // The ambient the objects hide from real surfaces (what the object's own rays see on them).
     auto s = timed(profiler, "iv.hidden");
-    const gl::Program& p = hiddenProgram_;
-    p.use();
-    setVec3(p, "uGridOrigin", g.origin);
-    p.set("uVoxel", static_cast<float>(g.voxel));
-    p.set("uResolution", g.resolution);
-    p.set("uNeededCount", static_cast<int>(neededCount_));
-    p.set("uRays", knobs_.rays);
-    p.set("uRange", static_cast<float>(knobs_.range));
-    setAmbientUniforms(p, frame);
+    useVoxelRays(hiddenProgram_, frame);
     hidden_.clear();
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 12, hidden_.id());
     glDispatchCompute(static_cast<GLuint>(std::max<size_t>((neededCount_ + 31) / 32, 1)), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
@@ -278,10 +268,42 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     if (real_) gather(frame, true);
     gather(frame, false);
   }
+  coneBound_.reset();
+  if (real_) {
+    if (const auto b = frame.objectBounds()) {
+      // The objects' box, grown by a voxel's half diagonal: their points occupy whole voxels.
+      const cv::Vec3d lo = b->first, hi = b->second;
+      coneBound_ = iv::Bound{cv::Vec3f(0.5 * (lo + hi)), static_cast<float>(0.5 * cv::norm(hi - lo) + 0.5 * std::sqrt(3.0) * g.voxel)};
+      auto s = timed(profiler, "iv.cone");
+      const gl::Program& p = coneProgram_;
+      useVoxelRays(p, frame);
+      p.set("uConeRays", coneRays());
+      p.set("uBounceLight", knobs_.bounces > 0 ? 1 : 0);
+      p.set("uBound", coneBound_->centre[0], coneBound_->centre[1], coneBound_->centre[2], coneBound_->radius);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, incidentRho_.id());
+      glDispatchCompute(static_cast<GLuint>(std::max<size_t>((neededCount_ + 31) / 32, 1)), 1, 1);
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    }
+  }
   gl::checkGlError("ImperfectVolumesTechnique::build()");
   stats_ = {{"points", pointCount_},          {"voxels_gathered", neededCount_}, {"voxel_m", g.voxel},
             {"real_triangles", pts.realTriangles}, {"virtual_triangles", pts.virtualTriangles}};
   if (outerGrid_) stats_["outer_points"] = outerPointCount_, stats_["outer_voxel_m"] = outerGrid_->voxel;
+}
+
+void ImperfectVolumesTechnique::useVoxelRays(const gl::Program& p, const FrameResources& frame) const {
+  const iv::Grid& g = *grid_;
+  p.use();
+  setVec3(p, "uGridOrigin", g.origin);
+  p.set("uVoxel", static_cast<float>(g.voxel));
+  p.set("uResolution", g.resolution);
+  p.set("uNeededCount", static_cast<int>(neededCount_));
+  p.set("uRays", knobs_.rays);
+  p.set("uRange", static_cast<float>(knobs_.range));
+  setAmbientUniforms(p, frame);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
 }
 
 void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {

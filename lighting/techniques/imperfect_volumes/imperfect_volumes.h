@@ -9,6 +9,7 @@
 /// on the object, its ambient occlusion by real geometry and the bounce real surfaces send it (E^mu minus the
 /// unoccluded ambient the shading pass adds: the object's own voxels neither occlude nor light it).
 /// Reference math: iv.h.
+#include <algorithm>
 #include <optional>
 
 #include "gl/objects.h"
@@ -65,6 +66,11 @@ class ImperfectVolumesTechnique final : public Technique {
   size_t gpuBytes() const override;
 
   const ImperfectVolumesKnobs& knobs() const { return knobs_; }
+  /// The sphere about the virtual objects whose cone the real-pixel delta samples from every voxel
+  /// (iv::coneCorrection, added to rho's incident light), and its rays per voxel: half the gather's, at least 8.
+  /// nullopt when the technique serves no real role or no object is placed.
+  const std::optional<iv::Bound>& coneBound() const { return coneBound_; }
+  int coneRays() const { return std::max(8, knobs_.rays / 2); }
   const std::optional<iv::Grid>& grid() const { return grid_; }
   /// The outer volume's grid (none unless the object's rays continue past the grid).
   const std::optional<iv::Grid>& outerGrid() const { return outerGrid_; }
@@ -83,7 +89,11 @@ class ImperfectVolumesTechnique final : public Technique {
 
   ImperfectVolumesKnobs knobs_;
   bool real_ = false, virtual_ = false;
-  gl::Program injectProgram_, gatherProgram_, reflectProgram_, hiddenProgram_, readoutProgram_;
+  gl::Program injectProgram_, gatherProgram_, reflectProgram_, hiddenProgram_, coneProgram_, readoutProgram_;
+  /// Uses a pass that casts rays from the needed voxels: the grid, the rays and range, the ambient; binds the
+  /// voxels (2), the needed list (3) and the directions (4).
+  void useVoxelRays(const gl::Program& p, const FrameResources& frame) const;
+  std::optional<iv::Bound> coneBound_;
   std::optional<iv::Grid> grid_, outerGrid_;
   /// The frame versions the volume was built from (geometry, lights, ambient).
   std::optional<std::array<uint64_t, 3>> builtFrom_;

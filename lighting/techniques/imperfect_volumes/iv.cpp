@@ -202,6 +202,20 @@ void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient*
       }
 }
 
+/// What one ray of the first gather brings (gatherPass with the ambient): the hit voxel's light towards the
+/// origin within range (none with no bounces), else the ambient of its direction.
+cv::Vec3f firstGatherRadiance(const Volume& volume, bool rho, const Options& o, const Ambient& ambient, const cv::Vec3i& from,
+                              const cv::Vec3f& d) {
+  float t = 0;
+  const int64_t h = march(volume, rho, from, d, &t);
+  if (h >= 0 && t <= o.range) {
+    if (o.bounces <= 0) return {0, 0, 0};
+    const size_t hv = static_cast<size_t>(h);
+    return exitantTowards(rho ? volume.exitantRho[hv] : volume.exitantMu[hv], rho ? volume.normalRho[hv] : volume.normalMu[hv], -d);
+  }
+  return ambient.radiance(d);
+}
+
 /// Irradiance about unit n of incident SH c (3 x B^2): sum_l pi s_l(1) c_lm y_lm(n).
 cv::Vec3f shIrradiance(const float* c, int B, const cv::Vec3f& n) {
   const std::vector<double> s = sh::phongLobeFactors(1.0, B);
@@ -218,6 +232,62 @@ cv::Vec3f shIrradiance(const float* c, int B, const cv::Vec3f& n) {
 }
 
 }  // namespace
+
+std::vector<cv::Vec3f> capDirections(const cv::Vec3f& axis, float cosAlpha, int k) {
+  std::vector<cv::Vec3f> out;
+  if (k <= 0) return out;
+  const cv::Vec3f z = cv::normalize(axis);
+  const cv::Vec3f a = std::abs(z[0]) < 0.9f ? cv::Vec3f(1, 0, 0) : cv::Vec3f(0, 1, 0);
+  const cv::Vec3f x = cv::normalize(a.cross(z)), y = z.cross(x);
+  const double golden = CV_PI * (3.0 - std::sqrt(5.0)), c0 = std::clamp(static_cast<double>(cosAlpha), -1.0, 1.0);
+  for (int j = 0; j < k; ++j) {
+    const double c = 1.0 - (1.0 - c0) * (j + 0.5) / k, s = std::sqrt(std::max(0.0, 1.0 - c * c)), phi = golden * j;
+    out.push_back(cv::normalize(static_cast<float>(s * std::cos(phi)) * x + static_cast<float>(s * std::sin(phi)) * y +
+                                static_cast<float>(c) * z));
+  }
+  return out;
+}
+
+/// A voxel this far out (times the radius) is outside the bound: kept off the exact radius, where float
+/// and double would disagree on voxels whose centres lie on it (the GPU twin uses the same factor).
+constexpr double kConeOutside = 1.0001;
+
+std::vector<float> coneCorrection(const Volume& volume, const std::vector<uint8_t>& computed, const Options& options,
+                                  const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const Bound& bound, int coneRays) {
+  const Grid& g = volume.grid;
+  const int B = std::clamp(options.bands, 1, sh::kMaxBands), C = B * B, R = g.resolution;
+  std::vector<float> out(g.count() * static_cast<size_t>(3 * C), 0.0f);
+  if (!(bound.radius > 0) || coneRays <= 0 || dirs.empty()) return out;
+  const double wUniform = 4.0 * CV_PI / static_cast<double>(dirs.size());
+  for (int k = 0; k < R; ++k)
+    for (int j = 0; j < R; ++j)
+      for (int i = 0; i < R; ++i) {
+        const size_t v = g.index(i, j, k);
+        if (!computed[v]) continue;
+        const cv::Vec3f c(g.centre(i, j, k));
+        const cv::Vec3f axis = bound.centre - c;
+        const double d = cv::norm(axis);
+        if (!(d > kConeOutside * bound.radius)) continue;
+        const double sinA = bound.radius / d, cosA = std::sqrt(std::max(0.0, 1.0 - sinA * sinA));
+        const cv::Vec3f u = axis * static_cast<float>(1.0 / d);
+        std::vector<double> acc(static_cast<size_t>(3 * C), 0.0);
+        const auto add = [&](const cv::Vec3f& w, double weight) {
+          const cv::Vec3f diff = firstGatherRadiance(volume, true, options, ambient, {i, j, k}, w) -
+                                 firstGatherRadiance(volume, false, options, ambient, {i, j, k}, w);
+          if (diff == cv::Vec3f(0, 0, 0)) return;
+          const std::vector<double> y = sh::evaluate(cv::Vec3d(w), B);
+          for (int ch = 0; ch < 3; ++ch)
+            for (int q = 0; q < C; ++q) acc[static_cast<size_t>(ch * C + q)] += weight * diff[ch] * y[static_cast<size_t>(q)];
+        };
+        for (const cv::Vec3f& w : dirs)
+          if (w.dot(u) >= cosA) add(w, -wUniform);
+        const double omega = 2.0 * CV_PI * (1.0 - cosA);
+        for (const cv::Vec3f& w : capDirections(u, static_cast<float>(cosA), coneRays)) add(w, omega / coneRays);
+        float* dst = out.data() + v * static_cast<size_t>(3 * C);
+        for (int q = 0; q < 3 * C; ++q) dst[q] = static_cast<float>(acc[static_cast<size_t>(q)]);
+      }
+  return out;
+}
 
 Incident gather(const Volume& volume, bool rho, const Options& options, const Ambient& ambient) {
   Options o = options;
@@ -355,6 +425,20 @@ cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, 
   if (dirs.empty() || incident.reflectedSum.size() != volume.grid.count()) return change;
   const auto& normals = rho ? volume.normalRho : volume.normalMu;
   const auto& direct = rho ? volume.exitantRho : volume.exitantMuLit;
+  const Grid& g = volume.grid;
+  // What voxel v's surface sends towards -d; false where it does not face the ray.
+  const auto sends = [&](size_t v, const cv::Vec3f& d, cv::Vec3f& L) {
+    const cv::Vec3f nSum(normals[v][0], normals[v][1], normals[v][2]);
+    if (!(nSum.dot(-d) > 0)) return false;
+    L = {0, 0, 0};
+    if (options.bounces > 0) {
+      L = cv::Vec3f(direct[v][0], direct[v][1], direct[v][2]);
+      if (!rho && hidden && hidden->size() == g.count())
+        for (int ch = 0; ch < 3; ++ch) L[ch] = std::max(0.0f, L[ch] - volume.albedoMu[v][ch] / static_cast<float>(CV_PI) * (*hidden)[v][ch]);
+    }
+    L += incident.reflectedSum[v];
+    return true;
+  };
   for (const cv::Vec3f& d : dirs) {
     const float c = n.dot(d);
     if (!(c > 0)) continue;
@@ -372,18 +456,29 @@ cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, 
       continue;
     }
     if (h < 0 || t > options.range) continue;
-    const auto v = static_cast<size_t>(h);
-    const cv::Vec3f nSum(normals[v][0], normals[v][1], normals[v][2]);
-    cv::Vec3f L(0, 0, 0);
-    if (nSum.dot(-d) > 0) {
-      if (options.bounces > 0) {
-        L = cv::Vec3f(direct[v][0], direct[v][1], direct[v][2]);
-        if (!rho && hidden && hidden->size() == volume.grid.count())
-          for (int ch = 0; ch < 3; ++ch)
-            L[ch] = std::max(0.0f, L[ch] - volume.albedoMu[v][ch] / static_cast<float>(CV_PI) * (*hidden)[v][ch]);
-      }
-      L += incident.reflectedSum[v];
+    // The surface's light at the hit, interpolated trilinearly between the centres of the occupied voxels
+    // around it that face the ray (the hit voxel's alone would jump from pixel to pixel as neighbouring rays
+    // cross voxel boundaries: a texture finer than the voxels, a tag's cells, mottles the object).
+    const cv::Vec3f p = x + t * d;
+    const cv::Vec3f q = (p - cv::Vec3f(g.origin)) * static_cast<float>(1.0 / g.voxel) - cv::Vec3f(0.5f, 0.5f, 0.5f);
+    const cv::Vec3i base(static_cast<int>(std::floor(q[0])), static_cast<int>(std::floor(q[1])), static_cast<int>(std::floor(q[2])));
+    const cv::Vec3f f = q - cv::Vec3f(static_cast<float>(base[0]), static_cast<float>(base[1]), static_cast<float>(base[2]));
+    cv::Vec3f sum(0, 0, 0), L(0, 0, 0);
+    float wSum = 0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const cv::Vec3i k = base + cv::Vec3i(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+      if (k[0] < 0 || k[1] < 0 || k[2] < 0 || k[0] >= g.resolution || k[1] >= g.resolution || k[2] >= g.resolution) continue;
+      const size_t v = g.index(k[0], k[1], k[2]);
+      cv::Vec3f Lv;
+      if (!volume.occupied(v, rho) || !sends(v, d, Lv)) continue;
+      float w = 1;
+      for (int a = 0; a < 3; ++a) w *= ((corner >> a) & 1) ? f[a] : 1 - f[a];
+      sum += w * Lv, wSum += w;
     }
+    if (wSum > 1e-6f)
+      L = sum / wSum;
+    else if (!sends(static_cast<size_t>(h), d, L))
+      L = {0, 0, 0};
     change += (L - ambient.radiance(d)) * c;
   }
   return change * static_cast<float>(4.0 * CV_PI / static_cast<double>(dirs.size()));

@@ -161,6 +161,25 @@ cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, 
                       const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x, const cv::Vec3f& n,
                       const std::vector<cv::Vec3f>* hidden = nullptr, const Volume* outer = nullptr);
 
+/// A sphere enclosing the virtual objects (lighting world).
+struct Bound {
+  cv::Vec3f centre{0, 0, 0};
+  float radius = 0;
+};
+/// k unit directions stratified over the spherical cap about unit `axis` whose half-angle has cosine
+/// cosAlpha: cos theta uniform in [cosAlpha, 1] in k equal bands, azimuth by the golden angle (equal areas).
+std::vector<cv::Vec3f> capDirections(const cv::Vec3f& axis, float cosAlpha, int k);
+/// What the virtual objects change along a voxel's rays lies inside the cone their bounding sphere subtends:
+/// seen from a voxel 15 cm off, a few degrees, which N directions over the whole sphere hit by chance, some
+/// voxels by one ray and their neighbours by none (blotches on the real surfaces around, from voxel to voxel).
+/// Per voxel of `computed` outside `bound`: minus the first gather's (L_rho - L_mu) y(w) 4 pi / N over the
+/// directions of `dirs` inside the cone, plus the same difference over `coneRays` rays stratified over the
+/// cone (capDirections) times its solid angle 2 pi (1 - cos alpha) / coneRays. Added to rho's incident SH
+/// (Incident::sh's layout, `bands` bands), the real-pixel delta E^rho - E^mu then samples the objects as
+/// densely from every voxel. Voxels inside the bound (the cone is the whole sphere) get nothing.
+std::vector<float> coneCorrection(const Volume& volume, const std::vector<uint8_t>& computed, const Options& options,
+                                  const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const Bound& bound, int coneRays);
+
 /// The voxels the reconstruction reads at surface point x with unit normal n, with their weights (cos theta);
 /// empty where none qualifies (above).
 std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std::vector<uint8_t>& computed, const cv::Vec3f& x,

@@ -166,6 +166,15 @@ int marchOuter(vec3 x, vec3 d, float from, out float t) {
   return -1;
 }
 
+// What mu voxel v's surface sends towards -d (iv.cpp pointGather's `sends`); false where it does not face the ray.
+bool surfaceSends(int v, vec3 d, out vec3 L) {
+  L = vec3(0.0);
+  if (!(dot(voxels[v].normalMu.xyz, -d) > 0.0)) return false;
+  if (uBounceLight == 1) L = max(voxels[v].exitantMuLit.rgb - voxels[v].albedoMu.rgb / SH_PI * hidden[v].rgb, vec3(0.0));
+  if (uReflectedOn == 1) L += reflectedSumMu[v].rgb;
+  return true;
+}
+
 // iv.h pointGather over the mu volume (and the outer one past it): the change against the unoccluded ambient.
 vec3 pointGather(vec3 x, vec3 n) {
   vec3 change = vec3(0.0);
@@ -184,11 +193,26 @@ vec3 pointGather(vec3 x, vec3 n) {
       continue;
     }
     if (h < 0 || t > uRange) continue;
-    vec3 L = vec3(0.0);
-    if (dot(voxels[h].normalMu.xyz, -d) > 0.0) {
-      if (uBounceLight == 1) L = max(voxels[h].exitantMuLit.rgb - voxels[h].albedoMu.rgb / SH_PI * hidden[h].rgb, vec3(0.0));
-      if (uReflectedOn == 1) L += reflectedSumMu[h].rgb;
+    // The surface's light at the hit, trilinear between the occupied voxels around it that face the ray.
+    vec3 q = (x + t * d - uGridOrigin) / uVoxel - vec3(0.5);
+    ivec3 base = ivec3(floor(q));
+    vec3 f = q - vec3(base);
+    vec3 sum = vec3(0.0), L = vec3(0.0);
+    float wSum = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      ivec3 k = base + ivec3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+      if (any(lessThan(k, ivec3(0))) || any(greaterThanEqual(k, ivec3(uResolution)))) continue;
+      int v = ivIndex(k);
+      vec3 Lv;
+      if (!(voxels[v].exitantMu.w > 0.0) || !surfaceSends(v, d, Lv)) continue;
+      float w = ((corner & 1) != 0 ? f.x : 1.0 - f.x) * ((corner & 2) != 0 ? f.y : 1.0 - f.y) * ((corner & 4) != 0 ? f.z : 1.0 - f.z);
+      sum += w * Lv;
+      wSum += w;
     }
+    if (wSum > 1e-6)
+      L = sum / wSum;
+    else if (!surfaceSends(h, d, L))
+      L = vec3(0.0);
     change += (L - ambientRadiance(uAmbient, uAmbientSh, d)) * c;
   }
   return change * (4.0 * SH_PI / float(max(uObjectRays, 1)));

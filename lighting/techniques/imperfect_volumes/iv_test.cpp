@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "lighting/object_shadow.h"
 #include "lighting/techniques/imperfect_volumes/iv.h"
 
 using namespace mrgi::lighting;
@@ -384,4 +385,114 @@ TEST(ImperfectVolumes, ExtremesStayFinite) {
   const iv::Incident in = iv::gather(v, true, o, amb);
   EXPECT_TRUE(finite(iv::irradiance(v, in, cv::Vec3f(g.centre(4, 4, 4)), {0, 0, 0})));
   EXPECT_TRUE(finite(iv::irradiance(v, in, cv::Vec3f(g.centre(4, 4, 4)), {1, 0, 0})));
+}
+
+namespace {
+
+/// The mean relative error of the real-pixel delta E^rho - E^mu on a floor around a virtual ball hovering
+/// above it under a uniform sky (no bounce: the ball only hides the sky), against the ball's view factor
+/// (-pi L F), at points 2 to 6 ball radii from its axis; and the delta's roughness there (the mean absolute
+/// second difference along a line of points, relative to the mean delta).
+struct FloorDelta {
+  double error = 0, worst = 0;
+};
+FloorDelta floorDeltaAroundABall(bool cone) {
+  const iv::Grid g = unitGrid(32, 0.05);
+  iv::Ambient amb;
+  amb.uniform = {1.0f, 1.0f, 1.0f};
+  iv::Options o;
+  o.rays = 64;
+  o.bounces = 0;
+  o.range = 10.0;
+  std::vector<iv::Point> pts;
+  for (int j = 0; j < 32; ++j)
+    for (int i = 0; i < 32; ++i) pts.push_back(pointIn(g, i, j, 4));
+  const cv::Vec3f centre(g.centre(16, 16, 10));
+  const float radius = 0.1f;
+  for (int k = 6; k < 15; ++k)
+    for (int j = 12; j < 21; ++j)
+      for (int i = 12; i < 21; ++i) {
+        const cv::Vec3f c(g.centre(i, j, k));
+        if (cv::norm(c - centre) <= radius) pts.push_back(pointIn(g, i, j, k, cv::normalize(c - centre + cv::Vec3f(0, 0, 1e-4f)), true));
+      }
+  const iv::Volume v = iv::voxelise(g, pts);
+  iv::Incident rho = iv::gather(v, true, o, amb);
+  const iv::Incident mu = iv::gather(v, false, o, amb);
+  if (cone) {
+    const std::vector<float> add =
+        iv::coneCorrection(v, rho.computed, o, amb, iv::rayDirections(o.rays), {centre, radius + 0.5f * float(g.voxel)}, 32);
+    for (size_t q = 0; q < rho.sh.size(); ++q) rho.sh[q] += add[q];
+  }
+  // The ball as the voxels hold it: its voxels' union, a sphere of the same volume.
+  size_t ballVoxels = 0;
+  for (size_t q = 0; q < g.count(); ++q) ballVoxels += v.occupied(q, true) && !v.occupied(q, false);
+  const double r = std::cbrt(3.0 * ballVoxels * std::pow(g.voxel, 3) / (4 * CV_PI));
+  const float floorZ = static_cast<float>(g.centre(0, 0, 4)[2] + 0.5 * g.voxel);
+  FloorDelta out;
+  int n = 0;
+  for (float dx = 2 * radius; dx <= 6 * radius; dx += 0.01f) {
+    const cv::Vec3f x(centre[0] + dx, centre[1] + 0.013f, floorZ);
+    const double got = (iv::irradiance(v, rho, x, {0, 0, 1}) - iv::irradiance(v, mu, x, {0, 0, 1}))[0];
+    const double want = -CV_PI * sphereViewFactor(cv::Vec3d(x), {0, 0, 1}, {centre, static_cast<float>(r)});
+    const double e = std::abs(got - want) / std::abs(want);
+    out.error += e;
+    out.worst = std::max(out.worst, e);
+    ++n;
+  }
+  out.error /= n;
+  return out;
+}
+
+}  // namespace
+
+TEST(ImperfectVolumes, TheObjectsConeIsSampledFromEveryVoxelSoTheirShadowIsSmoothAndRight) {
+  // 64 directions over the sphere hit a ball 3-6 radii away by chance (its cone is 0.1-0.4 sr, a direction's
+  // share 0.2 sr): the floor's delta jumps from voxel to voxel. The cone correction samples the ball's cone
+  // from each voxel.
+  const FloorDelta uniform = floorDeltaAroundABall(false), cone = floorDeltaAroundABall(true);
+  // Measured: mean 0.11, worst 0.24 (the voxelised ball, the reconstruction's six voxels); uniform rays alone
+  // mean 0.49, worst 1.58 (points whose voxels' rays all miss the ball, or two of them hit it).
+  EXPECT_LT(cone.error, 0.2) << "uniform rays alone: " << uniform.error;
+  EXPECT_LT(cone.worst, 0.4) << "uniform rays alone: " << uniform.worst;
+  EXPECT_GT(uniform.error, 3 * cone.error);
+  EXPECT_GT(uniform.worst, 3 * cone.worst);
+}
+
+TEST(ImperfectVolumes, AnObjectOverATextureFinerThanItsRaysSpacingIsLitSmoothly) {
+  // A floor whose voxels alternate bright and dark (a tag's cells are that fine) under an object: its
+  // underside's own rays each bring a floor voxel's light, and neighbouring points' rays cross voxel
+  // boundaries at different places. Read at the hit voxel alone the light jumps from point to point (the
+  // object mottles); interpolated between the voxels around each hit it varies as smoothly as the points do.
+  const iv::Grid g = unitGrid(32, 0.05);
+  iv::Ambient amb;
+  iv::Options o;
+  o.rays = 64;
+  o.bounces = 1;
+  o.range = 10.0;
+  std::vector<iv::Point> pts;
+  for (int j = 0; j < 32; ++j)
+    for (int i = 0; i < 32; ++i) {
+      iv::Point p = pointIn(g, i, j, 4);
+      p.radianceRho = p.radianceMu = (i + j) % 2 ? cv::Vec3f(1.0f, 1.0f, 1.0f) : cv::Vec3f(0.1f, 0.1f, 0.1f);
+      pts.push_back(p);
+    }
+  const iv::Volume floor = iv::voxelise(g, pts);
+  const iv::Incident in = iv::gather(floor, false, o, amb);
+  const std::vector<cv::Vec3f> dirs = iv::rayDirections(o.rays);
+  // Points along the underside of a sphere of radius 6 cm whose bottom is 8 cm over the floor's voxels.
+  const cv::Vec3f centre(0.003f, 0.007f, static_cast<float>(g.centre(0, 0, 4)[2]) + 0.025f + 0.14f);
+  std::vector<double> line;
+  for (double s = -0.6; s <= 0.6; s += 0.01) {
+    const cv::Vec3f n = cv::normalize(cv::Vec3f(static_cast<float>(s), 0.2f * static_cast<float>(s), -1.0f));
+    line.push_back(iv::pointGather(floor, false, in, o, amb, dirs, centre + 0.06f * n, n)[0]);
+  }
+  double second = 0, mean = 0;
+  for (size_t q = 1; q + 1 < line.size(); ++q) second += std::abs(line[q - 1] - 2 * line[q] + line[q + 1]);
+  for (double v : line) mean += std::abs(v);
+  second /= static_cast<double>(line.size() - 2);
+  mean /= static_cast<double>(line.size());
+  ASSERT_GT(mean, 0.1);
+  // The points move 0.6 mm a step; a smooth light changes by much less than 1 % of itself between steps'
+  // differences. Measured: 0.0034 interpolated; the hit voxel alone 0.038 (jumps of a floor voxel's share).
+  EXPECT_LT(second / mean, 0.01);
 }
