@@ -3,50 +3,48 @@
 // configuration the per-stage times, GPU memory, and the error against the path-traced reference of the
 // same inputs (real-pixel delta, virtual radiance, composite SSIM) and the frame-to-frame flicker of the
 // real-pixel delta; JSON, CSV, an HTML report and the presets chosen from the measured front.
-// --against bruteforce --technique T: a technique's sparse method (for Kinect-VAL: gather on sparse points, occlusion, per-vertex
-// interpolation, per-pixel evaluation) against the brute force (every VAL gathered at every visible pixel
-// of the object) on one recorded frame: its RGB-D pixels are the VALs, its depth mesh occludes the object.
+// --against bruteforce --technique T: a technique's sparse method (for Kinect-VAL: gather on sparse points, occlusion,
+// per-vertex interpolation, per-pixel evaluation) against the brute force (every VAL gathered at every visible pixel of
+// the object) on one recorded frame: its RGB-D pixels are the VALs, its depth mesh occludes the object.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <functional>
-
 #include <nlohmann/json.hpp>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/quality.hpp>
 
-#include "evaluation/bench.h"
-#include "evaluation/metrics.h"
-#include "evaluation/tracking_metrics.h"
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "runtime/frame_pipeline.h"
 #include "app/output.h"
-#include "evaluation/reference_scene.h"
-#include "compositor/compositor.h"
+#include "app/tabletop.h"
 #include "capture/checks.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
-#include "runtime/room_fusion.h"
-#include "app/tabletop.h"
-#include "groundtruth/path_tracer.h"
-#include "groundtruth/raycaster.h"
-#include "reconstruction/room_lights.h"
 #include "capture/json_io.h"
 #include "capture/registration.h"
 #include "capture/session.h"
+#include "compositor/compositor.h"
+#include "evaluation/bench.h"
+#include "evaluation/metrics.h"
+#include "evaluation/reference_scene.h"
+#include "evaluation/tracking_metrics.h"
 #include "gl/context.h"
 #include "gl/profiler.h"
+#include "groundtruth/path_tracer.h"
+#include "groundtruth/raycaster.h"
 #include "lighting/debug_views.h"
 #include "lighting/pipeline.h"
 #include "lighting/techniques/registry.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
+#include "reconstruction/room_lights.h"
+#include "runtime/frame_pipeline.h"
+#include "runtime/room_fusion.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -59,7 +57,7 @@ struct BenchOptions {
   std::string against = "reference";
   std::string json, csv, html, presets;
   std::string gallery;  ///< folder: per session, every technique's crop around the objects beside the reference's
-  std::string scene;  ///< empty: per session, the scene of its true references, else recordings/scenes/tabletop.json
+  std::string scene;    ///< empty: per session, the scene of its true references, else recordings/scenes/tabletop.json
   int frames = 4;
   int refFrames = 2;
   int refSpp = 64;
@@ -80,7 +78,6 @@ struct BenchOptions {
   std::string gl = "osmesa";
 };
 
-
 int runBruteForce(const BenchOptions& o) {
   // The technique's sparse method against its own brute force (a "brute_force" knob): its real-surface area
   // lights come from the frame; --sparse and --occlusion set its "sparse_points" and "occlusion" knobs.
@@ -89,8 +86,9 @@ int runBruteForce(const BenchOptions& o) {
   const lighting::TechniqueChoice choice = lighting::parseTechniqueChoice(o.technique, &baseKnobs);
   const lighting::TechniqueInfo* info = lighting::findTechnique(choice.virtualObject);
   if (!info || !info->knobs.find("brute_force") || !info->knobs.find("sparse_points"))
-    throw std::invalid_argument("--technique " + o.technique +
-                                ": --against bruteforce needs a virtual-object technique with brute_force and sparse_points knobs");
+    throw std::invalid_argument(
+        "--technique " + o.technique +
+        ": --against bruteforce needs a virtual-object technique with brute_force and sparse_points knobs");
   const std::string group = info->knobs.key;
   auto source = capture::open(o.session);
   auto frame = source->next();
@@ -108,8 +106,8 @@ int runBruteForce(const BenchOptions& o) {
   }
   const cv::Mat positions = reconstruction::backProject(rgbd.depth, rgbd.colourIntrinsics);
   const cv::Mat normals = reconstruction::computeNormals(positions);
-  const auto all = lighting::valsFromRgbd(positions, normals, capture::radianceOf(rgbd.colour, rgbd.exposure), rgbd.colourIntrinsics,
-                                          T_world_camera, 1);
+  const auto all = lighting::valsFromRgbd(positions, normals, capture::radianceOf(rgbd.colour, rgbd.exposure),
+                                          rgbd.colourIntrinsics, T_world_camera, 1);
   if (all.empty()) throw capture::CaptureError(o.session, "frame 0 has no valid depth to make VALs from");
 
   lighting::VirtualObject object;
@@ -182,7 +180,8 @@ int runBruteForce(const BenchOptions& o) {
         if ((occlusion && o.occlusion == "off") || (!occlusion && o.occlusion == "on")) continue;
         const auto t0 = std::chrono::steady_clock::now();
         auto pipe = makePipeline(sparseCount, occlusion, false);
-        const double msPrecompute = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        const double msPrecompute =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         pipe->setRealVals(vals);
         const auto stages = bestStages(*pipe, view, o.repeats);
         const cv::Mat shade = pipe->downloadShade();
@@ -199,30 +198,36 @@ int runBruteForce(const BenchOptions& o) {
             msSparse += ms;
           }
         msStages["precompute"] = msPrecompute;  // sparse points + k-d tree weights, once per mesh
-        json r = {{"technique", choice.name},
-                  {"knobs", {{"vals", vals.size()}, {"sparse_points", sparseCount}, {"k_cache", o.kCache}, {"occlusion", occlusion}}},
-                  {"receivers_bruteforce", pixels},
-                  {"ms_sparse", msSparse},
-                  {"ms_stages", msStages},
-                  {"ms_bruteforce", msBrute},
-                  {"speedup", msSparse > 0 ? msBrute / msSparse : 0.0},
-                  {"rel_error_vs_bruteforce", refSum > 0 ? err / refSum : 0.0}};
-        std::printf("%s vals %6zu sparse %5d occlusion %d: sparse %8.2f ms, brute force %9.2f ms over %zu pixels "
-                    "(x%.1f), rel. error %.4f\n",
-                    choice.name.c_str(), vals.size(), sparseCount, occlusion ? 1 : 0, msSparse, msBrute, pixels, r["speedup"].get<double>(),
-                    r["rel_error_vs_bruteforce"].get<double>());
+        json r = {
+            {"technique", choice.name},
+            {"knobs",
+             {{"vals", vals.size()}, {"sparse_points", sparseCount}, {"k_cache", o.kCache}, {"occlusion", occlusion}}},
+            {"receivers_bruteforce", pixels},
+            {"ms_sparse", msSparse},
+            {"ms_stages", msStages},
+            {"ms_bruteforce", msBrute},
+            {"speedup", msSparse > 0 ? msBrute / msSparse : 0.0},
+            {"rel_error_vs_bruteforce", refSum > 0 ? err / refSum : 0.0}};
+        std::printf(
+            "%s vals %6zu sparse %5d occlusion %d: sparse %8.2f ms, brute force %9.2f ms over %zu pixels "
+            "(x%.1f), rel. error %.4f\n",
+            choice.name.c_str(), vals.size(), sparseCount, occlusion ? 1 : 0, msSparse, msBrute, pixels,
+            r["speedup"].get<double>(), r["rel_error_vs_bruteforce"].get<double>());
         std::fflush(stdout);
         records.push_back(r);
       }
   }
-  json out = {{"generated_by", "mrgi bench"}, {"session", o.session}, {"model", o.model}, {"gl", context->renderer()}, {"records", records}};
+  json out = {{"generated_by", "mrgi bench"},
+              {"session", o.session},
+              {"model", o.model},
+              {"gl", context->renderer()},
+              {"records", records}};
   if (!o.json.empty()) {
     createParentDirectory(o.json);
     capture::writeFileAtomically(o.json, out.dump(2) + "\n");
   }
   return 0;
 }
-
 
 /// One session of the sweep: its frames, lighting setup and truths.
 struct BenchSession {
@@ -267,7 +272,9 @@ std::map<int, Truth> loadTrueReferences(const std::string& session, const captur
   // the same objects the same way can use it.
   if (referenceScene.empty() || !sameObjects(lighting::loadScene(referenceScene), scene)) return out;
   auto path = [&](const std::string& key, int64_t f) {
-    const std::string& pattern = key == "composite" ? reference.composite : key == "delta" ? reference.delta : reference.mask;
+    const std::string& pattern = key == "composite" ? reference.composite
+                                 : key == "delta"   ? reference.delta
+                                                    : reference.mask;
     return capture::GroundTruthReference::pathFor(session, pattern, f);
   };
   for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
@@ -275,10 +282,11 @@ std::map<int, Truth> loadTrueReferences(const std::string& session, const captur
     Truth t;
     t.frame = f;
     t.composite = capture::readColour(path("composite", index));  // RGB
-    t.delta = capture::readAny(path("delta", index));              // RGB float
+    t.delta = capture::readAny(path("delta", index));             // RGB float
     t.images.mask = cv::imread(path("mask", index), cv::IMREAD_GRAYSCALE);
     if (t.images.mask.empty() || t.delta.depth() != CV_32F)
-      throw capture::CaptureError(path("mask", index), "true reference of frame " + std::to_string(index) + " is missing or unreadable");
+      throw capture::CaptureError(path("mask", index),
+                                  "true reference of frame " + std::to_string(index) + " is missing or unreadable");
     out[f] = std::move(t);
   }
   return out;
@@ -310,9 +318,12 @@ json markerPoseError(const BenchSession& bs, const BenchOptions& o) {
     tSum += dt, rSum += dr, tMax = std::max(tMax, dt), rMax = std::max(rMax, dr);
     ++n;
   }
-  return {{"frames", n},           {"lost", lost},
-          {"position_mm_mean", n ? tSum / n : 0.0}, {"position_mm_max", tMax},
-          {"rotation_deg_mean", n ? rSum / n : 0.0}, {"rotation_deg_max", rMax},
+  return {{"frames", n},
+          {"lost", lost},
+          {"position_mm_mean", n ? tSum / n : 0.0},
+          {"position_mm_max", tMax},
+          {"rotation_deg_mean", n ? rSum / n : 0.0},
+          {"rotation_deg_max", rMax},
           {"resolution", {bs.W, bs.H}}};
 }
 
@@ -337,8 +348,12 @@ json trackingError(const BenchSession& bs) {
       truth.push_back(capture::inversePose(*bs.setup.T_world_marker) * *f.groundTruthT_world_camera);
     }
     const TrajectoryError e = trajectoryError(estimate, truth);
-    out[toString(mode)] = {{"frames", e.frames},          {"tracked", e.tracked},          {"ate_rmse_mm", 1e3 * e.ateRmseM},
-                           {"ate_max_mm", 1e3 * e.ateMaxM}, {"rpe_rmse_mm", 1e3 * e.rpeRmseM}, {"rpe_rmse_deg", e.rpeRmseDeg},
+    out[toString(mode)] = {{"frames", e.frames},
+                           {"tracked", e.tracked},
+                           {"ate_rmse_mm", 1e3 * e.ateRmseM},
+                           {"ate_max_mm", 1e3 * e.ateMaxM},
+                           {"rpe_rmse_mm", 1e3 * e.rpeRmseM},
+                           {"rpe_rmse_deg", e.rpeRmseDeg},
                            {"last_mm", 1e3 * e.lastM}};
   }
   return out;
@@ -372,7 +387,8 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     fo.pose = o.pose;
     RoomFusion fusion = fuseRoom(path, fo);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    if (fusion.model.framesIntegrated() == 0) throw capture::CaptureError(path, "--room: no frame could be fused into a room");
+    if (fusion.model.framesIntegrated() == 0)
+      throw capture::CaptureError(path, "--room: no frame could be fused into a room");
     bs.room = std::make_shared<const reconstruction::RoomMesh>(fusion.model.mesh());
     roomInfo = {{"frames", fusion.model.framesIntegrated()},
                 {"refused", fusion.model.framesRefused()},
@@ -389,12 +405,16 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
       RoomFusion tracked = fuseRoom(path, to);
       const auto mesh = tracked.model.mesh();
       const SurfaceDistance accuracy = surfaceDistance(mesh, *bs.room), coverage = surfaceDistance(*bs.room, mesh);
-      roomInfo["tracked"] = {{"frames", tracked.model.framesIntegrated()}, {"lost", tracked.lost},
-                             {"surface_mm_mean", 1e3 * accuracy.meanM}, {"surface_mm_p90", 1e3 * accuracy.p90M},
+      roomInfo["tracked"] = {{"frames", tracked.model.framesIntegrated()},
+                             {"lost", tracked.lost},
+                             {"surface_mm_mean", 1e3 * accuracy.meanM},
+                             {"surface_mm_p90", 1e3 * accuracy.p90M},
                              {"covers", coverage.within2cm}};
-      std::printf("%s: room from tracked poses: %d frames (%lld lost), surface %.1f mm from the %s room, covering %.0f %% of it\n",
-                  path.c_str(), tracked.model.framesIntegrated(), static_cast<long long>(tracked.lost), 1e3 * accuracy.meanM,
-                  toString(o.pose), 100 * coverage.within2cm);
+      std::printf(
+          "%s: room from tracked poses: %d frames (%lld lost), surface %.1f mm from the %s room, covering %.0f %% of "
+          "it\n",
+          path.c_str(), tracked.model.framesIntegrated(), static_cast<long long>(tracked.lost), 1e3 * accuracy.meanM,
+          toString(o.pose), 100 * coverage.within2cm);
     }
     std::printf(
         "%s: room fused from %d frames (%zu triangles, %.0f MiB of voxels, %.1f ms per frame median, %.1f ms with the "
@@ -410,7 +430,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
 
   // Ground truth: the same inputs, path traced, with more samples around the objects.
   const int focusSpp = o.refFocusSpp > 0 ? o.refFocusSpp : 16 * o.refSpp;
-  bs.refInfo = {{"session", path},         {"scene", bs.scene},         {"spp", o.refSpp},
+  bs.refInfo = {{"session", path},       {"scene", bs.scene},       {"spp", o.refSpp},
                 {"focus_spp", focusSpp}, {"bounces", o.refBounces}, {"frames", refFrames}};
   if (!roomInfo.is_null()) bs.refInfo["room"] = roomInfo;
   FrameOptions mo;
@@ -430,7 +450,9 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     measured = f + 1;
     capture::Frame frame = bs.frames[f];
     const FrameResult r = measurer.measure(frame, none);
-    if (!r.T_marker_camera) throw capture::CaptureError(path, "frame " + std::to_string(f) + ": no camera pose (--pose " + toString(o.pose) + ": tracking lost)");
+    if (!r.T_marker_camera)
+      throw capture::CaptureError(
+          path, "frame " + std::to_string(f) + ": no camera pose (--pose " + toString(o.pose) + ": tracking lost)");
     const ReferenceScenes scenes = reconstructedScenes(*measurer.setup(), measurer.realSurface(frame, r, none),
                                                        frame.rgbd->colourIntrinsics, *r.T_marker_camera);
     groundtruth::PathTraceOptions po;
@@ -473,13 +495,14 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
       bs.refInfo["noise_rel_error_delta"] = e.absRef > 0 ? e.abs / e.absRef / std::sqrt(2.0) : 0.0;
       bs.refInfo["noise_rel_error_virtual"] = e.virtRef > 0 ? e.virtAbs / e.virtRef / std::sqrt(2.0) : 0.0;
       std::printf("%s: reference noise (two seeds, / sqrt 2): delta %.3f, virtual %.3f\n", path.c_str(),
-                  bs.refInfo["noise_rel_error_delta"].get<double>(), bs.refInfo["noise_rel_error_virtual"].get<double>());
+                  bs.refInfo["noise_rel_error_delta"].get<double>(),
+                  bs.refInfo["noise_rel_error_virtual"].get<double>());
     }
     bs.truths[f] = std::move(t);
   }
   bs.refInfo["ms_per_frame"] = ms / refs;
-  std::printf("%s: reference %d frames, %d spp, %d bounces, %.1f s per frame\n", path.c_str(), refs, o.refSpp, o.refBounces,
-              ms / refs / 1000);
+  std::printf("%s: reference %d frames, %d spp, %d bounces, %.1f s per frame\n", path.c_str(), refs, o.refSpp,
+              o.refBounces, ms / refs / 1000);
   bs.refInfo["marker_pose_error"] = markerPoseError(bs, o);
   bs.refInfo["tracking"] = trackingError(bs);
   if (reference) bs.trueRefs = loadTrueReferences(path, *reference, referenceScene, bs.setup.scene, bs.frames);
@@ -506,7 +529,8 @@ struct BrightnessSums {
 };
 
 /// Irradiance at `p` for normal n from a set of lights (shadows aside) plus a uniform ambient.
-cv::Vec3d irradianceAt(const std::vector<lighting::SceneLight>& lights, const cv::Vec3d& ambient, const cv::Vec3d& p, const cv::Vec3d& n) {
+cv::Vec3d irradianceAt(const std::vector<lighting::SceneLight>& lights, const cv::Vec3d& ambient, const cv::Vec3d& p,
+                       const cv::Vec3d& n) {
   cv::Vec3d E = ambient * CV_PI;
   for (const auto& l : lights) {
     if (l.type == lighting::LightType::Directional) {
@@ -529,9 +553,11 @@ const cv::Vec3d kAxes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0,
 /// made in (mrgi synth's tabletop, rebuilt from the manifest's seed and marker; not for outdoor sessions):
 /// the lamp's direct light exactly (its sphere, with shadows), plus the bounce light path traced with
 /// `samples` cosine-weighted rays per normal (3 bounces) that do not see the lamp's sphere itself.
-std::optional<std::array<cv::Vec3d, 6>> trueIrradianceAt(const std::string& session, const cv::Vec3d& c, int samples = 8192) {
+std::optional<std::array<cv::Vec3d, 6>> trueIrradianceAt(const std::string& session, const cv::Vec3d& c,
+                                                         int samples = 8192) {
   const std::string path = (fs::path(session) / "manifest.json").string();
-  const json manifest = capture::parseJson(capture::readFileBounded(path, capture::kMaxTextFileBytes, "session manifest"), path);
+  const json manifest =
+      capture::parseJson(capture::readFileBounded(path, capture::kMaxTextFileBytes, "session manifest"), path);
   const json& gt = manifest.value("ground_truth", json::object());
   if (!gt.contains("scene") || gt.contains("environment") || !manifest.contains("marker") ||
       gt["scene"].value("generator", std::string()).rfind("mrgi synth", 0) != 0)
@@ -577,18 +603,23 @@ std::optional<std::array<cv::Vec3d, 6>> trueIrradianceAt(const std::string& sess
 /// the session's room (when it is a synthetic one: `trueE`), the estimate being its lights plus its SH
 /// ambient; and against the listed lights plus the listed ambient (which leave out the room's bounce light:
 /// a ratio above 1 there is mostly that bounce).
-json lightsAgainstTruth(const LightingSetup& est, const reconstruction::RoomLights* room, const LightingSetup& truth, BenchSession& bs) {
+json lightsAgainstTruth(const LightingSetup& est, const reconstruction::RoomLights* room, const LightingSetup& truth,
+                        BenchSession& bs) {
   cv::Vec3d c(0, 0, 0);
   for (const auto& o : truth.scene.objects)
-    c += capture::transformPoint(capture::Pose(o.T_marker_object), 0.5 * (cv::Vec3d(o.mesh.boundsMin) + cv::Vec3d(o.mesh.boundsMax)));
+    c += capture::transformPoint(capture::Pose(o.T_marker_object),
+                                 0.5 * (cv::Vec3d(o.mesh.boundsMin) + cv::Vec3d(o.mesh.boundsMax)));
   if (!truth.scene.objects.empty()) c /= static_cast<double>(truth.scene.objects.size());
   auto strongest = [&](const std::vector<lighting::SceneLight>& ls) {
     cv::Vec3d dir(0, 0, 0);
     double best = -1;
     for (const auto& l : ls) {
-      const cv::Vec3d toLight = l.type == lighting::LightType::Directional ? -l.direction : cv::normalize(l.position - c);
-      const double e = capture::luminance(l.type == lighting::LightType::Directional ? l.irradiance
-                                                                                     : l.intensity * (1.0 / std::max((l.position - c).dot(l.position - c), 1e-8)));
+      const cv::Vec3d toLight =
+          l.type == lighting::LightType::Directional ? -l.direction : cv::normalize(l.position - c);
+      const double e =
+          capture::luminance(l.type == lighting::LightType::Directional
+                                 ? l.irradiance
+                                 : l.intensity * (1.0 / std::max((l.position - c).dot(l.position - c), 1e-8)));
       if (e > best) best = e, dir = toLight;
     }
     return dir;
@@ -613,12 +644,15 @@ json lightsAgainstTruth(const LightingSetup& est, const reconstruction::RoomLigh
     out["irradiance_ratio_to_" + against + "_error_mean"] = ratioErr;
     out["irradiance_ratio_to_" + against + "_error_max"] = worst;
   };
-  json out = {{"dominant_angle_deg", std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / CV_PI}, {"lights", est.lights.size()}};
-  compare("listed", [&](int k) { return irradianceAt(truth.lights, truth.ambient, c, kAxes[k]); }, out);
+  json out = {{"dominant_angle_deg", std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / CV_PI},
+              {"lights", est.lights.size()}};
+  compare(
+      "listed", [&](int k) { return irradianceAt(truth.lights, truth.ambient, c, kAxes[k]); }, out);
   if (!bs.trueIrradiance) bs.trueIrradiance = trueIrradianceAt(bs.path, c);
   if (*bs.trueIrradiance) {
     const auto& E = **bs.trueIrradiance;
-    compare("true", [&](int k) { return E[static_cast<size_t>(k)]; }, out);
+    compare(
+        "true", [&](int k) { return E[static_cast<size_t>(k)]; }, out);
     json axes = json::array();
     for (const auto& e : E) axes.push_back(capture::luminance(e));
     out["true_irradiance_by_axis"] = axes;
@@ -643,7 +677,8 @@ json shadowJson(const ShadowSums& s) { return {{"energy", s.energy()}, {"near_l1
 
 /// The whole pipeline (a session's true reference composites) with these frame options: errors, SSIM,
 /// the object's brightness, time. `truth` (lights from the room): also the lights against the true ones.
-std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo, BenchSession& bs, const LightingSetup* truth = nullptr) {
+std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo, BenchSession& bs,
+                                  const LightingSetup* truth = nullptr) {
   FramePipeline rp(s, bs.W, bs.H, fo);
   ErrorSums whole;
   ShadowSums shadow;  // the object's shadow within three object radii
@@ -661,9 +696,11 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
     if (f > 0 || n == 1) ms += frameMs, ++timed;
     if (!r.lit) continue;
     if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
-      const FrameState st = frameState(rp.lighting()->downloadShade(), rp.lighting()->downloadGBuffer(0), *r.T_marker_camera);
+      const FrameState st =
+          frameState(rp.lighting()->downloadShade(), rp.lighting()->downloadGBuffer(0), *r.T_marker_camera);
       whole.add(errorSums(st.shade, it->second));
-      if (const auto three = nearObjects(*rp.lighting(), st.positions, 3)) shadow.add(shadowSums(st.shade, it->second, *three));
+      if (const auto three = nearObjects(*rp.lighting(), st.positions, 3))
+        shadow.add(shadowSums(st.shade, it->second, *three));
       ssim += ssimOf(r.composite, it->second.composite);
       brightness.add(r.composite, it->second);
       ++frames;
@@ -700,8 +737,8 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   int wholeFrames = 0;
   size_t gpuBytes = 0;
   std::optional<FrameState> prev;
-  std::optional<UnbiasedError> unbiased;  // on the reference frame rendered twice
-  ShadowSums shadow, wholeShadow;          // the object's shadow within three object radii
+  std::optional<UnbiasedError> unbiased;                     // on the reference frame rendered twice
+  ShadowSums shadow, wholeShadow;                            // the object's shadow within three object radii
   nlohmann::json techniqueStats = nlohmann::json::object();  // the last lit frame's (counts: points, voxels, ...)
   const std::string name = c.technique.name;
   for (int f = 0; f < n; ++f) {
@@ -733,13 +770,15 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
       err.add(e);
       if (three) shadow.add(shadowSums(st.shade, it->second, *three));
       if (const auto u = unbiasedDeltaError(st.shade, it->second)) unbiased = u;
-      if (gallery && c.varied.empty() && it == bs.truths.begin()) gallery->push_back({name, r.composite.clone(), st.shade.clone()});
+      if (gallery && c.varied.empty() && it == bs.truths.begin())
+        gallery->push_back({name, r.composite.clone(), st.shade.clone()});
       ssimSum += ssimOf(r.composite, it->second.composite);
       if (images && c.varied.empty() && it == bs.truths.begin()) {
         images->push_back({name + " (defaults), frame " + std::to_string(f), r.composite});
-        images->push_back({name + ": error against the reference (real pixels |delta - reference|, red too dark, white = " +
-                               std::to_string(errScale).substr(0, 6) + " W/m^2/sr; the object relative, blue too dark, white = 10 %)",
-                           errorImage(st.shade, it->second, errScale)});
+        images->push_back(
+            {name + ": error against the reference (real pixels |delta - reference|, red too dark, white = " +
+                 std::to_string(errScale).substr(0, 6) + " W/m^2/sr; the object relative, blue too dark, white = 10 %)",
+             errorImage(st.shade, it->second, errScale)});
       }
     }
     if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
@@ -791,7 +830,8 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   if (shadow.pixels > 0) r["shadow"] = shadowJson(shadow);
   // The real-pixel delta's relative RMS error without the reference's noise, with its 95 % interval.
   if (unbiased)
-    r["rel_rms_delta_unbiased"] = {{"value", unbiased->rel()}, {"lo", unbiased->relLo()}, {"hi", unbiased->relHi()}, {"pixels", unbiased->pixels}};
+    r["rel_rms_delta_unbiased"] = {
+        {"value", unbiased->rel()}, {"lo", unbiased->relLo()}, {"hi", unbiased->relHi()}, {"pixels", unbiased->pixels}};
   if (wholeFrames > 0)
     r["whole_pipeline"] = {{"frames", wholeFrames},
                            {"rel_error_delta", whole.relDelta()},
@@ -819,13 +859,15 @@ int runSweep(const BenchOptions& o) {
   std::vector<ReportImage> images;
   std::vector<std::vector<GalleryRow>> galleries(sessions.size());  // --gallery: per session, a row per technique
   const BenchSession& first = sessions.front();
-  for (const auto& [f, t] : first.truths) images.push_back({"reference composite, frame " + std::to_string(f), t.composite});
+  for (const auto& [f, t] : first.truths)
+    images.push_back({"reference composite, frame " + std::to_string(f), t.composite});
   double errScale = 0;  // one error-image scale for all: the reference delta's 99th percentile magnitude
   {
     std::vector<double> mags;
     const Truth& t = first.truths.begin()->second;
     for (int i = 0; i < static_cast<int>(t.delta.total()); ++i)
-      if (!t.images.mask.at<uchar>(i)) mags.push_back(std::abs(capture::luminance(cv::Vec3d(t.delta.at<cv::Vec3f>(i)))));
+      if (!t.images.mask.at<uchar>(i))
+        mags.push_back(std::abs(capture::luminance(cv::Vec3d(t.delta.at<cv::Vec3f>(i)))));
     errScale = lighting::percentile99(mags);
   }
 
@@ -841,8 +883,9 @@ int runSweep(const BenchOptions& o) {
                                            o.gallery.empty() ? nullptr : &galleries[si]));
       // The record: each measure's mean over the sessions (each session weighs the same), per session below.
       json r = {{"technique", c.technique.name}, {"varied", c.varied}, {"knobs", knobsJson(c)}};
-      for (const char* key : {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_delta_near", "rel_error_virtual", "ssim",
-                              "flicker", "silhouette_mismatch_pixels"}) {
+      for (const char* key :
+           {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_delta_near",
+            "rel_error_virtual", "ssim", "flicker", "silhouette_mismatch_pixels"}) {
         double sum = 0;
         for (const auto& p : perSession) sum += p[key].get<double>();
         r[key] = sum / static_cast<double>(perSession.size());
@@ -857,7 +900,8 @@ int runSweep(const BenchOptions& o) {
       for (const auto& p : perSession)
         if (p.contains("shadow")) {
           char buf[120];
-          std::snprintf(buf, sizeof buf, ", shadow (%s) energy %.2f near L1 %.2f", fs::path(p["session"].get<std::string>()).filename().c_str(),
+          std::snprintf(buf, sizeof buf, ", shadow (%s) energy %.2f near L1 %.2f",
+                        fs::path(p["session"].get<std::string>()).filename().c_str(),
                         p["shadow"]["energy"].get<double>(), p["shadow"]["near_l1"].get<double>());
           wholeText += buf;
         }
@@ -866,28 +910,35 @@ int runSweep(const BenchOptions& o) {
           char buf[120];
           const json& u = p["rel_rms_delta_unbiased"];
           std::snprintf(buf, sizeof buf, ", delta RMS without the reference's noise (%s) %.3f [%.3f, %.3f]",
-                        fs::path(p["session"].get<std::string>()).filename().c_str(), u["value"].get<double>(), u["lo"].get<double>(),
-                        u["hi"].get<double>());
+                        fs::path(p["session"].get<std::string>()).filename().c_str(), u["value"].get<double>(),
+                        u["lo"].get<double>(), u["hi"].get<double>());
           wholeText += buf;
         }
       for (const auto& p : perSession)
         if (p.contains("whole_pipeline")) {
           char buf[160];
           std::snprintf(buf, sizeof buf, ", whole pipeline (%s): delta %.3f virtual %.3f SSIM %.4f",
-                        fs::path(p["session"].get<std::string>()).filename().c_str(), p["whole_pipeline"]["rel_error_delta"].get<double>(),
-                        p["whole_pipeline"]["rel_error_virtual"].get<double>(), p["whole_pipeline"]["ssim"].get<double>());
+                        fs::path(p["session"].get<std::string>()).filename().c_str(),
+                        p["whole_pipeline"]["rel_error_delta"].get<double>(),
+                        p["whole_pipeline"]["rel_error_virtual"].get<double>(),
+                        p["whole_pipeline"]["ssim"].get<double>());
           wholeText += buf;
           if (p.contains("whole_pipeline_room")) {
             std::snprintf(buf, sizeof buf, "; from the room: delta %.3f virtual %.3f SSIM %.4f (%.0f ms)",
-                          p["whole_pipeline_room"]["rel_error_delta"].get<double>(), p["whole_pipeline_room"]["rel_error_virtual"].get<double>(),
-                          p["whole_pipeline_room"]["ssim"].get<double>(), p["whole_pipeline_room"]["ms_total"].get<double>());
+                          p["whole_pipeline_room"]["rel_error_delta"].get<double>(),
+                          p["whole_pipeline_room"]["rel_error_virtual"].get<double>(),
+                          p["whole_pipeline_room"]["ssim"].get<double>(),
+                          p["whole_pipeline_room"]["ms_total"].get<double>());
             wholeText += buf;
           }
         }
-      std::printf("[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker %.3f%s\n",
-                  ci + 1, configs.size(), r["technique"].get<std::string>().c_str(), c.varied.c_str(), r["knobs"].dump().c_str(),
-                  r["ms_total"].get<double>(), r["ms_lighting"].get<double>(), r["rel_error_delta"].get<double>(),
-                  r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(), r["flicker"].get<double>(), wholeText.c_str());
+      std::printf(
+          "[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker "
+          "%.3f%s\n",
+          ci + 1, configs.size(), r["technique"].get<std::string>().c_str(), c.varied.c_str(),
+          r["knobs"].dump().c_str(), r["ms_total"].get<double>(), r["ms_lighting"].get<double>(),
+          r["rel_error_delta"].get<double>(), r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(),
+          r["flicker"].get<double>(), wholeText.c_str());
       std::fflush(stdout);
       records.push_back(r);
     }
@@ -899,14 +950,11 @@ int runSweep(const BenchOptions& o) {
   measureFrom(swept);
   json sessionInfo = json::array();
   for (const auto& bs : sessions) sessionInfo.push_back(bs.refInfo);
-  json doc = {{"generated_by", "mrgi bench"},
-              {"session", o.sessions.size() == 1 ? json(o.sessions.front()) : json(o.sessions)},
-              {"scene", first.scene},
-              {"frames", first.frames.size()},
-              {"gl", context->renderer()},
-              {"reference", first.refInfo},
-              {"references", sessionInfo},
-              {"records", records}};
+  json doc = {
+      {"generated_by", "mrgi bench"}, {"session", o.sessions.size() == 1 ? json(o.sessions.front()) : json(o.sessions)},
+      {"scene", first.scene},         {"frames", first.frames.size()},
+      {"gl", context->renderer()},    {"reference", first.refInfo},
+      {"references", sessionInfo},    {"records", records}};
   doc["presets"] = choosePresets(records);
   doc["preset_differences"] = presetDifferences(doc["presets"]);
   auto write = [](const std::string& path, const std::function<void()>& fn) {
@@ -924,13 +972,17 @@ int runSweep(const BenchOptions& o) {
     const std::string name = fs::path(bs.path).filename().string();
     const std::string file = (fs::path(o.gallery) / (name + ".png")).string();
     writePng(file,
-             galleryImage(name + ", frame " + std::to_string(f) + ": each technique's defaults against the path-traced reference", t.composite,
-                          t.delta, t.images.mask, galleries[si]),
+             galleryImage(name + ", frame " + std::to_string(f) +
+                              ": each technique's defaults against the path-traced reference",
+                          t.composite, t.delta, t.images.mask, galleries[si]),
              "mrgi bench");
     std::printf("gallery: %s\n", file.c_str());
   }
   write(o.presets, [&] {
-    json p = {{"generated_by", "mrgi bench"}, {"session", doc["session"]}, {"gl", context->renderer()}, {"presets", doc["presets"]},
+    json p = {{"generated_by", "mrgi bench"},
+              {"session", doc["session"]},
+              {"gl", context->renderer()},
+              {"presets", doc["presets"]},
               {"preset_differences", doc["preset_differences"]}};
     capture::writeFileAtomically(o.presets, p.dump(2) + "\n");
   });
@@ -946,12 +998,14 @@ int runSweep(const BenchOptions& o) {
     for (const json& s : d["sessions"]) {
       char buf[200];
       std::snprintf(buf, sizeof buf, "%s%s %.3f [%.3f, %.3f] against %.3f [%.3f, %.3f]", text.empty() ? "" : "; ",
-                    fs::path(s["session"].get<std::string>()).filename().c_str(), s["a"][0].get<double>(), s["a"][1].get<double>(),
-                    s["a"][2].get<double>(), s["b"][0].get<double>(), s["b"][1].get<double>(), s["b"][2].get<double>());
+                    fs::path(s["session"].get<std::string>()).filename().c_str(), s["a"][0].get<double>(),
+                    s["a"][1].get<double>(), s["a"][2].get<double>(), s["b"][0].get<double>(), s["b"][1].get<double>(),
+                    s["b"][2].get<double>());
       text += buf;
     }
     std::printf("presets %s: %s (real-pixel delta without the reference's noise: %s)\n", pair,
-                d["resolved"].get<bool>() ? "told apart" : "within each other's 95 % intervals, not told apart", text.c_str());
+                d["resolved"].get<bool>() ? "told apart" : "within each other's 95 % intervals, not told apart",
+                text.c_str());
   }
   return 0;
 }
@@ -962,34 +1016,45 @@ Action addBench(CLI::App& app) {
   auto o = std::make_shared<BenchOptions>();
   app.add_option("--technique", o->technique, "technique to sweep (default: all; bruteforce: required)")
       ->check(techniqueValidator());
-  app.add_option("--against", o->against, "reference (path tracer, default) or bruteforce (a technique's sparse method vs its per-pixel brute force)")
+  app.add_option(
+         "--against", o->against,
+         "reference (path tracer, default) or bruteforce (a technique's sparse method vs its per-pixel brute force)")
       ->check(CLI::IsMember({"reference", "bruteforce"}));
   app.add_option("--json", o->json, "write one record per configuration (JSON)");
   app.add_option("--csv", o->csv, "write the records as CSV");
   app.add_option("--html", o->html, "write a self-contained HTML report (SVG plots, images)");
-  app.add_option("--gallery", o->gallery,
-                 "write DIR/SESSION.png per session: the crop around the objects, composite and real-pixel delta, of every "
-                 "technique's defaults beside the reference's");
+  app.add_option(
+      "--gallery", o->gallery,
+      "write DIR/SESSION.png per session: the crop around the objects, composite and real-pixel delta, of every "
+      "technique's defaults beside the reference's");
   app.add_option("--presets", o->presets, "write the fast/balanced/accurate presets chosen from the front (JSON)");
-  app.add_option("--session", o->sessions, "sessions to measure on, their first frames (repeat the flag; default: the three bundled synthetic sessions)");
-  app.add_option("--scene", o->scene, "scene file for every session: objects, lights, the knobs the sweep starts from (default: each session's reference scene, else recordings/scenes/tabletop.json)");
+  app.add_option(
+      "--session", o->sessions,
+      "sessions to measure on, their first frames (repeat the flag; default: the three bundled synthetic sessions)");
+  app.add_option("--scene", o->scene,
+                 "scene file for every session: objects, lights, the knobs the sweep starts from (default: each "
+                 "session's reference scene, else recordings/scenes/tabletop.json)");
   app.add_option("--frames", o->frames, "consecutive frames per configuration (flicker; times exclude the first)")
       ->check(numberIn(1, 1000));
   app.add_option("--ref-frames", o->refFrames, "frames with a path-traced reference, spread over --frames")
       ->check(numberIn(1, 100));
   app.add_option("--ref-spp", o->refSpp, "reference samples per pixel")->check(numberIn(1, 1 << 16));
-  app.add_option("--ref-focus-spp", o->refFocusSpp,
-                 "reference samples per pixel in the box around the objects grown by three radii, where their shadow and "
-                 "bounce fall (0 = 16 x --ref-spp)")
+  app.add_option(
+         "--ref-focus-spp", o->refFocusSpp,
+         "reference samples per pixel in the box around the objects grown by three radii, where their shadow and "
+         "bounce fall (0 = 16 x --ref-spp)")
       ->check(numberIn(0, 1 << 20));
   app.add_option("--ref-bounces", o->refBounces, "reference bounces")->check(numberIn(0, 64));
   app.add_flag("--quick", o->quick, "fewer knob values (small sessions, tests)");
-  app.add_flag("--room", o->room,
-               "also light each configuration from the session's fused room model (mrgi room over all its frames) and report "
-               "its whole-pipeline error beside the per-frame one");
-  addPoseOption(app, o->pose)->description(
-      "camera pose per frame: ground-truth (default here: the bench ranks techniques, not tracking; needs a synthetic "
-      "session), marker, odometry or tracked");
+  app.add_flag(
+      "--room", o->room,
+      "also light each configuration from the session's fused room model (mrgi room over all its frames) and report "
+      "its whole-pipeline error beside the per-frame one");
+  addPoseOption(app, o->pose)
+      ->description(
+          "camera pose per frame: ground-truth (default here: the bench ranks techniques, not tracking; needs a "
+          "synthetic "
+          "session), marker, odometry or tracked");
   app.add_option("--model", o->model, "bruteforce: virtual object, resting on the marker plane at its centre");
   app.add_option("--scale", o->scale, "model scale (the bundled unit sphere: its radius in metres)")
       ->check(numberIn(1e-3, 10.0));
@@ -1013,7 +1078,8 @@ Action addBench(CLI::App& app) {
       fs::create_directories(o->gallery, ec);
       if (ec) throw capture::CaptureError(o->gallery, "cannot create the folder (--gallery): " + ec.message());
       for (const std::string& s : o->sessions)
-        checkReplaceable((fs::path(o->gallery) / (fs::path(s).filename().string() + ".png")).string(), "--gallery", "mrgi bench");
+        checkReplaceable((fs::path(o->gallery) / (fs::path(s).filename().string() + ".png")).string(), "--gallery",
+                         "mrgi bench");
     }
     if (o->against == "bruteforce") {
       if (o->technique.empty()) throw std::invalid_argument("--against bruteforce needs --technique");

@@ -2,20 +2,19 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <optional>
-#include <regex>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
+#include <regex>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/output.h"
 #include "capture/checks.h"
 #include "capture/error.h"
-#include "capture/json_io.h"
 #include "capture/image_io.h"
+#include "capture/json_io.h"
 #include "capture/v4l2_source.h"
 #include "reconstruction/fisheye_calibration.h"
 #include "reconstruction/light_estimation.h"
@@ -35,8 +34,10 @@ struct CalibrateOptions {
 int runCalibrate(const CalibrateOptions& o) {
   checkReplaceable(o.out, "--out", "mrgi calibrate-fisheye");
   std::smatch m;
-  if (!std::regex_match(o.board, m, std::regex(R"((\d{1,3})[xX](\d{1,3}))")) || std::stoi(m[1]) < 2 || std::stoi(m[2]) < 2)
-    throw FlagError("--board", "expected inner corners as COLSxROWS, 2 to 999 each (e.g. 6x8), not '" + capture::excerpt(o.board, 40) + "'");
+  if (!std::regex_match(o.board, m, std::regex(R"((\d{1,3})[xX](\d{1,3}))")) || std::stoi(m[1]) < 2 ||
+      std::stoi(m[2]) < 2)
+    throw FlagError("--board", "expected inner corners as COLSxROWS, 2 to 999 each (e.g. 6x8), not '" +
+                                   capture::excerpt(o.board, 40) + "'");
   if (!fs::is_directory(o.dir)) throw capture::CaptureError(o.dir, "is not a directory of checkerboard images");
   std::vector<std::string> paths;
   for (const auto& e : fs::directory_iterator(o.dir))
@@ -84,11 +85,13 @@ int runLights(const LightsOptions& o) {
                                              " but the calibration " + o.calib + " is for " + std::to_string(c->width) +
                                              "x" + std::to_string(c->height));
   if (!c && (img.cols != 2 * img.rows || img.cols < 8))
-    throw capture::CaptureError(o.image, "is " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
-                                             ": without --calib an equirectangular probe twice as wide as high is expected");
+    throw capture::CaptureError(o.image,
+                                "is " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
+                                    ": without --calib an equirectangular probe twice as wide as high is expected");
   cv::Mat saturated;
   const cv::Mat radiance = reconstruction::linearRadiance(img, o.exposure, &saturated);
-  const auto rays = c ? reconstruction::fisheyeRays(*c, o.maxThetaDeg * CV_PI / 180) : reconstruction::latLongRays(img.cols);
+  const auto rays =
+      c ? reconstruction::fisheyeRays(*c, o.maxThetaDeg * CV_PI / 180) : reconstruction::latLongRays(img.cols);
   // Lights for the part above the threshold, SH for the remainder (LightSplit); threshold 0: all lights.
   reconstruction::LightSplitOptions so;
   so.medianCut.count = o.count;
@@ -119,7 +122,7 @@ int runLights(const LightsOptions& o) {
                  {"solid_angle_sr", rays.totalSolidAngle},
                  {"saturated_fraction", satFraction},
                  {"frame", c ? "fisheye camera (x right, y down, z forward)"
-                            : "equirectangular probe (z up at the top row; x at the left edge turning towards y)"}};
+                             : "equirectangular probe (z up at the top row; x at the left edge turning towards y)"}};
   // Huge pixel values over a tiny exposure overflow: an error naming the image, never a null in the output.
   capture::requireFiniteJson(doc, o.image, "its radiance at --exposure " + capture::formatNumber(o.exposure));
   if (o.json) {
@@ -130,8 +133,8 @@ int runLights(const LightsOptions& o) {
     const cv::Vec3d dc = split.ambientSh[0] * (2 * std::sqrt(CV_PI));
     std::printf("  remainder as SH bands 0-2: power (%.4g, %.4g, %.4g)\n", dc[0], dc[1], dc[2]);
     for (const auto& l : lights)
-      std::printf("  dir (%+.3f %+.3f %+.3f)  power (%.4g, %.4g, %.4g)\n", l.direction[0], l.direction[1], l.direction[2],
-                  l.power[0], l.power[1], l.power[2]);
+      std::printf("  dir (%+.3f %+.3f %+.3f)  power (%.4g, %.4g, %.4g)\n", l.direction[0], l.direction[1],
+                  l.direction[2], l.power[0], l.power[1], l.power[2]);
   }
   if (satFraction > 0.01)
     std::fprintf(stderr, "warning: %.1f%% of %s is saturated; its light power is underestimated\n", 100 * satFraction,
@@ -145,23 +148,30 @@ Action addCalibrateFisheye(CLI::App& app) {
   auto o = std::make_shared<CalibrateOptions>();
   app.add_option("dir", o->dir, "folder of checkerboard images from the fisheye camera")->required();
   app.add_option("--board", o->board, "inner corners per row x per column")->capture_default_str();
-  app.add_option("--square", o->square, "checkerboard square edge in metres")->check(numberAbove(0, 10))->capture_default_str();
+  app.add_option("--square", o->square, "checkerboard square edge in metres")
+      ->check(numberAbove(0, 10))
+      ->capture_default_str();
   app.add_option("--out", o->out, "calibration YAML to write (ROS camera_calibration form)")->required();
   return [o] { return runCalibrate(*o); };
 }
 
 Action addLights(CLI::App& app) {
   auto o = std::make_shared<LightsOptions>();
-  app.add_option("image", o->image, "fisheye image or equirectangular probe: HDR (.exr, Radiance .hdr; linear) or LDR (sRGB)")->required();
-  app.add_option("--calib", o->calib, "fisheye calibration YAML (K, D); without it the image is an equirectangular probe (2:1)");
+  app.add_option("image", o->image,
+                 "fisheye image or equirectangular probe: HDR (.exr, Radiance .hdr; linear) or LDR (sRGB)")
+      ->required();
+  app.add_option("--calib", o->calib,
+                 "fisheye calibration YAML (K, D); without it the image is an equirectangular probe (2:1)");
   app.add_option("--count", o->count, "number of lights; 0 = choose by energy concentration")
       ->check(numberIn(0, 4096))
       ->capture_default_str();
-  app.add_flag("--variance", o->variance, "variance-minimising split instead of the energy median (always with a remainder)");
-  app.add_option("--ambient-threshold", o->ambientThreshold,
-                 "light above this multiple of the mean luminance goes to the lights, the rest to ambient_sh (SH bands "
-                 "0-2, fitted to the irradiance); 0: all of it to the lights (default: 2 for a whole-sphere probe, 1 for a "
-                 "fisheye's field)")
+  app.add_flag("--variance", o->variance,
+               "variance-minimising split instead of the energy median (always with a remainder)");
+  app.add_option(
+         "--ambient-threshold", o->ambientThreshold,
+         "light above this multiple of the mean luminance goes to the lights, the rest to ambient_sh (SH bands "
+         "0-2, fitted to the irradiance); 0: all of it to the lights (default: 2 for a whole-sphere probe, 1 for a "
+         "fisheye's field)")
       ->check(numberIn(0.0, 1e6));
   app.add_option("--exposure", o->exposure, "relative exposure: radiance = linear value / exposure")
       ->check(numberIn(capture::kMinExposure, capture::kMaxExposure));

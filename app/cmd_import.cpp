@@ -3,17 +3,16 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-
 #include <nlohmann/json.hpp>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
+#include "capture/checks.h"
 #include "capture/error.h"
-#include "capture/json_io.h"
 #include "capture/image_io.h"
+#include "capture/json_io.h"
 #include "capture/npz.h"
 #include "capture/session.h"
-#include "capture/checks.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -37,17 +36,20 @@ int runImport(const ImportOptions& o) {
   const json cam = readJson(dir / "cam.json");
   capture::SessionManifest m;
   const std::string camFile = (dir / "cam.json").string();
-  m.colour = {capture::jsonInt(cam, "w", camFile), capture::jsonInt(cam, "h", camFile), capture::jsonNumber(cam, "px", camFile),
-              capture::jsonNumber(cam, "py", camFile), capture::jsonNumber(cam, "u0", camFile), capture::jsonNumber(cam, "v0", camFile)};
+  m.colour = {capture::jsonInt(cam, "w", camFile),     capture::jsonInt(cam, "h", camFile),
+              capture::jsonNumber(cam, "px", camFile), capture::jsonNumber(cam, "py", camFile),
+              capture::jsonNumber(cam, "u0", camFile), capture::jsonNumber(cam, "v0", camFile)};
   m.depth = m.colour;  // depth is already aligned to colour (depth_M_color = identity)
   m.depthUnitsMetres = 0.001;
   double tagSize = 0;
   if (fs::exists(dir / "apriltag_data.json")) {
     const json tags = readJson(dir / "apriltag_data.json");
-    if (tags.is_object() && tags.contains("tag_size") && tags["tag_size"].is_number()) tagSize = tags["tag_size"].get<double>();
+    if (tags.is_object() && tags.contains("tag_size") && tags["tag_size"].is_number())
+      tagSize = tags["tag_size"].get<double>();
   }
   if (!(tagSize > 0)) throw capture::CaptureError((dir / "apriltag_data.json").string(), "no tag_size");
-  capture::checkNumber(tagSize, capture::kMinTagSizeM, capture::kMaxTagSizeM, (dir / "apriltag_data.json").string(), "tag_size");
+  capture::checkNumber(tagSize, capture::kMinTagSizeM, capture::kMaxTagSizeM, (dir / "apriltag_data.json").string(),
+                       "tag_size");
   m.marker = capture::MarkerSpec{o.family, tagSize, o.tagId};
   capture::SessionWriter writer(o.out, m);
   const double scale = capture::jsonNumberOr(cam, "depthScale", 0.001, camFile);
@@ -71,7 +73,8 @@ int runImport(const ImportOptions& o) {
     f.rgbd = rgbd;
     writer.append(f);
   }
-  if (writer.framesWritten() == 0) throw capture::CaptureError(o.input, "no color_image_0000.png: not a ViSP RGB-D sequence");
+  if (writer.framesWritten() == 0)
+    throw capture::CaptureError(o.input, "no color_image_0000.png: not a ViSP RGB-D sequence");
   std::printf("imported %lld frames into %s\n", static_cast<long long>(writer.framesWritten()), o.out.c_str());
   return 0;
 }

@@ -1,28 +1,28 @@
 // mrgi insert: place a virtual object relative to the marker (flags, optional snap onto the support plane
 // from depth), preview the composite, and save the placement into a scene file replay and live read.
+#include <imgui.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
-
-#include <imgui.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
+#include <sstream>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/output.h"
 #include "app/window_ui.h"
-#include "runtime/debug_view.h"
-#include "runtime/frame_pipeline.h"
 #include "capture/checks.h"
 #include "capture/error.h"
-#include "capture/json_io.h"
 #include "capture/image_io.h"
+#include "capture/json_io.h"
 #include "capture/session.h"
 #include "gl/context.h"
 #include "reconstruction/plane.h"
+#include "runtime/debug_view.h"
+#include "runtime/frame_pipeline.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -86,8 +86,9 @@ void saveScene(const std::string& path, const json& doc) { capture::writeFileAto
 /// The window: sliders move, turn and scale the object, the composite follows when a slider is let go;
 /// "snap" rests it on the table, "save" writes the scene file (so does closing after --frames N).
 int interactive(const InsertOptions& o, std::unique_ptr<gl::Context>& context, json& doc, size_t index,
-                const std::string& savePath, const LightingSetup& base, const FrameOptions& frameOptions, const capture::Frame& frame,
-                const FrameResult& measured, const std::function<bool(std::string*)>& snap, json& report) {
+                const std::string& savePath, const LightingSetup& base, const FrameOptions& frameOptions,
+                const capture::Frame& frame, const FrameResult& measured, const std::function<bool(std::string*)>& snap,
+                json& report) {
   WindowUi ui(*context);
   const int width = frame.rgbd->colour.cols, height = frame.rgbd->colour.rows;
   compositor::Compositor compositor(width, height);
@@ -201,18 +202,20 @@ int runInsert(const InsertOptions& o) {
     else if (!o.room.empty())
       doc["lights"] = "room";
     else
-      throw capture::CaptureError(o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights or --room");
+      throw capture::CaptureError(
+          o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights or --room");
   }
   if (!doc.contains("objects")) doc["objects"] = json::array();
   if (o.replace >= static_cast<int>(doc["objects"].size()))
     throw std::invalid_argument("--replace " + std::to_string(o.replace) + ": the scene has only " +
                                 std::to_string(doc["objects"].size()) + " objects");
   if (!fs::exists(o.model)) throw capture::CaptureError(o.model, "model file not found");
-  json object = {{"model", fs::proximate(fs::absolute(o.model), fs::absolute(fs::path(o.save).parent_path())).generic_string()},
-                 {"translate", o.translate},
-                 {"rotate_deg", o.rotateDeg},
-                 {"scale", o.scale},
-                 {"material", {{"albedo", o.albedo}}}};
+  json object = {
+      {"model", fs::proximate(fs::absolute(o.model), fs::absolute(fs::path(o.save).parent_path())).generic_string()},
+      {"translate", o.translate},
+      {"rotate_deg", o.rotateDeg},
+      {"scale", o.scale},
+      {"material", {{"albedo", o.albedo}}}};
   const size_t index = o.replace >= 0 ? static_cast<size_t>(o.replace) : doc["objects"].size();
   if (o.replace >= 0)
     doc["objects"][index] = object;
@@ -229,7 +232,8 @@ int runInsert(const InsertOptions& o) {
   LightingSetup setup = prepareLighting(scene, savePath, *source, o.session, o.pose, !o.room.empty());
   FrameOptions frameOptions;
   frameOptions.pose = o.pose;
-  if (!o.room.empty()) frameOptions.room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
+  if (!o.room.empty())
+    frameOptions.room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   gl::ContextConfig cfg;
   cfg.backend = gl::parseBackend(o.gl);
   const bool window = cfg.backend == gl::Backend::Window;
@@ -253,7 +257,8 @@ int runInsert(const InsertOptions& o) {
   if (!result.T_marker_camera)
     throw capture::CaptureError(o.session, "frame " + std::to_string(o.frame) + " has no camera pose (--pose " +
                                                toString(o.pose) + "; marker " + setup.tagFamily +
-                                               (setup.tagId >= 0 ? " id " + std::to_string(setup.tagId) : "") + " not found)");
+                                               (setup.tagId >= 0 ? " id " + std::to_string(setup.tagId) : "") +
+                                               " not found)");
 
   // A recording without a marker: its first frame founded the world; the scene records it so that replay
   // places the objects in the same world.
@@ -297,11 +302,12 @@ int runInsert(const InsertOptions& o) {
       up = {v[0], v[1], v[2]};
       if (cv::norm(up) < 1e-9) throw FlagError("--up", "must not be the zero vector");
     }
-    const auto plane = reconstruction::supportPlane(inMarker, capture::translationOf(obj.T_marker_object), up, labels,
-                                                    capture::inversePose(T_marker_camera), frame->rgbd->colourIntrinsics);
+    const auto plane =
+        reconstruction::supportPlane(inMarker, capture::translationOf(obj.T_marker_object), up, labels,
+                                     capture::inversePose(T_marker_camera), frame->rgbd->colourIntrinsics);
     if (!plane) {
-      *why = "frame " + std::to_string(o.frame) + ": no support plane below the object (" + std::to_string(planes.size()) +
-             " planes found; try --up)";
+      *why = "frame " + std::to_string(o.frame) + ": no support plane below the object (" +
+             std::to_string(planes.size()) + " planes found; try --up)";
       return false;
     }
     obj.T_marker_object = reconstruction::restOnPlane(obj.T_marker_object, obj.mesh.positions, *plane);
@@ -318,7 +324,8 @@ int runInsert(const InsertOptions& o) {
   report["translate"] = doc["objects"][index]["translate"];
   report["rotate_deg"] = doc["objects"][index]["rotate_deg"];
 
-  if (window) return interactive(o, context, doc, index, savePath, *frames.setup(), frameOptions, *frame, result, snap, report);
+  if (window)
+    return interactive(o, context, doc, index, savePath, *frames.setup(), frameOptions, *frame, result, snap, report);
   if (!o.preview.empty()) {
     frames.render(*frame, result, compositor, profiler);
     writePng(o.preview, result.composite, "mrgi insert");
@@ -343,20 +350,27 @@ Action addInsert(CLI::App& app) {
       ->delimiter(',')
       ->expected(3)
       ->check(numberIn(lighting::kObjectRotateDeg.lo, lighting::kObjectRotateDeg.hi));
-  app.add_option("--scale", o->scale, "uniform scale of the model")->check(numberIn(lighting::kObjectScale.lo, lighting::kObjectScale.hi));
+  app.add_option("--scale", o->scale, "uniform scale of the model")
+      ->check(numberIn(lighting::kObjectScale.lo, lighting::kObjectScale.hi));
   app.add_option("--albedo", o->albedo, "r,g,b diffuse albedo in [0, 1]")
       ->delimiter(',')
       ->expected(3)
       ->check(numberIn(lighting::kAlbedo.lo, lighting::kAlbedo.hi));
-  app.add_option("--scene", o->scene, "base scene file (lights, technique, other objects); default: --save if it exists");
+  app.add_option("--scene", o->scene,
+                 "base scene file (lights, technique, other objects); default: --save if it exists");
   app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the preview's lighting");
   app.add_option("--save", o->save, "scene file to write (written atomically; existing objects are kept)")->required();
-  app.add_option("--replace", o->replace, "replace object N of the base scene instead of appending")->check(numberIn(0, 1e6));
-  app.add_option("--at", o->at, "u,v: put the object's origin on the surface seen at this pixel (overrides --translate)")
-      ->delimiter(',')->expected(2);
+  app.add_option("--replace", o->replace, "replace object N of the base scene instead of appending")
+      ->check(numberIn(0, 1e6));
+  app.add_option("--at", o->at,
+                 "u,v: put the object's origin on the surface seen at this pixel (overrides --translate)")
+      ->delimiter(',')
+      ->expected(2);
   app.add_flag("--snap", o->snap, "rest the object on the plane below it (planes from the frame's depth)");
   addPoseOption(app, o->pose);
-  app.add_option("--up", o->up, "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame")
+  app.add_option(
+         "--up", o->up,
+         "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame")
       ->check(numberList(3, -1e6, 1e6, {"camera", "marker"}));
   app.add_option("--frame", o->frame, "frame of the session to measure and preview on")->check(numberIn(0, 1e9));
   app.add_option("--preview", o->preview, "write the composite of that frame with the placed object (PNG)");

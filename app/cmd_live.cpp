@@ -1,23 +1,18 @@
 // mrgi live: the interactive AR demo. A depth sensor (OpenNI2) and optionally a V4L2 fisheye camera, or a
 // recording played through the same window; a Dear ImGui panel with the technique, presets and every
 // knob, debug views, per-stage timings, marker status and a record toggle.
+#include <imgui.h>
+
 #include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <thread>
 
-#include <imgui.h>
-#include <nlohmann/json.hpp>
-
-#include "runtime/presets.h"
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "lighting/techniques/registry.h"
-#include "runtime/debug_view.h"
-#include "runtime/frame_pipeline.h"
-#include "runtime/room_fusion.h"
 #include "app/live_source.h"
 #include "app/output.h"
 #include "app/window_ui.h"
@@ -28,6 +23,11 @@
 #include "gl/context.h"
 #include "gl/error.h"
 #include "lighting/scene_file.h"
+#include "lighting/techniques/registry.h"
+#include "runtime/debug_view.h"
+#include "runtime/frame_pipeline.h"
+#include "runtime/presets.h"
+#include "runtime/room_fusion.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -48,11 +48,11 @@ struct LiveOptions {
   bool noLoop = false;
   PoseMode pose = PoseMode::Tracked;
   std::string view = "composite";
-  std::string room;  ///< mrgi room output: the real scene of the lighting
+  std::string room;       ///< mrgi room output: the real scene of the lighting
   bool fuseRoom = false;  ///< build the room from the frames as they come
   int fuseRefresh = 30;
-  bool trackRoom = false;          ///< with fuseRoom: odometry aligns each frame with the room being fused
-  std::string saveRoom;   ///< with fuseRoom: the room at the end, as mrgi room writes it
+  bool trackRoom = false;  ///< with fuseRoom: odometry aligns each frame with the room being fused
+  std::string saveRoom;    ///< with fuseRoom: the room at the end, as mrgi room writes it
 };
 
 std::string defaultRecordDir() {
@@ -123,7 +123,8 @@ int runLive(const LiveOptions& o) {
     if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
     if (scene.lightSource == lighting::LightSource::Fisheye && o.in.source.empty()) {
       // Live: the lights come from the V4L2 fisheye camera, not from a session manifest.
-      if (o.in.fisheye.empty()) throw capture::CaptureError(o.scene, "lights: \"fisheye\" needs --fisheye /dev/videoN live");
+      if (o.in.fisheye.empty())
+        throw capture::CaptureError(o.scene, "lights: \"fisheye\" needs --fisheye /dev/videoN live");
       scene.lightSource = lighting::LightSource::Scene;
       base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose);
       base->fisheye = live.fisheyeCalibration();
@@ -136,13 +137,18 @@ int runLive(const LiveOptions& o) {
 
   std::shared_ptr<const reconstruction::RoomMesh> room;
   if (!o.room.empty()) {
-    if (!base) throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
+    if (!base)
+      throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
     room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   }
-  if (o.fuseRoom && !o.room.empty()) throw std::invalid_argument("--fuse-room builds a new room; --room " + o.room + " uses a saved one: pass one");
-  if (o.fuseRoom && !base) throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
-  if (!o.saveRoom.empty() && !o.fuseRoom) throw std::invalid_argument("--save-room " + o.saveRoom + " needs --fuse-room");
-  if (o.trackRoom && !o.fuseRoom) throw FlagError("--track-room", "needs --fuse-room (a saved --room is tracked against already)");
+  if (o.fuseRoom && !o.room.empty())
+    throw std::invalid_argument("--fuse-room builds a new room; --room " + o.room + " uses a saved one: pass one");
+  if (o.fuseRoom && !base)
+    throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
+  if (!o.saveRoom.empty() && !o.fuseRoom)
+    throw std::invalid_argument("--save-room " + o.saveRoom + " needs --fuse-room");
+  if (o.trackRoom && !o.fuseRoom)
+    throw FlagError("--track-room", "needs --fuse-room (a saved --room is tracked against already)");
   if (!o.saveRoom.empty()) prepareOutputDirectory(o.saveRoom, "room.json", "mrgi room");
 
   const cv::Size win = WindowUi::windowSize(width, height);
@@ -224,7 +230,7 @@ int runLive(const LiveOptions& o) {
   const auto join = [&] {
     if (ahead.valid()) pending = ahead.get();
   };
-  size_t lightCount = 0;  // of the frame shown (the worker may be changing the setup's)
+  size_t lightCount = 0;      // of the frame shown (the worker may be changing the setup's)
   int64_t preparedAhead = 0;  // frames the worker prepared
 
   while (!InterruptGuard::interrupted() && ui.beginFrame()) {
@@ -256,13 +262,15 @@ int runLive(const LiveOptions& o) {
         frame = std::move(next.frame);
         // The composite view shows the compositor's texture as it is (the marker axes drawn over it): nothing
         // is read back. Every other view reads what it shows.
-        compositor.setReadback(gpuView() ? compositor::Compositor::Readback::None : compositor::Compositor::Readback::Now);
+        compositor.setReadback(gpuView() ? compositor::Compositor::Readback::None
+                                         : compositor::Compositor::Readback::Now);
         const auto t0 = std::chrono::steady_clock::now();
         if (processed == 0) loopStart = t0;
         if (next.stages) profiler.adopt(*next.stages);
         if (next.prepared) ++preparedAhead;
         std::optional<PreparedFrame> prepared = std::move(next.prepared);
-        if (!prepared && !o.fuseRoom) prepared = frames->prepare(*frame, profiler);  // before the worker prepares the next
+        if (!prepared && !o.fuseRoom)
+          prepared = frames->prepare(*frame, profiler);  // before the worker prepares the next
         if (overlap()) ahead = runtime::readAhead([&live] { return live.next(); }, frames.get());
         if (prepared) {
           lightCount = prepared->lights.size();
@@ -300,8 +308,10 @@ int runLive(const LiveOptions& o) {
     } else {
       if (frame && result.composite.empty()) result.composite = compositor.readOutput();  // left on the GPU before
       if (fresh || view.empty() || ImGui::IsAnyItemActive())
-        view = frame ? renderDebugView(views[viewIndex], *frames, result, frame->rgbd->colourIntrinsics, lastFisheye) : cv::Mat();
-      ui.showImage(view, std::string(debugViewName(views[viewIndex])) + (view.empty() ? " (nothing to show on this frame)" : ""));
+        view = frame ? renderDebugView(views[viewIndex], *frames, result, frame->rgbd->colourIntrinsics, lastFisheye)
+                     : cv::Mat();
+      ui.showImage(view, std::string(debugViewName(views[viewIndex])) +
+                             (view.empty() ? " (nothing to show on this frame)" : ""));
     }
 
     ui.beginPanel("mrgi live");
@@ -333,12 +343,14 @@ int runLive(const LiveOptions& o) {
       recorder.reset();
       recordDir = o.record.empty() ? defaultRecordDir() : o.record + "-" + std::to_string(processed);
     }
-    if (recording) ImGui::Text("recording into %s (%lld frames)", recordDir.c_str(),
-                               static_cast<long long>(recorder ? recorder->framesWritten() : 0));
+    if (recording)
+      ImGui::Text("recording into %s (%lld frames)", recordDir.c_str(),
+                  static_cast<long long>(recorder ? recorder->framesWritten() : 0));
 
     if (ImGui::CollapsingHeader("View", ImGuiTreeNodeFlags_DefaultOpen)) {
       for (size_t i = 0; i < views.size(); ++i)
-        if (ImGui::RadioButton(debugViewName(views[i]), viewIndex == static_cast<int>(i))) viewIndex = static_cast<int>(i), view.release();
+        if (ImGui::RadioButton(debugViewName(views[i]), viewIndex == static_cast<int>(i)))
+          viewIndex = static_cast<int>(i), view.release();
       ImGui::Checkbox("marker axes", &axes);
     }
     if (frames->setup() && ImGui::CollapsingHeader("Technique and knobs", ImGuiTreeNodeFlags_DefaultOpen)) {
@@ -391,7 +403,8 @@ int runLive(const LiveOptions& o) {
     }
     ui.endPanel();
 
-    const bool done = o.frames > 0 && (processed >= o.frames || ended);  // a scripted run never waits on a closed source
+    const bool done =
+        o.frames > 0 && (processed >= o.frames || ended);  // a scripted run never waits on a closed source
     cv::Mat shot;
     ui.endFrame(done && !o.screenshot.empty() ? &shot : nullptr);
     if (fresh) loopEnd = std::chrono::steady_clock::now();
@@ -408,7 +421,10 @@ int runLive(const LiveOptions& o) {
       if (spent < period) std::this_thread::sleep_for(std::chrono::duration<double>(period - spent));
     }
   }
-  json summary = {{"source", live.name()}, {"frames", processed}, {"pose", {{"mode", toString(o.pose)}, {"frames", posedBy}}}, {"window", {context->width(), context->height()}},
+  json summary = {{"source", live.name()},
+                  {"frames", processed},
+                  {"pose", {{"mode", toString(o.pose)}, {"frames", posedBy}}},
+                  {"window", {context->width(), context->height()}},
                   {"renderer", context->renderer()}};
   // Throughput of the window loop (frame, UI and swap; no writes), from the first frame's start to the last's
   // end, and the mean time of the frame pipeline alone within it.
@@ -422,8 +438,11 @@ int runLive(const LiveOptions& o) {
   if (!o.screenshot.empty() && o.frames > 0 && (processed >= o.frames || ended)) summary["screenshot"] = o.screenshot;
   if (recorder) summary["recorded"] = {{"session", recordDir}, {"frames", recorder->framesWritten()}};
   if (fo.fuse) {
-    summary["room"] = {{"integrated", fo.fuse->framesIntegrated()}, {"refused", fo.fuse->framesRefused()}, {"blocks", fo.fuse->blocks()}};
-    if (!o.saveRoom.empty() && fo.fuse->framesIntegrated() > 0 && !runtime::saveRoomModel(o.saveRoom, *fo.fuse, live.name()).positions.empty())
+    summary["room"] = {{"integrated", fo.fuse->framesIntegrated()},
+                       {"refused", fo.fuse->framesRefused()},
+                       {"blocks", fo.fuse->blocks()}};
+    if (!o.saveRoom.empty() && fo.fuse->framesIntegrated() > 0 &&
+        !runtime::saveRoomModel(o.saveRoom, *fo.fuse, live.name()).positions.empty())
       summary["room"]["saved"] = o.saveRoom;
   }
   std::printf("%s\n", jsonText(summary, o.in.source.empty() ? o.in.device : o.in.source).c_str());
@@ -434,21 +453,32 @@ int runLive(const LiveOptions& o) {
 
 Action addLive(CLI::App& app) {
   auto o = std::make_shared<LiveOptions>();
-  app.add_option("--source", o->in.source, "play a session, TUM sequence or .oni file in the window instead of the sensor");
+  app.add_option("--source", o->in.source,
+                 "play a session, TUM sequence or .oni file in the window instead of the sensor");
   app.add_option("--device", o->in.device, "depth sensor URI")->capture_default_str();
   app.add_option("--fisheye", o->in.fisheye, "V4L2 fisheye camera for live light estimation (e.g. /dev/video0)");
-  app.add_option("--fisheye-calibration", o->in.fisheyeCalibration, "its calibration (YAML from mrgi calibrate-fisheye)");
-  app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")->check(numberIn(1, 1e6));
+  app.add_option("--fisheye-calibration", o->in.fisheyeCalibration,
+                 "its calibration (YAML from mrgi calibrate-fisheye)");
+  app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")
+      ->check(numberIn(1, 1e6));
   app.add_option("--scene", o->scene, "scene file: virtual objects relative to the marker, lights, technique, knobs");
-  app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
-  app.add_flag("--fuse-room", o->fuseRoom, "build the room model from the frames as they come (every frame with a pose fused; its surface lights the scene from the first such frame, refreshed every --fuse-refresh frames)");
-  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")->check(numberIn(1, 100000))->capture_default_str();
-  app.add_flag("--track-room", o->trackRoom,
-               "with --fuse-room and odometry or tracked poses, align each frame with the room as fused so far (its surface "
-               "at each refresh) before the keyframes; off by default: with the marker in view it placed the bundled "
-               "sessions' frames worse (ATE 6 -> 10 mm)");
-  app.add_option("--save-room", o->saveRoom, "with --fuse-room: write the room when the demo ends (as mrgi room --out does)");
-  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")->check(techniqueValidator());
+  app.add_option("--room", o->room,
+                 "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
+  app.add_flag("--fuse-room", o->fuseRoom,
+               "build the room model from the frames as they come (every frame with a pose fused; its surface lights "
+               "the scene from the first such frame, refreshed every --fuse-refresh frames)");
+  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")
+      ->check(numberIn(1, 100000))
+      ->capture_default_str();
+  app.add_flag(
+      "--track-room", o->trackRoom,
+      "with --fuse-room and odometry or tracked poses, align each frame with the room as fused so far (its surface "
+      "at each refresh) before the keyframes; off by default: with the marker in view it placed the bundled "
+      "sessions' frames worse (ATE 6 -> 10 mm)");
+  app.add_option("--save-room", o->saveRoom,
+                 "with --fuse-room: write the room when the demo ends (as mrgi room --out does)");
+  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
+      ->check(techniqueValidator());
   app.add_option("--preset", o->preset, "measured preset (overrides the scene file's knobs)")
       ->check(CLI::IsMember({"fast", "balanced", "accurate"}));
   app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();

@@ -3,9 +3,8 @@
 // device or a power cut leave a session that replays up to its last frame.
 #include <chrono>
 #include <cstdio>
-#include <thread>
-
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
@@ -46,7 +45,8 @@ int runRecord(const RecordOptions& o) {
     } catch (const capture::CaptureError& e) {
       if (!writer) throw;
       // The device went away: what was recorded stays complete.
-      std::fprintf(stderr, "mrgi: %s; keeping the %lld frames recorded\n", e.what(), static_cast<long long>(writer->framesWritten()));
+      std::fprintf(stderr, "mrgi: %s; keeping the %lld frames recorded\n", e.what(),
+                   static_cast<long long>(writer->framesWritten()));
       stopped = "device lost";
       break;
     }
@@ -55,7 +55,7 @@ int runRecord(const RecordOptions& o) {
     if (!writer) {
       capture::SessionManifest m = manifestFor(live.source(), *frame);
       if (!m.fisheye) m.fisheye = live.fisheyeCalibration();  // nullopt without a fisheye camera
-      writer.emplace(o.out, m);  // refuses a folder that holds anything
+      writer.emplace(o.out, m);                               // refuses a folder that holds anything
     }
     fisheyeFrames += frame->fisheye ? 1 : 0;
     writer->append(*frame);
@@ -66,8 +66,11 @@ int runRecord(const RecordOptions& o) {
     }
   }
   if (!writer) throw capture::CaptureError(live.name(), "delivered no RGB-D frame; nothing recorded");
-  const json summary = {{"session", o.out},         {"source", live.name()},     {"frames", writer->framesWritten()},
-                        {"fisheye_frames", fisheyeFrames}, {"stopped", stopped}};
+  const json summary = {{"session", o.out},
+                        {"source", live.name()},
+                        {"frames", writer->framesWritten()},
+                        {"fisheye_frames", fisheyeFrames},
+                        {"stopped", stopped}};
   std::printf("%s\n", summary.dump().c_str());
   return stopped == "interrupted" ? 130 : 0;
 }
@@ -80,7 +83,8 @@ Action addRecord(CLI::App& app) {
   app.add_option("--device", o->in.device, "depth sensor URI")->capture_default_str();
   app.add_option("--fisheye", o->in.fisheye, "V4L2 fisheye camera recorded alongside (e.g. /dev/video0)");
   app.add_option("--fisheye-calibration", o->in.fisheyeCalibration, "its calibration (YAML), stored in the manifest");
-  app.add_option("--fisheye-every", o->in.fisheyeEvery, "a fisheye frame every N depth frames")->check(numberIn(1, 1e6));
+  app.add_option("--fisheye-every", o->in.fisheyeEvery, "a fisheye frame every N depth frames")
+      ->check(numberIn(1, 1e6));
   app.add_option("--source", o->in.source, "re-record a session, TUM sequence or .oni file instead of the sensor");
   app.add_option("--frames", o->frames, "stop after N frames (0 = until Ctrl-C or the end)")->check(numberIn(0, 1e9));
   app.add_option("--rate", o->rate, "--source: read N frames per second, as a sensor would deliver them (0 = at once)")

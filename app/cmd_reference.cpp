@@ -4,20 +4,19 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-
 #include <nlohmann/json.hpp>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "runtime/frame_pipeline.h"
 #include "app/output.h"
-#include "evaluation/reference_scene.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
 #include "capture/session.h"
 #include "compositor/compositor.h"
+#include "evaluation/reference_scene.h"
+#include "runtime/frame_pipeline.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -53,15 +52,19 @@ int runReference(const ReferenceOptions& o) {
   std::optional<capture::Frame> frame;
   for (int i = 0; i <= o.frame; ++i) {
     frame = source->next();
-    if (!frame) throw capture::CaptureError(o.source, "has no frame " + std::to_string(o.frame) + " (it ends after " + std::to_string(i) + ")");
+    if (!frame)
+      throw capture::CaptureError(
+          o.source, "has no frame " + std::to_string(o.frame) + " (it ends after " + std::to_string(i) + ")");
     if (carried && i < o.frame && frame->rgbd) frames.measure(*frame, profiler);
   }
   if (!frame->rgbd) throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + " has no RGB-D image");
   const capture::Intrinsics k = frame->rgbd->colourIntrinsics;
   const FrameResult r = frames.measure(*frame, profiler);
   if (!r.T_marker_camera)
-    throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + ": no camera pose (--pose " + std::string(toString(o.pose)) + "), nothing to place the objects on");
-  prepareOutputDirectory(o.out, "reference.json", "mrgi reference");  // after every input check: nothing is created on error
+    throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + ": no camera pose (--pose " +
+                                              std::string(toString(o.pose)) + "), nothing to place the objects on");
+  prepareOutputDirectory(o.out, "reference.json",
+                         "mrgi reference");  // after every input check: nothing is created on error
   const RealSurface real = frames.realSurface(*frame, r, profiler);
   const ReferenceScenes scenes = reconstructedScenes(*frames.setup(), real, k, *r.T_marker_camera);
 
@@ -84,9 +87,14 @@ int runReference(const ReferenceOptions& o) {
   writePng((dir / "mask.png").string(), images.mask);
   writePng((dir / "composite.png").string(), compositor::compositeReference(frame->rgbd->colour, delta, images.mask));
   json info = {{"generated_by", "mrgi reference"},
-               {"source", o.source},     {"scene", o.scene},       {"frame", o.frame},
-               {"spp", o.spp},           {"bounces", o.bounces},   {"seed", o.seed},
-               {"pose", toString(o.pose)},         {"marker", r.info.value("marker", "")},
+               {"source", o.source},
+               {"scene", o.scene},
+               {"frame", o.frame},
+               {"spp", o.spp},
+               {"bounces", o.bounces},
+               {"seed", o.seed},
+               {"pose", toString(o.pose)},
+               {"marker", r.info.value("marker", "")},
                {"triangles_real", real.indices.size() / 3},
                {"virtual_pixels", cv::countNonZero(images.mask)},
                {"ms", ms},

@@ -1,38 +1,38 @@
-#include <algorithm>
-#include <chrono>
-#include <deque>
-#include <exception>
-#include <functional>
-#include <cstdio>
-#include <map>
-#include <future>
-#include <mutex>
-#include <vector>
-#include <filesystem>
-#include <iostream>
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <deque>
+#include <exception>
+#include <filesystem>
+#include <functional>
+#include <future>
+#include <iostream>
+#include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
-#include "runtime/background_writer.h"
-#include "runtime/presets.h"
-#include "runtime/debug_view.h"
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "runtime/frame_pipeline.h"
-#include "runtime/room_fusion.h"
 #include "app/output.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
+#include "capture/session.h"
 #include "compositor/compositor.h"
 #include "gl/context.h"
-#include "capture/session.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
 #include "lighting/techniques/registry.h"
+#include "runtime/background_writer.h"
+#include "runtime/debug_view.h"
+#include "runtime/frame_pipeline.h"
+#include "runtime/presets.h"
+#include "runtime/room_fusion.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -54,8 +54,12 @@ class Latency {
     for (double v : ms_) sum += v, peak = std::max(peak, v);
     std::vector<double> sorted = ms_;
     std::sort(sorted.begin(), sorted.end());
-    return {{"mean", sum / static_cast<double>(ms_.size())}, {"median", sorted[sorted.size() / 2]}, {"max", peak},
-            {"first", ms_.front()}, {"last", ms_.back()}, {"frames", ms_.size()}};
+    return {{"mean", sum / static_cast<double>(ms_.size())},
+            {"median", sorted[sorted.size() / 2]},
+            {"max", peak},
+            {"first", ms_.front()},
+            {"last", ms_.back()},
+            {"frames", ms_.size()}};
   }
 
  private:
@@ -77,14 +81,14 @@ struct ReplayOptions {
   PoseMode pose = PoseMode::Tracked;
   int meshStride = 2;
   bool recomputeAll = false;
-  bool sequential = false;  ///< no frame prepared on the worker while GL works on the one before
+  bool sequential = false;         ///< no frame prepared on the worker while GL works on the one before
   std::string mp4 = "replay.mp4";  ///< inside --out; empty: none
   double fps = 0;                  ///< 0: from the source's timestamps
   std::string room;                ///< mrgi room output: the real scene of the lighting
   bool fuseRoom = false;           ///< build the room from the frames as they come
   int fuseRefresh = 30;
-  bool trackRoom = false;          ///< with fuseRoom: odometry aligns each frame with the room being fused
-  std::string saveRoom;            ///< with fuseRoom: the room at the end, as mrgi room writes it
+  bool trackRoom = false;  ///< with fuseRoom: odometry aligns each frame with the room being fused
+  std::string saveRoom;    ///< with fuseRoom: the room at the end, as mrgi room writes it
 };
 
 int runReplay(const ReplayOptions& o) {
@@ -104,13 +108,18 @@ int runReplay(const ReplayOptions& o) {
   // A bad room stops here too.
   std::shared_ptr<const reconstruction::RoomMesh> room;
   if (!o.room.empty()) {
-    if (!setup) throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
+    if (!setup)
+      throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
     room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   }
-  if (o.fuseRoom && !o.room.empty()) throw std::invalid_argument("--fuse-room builds a new room; --room " + o.room + " uses a saved one: pass one");
-  if (o.fuseRoom && !setup) throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
-  if (!o.saveRoom.empty() && !o.fuseRoom) throw std::invalid_argument("--save-room " + o.saveRoom + " needs --fuse-room");
-  if (o.trackRoom && !o.fuseRoom) throw FlagError("--track-room", "needs --fuse-room (a saved --room is tracked against already)");
+  if (o.fuseRoom && !o.room.empty())
+    throw std::invalid_argument("--fuse-room builds a new room; --room " + o.room + " uses a saved one: pass one");
+  if (o.fuseRoom && !setup)
+    throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
+  if (!o.saveRoom.empty() && !o.fuseRoom)
+    throw std::invalid_argument("--save-room " + o.saveRoom + " needs --fuse-room");
+  if (o.trackRoom && !o.fuseRoom)
+    throw FlagError("--track-room", "needs --fuse-room (a saved --room is tracked against already)");
   if (!o.mp4.empty()) checkInsideOutput(o.mp4, "--mp4");
   if (!o.saveRoom.empty()) prepareOutputDirectory(o.saveRoom, "room.json", "mrgi room");
   prepareOutputDirectory(o.out, "summary.json", "mrgi replay");
@@ -217,7 +226,8 @@ int runReplay(const ReplayOptions& o) {
       if (!frameOfItsOwn) continue;
       perFrame[index]["stages"] = stages;
       // Per-stage timings of every frame (ms; the larger of CPU wall and GPU time), when they are known.
-      std::printf("frame %lld/%lld:%s ms\n", static_cast<long long>(index + 1), static_cast<long long>(limit), line.c_str());
+      std::printf("frame %lld/%lld:%s ms\n", static_cast<long long>(index + 1), static_cast<long long>(limit),
+                  line.c_str());
     }
     std::fflush(stdout);
   };
@@ -265,7 +275,8 @@ int runReplay(const ReplayOptions& o) {
         const std::string base = (fs::path(o.out) / prefix).string();
         for (const DebugView& v : debugViews(frames)) {
           if (v == Views::kComposite) continue;  // frame_NNNN.png
-          const cv::Mat img = renderDebugView(v, frames, result, frame->rgbd->colourIntrinsics, lastFisheye, &frameInfo);
+          const cv::Mat img =
+              renderDebugView(v, frames, result, frame->rgbd->colourIntrinsics, lastFisheye, &frameInfo);
           if (!img.empty()) writePng(base + debugViewName(v) + ".png", img, "mrgi replay");
         }
       }
@@ -308,7 +319,7 @@ int runReplay(const ReplayOptions& o) {
     if (limit > 0) bar(static_cast<double>(done) / static_cast<double>(limit));
   }
   for (const cv::Mat& c : compositor.takeComposites(true)) write(c);  // the reads still in flight
-  profiler.endFrame();  // the last writes' waits, which are no frame's
+  profiler.endFrame();                                                // the last writes' waits, which are no frame's
   timesArrived(profiler.collect(true));
   writer.finish();  // every composite is on disk (and in the video) before the summary says so
   if (done == 0 && !interrupted) throw capture::CaptureError(o.source, "no frame could be replayed");
@@ -325,7 +336,8 @@ int runReplay(const ReplayOptions& o) {
                    {"version", context->version()},
                    {"detail", context->detail()}};
   json mean;
-  for (const auto& [name, s] : sums) mean[name] = {{"cpu_ms", s.first / done}, {"gpu_ms", s.second / done}};  // done > 0 when sums has entries
+  for (const auto& [name, s] : sums)
+    mean[name] = {{"cpu_ms", s.first / done}, {"gpu_ms", s.second / done}};  // done > 0 when sums has entries
   summary["stages_ms"] = mean;  // means over all frames: a skipped stage costs 0 on its frame
   summary["skipped_frames"] = skipped;
   summary["reuse"] = !o.recomputeAll;
@@ -363,19 +375,22 @@ int runReplay(const ReplayOptions& o) {
   summary["frames_with_pose"] = posed;
   summary["pose"] = {{"mode", toString(o.pose)}, {"frames", posedBy}};
   if (const reconstruction::RoomModel* live = frames.liveRoom()) {
-    summary["room"] = {{"integrated", live->framesIntegrated()}, {"refused", live->framesRefused()}, {"blocks", live->blocks()}};
-    if (!o.saveRoom.empty() && live->framesIntegrated() > 0 && !runtime::saveRoomModel(o.saveRoom, *live, o.source).positions.empty())
+    summary["room"] = {
+        {"integrated", live->framesIntegrated()}, {"refused", live->framesRefused()}, {"blocks", live->blocks()}};
+    if (!o.saveRoom.empty() && live->framesIntegrated() > 0 &&
+        !runtime::saveRoomModel(o.saveRoom, *live, o.source).positions.empty())
       summary["room"]["saved"] = o.saveRoom;
   }
   capture::writeFileAtomically(fs::path(o.out) / "summary.json", jsonText(summary, o.source, 2) + "\n");
   if (const LightingSetup* setup = frames.setup(); setup && posed == 0 && done > 0 && !interrupted)
     // The frames are written (the camera images), but nothing could be placed: say so and fail.
-    throw capture::CaptureError(o.source, "no frame could be placed in " + std::to_string(done) + " frames (--pose " + toString(o.pose) +
-                                              ": marker " + setup->tagFamily + (setup->tagId >= 0 ? " id " + std::to_string(setup->tagId) : "") +
+    throw capture::CaptureError(o.source, "no frame could be placed in " + std::to_string(done) + " frames (--pose " +
+                                              toString(o.pose) + ": marker " + setup->tagFamily +
+                                              (setup->tagId >= 0 ? " id " + std::to_string(setup->tagId) : "") +
                                               " never seen)");
   if (const int64_t lost = posedBy.count("lost") ? posedBy["lost"] : 0; lost > 0 && !interrupted)
-    std::fprintf(stderr, "warning: %s: %lld of %lld frames lost (no trusted camera pose): drawn without the objects\n", o.source.c_str(),
-                 static_cast<long long>(lost), static_cast<long long>(done));
+    std::fprintf(stderr, "warning: %s: %lld of %lld frames lost (no trusted camera pose): drawn without the objects\n",
+                 o.source.c_str(), static_cast<long long>(lost), static_cast<long long>(done));
   std::printf("%s %lld frames into %s (%.1f ms/frame)\n", interrupted ? "interrupted: replayed" : "replayed",
               static_cast<long long>(done), o.out.c_str(), done ? wallMs / done : 0.0);
   return interrupted ? 130 : 0;
@@ -391,30 +406,42 @@ Action addReplay(CLI::App& app) {
   app.add_option("--gl", o->gl, "GL backend: osmesa (headless, default), egl (headless GPU), window")
       ->check(CLI::IsMember({"osmesa", "egl", "window"}));
   app.add_option("--scene", o->scene, "scene file (JSON): virtual objects relative to the marker, lights, technique");
-  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")->check(techniqueValidator());
+  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
+      ->check(techniqueValidator());
   app.add_option("--preset", o->preset, "technique and knobs from a measured preset (overrides the scene file's)")
       ->check(CLI::IsMember({"fast", "balanced", "accurate"}));
   app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();
-  app.add_flag("--dump-delta", o->dumpDelta, "also write delta_NNNN.exr (linear RGB added to real pixels) and mask_NNNN.png (255 = virtual)");
-  app.add_flag("--debug", o->debug, "also write debug_NNNN_*.png: delta (red = negative), G-buffer albedo/normal/mask, "
-                                     "RSM flux/normal of the last light, each technique's own views, the fisheye frame with its "
-                                     "median-cut lights; with --room the fused room seen from the camera (radiance, albedo) "
-                                     "and, lit from the room, its environment at the object with its lights");
+  app.add_flag("--dump-delta", o->dumpDelta,
+               "also write delta_NNNN.exr (linear RGB added to real pixels) and mask_NNNN.png (255 = virtual)");
+  app.add_flag("--debug", o->debug,
+               "also write debug_NNNN_*.png: delta (red = negative), G-buffer albedo/normal/mask, "
+               "RSM flux/normal of the last light, each technique's own views, the fisheye frame with its "
+               "median-cut lights; with --room the fused room seen from the camera (radiance, albedo) "
+               "and, lit from the room, its environment at the object with its lights");
   addPoseOption(app, o->pose);
-  allowEmpty(app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str());
-  app.add_option("--room", o->room, "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
-  app.add_flag("--fuse-room", o->fuseRoom, "build the room model from the frames as they come (every frame with a pose fused; its surface lights the scene from the first such frame, refreshed every --fuse-refresh frames)");
-  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")->check(numberIn(1, 100000))->capture_default_str();
-  app.add_flag("--track-room", o->trackRoom,
-               "with --fuse-room and odometry or tracked poses, align each frame with the room as fused so far (its surface "
-               "at each refresh) before the keyframes; off by default: with the marker in view it placed the bundled "
-               "sessions' frames worse (ATE 6 -> 10 mm)");
+  allowEmpty(
+      app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str());
+  app.add_option("--room", o->room,
+                 "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
+  app.add_flag("--fuse-room", o->fuseRoom,
+               "build the room model from the frames as they come (every frame with a pose fused; its surface lights "
+               "the scene from the first such frame, refreshed every --fuse-refresh frames)");
+  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")
+      ->check(numberIn(1, 100000))
+      ->capture_default_str();
+  app.add_flag(
+      "--track-room", o->trackRoom,
+      "with --fuse-room and odometry or tracked poses, align each frame with the room as fused so far (its surface "
+      "at each refresh) before the keyframes; off by default: with the marker in view it placed the bundled "
+      "sessions' frames worse (ATE 6 -> 10 mm)");
   app.add_option("--save-room", o->saveRoom, "with --fuse-room: write the room at the end (as mrgi room --out does)");
   app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")
       ->check(numberIn(capture::kMinFrameRate, capture::kMaxFrameRate));
-  app.add_flag("--recompute-all", o->recomputeAll, "run every stage on every frame (default: skip stages whose inputs did not change)");
-  app.add_flag("--sequential", o->sequential, "work on each frame in the loop, one stage after another (default: the next frame's CPU "
-                                             "half, marker to real mesh, runs on a worker while GL works on this one; the same composites)");
+  app.add_flag("--recompute-all", o->recomputeAll,
+               "run every stage on every frame (default: skip stages whose inputs did not change)");
+  app.add_flag("--sequential", o->sequential,
+               "work on each frame in the loop, one stage after another (default: the next frame's CPU "
+               "half, marker to real mesh, runs on a worker while GL works on this one; the same composites)");
   app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(numberIn(1, 16));
   return [o] { return runReplay(*o); };
 }

@@ -3,13 +3,12 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
-
 #include <nlohmann/json.hpp>
 
 #include "app/cli_checks.h"
-#include "capture/checks.h"
 #include "app/commands.h"
 #include "app/output.h"
+#include "capture/checks.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -38,8 +37,8 @@ struct RoomCliOptions {
 
 int runRoom(const RoomCliOptions& o) {
   if (o.room.truncM < 2 * o.room.voxelM)
-    throw FlagError("--trunc", "must be at least 2 voxels (2 x --voxel = " + capture::formatNumber(2 * o.room.voxelM) + " m), not " +
-                                   capture::formatNumber(o.room.truncM));
+    throw FlagError("--trunc", "must be at least 2 voxels (2 x --voxel = " + capture::formatNumber(2 * o.room.voxelM) +
+                                   " m), not " + capture::formatNumber(o.room.truncM));
   o.room.validate("mrgi room");
   auto source = capture::open(o.source);
   const capture::SourceInfo& info = source->info();
@@ -69,8 +68,10 @@ int runRoom(const RoomCliOptions& o) {
   const reconstruction::RoomModel& room = fusion.model;
   const int64_t seen = fusion.frames;
   if (room.framesIntegrated() == 0)
-    throw capture::CaptureError(o.source, fusion.posed == 0 ? "no frame has a trusted camera pose (" + std::to_string(fusion.lost) + " lost, " + std::to_string(fusion.held) + " held): nothing to build a room from"
-                                                     : "no frame could be integrated (every pose disagreed or the budget was reached)");
+    throw capture::CaptureError(
+        o.source, fusion.posed == 0 ? "no frame has a trusted camera pose (" + std::to_string(fusion.lost) + " lost, " +
+                                          std::to_string(fusion.held) + " held): nothing to build a room from"
+                                    : "no frame could be integrated (every pose disagreed or the budget was reached)");
   const reconstruction::RoomMesh mesh = runtime::saveRoomModel(o.out, room, o.source);
   if (mesh.positions.empty()) throw capture::CaptureError(o.source, "the fused room has no surface");
   const json summary = {{"frames", seen},
@@ -88,23 +89,27 @@ int runRoom(const RoomCliOptions& o) {
                         {"surface_ms_median", fusion.medianSurfaceMs()},
                         {"per_frame", fusion.perFrame}};
   if (fusion.lost + fusion.held > 0)
-    std::fprintf(stderr, "warning: %s: %lld of %lld frames not fused for their pose (%lld lost, %lld held: --pose %s)\n", o.source.c_str(),
-                 static_cast<long long>(fusion.lost + fusion.held), static_cast<long long>(seen), static_cast<long long>(fusion.lost),
-                 static_cast<long long>(fusion.held), toString(o.pose));
+    std::fprintf(stderr,
+                 "warning: %s: %lld of %lld frames not fused for their pose (%lld lost, %lld held: --pose %s)\n",
+                 o.source.c_str(), static_cast<long long>(fusion.lost + fusion.held), static_cast<long long>(seen),
+                 static_cast<long long>(fusion.lost), static_cast<long long>(fusion.held), toString(o.pose));
   if (o.json) {
     std::printf("%s\n", jsonText(summary, o.source).c_str());
     return 0;
   }
   if (const json& t = fusion.trajectory; !t.is_null())
-    std::printf("trajectory optimised: %d odometry, %d loop-closure and %d marker edges (%d pruned); frames moved %.1f mm on average, "
-                "%.1f mm at most\n",
-                t["odometry_edges"].get<int>(), t["loop_edges"].get<int>(), t["marker_edges"].get<int>(), t["pruned_edges"].get<int>(),
-                1e3 * t["mean_shift_m"].get<double>(), 1e3 * t["max_shift_m"].get<double>());
+    std::printf(
+        "trajectory optimised: %d odometry, %d loop-closure and %d marker edges (%d pruned); frames moved %.1f mm on "
+        "average, "
+        "%.1f mm at most\n",
+        t["odometry_edges"].get<int>(), t["loop_edges"].get<int>(), t["marker_edges"].get<int>(),
+        t["pruned_edges"].get<int>(), 1e3 * t["mean_shift_m"].get<double>(), 1e3 * t["max_shift_m"].get<double>());
   std::printf(
       "wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms "
       "median, %.1f ms with the depth filter\n",
-      o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(), static_cast<double>(room.bytes()) / (1 << 20),
-      room.framesIntegrated(), static_cast<long long>(seen), fusion.medianFuseMs(), fusion.medianSurfaceMs());
+      o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(),
+      static_cast<double>(room.bytes()) / (1 << 20), room.framesIntegrated(), static_cast<long long>(seen),
+      fusion.medianFuseMs(), fusion.medianSurfaceMs());
   return 0;
 }
 
@@ -156,12 +161,15 @@ int runRoomLights(const RoomLightsCliOptions& o) {
   if (o.json) {
     std::printf("%s\n", jsonText(out, o.room).c_str());
   } else {
-    std::printf("%zu lights at (%.3f, %.3f, %.3f); saturated gain %.3g (%s); room covers %.0f %% of the view\n", l.lights.size(), at[0],
-                at[1], at[2], l.gain, l.gainEstimated ? "estimated" : l.overExposed ? "over-exposed: not estimated" : "given",
+    std::printf("%zu lights at (%.3f, %.3f, %.3f); saturated gain %.3g (%s); room covers %.0f %% of the view\n",
+                l.lights.size(), at[0], at[1], at[2], l.gain,
+                l.gainEstimated ? "estimated"
+                : l.overExposed ? "over-exposed: not estimated"
+                                : "given",
                 100 * l.coverage);
     for (const auto& x : l.lights)
-      std::printf("  %s at (%.3f, %.3f, %.3f), irradiance %.4g\n", x.point ? "point" : "directional", x.position[0], x.position[1],
-                  x.position[2], capture::luminance(x.irradiance));
+      std::printf("  %s at (%.3f, %.3f, %.3f), irradiance %.4g\n", x.point ? "point" : "directional", x.position[0],
+                  x.position[1], x.position[2], capture::luminance(x.irradiance));
   }
   return 0;
 }
@@ -189,15 +197,17 @@ Action addRoomLights(CLI::App& app) {
 
 Action addRoom(CLI::App& app) {
   auto o = std::make_shared<RoomCliOptions>();
-  app.add_option("source", o->source, "recording to build the room from (session, TUM sequence, .oni file)")->required();
+  app.add_option("source", o->source, "recording to build the room from (session, TUM sequence, .oni file)")
+      ->required();
   app.add_option("--out", o->out, "room folder to write (room.ply, room_appearance.npy, room.json)")->required();
   addPoseOption(app, o->pose);
   app.add_option("--frames", o->frames, "read at most N frames (0 = all)")->check(numberIn(0, 1e9));
   app.add_option("--every", o->every, "integrate every Nth frame")->check(numberIn(1, 1e6));
-  app.add_option("--track-every", o->trackEvery,
-                 "with odometry or tracked poses, align the next frames with the room fused so far, its surface taken anew "
-                 "every N fused frames (0 = keyframes only: on the bundled sessions, whose marker is in view, every 2 or 5 "
-                 "frames moved the room 2.0 -> 2.4-2.8 mm (synth), 7.0 -> 6.6 (pt), 4.2 -> 5.9-7.8 (hdr) from the true one)")
+  app.add_option(
+         "--track-every", o->trackEvery,
+         "with odometry or tracked poses, align the next frames with the room fused so far, its surface taken anew "
+         "every N fused frames (0 = keyframes only: on the bundled sessions, whose marker is in view, every 2 or 5 "
+         "frames moved the room 2.0 -> 2.4-2.8 mm (synth), 7.0 -> 6.6 (pt), 4.2 -> 5.9-7.8 (hdr) from the true one)")
       ->check(numberIn(0, 1e6))
       ->capture_default_str();
   app.add_flag("--no-optimise", o->noOptimise,

@@ -1,27 +1,27 @@
 // mrgi synth: writes a synthetic tabletop session with ground truth through the session writer.
-#include <cmath>
-#include <filesystem>
-#include <optional>
-#include <cstdio>
 #include <unistd.h>
 
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/tabletop.h"
-#include "reconstruction/light_estimation.h"
-#include "capture/checks.h"
-#include "capture/sensor_model.h"
-#include "capture/session.h"
-#include "capture/colour.h"
 #include "app/output.h"
+#include "app/tabletop.h"
+#include "capture/checks.h"
+#include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
+#include "capture/sensor_model.h"
+#include "capture/session.h"
 #include "evaluation/reference_scene.h"
 #include "lighting/scene_file.h"
+#include "reconstruction/light_estimation.h"
 
 namespace fs = std::filesystem;
 
@@ -38,20 +38,20 @@ struct SynthOptions {
   uint64_t seed = 1;
   int tagId = 0;
   double tagSize = 0.16;
-  bool staticCamera = false;  ///< every frame from the orbit's first pose (only the sensor noise changes)
-  int fisheyeEvery = 30;  ///< a fisheye frame every N frames (the room is static), 0 = none
+  bool staticCamera = false;         ///< every frame from the orbit's first pose (only the sensor noise changes)
+  int fisheyeEvery = 30;             ///< a fisheye frame every N frames (the room is static), 0 = none
   std::string render = "pathtrace";  ///< pathtrace (global illumination) | raycast (direct light + constant ambient)
   int spp = 64, bounces = 3;
   /// The reference delta's samples per pixel around the objects (groundtruth::virtualFocus); 0: the delta is
   /// the composite's render minus the frame's own (spp, one seed, the camera's noise in both).
   int referenceFocusSpp = 0;
-  std::string scene;  ///< virtual objects whose path-traced reference composite each frame gets
-  std::string environment;        ///< HDR equirect EXR: outdoors under it instead of the room
-  double environmentScale = 0;    ///< 0: a white upward surface in the open reads 0.6
-  int scan = 0;                   ///< look-around frames after the orbit (walls, ceiling, the lamp)
-  std::string exposure = "1";     ///< "auto" (at most 1 % of pixels clip) or a fixed relative exposure
-  bool moveBox = false;           ///< the box moves to the front of the table a third of the way through (carving)
-  bool moveLight = false;         ///< the lamp moves a third of the way round the table over the orbit
+  std::string scene;            ///< virtual objects whose path-traced reference composite each frame gets
+  std::string environment;      ///< HDR equirect EXR: outdoors under it instead of the room
+  double environmentScale = 0;  ///< 0: a white upward surface in the open reads 0.6
+  int scan = 0;                 ///< look-around frames after the orbit (walls, ceiling, the lamp)
+  std::string exposure = "1";   ///< "auto" (at most 1 % of pixels clip) or a fixed relative exposure
+  bool moveBox = false;         ///< the box moves to the front of the table a third of the way through (carving)
+  bool moveLight = false;       ///< the lamp moves a third of the way round the table over the orbit
 };
 
 /// The look-around: standing at the table's front edge, the camera turns a full circle twice, once
@@ -113,7 +113,9 @@ std::shared_ptr<const groundtruth::EnvironmentMap> loadEnvironment(const std::st
   return std::make_shared<groundtruth::EnvironmentMap>(img, static_cast<float>(scale));
 }
 
-cv::Vec3f toFloat(const cv::Vec3d& v) { return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])}; }
+cv::Vec3f toFloat(const cv::Vec3d& v) {
+  return {static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2])};
+}
 
 struct RgbdRender {
   cv::Mat radiance;  // CV_32FC3 linear, 2x2 supersampled
@@ -122,7 +124,8 @@ struct RgbdRender {
 };
 
 /// Camera radiance by the path tracer (anti-aliased) when one is given, else ray cast (2x2 supersampled).
-RgbdRender renderRgbd(const RayCaster& rc, const PathTracer* pt, const capture::Intrinsics& k, const capture::Pose& T_wc) {
+RgbdRender renderRgbd(const RayCaster& rc, const PathTracer* pt, const capture::Intrinsics& k,
+                      const capture::Pose& T_wc) {
   RgbdRender r{cv::Mat(k.height, k.width, CV_32FC3), cv::Mat(k.height, k.width, CV_32FC1),
                cv::Mat(k.height, k.width, CV_32FC3)};
   const cv::Vec3f origin = toFloat(capture::transformPoint(T_wc, {0, 0, 0}));
@@ -217,7 +220,8 @@ int runSynth(const SynthOptions& o) {
     if (o.render != "pathtrace") throw std::invalid_argument("--environment needs --render pathtrace");
     double scale = o.environmentScale;
     tc.environment = loadEnvironment(o.environment, scale);
-    tc.environmentInfo = {{"file", fs::path(o.environment).filename().string()}, {"scale", scale},
+    tc.environmentInfo = {{"file", fs::path(o.environment).filename().string()},
+                          {"scale", scale},
                           {"mapping", "equirectangular, y up, row 0 = zenith, u = 0.5 at -z"}};
   }
   Tabletop table = buildTabletop(tc);
@@ -231,25 +235,28 @@ int runSynth(const SynthOptions& o) {
     addVirtualObjects(desc.objects, table.T_world_marker, augmented);
   }
   if (pathTrace) {
-    table.groundTruth["scene"]["generator"] = "mrgi synth (path traced, " + std::to_string(o.spp) + " spp, " +
-                                              std::to_string(o.bounces) + " bounces)";
+    table.groundTruth["scene"]["generator"] =
+        "mrgi synth (path traced, " + std::to_string(o.spp) + " spp, " + std::to_string(o.bounces) + " bounces)";
     // The real-time stand-in for the bounce light the path tracer computes.
-    table.groundTruth["scene"]["ambient_note"] = "ambient_radiance is a suggestion for real-time shading; the frames carry full global illumination";
+    table.groundTruth["scene"]["ambient_note"] =
+        "ambient_radiance is a suggestion for real-time shading; the frames carry full global illumination";
   }
   if (!o.scene.empty())
     // Paths in the manifest are relative to the session directory.
-    table.groundTruth["reference"] = {{"scene", fs::relative(fs::absolute(o.scene), fs::absolute(o.out)).generic_string()},
-                                      {"composite", "reference/NNNNNN.png"},
-                                      {"delta", "reference/delta_NNNNNN.exr"},
-                                      {"mask", "reference/mask_NNNNNN.png"},
-                                      {"note", "the camera image of the room with the scene's objects, same noise"}};
+    table.groundTruth["reference"] = {
+        {"scene", fs::relative(fs::absolute(o.scene), fs::absolute(o.out)).generic_string()},
+        {"composite", "reference/NNNNNN.png"},
+        {"delta", "reference/delta_NNNNNN.exr"},
+        {"mask", "reference/mask_NNNNNN.png"},
+        {"note", "the camera image of the room with the scene's objects, same noise"}};
   // A reference delta of its own two renders, more samples around the objects (path-traced frames only).
   const bool focusedReference = !o.scene.empty() && o.referenceFocusSpp > 0 && pathTrace;
   if (focusedReference) {
     table.groundTruth["reference"]["delta_focus_spp"] = o.referenceFocusSpp;
     table.groundTruth["reference"]["note"] =
         "the camera image of the room with the scene's objects, same noise; the delta from its own two renders, " +
-        std::to_string(o.referenceFocusSpp) + " samples per pixel around the objects (" + std::to_string(o.spp) + " elsewhere)";
+        std::to_string(o.referenceFocusSpp) + " samples per pixel around the objects (" + std::to_string(o.spp) +
+        " elsewhere)";
   }
   const RayCaster rc(table.scene);
   // --move-box: from frame `moveAt` on, the room is the same but for the box, moved to the front of the table.
@@ -257,7 +264,8 @@ int runSynth(const SynthOptions& o) {
   std::optional<RayCaster> moved;
   const int moveAt = (o.frames + o.scan) / 3;
   if (o.moveBox) {
-    if (!o.scene.empty()) throw std::invalid_argument("--move-box cannot be combined with --scene (references of a changing room)");
+    if (!o.scene.empty())
+      throw std::invalid_argument("--move-box cannot be combined with --scene (references of a changing room)");
     TabletopConfig mc = tc;
     mc.boxOffset = movedBoxOffset();
     movedTable = buildTabletop(mc);
@@ -271,9 +279,11 @@ int runSynth(const SynthOptions& o) {
   if (o.moveLight) {
     if (!o.environment.empty()) throw std::invalid_argument("--move-light needs the room's lamp (not --environment)");
     if (o.moveBox) throw std::invalid_argument("--move-light cannot be combined with --move-box");
-    if (o.fisheyeEvery > 0) throw std::invalid_argument("--move-light cannot be combined with --fisheye-every (the fisheye is rendered once)");
-    table.groundTruth["scene"]["light_moves"] = {{"arc_deg", 120}, {"axis", "world y through the tag"},
-                                                 {"note", "each frame's lights are in frames.jsonl"}};
+    if (o.fisheyeEvery > 0)
+      throw std::invalid_argument(
+          "--move-light cannot be combined with --fisheye-every (the fisheye is rendered once)");
+    table.groundTruth["scene"]["light_moves"] = {
+        {"arc_deg", 120}, {"axis", "world y through the tag"}, {"note", "each frame's lights are in frames.jsonl"}};
   }
   groundtruth::PathTraceOptions po;
   po.spp = o.spp;
@@ -307,7 +317,8 @@ int runSynth(const SynthOptions& o) {
     capture::Frame frame;
     frame.index = i;
     frame.timestamp = i / 30.0;
-    frame.groundTruthT_world_camera = scanning ? scanCamera(i - o.frames, o.scan) : orbitCamera(o.staticCamera ? 0 : i, o.frames);
+    frame.groundTruthT_world_camera =
+        scanning ? scanCamera(i - o.frames, o.scan) : orbitCamera(o.staticCamera ? 0 : i, o.frames);
     po.seed = o.seed * 1000003u + static_cast<uint64_t>(i);
     // With a reference the frame's two renders share its step of the bar.
     const double share = augmentedCaster && pathTrace && !scanning ? 0.5 : 1.0;
@@ -398,10 +409,13 @@ Action addSynth(CLI::App& app) {
   auto o = std::make_shared<SynthOptions>();
   app.add_option("--out", o->out, "new session directory (must not exist or be empty)")->required();
   app.add_option("--frames", o->frames, "number of frames along the camera orbit")->check(numberIn(1, 100000));
-  app.add_option("--environment", o->environment, "outdoors under this HDR environment (equirectangular EXR) instead of the room");
-  app.add_option("--environment-scale", o->environmentScale, "multiplies the environment (default: a white upward surface reads 0.6)")
+  app.add_option("--environment", o->environment,
+                 "outdoors under this HDR environment (equirectangular EXR) instead of the room");
+  app.add_option("--environment-scale", o->environmentScale,
+                 "multiplies the environment (default: a white upward surface reads 0.6)")
       ->check(numberIn(0, 1e6));
-  app.add_flag("--static-camera", o->staticCamera, "keep the camera at the orbit's first pose (only the sensor noise changes)");
+  app.add_flag("--static-camera", o->staticCamera,
+               "keep the camera at the orbit's first pose (only the sensor noise changes)");
   app.add_option("--width", o->width, "image width")->check(numberIn(16, 8192));
   app.add_option("--height", o->height, "image height")->check(numberIn(12, 8192));
   app.add_option("--seed", o->seed, "noise seed (output is deterministic for a seed)");
@@ -416,13 +430,17 @@ Action addSynth(CLI::App& app) {
                  "frame's)")
       ->check(numberIn(0, 1 << 20));
   app.add_option("--bounces", o->bounces, "path-traced bounces")->check(numberIn(0, 64));
-  app.add_option("--scene", o->scene, "also write each frame's reference composite with this scene's objects (reference/)");
-  app.add_option("--scan", o->scan, "append N look-around frames (walls, ceiling, the lamp; no marker in view, no reference)")
+  app.add_option("--scene", o->scene,
+                 "also write each frame's reference composite with this scene's objects (reference/)");
+  app.add_option("--scan", o->scan,
+                 "append N look-around frames (walls, ceiling, the lamp; no marker in view, no reference)")
       ->check(numberIn(0, 100000));
   app.add_flag("--move-light", o->moveLight,
                "the lamp moves a third of the way round the table over the orbit (each frame records its lights)");
-  app.add_flag("--move-box", o->moveBox, "the box moves to the front of the table a third of the way through (a room that changes: carving)");
-  app.add_option("--exposure", o->exposure, "auto (at most 1 % of pixels clip; recorded per frame) or a relative exposure")
+  app.add_flag("--move-box", o->moveBox,
+               "the box moves to the front of the table a third of the way through (a room that changes: carving)");
+  app.add_option("--exposure", o->exposure,
+                 "auto (at most 1 % of pixels clip; recorded per frame) or a relative exposure")
       ->check(numberList(1, capture::kMinExposure, capture::kMaxExposure, {"auto"}));
   app.add_option("--fisheye-every", o->fisheyeEvery, "store a fisheye HDR frame every N frames (0 = no fisheye)")
       ->check(numberIn(0, 1e6));

@@ -1,11 +1,10 @@
 // mrgi track: AprilTag marker pose per frame of a session (or one image), as JSON lines.
 #include <cstdio>
 #include <map>
-#include <set>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <set>
+#include <sstream>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
@@ -13,9 +12,9 @@
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
+#include "capture/registration.h"
 #include "capture/session.h"
 #include "reconstruction/depth_filter.h"
-#include "capture/registration.h"
 #include "reconstruction/marker.h"
 #include "runtime/pose_source.h"
 
@@ -41,7 +40,8 @@ struct TrackOptions {
 
 capture::Intrinsics parseIntrinsics(const std::string& text, const cv::Size& size) {
   const std::vector<double> v = parseNumbers(text);  // four finite numbers, checked by the flag's validator
-  if (!(v[0] > 0) || !(v[1] > 0)) throw FlagError("--intrinsics", "the focal lengths fx, fy must be positive, not '" + text + "'");
+  if (!(v[0] > 0) || !(v[1] > 0))
+    throw FlagError("--intrinsics", "the focal lengths fx, fy must be positive, not '" + text + "'");
   return {size.width, size.height, v[0], v[1], v[2], v[3]};
 }
 
@@ -60,7 +60,8 @@ int runCameraTrack(const TrackOptions& o) {
   runtime::TrackingOptions tracking;
   tracking.worldFromFirstFrame = true;  // no marker named: a first frame without a tag founds the world
   if (const capture::SessionManifest* manifest = source->sessionManifest()) {
-    if (const auto& m = manifest->marker) marker = {m->family, m->sizeMetres, m->id}, tracking.worldFromFirstFrame = false;
+    if (const auto& m = manifest->marker)
+      marker = {m->family, m->sizeMetres, m->id}, tracking.worldFromFirstFrame = false;
     T_world_marker = manifest->truth.T_world_marker;
   }
   if (!o.family.empty()) marker.family = o.family;
@@ -77,10 +78,12 @@ int runCameraTrack(const TrackOptions& o) {
     const runtime::CameraPose p = poses->locate(*frame, profiler);
     ++frames;
     ++counts[p.tracked() ? runtime::toString(p.by) : "lost"];
-    json line = {{"frame", frame->index}, {"status", p.status()}, {"by", p.tracked() ? json(runtime::toString(p.by)) : json()}};
+    json line = {
+        {"frame", frame->index}, {"status", p.status()}, {"by", p.tracked() ? json(runtime::toString(p.by)) : json()}};
     line["T_camera_world"] = p.tracked() ? poseJson(capture::inversePose(*p.T_world_camera)) : json();
     if (p.fitness >= 0) line["fitness"] = p.fitness, line["inlier_rmse_m"] = p.inlierRmse;
-    if (p.correctionM > 0 || p.correctionDeg > 0) line["correction_m"] = p.correctionM, line["correction_deg"] = p.correctionDeg;
+    if (p.correctionM > 0 || p.correctionDeg > 0)
+      line["correction_m"] = p.correctionM, line["correction_deg"] = p.correctionDeg;
     if (o.json) {
       std::printf("%s\n", jsonText(line, o.input).c_str());
     } else if (p.tracked()) {
@@ -94,9 +97,11 @@ int runCameraTrack(const TrackOptions& o) {
   }
   std::string summary;
   for (const auto& [by, n] : counts) summary += (summary.empty() ? "" : ", ") + std::to_string(n) + " " + by;
-  std::fprintf(stderr, "%lld frames (--pose %s): %s\n", static_cast<long long>(frames), runtime::toString(*o.pose), summary.c_str());
+  std::fprintf(stderr, "%lld frames (--pose %s): %s\n", static_cast<long long>(frames), runtime::toString(*o.pose),
+               summary.c_str());
   if (counts["lost"] == frames)
-    throw capture::CaptureError(o.input, std::string("no frame could be placed (--pose ") + runtime::toString(*o.pose) + ")");
+    throw capture::CaptureError(o.input,
+                                std::string("no frame could be placed (--pose ") + runtime::toString(*o.pose) + ")");
   return 0;
 }
 
@@ -160,15 +165,17 @@ int runTrack(const TrackOptions& o) {
     everSeen |= !measured.empty();
     if (tracks.empty()) {  // nothing seen yet and no id asked for
       const json line = {{"frame", frame.index}, {"status", "lost"}, {"id", nullptr}, {"T_camera_tag", nullptr}};
-      std::printf("%s\n", o.json ? jsonText(line, o.input).c_str() : ("frame " + std::to_string(frame.index) + ": no tag").c_str());
+      std::printf("%s\n", o.json ? jsonText(line, o.input).c_str()
+                                 : ("frame " + std::to_string(frame.index) + ": no tag").c_str());
       return;
     }
     for (auto& [id, track] : tracks) {
       const auto m = measured.find(id);
-      const auto status = track.update(frame.timestamp, m != measured.end() ? std::optional(m->second.second.T_camera_tag)
-                                                                            : std::nullopt);
+      const auto status = track.update(
+          frame.timestamp, m != measured.end() ? std::optional(m->second.second.T_camera_tag) : std::nullopt);
       json line = {{"frame", frame.index}, {"status", reconstruction::toString(status)}, {"id", id}};
-      line["T_camera_tag"] = (status != reconstruction::TrackStatus::Lost && track.pose()) ? poseJson(*track.pose()) : json();
+      line["T_camera_tag"] =
+          (status != reconstruction::TrackStatus::Lost && track.pose()) ? poseJson(*track.pose()) : json();
       if (m != measured.end()) {
         line["reprojection_rms_px"] = m->second.second.reprojectionRms;
         line["ambiguous"] = m->second.second.ambiguous;
@@ -207,25 +214,31 @@ Action addTrack(CLI::App& app) {
   auto o = std::make_shared<TrackOptions>();
   app.add_option("input", o->input, "session directory, TUM sequence, .oni file, or one image (with --intrinsics)")
       ->required();
-  app.add_flag("--json", o->json, "one JSON object per line per frame and tag: frame, status, id, T_camera_tag (with --pose: per frame: frame, status, by, T_camera_world)");
+  app.add_flag("--json", o->json,
+               "one JSON object per line per frame and tag: frame, status, id, T_camera_tag (with --pose: per frame: "
+               "frame, status, by, T_camera_world)");
   auto pose = std::make_shared<runtime::PoseMode>(runtime::PoseMode::Tracked);
   CLI::Option* poseOption = addPoseOption(app, *pose);
   poseOption->description("the camera's pose per frame from this source (" + runtime::poseModeHelp() +
-                    ") instead of each tag's pose: JSON lines frame, status (tracked|lost), by (marker|odometry|relocalised|ground-truth), "
-                    "T_camera_world (row-major 4x4, metres; world = the marker frame)");
+                          ") instead of each tag's pose: JSON lines frame, status (tracked|lost), by "
+                          "(marker|odometry|relocalised|ground-truth), "
+                          "T_camera_world (row-major 4x4, metres; world = the marker frame)");
   app.add_option("--family", o->family, "AprilTag family (default: the session's, else tag36h11)")->check(tagFamily());
   app.add_option("--size", o->size, "tag black-square edge in metres (default: the session's, else 0.1)")
       ->check(numberIn(1e-3, 10));
   app.add_option("--id", o->id, "track only this tag id (default: the session's marker, else every tag)")
       ->check(numberIn(0, 1e6));
-  app.add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy in pixels, for a single image input")->check(numberList(4, -1e6, 1e6));
+  app.add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy in pixels, for a single image input")
+      ->check(numberList(4, -1e6, 1e6));
   app.add_option("--hold", o->hold, "seconds to hold the last pose after the tag disappears before 'lost'")
       ->check(numberIn(0, 3600));
   app.add_flag("--no-smooth", o->noSmooth, "report raw per-frame poses (no One-Euro smoothing)");
   app.add_option("--smooth-cutoff", o->smoothCutoff, "One-Euro cutoff at rest, Hz")->check(numberAbove(0, 1e3));
   app.add_option("--smooth-beta", o->smoothBeta, "One-Euro cutoff added per unit of speed")->check(numberIn(0, 1e3));
-  app.add_option("--smooth-derivative", o->smoothDerivative, "One-Euro cutoff of the speed estimate, Hz")->check(numberAbove(0, 1e3));
-  app.add_flag("--refine-depth", o->refineDepth, "re-seat the pose on the depth plane under the tag (registered depth)");
+  app.add_option("--smooth-derivative", o->smoothDerivative, "One-Euro cutoff of the speed estimate, Hz")
+      ->check(numberAbove(0, 1e3));
+  app.add_flag("--refine-depth", o->refineDepth,
+               "re-seat the pose on the depth plane under the tag (registered depth)");
   app.add_option("--decimate", o->decimate, "detect quads on an image decimated by this factor (faster)")
       ->check(numberIn(1.0, 8.0));
   return [o, pose, poseOption] {

@@ -1,10 +1,9 @@
 #pragma once
 // Subcommands of the mrgi executable. Each registers its options on the CLI11 app and returns the
 // action to run after parsing. Actions return the process exit code and throw for user errors.
+#include <CLI/CLI.hpp>
 #include <functional>
 #include <map>
-
-#include <CLI/CLI.hpp>
 
 #include "runtime/pose_source.h"
 

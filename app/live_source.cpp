@@ -10,8 +10,9 @@ namespace mrgi::app {
 
 LiveSource::LiveSource(LiveSourceOptions o) : o_(std::move(o)) {
   if (!o_.source.empty() && !o_.fisheye.empty())
-    throw FlagError("--fisheye", "a fisheye camera is read only beside a live depth sensor, not with --source (a recording's "
-                                 "fisheye frames come from the recording)");
+    throw FlagError("--fisheye",
+                    "a fisheye camera is read only beside a live depth sensor, not with --source (a recording's "
+                    "fisheye frames come from the recording)");
   if (!o_.source.empty()) {
     source_ = capture::open(o_.source);
     name_ = o_.source;

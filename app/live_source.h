@@ -11,12 +11,12 @@
 namespace mrgi::app {
 
 struct LiveSourceOptions {
-  std::string source;                     ///< session, TUM or .oni; empty: the depth sensor
+  std::string source;  ///< session, TUM or .oni; empty: the depth sensor
   std::string device = "openni2://";
-  std::string fisheye;                    ///< V4L2 device of the fisheye camera (with the sensor)
-  std::string fisheyeCalibration;         ///< its calibration YAML
-  int fisheyeEvery = 30;                  ///< grab a fisheye frame every N depth frames
-  bool loop = false;                      ///< play a recording again from the start at its end
+  std::string fisheye;             ///< V4L2 device of the fisheye camera (with the sensor)
+  std::string fisheyeCalibration;  ///< its calibration YAML
+  int fisheyeEvery = 30;           ///< grab a fisheye frame every N depth frames
+  bool loop = false;               ///< play a recording again from the start at its end
 };
 
 class LiveSource {

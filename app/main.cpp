@@ -3,9 +3,8 @@
 #include <cstdio>
 #include <exception>
 #include <map>
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
@@ -20,7 +19,8 @@ std::string oneLine(const std::string& message) { return mrgi::capture::excerpt(
 
 int main(int argc, char** argv) {
   mrgi::capture::keepFrameMemory();
-  CLI::App app{"mrgi: a mixed-reality compositor for RGB-D footage (differential rendering with real-time global illumination)"};
+  CLI::App app{
+      "mrgi: a mixed-reality compositor for RGB-D footage (differential rendering with real-time global illumination)"};
   const std::map<CLI::App*, mrgi::app::Action> actions = mrgi::app::addCommands(app);
   try {
     app.parse(argc, argv);

@@ -1,27 +1,25 @@
 #include "app/output.h"
 
-#include <map>
-#include <memory>
+#include <unistd.h>
+#include <zlib.h>
 
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
-#include <zlib.h>
-
-#include <cstring>
 #include <iterator>
-#include <sstream>
-
+#include <map>
+#include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "capture/checks.h"
 #include "capture/error.h"
-#include "capture/json_io.h"
 #include "capture/image_io.h"
+#include "capture/json_io.h"
 
 namespace fs = std::filesystem;
 
@@ -31,13 +29,15 @@ void writeExr(const std::string& path, const cv::Mat& rgb, bool half) {
   // Outputs hold only finite numbers: a computation that gave nan or inf is an error, never a file of them.
   cv::Point at;
   if (!rgb.empty() && !cv::checkRange(rgb.reshape(1), true, &at))
-    throw capture::CaptureError(path, "not written: pixel (" + std::to_string(at.x / rgb.channels()) + ", " + std::to_string(at.y) +
-                                          ") came out non-finite");
+    throw capture::CaptureError(path, "not written: pixel (" + std::to_string(at.x / rgb.channels()) + ", " +
+                                          std::to_string(at.y) + ") came out non-finite");
   capture::writeFileAtomically(path, capture::encodeExr(rgb, half, path));
 }
 
 namespace {
-uint32_t bigEndian32(const unsigned char* p) { return uint32_t(p[0]) << 24 | uint32_t(p[1]) << 16 | uint32_t(p[2]) << 8 | p[3]; }
+uint32_t bigEndian32(const unsigned char* p) {
+  return uint32_t(p[0]) << 24 | uint32_t(p[1]) << 16 | uint32_t(p[2]) << 8 | p[3];
+}
 const unsigned char kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
 
 /// The text of a PNG's first "Software" tEXt chunk before its image data ("" when none or not a PNG).
@@ -68,7 +68,8 @@ std::vector<unsigned char> withPngSoftware(std::vector<unsigned char> png, const
   for (int i = 0; i < 4; ++i) chunk[i] = static_cast<unsigned char>(length >> (24 - 8 * i));
   std::memcpy(chunk.data() + 4, "tEXt", 4);
   chunk.insert(chunk.end(), data.begin(), data.end());
-  const uint32_t crc = static_cast<uint32_t>(crc32(crc32(0, nullptr, 0), chunk.data() + 4, static_cast<uInt>(chunk.size() - 4)));
+  const uint32_t crc =
+      static_cast<uint32_t>(crc32(crc32(0, nullptr, 0), chunk.data() + 4, static_cast<uInt>(chunk.size() - 4)));
   for (int i = 0; i < 4; ++i) chunk.push_back(static_cast<unsigned char>(crc >> (24 - 8 * i)));
   png.insert(png.begin() + static_cast<std::ptrdiff_t>(afterHeader), chunk.begin(), chunk.end());
   return png;
@@ -91,7 +92,8 @@ namespace {
 bool jsonGeneratedBy(const std::string& bytes, const std::string& path, const std::string& generator) {
   try {
     const nlohmann::json j = capture::parseJson(bytes, path);
-    return j.is_object() && j.contains("generated_by") && j["generated_by"].is_string() && j["generated_by"].get<std::string>() == generator;
+    return j.is_object() && j.contains("generated_by") && j["generated_by"].is_string() &&
+           j["generated_by"].get<std::string>() == generator;
   } catch (const capture::InputError&) {
     return false;
   }
@@ -146,12 +148,15 @@ void prepareOutputDirectory(const std::string& out, const std::string& marker, c
         }
       }
       if (!ours)
-        throw capture::CaptureError(out, "is not empty and holds no earlier output of " + generator + "; refusing to overwrite");
+        throw capture::CaptureError(
+            out, "is not empty and holds no earlier output of " + generator + "; refusing to overwrite");
       // The earlier run's own files go (a shorter run would otherwise leave its frames beside a summary that
       // does not list them); anything else in the folder stays.
       std::vector<fs::path> own;
-      for (auto it = fs::recursive_directory_iterator(out, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
-        if (it->is_regular_file(ec) && it->path() != m && writtenBy(it->path().string(), generator, "")) own.push_back(it->path());
+      for (auto it = fs::recursive_directory_iterator(out, ec); !ec && it != fs::recursive_directory_iterator();
+           it.increment(ec))
+        if (it->is_regular_file(ec) && it->path() != m && writtenBy(it->path().string(), generator, ""))
+          own.push_back(it->path());
       for (const fs::path& f : own) fs::remove(f, ec);  // the marker stays until the new run replaces it
     }
   }
@@ -162,7 +167,8 @@ void prepareOutputDirectory(const std::string& out, const std::string& marker, c
 void checkInsideOutput(const std::string& name, const std::string& flag) {
   const fs::path p = fs::path(name).lexically_normal();
   if (p.is_absolute() || p.empty() || *p.begin() == "..")
-    throw std::invalid_argument(flag + " " + name + ": must be a file name inside --out (nothing is written outside it)");
+    throw std::invalid_argument(flag + " " + name +
+                                ": must be a file name inside --out (nothing is written outside it)");
 }
 
 ProgressBar::ProgressBar(std::string label) : label_(std::move(label)), tty_(isatty(fileno(stderr))) {}
@@ -210,10 +216,15 @@ bool InterruptGuard::interrupted() { return gInterrupted.load(); }
 Mp4Writer::Mp4Writer(std::string path, int width, int height, double fps)
     : path_(std::move(path)), partial_(path_ + ".partial.mp4") {
   if (!(fps > 0 && fps <= 1000) || width <= 0 || height <= 0)
-    throw capture::CaptureError(path_, "cannot write a video of " + std::to_string(width) + "x" + std::to_string(height) + " at " +
-                                           capture::formatNumber(fps) + " frames per second");
-  writer_ = cv::makePtr<cv::VideoWriter>(partial_, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, cv::Size(width, height));
-  if (!writer_->isOpened()) throw capture::CaptureError(path_, "cannot open an MP4 writer (no FFmpeg MPEG-4 encoder in OpenCV's video output, or the folder is not writable)");
+    throw capture::CaptureError(path_, "cannot write a video of " + std::to_string(width) + "x" +
+                                           std::to_string(height) + " at " + capture::formatNumber(fps) +
+                                           " frames per second");
+  writer_ =
+      cv::makePtr<cv::VideoWriter>(partial_, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, cv::Size(width, height));
+  if (!writer_->isOpened())
+    throw capture::CaptureError(
+        path_,
+        "cannot open an MP4 writer (no FFmpeg MPEG-4 encoder in OpenCV's video output, or the folder is not writable)");
 }
 
 Mp4Writer::~Mp4Writer() {

@@ -3,11 +3,10 @@
 // and a progress bar on the terminal.
 #include <functional>
 #include <memory>
-#include <string>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
+#include <string>
 
 namespace mrgi::app {
 

@@ -67,9 +67,9 @@ Tabletop buildTabletop(const TabletopConfig& c) {
   }
 
   // Marker frame: x = world x, z = world y (out of the table), y = z x x = world -z.
-  t.T_world_marker = capture::Pose(1, 0, 0, 0,  //
+  t.T_world_marker = capture::Pose(1, 0, 0, 0,     //
                                    0, 0, 1, tagY,  //
-                                   0, -1, 0, 0,  //
+                                   0, -1, 0, 0,    //
                                    0, 0, 0, 1);
   nlohmann::json gt;
   gt["T_world_marker"] = capture::poseToJson(t.T_world_marker);

@@ -3,9 +3,8 @@
 // AprilTag, a box and a point light (or outdoors under an HDR environment); camera path orbiting the tag; a
 // fisheye camera on the table looking up.
 #include <memory>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "capture/types.h"
 #include "groundtruth/scene.h"

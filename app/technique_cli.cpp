@@ -26,7 +26,8 @@ CLI::Option* addPoseOption(CLI::App& app, runtime::PoseMode& mode) {
   for (const std::string& name : runtime::poseModeNames()) modes.emplace(name, runtime::poseModeFromName(name));
   return app.add_option("--pose", mode, runtime::poseModeHelp())
       ->transform(CLI::CheckedTransformer(modes))
-      ->option_text(std::string("MODE (marker|ground-truth|odometry|tracked; default ") + runtime::toString(mode) + ")");
+      ->option_text(std::string("MODE (marker|ground-truth|odometry|tracked; default ") + runtime::toString(mode) +
+                    ")");
 }
 
 }  // namespace mrgi::app

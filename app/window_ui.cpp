@@ -6,9 +6,10 @@
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
-#include <imgui.h>
 #include <backends/imgui_impl_glfw.h>
 #include <backends/imgui_impl_opengl3.h>
+#include <imgui.h>
+
 #include <opencv2/imgproc.hpp>
 
 #include "gl/glapi.h"
@@ -70,7 +71,8 @@ void WindowUi::showImage(const cv::Mat& image, const std::string& caption) {
   showTexture(image.empty() ? 0 : texture_, image.cols, image.rows, caption);
 }
 
-void WindowUi::showTexture(unsigned texture, int width, int height, const std::string& caption, const std::vector<Line>& lines) {
+void WindowUi::showTexture(unsigned texture, int width, int height, const std::string& caption,
+                           const std::vector<Line>& lines) {
   const ImGuiViewport* vp = ImGui::GetMainViewport();
   const float viewW = vp->Size.x - kPanelWidth, viewH = vp->Size.y;
   ImGui::SetNextWindowPos(vp->Pos);
@@ -104,8 +106,9 @@ void WindowUi::beginPanel(const std::string& title) {
   const ImGuiViewport* vp = ImGui::GetMainViewport();
   ImGui::SetNextWindowPos(ImVec2(vp->Pos.x + vp->Size.x - kPanelWidth, vp->Pos.y));
   ImGui::SetNextWindowSize(ImVec2(kPanelWidth, vp->Size.y));
-  ImGui::Begin(title.c_str(), nullptr, ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse |
-                                           ImGuiWindowFlags_NoSavedSettings);
+  ImGui::Begin(title.c_str(), nullptr,
+               ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse |
+                   ImGuiWindowFlags_NoSavedSettings);
   ImGui::PushItemWidth(kPanelWidth * 0.5f);  // room for the labels
 }
 

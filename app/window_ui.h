@@ -1,9 +1,8 @@
 #pragma once
 // The window the interactive commands (live, insert) share: Dear ImGui on the GLFW window backend, an
 // image view on the left, a control panel on the right, and screenshots of what the window shows.
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 #include "gl/context.h"
 
@@ -33,7 +32,8 @@ class WindowUi {
     cv::Vec4f ends;
     cv::Vec3b rgb;
   };
-  void showTexture(unsigned texture, int width, int height, const std::string& caption, const std::vector<Line>& lines = {});
+  void showTexture(unsigned texture, int width, int height, const std::string& caption,
+                   const std::vector<Line>& lines = {});
   /// Opens the control panel (ImGui::Begin); close it with endPanel().
   void beginPanel(const std::string& title);
   void endPanel();

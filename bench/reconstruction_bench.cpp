@@ -3,18 +3,19 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/ximgproc/edge_filter.hpp>
 #include <optional>
 
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/ximgproc/edge_filter.hpp>
-
-#include <fstream>
-
-#include <nlohmann/json.hpp>
-#include <opencv2/imgproc.hpp>
-
+#include "capture/frame_source.h"
 #include "capture/image_io.h"
+#include "capture/memory.h"
 #include "capture/npz.h"
+#include "capture/registration.h"
+#include "capture/session.h"
 #include "capture/v4l2_source.h"
 #include "reconstruction/albedo.h"
 #include "reconstruction/depth.h"
@@ -23,10 +24,6 @@
 #include "reconstruction/marker.h"
 #include "reconstruction/odometry.h"
 #include "reconstruction/room_model.h"
-#include "capture/frame_source.h"
-#include "capture/memory.h"
-#include "capture/registration.h"
-#include "capture/session.h"
 
 using namespace mrgi;
 
@@ -92,10 +89,12 @@ void BM_Mesh(benchmark::State& state) {
 
 // The per-frame albedo at 640x480 on a real frame (a lamp over the camera, an ambient): its pixels and the
 // fill of what it rejects (arg 1: 0 none, else its scale: 1 inpainting at full resolution, the default; 2
-// from 2 x 2 blocks, as the frame pipeline fills; 4 from 4 x 4 blocks), on state.range(0) threads (1 and the machine's: the ratios in one run).
+// from 2 x 2 blocks, as the frame pipeline fills; 4 from 4 x 4 blocks), on state.range(0) threads (1 and the machine's:
+// the ratios in one run).
 void BM_Albedo(benchmark::State& state) {
   reconstruction::DepthFilterOptions o;
-  const cv::Mat p = reconstruction::backProject(reconstruction::guidedFilterDepth(input().depth, input().guide, o.radiusPx, o), input().k);
+  const cv::Mat p = reconstruction::backProject(
+      reconstruction::guidedFilterDepth(input().depth, input().guide, o.radiusPx, o), input().k);
   const cv::Mat n = reconstruction::computeNormals(p);
   reconstruction::AlbedoLights lights;
   lights.points.push_back({{0.3, -1.0, 0.5}, {4.0, 4.0, 4.0}});
@@ -131,7 +130,8 @@ void BM_RoomSurfaceFrame640(benchmark::State& state) {
   const std::string dir = std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-synth";
   auto source = capture::open(dir);
   const auto manifest = nlohmann::json::parse(std::ifstream(dir + "/manifest.json"));
-  const capture::Pose T_marker_world = capture::inversePose(capture::poseFromJson(manifest["ground_truth"]["T_world_marker"], "manifest.json", "T_world_marker"));
+  const capture::Pose T_marker_world = capture::inversePose(
+      capture::poseFromJson(manifest["ground_truth"]["T_world_marker"], "manifest.json", "T_world_marker"));
   std::vector<capture::Frame> frames;
   while (auto f = source->next()) {
     capture::ensureRegistered(*f->rgbd);
@@ -140,8 +140,9 @@ void BM_RoomSurfaceFrame640(benchmark::State& state) {
   reconstruction::DepthFilterOptions fo;
   auto surface = [&](const capture::Frame& f) {
     const capture::RgbdFrame& rgbd = *f.rgbd;
-    const cv::Mat depth = reconstruction::guidedFilterDepth(rgbd.depth, reconstruction::guideFromColour(rgbd.colour),
-                                                            reconstruction::filterRadiusPixels(rgbd.depth, rgbd.colourIntrinsics, fo), fo);
+    const cv::Mat depth = reconstruction::guidedFilterDepth(
+        rgbd.depth, reconstruction::guideFromColour(rgbd.colour),
+        reconstruction::filterRadiusPixels(rgbd.depth, rgbd.colourIntrinsics, fo), fo);
     const cv::Mat positions = reconstruction::backProject(depth, rgbd.colourIntrinsics);
     benchmark::DoNotOptimize(reconstruction::computeNormals(positions));
     return depth;
@@ -149,12 +150,13 @@ void BM_RoomSurfaceFrame640(benchmark::State& state) {
   reconstruction::RoomModel room;
   const size_t half = frames.size() / 2;
   for (size_t i = 0; i < half; ++i)
-    room.integrate(surface(frames[i]), frames[i].rgbd->colour, frames[i].rgbd->colourIntrinsics, T_marker_world * *frames[i].groundTruthT_world_camera,
-                   frames[i].rgbd->exposure);
+    room.integrate(surface(frames[i]), frames[i].rgbd->colour, frames[i].rgbd->colourIntrinsics,
+                   T_marker_world * *frames[i].groundTruthT_world_camera, frames[i].rgbd->exposure);
   size_t i = half;
   for (auto _ : state) {
     const capture::Frame& f = frames[i];
-    room.integrate(surface(f), f.rgbd->colour, f.rgbd->colourIntrinsics, T_marker_world * *f.groundTruthT_world_camera, f.rgbd->exposure);
+    room.integrate(surface(f), f.rgbd->colour, f.rgbd->colourIntrinsics, T_marker_world * *f.groundTruthT_world_camera,
+                   f.rgbd->exposure);
     i = i + 1 < frames.size() ? i + 1 : half;
   }
   state.counters["width"] = frames.empty() ? 0 : frames[0].rgbd->colour.cols;
@@ -166,7 +168,8 @@ void BM_RoomSurfaceFrame640(benchmark::State& state) {
 void BM_EncodePng(benchmark::State& state) {
   std::vector<cv::Mat> frames;
   for (int i = 1; i <= 5; ++i) {
-    cv::Mat bgr = cv::imread(std::string(MRGI_SHARED_DATA) + "/rgbd-slambook/joinMap/color/" + std::to_string(i) + ".png");
+    cv::Mat bgr =
+        cv::imread(std::string(MRGI_SHARED_DATA) + "/rgbd-slambook/joinMap/color/" + std::to_string(i) + ".png");
     cv::cvtColor(bgr, bgr, cv::COLOR_BGR2RGB);
     frames.push_back(bgr);
   }
@@ -219,12 +222,14 @@ void BM_MarkerPoseRealSequence(benchmark::State& state) {
           for (int c = 0; c < 4; ++c) gt(r, c) = g[std::to_string(d.id)]["cMo"][r][c];
         const auto p = reconstruction::estimateTagPose(d, size, k);
         if (!p) continue;
-        const double et = reconstruction::translationError(p->T_camera_tag, gt), er = reconstruction::rotationErrorDeg(p->T_camera_tag, gt);
+        const double et = reconstruction::translationError(p->T_camera_tag, gt),
+                     er = reconstruction::rotationErrorDeg(p->T_camera_tag, gt);
         st += et, sr += er, wt = std::max(wt, et), wr = std::max(wr, er), ++n;
         if (const auto plane = reconstruction::fitTagPlane(d, depth[f], k)) {
           const auto q = reconstruction::refinePoseWithDepth(*p, *plane);
           if (q.depthRefined)
-            sdt += reconstruction::translationError(q.T_camera_tag, gt), sdr += reconstruction::rotationErrorDeg(q.T_camera_tag, gt), ++nd;
+            sdt += reconstruction::translationError(q.T_camera_tag, gt),
+                sdr += reconstruction::rotationErrorDeg(q.T_camera_tag, gt), ++nd;
         }
       }
   }
@@ -235,7 +240,8 @@ void BM_MarkerPoseRealSequence(benchmark::State& state) {
   state.counters["worst_R_deg"] = wr;
   state.counters["depth_mean_t_mm"] = 1e3 * sdt / std::max(1, nd);
   state.counters["depth_mean_R_deg"] = sdr / std::max(1, nd);
-  state.counters["ms_per_frame"] = benchmark::Counter(20, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["ms_per_frame"] =
+      benchmark::Counter(20, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
 // The odometry stage of tracked poses on the real ViSP frames (640x480, RealSense): preparing each frame's
@@ -274,19 +280,22 @@ void BM_OdometryRealFrame(benchmark::State& state) {
     }
   }
   state.counters["fitness"] = frames ? fitness / frames : 0.0;
-  state.counters["ms_per_frame"] = benchmark::Counter(20, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["ms_per_frame"] =
+      benchmark::Counter(20, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
 // Median cut on real HDR maps rendered through the calibrated fisheye: time and the worst relative
 // irradiance error (5 normals, 5 maps) against direct integration of the image, per light count.
 void BM_MedianCutIrradianceError(benchmark::State& state) {
-  static const auto calib = capture::readFisheyeCalibration(std::string(MRGI_SHARED_DATA) + "/fisheye-ros-calib/ost.yaml");
+  static const auto calib =
+      capture::readFisheyeCalibration(std::string(MRGI_SHARED_DATA) + "/fisheye-ros-calib/ost.yaml");
   static const auto rays = reconstruction::fisheyeRays(calib);
   static const std::vector<cv::Mat> maps = [] {
     std::vector<cv::Mat> out;
     const cv::Matx33d up(1, 0, 0, 0, 0, -1, 0, 1, 0);
     for (const char* name : {"city", "courtyard", "forest", "interior", "studio"}) {
-      cv::Mat m = cv::imread(std::string(MRGI_SHARED_DATA) + "/hdr-blender-world/" + name + ".exr", cv::IMREAD_UNCHANGED);
+      cv::Mat m =
+          cv::imread(std::string(MRGI_SHARED_DATA) + "/hdr-blender-world/" + name + ".exr", cv::IMREAD_UNCHANGED);
       cv::cvtColor(m, m, cv::COLOR_BGR2RGB);
       out.push_back(reconstruction::renderFisheyeFromLatLong(cv::max(m, 0.0), rays, up));
     }
@@ -295,8 +304,11 @@ void BM_MedianCutIrradianceError(benchmark::State& state) {
   reconstruction::MedianCutOptions o;
   o.count = static_cast<int>(state.range(0));
   o.varianceSplit = state.range(1) != 0;
-  const std::vector<cv::Vec3d> normals{{0, 0, 1}, cv::normalize(cv::Vec3d(1, 0, 1)), cv::normalize(cv::Vec3d(0, -1, 1)),
-                                       cv::normalize(cv::Vec3d(-1, 1, 0.3)), {1, 0, 0}};
+  const std::vector<cv::Vec3d> normals{{0, 0, 1},
+                                       cv::normalize(cv::Vec3d(1, 0, 1)),
+                                       cv::normalize(cv::Vec3d(0, -1, 1)),
+                                       cv::normalize(cv::Vec3d(-1, 1, 0.3)),
+                                       {1, 0, 0}};
   std::vector<std::vector<reconstruction::EstimatedLight>> lights(maps.size());
   for (auto _ : state)
     for (size_t i = 0; i < maps.size(); ++i) lights[i] = reconstruction::medianCut(maps[i], rays, o);
@@ -313,7 +325,12 @@ void BM_MedianCutIrradianceError(benchmark::State& state) {
 
 BENCHMARK(BM_EncodePng)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MarkerPoseRealSequence)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_OdometryRealFrame)->Args({2, 320})->Args({0, 320})->Args({1, 320})->Args({2, 640})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_OdometryRealFrame)
+    ->Args({2, 320})
+    ->Args({0, 320})
+    ->Args({1, 320})
+    ->Args({2, 640})
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MedianCutIrradianceError)
     ->ArgsProduct({{1, 4, 16, 64, 256}, {0, 1}})
     ->ArgNames({"lights", "variance"})
@@ -323,7 +340,8 @@ BENCHMARK(BM_GuidedFilterDepth)->Arg(4)->Arg(8)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Normals)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Mesh)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DepthPipeline)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Albedo)->Args({1, 0})->Args({2, 0})->Args({1, 1})->Args({2, 1})->Args({2, 2})->Args({2, 4})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Albedo)->Args({1, 0})->Args({2, 0})->Args({1, 1})->Args({2, 1})->Args({2, 2})->Args({2, 4})->Unit(
+    benchmark::kMillisecond);
 BENCHMARK(BM_RoomSurfaceFrame640)->Unit(benchmark::kMillisecond)->MinTime(3.0);
 int main(int argc, char** argv) {
   mrgi::capture::keepFrameMemory();  // as mrgi runs its frame loop

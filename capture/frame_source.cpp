@@ -36,7 +36,8 @@ std::unique_ptr<FrameSource> open(const std::string& uri, const OpenOptions& opt
   }
   if (!fs::exists(p, ec)) throw CaptureError(uri, "does not exist");
   if (fs::is_directory(p, ec)) {
-    if (fs::exists(p / "manifest.json", ec) || fs::exists(p / "frames.jsonl", ec)) return std::make_unique<SessionSource>(uri);
+    if (fs::exists(p / "manifest.json", ec) || fs::exists(p / "frames.jsonl", ec))
+      return std::make_unique<SessionSource>(uri);
     if (fs::exists(p / "rgb.txt", ec) && fs::exists(p / "depth.txt", ec)) return std::make_unique<TumSource>(uri);
     throw CaptureError(uri, "neither an mrgi session (manifest.json) nor a TUM RGB-D sequence (rgb.txt, depth.txt)");
   }

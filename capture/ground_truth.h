@@ -3,12 +3,11 @@
 /// place: where the marker sits in the world, the lights of every type, the ambient radiance, the environment
 /// map's description and the true reference composites. Per-frame camera poses travel with the frames
 /// (Frame::groundTruthT_world_camera). World frame = the generator's (metres, linear RGB).
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
 
 #include "capture/types.h"
 
@@ -24,7 +23,8 @@ struct GroundTruthReference {
 
 /// Parses a JSON array of lights (the manifest's "ground_truth.lights", a frame's "lights"); errors name
 /// `file` and the key (`key` + "[i].type"). An unknown light type is an error, never dropped.
-std::vector<GroundTruthLight> lightsFromJson(const nlohmann::json& array, const std::string& file, const std::string& key);
+std::vector<GroundTruthLight> lightsFromJson(const nlohmann::json& array, const std::string& file,
+                                             const std::string& key);
 /// The same array as the parser reads it.
 nlohmann::json lightsToJson(const std::vector<GroundTruthLight>& lights);
 

@@ -1,23 +1,5 @@
 #include "capture/image_io.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <algorithm>
-#include <cctype>
-#include <cerrno>
-#include <cmath>
-#include <cstdlib>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
-#include <iostream>
-#include <iterator>
-#include <mutex>
-
-#include <jpeglib.h>
-#include <png.h>
-
 #include <Imath/half.h>
 #include <ImfChannelList.h>
 #include <ImfCheckFile.h>
@@ -26,10 +8,24 @@
 #include <ImfIO.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
+#include <fcntl.h>
+#include <jpeglib.h>
+#include <png.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
 #include <csetjmp>
 #include <cstdio>
-
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <mutex>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -123,7 +119,8 @@ cv::Mat decodePng(const std::vector<unsigned char>& bytes, bool colour, const st
 /// codec goes through one in /tmp) and nothing is printed.
 class ExrMemoryIn final : public Imf::IStream {
  public:
-  ExrMemoryIn(const std::vector<unsigned char>& bytes, const std::string& path) : Imf::IStream(path.c_str()), bytes_(bytes) {}
+  ExrMemoryIn(const std::vector<unsigned char>& bytes, const std::string& path)
+      : Imf::IStream(path.c_str()), bytes_(bytes) {}
   bool read(char c[], int n) override {
     if (n < 0 || static_cast<uint64_t>(n) > bytes_.size() - std::min<uint64_t>(at_, bytes_.size()))
       throw std::runtime_error("file is truncated");
@@ -189,7 +186,8 @@ void checkExrHeader(const std::vector<unsigned char>& bytes, const std::string& 
       const std::string type = readString();
       if (at + 4 > bytes.size()) bad("header is truncated");
       auto int32At = [&](size_t i) {
-        return static_cast<int32_t>(uint32_t(bytes[i]) | uint32_t(bytes[i + 1]) << 8 | uint32_t(bytes[i + 2]) << 16 | uint32_t(bytes[i + 3]) << 24);
+        return static_cast<int32_t>(uint32_t(bytes[i]) | uint32_t(bytes[i + 1]) << 8 | uint32_t(bytes[i + 2]) << 16 |
+                                    uint32_t(bytes[i + 3]) << 24);
       };
       const uint32_t size = static_cast<uint32_t>(int32At(at));
       at += 4;
@@ -197,9 +195,11 @@ void checkExrHeader(const std::vector<unsigned char>& bytes, const std::string& 
         // The image size, checked before OpenEXR allocates line buffers for it (a 5-million-pixel-wide line
         // in a 500-byte file was a time-out under the image fuzzer): at most 16384 a side, and no more
         // pixels than any codec packs into the file (deflate tops out near 1000:1 on bytes).
-        const int64_t w = int64_t(int32At(at + 8)) - int32At(at) + 1, h = int64_t(int32At(at + 12)) - int32At(at + 4) + 1;
+        const int64_t w = int64_t(int32At(at + 8)) - int32At(at) + 1,
+                      h = int64_t(int32At(at + 12)) - int32At(at + 4) + 1;
         if (w <= 0 || h <= 0 || w > 16384 || h > 16384)
-          throw CaptureError(path, "EXR image of " + std::to_string(w) + "x" + std::to_string(h) + ", at most 16384 a side");
+          throw CaptureError(path,
+                             "EXR image of " + std::to_string(w) + "x" + std::to_string(h) + ", at most 16384 a side");
         if (static_cast<double>(w) * static_cast<double>(h) > 4096.0 * static_cast<double>(bytes.size()) + 1048576.0)
           throw CaptureError(path, "EXR image of " + std::to_string(w) + "x" + std::to_string(h) + " in a file of " +
                                        std::to_string(bytes.size()) + " bytes: damaged");
@@ -227,8 +227,8 @@ cv::Mat decodeExr(const std::vector<unsigned char>& bytes, const std::string& pa
     const Imath::Box2i window = file.header().dataWindow();
     const int64_t width = int64_t(window.max.x) - window.min.x + 1, height = int64_t(window.max.y) - window.min.y + 1;
     if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
-      throw CaptureError(path, "EXR image of " + std::to_string(width) + "x" + std::to_string(height) +
-                                   ", at most 16384 a side");
+      throw CaptureError(
+          path, "EXR image of " + std::to_string(width) + "x" + std::to_string(height) + ", at most 16384 a side");
     const Imf::ChannelList& channels = file.header().channels();
     const bool rgb = channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B");
     const bool grey = !rgb && channels.findChannel("Y");
@@ -308,7 +308,8 @@ cv::Mat decodeJpeg(const std::vector<unsigned char>& bytes, bool colour, const s
   jpeg_mem_src(&info, bytes.data(), static_cast<unsigned long>(bytes.size()));
   jpeg_read_header(&info, TRUE);
   if (info.image_width == 0 || info.image_height == 0 || info.image_width > 16384 || info.image_height > 16384) {
-    std::snprintf(errors.message, sizeof errors.message, "image of %ux%u, at most 16384 a side", info.image_width, info.image_height);
+    std::snprintf(errors.message, sizeof errors.message, "image of %ux%u, at most 16384 a side", info.image_width,
+                  info.image_height);
     std::longjmp(errors.jump, 1);
   }
   const bool grey = !colour && info.num_components == 1;
@@ -335,7 +336,9 @@ bool isRadiance(const std::vector<unsigned char>& bytes) {
   return bytes.size() >= 2 && bytes[0] == '#' && bytes[1] == '?';
 }
 cv::Mat decodeRadiance(const std::vector<unsigned char>& bytes, const std::string& path) {
-  auto bad = [&](const std::string& why) -> void { throw CaptureError(path, "cannot decode Radiance HDR (" + why + ")"); };
+  auto bad = [&](const std::string& why) -> void {
+    throw CaptureError(path, "cannot decode Radiance HDR (" + why + ")");
+  };
   size_t at = 0;
   auto line = [&]() {
     const size_t end = std::find(bytes.begin() + static_cast<std::ptrdiff_t>(at), bytes.end(), '\n') - bytes.begin();
@@ -350,18 +353,21 @@ cv::Mat decodeRadiance(const std::vector<unsigned char>& bytes, const std::strin
     if (n > 1000) bad("a header of more than 1000 lines");
     const std::string l = line();
     if (l.empty()) break;
-    if (l.rfind("FORMAT=", 0) == 0 && l != "FORMAT=32-bit_rle_rgbe") bad("only 32-bit_rle_rgbe is supported, not " + excerpt(l.substr(7), 30));
+    if (l.rfind("FORMAT=", 0) == 0 && l != "FORMAT=32-bit_rle_rgbe")
+      bad("only 32-bit_rle_rgbe is supported, not " + excerpt(l.substr(7), 30));
   }
   const std::string resolution = line();
   int h = 0, w = 0;
   char tail = 0;
   if (std::sscanf(resolution.c_str(), "-Y %d +X %d%c", &h, &w, &tail) != 2)
     bad("the resolution line must read '-Y height +X width', not '" + excerpt(resolution, 40) + "'");
-  if (w <= 0 || h <= 0 || w > 16384 || h > 16384) bad("image of " + std::to_string(w) + "x" + std::to_string(h) + ", at most 16384 a side");
+  if (w <= 0 || h <= 0 || w > 16384 || h > 16384)
+    bad("image of " + std::to_string(w) + "x" + std::to_string(h) + ", at most 16384 a side");
   // Each scanline takes at least 4 bytes per 127 pixels and channel when run-length encoded: a file too
   // short for its size is refused before memory is taken for it.
   const size_t minLine = std::min<size_t>(4 * static_cast<size_t>(w), 4 + 8 * ((static_cast<size_t>(w) + 126) / 127));
-  if (bytes.size() - at < minLine * static_cast<size_t>(h)) bad("truncated: too short for " + std::to_string(w) + "x" + std::to_string(h));
+  if (bytes.size() - at < minLine * static_cast<size_t>(h))
+    bad("truncated: too short for " + std::to_string(w) + "x" + std::to_string(h));
   cv::Mat out(h, w, CV_32FC3);
   std::vector<unsigned char> rgbe(4 * static_cast<size_t>(w));
   bool flat = w < 8 || w > 0x7fff;
@@ -434,7 +440,8 @@ cv::Mat decode(const std::string& path, int flags) {
   if (png) return decodePng(bytes, false, path);  // depth (ANYDEPTH|ANYCOLOR) and fisheye (UNCHANGED, alpha dropped)
   if (isExr(bytes)) return decodeExr(bytes, path);
   if (isRadiance(bytes)) {
-    if (flags == cv::IMREAD_COLOR) throw CaptureError(path, "is a Radiance HDR image; an 8-bit colour image is expected here");
+    if (flags == cv::IMREAD_COLOR)
+      throw CaptureError(path, "is a Radiance HDR image; an 8-bit colour image is expected here");
     return decodeRadiance(bytes, path);
   }
   if (bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF)
@@ -445,7 +452,9 @@ cv::Mat decode(const std::string& path, int flags) {
   const bool pnm = bytes.size() >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '6';
   const bool tiff = bytes.size() >= 4 && ((bytes[0] == 'I' && bytes[1] == 'I' && bytes[2] == 42 && bytes[3] == 0) ||
                                           (bytes[0] == 'M' && bytes[1] == 'M' && bytes[2] == 0 && bytes[3] == 42));
-  if (!bmp && !pnm && !tiff) throw CaptureError(path, "cannot decode image: not a supported format (PNG, JPEG, EXR, Radiance HDR, BMP, PNM, TIFF)");
+  if (!bmp && !pnm && !tiff)
+    throw CaptureError(path,
+                       "cannot decode image: not a supported format (PNG, JPEG, EXR, Radiance HDR, BMP, PNM, TIFF)");
   cv::Mat img;
   try {
     const SilenceCerr quiet;
@@ -458,7 +467,6 @@ cv::Mat decode(const std::string& path, int flags) {
 }
 
 }  // namespace
-
 
 namespace {
 void writeFileDurably(const std::filesystem::path& path, const std::vector<unsigned char>& bytes) {
@@ -494,7 +502,6 @@ void writeFileAtomically(const std::filesystem::path& path, const std::vector<un
   if (ec) throw CaptureError(path.string(), "cannot rename temporary file: " + ec.message());
 }
 
-
 void quietOpenCv() {
   static const bool once = [] {
     cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
@@ -515,7 +522,8 @@ cv::Mat readColour(const std::string& path) {
 
 cv::Mat readDepth(const std::string& path, double unitsMetres) {
   cv::Mat raw = decode(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
-  if (raw.channels() != 1) throw CaptureError(path, "depth image has " + std::to_string(raw.channels()) + " channels, expected 1");
+  if (raw.channels() != 1)
+    throw CaptureError(path, "depth image has " + std::to_string(raw.channels()) + " channels, expected 1");
   cv::Mat metres;
   if (raw.depth() == CV_16U) {
     raw.convertTo(metres, CV_32F, unitsMetres);
@@ -525,8 +533,8 @@ cv::Mat readDepth(const std::string& path, double unitsMetres) {
       const float* row = metres.ptr<float>(y);
       for (int x = 0; x < metres.cols; ++x)
         if (!std::isfinite(row[x]) || row[x] < 0.f)
-          throw CaptureError(path, "depth holds a non-finite or negative value at pixel (" + std::to_string(x) +
-                                       ", " + std::to_string(y) + ")");
+          throw CaptureError(path, "depth holds a non-finite or negative value at pixel (" + std::to_string(x) + ", " +
+                                       std::to_string(y) + ")");
     }
   } else {
     throw CaptureError(path, "depth image must be 16-bit integer or 32-bit float");
@@ -540,11 +548,15 @@ cv::Mat readAny(const std::string& path) {
     // NaN or inf in a float image would reach every sum made of it: refused here, naming the pixel.
     cv::Point at;
     if (!cv::checkRange(img.reshape(1), true, &at))
-      throw CaptureError(path, "holds a non-finite value at pixel (" + std::to_string(at.x / img.channels()) + ", " + std::to_string(at.y) + ")");
+      throw CaptureError(path, "holds a non-finite value at pixel (" + std::to_string(at.x / img.channels()) + ", " +
+                                   std::to_string(at.y) + ")");
   }
-  if (img.channels() == 3) cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
-  else if (img.channels() == 4) cv::cvtColor(img, img, cv::COLOR_BGRA2RGB);
-  else if (img.channels() == 1) cv::cvtColor(img, img, cv::COLOR_GRAY2RGB);
+  if (img.channels() == 3)
+    cv::cvtColor(img, img, cv::COLOR_BGR2RGB);
+  else if (img.channels() == 4)
+    cv::cvtColor(img, img, cv::COLOR_BGRA2RGB);
+  else if (img.channels() == 1)
+    cv::cvtColor(img, img, cv::COLOR_GRAY2RGB);
   return img;
 }
 
@@ -579,14 +591,16 @@ std::vector<unsigned char> encodeExr(const cv::Mat& rgb, bool half, const std::s
       const auto* f = img.ptr<float>();
       for (size_t i = 0; i < halves.size(); ++i) halves[i] = Imath::half(f[i]);
     }
-    char* base = half ? reinterpret_cast<char*>(halves.data()) : reinterpret_cast<char*>(const_cast<unsigned char*>(img.data));
+    char* base =
+        half ? reinterpret_cast<char*>(halves.data()) : reinterpret_cast<char*>(const_cast<unsigned char*>(img.data));
     const size_t xStride = (half ? sizeof(Imath::half) : sizeof(float)) * static_cast<size_t>(n);
     const size_t yStride = xStride * static_cast<size_t>(img.cols);
     Imf::FrameBuffer frame;
     for (int c = 0; c < n; ++c) {
       const char* name = n == 3 ? names[c] : "Y";
       header.channels().insert(name, Imf::Channel(stored));
-      frame.insert(name, Imf::Slice(stored, base + static_cast<size_t>(c) * xStride / static_cast<size_t>(n), xStride, yStride));
+      frame.insert(
+          name, Imf::Slice(stored, base + static_cast<size_t>(c) * xStride / static_cast<size_t>(n), xStride, yStride));
     }
     ExrMemoryOut out(nameForErrors);
     Imf::OutputFile file(out, header, 1);
@@ -610,7 +624,8 @@ std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& na
   // default strategy at level 3 and 15 % smaller (BM_EncodePng); the writer thread shares the CPU with the
   // frame loop.
   std::vector<unsigned char> bytes;
-  if (!cv::imencode(".png", bgr, bytes, {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE}))
+  if (!cv::imencode(".png", bgr, bytes,
+                    {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE}))
     throw CaptureError(nameForErrors, "cannot encode PNG");
   return bytes;
 }

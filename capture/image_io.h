@@ -1,10 +1,9 @@
 #pragma once
 /// Image reading and writing that names the file in every error.
 #include <filesystem>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 namespace mrgi::capture {
 

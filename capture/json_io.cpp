@@ -32,7 +32,8 @@ nlohmann::json parseJson(std::istream& in, const std::string& file) {
   return parseJson(ss.str(), file);
 }
 
-const nlohmann::json& jsonKey(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path) {
+const nlohmann::json& jsonKey(const nlohmann::json& j, const std::string& key, const std::string& file,
+                              const std::string& path) {
   if (!j.is_object() || !j.contains(key)) throw InputError(file, "missing key '" + path + key + "'");
   return j.at(key);
 }
@@ -55,22 +56,25 @@ int jsonInt(const nlohmann::json& j, const std::string& key, const std::string& 
   return static_cast<int>(v.get<int64_t>());
 }
 
-std::string jsonString(const nlohmann::json& j, const std::string& key, const std::string& file, const std::string& path) {
+std::string jsonString(const nlohmann::json& j, const std::string& key, const std::string& file,
+                       const std::string& path) {
   const nlohmann::json& v = jsonKey(j, key, file, path);
   if (!v.is_string()) throw InputError(file, "key '" + path + key + "' must be a string");
   return v.get<std::string>();
 }
 
-double jsonNumberOr(const nlohmann::json& j, const std::string& key, double fallback, const std::string& file, const std::string& path) {
+double jsonNumberOr(const nlohmann::json& j, const std::string& key, double fallback, const std::string& file,
+                    const std::string& path) {
   return j.is_object() && j.contains(key) ? jsonNumber(j, key, file, path) : fallback;
 }
 
-int jsonIntOr(const nlohmann::json& j, const std::string& key, int fallback, const std::string& file, const std::string& path) {
+int jsonIntOr(const nlohmann::json& j, const std::string& key, int fallback, const std::string& file,
+              const std::string& path) {
   return j.is_object() && j.contains(key) ? jsonInt(j, key, file, path) : fallback;
 }
 
-std::string jsonStringOr(const nlohmann::json& j, const std::string& key, const std::string& fallback, const std::string& file,
-                       const std::string& path) {
+std::string jsonStringOr(const nlohmann::json& j, const std::string& key, const std::string& fallback,
+                         const std::string& file, const std::string& path) {
   return j.is_object() && j.contains(key) ? jsonString(j, key, file, path) : fallback;
 }
 
@@ -96,7 +100,9 @@ bool firstNonFinite(const nlohmann::json& j, std::string& path) {
 
 void requireFiniteJson(const nlohmann::json& j, const std::string& where, const std::string& problem) {
   std::string path;
-  if (firstNonFinite(j, path)) throw InputError(where, problem + " gives a non-finite " + (path.empty() ? "value" : path.substr(path[0] == '.' ? 1 : 0)));
+  if (firstNonFinite(j, path))
+    throw InputError(where,
+                     problem + " gives a non-finite " + (path.empty() ? "value" : path.substr(path[0] == '.' ? 1 : 0)));
 }
 
 }  // namespace mrgi::capture

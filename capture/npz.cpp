@@ -6,8 +6,8 @@
 #include <iterator>
 #include <regex>
 
-#include "capture/error.h"
 #include "capture/checks.h"
+#include "capture/error.h"
 
 namespace mrgi::capture {
 namespace {
@@ -47,23 +47,32 @@ cv::Mat parseNpy(const std::string& b, const std::string& where) {
     // dimension reached memcpy with no buffer).
     const std::string digits = it->str();
     const long long d = digits.size() <= 9 ? std::stoll(digits) : -1;
-    if (d < 1 || d > (1 << 24)) throw CaptureError(where, ".npy dimension " + digits.substr(0, 12) + " out of range [1, 16777216]");
+    if (d < 1 || d > (1 << 24))
+      throw CaptureError(where, ".npy dimension " + digits.substr(0, 12) + " out of range [1, 16777216]");
     shape.push_back(static_cast<int>(d));
   }
   if (shape.empty() || shape.size() > 3) throw CaptureError(where, ".npy arrays of 1-3 dimensions only");
   int depth = -1;
-  if (kind == 'u' && size == 1) depth = CV_8U;
-  else if (kind == 'u' && size == 2) depth = CV_16U;
-  else if (kind == 'i' && size == 2) depth = CV_16S;
-  else if (kind == 'i' && size == 4) depth = CV_32S;
-  else if (kind == 'f' && size == 4) depth = CV_32F;
-  else if (kind == 'f' && size == 8) depth = CV_64F;
-  else throw CaptureError(where, std::string("unsupported .npy dtype ") + kind + std::to_string(size));
+  if (kind == 'u' && size == 1)
+    depth = CV_8U;
+  else if (kind == 'u' && size == 2)
+    depth = CV_16U;
+  else if (kind == 'i' && size == 2)
+    depth = CV_16S;
+  else if (kind == 'i' && size == 4)
+    depth = CV_32S;
+  else if (kind == 'f' && size == 4)
+    depth = CV_32F;
+  else if (kind == 'f' && size == 8)
+    depth = CV_64F;
+  else
+    throw CaptureError(where, std::string("unsupported .npy dtype ") + kind + std::to_string(size));
   const int rows = shape.size() >= 2 ? shape[0] : 1, cols = shape.size() >= 2 ? shape[1] : shape[0];
   const int channels = shape.size() == 3 ? shape[2] : 1;
   if (channels < 1 || channels > CV_CN_MAX) throw CaptureError(where, "unsupported .npy channel count");
   // The data must be there before anything is allocated for it.
-  const unsigned long long bytes = static_cast<unsigned long long>(rows) * cols * channels * static_cast<unsigned long long>(size);
+  const unsigned long long bytes =
+      static_cast<unsigned long long>(rows) * cols * channels * static_cast<unsigned long long>(size);
   if (b.size() - dataAt < bytes) throw CaptureError(where, "truncated .npy data");
   cv::Mat out(rows, cols, CV_MAKETYPE(depth, channels));
   std::memcpy(out.data, b.data() + dataAt, bytes);
@@ -97,7 +106,9 @@ cv::Mat readNpzArray(const std::string& path, const std::string& name) {
       x += 4 + len;
     }
     if (entry == name) {
-      if (method != 0) throw CaptureError(path, "entry " + name + " is compressed (only numpy.savez, not savez_compressed, is supported)");
+      if (method != 0)
+        throw CaptureError(path,
+                           "entry " + name + " is compressed (only numpy.savez, not savez_compressed, is supported)");
       if (le(b, local, 4, path) != 0x04034b50) throw CaptureError(path, "corrupt zip local header for " + name);
       const uint64_t dataAt = local + 30 + le(b, local + 26, 2, path) + le(b, local + 28, 2, path);
       if (dataAt + size > b.size()) throw CaptureError(path, "truncated entry " + name);

@@ -1,9 +1,8 @@
 #pragma once
 /// NumPy .npy arrays and uncompressed .npz archives (numpy.savez), as some public RGB-D datasets ship
 /// depth. Only what depth needs: little-endian integer/float dtypes, C order, 1-3 dimensions.
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 namespace mrgi::capture {
 

@@ -7,7 +7,6 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
-
 #include <opencv2/core.hpp>
 
 #include "capture/error.h"
@@ -34,7 +33,9 @@ void initialiseOnce() {
 }
 
 /// A usable field of view: finite, in (0, pi).
-bool usableFov(double h, double v) { return std::isfinite(h) && std::isfinite(v) && h > 0 && v > 0 && h < CV_PI && v < CV_PI; }
+bool usableFov(double h, double v) {
+  return std::isfinite(h) && std::isfinite(v) && h > 0 && v > 0 && h < CV_PI && v < CV_PI;
+}
 
 /// Intrinsics from a stream's fields of view (OpenNI2 reports no principal point: the image centre).
 /// A stream that reports no usable field of view (colour streams of OpenNI 1.x recordings report 0) takes
@@ -52,7 +53,8 @@ Intrinsics intrinsicsOf(const openni::VideoStream& s, const std::string& uri, co
                                   " x " + std::to_string(v) + " rad); its intrinsics are unknown");
     h = fallback->getHorizontalFieldOfView();
     v = fallback->getVerticalFieldOfView();
-    std::fprintf(stderr, "warning: %s: the %s stream reports no field of view; using the depth stream's (%.1f x %.1f deg)\n",
+    std::fprintf(stderr,
+                 "warning: %s: the %s stream reports no field of view; using the depth stream's (%.1f x %.1f deg)\n",
                  uri.c_str(), name, h * 180 / CV_PI, v * 180 / CV_PI);
   }
   k.fx = k.width / (2.0 * std::tan(h / 2.0));
@@ -93,21 +95,23 @@ struct OpenNI2Source::Impl {
   int64_t index = 0;
   int64_t fileFrames = -1;
   double lastTimestamp = -1.0;
-  int64_t colourFrames = -1, colourRead = 0;  ///< file playback: the colour stream's length, frames read
+  int64_t colourFrames = -1, colourRead = 0;   ///< file playback: the colour stream's length, frames read
   bool flipDepth = false, flipColour = false;  ///< recorded mirrored: un-mirror in software
   std::optional<NearestInTime<openni::VideoFrameRef>> colourPairs;  ///< file playback: colour nearest in time
 };
 
-OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& options) : impl_(std::make_unique<Impl>()) {
+OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& options)
+    : impl_(std::make_unique<Impl>()) {
   auto& d = *impl_;
   d.isFile = deviceUri.size() > 4 && deviceUri.compare(deviceUri.size() - 4, 4, ".oni") == 0;
   d.uri = d.isFile ? deviceUri : "openni2://" + deviceUri;
   initialiseOnce();
   if (d.device.open(deviceUri.empty() ? openni::ANY_DEVICE : deviceUri.c_str()) != openni::STATUS_OK)
-    throw CaptureError(d.isFile ? deviceUri : d.uri,
-                       d.isFile ? "cannot open .oni file (" + describeOniFile(deviceUri) + "; OpenNI2: " + lastError() +
-                                      "): truncated or corrupt"
-                                : deviceUri.empty() ? "no depth sensor connected" : "cannot open device (" + lastError() + ")");
+    throw CaptureError(d.isFile ? deviceUri : d.uri, d.isFile
+                                                         ? "cannot open .oni file (" + describeOniFile(deviceUri) +
+                                                               "; OpenNI2: " + lastError() + "): truncated or corrupt"
+                                                     : deviceUri.empty() ? "no depth sensor connected"
+                                                                         : "cannot open device (" + lastError() + ")");
   if (!d.device.hasSensor(openni::SENSOR_DEPTH) || d.depth.create(d.device, openni::SENSOR_DEPTH) != openni::STATUS_OK)
     throw CaptureError(d.uri, "device has no depth stream");
   if (d.device.hasSensor(openni::SENSOR_COLOR) && d.colour.create(d.device, openni::SENSOR_COLOR) == openni::STATUS_OK)
@@ -119,7 +123,8 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
       const auto& modes = s.getSensorInfo().getSupportedVideoModes();
       for (int i = 0; i < modes.getSize(); ++i) {
         const auto& m = modes[i];
-        const bool sizeOk = options.width == 0 || (m.getResolutionX() == options.width && m.getResolutionY() == options.height);
+        const bool sizeOk =
+            options.width == 0 || (m.getResolutionX() == options.width && m.getResolutionY() == options.height);
         if (m.getPixelFormat() == fmt && sizeOk && m.getFps() >= 25) {
           s.setVideoMode(m);
           return;
@@ -147,7 +152,8 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
   if (d.hasColour) d.colour.setMirroringEnabled(false);
   d.flipDepth = d.depth.getMirroringEnabled();
   d.flipColour = d.hasColour && d.colour.getMirroringEnabled();
-  if (d.depth.start() != openni::STATUS_OK) throw CaptureError(d.uri, "cannot start the depth stream (" + lastError() + ")");
+  if (d.depth.start() != openni::STATUS_OK)
+    throw CaptureError(d.uri, "cannot start the depth stream (" + lastError() + ")");
   if (d.hasColour && d.colour.start() != openni::STATUS_OK)
     throw CaptureError(d.uri, "cannot start the colour stream (" + lastError() + ")");
 
@@ -208,7 +214,7 @@ std::optional<Frame> OpenNI2Source::next() {
 
   Frame f;
   f.index = d.index++;
-  f.timestamp = static_cast<double>(depthFrame.getTimestamp()) * 1e-6;  // microseconds
+  f.timestamp = static_cast<double>(depthFrame.getTimestamp()) * 1e-6;       // microseconds
   if (f.timestamp <= d.lastTimestamp) f.timestamp = d.lastTimestamp + 1e-6;  // keep the contract: increasing
   d.lastTimestamp = f.timestamp;
 
@@ -220,8 +226,8 @@ std::optional<Frame> OpenNI2Source::next() {
   raw.convertTo(r.depth, CV_32F, unit);
   if (d.flipDepth) cv::flip(r.depth, r.depth, 1);
   if (d.hasColour) {
-    const cv::Mat rgb(colourFrame.getHeight(), colourFrame.getWidth(), CV_8UC3, const_cast<void*>(colourFrame.getData()),
-                      colourFrame.getStrideInBytes());
+    const cv::Mat rgb(colourFrame.getHeight(), colourFrame.getWidth(), CV_8UC3,
+                      const_cast<void*>(colourFrame.getData()), colourFrame.getStrideInBytes());
     r.colour = rgb.clone();
     if (d.flipColour) cv::flip(r.colour, r.colour, 1);
   } else {

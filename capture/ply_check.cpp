@@ -49,10 +49,10 @@ void checkPlyFile(const std::string& path) {
   in.clear();
   in.seekg(0);
   if (!std::getline(in, line) || (line != "ply" && line != "ply\r")) bad("the first line is not 'ply'");
-  static const std::map<std::string, int> kTypes{{"char", 1},   {"uchar", 1},   {"short", 2},   {"ushort", 2},
-                                                 {"int", 4},    {"uint", 4},    {"float", 4},   {"double", 8},
-                                                 {"int8", 1},   {"uint8", 1},   {"int16", 2},   {"uint16", 2},
-                                                 {"int32", 4},  {"uint32", 4},  {"float32", 4}, {"float64", 8}};
+  static const std::map<std::string, int> kTypes{{"char", 1},  {"uchar", 1},  {"short", 2},   {"ushort", 2},
+                                                 {"int", 4},   {"uint", 4},   {"float", 4},   {"double", 8},
+                                                 {"int8", 1},  {"uint8", 1},  {"int16", 2},   {"uint16", 2},
+                                                 {"int32", 4}, {"uint32", 4}, {"float32", 4}, {"float64", 8}};
   struct Property {
     int countBytes = 0, itemBytes = 0;  // countBytes > 0: a list
     bool indices = false;               // a face's vertex index list: every index must name a vertex
@@ -81,7 +81,8 @@ void checkPlyFile(const std::string& path) {
     std::vector<std::string> rest;
     for (std::string w; words >> w;) rest.push_back(w);
     if (word == "format") {
-      if (rest.size() != 2 || (rest[0] != "ascii" && rest[0] != "binary_little_endian" && rest[0] != "binary_big_endian"))
+      if (rest.size() != 2 ||
+          (rest[0] != "ascii" && rest[0] != "binary_little_endian" && rest[0] != "binary_big_endian"))
         bad("format line '" + line + "'");
       format = rest[0];
     } else if (word == "element") {
@@ -110,8 +111,8 @@ void checkPlyFile(const std::string& path) {
         if (rest[2] == "float" || rest[2] == "double" || rest[2] == "float32" || rest[2] == "float64")
           bad("face indices of type " + rest[2]);
         prop.indices = true;
-        prop.signedItem = rest[2] == "char" || rest[2] == "short" || rest[2] == "int" || rest[2] == "int8" || rest[2] == "int16" ||
-                          rest[2] == "int32";
+        prop.signedItem = rest[2] == "char" || rest[2] == "short" || rest[2] == "int" || rest[2] == "int8" ||
+                          rest[2] == "int16" || rest[2] == "int32";
       }
       elements.back().properties.push_back(prop);
     } else {
@@ -126,9 +127,12 @@ void checkPlyFile(const std::string& path) {
     if (e.name != "vertex") continue;
     auto has = [&](const char* n) { return std::find(e.names.begin(), e.names.end(), n) != e.names.end(); };
     if (!has("x") || !has("y") || !has("z")) bad("a vertex element needs the properties x, y and z");
-    for (const auto& group : {std::array<const char*, 3>{"nx", "ny", "nz"}, std::array<const char*, 3>{"red", "green", "blue"}}) {
+    for (const auto& group :
+         {std::array<const char*, 3>{"nx", "ny", "nz"}, std::array<const char*, 3>{"red", "green", "blue"}}) {
       const int n = has(group[0]) + has(group[1]) + has(group[2]);
-      if (n != 0 && n != 3) bad(std::string("a vertex element with some of ") + group[0] + ", " + group[1] + ", " + group[2] + " needs all three");
+      if (n != 0 && n != 3)
+        bad(std::string("a vertex element with some of ") + group[0] + ", " + group[1] + ", " + group[2] +
+            " needs all three");
     }
   }
   uint64_t vertices = 0;
@@ -164,7 +168,8 @@ void checkPlyFile(const std::string& path) {
           std::string word;
           if (!(words >> word)) {
             if (in.peek() == EOF) truncated(e, i);  // the last line, cut short
-            throw InputError(path, "malformed PLY: " + e.name + " element " + std::to_string(i) + " has too few values");
+            throw InputError(path,
+                             "malformed PLY: " + e.name + " element " + std::to_string(i) + " has too few values");
           }
           char* end = nullptr;
           const double value = std::strtod(word.c_str(), &end);
@@ -177,8 +182,10 @@ void checkPlyFile(const std::string& path) {
           const double first = number();
           if (p.countBytes > 0) {
             if (!(first >= 0 && first <= 1e6 && first == std::floor(first)))
-              throw InputError(path, "malformed PLY: " + e.name + " element " + std::to_string(i) + " has a list length of " + std::to_string(first));
-            if (p.indices && first < 3) badFace(i, "has " + std::to_string(static_cast<int>(first)) + " vertex indices (at least 3)");
+              throw InputError(path, "malformed PLY: " + e.name + " element " + std::to_string(i) +
+                                         " has a list length of " + std::to_string(first));
+            if (p.indices && first < 3)
+              badFace(i, "has " + std::to_string(static_cast<int>(first)) + " vertex indices (at least 3)");
             for (int k = 0; k < static_cast<int>(first); ++k) {
               const double v = number();
               if (p.indices) checkIndex(i, v);
@@ -201,7 +208,9 @@ void checkPlyFile(const std::string& path) {
           if (at + static_cast<uint64_t>(p.countBytes) > body.size()) truncated(e, i);
           items = 0;
           for (int k = 0; k < p.countBytes; ++k)
-            items |= uint64_t(static_cast<unsigned char>(body[at + static_cast<uint64_t>(swap ? p.countBytes - 1 - k : k)])) << (8 * k);
+            items |=
+                uint64_t(static_cast<unsigned char>(body[at + static_cast<uint64_t>(swap ? p.countBytes - 1 - k : k)]))
+                << (8 * k);
           at += static_cast<uint64_t>(p.countBytes);
         }
         if (items > body.size() || at + items * static_cast<uint64_t>(p.itemBytes) > body.size()) truncated(e, i);
@@ -211,7 +220,8 @@ void checkPlyFile(const std::string& path) {
             uint64_t raw = 0;
             for (int b = 0; b < p.itemBytes; ++b)
               raw |= uint64_t(static_cast<unsigned char>(body[at + k * static_cast<uint64_t>(p.itemBytes) +
-                                                              static_cast<uint64_t>(swap ? p.itemBytes - 1 - b : b)])) << (8 * b);
+                                                              static_cast<uint64_t>(swap ? p.itemBytes - 1 - b : b)]))
+                     << (8 * b);
             double v = static_cast<double>(raw);
             if (p.signedItem && (raw >> (8 * p.itemBytes - 1)) & 1) v -= std::ldexp(1.0, 8 * p.itemBytes);
             checkIndex(i, v);

@@ -5,7 +5,8 @@
 
 namespace mrgi::capture {
 
-cv::Mat registerDepthToColour(const cv::Mat& depth, const Intrinsics& dk, const Intrinsics& ck, const Pose& T, int maxSplat) {
+cv::Mat registerDepthToColour(const cv::Mat& depth, const Intrinsics& dk, const Intrinsics& ck, const Pose& T,
+                              int maxSplat) {
   CV_Assert(depth.type() == CV_32FC1 && depth.cols == dk.width && depth.rows == dk.height && dk.valid() && ck.valid());
   cv::Mat out(ck.height, ck.width, CV_32FC1, cv::Scalar(0));
   auto project = [&](double u, double v, double z, double& cu, double& cv_, double& cz) {
@@ -31,8 +32,10 @@ cv::Mat registerDepthToColour(const cv::Mat& depth, const Intrinsics& dk, const 
         cz += zz / 4;
       }
       if (!ok) continue;
-      const int x0 = static_cast<int>(std::ceil(lo[0] - 0.5)), x1 = std::min(static_cast<int>(std::floor(hi[0] - 0.5)), x0 + maxSplat - 1);
-      const int y0 = static_cast<int>(std::ceil(lo[1] - 0.5)), y1 = std::min(static_cast<int>(std::floor(hi[1] - 0.5)), y0 + maxSplat - 1);
+      const int x0 = static_cast<int>(std::ceil(lo[0] - 0.5)),
+                x1 = std::min(static_cast<int>(std::floor(hi[0] - 0.5)), x0 + maxSplat - 1);
+      const int y0 = static_cast<int>(std::ceil(lo[1] - 0.5)),
+                y1 = std::min(static_cast<int>(std::floor(hi[1] - 0.5)), y0 + maxSplat - 1);
       for (int y = std::max(y0, 0); y <= std::min(y1, ck.height - 1); ++y)
         for (int x = std::max(x0, 0); x <= std::min(x1, ck.width - 1); ++x) {
           float& o = out.at<float>(y, x);

@@ -1,7 +1,6 @@
 #include "capture/sensor_model.h"
 
 #include <cmath>
-
 #include <opencv2/imgproc.hpp>
 
 namespace mrgi::capture {
@@ -48,7 +47,8 @@ cv::Mat applyDepthNoise(const cv::Mat& ideal, const cv::Mat& normals, double fx,
   }
   for (int i = 0; i < m.holesPerFrame; ++i) {
     const cv::Point centre(rng.uniform(0, ideal.cols), rng.uniform(0, ideal.rows));
-    const cv::Size axes(rng.uniform(2, static_cast<int>(m.maxHoleRadiusPx) + 3), rng.uniform(2, static_cast<int>(m.maxHoleRadiusPx) + 3));
+    const cv::Size axes(rng.uniform(2, static_cast<int>(m.maxHoleRadiusPx) + 3),
+                        rng.uniform(2, static_cast<int>(m.maxHoleRadiusPx) + 3));
     cv::ellipse(out, centre, axes, rng.uniform(0.0, 180.0), 0, 360, cv::Scalar(0), cv::FILLED);
   }
   return out;

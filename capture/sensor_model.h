@@ -6,7 +6,6 @@
 ///  - dropouts along depth discontinuities (the projector/camera baseline shadow);
 ///  - random elliptical holes; no returns outside [minRange, maxRange].
 #include <cstdint>
-
 #include <opencv2/core.hpp>
 
 namespace mrgi::capture {
@@ -14,10 +13,10 @@ namespace mrgi::capture {
 struct DepthNoiseModel {
   double sigmaA = 0.0012, sigmaB = 0.0019, sigmaZ0 = 0.4;  ///< metres, metres/m^2, metres
   double minRange = 0.4, maxRange = 4.0;                   ///< metres
-  double maxIncidenceDeg = 78.0;       ///< beyond this angle returns drop out
-  double edgeJump = 0.04;              ///< metres: a neighbour this much farther marks an edge
-  double edgeDropProbability = 0.6;    ///< per pixel next to an edge
-  int holesPerFrame = 3;               ///< random elliptical holes
+  double maxIncidenceDeg = 78.0;                           ///< beyond this angle returns drop out
+  double edgeJump = 0.04;                                  ///< metres: a neighbour this much farther marks an edge
+  double edgeDropProbability = 0.6;                        ///< per pixel next to an edge
+  int holesPerFrame = 3;                                   ///< random elliptical holes
   double maxHoleRadiusPx = 9.0;
 };
 

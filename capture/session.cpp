@@ -1,9 +1,5 @@
 #include "capture/session.h"
 
-#include "capture/json_io.h"
-
-#include <limits>
-
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -12,14 +8,15 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
-
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
+#include "capture/json_io.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -68,8 +65,8 @@ Intrinsics intrinsicsFromJson(const json& j, const std::string& file, const std:
   if (!k.valid()) throw CaptureError(file, "key '" + path + "' holds non-positive size or focal length");
   // Larger than any sensor: its frames could not be allocated, let alone lit.
   if (k.width > kMaxImageSide || k.height > kMaxImageSide)
-    throw CaptureError(file, "key '" + path + "' holds an image of " + std::to_string(k.width) + "x" + std::to_string(k.height) +
-                                 " (at most " + std::to_string(kMaxImageSide) + " a side)");
+    throw CaptureError(file, "key '" + path + "' holds an image of " + std::to_string(k.width) + "x" +
+                                 std::to_string(k.height) + " (at most " + std::to_string(kMaxImageSide) + " a side)");
   return k;
 }
 
@@ -169,9 +166,9 @@ SessionManifest SessionManifest::fromJsonChecked(const json& j, const std::strin
   m.depthRegistered = optionalKey<bool>(d, "registered", true, file, "depth.");
   if (d.contains("T_colour_depth")) m.T_colour_depth = poseFromJson(d["T_colour_depth"], file, "depth.T_colour_depth");
   if (m.depthRegistered && (m.depth.width != m.colour.width || m.depth.height != m.colour.height))
-    throw CaptureError(file, "registered depth must match the colour resolution (depth " + std::to_string(m.depth.width) +
-                                 "x" + std::to_string(m.depth.height) + ", colour " + std::to_string(m.colour.width) +
-                                 "x" + std::to_string(m.colour.height) + ")");
+    throw CaptureError(file, "registered depth must match the colour resolution (depth " +
+                                 std::to_string(m.depth.width) + "x" + std::to_string(m.depth.height) + ", colour " +
+                                 std::to_string(m.colour.width) + "x" + std::to_string(m.colour.height) + ")");
   if (j.contains("fisheye")) {
     const json& f = j["fisheye"];
     FisheyeCalibration c;
@@ -183,13 +180,15 @@ SessionManifest SessionManifest::fromJsonChecked(const json& j, const std::strin
     for (int i = 0; i < 9; ++i) c.K(i / 3, i % 3) = K[i];
     const auto D = numbers(need(f, "D", file, "fisheye."), 4, file, "fisheye.D");
     c.D = {D[0], D[1], D[2], D[3]};
-    if (f.contains("T_world_fisheye")) c.T_world_fisheye = poseFromJson(f["T_world_fisheye"], file, "fisheye.T_world_fisheye");
+    if (f.contains("T_world_fisheye"))
+      c.T_world_fisheye = poseFromJson(f["T_world_fisheye"], file, "fisheye.T_world_fisheye");
     m.fisheye = c;
   }
   if (j.contains("marker")) {
     const json& mk = j["marker"];
     MarkerSpec s;
-    if (!mk.contains("family") || !mk["family"].is_string()) throw CaptureError(file, "key 'marker.family' must be a string");
+    if (!mk.contains("family") || !mk["family"].is_string())
+      throw CaptureError(file, "key 'marker.family' must be a string");
     s.family = mk["family"].get<std::string>();
     s.sizeMetres = number(mk, "size_m", file, "marker.");
     s.id = integer(mk, "id", file, "marker.");
@@ -237,7 +236,8 @@ void SessionWriter::append(const Frame& frame) {
   json line = {{"index", i}, {"t", frame.timestamp}};
   if (frame.rgbd) {
     const RgbdFrame& f = *frame.rgbd;
-    if (f.colour.type() != CV_8UC3 || f.colour.cols != manifest_.colour.width || f.colour.rows != manifest_.colour.height)
+    if (f.colour.type() != CV_8UC3 || f.colour.cols != manifest_.colour.width ||
+        f.colour.rows != manifest_.colour.height)
       throw CaptureError(dir_, "colour frame does not match the manifest's size/type");
     if (f.depth.type() != CV_32FC1 || f.depth.cols != manifest_.depth.width || f.depth.rows != manifest_.depth.height)
       throw CaptureError(dir_, "depth frame does not match the manifest's size/type");
@@ -246,7 +246,8 @@ void SessionWriter::append(const Frame& frame) {
     writeFileAtomically(dir / depthName, encodePng(depthToUnits(f.depth, manifest_.depthUnitsMetres), depthName));
     line["colour"] = colourName;
     line["depth"] = depthName;
-    if (!(f.exposure > 0) || !std::isfinite(f.exposure)) throw CaptureError(dir_, "colour exposure must be positive and finite");
+    if (!(f.exposure > 0) || !std::isfinite(f.exposure))
+      throw CaptureError(dir_, "colour exposure must be positive and finite");
     if (f.exposure != 1.0) line["colour_exposure"] = f.exposure;
   }
   if (frame.fisheye) {
@@ -276,7 +277,8 @@ void SessionWriter::append(const Frame& frame) {
     if (n <= 0) throw CaptureError((dir / kIndex).string(), std::string("write failed: ") + std::strerror(errno));
     done += static_cast<size_t>(n);
   }
-  if (::fsync(indexFd_) != 0) throw CaptureError((dir / kIndex).string(), std::string("fsync failed: ") + std::strerror(errno));
+  if (::fsync(indexFd_) != 0)
+    throw CaptureError((dir / kIndex).string(), std::string("fsync failed: ") + std::strerror(errno));
   lastTimestamp_ = frame.timestamp;
   ++written_;
 }
@@ -322,7 +324,8 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
       throw CaptureError(where, "frame index " + std::to_string(e.index) + " out of sequence (expected " +
                                     std::to_string(entries_.size()) + ")");
     if (!entries_.empty() && !(e.t > entries_.back().t))
-      throw CaptureError(where, "timestamp " + formatNumber(e.t) + " does not increase (previous " + formatNumber(entries_.back().t) + ")");
+      throw CaptureError(where, "timestamp " + formatNumber(e.t) + " does not increase (previous " +
+                                    formatNumber(entries_.back().t) + ")");
     auto relPath = [&](const char* key) -> std::string {
       if (!j.contains(key)) return {};
       if (!j[key].is_string()) throw CaptureError(where, std::string("key '") + key + "' must be a string");
@@ -334,7 +337,8 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
     e.colour = relPath("colour");
     e.depth = relPath("depth");
     e.fisheye = relPath("fisheye");
-    if (e.colour.empty() != e.depth.empty()) throw CaptureError(where, "a frame needs both 'colour' and 'depth' or neither");
+    if (e.colour.empty() != e.depth.empty())
+      throw CaptureError(where, "a frame needs both 'colour' and 'depth' or neither");
     if (e.colour.empty() && e.fisheye.empty()) throw CaptureError(where, "frame has no images");
     if (!e.fisheye.empty() && !manifest_.fisheye)
       throw CaptureError(where, "frame has a fisheye image but the manifest has no fisheye calibration");
@@ -402,8 +406,10 @@ Frame SessionSource::read(int64_t i) const {
       // place its lights nowhere, and the object would render black).
       double lo = 0, hi = 0;
       const cv::Mat flat = ff.image.reshape(1);
-      if (cv::checkRange(flat, true, nullptr, -1e30, 1e30)) cv::minMaxLoc(flat, &lo, &hi);
-      else lo = hi = std::numeric_limits<double>::quiet_NaN();
+      if (cv::checkRange(flat, true, nullptr, -1e30, 1e30))
+        cv::minMaxLoc(flat, &lo, &hi);
+      else
+        lo = hi = std::numeric_limits<double>::quiet_NaN();
       if (!std::isfinite(lo) || !std::isfinite(hi)) throw CaptureError(path, "fisheye image holds non-finite values");
       if (lo < 0) throw CaptureError(path, "fisheye image holds negative radiance (" + std::to_string(lo) + ")");
       if (!(hi > 0)) throw CaptureError(path, "fisheye image is black everywhere: no light to estimate");

@@ -3,11 +3,10 @@
 /// line per complete frame) and per-frame image files. Writing is crash-safe: a reader replays a
 /// recording cut at any byte up to its last complete frame.
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "capture/frame_source.h"
 #include "capture/ground_truth.h"

@@ -4,9 +4,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
-
 #include <opencv2/core/quaternion.hpp>
+#include <sstream>
 
 #include "capture/checks.h"
 #include "capture/error.h"
@@ -31,7 +30,8 @@ std::vector<TumEntry> readTumList(const std::string& path) {
     if (!(ls >> e.t) || !std::isfinite(e.t)) throw CaptureError(path + ":" + std::to_string(lineNo), "bad timestamp");
     std::getline(ls, rest);
     const auto b = rest.find_first_not_of(" \t"), en = rest.find_last_not_of(" \t\r");
-    if (b == std::string::npos) throw CaptureError(path + ":" + std::to_string(lineNo), "missing value after timestamp");
+    if (b == std::string::npos)
+      throw CaptureError(path + ":" + std::to_string(lineNo), "missing value after timestamp");
     e.value = rest.substr(b, en - b + 1);
     e.line = lineNo;
     if (!out.empty() && !(e.t > out.back().t))
@@ -83,7 +83,8 @@ TumSource::TumSource(const std::string& directory) : dir_(directory) {
       if (e.value.find_first_of(" \t") != std::string::npos)
         throw CaptureError(where, "expected one image path after the timestamp, not '" + excerpt(e.value, 60) + "'");
       std::error_code ec;
-      if (!fs::is_regular_file(dir / e.value, ec)) throw CaptureError(where, "names " + excerpt(e.value, 120) + ", which is missing");
+      if (!fs::is_regular_file(dir / e.value, ec))
+        throw CaptureError(where, "names " + excerpt(e.value, 120) + ", which is missing");
     }
     return entries;
   };
@@ -93,7 +94,8 @@ TumSource::TumSource(const std::string& directory) : dir_(directory) {
   for (const auto& e : rgb) tr.push_back(e.t);
   for (const auto& e : depth) td.push_back(e.t);
   const auto pairs = associateTimestamps(tr, td, kTumMaxAssociationGap);
-  if (pairs.empty()) throw CaptureError((dir / "depth.txt").string(), "no depth frame lies within 20 ms of a colour frame");
+  if (pairs.empty())
+    throw CaptureError((dir / "depth.txt").string(), "no depth frame lies within 20 ms of a colour frame");
 
   std::vector<TumEntry> gt;
   std::vector<double> tg;
@@ -113,9 +115,12 @@ TumSource::TumSource(const std::string& directory) : dir_(directory) {
         double v[7];
         for (double& x : v)
           if (!(ps >> x) || !std::isfinite(x))
-            throw CaptureError(gtPath.string() + ":" + std::to_string(gt[best].line), "a pose line needs 7 finite numbers, not '" + excerpt(gt[best].value, 80) + "'");
+            throw CaptureError(gtPath.string() + ":" + std::to_string(gt[best].line),
+                               "a pose line needs 7 finite numbers, not '" + excerpt(gt[best].value, 80) + "'");
         const cv::Quatd q(v[6], v[3], v[4], v[5]);  // TUM order qx qy qz qw
-        if (!(q.norm() > 0.5)) throw CaptureError(gtPath.string() + ":" + std::to_string(gt[best].line), "the pose's quaternion is not of unit length");
+        if (!(q.norm() > 0.5))
+          throw CaptureError(gtPath.string() + ":" + std::to_string(gt[best].line),
+                             "the pose's quaternion is not of unit length");
         it.pose = makePose(q.normalize().toRotMat3x3(), cv::Vec3d(v[0], v[1], v[2]));
       }
     }

@@ -3,11 +3,10 @@
 /// Camera frame: OpenCV (x right, y down, z forward). Poses T_a_b map points from frame b to frame a.
 #include <cmath>
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 namespace mrgi::capture {
 
@@ -33,7 +32,7 @@ inline cv::Vec3d translationOf(const Pose& T) { return {T(0, 3), T(1, 3), T(2, 3
 /// The pose with rotation R and translation t.
 inline Pose makePose(const cv::Matx33d& R, const cv::Vec3d& t) {
   return {R(0, 0), R(0, 1), R(0, 2), t[0], R(1, 0), R(1, 1), R(1, 2), t[1],
-          R(2, 0), R(2, 1), R(2, 2), t[2], 0, 0, 0, 1};
+          R(2, 0), R(2, 1), R(2, 2), t[2], 0,       0,       0,       1};
 }
 /// The inverse of a rigid transform.
 inline Pose inversePose(const Pose& T) {
@@ -91,7 +90,7 @@ struct GroundTruthLight {
   cv::Vec3d intensity{0, 0, 0};   ///< point/spot: W/sr per channel
   cv::Vec3d irradiance{0, 0, 0};  ///< directional: W/m^2 at normal incidence
   double spotHalfAngleDeg = 45;
-  double radius = 0;              ///< emitter radius (metres) the generator rendered, 0 = a delta light
+  double radius = 0;  ///< emitter radius (metres) the generator rendered, 0 = a delta light
 };
 
 struct Frame {

@@ -11,7 +11,6 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -39,8 +38,8 @@ cv::Mat decodeV4l2Buffer(uint32_t fourcc, const uint8_t* data, size_t bytes, int
     case V4L2_PIX_FMT_YUYV: {
       const size_t stride = bytesPerLine ? bytesPerLine : static_cast<size_t>(width) * 2;
       if (bytes < stride * static_cast<size_t>(height))
-        throw CaptureError(where, "YUYV buffer holds " + std::to_string(bytes) + " bytes, needs " +
-                                      std::to_string(stride * height));
+        throw CaptureError(
+            where, "YUYV buffer holds " + std::to_string(bytes) + " bytes, needs " + std::to_string(stride * height));
       const cv::Mat yuyv(height, width, CV_8UC2, const_cast<uint8_t*>(data), stride);
       cv::cvtColor(yuyv, rgb, cv::COLOR_YUV2RGB_YUYV);
       break;
@@ -154,8 +153,7 @@ FisheyeCalibration readFisheyeCalibration(const std::string& path) {
 }
 
 V4l2Source::V4l2Source(const std::string& devicePath, const OpenOptions& options) : uri_("v4l2://" + devicePath) {
-  if (options.fisheyeCalibration.empty())
-    throw CaptureError(uri_, "a fisheye camera needs --fisheye-calib CALIB.yaml");
+  if (options.fisheyeCalibration.empty()) throw CaptureError(uri_, "a fisheye camera needs --fisheye-calib CALIB.yaml");
   calibration_ = readFisheyeCalibration(options.fisheyeCalibration);
   fd_ = v4l2_open(devicePath.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC, 0);
   if (fd_ < 0) throw CaptureError(uri_, std::string("cannot open camera: ") + std::strerror(errno));
@@ -165,7 +163,8 @@ V4l2Source::V4l2Source(const std::string& devicePath, const OpenOptions& options
     throw CaptureError(uri_, "not a streaming video capture device");
 
   // Prefer MJPEG (USB bandwidth), then YUYV, at the calibrated size unless told otherwise.
-  const int w = options.width ? options.width : calibration_.width, h = options.height ? options.height : calibration_.height;
+  const int w = options.width ? options.width : calibration_.width,
+            h = options.height ? options.height : calibration_.height;
   for (uint32_t fourcc : {V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_YUYV}) {
     v4l2_format fmt{};
     fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -224,11 +223,14 @@ std::optional<Frame> V4l2Source::next() {
   FD_SET(fd_, &fds);
   timeval tv{2, 0};
   const int r = select(fd_ + 1, &fds, nullptr, nullptr, &tv);
-  if (r <= 0) throw CaptureError(uri_, r == 0 ? "device gone (no frame for 2 s)" : std::string("device gone: ") + std::strerror(errno));
+  if (r <= 0)
+    throw CaptureError(uri_,
+                       r == 0 ? "device gone (no frame for 2 s)" : std::string("device gone: ") + std::strerror(errno));
   v4l2_buffer buf{};
   buf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   buf.memory = V4L2_MEMORY_MMAP;
-  if (xioctl(fd_, VIDIOC_DQBUF, &buf) < 0) throw CaptureError(uri_, std::string("device gone: ") + std::strerror(errno));
+  if (xioctl(fd_, VIDIOC_DQBUF, &buf) < 0)
+    throw CaptureError(uri_, std::string("device gone: ") + std::strerror(errno));
   Frame f;
   f.index = index_++;
   f.timestamp = static_cast<double>(buf.timestamp.tv_sec) + buf.timestamp.tv_usec * 1e-6;

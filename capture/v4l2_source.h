@@ -20,8 +20,8 @@ FisheyeCalibration readFisheyeCalibration(const std::string& path);
 /// distortion_model "equidistant", distortion_coefficients, rectification_matrix, projection_matrix),
 /// atomically; readFisheyeCalibration reads it back.
 /// `comment`, when given, is written as the file's first line ("# ...").
-void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& c, const std::string& cameraName = "fisheye",
-                             const std::string& comment = {});
+void writeFisheyeCalibration(const std::string& path, const FisheyeCalibration& c,
+                             const std::string& cameraName = "fisheye", const std::string& comment = {});
 
 class V4l2Source final : public FrameSource {
  public:

@@ -1,18 +1,18 @@
 #include "compositor/compositor.h"
 
 #include <cstring>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include <opencv2/imgproc.hpp>
-
-#include "gl/error.h"
 #include "capture/colour.h"
+#include "gl/error.h"
 
 namespace mrgi::compositor {
 
-cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask, double exposure) {
+cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask,
+                           double exposure) {
   CV_Assert(background.type() == CV_8UC3);
   cv::Mat linear = capture::decodeSrgb(background);
   if (!delta.empty()) {

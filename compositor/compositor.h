@@ -2,9 +2,8 @@
 /// The differential-rendering compositor (algorithms.md §3, Algorithm 1) in linear light:
 /// real pixels = background + delta, virtual pixels = their own shaded radiance; sRGB decode/encode only
 /// at the boundaries, the background otherwise untouched.
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "gl/objects.h"
 #include "gl/profiler.h"
@@ -16,7 +15,8 @@ namespace mrgi::compositor {
 /// virtualMask CV_8UC1, 255 on virtual pixels (empty = none), whose radiance is taken from delta.
 /// `exposure`: the camera image's linear value per unit scene radiance (capture::RgbdFrame::exposure);
 /// delta and virtual radiance are scene radiance and are scaled by it.
-cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask, double exposure = 1.0);
+cv::Mat compositeReference(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask,
+                           double exposure = 1.0);
 
 class Compositor {
  public:
@@ -27,7 +27,8 @@ class Compositor {
   Compositor& operator=(const Compositor&) = delete;
 
   /// Same contract as compositeReference, on the GPU; returns RGB8. Timed as "composite".
-  cv::Mat composite(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask, gl::Profiler* profiler);
+  cv::Mat composite(const cv::Mat& background, const cv::Mat& delta, const cv::Mat& virtualMask,
+                    gl::Profiler* profiler);
 
   /// Same merge with the delta already on the GPU: RGBA32F, rgb = delta or virtual radiance, a = 1 on
   /// virtual pixels (lighting::LightingPipeline::shade()).

@@ -1,11 +1,10 @@
 #pragma once
 // mrgi bench: the speed/accuracy sweep of the lighting techniques against the path-traced reference, its
 // report (CSV, self-contained HTML with SVG plots) and the presets chosen from the measured front.
-#include <string>
-#include <vector>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <string>
+#include <vector>
 
 #include "lighting/scene_file.h"
 
@@ -30,9 +29,9 @@ nlohmann::json knobsJson(const BenchConfig& c);
 std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, const lighting::KnobSet& base);
 
 /// The knob moves that cost a technique nothing, made together: for each technique's defaults (configs[i]
-/// measured as records[i]), its one-knob moves that took at least 10 % off the lighting time (more than the timing noise) and kept the error
-/// (mean of rel_error_delta and rel_error_virtual) within 1 % of the defaults' — the fastest value per knob
-/// — all applied at once, as one configuration with varied = "combined" (none for a technique with fewer
+/// measured as records[i]), its one-knob moves that took at least 10 % off the lighting time (more than the timing
+/// noise) and kept the error (mean of rel_error_delta and rel_error_virtual) within 1 % of the defaults' — the fastest
+/// value per knob — all applied at once, as one configuration with varied = "combined" (none for a technique with fewer
 /// than two such moves). Measured like the others, it joins the front the presets are chosen from: the
 /// one-at-a-time sweep cannot see that savings add up.
 std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs, const nlohmann::json& records);
@@ -70,8 +69,8 @@ cv::Rect galleryCrop(const cv::Mat& virtualMask, double grow = 1.0);
 /// columns, each the crop of the composite beside the crop of the real-pixel delta (mid grey = no change,
 /// black = the reference's darkest change or more, white as bright the other way, on a square-root scale so
 /// that a shadow's faint wide part shows; the objects' own pixels blue); tiles at least 160 pixels high.
-cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite, const cv::Mat& referenceDelta, const cv::Mat& virtualMask,
-                     const std::vector<GalleryRow>& rows);
+cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite, const cv::Mat& referenceDelta,
+                     const cv::Mat& virtualMask, const std::vector<GalleryRow>& rows);
 
 /// The first line of the CSV writeCsv writes (its column names).
 extern const char* const kCsvHeader;

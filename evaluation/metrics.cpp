@@ -2,10 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <vector>
-
 #include <opencv2/imgproc.hpp>
 #include <opencv2/quality.hpp>
+#include <vector>
 
 #include "capture/colour.h"
 
@@ -23,8 +22,8 @@ std::map<std::string, double> stageMs(gl::Profiler& profiler) {
 
 /// Best (per stage) over `repeats` full runs of the pipeline: each repeat starts from an invalidated pipeline,
 /// so no stage is skipped because its inputs did not change.
-std::map<std::string, double> bestStages(lighting::LightingPipeline& pipe, const lighting::CameraView& view, int repeats,
-                                         std::map<std::string, int>* runs) {
+std::map<std::string, double> bestStages(lighting::LightingPipeline& pipe, const lighting::CameraView& view,
+                                         int repeats, std::map<std::string, int>* runs) {
   gl::Profiler profiler;
   std::map<std::string, double> best;
   for (int i = 0; i < repeats; ++i) {
@@ -67,7 +66,8 @@ std::pair<double, double> flickerSums(const FrameState& prev, const FrameState& 
       if (p[3] < 0.5f || s[3] > 0.5f) continue;
       const cv::Vec3d c = capture::transformPoint(T_camera_marker, {p[0], p[1], p[2]});
       if (c[2] <= 0) continue;
-      const int u = static_cast<int>(std::lround(k.fx * c[0] / c[2] + k.cx)), v = static_cast<int>(std::lround(k.fy * c[1] / c[2] + k.cy));
+      const int u = static_cast<int>(std::lround(k.fx * c[0] / c[2] + k.cx)),
+                v = static_cast<int>(std::lround(k.fy * c[1] / c[2] + k.cy));
       if (u < 0 || v < 0 || u >= prev.positions.cols || v >= prev.positions.rows) continue;
       const cv::Vec4f q = prev.positions.at<cv::Vec4f>(v, u);
       const cv::Vec4f t = prev.shade.at<cv::Vec4f>(v, u);
@@ -113,7 +113,8 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects*
 ShadowSums shadowSums(const cv::Mat& shade, const Truth& truth, const NearObjects& near) {
   ShadowSums out;
   if (!(near.radius > 0)) return out;
-  cv::Mat lum(shade.size(), CV_32F, cv::Scalar(0)), lumRef(shade.size(), CV_32F, cv::Scalar(0)), m(shade.size(), CV_32F, cv::Scalar(0));
+  cv::Mat lum(shade.size(), CV_32F, cv::Scalar(0)), lumRef(shade.size(), CV_32F, cv::Scalar(0)),
+      m(shade.size(), CV_32F, cv::Scalar(0));
   for (int y = 0; y < shade.rows; ++y)
     for (int x = 0; x < shade.cols; ++x) {
       const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
@@ -143,7 +144,8 @@ ShadowSums shadowSums(const cv::Mat& shade, const Truth& truth, const NearObject
   return out;
 }
 
-UnbiasedError unbiasedSquaredError(const cv::Mat& x, const cv::Mat& r1, const cv::Mat& r2, const cv::Mat& mask, int tile) {
+UnbiasedError unbiasedSquaredError(const cv::Mat& x, const cv::Mat& r1, const cv::Mat& r2, const cv::Mat& mask,
+                                   int tile) {
   CV_Assert(x.size() == r1.size() && x.size() == r2.size() && tile >= 1);
   CV_Assert((x.type() == CV_32FC3 || x.type() == CV_32FC4) && r1.type() == CV_32FC3 && r2.type() == CV_32FC3);
   CV_Assert(mask.empty() || (mask.type() == CV_8UC1 && mask.size() == x.size()));

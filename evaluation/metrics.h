@@ -3,11 +3,10 @@
 // of the real-pixel delta and the virtual radiance, SSIM of the composites, error images), the frame-to-frame
 // flicker of the real-pixel delta, and stage timings of full pipeline runs.
 #include <map>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <utility>
-
-#include <opencv2/core.hpp>
 
 #include "capture/types.h"
 #include "gl/profiler.h"
@@ -22,8 +21,8 @@ std::map<std::string, double> stageMs(gl::Profiler& profiler);
 /// Best (per stage) over `repeats` full runs of the pipeline with no lights: each repeat starts from an
 /// invalidated pipeline, so no stage is skipped because its inputs did not change. `runs` (optional) counts
 /// per stage the repeats that timed it.
-std::map<std::string, double> bestStages(lighting::LightingPipeline& pipe, const lighting::CameraView& view, int repeats,
-                                         std::map<std::string, int>* runs = nullptr);
+std::map<std::string, double> bestStages(lighting::LightingPipeline& pipe, const lighting::CameraView& view,
+                                         int repeats, std::map<std::string, int>* runs = nullptr);
 
 /// The path-traced truth of one frame.
 struct Truth {
@@ -32,7 +31,6 @@ struct Truth {
   cv::Mat delta, composite;  ///< the compositor's delta input; the reference composite (RGB8)
   cv::Mat second;            ///< where rendered: the delta of a second, independent render (another seed)
 };
-
 
 /// What one frame of a configuration left behind for the flicker of the next.
 struct FrameState {
@@ -54,7 +52,7 @@ struct ErrorSums {
   double sq = 0, abs = 0, absRef = 0;
   size_t real = 0;
   double virtAbs = 0, virtRef = 0;
-  size_t mismatched = 0;  ///< pixels virtual in one image only (silhouette), left out
+  size_t mismatched = 0;            ///< pixels virtual in one image only (silhouette), left out
   double nearAbs = 0, nearRef = 0;  ///< the delta's sums over real pixels near the objects (NearObjects)
   void add(const ErrorSums& e) {
     sq += e.sq, abs += e.abs, absRef += e.absRef, real += e.real;
@@ -88,7 +86,9 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects*
 struct ShadowSums {
   double dark = 0, darkRef = 0, l1 = 0, l1Ref = 0;
   size_t pixels = 0;
-  void add(const ShadowSums& o) { dark += o.dark, darkRef += o.darkRef, l1 += o.l1, l1Ref += o.l1Ref, pixels += o.pixels; }
+  void add(const ShadowSums& o) {
+    dark += o.dark, darkRef += o.darkRef, l1 += o.l1, l1Ref += o.l1Ref, pixels += o.pixels;
+  }
   double energy() const { return darkRef < 0 ? dark / darkRef : 0.0; }
   double nearL1() const { return l1Ref > 0 ? l1 / l1Ref : 0.0; }
 };
@@ -103,7 +103,7 @@ ShadowSums shadowSums(const cv::Mat& shade, const Truth& truth, const NearObject
 /// interval is the normal one over the blocks (1.96 standard errors of their mean).
 struct UnbiasedError {
   double meanSq = 0, meanSqLo = 0, meanSqHi = 0;  ///< per pixel and channel; may dip below 0 within the noise
-  double refSq = 0;                                ///< mean r1 r2 per pixel and channel (unbiased for mean t^2)
+  double refSq = 0;                               ///< mean r1 r2 per pixel and channel (unbiased for mean t^2)
   size_t pixels = 0, blocks = 0;
   /// The relative RMS error sqrt(meanSq / refSq) and its interval (clamped at 0).
   double rel() const;
@@ -112,7 +112,8 @@ struct UnbiasedError {
 };
 /// x, r1, r2: CV_32FC3 (or CV_32FC4, alpha ignored) of one size; mask CV_8UC1, non-zero where a pixel counts
 /// (empty: every pixel).
-UnbiasedError unbiasedSquaredError(const cv::Mat& x, const cv::Mat& r1, const cv::Mat& r2, const cv::Mat& mask, int tile = 16);
+UnbiasedError unbiasedSquaredError(const cv::Mat& x, const cv::Mat& r1, const cv::Mat& r2, const cv::Mat& mask,
+                                   int tile = 16);
 /// The real-pixel delta's error against a truth rendered twice (unbiasedSquaredError over the pixels real in
 /// both the result and the reference); nullopt without a second render.
 std::optional<UnbiasedError> unbiasedDeltaError(const cv::Mat& shade, const Truth& truth);

@@ -20,7 +20,8 @@ void addVirtualObjects(const std::vector<lighting::VirtualObject>& objects, cons
     m.specular = cv::Vec3f::all(o.material.specular);
     m.exponent = lighting::phongExponent(o.material.roughness);
     m.isVirtual = true;
-    scene.addMesh(o.mesh.positions, o.mesh.normals, o.mesh.indices, scene.addMaterial(m), T_world_marker * o.T_marker_object);
+    scene.addMesh(o.mesh.positions, o.mesh.normals, o.mesh.indices, scene.addMaterial(m),
+                  T_world_marker * o.T_marker_object);
   }
 }
 
@@ -53,7 +54,8 @@ ReferenceScenes reconstructedScenes(const runtime::LightingSetup& setup, const r
   for (size_t i = 0; i < real.vertices.size(); ++i) s.vertexAlbedo[i] = real.vertices[i].albedo;
   s.lights = referenceLights(setup.lights);
   s.environment = cv::Vec3f(setup.ambient);
-  if (std::any_of(setup.ambientSh.begin(), setup.ambientSh.end(), [](const cv::Vec3d& c) { return c != cv::Vec3d(0, 0, 0); })) {
+  if (std::any_of(setup.ambientSh.begin(), setup.ambientSh.end(),
+                  [](const cv::Vec3d& c) { return c != cv::Vec3d(0, 0, 0); })) {
     // A directional ambient (a fisheye's or the room's remainder) as the shading pass adds it: the uniform
     // part and SH bands 1-2 as one environment map (clamped at 0: radiance is never negative).
     cv::Mat map(64, 128, CV_32FC3);

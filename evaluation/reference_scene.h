@@ -2,8 +2,8 @@
 // The scenes the reference path tracer renders for a frame: the same inputs the real-time techniques see
 // (the measured real mesh with its estimated albedo, the scene's virtual objects and lights, the ambient as
 // the radiance of everything outside the mesh), in the lighting world (the marker frame).
-#include "runtime/frame_pipeline.h"
 #include "groundtruth/path_tracer.h"
+#include "runtime/frame_pipeline.h"
 
 namespace mrgi::evaluation {
 

@@ -2,18 +2,18 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <set>
 #include <sstream>
 
-#include "evaluation/bench.h"
-#include "lighting/techniques/registry.h"
 #include "capture/checks.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
+#include "evaluation/bench.h"
+#include "lighting/techniques/registry.h"
 
 using nlohmann::json;
 
@@ -63,16 +63,15 @@ std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, 
 }
 
 namespace {
-double errorOf(const json& r) {
-  return 0.5 * (r.value("rel_error_delta", 0.0) + r.value("rel_error_virtual", 0.0));
-}
+double errorOf(const json& r) { return 0.5 * (r.value("rel_error_delta", 0.0) + r.value("rel_error_virtual", 0.0)); }
 double msOf(const json& r) { return r.value("ms_lighting", 0.0); }
 
 /// Indices of the records no other record beats in both time and error, fastest first.
 std::vector<size_t> paretoFront(const json& records, const std::vector<size_t>& subset) {
   std::vector<size_t> idx = subset;
   std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) {
-    return msOf(records[a]) != msOf(records[b]) ? msOf(records[a]) < msOf(records[b]) : errorOf(records[a]) < errorOf(records[b]);
+    return msOf(records[a]) != msOf(records[b]) ? msOf(records[a]) < msOf(records[b])
+                                                : errorOf(records[a]) < errorOf(records[b]);
   });
   std::vector<size_t> front;
   double best = INFINITY;
@@ -155,10 +154,13 @@ json presetDifferences(const json& presets) {
     bool resolved = true;
     for (const json& sa : presets[a]["sessions"])
       for (const json& sb : presets[b]["sessions"]) {
-        if (sa["session"] != sb["session"] || !sa.contains("rel_rms_delta_unbiased") || !sb.contains("rel_rms_delta_unbiased")) continue;
+        if (sa["session"] != sb["session"] || !sa.contains("rel_rms_delta_unbiased") ||
+            !sb.contains("rel_rms_delta_unbiased"))
+          continue;
         const json& ua = sa["rel_rms_delta_unbiased"];
         const json& ub = sb["rel_rms_delta_unbiased"];
-        const bool overlap = ua["lo"].get<double>() <= ub["hi"].get<double>() && ub["lo"].get<double>() <= ua["hi"].get<double>();
+        const bool overlap =
+            ua["lo"].get<double>() <= ub["hi"].get<double>() && ub["lo"].get<double>() <= ua["hi"].get<double>();
         resolved = resolved && !overlap;
         sessions.push_back({{"session", sa["session"]},
                             {"a", {ua["value"], ua["lo"], ua["hi"]}},
@@ -203,8 +205,8 @@ cv::Mat deltaTile(const cv::Mat& delta, int channels, const cv::Mat& virtualMask
 }
 }  // namespace
 
-cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite, const cv::Mat& referenceDelta, const cv::Mat& virtualMask,
-                     const std::vector<GalleryRow>& rows) {
+cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite, const cv::Mat& referenceDelta,
+                     const cv::Mat& virtualMask, const std::vector<GalleryRow>& rows) {
   const cv::Rect crop = galleryCrop(virtualMask);
   const cv::Mat mask = virtualMask(crop);
   // The scale: the reference's largest change in the crop (its darkest shadow, usually).
@@ -212,17 +214,20 @@ cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite
   const cv::Mat ref = referenceDelta(crop);
   for (int y = 0; y < ref.rows; ++y)
     for (int x = 0; x < ref.cols; ++x)
-      if (!mask.at<uchar>(y, x)) scale = std::max(scale, std::abs(capture::luminance(cv::Vec3d(ref.at<cv::Vec3f>(y, x)))));
+      if (!mask.at<uchar>(y, x))
+        scale = std::max(scale, std::abs(capture::luminance(cv::Vec3d(ref.at<cv::Vec3f>(y, x)))));
   const double zoom = std::max(1.0, 160.0 / crop.height);
-  const cv::Size tile(static_cast<int>(std::lround(crop.width * zoom)), static_cast<int>(std::lround(crop.height * zoom)));
+  const cv::Size tile(static_cast<int>(std::lround(crop.width * zoom)),
+                      static_cast<int>(std::lround(crop.height * zoom)));
   // Cells (a label over composite | delta) in a grid of three columns, the reference first.
   const int label = 20, gap = 8, header = 48, cols = 3;
   const int cellW = 2 * tile.width + gap, cellH = label + tile.height;
   const int n = static_cast<int>(rows.size()) + 1, gridRows = (n + cols - 1) / cols;
   cv::Mat out(header + gridRows * (cellH + gap) + gap, gap + cols * (cellW + gap), CV_8UC3, cv::Scalar(255, 255, 255));
   cv::putText(out, title, {gap, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  cv::putText(out, "composite | real-pixel delta, square-root scale: grey = none, black = -" + capture::formatNumber(scale) +
-                       " W/m^2/sr (the reference's darkest), objects blue",
+  cv::putText(out,
+              "composite | real-pixel delta, square-root scale: grey = none, black = -" + capture::formatNumber(scale) +
+                  " W/m^2/sr (the reference's darkest), objects blue",
               {gap, 38}, cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
   auto place = [&](int cell, const std::string& text, const cv::Mat& composite, const cv::Mat& delta) {
     const int x = gap + (cell % cols) * (cellW + gap), y = header + (cell / cols) * (cellH + gap);
@@ -235,12 +240,14 @@ cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite
   };
   place(0, "reference (path traced)", referenceComposite, deltaTile(ref, 3, mask, scale));
   for (size_t i = 0; i < rows.size(); ++i)
-    place(static_cast<int>(i) + 1, rows[i].label, rows[i].composite, deltaTile(rows[i].shade(crop), rows[i].shade.channels(), mask, scale));
+    place(static_cast<int>(i) + 1, rows[i].label, rows[i].composite,
+          deltaTile(rows[i].shade(crop), rows[i].shade.channels(), mask, scale));
   return out;
 }
 
 const char* const kCsvHeader =
-    "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_delta_near,rel_error_virtual,ssim,flicker";
+    "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_delta_near,rel_error_"
+    "virtual,ssim,flicker";
 
 void writeCsv(const std::string& path, const json& records) {
   std::ostringstream s;
@@ -248,9 +255,10 @@ void writeCsv(const std::string& path, const json& records) {
   for (const auto& r : records) {
     std::string knobs;
     for (const auto& [k, v] : r["knobs"].items()) knobs += (knobs.empty() ? "" : ";") + k + "=" + v.dump();
-    s << r["technique"].get<std::string>() << "," << r.value("varied", "") << "," << knobs << "," << r["ms_total"] << ","
-      << r["ms_lighting"] << "," << r["gpu_mb"] << "," << r["rmse_delta"] << "," << r["rel_error_delta"] << ","
-      << r.value("rel_error_delta_near", 0.0) << "," << r["rel_error_virtual"] << "," << r["ssim"] << "," << r["flicker"] << "\n";
+    s << r["technique"].get<std::string>() << "," << r.value("varied", "") << "," << knobs << "," << r["ms_total"]
+      << "," << r["ms_lighting"] << "," << r["gpu_mb"] << "," << r["rmse_delta"] << "," << r["rel_error_delta"] << ","
+      << r.value("rel_error_delta_near", 0.0) << "," << r["rel_error_virtual"] << "," << r["ssim"] << ","
+      << r["flicker"] << "\n";
   }
   capture::writeFileAtomically(path, s.str());
 }
@@ -274,7 +282,8 @@ std::string base64(const std::vector<uchar>& bytes) {
 
 /// A colour per series (technique spelling), stable for a name.
 const char* colourOf(const std::string& series) {
-  static const char* palette[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf"};
+  static const char* palette[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
+                                  "#9467bd", "#8c564b", "#e377c2", "#17becf"};
   size_t h = 0;
   for (const lighting::TechniqueInfo& t : lighting::techniques()) {  // registry order first: stable colours
     if (t.name == series) return palette[h % 8];
@@ -291,7 +300,8 @@ std::string fmt(double v, int digits = 3) {
 
 std::string esc(const std::string& s) {
   std::string o;
-  for (char c : s) o += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : c == '"' ? "&quot;" : std::string(1, c);
+  for (char c : s)
+    o += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : c == '"' ? "&quot;" : std::string(1, c);
   return o;
 }
 
@@ -313,7 +323,8 @@ struct Plot {
     double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
     auto tx = [&](double v) { return logX ? std::log10(std::max(v, 1e-9)) : v; };
     auto ty = [&](double v) { return logY ? std::log10(std::max(v, 1e-9)) : v; };
-    for (const auto& p : points) x0 = std::min(x0, tx(p.x)), x1 = std::max(x1, tx(p.x)), y0 = std::min(y0, ty(p.y)), y1 = std::max(y1, ty(p.y));
+    for (const auto& p : points)
+      x0 = std::min(x0, tx(p.x)), x1 = std::max(x1, tx(p.x)), y0 = std::min(y0, ty(p.y)), y1 = std::max(y1, ty(p.y));
     if (!(x1 > x0)) x0 -= 0.5, x1 += 0.5;
     if (!(y1 > y0)) y0 -= 0.5, y1 += 0.5;
     const double px = 0.05 * (x1 - x0), py = 0.08 * (y1 - y0);
@@ -321,17 +332,22 @@ struct Plot {
     auto X = [&](double v) { return L + (tx(v) - x0) / (x1 - x0) * (W - L - R); };
     auto Y = [&](double v) { return H - B - (ty(v) - y0) / (y1 - y0) * (H - T - B); };
     std::ostringstream s;
-    s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' font-family='sans-serif' font-size='11'>";
+    s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H
+      << "' font-family='sans-serif' font-size='11'>";
     s << "<text x='" << W / 2 << "' y='16' text-anchor='middle' font-weight='bold'>" << esc(title) << "</text>";
-    s << "<rect x='" << L << "' y='" << T << "' width='" << W - L - R << "' height='" << H - T - B << "' fill='none' stroke='#888'/>";
+    s << "<rect x='" << L << "' y='" << T << "' width='" << W - L - R << "' height='" << H - T - B
+      << "' fill='none' stroke='#888'/>";
     for (int i = 0; i <= 4; ++i) {  // axis ticks
       const double vx = x0 + (x1 - x0) * i / 4, vy = y0 + (y1 - y0) * i / 4;
       const double sx = L + (W - L - R) * i / 4, sy = H - B - (H - T - B) * i / 4;
-      s << "<text x='" << sx << "' y='" << H - B + 14 << "' text-anchor='middle'>" << fmt(logX ? std::pow(10, vx) : vx) << "</text>";
-      s << "<text x='" << L - 4 << "' y='" << sy + 4 << "' text-anchor='end'>" << fmt(logY ? std::pow(10, vy) : vy) << "</text>";
+      s << "<text x='" << sx << "' y='" << H - B + 14 << "' text-anchor='middle'>" << fmt(logX ? std::pow(10, vx) : vx)
+        << "</text>";
+      s << "<text x='" << L - 4 << "' y='" << sy + 4 << "' text-anchor='end'>" << fmt(logY ? std::pow(10, vy) : vy)
+        << "</text>";
     }
     s << "<text x='" << (L + W - R) / 2 << "' y='" << H - 12 << "' text-anchor='middle'>" << esc(xLabel) << "</text>";
-    s << "<text transform='translate(14," << (T + H - B) / 2 << ") rotate(-90)' text-anchor='middle'>" << esc(yLabel) << "</text>";
+    s << "<text transform='translate(14," << (T + H - B) / 2 << ") rotate(-90)' text-anchor='middle'>" << esc(yLabel)
+      << "</text>";
     for (const auto& [series, pts] : lines) {
       s << "<polyline fill='none' stroke='" << colourOf(series) << "' stroke-width='1.5' points='";
       for (const auto& [x, y] : pts) s << X(x) << "," << Y(y) << " ";
@@ -365,7 +381,8 @@ double logSlope(const std::vector<std::pair<double, double>>& xy) {
   for (const auto& [x, y] : xy) mx += std::log(x), my += std::log(y);
   mx /= xy.size(), my /= xy.size();
   double sxy = 0, sxx = 0;
-  for (const auto& [x, y] : xy) sxy += (std::log(x) - mx) * (std::log(y) - my), sxx += (std::log(x) - mx) * (std::log(x) - mx);
+  for (const auto& [x, y] : xy)
+    sxy += (std::log(x) - mx) * (std::log(y) - my), sxx += (std::log(x) - mx) * (std::log(x) - mx);
   return sxx > 0 ? sxy / sxx : NAN;
 }
 
@@ -385,11 +402,13 @@ json variedValue(const json& r) { return knobValue(r, r.value("varied", "")); }
 std::string labelOf(const json& r) {
   const std::string v = r.value("varied", "");
   const json value = variedValue(r);
-  return r["technique"].get<std::string>() + (v.empty() ? " defaults" : " " + v + (value.is_null() ? "" : "=" + value.dump()));
+  return r["technique"].get<std::string>() +
+         (v.empty() ? " defaults" : " " + v + (value.is_null() ? "" : "=" + value.dump()));
 }
 
 std::string tipOf(const json& r) {
-  return r["technique"].get<std::string>() + " " + r["knobs"].dump() + "\nms " + fmt(msOf(r)) + ", error " + fmt(errorOf(r));
+  return r["technique"].get<std::string>() + " " + r["knobs"].dump() + "\nms " + fmt(msOf(r)) + ", error " +
+         fmt(errorOf(r));
 }
 
 }  // namespace
@@ -397,20 +416,24 @@ std::string tipOf(const json& r) {
 void writeHtml(const std::string& path, const json& doc, const std::vector<ReportImage>& images) {
   const json& records = doc["records"];
   std::ostringstream h;
-  h << "<!DOCTYPE html><html><head><meta charset='utf-8'><meta name=\"generator\" content=\"mrgi bench\"><title>mrgi bench</title><style>"
+  h << "<!DOCTYPE html><html><head><meta charset='utf-8'><meta name=\"generator\" content=\"mrgi bench\"><title>mrgi "
+       "bench</title><style>"
        "body{font-family:sans-serif;max-width:1200px;margin:20px auto}table{border-collapse:collapse;font-size:12px}"
        "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td.l{text-align:left}"
        "figure{display:inline-block;margin:6px}figcaption{font-size:12px}</style></head><body>";
   std::string sessionText;
   if (doc.contains("session"))
     for (const auto& sname : doc["session"].is_array() ? doc["session"] : json::array({doc["session"]}))
-      sessionText += (sessionText.empty() ? "" : ", ") + std::string("<code>") + esc(sname.get<std::string>()) + "</code>";
-  h << "<h1>mrgi bench</h1><p>Sessions " << sessionText << " (every measure below is the mean over the sessions), scene <code>"
-    << esc(doc.value("scene", "")) << "</code>, " << doc.value("frames", 0) << " frames, renderer <code>"
-    << esc(doc.value("gl", "")) << "</code>. Reference: path traced, " << doc["reference"].value("spp", 0) << " spp, "
+      sessionText +=
+          (sessionText.empty() ? "" : ", ") + std::string("<code>") + esc(sname.get<std::string>()) + "</code>";
+  h << "<h1>mrgi bench</h1><p>Sessions " << sessionText
+    << " (every measure below is the mean over the sessions), scene <code>" << esc(doc.value("scene", ""))
+    << "</code>, " << doc.value("frames", 0) << " frames, renderer <code>" << esc(doc.value("gl", ""))
+    << "</code>. Reference: path traced, " << doc["reference"].value("spp", 0) << " spp, "
     << doc["reference"].value("bounces", 0) << " bounces, frames " << doc["reference"]["frames"].dump()
-    << " (its own noise, two seeds / sqrt 2: relative error " << fmt(doc["reference"].value("noise_rel_error_delta", 0.0))
-    << " on the delta, " << fmt(doc["reference"].value("noise_rel_error_virtual", 0.0))
+    << " (its own noise, two seeds / sqrt 2: relative error "
+    << fmt(doc["reference"].value("noise_rel_error_delta", 0.0)) << " on the delta, "
+    << fmt(doc["reference"].value("noise_rel_error_virtual", 0.0))
     << " on the virtual radiance: the floor under every error below";
   for (const auto& ref : doc.value("references", json::array()))
     h << "; " << esc(ref.value("session", "")) << ": " << fmt(ref.value("noise_rel_error_delta", 0.0)) << " / "
@@ -419,18 +442,19 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   for (const auto& ref : doc.value("references", json::array()))
     if (ref.contains("marker_pose_error") && ref["marker_pose_error"].is_object()) {
       const json& m = ref["marker_pose_error"];
-      h << esc(ref.value("session", "")) << " (" << m["resolution"][0].get<int>() << "x" << m["resolution"][1].get<int>()
-        << "): " << fmt(m.value("position_mm_mean", 0.0)) << " mm / " << fmt(m.value("rotation_deg_mean", 0.0))
-        << "&deg; mean, " << fmt(m.value("position_mm_max", 0.0)) << " mm / " << fmt(m.value("rotation_deg_max", 0.0))
-        << "&deg; max, " << m.value("lost", 0) << " frames lost; ";
+      h << esc(ref.value("session", "")) << " (" << m["resolution"][0].get<int>() << "x"
+        << m["resolution"][1].get<int>() << "): " << fmt(m.value("position_mm_mean", 0.0)) << " mm / "
+        << fmt(m.value("rotation_deg_mean", 0.0)) << "&deg; mean, " << fmt(m.value("position_mm_max", 0.0)) << " mm / "
+        << fmt(m.value("rotation_deg_max", 0.0)) << "&deg; max, " << m.value("lost", 0) << " frames lost; ";
     }
   h << "</p><p>Camera tracking against the ground-truth poses (ATE RMSE, RPE per frame, frames tracked): ";
   for (const auto& ref : doc.value("references", json::array()))
     if (ref.contains("tracking") && ref["tracking"].is_object()) {
       h << esc(ref.value("session", "")) << ": ";
       for (const auto& [mode, t] : ref["tracking"].items())
-        h << esc(mode) << " " << fmt(t.value("ate_rmse_mm", 0.0)) << " mm, " << fmt(t.value("rpe_rmse_mm", 0.0)) << " mm / "
-          << fmt(t.value("rpe_rmse_deg", 0.0)) << "&deg;, " << t.value("tracked", 0) << " of " << t.value("frames", 0) << "; ";
+        h << esc(mode) << " " << fmt(t.value("ate_rmse_mm", 0.0)) << " mm, " << fmt(t.value("rpe_rmse_mm", 0.0))
+          << " mm / " << fmt(t.value("rpe_rmse_deg", 0.0)) << "&deg;, " << t.value("tracked", 0) << " of "
+          << t.value("frames", 0) << "; ";
     }
   h << "</p><p>";
   h << "Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
@@ -441,15 +465,18 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   std::map<std::string, std::vector<size_t>> byTechnique;
   for (size_t i = 0; i < records.size(); ++i) {
     byTechnique[records[i]["technique"]].push_back(i);
-    pareto.points.push_back({msOf(records[i]), std::max(errorOf(records[i]), 1e-6), records[i]["technique"], tipOf(records[i])});
+    pareto.points.push_back(
+        {msOf(records[i]), std::max(errorOf(records[i]), 1e-6), records[i]["technique"], tipOf(records[i])});
   }
   for (const auto& [t, idx] : byTechnique)
-    for (size_t i : paretoFront(records, idx)) pareto.lines[t].push_back({msOf(records[i]), std::max(errorOf(records[i]), 1e-6)});
+    for (size_t i : paretoFront(records, idx))
+      pareto.lines[t].push_back({msOf(records[i]), std::max(errorOf(records[i]), 1e-6)});
   Plot ssim("Composite SSIM vs time", "lighting ms per frame", "1 - SSIM");
   Plot flicker("Temporal flicker of the real-pixel delta", "lighting ms per frame", "flicker (relative)");
   for (const auto& r : records) {
     ssim.points.push_back({msOf(r), std::max(1.0 - r.value("ssim", 0.0), 1e-6), r["technique"], tipOf(r)});
-    if (r.value("flicker", 0.0) > 0) flicker.points.push_back({msOf(r), r["flicker"].get<double>(), r["technique"], tipOf(r)});
+    if (r.value("flicker", 0.0) > 0)
+      flicker.points.push_back({msOf(r), r["flicker"].get<double>(), r["technique"], tipOf(r)});
   }
   h << "<h2>Speed against accuracy</h2>" << pareto.svg() << ssim.svg();
   if (!flicker.points.empty()) h << flicker.svg();
@@ -500,8 +527,10 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   for (const auto& r : records) maxTotal = std::max(maxTotal, r.value("ms_total", 0.0));
   const double rowH = 16, labelW = 230, barW = 700;
   const int legendRows = static_cast<int>((stageNames.size() + 6) / 7);
-  h << "<h2>Stage times</h2><p>Mean ms per frame and stage (hover for values).</p><svg xmlns='http://www.w3.org/2000/svg' width='"
-    << labelW + barW + 60 << "' height='" << rowH * records.size() + 30 + 16 * legendRows << "' font-family='sans-serif' font-size='10'>";
+  h << "<h2>Stage times</h2><p>Mean ms per frame and stage (hover for values).</p><svg "
+       "xmlns='http://www.w3.org/2000/svg' width='"
+    << labelW + barW + 60 << "' height='" << rowH * records.size() + 30 + 16 * legendRows
+    << "' font-family='sans-serif' font-size='10'>";
   for (size_t i = 0; i < records.size(); ++i) {
     const json& r = records[i];
     const double y = 10 + i * rowH;
@@ -509,8 +538,8 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
     double x = labelW;
     for (const auto& [k, v] : r["ms_stages"].items()) {
       const double w = v.get<double>() / maxTotal * barW;
-      h << "<rect x='" << x << "' y='" << y << "' width='" << w << "' height='" << rowH - 3 << "' fill='" << stageColour[k]
-        << "'><title>" << esc(k) << " " << fmt(v.get<double>()) << " ms</title></rect>";
+      h << "<rect x='" << x << "' y='" << y << "' width='" << w << "' height='" << rowH - 3 << "' fill='"
+        << stageColour[k] << "'><title>" << esc(k) << " " << fmt(v.get<double>()) << " ms</title></rect>";
       x += w;
     }
     h << "<text x='" << x + 3 << "' y='" << y + 11 << "'>" << fmt(r.value("ms_total", 0.0)) << "</text>";
@@ -518,51 +547,62 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   int li = 0;
   for (const auto& [n, c] : stageColour) {
     const double lx = 10 + (li % 7) * 130, ly = 20 + rowH * records.size() + 16 * (li / 7);
-    h << "<rect x='" << lx << "' y='" << ly << "' width='10' height='10' fill='" << c << "'/><text x='" << lx + 13 << "' y='"
-      << ly + 9 << "'>" << esc(n) << "</text>";
+    h << "<rect x='" << lx << "' y='" << ly << "' width='10' height='10' fill='" << c << "'/><text x='" << lx + 13
+      << "' y='" << ly + 9 << "'>" << esc(n) << "</text>";
     ++li;
   }
   h << "</svg>";
 
   // Presets and the table.
   if (doc.contains("presets") && !doc["presets"].empty()) {
-    h << "<h2>Presets</h2><table><tr><th>preset</th><th>technique</th><th class='l'>knobs</th><th>lighting ms</th><th>error</th></tr>";
+    h << "<h2>Presets</h2><table><tr><th>preset</th><th>technique</th><th class='l'>knobs</th><th>lighting "
+         "ms</th><th>error</th></tr>";
     for (const char* name : {"fast", "balanced", "accurate"}) {
       const json& p = doc["presets"][name];
-      h << "<tr><td class='l'>" << name << "</td><td class='l'>" << esc(p["technique"].get<std::string>()) << "</td><td class='l'>"
-        << esc(p["knobs"].dump()) << "</td><td>" << fmt(msOf(p)) << "</td><td>" << fmt(errorOf(p)) << "</td></tr>";
+      h << "<tr><td class='l'>" << name << "</td><td class='l'>" << esc(p["technique"].get<std::string>())
+        << "</td><td class='l'>" << esc(p["knobs"].dump()) << "</td><td>" << fmt(msOf(p)) << "</td><td>"
+        << fmt(errorOf(p)) << "</td></tr>";
     }
     h << "</table>";
   }
-  h << "<h2>All configurations</h2><table><tr><th>technique</th><th>varied</th><th class='l'>knobs</th><th>ms total</th>"
-       "<th>ms lighting</th><th>GPU MB</th><th>RMSE delta</th><th>rel. err. delta</th><th>rel. err. virtual</th><th>SSIM</th>"
+  h << "<h2>All configurations</h2><table><tr><th>technique</th><th>varied</th><th class='l'>knobs</th><th>ms "
+       "total</th>"
+       "<th>ms lighting</th><th>GPU MB</th><th>RMSE delta</th><th>rel. err. delta</th><th>rel. err. "
+       "virtual</th><th>SSIM</th>"
        "<th>flicker</th></tr>";
   for (const auto& r : records)
-    h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>" << esc(r.value("varied", ""))
-      << "</td><td class='l'>" << esc(r["knobs"].dump()) << "</td><td>" << fmt(r["ms_total"].get<double>()) << "</td><td>"
-      << fmt(msOf(r)) << "</td><td>" << fmt(r["gpu_mb"].get<double>()) << "</td><td>" << fmt(r["rmse_delta"].get<double>())
-      << "</td><td>" << fmt(r["rel_error_delta"].get<double>()) << "</td><td>" << fmt(r["rel_error_virtual"].get<double>())
-      << "</td><td>" << fmt(r["ssim"].get<double>(), 4) << "</td><td>" << fmt(r["flicker"].get<double>()) << "</td></tr>";
+    h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>"
+      << esc(r.value("varied", "")) << "</td><td class='l'>" << esc(r["knobs"].dump()) << "</td><td>"
+      << fmt(r["ms_total"].get<double>()) << "</td><td>" << fmt(msOf(r)) << "</td><td>"
+      << fmt(r["gpu_mb"].get<double>()) << "</td><td>" << fmt(r["rmse_delta"].get<double>()) << "</td><td>"
+      << fmt(r["rel_error_delta"].get<double>()) << "</td><td>" << fmt(r["rel_error_virtual"].get<double>())
+      << "</td><td>" << fmt(r["ssim"].get<double>(), 4) << "</td><td>" << fmt(r["flicker"].get<double>())
+      << "</td></tr>";
   h << "</table>";
 
   // Per session, with the whole pipeline against a synthetic session's own true reference where it has one.
   h << "<h2>Per session</h2><p>Technique error: against the path-traced reference of the inputs the pipeline sees "
        "(measured depth, estimated albedo). Whole pipeline: against the synthetic session's true reference composites "
-       "(the true room, albedos and lights), so depth noise, albedo and light estimation count too. Delta RMS: the real-pixel "
-       "delta's relative RMS error without the reference's noise (two renders), with its 95 % interval. Shadow: within three "
+       "(the true room, albedos and lights), so depth noise, albedo and light estimation count too. Delta RMS: the "
+       "real-pixel "
+       "delta's relative RMS error without the reference's noise (two renders), with its 95 % interval. Shadow: within "
+       "three "
        "object radii, the darkening's energy over the reference's / the near L1 of the blurred delta.</p>"
-       "<table><tr><th>technique</th><th>varied</th><th class='l'>session</th><th>ms lighting</th><th>rel. err. delta</th>"
+       "<table><tr><th>technique</th><th>varied</th><th class='l'>session</th><th>ms lighting</th><th>rel. err. "
+       "delta</th>"
        "<th>delta RMS [95 %]</th><th>shadow</th>"
-       "<th>rel. err. virtual</th><th>SSIM</th><th>flicker</th><th>whole: delta</th><th>whole: shadow</th><th>whole: virtual</th>"
+       "<th>rel. err. virtual</th><th>SSIM</th><th>flicker</th><th>whole: delta</th><th>whole: shadow</th><th>whole: "
+       "virtual</th>"
        "<th>whole: SSIM</th></tr>";
   for (const auto& r : records)
     for (const auto& p : r.value("sessions", json::array())) {
-      h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>" << esc(r.value("varied", ""))
-        << "</td><td class='l'>" << esc(p.value("session", "")) << "</td><td>" << fmt(msOf(p)) << "</td><td>"
-        << fmt(p["rel_error_delta"].get<double>()) << "</td><td>";
+      h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>"
+        << esc(r.value("varied", "")) << "</td><td class='l'>" << esc(p.value("session", "")) << "</td><td>"
+        << fmt(msOf(p)) << "</td><td>" << fmt(p["rel_error_delta"].get<double>()) << "</td><td>";
       if (p.contains("rel_rms_delta_unbiased")) {
         const json& u = p["rel_rms_delta_unbiased"];
-        h << fmt(u["value"].get<double>()) << " [" << fmt(u["lo"].get<double>()) << ", " << fmt(u["hi"].get<double>()) << "]";
+        h << fmt(u["value"].get<double>()) << " [" << fmt(u["lo"].get<double>()) << ", " << fmt(u["hi"].get<double>())
+          << "]";
       } else {
         h << "-";
       }

@@ -9,7 +9,8 @@
 
 namespace mrgi::evaluation {
 
-TrajectoryError trajectoryError(const std::vector<std::optional<capture::Pose>>& estimate, const std::vector<capture::Pose>& truth) {
+TrajectoryError trajectoryError(const std::vector<std::optional<capture::Pose>>& estimate,
+                                const std::vector<capture::Pose>& truth) {
   TrajectoryError e;
   double ate2 = 0, rpe2 = 0, rpeDeg2 = 0;
   int pairs = 0;

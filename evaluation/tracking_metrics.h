@@ -11,14 +11,15 @@
 namespace mrgi::evaluation {
 
 struct TrajectoryError {
-  int frames = 0, tracked = 0;  ///< frames with a ground-truth pose, and of those the ones with an estimate
+  int frames = 0, tracked = 0;       ///< frames with a ground-truth pose, and of those the ones with an estimate
   double ateRmseM = 0, ateMaxM = 0;  ///< camera position against the truth (metres), over the tracked frames
   /// Relative pose error between consecutive tracked frames (the motion's error, metres and degrees), RMS.
   double rpeRmseM = 0, rpeRmseDeg = 0;
   double lastM = 0;  ///< the last tracked frame's position error
 };
 /// `estimate[i]` (nullopt: lost) against `truth[i]`, both camera to world in the same world.
-TrajectoryError trajectoryError(const std::vector<std::optional<capture::Pose>>& estimate, const std::vector<capture::Pose>& truth);
+TrajectoryError trajectoryError(const std::vector<std::optional<capture::Pose>>& estimate,
+                                const std::vector<capture::Pose>& truth);
 
 struct SurfaceDistance {
   size_t points = 0;

@@ -30,7 +30,8 @@ inline std::filesystem::path scratchDir(const std::string& name) {
 /// Writes the input to a per-process scratch file with this extension and returns its path.
 inline std::string scratchFile(const uint8_t* data, size_t size, const std::string& extension) {
   const std::string path = scratchRoot() + "/mrgi_fuzz_" + std::to_string(getpid()) + extension;
-  std::ofstream(path, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
   return path;
 }
 

@@ -9,9 +9,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = mrgi::fuzz::scratchFile(data + 1, size - 1, ".img");
   mrgi::fuzz::expectInputErrorOnly([&] {
     switch (data[0] % 3) {
-      case 0: mrgi::capture::readColour(path); break;
-      case 1: mrgi::capture::readDepth(path, 0.001); break;
-      default: mrgi::capture::readAny(path); break;
+      case 0:
+        mrgi::capture::readColour(path);
+        break;
+      case 1:
+        mrgi::capture::readDepth(path, 0.001);
+        break;
+      default:
+        mrgi::capture::readAny(path);
+        break;
     }
   });
   return 0;

@@ -17,7 +17,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   for (const char* name : {"room.json", "room.ply", "room_appearance.npy"}) {
     const size_t nul = std::string(name) == "room_appearance.npy" ? std::string_view::npos : rest.find('\0');
     const std::string_view part = rest.substr(0, nul);
-    std::ofstream(dir / name, std::ios::binary | std::ios::trunc).write(part.data(), static_cast<std::streamsize>(part.size()));
+    std::ofstream(dir / name, std::ios::binary | std::ios::trunc)
+        .write(part.data(), static_cast<std::streamsize>(part.size()));
     rest = nul == std::string_view::npos ? std::string_view() : rest.substr(nul + 1);
   }
   mrgi::fuzz::expectInputErrorOnly([&] { mrgi::reconstruction::loadRoom(dir.string()); });

@@ -2,7 +2,6 @@
 // without one the input is frames.jsonl under a fixed manifest), frame images from a small valid set, then
 // the session opened and every frame read as replay does.
 #include <filesystem>
-
 #include <opencv2/core.hpp>
 
 #include "capture/image_io.h"

@@ -101,7 +101,8 @@ float EnvironmentMap::pdf(const cv::Vec3f& d) const {
   if (!(integral_ > 0)) return 0.f;
   const cv::Vec2f uv = uvOf(d);
   const int W = image_.cols, H = image_.rows;
-  const int x = std::clamp(static_cast<int>(uv[0] * W), 0, W - 1), y = std::clamp(static_cast<int>(uv[1] * H), 0, H - 1);
+  const int x = std::clamp(static_cast<int>(uv[0] * W), 0, W - 1),
+            y = std::clamp(static_cast<int>(uv[1] * H), 0, H - 1);
   const float sinTheta = std::sin(kPi * uv[1]);
   if (!(sinTheta > 1e-7f)) return 0.f;
   // p(texel) spread uniformly over the texel's (u, v) area 1/(W H), which covers (2 pi^2 sin theta) / (W H) sr.

@@ -5,9 +5,8 @@
 ///
 /// Mapping (world y up): theta = acos(d.y) runs down the rows (row 0 = straight up), phi = atan2(d.x, -d.z)
 /// runs along the columns (u = 0.5 at -z). Radiance is piecewise constant over texels, the sampling pdf too.
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 namespace mrgi::groundtruth {
 
@@ -43,9 +42,9 @@ class EnvironmentMap {
 
  private:
   cv::Mat image_;
-  std::vector<float> rowCdf_;             ///< height + 1 entries, 0 .. 1
-  std::vector<float> colCdf_;             ///< height x (width + 1)
-  std::vector<float> texelPdf_;           ///< per texel: probability of choosing it
+  std::vector<float> rowCdf_;    ///< height + 1 entries, 0 .. 1
+  std::vector<float> colCdf_;    ///< height x (width + 1)
+  std::vector<float> texelPdf_;  ///< per texel: probability of choosing it
   double integral_ = 0;
 };
 

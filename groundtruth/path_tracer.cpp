@@ -65,7 +65,8 @@ void cameraRay(const PinholeCamera& c, double x, double y, cv::Vec3f& origin, cv
   dir = cv::normalize(cv::Vec3f(static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2])));
 }
 
-PathTracer::PathTracer(const RayCaster& caster, PathTraceOptions options) : caster_(caster), options_(std::move(options)) {}
+PathTracer::PathTracer(const RayCaster& caster, PathTraceOptions options)
+    : caster_(caster), options_(std::move(options)) {}
 
 cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng, bool seeLights) const {
   const Scene& scene = caster_.scene();
@@ -130,9 +131,12 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng, bool 
     const float u0 = rng.uniform(0.f, 1.f), u1 = rng.uniform(0.f, 1.f), u2 = rng.uniform(0.f, 1.f);
     const float phi = 2.f * kPi * u2;
     cv::Vec3f wi;
-    if (u0 < pd) wi = aroundAxis(n, std::sqrt(1.f - u1), phi);
-    else if (k <= 0.f) wi = aroundAxis(n, 1.f - u1, phi);  // k = 0: uniform over the hemisphere
-    else wi = aroundAxis(refl, std::pow(u1, 1.f / (k + 1.f)), phi);
+    if (u0 < pd)
+      wi = aroundAxis(n, std::sqrt(1.f - u1), phi);
+    else if (k <= 0.f)
+      wi = aroundAxis(n, 1.f - u1, phi);  // k = 0: uniform over the hemisphere
+    else
+      wi = aroundAxis(refl, std::pow(u1, 1.f / (k + 1.f)), phi);
     const float cosI = n.dot(wi);
     if (!(cosI > 0.f) || g.dot(wi) <= 0.f) break;
     const float pdf = bsdfPdf(wi, cosI);
@@ -211,9 +215,10 @@ cv::Rect virtualFocus(const Scene& scene, const PinholeCamera& camera, double gr
     const double u = k.fx * q[0] / q[2] + k.cx, v = k.fy * q[1] / q[2] + k.cy;
     x0 = std::min(x0, u), x1 = std::max(x1, u), y0 = std::min(y0, v), y1 = std::max(y1, v);
   }
-  const cv::Rect box(cv::Point(static_cast<int>(std::floor(std::max(x0, -1.0))), static_cast<int>(std::floor(std::max(y0, -1.0)))),
-                     cv::Point(static_cast<int>(std::ceil(std::min(x1, k.width + 1.0))) + 1,
-                               static_cast<int>(std::ceil(std::min(y1, k.height + 1.0))) + 1));
+  const cv::Rect box(
+      cv::Point(static_cast<int>(std::floor(std::max(x0, -1.0))), static_cast<int>(std::floor(std::max(y0, -1.0)))),
+      cv::Point(static_cast<int>(std::ceil(std::min(x1, k.width + 1.0))) + 1,
+                static_cast<int>(std::ceil(std::min(y1, k.height + 1.0))) + 1));
   return box & cv::Rect(0, 0, k.width, k.height);
 }
 

@@ -5,7 +5,6 @@
 /// estimation), emissive surfaces and the environment are found by the sampled paths.
 #include <cstdint>
 #include <functional>
-
 #include <opencv2/core.hpp>
 
 #include "capture/types.h"

@@ -110,7 +110,8 @@ std::optional<Hit> RayCaster::intersect(cv::Vec3f o, cv::Vec3f d, float tNear, f
   }
   h.albedo = m.albedo;
   if (!scene_.vertexAlbedo.empty())
-    h.albedo = h.albedo.mul(w * scene_.vertexAlbedo[tri[0]] + u * scene_.vertexAlbedo[tri[1]] + v * scene_.vertexAlbedo[tri[2]]);
+    h.albedo = h.albedo.mul(w * scene_.vertexAlbedo[tri[0]] + u * scene_.vertexAlbedo[tri[1]] +
+                            v * scene_.vertexAlbedo[tri[2]]);
   if (m.texture >= 0) {
     const cv::Vec2f uv = w * scene_.uvs[tri[0]] + u * scene_.uvs[tri[1]] + v * scene_.uvs[tri[2]];
     const cv::Mat& tex = scene_.textures[m.texture];

@@ -10,9 +10,9 @@ struct RTCSceneTy;
 namespace mrgi::groundtruth {
 
 struct Hit {
-  float t = 0;        ///< distance along the (unit) ray direction, metres
-  int triangle = -1;  ///< index into Scene::triangles; -1 when a light's sphere was hit
-  int light = -1;     ///< index into Scene::lights when a light's sphere was hit
+  float t = 0;                 ///< distance along the (unit) ray direction, metres
+  int triangle = -1;           ///< index into Scene::triangles; -1 when a light's sphere was hit
+  int light = -1;              ///< index into Scene::lights when a light's sphere was hit
   cv::Vec3f position, normal;  ///< normal: unit geometric normal facing the ray's origin side
   cv::Vec3f shading;           ///< unit interpolated vertex normal on the normal's side (= normal when flat)
   cv::Vec3f albedo;            ///< material albedo times texture and vertex albedo at the hit

@@ -30,7 +30,8 @@ void Scene::addMesh(const std::vector<cv::Vec3f>& positions, const std::vector<c
     if (i < meshNormals.size()) {
       const cv::Vec3d m = N * cv::Vec3d(meshNormals[i]);
       const double len = cv::norm(m);
-      if (len > 0) n = cv::Vec3f(static_cast<float>(m[0] / len), static_cast<float>(m[1] / len), static_cast<float>(m[2] / len));
+      if (len > 0)
+        n = cv::Vec3f(static_cast<float>(m[0] / len), static_cast<float>(m[1] / len), static_cast<float>(m[2] / len));
     }
     normals.push_back(n);
     uvs.emplace_back(0, 0);
@@ -47,15 +48,17 @@ void Scene::addBox(cv::Vec3f lo, cv::Vec3f hi, int material, bool inward) {
   const cv::Vec3f d = hi - lo;
   const cv::Vec3f ex(d[0], 0, 0), ey(0, d[1], 0), ez(0, 0, d[2]);
   auto quad = [&](cv::Vec3f p, cv::Vec3f a, cv::Vec3f b) {
-    if (inward) addQuad(p, b, a, material);
-    else addQuad(p, a, b, material);
+    if (inward)
+      addQuad(p, b, a, material);
+    else
+      addQuad(p, a, b, material);
   };
-  quad(lo, ez, ey);              // -x
-  quad(lo + ex, ey, ez);         // +x
-  quad(lo, ex, ez);              // -y
-  quad(lo + ey, ez, ex);         // +y
-  quad(lo, ey, ex);              // -z
-  quad(lo + ez, ex, ey);         // +z
+  quad(lo, ez, ey);       // -x
+  quad(lo + ex, ey, ez);  // +x
+  quad(lo, ex, ez);       // -y
+  quad(lo + ey, ez, ex);  // +y
+  quad(lo, ey, ex);       // -z
+  quad(lo + ez, ex, ey);  // +z
 }
 
 }  // namespace mrgi::groundtruth

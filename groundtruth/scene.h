@@ -2,10 +2,9 @@
 /// Scene description shared by the reference renderer and the synthetic-session generator.
 /// World space: metres, right-handed, y up. Colours and albedos are linear RGB.
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "groundtruth/environment.h"
 
@@ -18,9 +17,9 @@ struct Material {
   /// Glossy reflectance of the normalised Phong lobe, as the real-time shading evaluates it:
   /// L = specular * (k + 1)/(2 pi) * cos^k(angle to the mirror direction) * L_in dw (no cos theta_i).
   cv::Vec3f specular{0, 0, 0};
-  float exponent = 0;            ///< Phong exponent k
-  cv::Vec3f emission{0, 0, 0};   ///< emitted radiance, W/(m^2 sr), from both faces
-  bool isVirtual = false;        ///< part of an inserted virtual object (the compositor's mask)
+  float exponent = 0;           ///< Phong exponent k
+  cv::Vec3f emission{0, 0, 0};  ///< emitted radiance, W/(m^2 sr), from both faces
+  bool isVirtual = false;       ///< part of an inserted virtual object (the compositor's mask)
 };
 
 enum class LightType { Point, Spot, Directional };
@@ -47,7 +46,8 @@ struct Scene {
   std::vector<Material> materials;
   std::vector<cv::Mat> textures;  ///< CV_32FC3 linear RGB, row 0 = v 0
   std::vector<Light> lights;
-  cv::Vec3f ambient{0, 0, 0};  ///< ray caster only: constant radiance added as albedo * ambient (a crude bounce stand-in)
+  cv::Vec3f ambient{0, 0,
+                    0};  ///< ray caster only: constant radiance added as albedo * ambient (a crude bounce stand-in)
   cv::Vec3f environment{0, 0, 0};  ///< path tracer: radiance of every ray that leaves the scene
   /// Path tracer: an HDR environment added to `environment` (importance-sampled, MIS with the BRDF).
   std::shared_ptr<const EnvironmentMap> environmentMap;

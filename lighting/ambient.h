@@ -3,7 +3,6 @@
 /// (lighting/sh.h convention), and what the techniques that gather it (imperfect volumes, precomputed
 /// illuminance composition) need of it on the CPU.
 #include <array>
-
 #include <opencv2/core.hpp>
 
 namespace mrgi::lighting {

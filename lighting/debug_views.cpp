@@ -1,9 +1,8 @@
 #include "lighting/debug_views.h"
 
 #include <algorithm>
-#include <vector>
-
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "capture/colour.h"
 
@@ -54,8 +53,10 @@ cv::Mat normalImage(const cv::Mat& normals) {
 
 cv::Mat linearImage(const cv::Mat& image, double multiply) {
   cv::Mat rgb;
-  if (image.channels() == 4) cv::cvtColor(image, rgb, cv::COLOR_RGBA2RGB);
-  else rgb = image.clone();
+  if (image.channels() == 4)
+    cv::cvtColor(image, rgb, cv::COLOR_RGBA2RGB);
+  else
+    rgb = image.clone();
   rgb.convertTo(rgb, CV_32FC3, multiply);
   return capture::encodeSrgb(rgb);
 }

@@ -2,7 +2,6 @@
 /// Debug images of the lighting pipeline, RGB8 ready for PNG: signed quantities show positive values in
 /// grey/white and negative ones in red, each with its scale printed by the caller.
 #include <opencv2/core.hpp>
-
 #include <vector>
 
 namespace mrgi::lighting {

@@ -29,10 +29,12 @@ void KnobGroup::check(const KnobInfo& k, double x, const std::string& keyPath, c
   if (k.type == KnobType::Bool && x != 0.0 && x != 1.0) fail(keyPath, "must be true or false");
   if (x < k.lo || x > k.hi)
     fail(keyPath, std::string(k.type == KnobType::Int ? "must be an integer" : "must be a finite number") + " in [" +
-                      capture::formatNumber(k.lo) + ", " + capture::formatNumber(k.hi) + "], not " + capture::formatNumber(x));
+                      capture::formatNumber(k.lo) + ", " + capture::formatNumber(k.hi) + "], not " +
+                      capture::formatNumber(x));
 }
 
-double KnobGroup::read(const KnobInfo& k, const nlohmann::json& v, const std::string& keyPath, const KnobFail& fail) const {
+double KnobGroup::read(const KnobInfo& k, const nlohmann::json& v, const std::string& keyPath,
+                       const KnobFail& fail) const {
   double x = 0;
   switch (k.type) {
     case KnobType::Bool:
@@ -58,9 +60,15 @@ nlohmann::json KnobGroup::toJson(const KnobValues& values) const {
     const auto it = values.find(k.name);
     if (it == values.end()) continue;
     switch (k.type) {
-      case KnobType::Bool: out[k.name] = it->second != 0.0; break;
-      case KnobType::Int: out[k.name] = static_cast<long long>(std::llround(it->second)); break;
-      case KnobType::Real: out[k.name] = it->second; break;
+      case KnobType::Bool:
+        out[k.name] = it->second != 0.0;
+        break;
+      case KnobType::Int:
+        out[k.name] = static_cast<long long>(std::llround(it->second));
+        break;
+      case KnobType::Real:
+        out[k.name] = it->second;
+        break;
     }
   }
   return out;

@@ -5,11 +5,10 @@
 /// sliders all read that table; nothing else spells a knob's range or default.
 #include <functional>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <variant>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 namespace mrgi::lighting {
 
@@ -89,8 +88,7 @@ S knobsFrom(const std::vector<KnobBinding<S>>& table, const KnobValues& values) 
 template <class S>
 KnobValues valuesOf(const std::vector<KnobBinding<S>>& table, const S& s) {
   KnobValues out;
-  for (const auto& b : table)
-    std::visit([&](auto m) { out[b.info.name] = static_cast<double>(s.*m); }, b.member);
+  for (const auto& b : table) std::visit([&](auto m) { out[b.info.name] = static_cast<double>(s.*m); }, b.member);
   return out;
 }
 

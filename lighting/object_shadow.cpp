@@ -62,7 +62,8 @@ cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Ve
     const cv::Vec3f d = s.centre - x;
     const float len = static_cast<float>(cv::norm(d));
     const cv::Vec3f w = len > 0 ? d / len : n;
-    const cv::Vec3f hidden = ambient.radiance(w), reflected = s.albedo.mul(ambient.irradiance(-w)) * static_cast<float>(1 / CV_PI);
+    const cv::Vec3f hidden = ambient.radiance(w),
+                    reflected = s.albedo.mul(ambient.irradiance(-w)) * static_cast<float>(1 / CV_PI);
     e += static_cast<float>(CV_PI * f) * (hidden - reflected);
   }
   const cv::Vec3f full = ambient.irradiance(n);

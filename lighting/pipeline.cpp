@@ -46,9 +46,12 @@ PipelineConfig pipelineConfig(const SceneDescription& scene, int width, int heig
 size_t estimateGpuBytes(const PipelineConfig& config, size_t lights) {
   PipelineConfig c = config;
   completeKnobs(c.knobs);
-  size_t sum = FrameResources::estimateBytes(frameConfigOf(c), lights) + 2 * 16 * static_cast<size_t>(c.width) * c.height;
+  size_t sum =
+      FrameResources::estimateBytes(frameConfigOf(c), lights) + 2 * 16 * static_cast<size_t>(c.width) * c.height;
   for (const RoleAssignment& a : assignRoles(c.technique))
-    if (a.info->estimateBytes) sum += a.info->estimateBytes(c.knobs.at(a.info->knobs.key), c.knobs.at("frame"), a.real, a.virtualObject, c.width, c.height, lights);
+    if (a.info->estimateBytes)
+      sum += a.info->estimateBytes(c.knobs.at(a.info->knobs.key), c.knobs.at("frame"), a.real, a.virtualObject, c.width,
+                                   c.height, lights);
   return sum;
 }
 
@@ -69,8 +72,10 @@ void setOccluderUniforms(const gl::Program& p, const FrameResources& frame) {
 /// The inputs a consumer depends on changed between two version snapshots.
 bool changed(const std::optional<FrameVersions>& at, const FrameVersions& now, unsigned inputs) {
   if (!at) return true;
-  return ((inputs & kInputCamera) && at->camera != now.camera) || ((inputs & kInputGeometry) && at->geometry != now.geometry) ||
-         ((inputs & kInputLights) && at->lights != now.lights) || ((inputs & kInputAmbient) && at->ambient != now.ambient) ||
+  return ((inputs & kInputCamera) && at->camera != now.camera) ||
+         ((inputs & kInputGeometry) && at->geometry != now.geometry) ||
+         ((inputs & kInputLights) && at->lights != now.lights) ||
+         ((inputs & kInputAmbient) && at->ambient != now.ambient) ||
          ((inputs & kInputRealVals) && at->realVals != now.realVals);
 }
 constexpr unsigned kAllInputs = kInputCamera | kInputGeometry | kInputLights | kInputAmbient | kInputRealVals;
@@ -163,7 +168,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   if (!needLights) skipped_.push_back("rsm");
   std::vector<bool> needTechnique(techniques_.size());
   for (size_t i = 0; i < techniques_.size(); ++i) {
-    needTechnique[i] = (needLights || changed(techniqueAt_[i], now, techniques_[i]->inputs())) && !idle(*techniques_[i]);
+    needTechnique[i] =
+        (needLights || changed(techniqueAt_[i], now, techniques_[i]->inputs())) && !idle(*techniques_[i]);
     if (!needTechnique[i]) skipped_.push_back(techniques_[i]->name());
   }
   if (!changed(shadeAt_, now, kAllInputs)) {
@@ -221,7 +227,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       for (size_t k = 0; k < 9; ++k) hidden.sh[k] = cv::Vec3f(frame_->ambientSh()[k]);
     }
     p.set("uHiddenUniform", hidden.uniform[0], hidden.uniform[1], hidden.uniform[2]);
-    for (size_t k = 0; k < 9; ++k) p.set("uHiddenSh[" + std::to_string(k) + "]", hidden.sh[k][0], hidden.sh[k][1], hidden.sh[k][2]);
+    for (size_t k = 0; k < 9; ++k)
+      p.set("uHiddenSh[" + std::to_string(k) + "]", hidden.sh[k][0], hidden.sh[k][1], hidden.sh[k][2]);
   }
   p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
   setLightUniforms(p, kept, frame_->lightViews());

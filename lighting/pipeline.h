@@ -12,17 +12,16 @@
 #include <array>
 #include <functional>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
-
 #include "gl/objects.h"
 #include "gl/profiler.h"
-#include "lighting/ambient.h"
 #include "gl/program.h"
+#include "lighting/ambient.h"
 #include "lighting/frame/frame.h"
 #include "lighting/scene_file.h"
 #include "lighting/techniques/registry.h"
@@ -32,9 +31,9 @@ namespace mrgi::lighting {
 
 struct PipelineConfig {
   PipelineConfig();
-  int width = 640, height = 480;  ///< G-buffer / output size (camera colour resolution)
-  TechniqueChoice technique;      ///< default: the registry's first technique
-  KnobSet knobs;                  ///< every group complete (defaults)
+  int width = 640, height = 480;      ///< G-buffer / output size (camera colour resolution)
+  TechniqueChoice technique;          ///< default: the registry's first technique
+  KnobSet knobs;                      ///< every group complete (defaults)
   std::optional<Region> fixedRegion;  ///< overrides fitting the region to the virtual objects (tests)
   /// Reports the progress of a technique's long precompute (what, fraction 0..1); may be empty.
   std::function<void(const std::string& what, double fraction)> progress;
@@ -69,7 +68,9 @@ class LightingPipeline {
   /// The real surfaces' albedo per camera pixel for the G-buffer (FrameResources::setRealPixelAlbedo).
   void setRealPixelAlbedo(const cv::Mat& albedo) { frame_->setRealPixelAlbedo(albedo); }
   /// Where object i sits in the lighting world.
-  void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) { frame_->setObjectTransform(i, T_world_object); }
+  void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) {
+    frame_->setObjectTransform(i, T_world_object);
+  }
   /// The ambient's directional part for the next runs: radiance as SH bands 0-2 (index l(l+1)+m, the basis
   /// of reconstruction::shBasis2), lighting world; the virtual object gets its clamped-cosine irradiance
   /// on top of the uniform ambient. Zero (the default) adds nothing. A change reruns the shading pass.

@@ -1,22 +1,21 @@
 #include "lighting/scene_file.h"
 
-#include "capture/ply_check.h"
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
 
+#include <assimp/Importer.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
 #include <set>
 #include <sstream>
 
-#include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <nlohmann/json.hpp>
-#include <opencv2/calib3d.hpp>
-
 #include "capture/checks.h"
 #include "capture/json_io.h"
+#include "capture/ply_check.h"
 #include "capture/types.h"
 #include "lighting/techniques/registry.h"
 
@@ -80,11 +79,13 @@ void checkModelContent(const std::string& path, const std::string& ext) {
   for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (lower.rfind("ply", 0) == 0 && ext != ".ply") throw SceneError(path, "holds a PLY file but is named " + ext);
   if (ext == ".glb") {
-    if (head.size() < 12 || head.compare(0, 4, "glTF") != 0 || head[4] != 2 || head[5] != 0 || head[6] != 0 || head[7] != 0)
+    if (head.size() < 12 || head.compare(0, 4, "glTF") != 0 || head[4] != 2 || head[5] != 0 || head[6] != 0 ||
+        head[7] != 0)
       throw SceneError(path, "not a binary glTF 2 file (no 'glTF' header of version 2)");
   } else if (ext == ".gltf") {
     // Parsed here with our depth bound (assimp's JSON reader recurses without one), then its asset version.
-    const nlohmann::json j = capture::parseJson(capture::readFileBounded(path, capture::kMaxTextFileBytes, "glTF file"), path);
+    const nlohmann::json j =
+        capture::parseJson(capture::readFileBounded(path, capture::kMaxTextFileBytes, "glTF file"), path);
     if (!j.is_object() || !j.contains("asset") || !j["asset"].is_object() || !j["asset"].contains("version") ||
         !j["asset"]["version"].is_string() || j["asset"]["version"].get<std::string>().rfind("2", 0) != 0)
       throw SceneError(path, "not a glTF 2 file (asset.version \"2.x\" missing)");
@@ -128,8 +129,9 @@ Mesh loadMesh(const std::string& path) {
         throw SceneError(path, "model mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no vertices");
       for (unsigned k = 0; k < face.mNumIndices; ++k)
         if (face.mIndices[k] >= mesh->mNumVertices)
-          throw SceneError(path, "model mesh " + std::to_string(m) + " face " + std::to_string(f) + " refers to vertex " +
-                                     std::to_string(face.mIndices[k]) + " of " + std::to_string(mesh->mNumVertices));
+          throw SceneError(path, "model mesh " + std::to_string(m) + " face " + std::to_string(f) +
+                                     " refers to vertex " + std::to_string(face.mIndices[k]) + " of " +
+                                     std::to_string(mesh->mNumVertices));
     }
     for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
       const aiVector3D& p = mesh->mVertices[v];
@@ -137,9 +139,11 @@ Mesh loadMesh(const std::string& path) {
         throw SceneError(path, "model has a non-finite vertex position");
     }
   }
-  scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_GenSmoothNormals | aiProcess_JoinIdenticalVertices |
-                                       aiProcess_SortByPType | aiProcess_PreTransformVertices);
-  if (!scene || !scene->mRootNode) throw SceneError(path, "cannot read model: " + capture::excerpt(importer.GetErrorString()));
+  scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_GenSmoothNormals |
+                                       aiProcess_JoinIdenticalVertices | aiProcess_SortByPType |
+                                       aiProcess_PreTransformVertices);
+  if (!scene || !scene->mRootNode)
+    throw SceneError(path, "cannot read model: " + capture::excerpt(importer.GetErrorString()));
   Mesh mesh;
   appendNode(scene, scene->mRootNode, aiMatrix4x4(), mesh);
   if (mesh.indices.empty()) throw SceneError(path, "model holds no triangles");
@@ -187,7 +191,8 @@ class Reader {
     if (!v.is_number_integer()) fail(key, "must be an integer");
     const auto x = v.get<long long>();
     if (x < lo || x > hi)
-      fail(key, "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], not " + std::to_string(x));
+      fail(key,
+           "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], not " + std::to_string(x));
     return static_cast<int>(x);
   }
 
@@ -224,8 +229,15 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
   Reader r(path);
   json doc;
   doc = capture::parseJson(text, path);
-  std::set<std::string> topLevel{"objects", "lights", "fisheye_light_count", "room_light_count", "room_saturated_gain",
-                                 "room_white_albedo", "ambient_radiance", "technique", "world"};
+  std::set<std::string> topLevel{"objects",
+                                 "lights",
+                                 "fisheye_light_count",
+                                 "room_light_count",
+                                 "room_saturated_gain",
+                                 "room_white_albedo",
+                                 "ambient_radiance",
+                                 "technique",
+                                 "world"};
   for (const KnobGroup* g : knobGroups()) topLevel.insert(g->key);
   r.allowOnly(doc, "", topLevel);
   SceneDescription s;
@@ -244,20 +256,28 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
       if (!o.contains("model")) r.fail(key + ".model", "missing (a path to an OBJ, PLY or glTF file)");
       VirtualObject obj;
       const std::string model = r.string(o["model"], key + ".model");
-      obj.model = fs::path(model).is_absolute() ? fs::path(model).lexically_normal().string() : (base / model).lexically_normal().string();
-      const double scale = o.contains("scale") ? r.number(o["scale"], key + ".scale", kObjectScale.lo, kObjectScale.hi) : 1.0;
-      const cv::Vec3d t = o.contains("translate") ? r.vec3(o["translate"], key + ".translate", kObjectTranslateM.lo, kObjectTranslateM.hi) : cv::Vec3d();
-      const cv::Vec3d rd = o.contains("rotate_deg") ? r.vec3(o["rotate_deg"], key + ".rotate_deg", kObjectRotateDeg.lo, kObjectRotateDeg.hi) : cv::Vec3d();
+      obj.model = fs::path(model).is_absolute() ? fs::path(model).lexically_normal().string()
+                                                : (base / model).lexically_normal().string();
+      const double scale =
+          o.contains("scale") ? r.number(o["scale"], key + ".scale", kObjectScale.lo, kObjectScale.hi) : 1.0;
+      const cv::Vec3d t = o.contains("translate")
+                              ? r.vec3(o["translate"], key + ".translate", kObjectTranslateM.lo, kObjectTranslateM.hi)
+                              : cv::Vec3d();
+      const cv::Vec3d rd = o.contains("rotate_deg")
+                               ? r.vec3(o["rotate_deg"], key + ".rotate_deg", kObjectRotateDeg.lo, kObjectRotateDeg.hi)
+                               : cv::Vec3d();
       if (o.contains("material")) {
         const json& m = o["material"];
         const std::string materialKey = key + ".material";
         r.allowOnly(m, materialKey, {"albedo", "roughness", "specular"});
-        if (m.contains("albedo")) obj.material.albedo = r.vec3(m["albedo"], key + ".material.albedo", kAlbedo.lo, kAlbedo.hi);
+        if (m.contains("albedo"))
+          obj.material.albedo = r.vec3(m["albedo"], key + ".material.albedo", kAlbedo.lo, kAlbedo.hi);
         if (m.contains("roughness"))
           obj.material.roughness = static_cast<float>(r.number(m["roughness"], key + ".material.roughness", 0, 1));
         if (m.contains("specular"))
           obj.material.specular = static_cast<float>(r.number(m["specular"], key + ".material.specular", 0, 1));
-        if (obj.material.albedo[0] + obj.material.specular > 1.0f || obj.material.albedo[1] + obj.material.specular > 1.0f ||
+        if (obj.material.albedo[0] + obj.material.specular > 1.0f ||
+            obj.material.albedo[1] + obj.material.specular > 1.0f ||
             obj.material.albedo[2] + obj.material.specular > 1.0f)
           r.fail(materialKey, "albedo + specular exceeds 1 in a channel (the surface would create energy)");
       }
@@ -290,11 +310,14 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
       const std::string v = l.get<std::string>();
       if (v != "manifest" && v != "fisheye" && v != "room")
         r.fail("lights", "must be \"manifest\", \"fisheye\", \"room\" or an array of lights");
-      s.lightSource = v == "manifest" ? LightSource::Manifest : v == "fisheye" ? LightSource::Fisheye : LightSource::Room;
+      s.lightSource = v == "manifest"  ? LightSource::Manifest
+                      : v == "fisheye" ? LightSource::Fisheye
+                                       : LightSource::Room;
     } else if (l.is_array()) {
       s.lightSource = LightSource::Scene;
       if (l.size() > static_cast<size_t>(capture::kMaxLightCount))
-        r.fail("lights", std::to_string(l.size()) + " lights, at most " + std::to_string(capture::kMaxLightCount) + " are supported");
+        r.fail("lights", std::to_string(l.size()) + " lights, at most " + std::to_string(capture::kMaxLightCount) +
+                             " are supported");
       for (size_t i = 0; i < l.size(); ++i) {
         const std::string key = "lights[" + std::to_string(i) + "]";
         const json& j = l[i];
@@ -308,12 +331,14 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
         };
         if (type == "point" || type == "spot") {
           light.type = type == "point" ? LightType::Point : LightType::Spot;
-          light.position = r.vec3(need("position"), key + ".position", -capture::kMaxLightPositionM, capture::kMaxLightPositionM);
+          light.position =
+              r.vec3(need("position"), key + ".position", -capture::kMaxLightPositionM, capture::kMaxLightPositionM);
           light.intensity = r.vec3(need("intensity"), key + ".intensity", 0, capture::kMaxLightPower);
           if (light.type == LightType::Spot) {
             light.direction = unit(r.vec3(need("direction"), key + ".direction", -1e3, 1e3), r, key + ".direction");
             if (j.contains("spot_half_angle_deg"))
-              light.spotHalfAngleDeg = r.number(j["spot_half_angle_deg"], key + ".spot_half_angle_deg", capture::kMinSpotHalfAngleDeg, capture::kMaxSpotHalfAngleDeg);
+              light.spotHalfAngleDeg = r.number(j["spot_half_angle_deg"], key + ".spot_half_angle_deg",
+                                                capture::kMinSpotHalfAngleDeg, capture::kMaxSpotHalfAngleDeg);
           }
         } else if (type == "directional") {
           light.type = LightType::Directional;
@@ -328,9 +353,12 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
       r.fail("lights", "must be \"manifest\", \"fisheye\", \"room\" or an array of lights");
     }
   }
-  if (doc.contains("room_light_count")) s.roomLightCount = r.integer(doc["room_light_count"], "room_light_count", 1, 16);
-  if (doc.contains("room_saturated_gain")) s.roomSaturatedGain = r.number(doc["room_saturated_gain"], "room_saturated_gain", 0, 1e4);
-  if (doc.contains("room_white_albedo")) s.roomWhiteAlbedo = r.number(doc["room_white_albedo"], "room_white_albedo", 0.05, 1);
+  if (doc.contains("room_light_count"))
+    s.roomLightCount = r.integer(doc["room_light_count"], "room_light_count", 1, 16);
+  if (doc.contains("room_saturated_gain"))
+    s.roomSaturatedGain = r.number(doc["room_saturated_gain"], "room_saturated_gain", 0, 1e4);
+  if (doc.contains("room_white_albedo"))
+    s.roomWhiteAlbedo = r.number(doc["room_white_albedo"], "room_white_albedo", 0.05, 1);
   if (doc.contains("fisheye_light_count"))
     s.fisheyeLightCount = r.integer(doc["fisheye_light_count"], "fisheye_light_count", 1, 16);
   if (doc.contains("ambient_radiance")) {
@@ -345,7 +373,8 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
     const json& m = w["first_frame_T_world_camera"];
     if (!m.is_array() || m.size() != 16) r.fail(key, "must be an array of 16 numbers (row-major 4x4)");
     cv::Matx44d T;
-    for (int i = 0; i < 16; ++i) T.val[i] = r.number(m[static_cast<size_t>(i)], key + "[" + std::to_string(i) + "]", -1e6, 1e6);
+    for (int i = 0; i < 16; ++i)
+      T.val[i] = r.number(m[static_cast<size_t>(i)], key + "[" + std::to_string(i) + "]", -1e6, 1e6);
     const cv::Matx33d R = T.get_minor<3, 3>(0, 0);
     if (cv::norm(R.t() * R - cv::Matx33d::eye()) > 1e-4 || std::abs(cv::determinant(R) - 1) > 1e-4 || T(3, 0) != 0 ||
         T(3, 1) != 0 || T(3, 2) != 0 || T(3, 3) != 1)
@@ -360,9 +389,9 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
         s.technique = parseTechniqueChoice(t.get<std::string>(), &s.knobs);
       } else if (t.is_object()) {
         r.allowOnly(t, "technique", {"real", "virtual"});
-        s.technique = parseTechniqueRoles(t.contains("real") ? r.string(t["real"], "technique.real") : "none",
-                                          t.contains("virtual") ? r.string(t["virtual"], "technique.virtual") : "none",
-                                          &s.knobs);
+        s.technique =
+            parseTechniqueRoles(t.contains("real") ? r.string(t["real"], "technique.real") : "none",
+                                t.contains("virtual") ? r.string(t["virtual"], "technique.virtual") : "none", &s.knobs);
       } else {
         r.fail("technique", "must be a technique name or {\"real\": ..., \"virtual\": ...}");
       }

@@ -6,12 +6,11 @@
 /// metres). The lighting world of `mrgi replay` is the marker frame: the tag is fixed in the room, so the
 /// volume stays axis-aligned in a frame that does not move with the camera.
 #include <cmath>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "capture/error.h"
 #include "lighting/knobs.h"
@@ -52,8 +51,8 @@ struct Material {
 };
 
 struct VirtualObject {
-  std::string model;        ///< resolved path
-  Mesh mesh;                ///< already scaled
+  std::string model;  ///< resolved path
+  Mesh mesh;          ///< already scaled
   cv::Matx44d T_marker_object = cv::Matx44d::eye();
   Material material;
 };
@@ -63,11 +62,11 @@ enum class LightType { Point, Spot, Directional };
 /// A light in the lighting world (marker frame).
 struct SceneLight {
   LightType type = LightType::Point;
-  cv::Vec3d position{0, 0, 0};   ///< point/spot, metres
-  cv::Vec3d direction{0, 0, -1}; ///< spot axis / directional travel direction (from the light into the scene), unit
-  cv::Vec3d intensity{0, 0, 0};  ///< point/spot: radiant intensity, W/sr per channel
-  cv::Vec3d irradiance{0, 0, 0}; ///< directional: irradiance at normal incidence, W/m^2 per channel
-  double spotHalfAngleDeg = 45;  ///< spot: cone half angle
+  cv::Vec3d position{0, 0, 0};    ///< point/spot, metres
+  cv::Vec3d direction{0, 0, -1};  ///< spot axis / directional travel direction (from the light into the scene), unit
+  cv::Vec3d intensity{0, 0, 0};   ///< point/spot: radiant intensity, W/sr per channel
+  cv::Vec3d irradiance{0, 0, 0};  ///< directional: irradiance at normal incidence, W/m^2 per channel
+  double spotHalfAngleDeg = 45;   ///< spot: cone half angle
   double spotCos() const { return std::cos(spotHalfAngleDeg * CV_PI / 180.0); }
   bool operator==(const SceneLight&) const = default;
 };
@@ -90,16 +89,16 @@ struct SceneDescription {
   std::string path;
   std::vector<VirtualObject> objects;
   LightSource lightSource = LightSource::Manifest;
-  bool lightsGiven = false;  ///< the file says where lights come from ("lights"); else the source decides
-  std::vector<SceneLight> lights;           ///< for LightSource::Scene
-  int fisheyeLightCount = 16;               ///< for LightSource::Fisheye: median-cut lights (1..16)
+  bool lightsGiven = false;        ///< the file says where lights come from ("lights"); else the source decides
+  std::vector<SceneLight> lights;  ///< for LightSource::Scene
+  int fisheyeLightCount = 16;      ///< for LightSource::Fisheye: median-cut lights (1..16)
   /// For LightSource::Room: lights from the split (1..16), the gain on saturated radiance (0 = estimated
   /// with the white-patch assumption) and that assumption's albedo.
   int roomLightCount = 4;
   double roomSaturatedGain = 0;
   double roomWhiteAlbedo = 0.8;
-  cv::Vec3d ambientRadiance{0, 0, 0};       ///< uniform environment radiance lighting the virtual object (W/m^2/sr)
-  bool ambientFromManifest = true;          ///< take ambient from the manifest when it has one
+  cv::Vec3d ambientRadiance{0, 0, 0};  ///< uniform environment radiance lighting the virtual object (W/m^2/sr)
+  bool ambientFromManifest = true;     ///< take ambient from the manifest when it has one
   /// The world the objects are placed in: the marker frame (none: the default), or, for a recording without
   /// a marker, the world its first frame founded ("world": {"first_frame_T_world_camera": [16 numbers]}:
   /// that frame's camera pose in it, row-major; mrgi insert writes it, replay places the first frame there).

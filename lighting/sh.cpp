@@ -39,8 +39,10 @@ void evaluate(const cv::Vec3d& d, int bands, double* out) {
     double p0 = pmm, p1 = z * (2 * m + 1) * pmm;
     for (int l = m; l < bands; ++l) {
       double p;
-      if (l == m) p = p0;
-      else if (l == m + 1) p = p1;
+      if (l == m)
+        p = p0;
+      else if (l == m + 1)
+        p = p1;
       else {
         p = (z * (2 * l - 1) * p1 - (l + m - 1) * p0) / (l - m);
         p0 = p1, p1 = p;
@@ -138,7 +140,8 @@ std::vector<double> coneZonal(double alpha, int bands) {
       integral = 0;
       double pw = u;  // u^(k+1)
       for (int k = 0; k <= l; ++k) {
-        integral += factorial(l + k) / (factorial(l - k) * factorial(k) * factorial(k)) * std::pow(-0.5, k) * pw / (k + 1);
+        integral +=
+            factorial(l + k) / (factorial(l - k) * factorial(k) * factorial(k)) * std::pow(-0.5, k) * pw / (k + 1);
         pw *= u;
       }
     } else {

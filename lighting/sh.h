@@ -7,9 +7,8 @@
 /// m < 0, with Pbar_lm = P_lm / sin^m (a polynomial in z), so evaluation needs no trigonometry.
 #include <array>
 #include <functional>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 namespace mrgi::lighting::sh {
 

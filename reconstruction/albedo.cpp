@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
 
@@ -161,7 +160,8 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
   });
   if (o.fill) {
     const cv::Mat rejected = out.status != uchar(AlbedoStatus::Measured);
-    if (cv::countNonZero(rejected) > 0 && cv::countNonZero(~rejected) > 0) fillRejected(out.albedo, rejected, o.fillScale);
+    if (cv::countNonZero(rejected) > 0 && cv::countNonZero(~rejected) > 0)
+      fillRejected(out.albedo, rejected, o.fillScale);
   }
   out.albedo = cv::max(out.albedo, bound);
   return out;

@@ -4,9 +4,8 @@
 /// The factor pi matches the compositor's Lambertian shading (radiance = k_d / pi * E), so re-shading a
 /// real pixel with the same lights reproduces its camera value. Pixels that cannot be trusted (no
 /// geometry, grazing light, saturated, in shadow, unlit) are rejected and filled from their neighbours.
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "capture/types.h"
 #include "reconstruction/light_estimation.h"
@@ -20,8 +19,8 @@ struct AlbedoPointLight {
 
 struct AlbedoLights {
   std::vector<AlbedoPointLight> points;
-  std::vector<EstimatedLight> distant;  ///< directions in the camera frame; power = irradiance at normal incidence
-  cv::Vec3d ambientIrradiance{0, 0, 0}; ///< unoccluded ambient term (pi * ambient radiance)
+  std::vector<EstimatedLight> distant;   ///< directions in the camera frame; power = irradiance at normal incidence
+  cv::Vec3d ambientIrradiance{0, 0, 0};  ///< unoccluded ambient term (pi * ambient radiance)
 };
 
 enum class AlbedoStatus : uint8_t { Measured = 0, NoGeometry = 1, Grazing = 2, Saturated = 3, Shadowed = 4, Unlit = 5 };
@@ -31,17 +30,17 @@ struct AlbedoOptions {
   int saturationLevel = 250;     ///< 8-bit channel value counted as clipped
   bool shadowTest = true;        ///< screen-space occlusion test towards each significant light
   int shadowSteps = 48;
-  double shadowThickness = 0.25;  ///< metres: a surface this far in front of a ray sample does not occlude it
-  double shadowTolerance = 0.005; ///< relative depth: a surface must be this much in front of a sample to occlude it
-  double distantRayLength = 2.0;  ///< metres marched towards distant lights
-  bool fill = true;               ///< fill rejected pixels from their neighbours (cv::inpaint)
+  double shadowThickness = 0.25;   ///< metres: a surface this far in front of a ray sample does not occlude it
+  double shadowTolerance = 0.005;  ///< relative depth: a surface must be this much in front of a sample to occlude it
+  double distantRayLength = 2.0;   ///< metres marched towards distant lights
+  bool fill = true;                ///< fill rejected pixels from their neighbours (cv::inpaint)
   /// The fill's resolution. 1 (default): Navier-Stokes inpainting at full resolution. > 1: rejected pixels take
   /// the bilinear upsampling of the measured pixels' means per fillScale x fillScale block, the blocks without
   /// enough measured pixels inpainted at that resolution: 30x cheaper on a frame with large rejected regions
   /// (BM_Albedo) at 4, but 4 x 4 blocks mix across sharp albedo edges (a clipped white tag square takes in its
   /// black neighbours, and a virtual shadow darkens it less). The frame pipeline fills from 2 x 2 blocks.
   int fillScale = 1;
-  double exposure = 1.0;          ///< an 8-bit colour's linear value per unit radiance (RgbdFrame::exposure)
+  double exposure = 1.0;  ///< an 8-bit colour's linear value per unit radiance (RgbdFrame::exposure)
 };
 
 struct AlbedoResult {
@@ -52,6 +51,7 @@ struct AlbedoResult {
 /// colour: CV_8UC3 sRGB (RGB order) or CV_32FC3 linear; positions/normals: CV_32FC3 camera frame from
 /// backProject/computeNormals (zero = unknown).
 AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, const cv::Mat& normals,
-                            const capture::Intrinsics& k, const AlbedoLights& lights, const AlbedoOptions& options = {});
+                            const capture::Intrinsics& k, const AlbedoLights& lights,
+                            const AlbedoOptions& options = {});
 
 }  // namespace mrgi::reconstruction

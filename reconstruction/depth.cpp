@@ -13,8 +13,9 @@ cv::Mat backProject(const cv::Mat& depth, const capture::Intrinsics& k) {
     auto* o = out.ptr<cv::Vec3f>(y);
     for (int x = 0; x < depth.cols; ++x) {
       const float z = d[x];
-      o[x] = validDepth(z) ? cv::Vec3f(static_cast<float>((x - k.cx) * z / k.fx), static_cast<float>((y - k.cy) * z / k.fy), z)
-                           : cv::Vec3f(0, 0, 0);
+      o[x] = validDepth(z)
+                 ? cv::Vec3f(static_cast<float>((x - k.cx) * z / k.fx), static_cast<float>((y - k.cy) * z / k.fy), z)
+                 : cv::Vec3f(0, 0, 0);
     }
   }
   return out;

@@ -34,7 +34,8 @@ cv::Mat sanitizeDepth(const cv::Mat& depth, float minDepth, float maxDepth) {
   for (int y = 0; y < depth.rows; ++y) {
     const float* d = depth.ptr<float>(y);
     float* o = out.ptr<float>(y);
-    for (int x = 0; x < depth.cols; ++x) o[x] = (std::isfinite(d[x]) && d[x] >= minDepth && d[x] <= maxDepth) ? d[x] : 0.f;
+    for (int x = 0; x < depth.cols; ++x)
+      o[x] = (std::isfinite(d[x]) && d[x] >= minDepth && d[x] <= maxDepth) ? d[x] : 0.f;
   }
   return out;
 }
@@ -104,7 +105,8 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
   cv::Mat coef(h, w, CV_32FC4), weight(h, w, CV_32FC1), spread(h, w, CV_32FC1), meanP(h, w, CV_32FC1);
   const double eps = o.eps;
   forRows(h, [&](int y) {
-    const auto *b0 = m0.ptr<cv::Vec4f>(y), *b1 = m1.ptr<cv::Vec4f>(y), *b2 = m2.ptr<cv::Vec4f>(y), *b3 = m3.ptr<cv::Vec4f>(y);
+    const auto *b0 = m0.ptr<cv::Vec4f>(y), *b1 = m1.ptr<cv::Vec4f>(y), *b2 = m2.ptr<cv::Vec4f>(y),
+               *b3 = m3.ptr<cv::Vec4f>(y);
     auto* c = coef.ptr<cv::Vec4f>(y);
     float *wt = weight.ptr<float>(y), *sp = spread.ptr<float>(y), *mp = meanP.ptr<float>(y);
     for (int x = 0; x < w; ++x) {
@@ -149,7 +151,8 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
     const float* d = p.ptr<float>(y);
     const auto* g = guide.ptr<cv::Vec3f>(y);
     const auto* c = mc.ptr<cv::Vec4f>(y);
-    const float *n = mw.ptr<float>(y), *wt = weight.ptr<float>(y), *sp = spread.ptr<float>(y), *mp = meanP.ptr<float>(y);
+    const float *n = mw.ptr<float>(y), *wt = weight.ptr<float>(y), *sp = spread.ptr<float>(y),
+                *mp = meanP.ptr<float>(y);
     float* q = out.ptr<float>(y);
     for (int x = 0; x < w; ++x) {
       if (!(n[x] > 1e-6f)) continue;

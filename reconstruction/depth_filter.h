@@ -6,25 +6,24 @@
 /// (normalised weighting): they are never averaged in as zeros. On hole-free input the filter reduces to
 /// the classic colour-guided filter and matches cv::ximgproc::guidedFilter (tests/reconstruction).
 #include <cstdint>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "capture/types.h"
 
 namespace mrgi::reconstruction {
 
 struct DepthFilterOptions {
-  int radiusPx = 4;            ///< box window (2r+1)^2 pixels
-  double radiusMetres = 0.0;   ///< > 0: window radius chosen to span this many metres at the median depth
-  double eps = 1e-3;           ///< regulariser of the guide covariance (guide channels in [0, 1])
-  float minDepth = 0.1f;       ///< valid range, metres
+  int radiusPx = 4;           ///< box window (2r+1)^2 pixels
+  double radiusMetres = 0.0;  ///< > 0: window radius chosen to span this many metres at the median depth
+  double eps = 1e-3;          ///< regulariser of the guide covariance (guide channels in [0, 1])
+  float minDepth = 0.1f;      ///< valid range, metres
   float maxDepth = 10.f;
   /// Depth-edge cut: a filtered value that moved more than edgeCut * z from its input keeps the input
   /// (no surface bridges a depth discontinuity); hole filling needs the window's depth spread below it.
   float edgeCut = 0.03f;
-  bool removeSpikes = true;    ///< drop isolated samples further than edgeCut * z from their 5x5 median
-  bool fillHoles = false;      ///< fill invalid pixels whose window is mostly valid and planar
+  bool removeSpikes = true;  ///< drop isolated samples further than edgeCut * z from their 5x5 median
+  bool fillHoles = false;    ///< fill invalid pixels whose window is mostly valid and planar
   float fillMinValidFraction = 0.6f;
 };
 

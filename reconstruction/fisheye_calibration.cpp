@@ -1,10 +1,9 @@
 #include "reconstruction/fisheye_calibration.h"
 
-#include <stdexcept>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 #include "capture/image_io.h"
 
@@ -28,8 +27,9 @@ FisheyeCalibrationResult calibrateFisheye(const std::vector<std::string>& paths,
       continue;
     }
     std::vector<cv::Point2f> corners;
-    if (!cv::findChessboardCorners(grey, inner, corners,
-                                   cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK)) {
+    if (!cv::findChessboardCorners(
+            grey, inner, corners,
+            cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK)) {
       out.rejected.push_back(path + ": board not found");
       continue;
     }
@@ -39,10 +39,12 @@ FisheyeCalibrationResult calibrateFisheye(const std::vector<std::string>& paths,
     images.emplace_back(corners.begin(), corners.end());
     out.used.push_back(path);
   }
-  const int flags = cv::fisheye::CALIB_RECOMPUTE_EXTRINSIC | cv::fisheye::CALIB_CHECK_COND | cv::fisheye::CALIB_FIX_SKEW;
+  const int flags =
+      cv::fisheye::CALIB_RECOMPUTE_EXTRINSIC | cv::fisheye::CALIB_CHECK_COND | cv::fisheye::CALIB_FIX_SKEW;
   const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-9);
   while (true) {
-    if (objects.size() < 3) throw std::runtime_error("fewer than 3 usable checkerboard views (" + std::to_string(objects.size()) + ")");
+    if (objects.size() < 3)
+      throw std::runtime_error("fewer than 3 usable checkerboard views (" + std::to_string(objects.size()) + ")");
     cv::Matx33d K;
     cv::Vec4d D;
     std::vector<cv::Mat> rvecs, tvecs;

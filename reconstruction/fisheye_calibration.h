@@ -1,9 +1,8 @@
 #pragma once
 /// Fisheye calibration from checkerboard photos with OpenCV's fisheye module (equidistant model).
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "capture/types.h"
 
@@ -11,9 +10,9 @@ namespace mrgi::reconstruction {
 
 struct FisheyeCalibrationResult {
   capture::FisheyeCalibration calibration;
-  double rms = 0;                      ///< reprojection RMS in pixels over the used views
-  std::vector<std::string> used;       ///< images whose board was found and kept
-  std::vector<std::string> rejected;   ///< "path: reason"
+  double rms = 0;                     ///< reprojection RMS in pixels over the used views
+  std::vector<std::string> used;      ///< images whose board was found and kept
+  std::vector<std::string> rejected;  ///< "path: reason"
 };
 
 /// innerCorners = corners per row x per column (e.g. 6x8); squareSize in metres (does not affect K, D).

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
@@ -175,8 +174,10 @@ class RegionStats {
 bool split(const RegionStats& s, const cv::Rect& r, bool varianceSplit, cv::Rect& a, cv::Rect& b) {
   if (r.width < 2 && r.height < 2) return false;
   auto halves = [&](bool vertical, int cut, cv::Rect& lo, cv::Rect& hi) {
-    if (vertical) lo = {r.x, r.y, cut - r.x, r.height}, hi = {cut, r.y, r.x + r.width - cut, r.height};
-    else lo = {r.x, r.y, r.width, cut - r.y}, hi = {r.x, cut, r.width, r.y + r.height - cut};
+    if (vertical)
+      lo = {r.x, r.y, cut - r.x, r.height}, hi = {cut, r.y, r.x + r.width - cut, r.height};
+    else
+      lo = {r.x, r.y, r.width, cut - r.y}, hi = {r.x, cut, r.width, r.y + r.height - cut};
   };
   if (varianceSplit) {
     double best = std::numeric_limits<double>::infinity();
@@ -206,8 +207,10 @@ bool split(const RegionStats& s, const cv::Rect& r, bool varianceSplit, cv::Rect
     };
     while (l < h) {
       const int m = (l + h) / 2;
-      if (first(m) >= 0.5 * total) h = m;
-      else l = m + 1;
+      if (first(m) >= 0.5 * total)
+        h = m;
+      else
+        l = m + 1;
     }
     cut = l;
     if (cut > lo && std::abs(first(cut - 1) - 0.5 * total) < std::abs(first(cut) - 0.5 * total)) --cut;
@@ -248,16 +251,17 @@ std::vector<EstimatedLight> medianCut(const cv::Mat& radiance, const FisheyeRays
     while (static_cast<int>(regions.size()) < target) {
       // One level: split regions strongest first until the target is met.
       std::vector<cv::Rect> level = regions, next;
-      std::stable_sort(level.begin(), level.end(), [&](const cv::Rect& a, const cv::Rect& b) {
-        return stats.energy(a)[0] > stats.energy(b)[0];
-      });
+      std::stable_sort(level.begin(), level.end(),
+                       [&](const cv::Rect& a, const cv::Rect& b) { return stats.energy(a)[0] > stats.energy(b)[0]; });
       size_t i = 0;
       bool progressed = false;
       int count = static_cast<int>(regions.size());
       for (; i < level.size() && count < target; ++i) {
         cv::Rect a, b;
-        if (split(stats, level[i], o.varianceSplit, a, b)) next.push_back(a), next.push_back(b), ++count, progressed = true;
-        else next.push_back(level[i]);
+        if (split(stats, level[i], o.varianceSplit, a, b))
+          next.push_back(a), next.push_back(b), ++count, progressed = true;
+        else
+          next.push_back(level[i]);
       }
       for (; i < level.size(); ++i) next.push_back(level[i]);
       regions.swap(next);
@@ -347,16 +351,23 @@ namespace mrgi::reconstruction {
 
 std::array<double, 9> shBasis2(const cv::Vec3d& d) {
   const double x = d[0], y = d[1], z = d[2];
-  return {0.282094791773878,       0.488602511902920 * y, 0.488602511902920 * z,
-          0.488602511902920 * x,   1.092548430592079 * x * y, 1.092548430592079 * y * z,
-          0.315391565252520 * (3 * z * z - 1), 1.092548430592079 * x * z, 0.546274215296040 * (x * x - y * y)};
+  return {0.282094791773878,
+          0.488602511902920 * y,
+          0.488602511902920 * z,
+          0.488602511902920 * x,
+          1.092548430592079 * x * y,
+          1.092548430592079 * y * z,
+          0.315391565252520 * (3 * z * z - 1),
+          1.092548430592079 * x * z,
+          0.546274215296040 * (x * x - y * y)};
 }
 
 namespace {
 
 /// The clamped cosine's SH coefficients per basis function of bands 0-2 (A_l = pi, 2 pi / 3, pi / 4): the
 /// remainder's irradiance about n is sum_k kClampedCosine[k] c_k y_k(n).
-constexpr double kClampedCosine[9] = {CV_PI, 2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4, CV_PI / 4};
+constexpr double kClampedCosine[9] = {CV_PI,     2 * CV_PI / 3, 2 * CV_PI / 3, 2 * CV_PI / 3, CV_PI / 4,
+                                      CV_PI / 4, CV_PI / 4,     CV_PI / 4,     CV_PI / 4};
 
 /// The image as at most 64 x 32 direction bins (flux L dOmega and its flux-weighted mean direction): enough
 /// for the irradiance at a normal (a smooth function), at a few thousand terms instead of every pixel.
@@ -385,7 +396,8 @@ std::vector<FluxBin> fluxBins(const cv::Mat& radiance, const FisheyeRays& rays) 
     }
   std::vector<FluxBin> out;
   for (size_t i = 0; i < bins.size(); ++i)
-    if (weight[i] > 0 && cv::norm(bins[i].direction) > 0) out.push_back({cv::normalize(bins[i].direction), bins[i].flux, bins[i].solidAngle});
+    if (weight[i] > 0 && cv::norm(bins[i].direction) > 0)
+      out.push_back({cv::normalize(bins[i].direction), bins[i].flux, bins[i].solidAngle});
   return out;
 }
 
@@ -409,14 +421,16 @@ void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, 
       seen += b.solidAngle * c / CV_PI;
     }
     const double lum = capture::luminance(E);
-    if (!(lum > 0) || !std::isfinite(lum) || !(seen > 0)) continue;  // a normal the image sends nothing: no relative error
+    if (!(lum > 0) || !std::isfinite(lum) || !(seen > 0))
+      continue;  // a normal the image sends nothing: no relative error
     const cv::Vec3d want = E - irradianceFromLights(split.lights, n);
     const auto y = shBasis2(n);
     // Rows scaled by 1 / E: squared relative error, where the image sees the normal's hemisphere (a
     // fisheye's normals facing away from its field see only its rim: their irradiance is not the room's).
     const double w = std::min(seen, 1.0) / lum;
     for (int k = 1; k < 9; ++k) M.at<double>(rows, k - 1) = w * kClampedCosine[k] * y[static_cast<size_t>(k)];
-    for (int c = 0; c < 3; ++c) rhs.at<double>(rows, c) = w * (want[c] - kClampedCosine[0] * y[0] * split.ambientSh[0][c]);
+    for (int c = 0; c < 3; ++c)
+      rhs.at<double>(rows, c) = w * (want[c] - kClampedCosine[0] * y[0] * split.ambientSh[0][c]);
     ++rows;
   }
   if (rows < 16) return;
@@ -440,7 +454,8 @@ void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, 
     double worst = 0, sum = 0;
     std::vector<double> e(static_cast<size_t>(rows));
     for (int j = 0; j < rows; ++j) {
-      e[static_cast<size_t>(j)] = std::abs(capture::luminance(cv::Vec3d(r.at<double>(j, 0), r.at<double>(j, 1), r.at<double>(j, 2))));
+      e[static_cast<size_t>(j)] =
+          std::abs(capture::luminance(cv::Vec3d(r.at<double>(j, 0), r.at<double>(j, 1), r.at<double>(j, 2))));
       worst = std::max(worst, e[static_cast<size_t>(j)]);
     }
     if (worst < bestWorst) bestWorst = worst, best = x;

@@ -9,9 +9,8 @@
 /// sum of L * dOmega per RGB channel, i.e. the irradiance it delivers at normal incidence, so that
 /// E(n) = sum_i power_i <n, direction_i>+ approximates the integral of L <n, w>+ dw over the view.
 #include <array>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "capture/types.h"
 
@@ -40,10 +39,10 @@ cv::Mat linearRadiance(const cv::Mat& image, double exposure = 1.0, cv::Mat* sat
                        double saturationLevel = 1e30);
 
 struct EstimatedLight {
-  cv::Vec3d direction;   ///< unit, towards the light, fisheye camera frame (or world after lightsToWorld)
-  cv::Vec3d power;       ///< RGB, sum of L * dOmega over the region
-  double solidAngle = 0; ///< steradians covered by the region
-  cv::Rect region;       ///< pixels of the fisheye image
+  cv::Vec3d direction;    ///< unit, towards the light, fisheye camera frame (or world after lightsToWorld)
+  cv::Vec3d power;        ///< RGB, sum of L * dOmega over the region
+  double solidAngle = 0;  ///< steradians covered by the region
+  cv::Rect region;        ///< pixels of the fisheye image
 };
 
 struct MedianCutOptions {
@@ -59,7 +58,8 @@ struct MedianCutOptions {
 /// Median cut on radiance (CV_32FC3 linear, same size as rays). Total power of the lights equals the
 /// image's total sum of L * dOmega (up to double round-off). Zero-energy regions still give a light
 /// (power 0, direction = the region's solid-angle centroid).
-std::vector<EstimatedLight> medianCut(const cv::Mat& radiance, const FisheyeRays& rays, const MedianCutOptions& options = {});
+std::vector<EstimatedLight> medianCut(const cv::Mat& radiance, const FisheyeRays& rays,
+                                      const MedianCutOptions& options = {});
 
 /// Lights for what casts shadows, spherical harmonics for the rest. The radiance is split per pixel at a
 /// luminance threshold T = `threshold` x the image's solid-angle-weighted mean luminance: the part above T

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -57,7 +56,8 @@ std::vector<TagDetection> TagDetector::detect(const cv::Mat& image, cv::Rect roi
 
 cv::Rect tagSearchRegion(const std::array<cv::Point2d, 4>& corners, double grow) {
   double lx = corners[0].x, hx = lx, ly = corners[0].y, hy = ly;
-  for (const cv::Point2d& c : corners) lx = std::min(lx, c.x), hx = std::max(hx, c.x), ly = std::min(ly, c.y), hy = std::max(hy, c.y);
+  for (const cv::Point2d& c : corners)
+    lx = std::min(lx, c.x), hx = std::max(hx, c.x), ly = std::min(ly, c.y), hy = std::max(hy, c.y);
   const double g = grow * std::max(hx - lx, hy - ly);
   if (!std::isfinite(g)) return {};
   return cv::Rect(cv::Point(static_cast<int>(std::floor(lx - g)), static_cast<int>(std::floor(ly - g))),
@@ -66,17 +66,22 @@ cv::Rect tagSearchRegion(const std::array<cv::Point2d, 4>& corners, double grow)
 
 bool tagWellInside(const TagDetection& d, const cv::Rect& roi, double margin) {
   for (const cv::Point2d& c : d.corners)
-    if (c.x < roi.x + margin || c.y < roi.y + margin || c.x > roi.x + roi.width - margin || c.y > roi.y + roi.height - margin)
+    if (c.x < roi.x + margin || c.y < roi.y + margin || c.x > roi.x + roi.width - margin ||
+        c.y > roi.y + roi.height - margin)
       return false;
   return true;
 }
 
 std::vector<TagDetection> TagDetector::detect(const cv::Mat& image) const {
   cv::Mat grey;
-  if (image.type() == CV_8UC1) grey = image;
-  else if (image.type() == CV_8UC3) cv::cvtColor(image, grey, cv::COLOR_RGB2GRAY);
-  else if (image.type() == CV_8UC4) cv::cvtColor(image, grey, cv::COLOR_RGBA2GRAY);
-  else throw std::invalid_argument("tag detection needs an 8-bit grey or colour image");
+  if (image.type() == CV_8UC1)
+    grey = image;
+  else if (image.type() == CV_8UC3)
+    cv::cvtColor(image, grey, cv::COLOR_RGB2GRAY);
+  else if (image.type() == CV_8UC4)
+    cv::cvtColor(image, grey, cv::COLOR_RGBA2GRAY);
+  else
+    throw std::invalid_argument("tag detection needs an 8-bit grey or colour image");
   std::vector<TagDetection> out;
   if (grey.empty()) return out;
   image_u8_t im{grey.cols, grey.rows, static_cast<int32_t>(grey.step[0]), grey.data};
@@ -228,7 +233,8 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> fitTagPlane(const TagDetection& d
 
 std::pair<double, double> depthGateLimits(const DepthGate& gate, const TagDetection& detection, double z) {
   double side = 0;
-  for (int i = 0; i < 4; ++i) side += cv::norm(detection.corners[static_cast<size_t>(i)] - detection.corners[static_cast<size_t>((i + 1) % 4)]);
+  for (int i = 0; i < 4; ++i)
+    side += cv::norm(detection.corners[static_cast<size_t>(i)] - detection.corners[static_cast<size_t>((i + 1) % 4)]);
   side /= 4;
   const double dz = side > 0 && std::isfinite(z) ? z * std::sqrt(2.0) * gate.cornerNoisePx / side : 0.0;
   const double scale = std::max(1.0, 3.0 * dz / gate.maxShiftMetres);
@@ -316,9 +322,12 @@ capture::Pose PoseSmoother::filter(double t, const capture::Pose& T) {
 
 const char* toString(TrackStatus s) {
   switch (s) {
-    case TrackStatus::Tracked: return "tracked";
-    case TrackStatus::Held: return "held";
-    case TrackStatus::Lost: return "lost";
+    case TrackStatus::Tracked:
+      return "tracked";
+    case TrackStatus::Held:
+      return "held";
+    case TrackStatus::Lost:
+      return "lost";
   }
   return "lost";
 }

@@ -8,12 +8,11 @@
 /// Camera frame: OpenCV (x right, y down, z forward). Tag size = edge of the black border square.
 #include <array>
 #include <memory>
+#include <opencv2/core.hpp>
+#include <opencv2/core/quaternion.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
-#include <opencv2/core/quaternion.hpp>
 
 #include "capture/types.h"
 
@@ -23,16 +22,16 @@ struct TagDetection {
   int id = -1;
   std::array<cv::Point2d, 4> corners;  ///< pixels, libapriltag order
   cv::Point2d centre;
-  int hamming = 0;                     ///< corrected bit errors
-  double decisionMargin = 0;           ///< libapriltag's quality measure (higher is better)
+  int hamming = 0;            ///< corrected bit errors
+  double decisionMargin = 0;  ///< libapriltag's quality measure (higher is better)
 };
 
 struct DetectorOptions {
   std::string family = "tag36h11";
-  float decimate = 1.0f;   ///< quad detection on a decimated image (faster, less precise); 1 = full res
+  float decimate = 1.0f;  ///< quad detection on a decimated image (faster, less precise); 1 = full res
   float blurSigma = 0.0f;
   int threads = 1;
-  int maxHamming = 1;      ///< reject detections that needed more bit corrections
+  int maxHamming = 1;  ///< reject detections that needed more bit corrections
   double minDecisionMargin = 20.0;
 };
 
@@ -70,9 +69,9 @@ std::array<cv::Point3d, 4> tagCornersInTagFrame(double size);
 
 struct TagPose {
   capture::Pose T_camera_tag = capture::identityPose();
-  double reprojectionRms = 0;   ///< pixels, of the chosen solution
-  double alternativeRms = 0;    ///< pixels, of IPPE's other (mirror) solution; inf if none
-  bool ambiguous = false;       ///< the two solutions explain the corners about equally well
+  double reprojectionRms = 0;  ///< pixels, of the chosen solution
+  double alternativeRms = 0;   ///< pixels, of IPPE's other (mirror) solution; inf if none
+  bool ambiguous = false;      ///< the two solutions explain the corners about equally well
   bool depthRefined = false;
 };
 
@@ -158,13 +157,13 @@ enum class TrackStatus { Tracked, Held, Lost };
 const char* toString(TrackStatus s);
 
 struct TrackerOptions {
-  double holdSeconds = 0.5;   ///< keep the last pose this long after the tag disappears, then "lost"
+  double holdSeconds = 0.5;  ///< keep the last pose this long after the tag disappears, then "lost"
   bool smooth = true;
   /// One-Euro: Hz at rest; Hz added per m/s (or quaternion units/s). Measured on the bundled orbits and a
   /// static camera (README): beta 100 with a 10 Hz speed estimate keeps the moving error within 1.5-2 mm
   /// of the raw poses while cutting static jitter 5x; the old 20 / 1 Hz lagged by 14-20 mm.
   double minCutoff = 1.0, beta = 100.0;
-  double derivativeCutoff = 10.0;       ///< One-Euro: Hz of the speed estimate (higher: motion seen sooner)
+  double derivativeCutoff = 10.0;  ///< One-Euro: Hz of the speed estimate (higher: motion seen sooner)
 };
 
 /// Per-tag temporal state: smoothing while tracked, hold then loss when unseen; smoothing restarts after

@@ -20,14 +20,22 @@ namespace mrgi::reconstruction {
 
 detail::FamilyHandle detail::createFamily(const std::string& name) {
   FamilyHandle h;
-  if (name == "tag36h11") h.family = tag36h11_create(), h.destroy = tag36h11_destroy;
-  else if (name == "tag25h9") h.family = tag25h9_create(), h.destroy = tag25h9_destroy;
-  else if (name == "tag16h5") h.family = tag16h5_create(), h.destroy = tag16h5_destroy;
-  else if (name == "tagCircle21h7") h.family = tagCircle21h7_create(), h.destroy = tagCircle21h7_destroy;
-  else if (name == "tagCircle49h12") h.family = tagCircle49h12_create(), h.destroy = tagCircle49h12_destroy;
-  else if (name == "tagCustom48h12") h.family = tagCustom48h12_create(), h.destroy = tagCustom48h12_destroy;
-  else if (name == "tagStandard41h12") h.family = tagStandard41h12_create(), h.destroy = tagStandard41h12_destroy;
-  else if (name == "tagStandard52h13") h.family = tagStandard52h13_create(), h.destroy = tagStandard52h13_destroy;
+  if (name == "tag36h11")
+    h.family = tag36h11_create(), h.destroy = tag36h11_destroy;
+  else if (name == "tag25h9")
+    h.family = tag25h9_create(), h.destroy = tag25h9_destroy;
+  else if (name == "tag16h5")
+    h.family = tag16h5_create(), h.destroy = tag16h5_destroy;
+  else if (name == "tagCircle21h7")
+    h.family = tagCircle21h7_create(), h.destroy = tagCircle21h7_destroy;
+  else if (name == "tagCircle49h12")
+    h.family = tagCircle49h12_create(), h.destroy = tagCircle49h12_destroy;
+  else if (name == "tagCustom48h12")
+    h.family = tagCustom48h12_create(), h.destroy = tagCustom48h12_destroy;
+  else if (name == "tagStandard41h12")
+    h.family = tagStandard41h12_create(), h.destroy = tagStandard41h12_destroy;
+  else if (name == "tagStandard52h13")
+    h.family = tagStandard52h13_create(), h.destroy = tagStandard52h13_destroy;
   else
     throw std::invalid_argument("unknown tag family '" + name +
                                 "' (tag36h11, tag25h9, tag16h5, tagCircle21h7, tagCircle49h12, tagCustom48h12, "
@@ -40,7 +48,8 @@ cv::Mat renderTag(const std::string& family, int id, TagLayout* layout) {
   apriltag_family_t* tf = handle.family;
   if (id < 0 || static_cast<uint32_t>(id) >= tf->ncodes) {
     const uint32_t n = tf->ncodes;
-    throw std::invalid_argument("tag id " + std::to_string(id) + " outside " + family + " (0.." + std::to_string(n - 1) + ")");
+    throw std::invalid_argument("tag id " + std::to_string(id) + " outside " + family + " (0.." +
+                                std::to_string(n - 1) + ")");
   }
   image_u8_t* im = apriltag_to_image(tf, id);
   cv::Mat out(im->height, im->width, CV_8UC1);

@@ -1,8 +1,7 @@
 #pragma once
 /// AprilTag images from libapriltag's own family tables (for synthetic scenes and printing).
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 namespace mrgi::reconstruction {
 

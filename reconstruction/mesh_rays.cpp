@@ -1,10 +1,10 @@
 #include "reconstruction/mesh_rays.h"
 
+#include <embree3/rtcore.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
-
-#include <embree3/rtcore.h>
 
 namespace mrgi::reconstruction {
 
@@ -17,7 +17,8 @@ struct MeshRays::Impl {
   }
 };
 
-MeshRays::MeshRays(const std::vector<cv::Vec3f>& positions, const std::vector<uint32_t>& indices) : impl_(std::make_unique<Impl>()) {
+MeshRays::MeshRays(const std::vector<cv::Vec3f>& positions, const std::vector<uint32_t>& indices)
+    : impl_(std::make_unique<Impl>()) {
   impl_->device = rtcNewDevice(nullptr);
   impl_->scene = rtcNewScene(impl_->device);
   if (!positions.empty() && indices.size() >= 3) {
@@ -26,8 +27,8 @@ MeshRays::MeshRays(const std::vector<cv::Vec3f>& positions, const std::vector<ui
         rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), positions.size()));
     for (size_t i = 0; i < positions.size(); ++i)
       for (int k = 0; k < 3; ++k) v[3 * i + k] = positions[i][k];
-    auto* idx = static_cast<unsigned*>(
-        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), indices.size() / 3));
+    auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                               3 * sizeof(unsigned), indices.size() / 3));
     std::copy(indices.begin(), indices.begin() + static_cast<std::ptrdiff_t>(indices.size() / 3 * 3), idx);
     rtcCommitGeometry(g);
     rtcAttachGeometry(impl_->scene, g);

@@ -3,9 +3,8 @@
 /// environment as seen from a virtual object.
 #include <cstdint>
 #include <memory>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 namespace mrgi::reconstruction {
 

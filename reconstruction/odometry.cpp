@@ -1,13 +1,13 @@
 #include "reconstruction/odometry.h"
 
+#include <open3d/core/Tensor.h>
+#include <open3d/t/pipelines/odometry/RGBDOdometry.h>
+
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <stdexcept>
-
-#include <open3d/core/Tensor.h>
-#include <open3d/t/pipelines/odometry/RGBDOdometry.h>
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 #include "capture/colour.h"
 #include "reconstruction/depth.h"
@@ -20,9 +20,12 @@ namespace o3o = open3d::t::pipelines::odometry;
 
 const char* toString(OdometryMethod m) {
   switch (m) {
-    case OdometryMethod::PointToPlane: return "point-to-plane";
-    case OdometryMethod::Intensity: return "intensity";
-    case OdometryMethod::Hybrid: return "hybrid";
+    case OdometryMethod::PointToPlane:
+      return "point-to-plane";
+    case OdometryMethod::Intensity:
+      return "intensity";
+    case OdometryMethod::Hybrid:
+      return "hybrid";
   }
   return "?";
 }
@@ -153,7 +156,8 @@ OdometryFrame::OdometryFrame(const cv::Mat& depthIn, const cv::Mat& colour, cons
       if (!grey.empty()) grey = halveIntensity(grey);
       k = halved(k);
     }
-    if (depth.cols < 8 || depth.rows < 8) throw std::invalid_argument("odometry: too many pyramid levels for the image");
+    if (depth.cols < 8 || depth.rows < 8)
+      throw std::invalid_argument("odometry: too many pyramid levels for the image");
     Impl::Level L;
     L.k = k;
     L.depth = depth;
@@ -232,8 +236,8 @@ struct OdometrySolver {
         try {
           switch (method) {
             case OdometryMethod::PointToPlane:
-              r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose, o.depthOutlierM,
-                                                         o.depthHuberM);
+              r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose,
+                                                         o.depthOutlierM, o.depthHuberM);
               break;
             case OdometryMethod::Intensity:
               r = o3o::ComputeOdometryResultIntensity(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tIntensityDx,
@@ -241,9 +245,10 @@ struct OdometrySolver {
                                                       o.intensityHuber * o.intensityWeight);
               break;
             case OdometryMethod::Hybrid:
-              r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx, t.tDepthDy,
-                                                   t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK, pose,
-                                                   o.depthOutlierM, o.depthHuberM, o.intensityHuber * o.intensityWeight);
+              r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx,
+                                                   t.tDepthDy, t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK, pose,
+                                                   o.depthOutlierM, o.depthHuberM,
+                                                   o.intensityHuber * o.intensityWeight);
               break;
           }
         } catch (const std::exception&) {

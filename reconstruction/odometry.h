@@ -8,10 +8,9 @@
 ///
 /// Camera frames are OpenCV's (x right, y down, z forward), depth in metres.
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "capture/types.h"
 
@@ -56,8 +55,8 @@ class OdometryFrame {
   /// `depth` (CV_32F metres, 0 or NaN = none, or CV_16U millimetres) and `colour` (CV_8UC3 RGB or CV_8UC1
   /// grey, sRGB-encoded, taken at `exposure`; or CV_32FC1 linear luminance at exposure 1, as a room model's
   /// rendering has it; may be empty for point-to-plane) on the same pixel grid with intrinsics `k`.
-  OdometryFrame(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& k, const OdometryOptions& options = {},
-                double exposure = 1.0);
+  OdometryFrame(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& k,
+                const OdometryOptions& options = {}, double exposure = 1.0);
   int levels() const;
   const capture::Intrinsics& intrinsics(int level) const;
   /// CV_32F metres (NaN = none) / CV_32F intensity / CV_32FC3 camera frame (NaN = none), at `level`.
@@ -89,6 +88,7 @@ struct OdometryResult {
 /// The motion that carries `source` onto `target`, starting from `init` (target from source). Both frames
 /// need the same pyramid (same size, intrinsics and levels); throws std::invalid_argument otherwise.
 OdometryResult estimateOdometry(const OdometryFrame& source, const OdometryFrame& target,
-                                const capture::Pose& init = capture::identityPose(), const OdometryOptions& options = {});
+                                const capture::Pose& init = capture::identityPose(),
+                                const OdometryOptions& options = {});
 
 }  // namespace mrgi::reconstruction

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/rgbd.hpp>
 
@@ -43,8 +42,8 @@ std::vector<Plane> findPlanes(const cv::Mat& positions, const cv::Mat& normals, 
     const int block = std::max(8, points.cols / 16);
     const int minSize = std::max(block * block, static_cast<int>(options.minFraction * valid));
     // Sensor error model: threshold grows with z² (axial noise of structured light / ToF sensors).
-    cv::rgbd::RgbdPlane segment(cv::rgbd::RgbdPlane::RGBD_PLANE_METHOD_DEFAULT, block, minSize,
-                                options.thresholdMetres, 0, 0, options.thresholdMetres);
+    cv::rgbd::RgbdPlane segment(cv::rgbd::RgbdPlane::RGBD_PLANE_METHOD_DEFAULT, block, minSize, options.thresholdMetres,
+                                0, 0, options.thresholdMetres);
     std::vector<cv::Vec4f> coefficients;
     segment(points, norms, mask, coefficients);
     planes.resize(coefficients.size());
@@ -119,7 +118,8 @@ std::optional<Plane> supportPlane(const std::vector<Plane>& planes, const cv::Ve
   return under ? under : nearest;
 }
 
-std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, const cv::Mat& normals, const capture::Intrinsics& k) {
+std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, const cv::Mat& normals,
+                                                  const capture::Intrinsics& k) {
   cv::Mat labels;
   const std::vector<Plane> planes = findPlanes(positions, normals, {}, &labels);
   if (planes.empty()) return std::nullopt;
@@ -137,7 +137,8 @@ std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, cons
   // The centre's viewing ray meets the plane at t: n . (t r) + d = 0.
   const cv::Vec3d ray((cx - k.cx) / k.fx, (cy - k.cy) / k.fy, 1.0);
   const double denom = n.dot(ray);
-  const cv::Vec3d origin = std::abs(denom) > 1e-6 && -chosen->d / denom > 0 ? ray * (-chosen->d / denom) : chosen->centroid;
+  const cv::Vec3d origin =
+      std::abs(denom) > 1e-6 && -chosen->d / denom > 0 ? ray * (-chosen->d / denom) : chosen->centroid;
   cv::Vec3d x = cv::Vec3d(1, 0, 0) - n * n[0];
   if (cv::norm(x) < 1e-6) x = cv::Vec3d(0, 0, 1) - n * n[2];
   x /= cv::norm(x);
@@ -146,7 +147,8 @@ std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, cons
   return capture::makePose(R, origin);
 }
 
-capture::Pose restOnPlane(const capture::Pose& T_frame_object, const std::vector<cv::Vec3f>& points, const Plane& plane) {
+capture::Pose restOnPlane(const capture::Pose& T_frame_object, const std::vector<cv::Vec3f>& points,
+                          const Plane& plane) {
   const cv::Matx33d R = capture::rotationOf(T_frame_object);
   const cv::Vec3d z = R * cv::Vec3d(0, 0, 1), n = plane.normal;
   // Smallest rotation taking z onto n.
@@ -156,7 +158,8 @@ capture::Pose restOnPlane(const capture::Pose& T_frame_object, const std::vector
   if (s > 1e-12) {
     cv::Rodrigues(axis * (std::atan2(s, c) / s), align);
   } else if (c < 0) {  // opposite: half turn about any axis perpendicular to n
-    const cv::Vec3d perp = std::abs(n[0]) < 0.9 ? cv::normalize(n.cross(cv::Vec3d(1, 0, 0))) : cv::normalize(n.cross(cv::Vec3d(0, 1, 0)));
+    const cv::Vec3d perp =
+        std::abs(n[0]) < 0.9 ? cv::normalize(n.cross(cv::Vec3d(1, 0, 0))) : cv::normalize(n.cross(cv::Vec3d(0, 1, 0)));
     cv::Rodrigues(perp * CV_PI, align);
   }
   const cv::Matx33d Rn = align * R;

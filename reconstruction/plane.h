@@ -1,10 +1,9 @@
 #pragma once
 /// Planes in a depth frame (OpenCV's rgbd plane segmentation) and the support plane an inserted object
 /// rests on ("snap to the table").
+#include <opencv2/core.hpp>
 #include <optional>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "capture/types.h"
 
@@ -14,7 +13,7 @@ namespace mrgi::reconstruction {
 struct Plane {
   cv::Vec3d normal{0, 0, 1};
   double d = 0;
-  int inliers = 0;          ///< pixels labelled with this plane
+  int inliers = 0;  ///< pixels labelled with this plane
   cv::Vec3d centroid{0, 0, 0};
   double signedDistance(const cv::Vec3d& p) const { return normal.dot(p) + d; }
 };
@@ -44,11 +43,13 @@ std::optional<Plane> supportPlane(const std::vector<Plane>& planes, const cv::Ve
 /// plane whose pixels hold the image centre, else the largest one facing the camera from below it: the floor
 /// or the table), its origin where the centre's viewing ray meets that plane, x along the camera's x axis
 /// laid on the plane. Returns T_camera_world; nullopt when the frame holds no such plane.
-std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, const cv::Mat& normals, const capture::Intrinsics& k);
+std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, const cv::Mat& normals,
+                                                  const capture::Intrinsics& k);
 
 /// Rests an object on a plane: its pose's up axis (the pose's +z) turns onto the plane normal (smallest
 /// rotation), its origin moves onto the plane along the normal, then up until the lowest of `points`
 /// (object space) touches the plane. Poses map object to the plane's frame.
-capture::Pose restOnPlane(const capture::Pose& T_frame_object, const std::vector<cv::Vec3f>& points, const Plane& plane);
+capture::Pose restOnPlane(const capture::Pose& T_frame_object, const std::vector<cv::Vec3f>& points,
+                          const Plane& plane);
 
 }  // namespace mrgi::reconstruction

@@ -33,15 +33,17 @@ FisheyeRays latLongRays(int width) {
   return r;
 }
 
-
 RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o) {
   if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");
-  if (room.radiance.size() != room.positions.size()) throw std::invalid_argument("estimateRoomLights: no radiance per vertex");
+  if (room.radiance.size() != room.positions.size())
+    throw std::invalid_argument("estimateRoomLights: no radiance per vertex");
   for (int k = 0; k < 3; ++k)
-    capture::checkNumber(centre[k], -1e4, 1e4, "room lights", "the point they are seen from (" + capture::formatNumber(centre[0]) + ", " +
-                                                                 capture::formatNumber(centre[1]) + ", " + capture::formatNumber(centre[2]) + ")");
-  if (!(o.saturatedGain >= 0) || !(o.whiteAlbedo > 0 && o.whiteAlbedo <= 1) || !(o.maxGain >= 1) || !(o.estimateRadius > 0) ||
-      !(o.maxSaturatedFraction >= 0 && o.maxSaturatedFraction <= 1) || !(o.minPointDistance >= 0))
+    capture::checkNumber(centre[k], -1e4, 1e4, "room lights",
+                         "the point they are seen from (" + capture::formatNumber(centre[0]) + ", " +
+                             capture::formatNumber(centre[1]) + ", " + capture::formatNumber(centre[2]) + ")");
+  if (!(o.saturatedGain >= 0) || !(o.whiteAlbedo > 0 && o.whiteAlbedo <= 1) || !(o.maxGain >= 1) ||
+      !(o.estimateRadius > 0) || !(o.maxSaturatedFraction >= 0 && o.maxSaturatedFraction <= 1) ||
+      !(o.minPointDistance >= 0))
     throw std::invalid_argument("estimateRoomLights: options out of range");
   const FisheyeRays rays = latLongRays(o.mapWidth);
   const MeshRays mesh(room.positions, room.indices);
@@ -55,9 +57,11 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
       const cv::Vec3d d(rays.directions.at<cv::Vec3f>(v, u));
       const MeshRays::Hit h = mesh.intersect(centre, d);
       if (!h.hit) continue;
-      const uint32_t a = room.indices[3 * h.triangle], b = room.indices[3 * h.triangle + 1], c = room.indices[3 * h.triangle + 2];
+      const uint32_t a = room.indices[3 * h.triangle], b = room.indices[3 * h.triangle + 1],
+                     c = room.indices[3 * h.triangle + 2];
       const double wa = 1 - h.u - h.v;
-      const cv::Vec3d rad = wa * cv::Vec3d(room.radiance[a]) + h.u * cv::Vec3d(room.radiance[b]) + h.v * cv::Vec3d(room.radiance[c]);
+      const cv::Vec3d rad =
+          wa * cv::Vec3d(room.radiance[a]) + h.u * cv::Vec3d(room.radiance[b]) + h.v * cv::Vec3d(room.radiance[c]);
       auto sat = [&](uint32_t i) { return i < room.saturated.size() && room.saturated[i]; };
       L.at<cv::Vec3f>(v, u) = cv::Vec3f(rad);
       hitPos.at<cv::Vec3f>(v, u) = cv::Vec3f(centre + d * h.t);
@@ -117,7 +121,8 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
     // Vertices near the centre, at most ~4000 of them.
     std::vector<size_t> near;
     for (size_t i = 0; i < room.positions.size(); ++i)
-      if (!(i < room.saturated.size() && room.saturated[i]) && cv::norm(cv::Vec3d(room.positions[i]) - centre) <= o.estimateRadius)
+      if (!(i < room.saturated.size() && room.saturated[i]) &&
+          cv::norm(cv::Vec3d(room.positions[i]) - centre) <= o.estimateRadius)
         near.push_back(i);
     const size_t step = std::max<size_t>(1, near.size() / 4000);
     std::vector<double> gains;

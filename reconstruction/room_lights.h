@@ -11,9 +11,8 @@
 /// E_bound_i(n_i), where E_rest is the unsaturated environment's irradiance and E_bound the saturated
 /// regions' at the bound. Never below 1: the clip level is a true lower bound.
 #include <array>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/room_model.h"
@@ -21,7 +20,7 @@
 namespace mrgi::reconstruction {
 
 struct RoomLightOptions {
-  int mapWidth = 256;          ///< lat-long environment map width (height = width / 2)
+  int mapWidth = 256;  ///< lat-long environment map width (height = width / 2)
   LightSplitOptions split = [] {
     LightSplitOptions s;
     s.medianCut.count = 4;
@@ -30,10 +29,11 @@ struct RoomLightOptions {
     s.threshold = 1.0;
     return s;
   }();
-  double saturatedGain = 0;    ///< > 0: the gain on saturated radiance; 0: estimated (white patch)
-  double whiteAlbedo = 0.8;    ///< the white patch's albedo for the estimate
-  double estimateRadius = 5.0; ///< metres around the centre whose vertices inform the estimate (5: a room; its whitest lit surfaces are the white patch)
-  double maxGain = 1e4;        ///< the estimate's ceiling
+  double saturatedGain = 0;     ///< > 0: the gain on saturated radiance; 0: estimated (white patch)
+  double whiteAlbedo = 0.8;     ///< the white patch's albedo for the estimate
+  double estimateRadius = 5.0;  ///< metres around the centre whose vertices inform the estimate (5: a room; its whitest
+                                ///< lit surfaces are the white patch)
+  double maxGain = 1e4;         ///< the estimate's ceiling
   /// Lamps and windows are compact: when saturated surfaces cover more than this fraction of the solid
   /// angle the room covers, they are lit surfaces clipped by an over-exposed camera, not emitters; the gain
   /// stays 1 (the bound) and `overExposed` says so.
@@ -44,12 +44,12 @@ struct RoomLightOptions {
 };
 
 struct RoomLight {
-  bool point = true;           ///< false: no surface was hit in its region (directional)
-  cv::Vec3d position{0, 0, 0}; ///< lighting world (point)
-  cv::Vec3d direction{0, 0, 0};///< unit, from the centre towards the light
-  cv::Vec3d intensity{0, 0, 0};///< W/sr (point): power x distance^2
-  cv::Vec3d irradiance{0, 0, 0};///< at the centre, normal incidence (the split's power)
-  double saturatedFraction = 0;///< of its energy, from saturated surfaces
+  bool point = true;              ///< false: no surface was hit in its region (directional)
+  cv::Vec3d position{0, 0, 0};    ///< lighting world (point)
+  cv::Vec3d direction{0, 0, 0};   ///< unit, from the centre towards the light
+  cv::Vec3d intensity{0, 0, 0};   ///< W/sr (point): power x distance^2
+  cv::Vec3d irradiance{0, 0, 0};  ///< at the centre, normal incidence (the split's power)
+  double saturatedFraction = 0;   ///< of its energy, from saturated surfaces
 };
 
 struct RoomLights {
@@ -59,15 +59,15 @@ struct RoomLights {
   /// directions it does not cover filled as in `environment`: what the surfaces alone send (lights listed
   /// apart from the room leave this).
   std::array<cv::Vec3d, 9> surfacesSh{};
-  cv::Vec3d ambientRadiance{0, 0, 0};    ///< the remainder's mean radiance (SH band 0)
-  double gain = 1;                       ///< applied to saturated radiance
+  cv::Vec3d ambientRadiance{0, 0, 0};  ///< the remainder's mean radiance (SH band 0)
+  double gain = 1;                     ///< applied to saturated radiance
   bool gainEstimated = false;
-  int gainSamples = 0;                   ///< vertices the estimate used
-  double saturatedFraction = 0;          ///< of the covered solid angle, saturated
-  bool overExposed = false;              ///< saturatedFraction > maxSaturatedFraction: no estimate
-  double coverage = 0;                   ///< solid-angle fraction of the sphere that hit the room
-  cv::Mat environment;                   ///< CV_32FC3 lat-long radiance after the gain (row 0: +z)
-  LightSplit split;                      ///< the split itself (its lights' directions are world)
+  int gainSamples = 0;           ///< vertices the estimate used
+  double saturatedFraction = 0;  ///< of the covered solid angle, saturated
+  bool overExposed = false;      ///< saturatedFraction > maxSaturatedFraction: no estimate
+  double coverage = 0;           ///< solid-angle fraction of the sphere that hit the room
+  cv::Mat environment;           ///< CV_32FC3 lat-long radiance after the gain (row 0: +z)
+  LightSplit split;              ///< the split itself (its lights' directions are world)
 };
 
 /// The room's lat-long directions and pixel solid angles (row v: polar angle from +z; column u: azimuth

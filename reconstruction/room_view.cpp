@@ -4,8 +4,8 @@
 
 namespace mrgi::reconstruction {
 
-RoomView renderRoomView(const RoomMesh& room, const MeshRays& rays, const capture::Pose& T_world_camera, const capture::Intrinsics& k,
-                        double maxDepthM) {
+RoomView renderRoomView(const RoomMesh& room, const MeshRays& rays, const capture::Pose& T_world_camera,
+                        const capture::Intrinsics& k, double maxDepthM) {
   RoomView v{cv::Mat::zeros(k.height, k.width, CV_32F), cv::Mat::zeros(k.height, k.width, CV_32F)};
   const cv::Matx33d R = capture::rotationOf(T_world_camera);
   const cv::Vec3d o = capture::translationOf(T_world_camera);
@@ -21,7 +21,8 @@ RoomView renderRoomView(const RoomMesh& room, const MeshRays& rays, const captur
         depth[x] = static_cast<float>(hit.t / length);  // along the ray -> along the optical axis
         const uint32_t* tri = &room.indices[hit.triangle * 3];
         if (room.radiance.size() == room.positions.size()) {
-          const cv::Vec3f c = static_cast<float>(1 - hit.u - hit.v) * room.radiance[tri[0]] + static_cast<float>(hit.u) * room.radiance[tri[1]] +
+          const cv::Vec3f c = static_cast<float>(1 - hit.u - hit.v) * room.radiance[tri[0]] +
+                              static_cast<float>(hit.u) * room.radiance[tri[1]] +
                               static_cast<float>(hit.v) * room.radiance[tri[2]];
           lum[x] = std::max(0.f, 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]);
         }

@@ -17,7 +17,7 @@ struct RoomView {
 };
 
 /// `rays` must be built over `room`'s positions and indices.
-RoomView renderRoomView(const RoomMesh& room, const MeshRays& rays, const capture::Pose& T_world_camera, const capture::Intrinsics& k,
-                        double maxDepthM = 4.0);
+RoomView renderRoomView(const RoomMesh& room, const MeshRays& rays, const capture::Pose& T_world_camera,
+                        const capture::Intrinsics& k, double maxDepthM = 4.0);
 
 }  // namespace mrgi::reconstruction

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
@@ -17,7 +16,8 @@ std::vector<DebugView> debugViews(FramePipeline& frames) {
   std::vector<DebugView> out{Views::kComposite};
   const LightingSetup* setup = frames.setup();
   if (!setup) return out;
-  out.insert(out.end(), {Views::kDelta, Views::kAlbedo, Views::kNormal, Views::kMask, Views::kRsmFlux, Views::kRsmNormal});
+  out.insert(out.end(),
+             {Views::kDelta, Views::kAlbedo, Views::kNormal, Views::kMask, Views::kRsmFlux, Views::kRsmNormal});
   if (const lighting::LightingPipeline* pipe = frames.lighting())
     for (const auto& t : pipe->techniques())
       for (const std::string& v : t->debugViews()) out.push_back(v);
@@ -28,8 +28,9 @@ std::vector<DebugView> debugViews(FramePipeline& frames) {
   return out;
 }
 
-cv::Mat roomSeenFrom(const reconstruction::MeshRays& rays, const reconstruction::RoomMesh& room, const std::vector<cv::Vec3f>& values,
-                     const capture::Intrinsics& k, const capture::Pose& T_world_camera, cv::Mat* hitMask) {
+cv::Mat roomSeenFrom(const reconstruction::MeshRays& rays, const reconstruction::RoomMesh& room,
+                     const std::vector<cv::Vec3f>& values, const capture::Intrinsics& k,
+                     const capture::Pose& T_world_camera, cv::Mat* hitMask) {
   CV_Assert(values.size() == room.positions.size());
   cv::Mat out(k.height, k.width, CV_32FC3, cv::Scalar::all(0)), mask(k.height, k.width, CV_8U, cv::Scalar(0));
   const cv::Vec3d o = capture::translationOf(T_world_camera);
@@ -53,7 +54,8 @@ cv::Mat roomSeenFrom(const reconstruction::MeshRays& rays, const reconstruction:
 cv::Mat roomLightsImage(const reconstruction::RoomLights& l) {
   cv::Mat view = l.environment.clone();
   std::vector<double> lum;
-  for (int i = 0; i < static_cast<int>(view.total()); ++i) lum.push_back(capture::luminance(cv::Vec3d(view.at<cv::Vec3f>(i))));
+  for (int i = 0; i < static_cast<int>(view.total()); ++i)
+    lum.push_back(capture::luminance(cv::Vec3d(view.at<cv::Vec3f>(i))));
   const double p99 = lighting::percentile99(lum);
   if (p99 > 0) view *= 0.8 / p99;
   cv::Mat out = capture::encodeSrgb(view);
@@ -62,7 +64,8 @@ cv::Mat roomLightsImage(const reconstruction::RoomLights& l) {
     const double theta = std::acos(std::clamp(d[2], -1.0, 1.0)), phi = std::atan2(d[1], d[0]);
     const int u = static_cast<int>(std::fmod(phi + 2 * CV_PI, 2 * CV_PI) / (2 * CV_PI) * out.cols);
     const int v = static_cast<int>(theta / CV_PI * out.rows);
-    cv::circle(out, {u, v}, 6, light.saturatedFraction > 0.5 ? cv::Scalar(255, 128, 0) : cv::Scalar(0, 200, 255), 2, cv::LINE_AA);
+    cv::circle(out, {u, v}, 6, light.saturatedFraction > 0.5 ? cv::Scalar(255, 128, 0) : cv::Scalar(0, 200, 255), 2,
+               cv::LINE_AA);
   }
   return out;
 }
@@ -88,8 +91,7 @@ cv::Mat toneMapped(const cv::Mat& image) {
 }  // namespace
 
 cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameResult& r, const capture::Intrinsics& k,
-                        const cv::Mat& fisheyeImage,
-                        nlohmann::json* info) {
+                        const cv::Mat& fisheyeImage, nlohmann::json* info) {
   nlohmann::json scratch;
   nlohmann::json& out = info ? *info : scratch;
   if (v == Views::kComposite) return r.composite;
@@ -99,7 +101,8 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
     cv::Mat img = toneMapped(fisheyeImage);
     // Median-cut lights (marker frame, travel direction) back into the fisheye camera.
     const capture::Pose T_world_fisheye = setup->fisheye->T_world_fisheye.value_or(capture::identityPose());
-    const capture::Pose T_marker_world = setup->T_world_marker ? capture::inversePose(*setup->T_world_marker) : capture::identityPose();
+    const capture::Pose T_marker_world =
+        setup->T_world_marker ? capture::inversePose(*setup->T_world_marker) : capture::identityPose();
     const cv::Matx33d R_fisheye_marker = capture::rotationOf(T_marker_world * T_world_fisheye).t();
     std::vector<cv::Vec3d> dirs;
     std::vector<double> power;
@@ -129,11 +132,13 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
     const bool radiance = v == Views::kRoomRadiance;
     if (!radiance && frames.roomAlbedo().size() != room->positions.size()) return {};
     cv::Mat hit;
-    cv::Mat linear = roomSeenFrom(frames.roomRays(), *room, radiance ? room->radiance : frames.roomAlbedo(), k, *r.T_marker_camera, &hit);
+    cv::Mat linear = roomSeenFrom(frames.roomRays(), *room, radiance ? room->radiance : frames.roomAlbedo(), k,
+                                  *r.T_marker_camera, &hit);
     if (radiance) linear *= r.exposure;
     cv::Mat img = capture::encodeSrgb(linear);
     img.setTo(cv::Scalar(30, 30, 70), ~hit);
-    out[radiance ? "debug_room_radiance_coverage" : "debug_room_albedo_coverage"] = cv::countNonZero(hit) / static_cast<double>(hit.total());
+    out[radiance ? "debug_room_radiance_coverage" : "debug_room_albedo_coverage"] =
+        cv::countNonZero(hit) / static_cast<double>(hit.total());
     return img;
   }
   lighting::LightingPipeline* pipe = frames.lighting();
@@ -167,14 +172,16 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
   return {};
 }
 
-std::array<cv::Point2f, 4> markerAxesPixels(const capture::Intrinsics& k, const capture::Pose& T_marker_camera, double length) {
+std::array<cv::Point2f, 4> markerAxesPixels(const capture::Intrinsics& k, const capture::Pose& T_marker_camera,
+                                            double length) {
   const capture::Pose T = capture::inversePose(T_marker_camera);
   std::array<cv::Point2f, 4> out;
   const cv::Vec3d ends[4] = {{0, 0, 0}, {length, 0, 0}, {0, length, 0}, {0, 0, length}};
   for (int i = 0; i < 4; ++i) {
     const cv::Vec3d p = capture::transformPoint(T, ends[i]);
     const double z = std::max(p[2], 1e-6);
-    out[static_cast<size_t>(i)] = cv::Point2f(static_cast<float>(k.fx * p[0] / z + k.cx), static_cast<float>(k.fy * p[1] / z + k.cy));
+    out[static_cast<size_t>(i)] =
+        cv::Point2f(static_cast<float>(k.fx * p[0] / z + k.cx), static_cast<float>(k.fy * p[1] / z + k.cy));
   }
   return out;
 }

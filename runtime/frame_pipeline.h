@@ -6,20 +6,19 @@
 #include <future>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
 
 #include "capture/frame_source.h"
 #include "capture/ground_truth.h"
 #include "compositor/compositor.h"
 #include "gl/profiler.h"
+#include "lighting/frame/real_scene.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
-#include "lighting/frame/real_scene.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/marker.h"
 #include "reconstruction/mesh_rays.h"
@@ -35,7 +34,8 @@ struct LightingSetup {
   std::string tagFamily = "tag36h11";
   double tagSize = 0.16;
   int tagId = -1;
-  bool markerGiven = false;  ///< the source's manifest names its marker; without one a first frame without a tag founds the world
+  bool markerGiven =
+      false;  ///< the source's manifest names its marker; without one a first frame without a tag founds the world
   std::vector<lighting::SceneLight> lights;  ///< marker frame
   cv::Vec3d ambient{0, 0, 0};
   /// The ambient's directional part: radiance as SH bands 1-2 (band 0 is `ambient`; lighting/sh.h
@@ -52,7 +52,7 @@ size_t gpuBudgetBytes();
 
 /// A session's ground-truth lights (world frame, every type) in the marker frame.
 std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
-                                                     const capture::Pose& T_world_marker);
+                                                      const capture::Pose& T_world_marker);
 
 /// Resolves a loaded scene against a source (marker from the manifest, lights from the scene, the
 /// manifest's ground truth or its fisheye calibration). `sceneFile` and `sourcePath` name the culprit in
@@ -60,8 +60,8 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
 /// `roomGiven`: a room model will light the frames; a scene that does not say where its lights come from
 /// then takes them from the room when the source lists none and has no fisheye.
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
-                              const capture::FrameSource& source, const std::string& sourcePath,
-                              PoseMode poseMode, bool roomGiven = false);
+                              const capture::FrameSource& source, const std::string& sourcePath, PoseMode poseMode,
+                              bool roomGiven = false);
 
 struct FrameOptions {
   PoseMode pose = PoseMode::Tracked;  ///< where each frame's camera pose comes from (runtime/pose_source.h)
@@ -102,11 +102,11 @@ struct FrameOptions {
 };
 
 struct FrameResult {
-  cv::Mat composite;  ///< 8-bit RGB, same order as the camera image
+  cv::Mat composite;                             ///< 8-bit RGB, same order as the camera image
   std::optional<capture::Pose> T_marker_camera;  ///< nullopt when the frame is lost (CameraPose)
   CameraPose pose;                               ///< how the frame was posed
-  cv::Mat positions, normals;  ///< camera frame, from the filtered depth (empty without a scene)
-  bool lit = false;            ///< the lighting pipeline ran (a scene and a marker pose)
+  cv::Mat positions, normals;                    ///< camera frame, from the filtered depth (empty without a scene)
+  bool lit = false;                              ///< the lighting pipeline ran (a scene and a marker pose)
   bool reusedSurface = false;  ///< static camera: the last frame's real surface was kept (FrameOptions::reuse)
   double exposure = 1.0;       ///< the colour image's exposure (capture::RgbdFrame::exposure)
   nlohmann::json info = nlohmann::json::object();  ///< per-frame facts for the stats (marker status, lights)
@@ -129,9 +129,9 @@ struct RealSurface {
 /// frame's may be made on another thread while the GL half of this one runs.
 struct PreparedFrame {
   FrameResult result;
-  std::optional<RealSurface> surface;               ///< the real scene from this frame's depth, when built
+  std::optional<RealSurface> surface;                  ///< the real scene from this frame's depth, when built
   std::optional<std::vector<lighting::Val>> realVals;  ///< its real VALs, when the techniques need them
-  std::vector<lighting::SceneLight> lights;          ///< marker frame, as they were for this frame
+  std::vector<lighting::SceneLight> lights;            ///< marker frame, as they were for this frame
   cv::Vec3d ambient{0, 0, 0};
   std::array<cv::Vec3d, 9> ambientSh{};
 };
@@ -148,7 +148,8 @@ class FramePipeline {
   /// own, CPU stages only). With FrameOptions::fuse it only measures: fusion refreshes what render() reads.
   PreparedFrame prepare(capture::Frame& frame, gl::Profiler& profiler);
   /// The GL half of process(): a prepared frame lit and composited (background only without a marker pose).
-  void render(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor, gl::Profiler& profiler);
+  void render(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor,
+              gl::Profiler& profiler);
   /// The measuring half: registration, fisheye lights, marker pose, filtered depth, normals.
   FrameResult measure(capture::Frame& frame, gl::Profiler& profiler);
   /// The next frame's camera pose alone (depth registered, then the pose source; no depth filter or normals):
@@ -228,7 +229,8 @@ class FramePipeline {
   cv::Vec3d objectsCentre() const;  ///< the scene's objects' centre, marker frame
   /// The setup's lights and ambient as the albedo estimate takes them, in the frame T_frame_marker maps to
   /// (the camera for a frame's pixels, the marker frame itself for the room).
-  reconstruction::AlbedoLights albedoLights(const capture::Pose& T_frame_marker, const std::vector<lighting::SceneLight>& lights,
+  reconstruction::AlbedoLights albedoLights(const capture::Pose& T_frame_marker,
+                                            const std::vector<lighting::SceneLight>& lights,
                                             const cv::Vec3d& ambient) const;
   /// The frame's depth mesh, each vertex with the albedo of the nearest room vertex: the G-buffer's real surface.
   void roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
@@ -237,11 +239,11 @@ class FramePipeline {
 
 /// A frame read ahead of a frame loop on a worker thread, and prepared there when a pipeline was given.
 struct FrameAhead {
-  std::optional<capture::Frame> frame;     ///< nullopt at the end of the source
-  std::optional<capture::Frame> arrived;   ///< as read, before preparing registered its depth (shares the images)
+  std::optional<capture::Frame> frame;       ///< nullopt at the end of the source
+  std::optional<capture::Frame> arrived;     ///< as read, before preparing registered its depth (shares the images)
   std::chrono::steady_clock::time_point in;  ///< when it was read and decoded
-  std::optional<PreparedFrame> prepared;   ///< FramePipeline::prepare's result
-  std::unique_ptr<gl::Profiler> stages;    ///< the CPU stages of preparing it (gl::Profiler::adopt)
+  std::optional<PreparedFrame> prepared;     ///< FramePipeline::prepare's result
+  std::unique_ptr<gl::Profiler> stages;      ///< the CPU stages of preparing it (gl::Profiler::adopt)
 };
 /// Reads the next frame with `next` on a worker thread and, with `pipeline`, prepares it there (the caller
 /// prepares nothing else with that pipeline until the result is taken). A read error surfaces at get().

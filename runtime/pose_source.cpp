@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -56,18 +55,25 @@ std::string poseModeHelp() {
 
 const char* toString(PosedBy b) {
   switch (b) {
-    case PosedBy::None: return "none";
-    case PosedBy::Marker: return "marker";
-    case PosedBy::GroundTruth: return "ground-truth";
-    case PosedBy::Odometry: return "odometry";
-    case PosedBy::Relocalised: return "relocalised";
-    case PosedBy::FirstFrame: return "first-frame";
+    case PosedBy::None:
+      return "none";
+    case PosedBy::Marker:
+      return "marker";
+    case PosedBy::GroundTruth:
+      return "ground-truth";
+    case PosedBy::Odometry:
+      return "odometry";
+    case PosedBy::Relocalised:
+      return "relocalised";
+    case PosedBy::FirstFrame:
+      return "first-frame";
   }
   return "?";
 }
 
 nlohmann::json CameraPose::facts() const {
-  nlohmann::json j = {{"status", status()}, {"by", tracked() ? nlohmann::json(toString(by)) : nlohmann::json()}, {"marker", marker}};
+  nlohmann::json j = {
+      {"status", status()}, {"by", tracked() ? nlohmann::json(toString(by)) : nlohmann::json()}, {"marker", marker}};
   if (fitness >= 0) j["fitness"] = fitness, j["inlier_rmse_m"] = inlierRmse;
   if (!against.empty()) j["against"] = against;
   if (correctionM > 0 || correctionDeg > 0) j["correction_m"] = correctionM, j["correction_deg"] = correctionDeg;
@@ -230,8 +236,8 @@ class OdometryPoses : public PoseSource {
         auto s = profiler.cpu("world");
         cv::Mat depth = rgbd.depth;
         const cv::Mat positions = reconstruction::backProject(depth, rgbd.colourIntrinsics);
-        if (const auto T_camera_world =
-                reconstruction::worldOnDominantPlane(positions, reconstruction::computeNormals(positions), rgbd.colourIntrinsics)) {
+        if (const auto T_camera_world = reconstruction::worldOnDominantPlane(
+                positions, reconstruction::computeNormals(positions), rgbd.colourIntrinsics)) {
           out.T_world_camera = capture::inversePose(*T_camera_world);
           out.by = PosedBy::FirstFrame;
         }
@@ -311,8 +317,8 @@ class OdometryPoses : public PoseSource {
   std::optional<capture::Pose> track(const reconstruction::OdometryFrame& odo, CameraPose& out) {
     // The prediction: the last frame's motion again (a steady orbit), else no motion (a camera that stopped).
     const capture::Pose predicted = velocity_ ? lastPose_ * *velocity_ : lastPose_;
-    const auto attempt = [&](const reconstruction::OdometryFrame& target, const capture::Pose& T_world_target)
-        -> std::optional<capture::Pose> {
+    const auto attempt = [&](const reconstruction::OdometryFrame& target,
+                             const capture::Pose& T_world_target) -> std::optional<capture::Pose> {
       const capture::Pose T_target_world = capture::inversePose(T_world_target);
       auto r = reconstruction::estimateOdometry(odo, target, T_target_world * predicted, o_.odometry);
       if (velocity_ && !trusted(r))
@@ -327,7 +333,8 @@ class OdometryPoses : public PoseSource {
     // The room as seen from the prediction, rendered at the pyramid's finest level.
     if (model_) {
       const capture::Intrinsics& k0 = odo.intrinsics(0);
-      const reconstruction::RoomView view = reconstruction::renderRoomView(*model_, *modelRays_, predicted, k0, o_.odometry.maxDepthM);
+      const reconstruction::RoomView view =
+          reconstruction::renderRoomView(*model_, *modelRays_, predicted, k0, o_.odometry.maxDepthM);
       reconstruction::OdometryOptions mo = o_.odometry;
       mo.maxWidth = k0.width;
       mo.method = o_.modelMethod;
@@ -398,23 +405,28 @@ class OdometryPoses : public PoseSource {
   }
 
   /// A posed frame: the next frame's prediction, and a keyframe when the view has moved on.
-  void accept(const reconstruction::OdometryFrame& odo, const capture::RgbdFrame& rgbd, const CameraPose& out, bool force) {
+  void accept(const reconstruction::OdometryFrame& odo, const capture::RgbdFrame& rgbd, const CameraPose& out,
+              bool force) {
     // The motion since the last frame, when it was posed too (the next frame's prediction).
-    if (!lost_ && previous_) velocity_ = rigid(capture::inversePose(lastPose_) * *out.T_world_camera);
-    else velocity_.reset();
+    if (!lost_ && previous_)
+      velocity_ = rigid(capture::inversePose(lastPose_) * *out.T_world_camera);
+    else
+      velocity_.reset();
     lost_ = false;
     lastPose_ = *out.T_world_camera;
     if (out.fitness >= 0) {
       recentFitness_.push_back(out.fitness);
       recentRmse_.push_back(out.inlierRmse);
-      while (static_cast<int>(recentFitness_.size()) > o_.qualityWindow) recentFitness_.pop_front(), recentRmse_.pop_front();
+      while (static_cast<int>(recentFitness_.size()) > o_.qualityWindow)
+        recentFitness_.pop_front(), recentRmse_.pop_front();
     }
     previous_ = odo;
     bool add = force || keyframes_.empty() || keyframeFailed_;
     keyframeFailed_ = false;
     if (!add) {
       const capture::Pose& kf = keyframes_[current_].T_world_camera;
-      add = lastFitness_ < o_.keyframeFitness || reconstruction::translationError(kf, lastPose_) > o_.keyframeDistanceM ||
+      add = lastFitness_ < o_.keyframeFitness ||
+            reconstruction::translationError(kf, lastPose_) > o_.keyframeDistanceM ||
             reconstruction::rotationErrorDeg(kf, lastPose_) > o_.keyframeAngleDeg;
     }
     if (!add) return;
@@ -428,7 +440,8 @@ class OdometryPoses : public PoseSource {
       if (x < 0 || y < 0 || x >= rgbd.depth.cols || y >= rgbd.depth.rows) continue;
       const float z = rgbd.depth.at<float>(y, x);
       if (!(z > 0.f && z < 1e30f)) continue;
-      kf.points.emplace_back(static_cast<float>((kps[i].pt.x - k.cx) / k.fx * z), static_cast<float>((kps[i].pt.y - k.cy) / k.fy * z), z);
+      kf.points.emplace_back(static_cast<float>((kps[i].pt.x - k.cx) / k.fx * z),
+                             static_cast<float>((kps[i].pt.y - k.cy) / k.fy * z), z);
       kf.descriptors.push_back(desc.row(static_cast<int>(i)));
     }
     if (static_cast<int>(keyframes_.size()) >= o_.maxKeyframes) keyframes_.erase(keyframes_.begin());
@@ -443,7 +456,8 @@ class OdometryPoses : public PoseSource {
   bool anchored_ = false, lost_ = false, sawFrame_ = false;
   std::optional<capture::Pose> founded_;  ///< the first frame's pose in a world founded on it
   capture::Pose lastPose_ = capture::identityPose();
-  std::optional<capture::Pose> velocity_;  ///< the last frame's motion (camera frame), when two posed frames follow each other
+  std::optional<capture::Pose>
+      velocity_;  ///< the last frame's motion (camera frame), when two posed frames follow each other
   std::optional<capture::Pose> lastMarker_;  ///< T_camera_marker of the last frame, for the tag's ambiguity
   std::optional<reconstruction::OdometryFrame> previous_;
   std::vector<Keyframe> keyframes_;
@@ -461,7 +475,9 @@ class GivenPoses : public PoseSource {
  public:
   GivenPoses(PoseMode mode, std::vector<CameraPose> poses) : mode_(mode), poses_(std::move(poses)) {}
   PoseMode mode() const override { return mode_; }
-  CameraPose locate(const capture::Frame&, gl::Profiler&) override { return next_ < poses_.size() ? poses_[next_++] : CameraPose{}; }
+  CameraPose locate(const capture::Frame&, gl::Profiler&) override {
+    return next_ < poses_.size() ? poses_[next_++] : CameraPose{};
+  }
 
  private:
   PoseMode mode_;
@@ -476,14 +492,18 @@ std::unique_ptr<PoseSource> makeGivenPoseSource(PoseMode mode, std::vector<Camer
 }
 
 std::unique_ptr<PoseSource> makePoseSource(PoseMode mode, const MarkerSpec& marker,
-                                           const std::optional<capture::Pose>& T_world_marker, const TrackingOptions& options) {
+                                           const std::optional<capture::Pose>& T_world_marker,
+                                           const TrackingOptions& options) {
   switch (mode) {
-    case PoseMode::Marker: return std::make_unique<MarkerPoses>(marker);
+    case PoseMode::Marker:
+      return std::make_unique<MarkerPoses>(marker);
     case PoseMode::GroundTruth:
-      if (!T_world_marker) throw capture::InputError("--pose ground-truth", "needs ground_truth.T_world_marker in the manifest");
+      if (!T_world_marker)
+        throw capture::InputError("--pose ground-truth", "needs ground_truth.T_world_marker in the manifest");
       return std::make_unique<GroundTruthPoses>(marker, *T_world_marker);
     case PoseMode::Odometry:
-    case PoseMode::Tracked: return std::make_unique<OdometryPoses>(mode, marker, options);
+    case PoseMode::Tracked:
+      return std::make_unique<OdometryPoses>(mode, marker, options);
   }
   return nullptr;
 }

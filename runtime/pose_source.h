@@ -10,11 +10,10 @@
 //                 jump of the object), or places it outright after a loss; a lost frame is relocalised
 //                 against keyframes (ORB features and depth, PnP RANSAC) or by the marker
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "capture/types.h"
 #include "gl/profiler.h"

@@ -2,10 +2,10 @@
 
 #include <fstream>
 
+#include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/json_io.h"
 #include "lighting/techniques/registry.h"
-#include "capture/checks.h"
 
 using nlohmann::json;
 

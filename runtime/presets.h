@@ -1,9 +1,8 @@
 #pragma once
 // Presets: a technique choice and its knobs by name (fast, balanced, accurate), as `mrgi bench --presets`
 // writes them from the measured front; replay and live apply them to a scene.
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "lighting/scene_file.h"
 

@@ -62,17 +62,21 @@ std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusion
     if (index % o.every != 0 || !frame->rgbd) continue;
     const CameraPose pose = frames.locatePose(*frame, profiler);
     const bool posed = pose.tracked() && !pose.held();
-    graph.add(reconstruction::OdometryFrame(frame->rgbd->depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, to.odometry,
-                                            frame->rgbd->exposure),
+    graph.add(reconstruction::OdometryFrame(frame->rgbd->depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics,
+                                            to.odometry, frame->rgbd->exposure),
               {posed ? pose.T_world_camera : std::nullopt, pose.markerT_world_camera});
     poses.push_back(pose);
   }
   const reconstruction::TrajectoryResult t = graph.optimise();
   for (size_t i = 0; i < poses.size(); ++i)
     if (t.T_world_camera[i]) poses[i].T_world_camera = t.T_world_camera[i];
-  facts = {{"odometry_edges", t.odometryEdges}, {"loop_edges", t.loopEdges}, {"marker_edges", t.markerEdges},
-           {"pruned_edges", t.prunedEdges}, {"refused_alignments", t.refusedAlignments},
-           {"mean_shift_m", t.meanShiftM}, {"max_shift_m", t.maxShiftM}};
+  facts = {{"odometry_edges", t.odometryEdges},
+           {"loop_edges", t.loopEdges},
+           {"marker_edges", t.markerEdges},
+           {"pruned_edges", t.prunedEdges},
+           {"refused_alignments", t.refusedAlignments},
+           {"mean_shift_m", t.meanShiftM},
+           {"max_shift_m", t.maxShiftM}};
   return poses;
 }
 
@@ -116,14 +120,15 @@ RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
       ++out.posed;
       const cv::Mat depth = measuredDepth(r);
       const auto t0 = std::chrono::steady_clock::now();
-      const auto result = out.model.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics, *r.T_marker_camera,
-                                                 frame->rgbd->exposure);
+      const auto result = out.model.integrate(depth, frame->rgbd->colour, frame->rgbd->colourIntrinsics,
+                                              *r.T_marker_camera, frame->rgbd->exposure);
       out.fuseMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
       out.surfaceMs.push_back(filterMs + out.fuseMs.back());
       line["integrated"] = result.integrated;
       // Frame-to-model: the poses of the next frames are aligned with the room fused so far, its surface
       // taken anew every `trackEvery` fused frames.
-      if (!given && result.integrated && o.trackEvery > 0 && tracks && out.model.framesIntegrated() % o.trackEvery == 0) {
+      if (!given && result.integrated && o.trackEvery > 0 && tracks &&
+          out.model.framesIntegrated() % o.trackEvery == 0) {
         const auto t1 = std::chrono::steady_clock::now();
         frames.trackAgainst(std::make_shared<const reconstruction::RoomMesh>(out.model.mesh()));
         line["model_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
@@ -141,7 +146,8 @@ RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
   return out;
 }
 
-reconstruction::RoomMesh saveRoomModel(const std::string& dir, const reconstruction::RoomModel& room, const std::string& session) {
+reconstruction::RoomMesh saveRoomModel(const std::string& dir, const reconstruction::RoomModel& room,
+                                       const std::string& session) {
   reconstruction::RoomMesh mesh = room.mesh();
   if (mesh.positions.empty()) return mesh;
   reconstruction::RoomInfo ri;

@@ -3,10 +3,9 @@
 // camera pose (runtime/pose_source.h) into a RoomModel in the marker frame. Frames without a trusted pose
 // (lost, or the marker's held pose) are refused, never fused at a guess.
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "capture/frame_source.h"
 #include "reconstruction/pose_graph.h"
@@ -24,9 +23,10 @@ struct RoomFusion {
   int64_t frames = 0, posed = 0;
   /// Frames refused for their pose: lost, or held (the marker's last pose kept while unseen).
   int64_t lost = 0, held = 0;
-  std::vector<double> fuseMs;                    ///< per integrated-or-refused frame with a pose
-  std::vector<double> surfaceMs;                 ///< the same frames: depth filter and normals + fusion
-  nlohmann::json perFrame = nlohmann::json::array();  ///< frame, integrated, refused, overlap, inconsistent, new_blocks, fuse_ms
+  std::vector<double> fuseMs;     ///< per integrated-or-refused frame with a pose
+  std::vector<double> surfaceMs;  ///< the same frames: depth filter and normals + fusion
+  nlohmann::json perFrame =
+      nlohmann::json::array();  ///< frame, integrated, refused, overlap, inconsistent, new_blocks, fuse_ms
   /// Each measured frame's camera-to-world pose as it was fused (nullopt: refused for its pose).
   std::vector<std::optional<capture::Pose>> poses;
   /// The optimised trajectory's facts (edges, pruned, how far frames moved), when it was optimised; else null.
@@ -54,11 +54,13 @@ struct RoomFusionOptions {
 
 /// Fuses the recording at `path` (opened with capture::open; opened again for an optimised trajectory).
 /// `onFrame` (optional) sees each frame's line as it is decided.
-RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& options,
-                    const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
+RoomFusion fuseRoom(
+    const std::string& path, const RoomFusionOptions& options,
+    const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
 
 /// Writes a fused room as mrgi room does (room.ply, room_appearance.npy, room.json naming `session`); the
 /// mesh is returned (empty, and nothing written, when the room has no surface).
-reconstruction::RoomMesh saveRoomModel(const std::string& dir, const reconstruction::RoomModel& room, const std::string& session);
+reconstruction::RoomMesh saveRoomModel(const std::string& dir, const reconstruction::RoomModel& room,
+                                       const std::string& session);
 
 }  // namespace mrgi::runtime

@@ -11,7 +11,7 @@ PACKAGES=(
   libglfw3-dev libosmesa6-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   libembree-dev libassimp-dev libimgui-dev libnanoflann-dev libopen3d-dev
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
-  xvfb xauth
+  xvfb xauth clang-format
 )
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq

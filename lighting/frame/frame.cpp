@@ -4,9 +4,8 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <stdexcept>
-
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 #include "gl/error.h"
 #include "lighting/material.h"
@@ -17,22 +16,48 @@ namespace mrgi::lighting {
 
 const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable() {
   static const std::vector<KnobBinding<FrameKnobs>> table = {
-      {{"rsm_size", KnobType::Int, 16, 4096, 256,
-        "RSM and shadow-map texels per side, per light (RSM^rho and RSM^mu)", {64, 128, 512}, {64}, true},
+      {{"rsm_size",
+        KnobType::Int,
+        16,
+        4096,
+        256,
+        "RSM and shadow-map texels per side, per light (RSM^rho and RSM^mu)",
+        {64, 128, 512},
+        {64},
+        true},
        &FrameKnobs::rsmSize},
-      {{"shadow_size", KnobType::Int, 16, 4096, 512,
+      {{"shadow_size",
+        KnobType::Int,
+        16,
+        4096,
+        512,
         "texels per side of the objects' shadow maps (the virtual objects alone, fitted to their bounding "
-        "sphere, per light)", {128, 1024}, {128}, true},
+        "sphere, per light)",
+        {128, 1024},
+        {128},
+        true},
        &FrameKnobs::shadowSize},
-      {{"size_factor", KnobType::Real, 1.0, 64.0, 4.0,
+      {{"size_factor",
+        KnobType::Real,
+        1.0,
+        64.0,
+        4.0,
         "side of the region around the virtual objects that light views and volumes cover, in units of the "
         "objects' largest bounding-box edge",
-        {2.0, 3.0, 6.0}, {}, false},
+        {2.0, 3.0, 6.0},
+        {},
+        false},
        &FrameKnobs::sizeFactor},
-      {{"light_cutoff", KnobType::Real, 0.0, 0.5, 0.01,
+      {{"light_cutoff",
+        KnobType::Real,
+        0.0,
+        0.5,
+        0.01,
         "share of the most irradiance the lights and the ambient can give the region that the dimmest lights "
         "may carry and be skipped (no RSM, shadow map or technique work); 0: every light is rendered",
-        {}, {}, false},  // not swept: the bundled sessions have no light to leave out (README, real time)
+        {},
+        {},
+        false},  // not swept: the bundled sessions have no light to leave out (README, real time)
        &FrameKnobs::lightCutoff},
   };
   return table;
@@ -63,8 +88,9 @@ void GpuMesh::draw() const {
   glDrawElements(GL_TRIANGLES, count_, GL_UNSIGNED_INT, nullptr);
 }
 
-void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo, const capture::Pose& T_world_camera,
-                       std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices) {
+void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo,
+                       const capture::Pose& T_world_camera, std::vector<MeshVertex>& vertices,
+                       std::vector<uint32_t>& indices) {
   const cv::Matx33d R = capture::rotationOf(T_world_camera);
   // Vertices whose depth normal is unknown (isolated samples, edges) take the area-weighted normal of their
   // triangles, turned towards the camera; a zero normal would shade as NaN.
@@ -103,17 +129,29 @@ void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& alb
 
 cv::Matx44d projectionFromIntrinsics(const capture::Intrinsics& k, double n, double f) {
   const double W = k.width, H = k.height;
-  return {2 * k.fx / W, 0, 2 * (k.cx + 0.5) / W - 1, 0,  //
-          0, 2 * k.fy / H, 2 * (k.cy + 0.5) / H - 1, 0,  //
-          0, 0, (f + n) / (f - n), -2 * f * n / (f - n),  //
-          0, 0, 1, 0};
+  return {2 * k.fx / W,
+          0,
+          2 * (k.cx + 0.5) / W - 1,
+          0,  //
+          0,
+          2 * k.fy / H,
+          2 * (k.cy + 0.5) / H - 1,
+          0,  //
+          0,
+          0,
+          (f + n) / (f - n),
+          -2 * f * n / (f - n),  //
+          0,
+          0,
+          1,
+          0};
 }
 
 cv::Matx44d orthographicProjection(double h, double n, double f) {
-  return {1 / h, 0, 0, 0,  //
-          0, 1 / h, 0, 0,  //
-          0, 0, 2 / (f - n), -(f + n) / (f - n),  //
-          0, 0, 0, 1};
+  return {1 / h, 0,     0,           0,                   //
+          0,     1 / h, 0,           0,                   //
+          0,     0,     2 / (f - n), -(f + n) / (f - n),  //
+          0,     0,     0,           1};
 }
 
 std::array<float, 16> toGl(const cv::Matx44d& m) {
@@ -141,7 +179,8 @@ void setVec3(const gl::Program& p, const std::string& name, const cv::Vec3d& v) 
 
 void setAmbientUniforms(const gl::Program& p, const FrameResources& frame) {
   setVec3(p, "uAmbient", frame.ambient());
-  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+  for (int k = 0; k < 9; ++k)
+    setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
 }
 
 void setObjectLobes(const gl::Program& p, const FrameResources& frame) {
@@ -200,7 +239,8 @@ std::vector<size_t> lightsThatMatter(const std::vector<SceneLight>& lights, cons
   }
   auto brightest = [](const cv::Vec3d& b) { return std::max({b[0], b[1], b[2]}); };
   std::vector<size_t> order = kept;
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return brightest(bound[a]) < brightest(bound[b]); });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return brightest(bound[a]) < brightest(bound[b]); });
   std::vector<bool> skip(lights.size(), false);
   cv::Vec3d skipped{0, 0, 0};
   for (size_t i : order) {
@@ -224,8 +264,8 @@ LightView fitLightView(const SceneLight& light, const Region& region, int size) 
   if (light.type == LightType::Directional) {
     const double back = 4.0 * radius;  // room for occluders in front of the region
     const cv::Vec3d eye = centre - light.direction * back;
-    v.viewProj = orthographicProjection(radius, 0.0, back + radius) *
-                 capture::inversePose(capture::lookAtPose(eye, centre));
+    v.viewProj =
+        orthographicProjection(radius, 0.0, back + radius) * capture::inversePose(capture::lookAtPose(eye, centre));
     const double texel = 2.0 * radius / size;
     v.texelArea = texel * texel;
     v.shadowBias = 2.0 * texel;
@@ -250,8 +290,8 @@ void fitObjectView(LightView& v, const SceneLight& light, const cv::Vec3d& centr
   v.objectShadowBias = -1;
   if (light.type == LightType::Directional) {
     const cv::Vec3d eye = centre - light.direction * (2.0 * radius);
-    v.objectViewProj = orthographicProjection(radius, 0.0, 3.0 * radius) *
-                       capture::inversePose(capture::lookAtPose(eye, centre));
+    v.objectViewProj =
+        orthographicProjection(radius, 0.0, 3.0 * radius) * capture::inversePose(capture::lookAtPose(eye, centre));
     v.objectShadowBias = 2.0 * (2.0 * radius / size);
     return;
   }
@@ -314,9 +354,12 @@ FrameResources::FrameResources(const FrameConfig& config, const std::vector<Virt
 }
 
 Rsm FrameResources::makeRsm(int size) const {
-  Rsm r{gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size), gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
-        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size), gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
-        gl::Texture(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, size, size), gl::Framebuffer()};
+  Rsm r{gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, size, size),
+        gl::Framebuffer()};
   for (auto* t : {&r.position, &r.normal, &r.flux, &r.direct}) t->setFilter(GL_NEAREST, GL_NEAREST);
   r.fb.attachColour(0, r.position);
   r.fb.attachColour(1, r.normal);
@@ -340,7 +383,8 @@ void FrameResources::setViewMesh(const std::vector<MeshVertex>& vertices, const 
 }
 
 void FrameResources::setRealPixelAlbedo(const cv::Mat& albedo) {
-  const bool use = !albedo.empty() && albedo.type() == CV_32FC3 && albedo.cols == config_.width && albedo.rows == config_.height;
+  const bool use =
+      !albedo.empty() && albedo.type() == CV_32FC3 && albedo.cols == config_.width && albedo.rows == config_.height;
   if (!use && !hasPixelAlbedo_) return;
   hasPixelAlbedo_ = use;
   viewDirty_ = true;
@@ -369,7 +413,8 @@ void FrameResources::invalidate() {
   geometryDirty_ = realValsDirty_ = true;
 }
 
-void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& lights, const std::vector<LightView>& views) {
+void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& lights,
+                      const std::vector<LightView>& views) {
   p.set("uLightCount", static_cast<int>(lights.size()));
   for (size_t i = 0; i < lights.size(); ++i) {
     std::string k(1, '[');  // "[i]", the uniform array index
@@ -387,7 +432,8 @@ void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& light
       p.set("uShadowBias" + k, static_cast<float>(views[i].shadowBias));
       const auto o = toGl(views[i].objectViewProj);
       p.setMat4("uObjectViewProj" + k, o.data());
-      p.set("uObjectShadowBias" + k, views[i].objectShadowBias >= 0 ? static_cast<float>(views[i].objectShadowBias) : -1e30f);
+      p.set("uObjectShadowBias" + k,
+            views[i].objectShadowBias >= 0 ? static_cast<float>(views[i].objectShadowBias) : -1e30f);
     } else {
       p.set("uShadowBias" + k, -1e30f);  // no map: nothing occludes
       p.set("uObjectShadowBias" + k, -1e30f);
@@ -402,11 +448,17 @@ const FrameVersions& FrameResources::update(const CameraView& camera, const std:
                                 std::to_string(lights.size()));
   // Exact comparison: any change counts.
   Seen in;
-  in.camera = {camera.intrinsics.fx, camera.intrinsics.fy, camera.intrinsics.cx, camera.intrinsics.cy,
-               static_cast<double>(camera.intrinsics.width), static_cast<double>(camera.intrinsics.height),
-               camera.nearPlane, camera.farPlane};
+  in.camera = {camera.intrinsics.fx,
+               camera.intrinsics.fy,
+               camera.intrinsics.cx,
+               camera.intrinsics.cy,
+               static_cast<double>(camera.intrinsics.width),
+               static_cast<double>(camera.intrinsics.height),
+               camera.nearPlane,
+               camera.farPlane};
   for (int i = 0; i < 16; ++i) in.camera.push_back(camera.T_world_camera.val[i]);
-  for (const FrameObject& o : objects_) in.objects.insert(in.objects.end(), o.T_world_object.val, o.T_world_object.val + 16);
+  for (const FrameObject& o : objects_)
+    in.objects.insert(in.objects.end(), o.T_world_object.val, o.T_world_object.val + 16);
   for (const SceneLight& l : lights) {
     in.lights.insert(in.lights.end(), {static_cast<double>(l.type), l.spotHalfAngleDeg});
     for (const cv::Vec3d* v : {&l.position, &l.direction, &l.intensity, &l.irradiance})
@@ -453,7 +505,8 @@ void FrameResources::fitRegionToObjects() {
   if (const auto b = objectBounds()) region_ = fitRegion(b->first, b->second, config_.knobs.sizeFactor);
 }
 
-void FrameResources::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj, bool cameraView) const {
+void FrameResources::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
+                               bool cameraView) const {
   program.use();
   const auto vp = toGl(viewProj);
   program.setMat4("uViewProj", vp.data());
@@ -494,7 +547,8 @@ void FrameResources::renderGBuffer() {
   setVec3(gbufferProgram_, "uEye", capture::translationOf(camera_.T_world_camera));
   gbufferProgram_.set("uPixelAlbedo", hasPixelAlbedo_ ? 1 : 0);
   if (hasPixelAlbedo_) pixelAlbedo_.bind(0);
-  drawScene(gbufferProgram_, true, projectionFromIntrinsics(camera_.intrinsics, camera_.nearPlane, camera_.farPlane) * view, true);
+  drawScene(gbufferProgram_, true,
+            projectionFromIntrinsics(camera_.intrinsics, camera_.nearPlane, camera_.farPlane) * view, true);
   glDisable(GL_DEPTH_TEST);
 }
 
@@ -524,8 +578,9 @@ void FrameResources::renderLight(size_t i) {
   const SceneLight& light = lights_.at(i);
   LightView view = fitLightView(light, *region_, rsmSize());
   const auto bounds = objectBounds();
-  if (bounds) fitObjectView(view, light, 0.5 * (bounds->first + bounds->second),
-                            0.5 * cv::norm(bounds->second - bounds->first), config_.knobs.shadowSize);
+  if (bounds)
+    fitObjectView(view, light, 0.5 * (bounds->first + bounds->second), 0.5 * cv::norm(bounds->second - bounds->first),
+                  config_.knobs.shadowSize);
   views_.push_back(view);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
@@ -569,7 +624,8 @@ void FrameResources::renderLight(size_t i) {
 }
 
 ShadowTexels FrameResources::downloadShadowTexels(size_t i) const {
-  if (i >= views_.size()) throw std::out_of_range("FrameResources::downloadShadowTexels(): no such light in the last run");
+  if (i >= views_.size())
+    throw std::out_of_range("FrameResources::downloadShadowTexels(): no such light in the last run");
   auto layer = [&](const gl::Texture& t) {
     cv::Mat m(t.height(), t.width(), CV_32FC4);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);

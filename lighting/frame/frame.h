@@ -8,10 +8,9 @@
 /// pipeline (lighting/pipeline.h) reruns a consumer only when one of them moved.
 #include <array>
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "capture/checks.h"
 #include "capture/types.h"
@@ -51,8 +50,9 @@ class GpuMesh {
 
 /// The real-scene mesh in the lighting world: DepthMesh vertices (camera frame) moved by T_world_camera,
 /// each with the albedo estimated at its pixel (albedo CV_32FC3, linear; empty = 0.5 grey).
-void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo, const capture::Pose& T_world_camera,
-                       std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices);
+void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo,
+                       const capture::Pose& T_world_camera, std::vector<MeshVertex>& vertices,
+                       std::vector<uint32_t>& indices);
 
 /// Camera matrices (OpenCV camera frame: x right, y down, z forward). Image row 0 maps to NDC y = -1, so
 /// framebuffer rows come back in cv::Mat order.
@@ -118,8 +118,8 @@ struct CameraView {
 };
 
 /// RSM texels as read back from the GPU (CV_32FC4 each, size x size): world position (w = 1 where a surface
-/// was seen), normal facing the light (w = object index + 1 on virtual surfaces, 0 on real ones), reflected flux (albedo x flux through the
-/// texel, W), incident flux through the texel (W).
+/// was seen), normal facing the light (w = object index + 1 on virtual surfaces, 0 on real ones), reflected flux
+/// (albedo x flux through the texel, W), incident flux through the texel (W).
 struct RsmTexels {
   cv::Mat position, normal, flux, direct;
 };
@@ -138,10 +138,11 @@ struct Rsm {
 
 /// Knobs of the shared resources (scene key "frame").
 struct FrameKnobs {
-  int rsmSize = 0;          ///< RSM texels per side
-  int shadowSize = 0;       ///< texels per side of the objects' shadow maps
-  double sizeFactor = 0;    ///< region side / the objects' largest bounding-box edge
-  double lightCutoff = 0;   ///< share of the irradiance bound at the region the skipped lights may carry (lightsThatMatter)
+  int rsmSize = 0;        ///< RSM texels per side
+  int shadowSize = 0;     ///< texels per side of the objects' shadow maps
+  double sizeFactor = 0;  ///< region side / the objects' largest bounding-box edge
+  double lightCutoff =
+      0;  ///< share of the irradiance bound at the region the skipped lights may carry (lightsThatMatter)
 };
 /// The knob table of FrameKnobs (declared once: lighting/frame/frame.cpp).
 const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable();
@@ -203,7 +204,8 @@ class FrameResources {
   void setAmbientSh(const std::array<cv::Vec3d, 9>& sh) { ambientSh_ = sh; }
   void setRealVals(std::vector<Val> vals);
   /// Compares with the last run's inputs and bumps the versions of what changed. Returns the versions.
-  const FrameVersions& update(const CameraView& camera, const std::vector<SceneLight>& lights, const cv::Vec3d& ambient);
+  const FrameVersions& update(const CameraView& camera, const std::vector<SceneLight>& lights,
+                              const cv::Vec3d& ambient);
   /// Everything counts as changed at the next update().
   void invalidate();
 
@@ -231,14 +233,17 @@ class FrameResources {
 
   /// Draws the real mesh (and the objects when includeVirtual) with `program` (uModel, uNormalModel,
   /// uViewProj, uVirtual, uObject set here).
-  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj, bool cameraView = false) const;
+  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
+                 bool cameraView = false) const;
   /// Draws the objects alone (uModel, uNormalModel, uVirtual = 1, uObject set here; uViewProj by the caller).
   void drawObjects(const gl::Program& program) const;
 
   // ---- results
   const gl::Texture& gPosition() const { return gPosition_; }  ///< xyz world, w = 1 where a surface was seen
-  const gl::Texture& gNormal() const { return gNormal_; }      ///< xyz unit normal towards the camera, w = object index + 1 (0 real)
-  const gl::Texture& gAlbedo() const { return gAlbedo_; }      ///< rgb albedo, a = 1 on virtual surfaces
+  const gl::Texture& gNormal() const {
+    return gNormal_;
+  }  ///< xyz unit normal towards the camera, w = object index + 1 (0 real)
+  const gl::Texture& gAlbedo() const { return gAlbedo_; }  ///< rgb albedo, a = 1 on virtual surfaces
   const gl::Texture& gDepth() const { return gDepth_; }
   /// Light views of the lights rendered so far this run (all of them after the RSM stage).
   const std::vector<LightView>& lightViews() const { return views_; }

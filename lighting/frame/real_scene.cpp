@@ -13,7 +13,9 @@ constexpr float kPi = static_cast<float>(CV_PI);
 float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 
 uint64_t voxelKey(const cv::Vec3f& p, float voxel) {
-  auto c = [&](float v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v / voxel)) + (1 << 20)) & 0x1fffff; };
+  auto c = [&](float v) {
+    return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v / voxel)) + (1 << 20)) & 0x1fffff;
+  };
   return c(p[0]) | (c(p[1]) << 21) | (c(p[2]) << 42);
 }
 
@@ -36,7 +38,8 @@ std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, 
       const float range = static_cast<float>(cv::norm(p));
       const float cosV = std::max(-n.dot(p) / range, 0.1f);
       Val v;
-      v.area = static_cast<float>((p[2] / k.fx) * (p[2] / k.fy)) * static_cast<float>(stride * stride) * (p[2] / range) / cosV;
+      v.area = static_cast<float>((p[2] / k.fx) * (p[2] / k.fy)) * static_cast<float>(stride * stride) *
+               (p[2] / range) / cosV;
       v.position = R * p + t;
       v.normal = R * n;
       v.flux = L * (kPi * v.area);
@@ -46,12 +49,14 @@ std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, 
   return out;
 }
 
-std::vector<Val> valsFromRoom(const reconstruction::RoomMesh& room, float cell, size_t maxVals, const std::vector<uint32_t>* indicesIn) {
+std::vector<Val> valsFromRoom(const reconstruction::RoomMesh& room, float cell, size_t maxVals,
+                              const std::vector<uint32_t>* indicesIn) {
   const std::vector<uint32_t>& indices = indicesIn ? *indicesIn : room.indices;
   // Each vertex's share of the surface: a third of the area of every triangle it belongs to.
   std::vector<float> area(room.positions.size(), 0.f);
   for (size_t t = 0; t + 2 < indices.size(); t += 3) {
-    const cv::Vec3f &a = room.positions[indices[t]], &b = room.positions[indices[t + 1]], &c = room.positions[indices[t + 2]];
+    const cv::Vec3f &a = room.positions[indices[t]], &b = room.positions[indices[t + 1]],
+                    &c = room.positions[indices[t + 2]];
     const float third = static_cast<float>(cv::norm((b - a).cross(c - a))) / 6.f;
     for (int k = 0; k < 3; ++k) area[indices[t + static_cast<size_t>(k)]] += third;
   }
@@ -88,7 +93,8 @@ std::vector<Val> valsFromRoom(const reconstruction::RoomMesh& room, float cell, 
   }
   // A fixed order (the cells' hash order is not).
   std::sort(out.begin(), out.end(), [](const Val& a, const Val& b) {
-    return std::tie(a.position[0], a.position[1], a.position[2]) < std::tie(b.position[0], b.position[1], b.position[2]);
+    return std::tie(a.position[0], a.position[1], a.position[2]) <
+           std::tie(b.position[0], b.position[1], b.position[2]);
   });
   setValWeights(out);
   return out;
@@ -109,7 +115,8 @@ void SurfelMap::integrate(const std::vector<Val>& vals, const cv::Mat& depth, co
     if (depth.empty()) return true;
     const cv::Vec3d c = capture::transformPoint(T_camera_world, cv::Vec3d(p));
     if (!(c[2] > 0)) return false;
-    const int u = static_cast<int>(std::lround(k.fx * c[0] / c[2] + k.cx)), v = static_cast<int>(std::lround(k.fy * c[1] / c[2] + k.cy));
+    const int u = static_cast<int>(std::lround(k.fx * c[0] / c[2] + k.cx)),
+              v = static_cast<int>(std::lround(k.fy * c[1] / c[2] + k.cy));
     if (u < 0 || v < 0 || u >= depth.cols || v >= depth.rows) return false;
     const float z = depth.at<float>(v, u);
     return z > 0.f && z > c[2] - 2.0 * o_.voxel;

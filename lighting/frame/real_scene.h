@@ -3,10 +3,9 @@
 /// radiance) from RGB-D pixels, fused over frames in a world-space surfel map. Shared by every technique
 /// that lets real surfaces light the virtual object.
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <unordered_map>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "capture/types.h"
 #include "reconstruction/room_model.h"
@@ -25,8 +24,8 @@ struct Val {
 static_assert(sizeof(Val) == 48);
 
 /// VALs from an RGB-D frame: every stride-th valid pixel with a normal, position and normal moved into the
-/// world, area (z/fx)(z/fy) stride² cos α / <n, −view>+ (α off the optical axis, cos clamped at 0.1), radiance = the linear colour / π
-/// per unit albedo... i.e. a Lambertian emitter of the seen radiance: φ = π L a.
+/// world, area (z/fx)(z/fy) stride² cos α / <n, −view>+ (α off the optical axis, cos clamped at 0.1), radiance = the
+/// linear colour / π per unit albedo... i.e. a Lambertian emitter of the seen radiance: φ = π L a.
 std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, const cv::Mat& linearColour,
                               const capture::Intrinsics& k, const capture::Pose& T_world_camera, int stride);
 /// VALs from the fused room (reconstruction::RoomMesh, lighting world): the mesh's area gathered into cells
@@ -34,8 +33,8 @@ std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, 
 /// and normal and the flux π L A of its vertices' fused radiance (exposure 1) — the Lambertian emitter of
 /// what the camera saw, over every surface the room holds, not only those in view. `indices`: the triangles
 /// to take (default: all the room's; the frame pipeline passes those left after clearing around lights).
-/// Saturated vertices (lamps: only a lower bound, and a light of their own) give none. The cell doubles until there are at most maxVals; cells whose normals cancel (a
-/// thin object's two sides) are dropped.
+/// Saturated vertices (lamps: only a lower bound, and a light of their own) give none. The cell doubles until there are
+/// at most maxVals; cells whose normals cancel (a thin object's two sides) are dropped.
 std::vector<Val> valsFromRoom(const reconstruction::RoomMesh& room, float cell = 0.04f, size_t maxVals = 16384,
                               const std::vector<uint32_t>* indices = nullptr);
 
@@ -46,17 +45,17 @@ void setValWeights(std::vector<Val>& vals);
 /// Beyond the paper: real-surface VALs fused over frames in a world-space map keyed by voxel, so surfaces
 /// that left the view keep lighting the object and the light does not flicker with sensor noise.
 struct SurfelOptions {
-  float voxel = 0.02f;       ///< metres
-  float decay = 0.0f;        ///< confidence kept per frame by a surfel the frame should have seen but did not:
-                             ///< 0 drops it (the frame is authoritative for what it sees; otherwise a surface
-                             ///< quantised into a neighbouring voxel this time counts twice)
+  float voxel = 0.02f;  ///< metres
+  float decay = 0.0f;   ///< confidence kept per frame by a surfel the frame should have seen but did not:
+                        ///< 0 drops it (the frame is authoritative for what it sees; otherwise a surface
+                        ///< quantised into a neighbouring voxel this time counts twice)
   float minConfidence = 0.05f;
   float maxConfidence = 10.f;
 };
 /// How an application builds the real-surface area lights a technique asks for.
 struct RealValOptions {
-  int stride = 4;        ///< RGB-D pixel stride
-  bool fusion = true;    ///< fuse them over frames in a SurfelMap
+  int stride = 4;      ///< RGB-D pixel stride
+  bool fusion = true;  ///< fuse them over frames in a SurfelMap
   SurfelOptions surfels;
 };
 

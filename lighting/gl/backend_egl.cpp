@@ -88,8 +88,9 @@ class EglContext final : public BackendContext {
     EGLConfig cfg = nullptr;
     EGLint n = 0;
     const bool haveConfig = eglChooseConfig(d, configAttribs, &cfg, 1, &n) && n > 0;
-    const EGLint ctxAttribs[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5,
-                                 EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+    const EGLint ctxAttribs[] = {
+        EGL_CONTEXT_MAJOR_VERSION,           4,       EGL_CONTEXT_MINOR_VERSION, 5, EGL_CONTEXT_OPENGL_PROFILE_MASK,
+        EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
     // EGL_KHR_no_config_context lets a surfaceless context exist without a config.
     EGLContext c = eglCreateContext(d, haveConfig ? cfg : EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, ctxAttribs);
     if (c == EGL_NO_CONTEXT) {
@@ -113,8 +114,6 @@ class EglContext final : public BackendContext {
 
 }  // namespace
 
-std::unique_ptr<BackendContext> createEgl(const ContextConfig& config) {
-  return std::make_unique<EglContext>(config);
-}
+std::unique_ptr<BackendContext> createEgl(const ContextConfig& config) { return std::make_unique<EglContext>(config); }
 
 }  // namespace mrgi::gl::detail

@@ -13,9 +13,19 @@ void* osmesaProc(const char* name) { return reinterpret_cast<void*>(OSMesaGetPro
 class OsmesaContext final : public BackendContext {
  public:
   explicit OsmesaContext(const ContextConfig& config) : width_(config.width), height_(config.height) {
-    const int attribs[] = {OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS, 24, OSMESA_STENCIL_BITS, 8,
-                           OSMESA_PROFILE, OSMESA_CORE_PROFILE, OSMESA_CONTEXT_MAJOR_VERSION, 4,
-                           OSMESA_CONTEXT_MINOR_VERSION, 5, 0};
+    const int attribs[] = {OSMESA_FORMAT,
+                           OSMESA_RGBA,
+                           OSMESA_DEPTH_BITS,
+                           24,
+                           OSMESA_STENCIL_BITS,
+                           8,
+                           OSMESA_PROFILE,
+                           OSMESA_CORE_PROFILE,
+                           OSMESA_CONTEXT_MAJOR_VERSION,
+                           4,
+                           OSMESA_CONTEXT_MINOR_VERSION,
+                           5,
+                           0};
     ctx_ = OSMesaCreateContextAttribs(attribs, nullptr);
     if (!ctx_) throw GlError("osmesa: cannot create a GL 4.5 core context (Mesa too old or OSMesa missing)");
     buffer_.resize(static_cast<size_t>(width_) * height_ * 4);

@@ -18,9 +18,12 @@ Backend parseBackend(std::string_view name) {
 
 std::string_view backendName(Backend backend) {
   switch (backend) {
-    case Backend::OSMesa: return "osmesa";
-    case Backend::Egl: return "egl";
-    case Backend::Window: return "window";
+    case Backend::OSMesa:
+      return "osmesa";
+    case Backend::Egl:
+      return "egl";
+    case Backend::Window:
+      return "window";
   }
   return "?";
 }
@@ -35,8 +38,7 @@ void checkGlError(const char* where) {
 }
 
 namespace {
-void APIENTRY debugCallback(GLenum, GLenum type, GLuint, GLenum severity, GLsizei, const GLchar* message,
-                            const void*) {
+void APIENTRY debugCallback(GLenum, GLenum type, GLuint, GLenum severity, GLsizei, const GLchar* message, const void*) {
   if (severity == GL_DEBUG_SEVERITY_NOTIFICATION) return;
   std::fprintf(stderr, "GL debug (type 0x%x): %s\n", type, message);
 }
@@ -48,9 +50,15 @@ std::unique_ptr<Context> createContext(const ContextConfig& config) {
                   " is not positive");
   std::unique_ptr<detail::BackendContext> ctx;
   switch (config.backend) {
-    case Backend::OSMesa: ctx = detail::createOsmesa(config); break;
-    case Backend::Egl: ctx = detail::createEgl(config); break;
-    case Backend::Window: ctx = detail::createGlfw(config); break;
+    case Backend::OSMesa:
+      ctx = detail::createOsmesa(config);
+      break;
+    case Backend::Egl:
+      ctx = detail::createEgl(config);
+      break;
+    case Backend::Window:
+      ctx = detail::createGlfw(config);
+      break;
   }
   const std::string name(backendName(config.backend));
   const char* missing = nullptr;

@@ -19,10 +19,10 @@ std::string_view backendName(Backend backend);
 
 struct ContextConfig {
   Backend backend = Backend::OSMesa;
-  int width = 640;   ///< default framebuffer size in pixels (window size for Backend::Window)
+  int width = 640;  ///< default framebuffer size in pixels (window size for Backend::Window)
   int height = 480;
   std::string title = "mrgi";
-  bool visible = true;  ///< Backend::Window only: false creates a hidden window
+  bool visible = true;       ///< Backend::Window only: false creates a hidden window
   bool debugOutput = false;  ///< enable KHR_debug messages on stderr
 };
 

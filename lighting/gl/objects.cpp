@@ -44,12 +44,28 @@ size_t Texture::bytes() const {
   if (id() == 0) return 0;
   size_t texel = 0;
   switch (format_) {
-    case GL_RGBA32F: texel = 16; break;
-    case GL_RGB32F: texel = 12; break;
-    case GL_RGBA16F: case GL_RG32F: texel = 8; break;
-    case GL_RGBA8: case GL_R32F: case GL_DEPTH_COMPONENT32F: case GL_DEPTH_COMPONENT24: case GL_DEPTH24_STENCIL8: texel = 4; break;
-    case GL_R8: texel = 1; break;
-    default: throw GlError("Texture::bytes(): unknown internal format " + std::to_string(format_));
+    case GL_RGBA32F:
+      texel = 16;
+      break;
+    case GL_RGB32F:
+      texel = 12;
+      break;
+    case GL_RGBA16F:
+    case GL_RG32F:
+      texel = 8;
+      break;
+    case GL_RGBA8:
+    case GL_R32F:
+    case GL_DEPTH_COMPONENT32F:
+    case GL_DEPTH_COMPONENT24:
+    case GL_DEPTH24_STENCIL8:
+      texel = 4;
+      break;
+    case GL_R8:
+      texel = 1;
+      break;
+    default:
+      throw GlError("Texture::bytes(): unknown internal format " + std::to_string(format_));
   }
   return texel * static_cast<size_t>(width_) * static_cast<size_t>(height_) * static_cast<size_t>(depth_);
 }

@@ -36,14 +36,30 @@ class Handle {
 };
 
 namespace traits {
-struct Buffer { static void destroy(GLuint id) { glDeleteBuffers(1, &id); } };
-struct Texture { static void destroy(GLuint id) { glDeleteTextures(1, &id); } };
-struct Framebuffer { static void destroy(GLuint id) { glDeleteFramebuffers(1, &id); } };
-struct Renderbuffer { static void destroy(GLuint id) { glDeleteRenderbuffers(1, &id); } };
-struct VertexArray { static void destroy(GLuint id) { glDeleteVertexArrays(1, &id); } };
-struct Query { static void destroy(GLuint id) { glDeleteQueries(1, &id); } };
-struct Shader { static void destroy(GLuint id) { glDeleteShader(id); } };
-struct Program { static void destroy(GLuint id) { glDeleteProgram(id); } };
+struct Buffer {
+  static void destroy(GLuint id) { glDeleteBuffers(1, &id); }
+};
+struct Texture {
+  static void destroy(GLuint id) { glDeleteTextures(1, &id); }
+};
+struct Framebuffer {
+  static void destroy(GLuint id) { glDeleteFramebuffers(1, &id); }
+};
+struct Renderbuffer {
+  static void destroy(GLuint id) { glDeleteRenderbuffers(1, &id); }
+};
+struct VertexArray {
+  static void destroy(GLuint id) { glDeleteVertexArrays(1, &id); }
+};
+struct Query {
+  static void destroy(GLuint id) { glDeleteQueries(1, &id); }
+};
+struct Shader {
+  static void destroy(GLuint id) { glDeleteShader(id); }
+};
+struct Program {
+  static void destroy(GLuint id) { glDeleteProgram(id); }
+};
 }  // namespace traits
 
 using BufferHandle = Handle<traits::Buffer>;

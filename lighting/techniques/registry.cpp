@@ -5,19 +5,16 @@
 namespace mrgi::lighting {
 
 // Each technique's folder defines its entry; these lines are the registry.
-TechniqueInfo dlpvTechniqueInfo();       // lighting/techniques/dlpv/
-TechniqueInfo kinectValTechniqueInfo();  // lighting/techniques/kinect_val/
+TechniqueInfo dlpvTechniqueInfo();              // lighting/techniques/dlpv/
+TechniqueInfo kinectValTechniqueInfo();         // lighting/techniques/kinect_val/
 TechniqueInfo imperfectVolumesTechniqueInfo();  // lighting/techniques/imperfect_volumes/
-TechniqueInfo splattingTechniqueInfo();  // lighting/techniques/splatting/
-TechniqueInfo picTechniqueInfo();        // lighting/techniques/pic/
+TechniqueInfo splattingTechniqueInfo();         // lighting/techniques/splatting/
+TechniqueInfo picTechniqueInfo();               // lighting/techniques/pic/
 
 const std::vector<TechniqueInfo>& techniques() {
   static const std::vector<TechniqueInfo> all = {
-      dlpvTechniqueInfo(),
-      kinectValTechniqueInfo(),
-      imperfectVolumesTechniqueInfo(),
-      splattingTechniqueInfo(),
-      picTechniqueInfo(),
+      dlpvTechniqueInfo(),      kinectValTechniqueInfo(), imperfectVolumesTechniqueInfo(),
+      splattingTechniqueInfo(), picTechniqueInfo(),
   };
   return all;
 }
@@ -84,7 +81,8 @@ TechniqueChoice parseTechniqueRoles(const std::string& real, const std::string& 
   const TechniqueInfo* r = resolve(real, knobs);
   const TechniqueInfo* v = resolve(virtualObject, knobs);
   if (r && !r->real) throw std::invalid_argument("technique '" + real + "' cannot serve real pixels");
-  if (v && !v->virtualObject) throw std::invalid_argument("technique '" + virtualObject + "' cannot serve the virtual object");
+  if (v && !v->virtualObject)
+    throw std::invalid_argument("technique '" + virtualObject + "' cannot serve the virtual object");
   TechniqueChoice c;
   c.real = r ? r->name : "none";
   c.virtualObject = v ? v->name : "none";

@@ -25,8 +25,8 @@ struct TechniqueAlias {
 };
 
 struct TechniqueInfo {
-  std::string name;         ///< registry name, also the scene-file and CLI spelling
-  std::string description;  ///< one line
+  std::string name;                          ///< registry name, also the scene-file and CLI spelling
+  std::string description;                   ///< one line
   bool real = false, virtualObject = false;  ///< roles it can serve
   std::vector<std::string> stagePrefixes;    ///< profiler stage names it times ("lpv." ...), for the bench's sums
   KnobGroup knobs;                           ///< its scene-file section and knob table
@@ -34,8 +34,8 @@ struct TechniqueInfo {
   std::function<std::unique_ptr<Technique>(const TechniqueSetup&)> create;
   /// GPU memory an instance will hold (bytes) for these knobs, roles and output size, before it is built.
   /// `frame`: the shared frame group's knobs (RSM and shadow-map sizes); `lights`: how many lights.
-  std::function<size_t(const KnobValues& knobs, const KnobValues& frame, bool real, bool virtualObject, int width, int height,
-                       size_t lights)>
+  std::function<size_t(const KnobValues& knobs, const KnobValues& frame, bool real, bool virtualObject, int width,
+                       int height, size_t lights)>
       estimateBytes;
 };
 

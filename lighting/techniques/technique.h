@@ -9,11 +9,10 @@
 ///   beginLights()  -> light(i) for each light, right after the frame rendered light i's RSMs -> endLights()
 ///   (only when the RSMs were re-rendered, i.e. lights or geometry changed), then update().
 #include <functional>
-#include <string>
-#include <vector>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <string>
+#include <vector>
 
 #include "gl/objects.h"
 #include "gl/profiler.h"
@@ -27,7 +26,7 @@ enum class Role { Real, Virtual };
 
 /// What the technique needs from the frame besides the G-buffer and the RSMs.
 struct TechniqueNeeds {
-  bool realVals = false;  ///< real-surface area lights (FrameResources::setRealVals)
+  bool realVals = false;          ///< real-surface area lights (FrameResources::setRealVals)
   RealValOptions realValOptions;  ///< how the application should build them (stride, fusion)
 };
 
@@ -47,7 +46,8 @@ struct IrradianceTargets {
   gl::Texture realDelta, virtualIrradiance;
   gl::Framebuffer fb;
   IrradianceTargets(int width, int height)
-      : realDelta(GL_TEXTURE_2D, GL_RGBA32F, width, height), virtualIrradiance(GL_TEXTURE_2D, GL_RGBA32F, width, height) {
+      : realDelta(GL_TEXTURE_2D, GL_RGBA32F, width, height),
+        virtualIrradiance(GL_TEXTURE_2D, GL_RGBA32F, width, height) {
     realDelta.setFilter(GL_NEAREST, GL_NEAREST);
     virtualIrradiance.setFilter(GL_NEAREST, GL_NEAREST);
     fb.attachColour(0, realDelta);
@@ -112,7 +112,9 @@ class Technique {
   /// Debug views ("dlpv_slices") and their images (RGB8; empty when there is nothing to show). `info`
   /// receives the scales the image used.
   virtual std::vector<std::string> debugViews() const { return {}; }
-  virtual cv::Mat debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const { return {}; }
+  virtual cv::Mat debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const {
+    return {};
+  }
   /// Per-frame facts for summary.json (counts, flicker, ...), after update().
   virtual nlohmann::json stats() const { return nlohmann::json::object(); }
   /// GPU memory of the textures and buffers it holds, bytes.

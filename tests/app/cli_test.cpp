@@ -1,24 +1,23 @@
 // The command contract, checked from outside: run the mrgi binary and inspect exit codes, stdout, stderr
 // and the files it writes.
-#include <csignal>
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
 #include <chrono>
+#include <csignal>
 #include <filesystem>
-#include <limits>
-#include <set>
 #include <fstream>
-#include <sstream>
-#include <tuple>
-
-#include <gtest/gtest.h>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <set>
+#include <sstream>
+#include <tuple>
 
 #include "capture/v4l2_source.h"
 #include "reconstruction/marker.h"
@@ -43,8 +42,10 @@ std::string slurp(const fs::path& p) {
 
 Result runMrgi(const std::string& args) {
   static int n = 0;
-  const fs::path tmp = fs::temp_directory_path() / ("mrgi_cli_" + std::to_string(::getpid()) + "_" + std::to_string(n++));
-  const std::string cmd = std::string(MRGI_BINARY) + " " + args + " >" + tmp.string() + ".out 2>" + tmp.string() + ".err";
+  const fs::path tmp =
+      fs::temp_directory_path() / ("mrgi_cli_" + std::to_string(::getpid()) + "_" + std::to_string(n++));
+  const std::string cmd =
+      std::string(MRGI_BINARY) + " " + args + " >" + tmp.string() + ".out 2>" + tmp.string() + ".err";
   const int status = std::system(cmd.c_str());
   Result r;
   r.signalled = WIFSIGNALED(status);
@@ -63,7 +64,8 @@ const fs::path& session() {
   static const fs::path dir = [] {
     const fs::path d = fs::temp_directory_path() / ("mrgi_cli_session_" + std::to_string(::getpid()));
     fs::remove_all(d);
-    const Result r = runMrgi("synth --out " + d.string() + " --frames 3 --width 160 --height 120 --fisheye-every 2 --render raycast");
+    const Result r = runMrgi("synth --out " + d.string() +
+                             " --frames 3 --width 160 --height 120 --fisheye-every 2 --render raycast");
     EXPECT_EQ(r.exitCode, 0) << r.err;
     return d;
   }();
@@ -155,7 +157,8 @@ TEST(Cli, ReplayWritesFramesAndSummary) {
   // The video goes inside --out only: an absolute path or one climbing out is refused, nothing written.
   std::ofstream(out.string() + "_video.mp4") << "my other video";
   for (const std::string& mp4 : {out.string() + "_video.mp4", "../" + out.filename().string() + "_video.mp4"}) {
-    expectOneLineError(runMrgi("replay " + session().string() + " --frames 1 --out " + out.string() + " --mp4 " + mp4), "--mp4");
+    expectOneLineError(runMrgi("replay " + session().string() + " --frames 1 --out " + out.string() + " --mp4 " + mp4),
+                       "--mp4");
     EXPECT_EQ(slurp(out.string() + "_video.mp4"), "my other video");
   }
   fs::remove(out.string() + "_video.mp4");
@@ -249,27 +252,27 @@ cv::Matx44d matFromFlat(const nlohmann::json& v) {
 TEST(Cli, TrackFollowsTheMarkerOfTheBundledSession) {
   const fs::path rec = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth";
   for (const bool smooth : {false, true}) {
-  const Result r = runMrgi("track " + rec.string() + " --json" + (smooth ? "" : " --no-smooth"));
-  ASSERT_EQ(r.exitCode, 0) << r.err;
-  const auto out = jsonLines(r.out);
-  ASSERT_EQ(out.size(), 20u);
-  const auto manifest = nlohmann::json::parse(slurp(rec / "manifest.json"));
-  const cv::Matx44d T_world_marker = matFromFlat(manifest["ground_truth"]["T_world_marker"]);
-  const auto frames = jsonLines(slurp(rec / "frames.jsonl"));
-  double worstT = 0, worstR = 0;
-  for (size_t i = 0; i < out.size(); ++i) {
-    EXPECT_EQ(out[i]["frame"], static_cast<int>(i));
-    EXPECT_EQ(out[i]["status"], "tracked");
-    EXPECT_EQ(out[i]["id"], manifest["marker"]["id"]);
-    const cv::Matx44d got = matFromRows(out[i]["T_camera_tag"]);
-    const cv::Matx44d truth = matFromFlat(frames[i]["T_world_camera"]).inv() * T_world_marker;
-    worstT = std::max(worstT, mrgi::reconstruction::translationError(got, truth));
-    worstR = std::max(worstR, mrgi::reconstruction::rotationErrorDeg(got, truth));
-  }
-  // Synthetic 640x480 frames, 16 cm tag at ~1 m, camera orbiting ~2 deg per frame. Measured worst
-  // 5.6 mm / 0.33 deg raw; smoothing trades up to 1.7 deg of lag at this speed for 3x less jitter.
-  EXPECT_LT(worstT, 6e-3) << smooth;
-  EXPECT_LT(worstR, smooth ? 2.5 : 0.5);
+    const Result r = runMrgi("track " + rec.string() + " --json" + (smooth ? "" : " --no-smooth"));
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const auto out = jsonLines(r.out);
+    ASSERT_EQ(out.size(), 20u);
+    const auto manifest = nlohmann::json::parse(slurp(rec / "manifest.json"));
+    const cv::Matx44d T_world_marker = matFromFlat(manifest["ground_truth"]["T_world_marker"]);
+    const auto frames = jsonLines(slurp(rec / "frames.jsonl"));
+    double worstT = 0, worstR = 0;
+    for (size_t i = 0; i < out.size(); ++i) {
+      EXPECT_EQ(out[i]["frame"], static_cast<int>(i));
+      EXPECT_EQ(out[i]["status"], "tracked");
+      EXPECT_EQ(out[i]["id"], manifest["marker"]["id"]);
+      const cv::Matx44d got = matFromRows(out[i]["T_camera_tag"]);
+      const cv::Matx44d truth = matFromFlat(frames[i]["T_world_camera"]).inv() * T_world_marker;
+      worstT = std::max(worstT, mrgi::reconstruction::translationError(got, truth));
+      worstR = std::max(worstR, mrgi::reconstruction::rotationErrorDeg(got, truth));
+    }
+    // Synthetic 640x480 frames, 16 cm tag at ~1 m, camera orbiting ~2 deg per frame. Measured worst
+    // 5.6 mm / 0.33 deg raw; smoothing trades up to 1.7 deg of lag at this speed for 3x less jitter.
+    EXPECT_LT(worstT, 6e-3) << smooth;
+    EXPECT_LT(worstR, smooth ? 2.5 : 0.5);
   }
 }
 
@@ -284,7 +287,8 @@ TEST(Cli, TrackSingleImageAndItsErrors) {
     EXPECT_EQ(l["T_camera_tag"].size(), 4u);
     EXPECT_GT(l["T_camera_tag"][2][3].get<double>(), 0.3);
   }
-  const Result one = runMrgi("track " + img + " --intrinsics 615.167,615.168,312.189,243.437 --size 0.053 --id 13 --json");
+  const Result one =
+      runMrgi("track " + img + " --intrinsics 615.167,615.168,312.189,243.437 --size 0.053 --id 13 --json");
   ASSERT_EQ(one.exitCode, 0) << one.err;
   ASSERT_EQ(jsonLines(one.out).size(), 1u);
   EXPECT_EQ(jsonLines(one.out)[0]["id"], 13);
@@ -320,7 +324,8 @@ TEST(Cli, CalibrateFisheyeReproducesTheRosCalibration) {
   // direction lands on, out to 90 degrees from the axis.
   std::vector<cv::Point3d> dirs;
   for (double th = 0.05; th < CV_PI / 2; th += 0.05)
-    for (double ph = 0; ph < 2 * CV_PI; ph += 0.3) dirs.emplace_back(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
+    for (double ph = 0; ph < 2 * CV_PI; ph += 0.3)
+      dirs.emplace_back(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
   std::vector<cv::Point2d> a, b;
   cv::fisheye::projectPoints(dirs, a, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), mine.K, mine.D);
   cv::fisheye::projectPoints(dirs, b, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), ros.K, ros.D);
@@ -332,7 +337,8 @@ TEST(Cli, CalibrateFisheyeReproducesTheRosCalibration) {
   EXPECT_EQ(slurp(out).substr(0, 38), "# generated by mrgi calibrate-fisheye\n");
   const fs::path users = out.string() + ".users.yaml";
   fs::copy_file(dir + "/ost.yaml", users, fs::copy_options::overwrite_existing);
-  expectOneLineError(runMrgi("calibrate-fisheye " + dir + " --board 6x8 --out " + users.string()), "refusing to overwrite");
+  expectOneLineError(runMrgi("calibrate-fisheye " + dir + " --board 6x8 --out " + users.string()),
+                     "refusing to overwrite");
   EXPECT_EQ(slurp(users), slurp(dir + "/ost.yaml"));
   fs::remove(users);
   fs::remove(out);
@@ -355,16 +361,20 @@ TEST(Cli, SingleFileOutputsNeverReplaceAFileTheUserHas) {
   struct Case {
     std::string args, file;
   };
-  const std::string png = users("photo.png", slurp(fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth/colour/000000.png"));
+  const std::string png =
+      users("photo.png", slurp(fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth/colour/000000.png"));
   const std::string s = session().string();
   const std::vector<Case> cases = {
       {"bench --session " + s + " --quick --json ", users("results.json", "{\"mine\": 1}\n")},
       {"bench --session " + s + " --quick --csv ", users("table.csv", "a,b\n1,2\n")},
       {"bench --session " + s + " --quick --html ", users("page.html", "<html>my page</html>\n")},
       {"bench --session " + s + " --quick --presets ", users("presets.json", "{\"generated_by\": \"me\"}\n")},
-      {"insert --session " + s + " --model " + std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply --save " + (dir / "scene.json").string() + " --preview ", png},
+      {"insert --session " + s + " --model " + std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply --save " +
+           (dir / "scene.json").string() + " --preview ",
+       png},
       {"room-lights /nonexistent/room --map ", png},
-      {"calibrate-fisheye " + std::string(MRGI_SHARED_DATA) + "/fisheye-ros-calib --out ", users("calib.yaml", "camera_name: mine\n")},
+      {"calibrate-fisheye " + std::string(MRGI_SHARED_DATA) + "/fisheye-ros-calib --out ",
+       users("calib.yaml", "camera_name: mine\n")},
       {"live --source " + s + " --frames 1 --screenshot ", png},
   };
   for (const Case& c : cases) {
@@ -378,10 +388,14 @@ TEST(Cli, SingleFileOutputsNeverReplaceAFileTheUserHas) {
   EXPECT_FALSE(fs::exists(dir / "scene.json"));
   // Its own earlier output passes the check (the run then fails on the missing session, after it).
   const std::vector<Case> ours = {
-      {"bench --session /nonexistent/s --json ", users("ours.json", "{\"generated_by\": \"mrgi bench\", \"records\": []}\n")},
-      {"bench --session /nonexistent/s --csv ", users("ours.csv", std::string(
-           "technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,rel_error_delta_near,rel_error_virtual,ssim,flicker") + "\n")},
-      {"bench --session /nonexistent/s --html ", users("ours.html", "<!DOCTYPE html><html><head><meta name=\"generator\" content=\"mrgi bench\">")},
+      {"bench --session /nonexistent/s --json ",
+       users("ours.json", "{\"generated_by\": \"mrgi bench\", \"records\": []}\n")},
+      {"bench --session /nonexistent/s --csv ",
+       users("ours.csv", std::string("technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,"
+                                     "rel_error_delta_near,rel_error_virtual,ssim,flicker") +
+                             "\n")},
+      {"bench --session /nonexistent/s --html ",
+       users("ours.html", "<!DOCTYPE html><html><head><meta name=\"generator\" content=\"mrgi bench\">")},
   };
   for (const Case& c : ours) expectOneLineError(runMrgi(c.args + c.file), "/nonexistent/s");
   fs::remove_all(dir);
@@ -397,7 +411,8 @@ TEST(Cli, LightsFromAnHdrFisheyeImage) {
   double sum[3] = {0, 0, 0};
   for (const auto& l : j["lights"]) {
     double n = 0;
-    for (int k = 0; k < 3; ++k) sum[k] += l["power"][k].get<double>(), n += std::pow(l["direction"][k].get<double>(), 2);
+    for (int k = 0; k < 3; ++k)
+      sum[k] += l["power"][k].get<double>(), n += std::pow(l["direction"][k].get<double>(), 2);
     EXPECT_NEAR(n, 1.0, 1e-9);
   }
   // The lights and the remainder's SH (band 0 times 2 sqrt(pi) is its sum of L dOmega) hold the total.
@@ -408,7 +423,8 @@ TEST(Cli, LightsFromAnHdrFisheyeImage) {
     EXPECT_NEAR(sum[k] + rest, j["total_power"][k].get<double>(), 1e-7 * (sum[k] + rest));  // the lights' part is float
   }
   // Without a remainder every bit of light goes to the lights, as before.
-  const auto all = nlohmann::json::parse(runMrgi("lights " + rec.string() + " --calib " + calib + " --count 8 --json --ambient-threshold 0").out);
+  const auto all = nlohmann::json::parse(
+      runMrgi("lights " + rec.string() + " --calib " + calib + " --count 8 --json --ambient-threshold 0").out);
   double allSum[3] = {0, 0, 0};
   for (const auto& l : all["lights"])
     for (int k = 0; k < 3; ++k) allSum[k] += l["power"][k].get<double>();
@@ -545,7 +561,7 @@ TEST(Cli, ReplayEstimatesLightsFromTheSessionFisheye) {
                            " --frames 2 --dump-delta --pose ground-truth");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
-  EXPECT_EQ(s["per_frame"][0]["lights_estimated"], 4);  // the session has a fisheye image on frame 0
+  EXPECT_EQ(s["per_frame"][0]["lights_estimated"], 4);           // the session has a fisheye image on frame 0
   EXPECT_FALSE(s["per_frame"][1].contains("lights_estimated"));  // none on frame 1: lights kept, not re-estimated
   const cv::Mat delta = cv::imread((out / "delta_0001.exr").string(), cv::IMREAD_UNCHANGED);
   double lo;
@@ -555,7 +571,9 @@ TEST(Cli, ReplayEstimatesLightsFromTheSessionFisheye) {
   // A session without a fisheye calibration is a one-line error naming the scene.
   const fs::path noFisheye = fs::temp_directory_path() / ("mrgi_cli_nofisheye_" + std::to_string(::getpid()));
   fs::remove_all(noFisheye);
-  ASSERT_EQ(runMrgi("synth --out " + noFisheye.string() + " --frames 1 --width 160 --height 120 --fisheye-every 0").exitCode, 0);
+  ASSERT_EQ(
+      runMrgi("synth --out " + noFisheye.string() + " --frames 1 --width 160 --height 120 --fisheye-every 0").exitCode,
+      0);
   expectOneLineError(runMrgi("replay " + noFisheye.string() + " --scene " + scene.string() + " --out " + out.string()),
                      "has no fisheye calibration");
   fs::remove_all(noFisheye);
@@ -568,17 +586,24 @@ TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
   // bit. Lights estimated on frames 0 and 2 (the shared session's fisheye), and a lamp that moves every frame.
   const fs::path moving = fs::temp_directory_path() / ("mrgi_cli_overlap_moving_" + std::to_string(::getpid()));
   fs::remove_all(moving);
-  ASSERT_EQ(runMrgi("synth --out " + moving.string() +
-                    " --frames 4 --width 96 --height 72 --render raycast --fisheye-every 0 --static-camera --move-light").exitCode, 0);
-  const std::string sphere = R"({"objects": [{"model": ")" + kModels + R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}], )";
-  const fs::path fisheyeScene = writeScene("overlap_fisheye.json", sphere + R"("lights": "fisheye", "fisheye_light_count": 2,
+  ASSERT_EQ(
+      runMrgi("synth --out " + moving.string() +
+              " --frames 4 --width 96 --height 72 --render raycast --fisheye-every 0 --static-camera --move-light")
+          .exitCode,
+      0);
+  const std::string sphere =
+      R"({"objects": [{"model": ")" + kModels + R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}], )";
+  const fs::path fisheyeScene =
+      writeScene("overlap_fisheye.json", sphere + R"("lights": "fisheye", "fisheye_light_count": 2,
       "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128}, "val": {"sparse_points": 64}})");
   const fs::path movingScene = writeScene("overlap_moving.json", sphere + R"("lights": "manifest",
       "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128}, "val": {"sparse_points": 64}})");
-  for (const auto& [source, scene, frames] : {std::tuple{session(), fisheyeScene, 3}, std::tuple{moving, movingScene, 4}}) {
+  for (const auto& [source, scene, frames] :
+       {std::tuple{session(), fisheyeScene, 3}, std::tuple{moving, movingScene, 4}}) {
     std::vector<fs::path> outs;
     for (const std::string mode : {"", " --sequential"}) {
-      const fs::path out = fs::temp_directory_path() / ("mrgi_cli_overlap_" + std::to_string(outs.size()) + "_" + std::to_string(::getpid()));
+      const fs::path out = fs::temp_directory_path() /
+                           ("mrgi_cli_overlap_" + std::to_string(outs.size()) + "_" + std::to_string(::getpid()));
       fs::remove_all(out);
       const Result r = runMrgi("replay " + source.string() + " --scene " + scene.string() + " --out " + out.string() +
                                " --pose ground-truth --mp4 \"\"" + mode);
@@ -604,7 +629,8 @@ TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
     }
     // The lamp moved: the frames differ from each other (so equal composites are not equal by accident).
     if (source == moving) {
-      const cv::Mat f0 = cv::imread((outs[0] / "frame_0000.png").string()), f3 = cv::imread((outs[0] / "frame_0003.png").string());
+      const cv::Mat f0 = cv::imread((outs[0] / "frame_0000.png").string()),
+                    f3 = cv::imread((outs[0] / "frame_0003.png").string());
       EXPECT_GT(cv::norm(f0, f3, cv::NORM_L1) / static_cast<double>(f0.total()), 1.0);
     }
     for (const fs::path& o : outs) fs::remove_all(o);
@@ -619,8 +645,9 @@ TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
   fs::create_directories(dir);
   const fs::path scene = dir / "placed.json";
   // Floating 0.3 m above the marker and rotated: --snap rests the 5 cm sphere on the table (the marker plane).
-  Result r = runMrgi("insert --session " + rec.string() + " --model " + kModels + "sphere.ply --scale 0.05 --translate 0.1,0.05,0.3" +
-                     " --rotate-deg 30,0,10 --snap --save " + scene.string() + " --preview " + (dir / "preview.png").string());
+  Result r = runMrgi("insert --session " + rec.string() + " --model " + kModels +
+                     "sphere.ply --scale 0.05 --translate 0.1,0.05,0.3" + " --rotate-deg 30,0,10 --snap --save " +
+                     scene.string() + " --preview " + (dir / "preview.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   auto doc = nlohmann::json::parse(slurp(scene));
   ASSERT_EQ(doc["objects"].size(), 1u);
@@ -630,7 +657,7 @@ TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
   EXPECT_NEAR(t[2].get<double>(), 0.05, 0.008);  // centre one radius above the table (depth noise, tag pose)
   const auto rd = doc["objects"][0]["rotate_deg"];
   EXPECT_LT(std::abs(rd[0].get<double>()) + std::abs(rd[1].get<double>()), 4.0);  // up turned onto the normal
-  EXPECT_EQ(doc["lights"], "fisheye");  // the session has a fisheye camera
+  EXPECT_EQ(doc["lights"], "fisheye");                                            // the session has a fisheye camera
   EXPECT_EQ(doc["objects"][0]["model"], fs::proximate(kModels + "sphere.ply", dir).generic_string());
   const auto report = nlohmann::json::parse(r.out);
   EXPECT_GT(report["plane"]["normal"][2].get<double>(), 0.99);
@@ -640,8 +667,8 @@ TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
   ASSERT_EQ(preview.size(), colour.size());
   EXPECT_GT(cv::norm(preview, colour, cv::NORM_L1) / preview.total(), 1.0);
   // A second insert into the same file keeps the first object.
-  r = runMrgi("insert --session " + rec.string() + " --model " + kModels + "cube.obj --scale 0.04 --translate -0.1,0,0.02 --save " +
-              scene.string());
+  r = runMrgi("insert --session " + rec.string() + " --model " + kModels +
+              "cube.obj --scale 0.04 --translate -0.1,0,0.02 --save " + scene.string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   doc = nlohmann::json::parse(slurp(scene));
   ASSERT_EQ(doc["objects"].size(), 2u);
@@ -658,8 +685,9 @@ TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
   expectOneLineError(runMrgi(base + " --model " + kModels + "cube.obj --replace 7"), "--replace 7");
   expectOneLineError(runMrgi(base + " --model " + kModels + "cube.obj --frame 999"), "has no frame 999");
   expectOneLineError(runMrgi(base + " --model " + kModels + "cube.obj --at 5000,1"), "--at 5000,1: outside");
-  expectOneLineError(runMrgi("insert --session /nonexistent/s --model " + kModels + "cube.obj --save " + scene.string()),
-                     "/nonexistent/s");
+  expectOneLineError(
+      runMrgi("insert --session /nonexistent/s --model " + kModels + "cube.obj --save " + scene.string()),
+      "/nonexistent/s");
   EXPECT_EQ(slurp(scene), before);
   fs::remove_all(dir);
 }
@@ -667,8 +695,8 @@ TEST(Cli, InsertSnapsOntoTheTableAndSavesAScene) {
 TEST(Cli, BenchKinectValWritesSparseAndBruteForceRecords) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_bench_" + std::to_string(::getpid()) + ".json");
   const std::string rec = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
-  const Result r = runMrgi("bench --against bruteforce --technique kinect-val --session " + rec + " --model " + kModels +
-                           "sphere.ply --vals 512,2048 --sparse 64,642 --repeats 1 --json " + out.string());
+  const Result r = runMrgi("bench --against bruteforce --technique kinect-val --session " + rec + " --model " +
+                           kModels + "sphere.ply --vals 512,2048 --sparse 64,642 --repeats 1 --json " + out.string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto doc = nlohmann::json::parse(slurp(out));
   ASSERT_EQ(doc["records"].size(), 8u);  // 2 VAL counts × 2 sparse counts × occlusion off/on
@@ -682,7 +710,8 @@ TEST(Cli, BenchKinectValWritesSparseAndBruteForceRecords) {
     EXPECT_LT(e, 0.25);
   }
   // More sparse points, less error (same VALs, no occlusion): records 0 (64) and 2 (642).
-  EXPECT_LT(doc["records"][2]["rel_error_vs_bruteforce"].get<double>(), doc["records"][0]["rel_error_vs_bruteforce"].get<double>());
+  EXPECT_LT(doc["records"][2]["rel_error_vs_bruteforce"].get<double>(),
+            doc["records"][0]["rel_error_vs_bruteforce"].get<double>());
   fs::remove(out);
   expectOneLineError(runMrgi("bench --against bruteforce --technique dlpv --json " + out.string()), "--technique dlpv");
 }
@@ -702,8 +731,8 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
   std::set<std::string> techniques;
   for (const auto& rec : doc["records"]) {
     techniques.insert(rec["technique"].get<std::string>());
-    for (const char* key : {"ms_total", "ms_lighting", "rmse_delta", "rel_error_delta", "rel_error_delta_near", "rel_error_virtual",
-                            "ssim", "flicker", "gpu_mb"}) {
+    for (const char* key : {"ms_total", "ms_lighting", "rmse_delta", "rel_error_delta", "rel_error_delta_near",
+                            "rel_error_virtual", "ssim", "flicker", "gpu_mb"}) {
       ASSERT_TRUE(rec.contains(key)) << key;
       const double v = rec[key].get<double>();
       EXPECT_TRUE(std::isfinite(v) && v >= 0) << key << " " << v;
@@ -718,16 +747,19 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
   }
   // Every technique and alias, and each pairing of a technique that serves real pixels with another one for
   // the virtual object (Kinect-VAL and precomputed illuminance composition serve the virtual object only).
-  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "imperfect-volumes", "splatting", "pic",
-                                               "dlpv+kinect-val", "dlpv+imperfect-volumes", "dlpv+splatting", "dlpv+pic",
-                                               "imperfect-volumes+dlpv", "imperfect-volumes+kinect-val",
-                                               "imperfect-volumes+splatting", "imperfect-volumes+pic", "splatting+dlpv",
-                                               "splatting+kinect-val", "splatting+imperfect-volumes", "splatting+pic"}));
+  EXPECT_EQ(techniques,
+            (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "imperfect-volumes", "splatting", "pic",
+                                   "dlpv+kinect-val", "dlpv+imperfect-volumes", "dlpv+splatting", "dlpv+pic",
+                                   "imperfect-volumes+dlpv", "imperfect-volumes+kinect-val",
+                                   "imperfect-volumes+splatting", "imperfect-volumes+pic", "splatting+dlpv",
+                                   "splatting+kinect-val", "splatting+imperfect-volumes", "splatting+pic"}));
   // A coarser volume costs less GPU memory than the defaults.
   double mbDefault = 0, mbCoarse = 0;
   for (const auto& rec : doc["records"])
-    if (rec["technique"] == "dlpv" && rec["varied"] == "") mbDefault = rec["gpu_mb"];
-    else if (rec["technique"] == "dlpv" && rec["varied"] == "lpv.resolution") mbCoarse = rec["gpu_mb"];
+    if (rec["technique"] == "dlpv" && rec["varied"] == "")
+      mbDefault = rec["gpu_mb"];
+    else if (rec["technique"] == "dlpv" && rec["varied"] == "lpv.resolution")
+      mbCoarse = rec["gpu_mb"];
   EXPECT_LT(mbCoarse, mbDefault);
   EXPECT_EQ(lines(slurp(dir / "b.csv")), static_cast<int>(doc["records"].size()) + 1);
   const std::string html = slurp(dir / "b.html");
@@ -737,16 +769,19 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
   // Presets: three, from the records, and replay uses them.
   const auto presets = nlohmann::json::parse(slurp(dir / "presets.json"));
   for (const char* name : {"fast", "balanced", "accurate"}) ASSERT_TRUE(presets["presets"].contains(name)) << name;
-  EXPECT_LE(presets["presets"]["fast"]["ms_lighting"].get<double>(), presets["presets"]["accurate"]["ms_lighting"].get<double>());
+  EXPECT_LE(presets["presets"]["fast"]["ms_lighting"].get<double>(),
+            presets["presets"]["accurate"]["ms_lighting"].get<double>());
   const fs::path out = dir / "replay";
-  const Result rp = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --frames 1 --pose ground-truth"
-                            " --preset accurate --presets " + (dir / "presets.json").string() + " --out " + out.string());
+  const Result rp = runMrgi("replay " + session().string() + " --scene " + scene.string() +
+                            " --frames 1 --pose ground-truth"
+                            " --preset accurate --presets " +
+                            (dir / "presets.json").string() + " --out " + out.string());
   ASSERT_EQ(rp.exitCode, 0) << rp.err;
   const auto summary = nlohmann::json::parse(slurp(out / "summary.json"));
   EXPECT_EQ(summary["preset"], "accurate");
   EXPECT_EQ(summary["technique"], presets["presets"]["accurate"]["technique"]);
-  expectOneLineError(runMrgi("replay " + session().string() + " --scene " + scene.string() + " --preset fast --presets " +
-                             scene.string() + " --out " + out.string()),
+  expectOneLineError(runMrgi("replay " + session().string() + " --scene " + scene.string() +
+                             " --preset fast --presets " + scene.string() + " --out " + out.string()),
                      "has no preset \"fast\"");
   fs::remove_all(dir);
 }
@@ -794,15 +829,17 @@ TEST(Cli, ReferencePathTracesRhoMuDeltaAndComposite) {
   ASSERT_EQ(again.exitCode, 0) << again.err;
   EXPECT_EQ(cv::norm(rho, cv::imread((out / "rho.exr").string(), cv::IMREAD_UNCHANGED), cv::NORM_INF), 0.0);
   expectOneLineError(runMrgi(base + "--frame 7 --out " + out.string()), "has no frame 7");
-  expectOneLineError(runMrgi(base + "--out " + (fs::path(MRGI_SOURCE_DIR) / "recordings").string()), "refusing to overwrite");
+  expectOneLineError(runMrgi(base + "--out " + (fs::path(MRGI_SOURCE_DIR) / "recordings").string()),
+                     "refusing to overwrite");
   fs::remove_all(out);
 }
 
 TEST(Cli, SynthMovesTheLightAndReplayRelightsEachFrame) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_synth_light_" + std::to_string(::getpid()));
   fs::remove_all(out);
-  const Result r = runMrgi("synth --out " + out.string() +
-                           " --frames 3 --width 96 --height 72 --render raycast --fisheye-every 0 --static-camera --move-light");
+  const Result r =
+      runMrgi("synth --out " + out.string() +
+              " --frames 3 --width 96 --height 72 --render raycast --fisheye-every 0 --static-camera --move-light");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto manifest = nlohmann::json::parse(slurp(out / "manifest.json"));
   const auto start = manifest["ground_truth"]["lights"][0]["position"];
@@ -823,7 +860,8 @@ TEST(Cli, SynthMovesTheLightAndReplayRelightsEachFrame) {
   EXPECT_NEAR(std::remainder(a2 - a0, 2 * CV_PI), 2 * CV_PI / 3, 1e-6);
   EXPECT_NEAR(at[2][1], at[0][1], 1e-6);
   // The camera stays: the images change by the light alone (the box's shadow moves).
-  const cv::Mat f0 = cv::imread((out / "colour/000000.png").string()), f2 = cv::imread((out / "colour/000002.png").string());
+  const cv::Mat f0 = cv::imread((out / "colour/000000.png").string()),
+                f2 = cv::imread((out / "colour/000002.png").string());
   EXPECT_GT(cv::norm(f0, f2, cv::NORM_L1) / static_cast<double>(f0.total()), 3.0);
 
   // Replay with the session's lights: each frame's own, with precomputed illuminance composition on the object.
@@ -833,14 +871,16 @@ TEST(Cli, SynthMovesTheLightAndReplayRelightsEachFrame) {
                                                              "pic": {"surfels": 512, "grid": 3, "links": 32, "receivers": 32}})");
   const fs::path replay = out.string() + "_replay";
   fs::remove_all(replay);
-  const Result rr = runMrgi("replay " + out.string() + " --scene " + scene.string() + " --out " + replay.string() + " --pose ground-truth");
+  const Result rr = runMrgi("replay " + out.string() + " --scene " + scene.string() + " --out " + replay.string() +
+                            " --pose ground-truth");
   ASSERT_EQ(rr.exitCode, 0) << rr.err;
   const auto summary = nlohmann::json::parse(slurp(replay / "summary.json"));
   ASSERT_EQ(summary["per_frame"].size(), 3u);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(summary["per_frame"][i]["lights_from_frame"], 1) << i;
   // Not with the outdoor environment (no lamp to move).
-  const Result bad = runMrgi("synth --out " + out.string() + "_env --frames 1 --width 32 --height 24 --move-light --environment " +
-                             std::string(MRGI_SHARED_DATA) + "/hdr-blender-world/forest.exr");
+  const Result bad =
+      runMrgi("synth --out " + out.string() + "_env --frames 1 --width 32 --height 24 --move-light --environment " +
+              std::string(MRGI_SHARED_DATA) + "/hdr-blender-world/forest.exr");
   EXPECT_NE(bad.exitCode, 0);
   EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
   EXPECT_NE(bad.err.find("--move-light needs the room's lamp"), std::string::npos) << bad.err;
@@ -850,12 +890,15 @@ TEST(Cli, SynthMovesTheLightAndReplayRelightsEachFrame) {
 }
 
 TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {
-  const fs::path scene = writeScene("synth_ref.json", R"({"objects": [{"model": ")" + kModels +
-                                                          R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}]})");
+  const fs::path scene =
+      writeScene("synth_ref.json", R"({"objects": [{"model": ")" + kModels +
+                                       R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}]})");
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_synth_pt_" + std::to_string(::getpid()));
   fs::remove_all(out);
-  const Result r = runMrgi("synth --out " + out.string() + " --frames 2 --width 96 --height 72 --spp 8 --bounces 2"
-                           " --fisheye-every 0 --scene " + scene.string());
+  const Result r = runMrgi("synth --out " + out.string() +
+                           " --frames 2 --width 96 --height 72 --spp 8 --bounces 2"
+                           " --fisheye-every 0 --scene " +
+                           scene.string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto manifest = nlohmann::json::parse(slurp(out / "manifest.json"));
   EXPECT_NE(manifest["ground_truth"]["scene"]["generator"].get<std::string>().find("path traced"), std::string::npos);
@@ -886,8 +929,9 @@ TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {
   }
   // The bench measures the whole pipeline against these true references, per session and averaged over sessions.
   const fs::path json = out.string() + "_bench.json";
-  const Result b = runMrgi("bench --quick --technique dlpv --session " + out.string() + " --session " + session().string() +
-                           " --scene " + scene.string() + " --frames 2 --ref-frames 1 --ref-spp 2 --json " + json.string());
+  const Result b =
+      runMrgi("bench --quick --technique dlpv --session " + out.string() + " --session " + session().string() +
+              " --scene " + scene.string() + " --frames 2 --ref-frames 1 --ref-spp 2 --json " + json.string());
   ASSERT_EQ(b.exitCode, 0) << b.err;
   const auto doc = nlohmann::json::parse(slurp(json));
   ASSERT_EQ(doc["references"].size(), 2u);
@@ -908,7 +952,8 @@ TEST(Cli, SynthPathTracesFramesAndTheirReferenceComposites) {
     }
     EXPECT_GT(whole["ssim"].get<double>(), 0.5);
     EXPECT_FALSE(rec["sessions"][1].contains("whole_pipeline"));
-    const double mean = 0.5 * (rec["sessions"][0]["rel_error_virtual"].get<double>() + rec["sessions"][1]["rel_error_virtual"].get<double>());
+    const double mean = 0.5 * (rec["sessions"][0]["rel_error_virtual"].get<double>() +
+                               rec["sessions"][1]["rel_error_virtual"].get<double>());
     EXPECT_NEAR(rec["rel_error_virtual"].get<double>(), mean, 1e-12);
   }
   fs::remove(json);
@@ -919,15 +964,17 @@ TEST(Cli, ReplaySkipsStagesWhoseInputsDidNotChange) {
   // A static camera: only the sensor noise changes from frame to frame.
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_static_" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  Result r = runMrgi("synth --out " + (dir / "s").string() + " --frames 3 --width 96 --height 72 --render raycast"
+  Result r = runMrgi("synth --out " + (dir / "s").string() +
+                     " --frames 3 --width 96 --height 72 --render raycast"
                      " --fisheye-every 0 --static-camera");
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  const fs::path scene = writeScene("static_sphere.json", R"({"objects": [{"model": ")" + kModels +
-                                                              R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+  const fs::path scene =
+      writeScene("static_sphere.json", R"({"objects": [{"model": ")" + kModels +
+                                           R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
       "lights": "manifest", "lpv": {"resolution": 8, "steps": 4, "rsm_size": 64}})");
   auto replay = [&](const std::string& out, const std::string& extra) {
-    return runMrgi("replay " + (dir / "s").string() + " --scene " + scene.string() + " --pose ground-truth --dump-delta --out " +
-                   (dir / out).string() + extra);
+    return runMrgi("replay " + (dir / "s").string() + " --scene " + scene.string() +
+                   " --pose ground-truth --dump-delta --out " + (dir / out).string() + extra);
   };
   auto exr = [&](const std::string& out, int i) {
     return cv::imread((dir / out / ("delta_000" + std::to_string(i) + ".exr")).string(), cv::IMREAD_UNCHANGED);
@@ -941,7 +988,8 @@ TEST(Cli, ReplaySkipsStagesWhoseInputsDidNotChange) {
   // The kept lighting is exactly the first frame's; the composites still follow the camera (new noise).
   ASSERT_FALSE(exr("reuse", 0).empty());
   EXPECT_EQ(cv::norm(exr("reuse", 0), exr("reuse", 2), cv::NORM_INF), 0.0);
-  const cv::Mat f0 = cv::imread((dir / "reuse" / "frame_0000.png").string()), f2 = cv::imread((dir / "reuse" / "frame_0002.png").string());
+  const cv::Mat f0 = cv::imread((dir / "reuse" / "frame_0000.png").string()),
+                f2 = cv::imread((dir / "reuse" / "frame_0002.png").string());
   EXPECT_GT(cv::norm(f0, f2, cv::NORM_INF), 0.0);
   // --recompute-all runs everything: the noisy depth changes the delta a little on every frame.
   r = replay("all", " --recompute-all");
@@ -1005,8 +1053,11 @@ TEST(Cli, CtrlCDuringReplayLeavesCompleteFramesVideoAndSummary) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_interrupt_" + std::to_string(::getpid()));
   fs::remove_all(out);
   const fs::path rec = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-pt";
-  const pid_t pid = spawnMrgi("replay " + rec.string() + " --scene " + MRGI_SOURCE_DIR + "/recordings/scenes/tabletop.json"
-                              " --recompute-all --out " + out.string(), out.string() + ".log");
+  const pid_t pid = spawnMrgi("replay " + rec.string() + " --scene " + MRGI_SOURCE_DIR +
+                                  "/recordings/scenes/tabletop.json"
+                                  " --recompute-all --out " +
+                                  out.string(),
+                              out.string() + ".log");
   ASSERT_TRUE(waitForFile(out / "frame_0000.png", 120));
   ::kill(pid, SIGINT);
   int status = 0;
@@ -1050,7 +1101,8 @@ TEST(Cli, LiveAndRecordWithoutASensorSayWhatToDoInOneLine) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_rec_nodev_" + std::to_string(::getpid()));
   expectOneLineError(runMrgi("record --device openni2://no-such-device --out " + out.string()), "no depth sensor");
   EXPECT_FALSE(fs::exists(out));  // nothing half made
-  expectOneLineError(runMrgi("live --source " + session().string() + " --screenshot x.png"), "--screenshot needs --frames");
+  expectOneLineError(runMrgi("live --source " + session().string() + " --screenshot x.png"),
+                     "--screenshot needs --frames");
   if (!std::getenv("DISPLAY"))  // headless (CI): the live window cannot open, and says what runs headless
     expectOneLineError(runMrgi("live --source " + session().string() + " --frames 1"), "mrgi replay runs headless");
 }
@@ -1073,7 +1125,8 @@ TEST(Cli, RecordCopiesFramesAndTheFisheyeCalibrationIntoANewSession) {
     ASSERT_FALSE(b.empty()) << name;
     EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0) << name;
   }
-  expectOneLineError(runMrgi("record --source " + rec.string() + " --frames 1 --out " + out.string()), out.string());  // never overwrites
+  expectOneLineError(runMrgi("record --source " + rec.string() + " --frames 1 --out " + out.string()),
+                     out.string());  // never overwrites
   fs::remove_all(out);
 }
 
@@ -1112,12 +1165,14 @@ TEST(Cli, AnObjectInsertedIntoARecordingWithoutAMarkerStaysOnItsFloorInEveryRepl
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_markerless_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const std::string base = R"({"lights": [{"type": "directional", "direction": [0.3, 0.2, -1.0], "irradiance": [2.5, 2.4, 2.2]}],
+  const std::string base =
+      R"({"lights": [{"type": "directional", "direction": [0.3, 0.2, -1.0], "irradiance": [2.5, 2.4, 2.2]}],
                                "ambient_radiance": [0.1, 0.1, 0.1], "technique": "kinect-val"})";
   std::ofstream(dir / "base.json") << base;
   const std::string sphere = (fs::path(MRGI_SOURCE_DIR) / "recordings/models/sphere.ply").string();
-  Result r = runMrgi("insert --session " + oni + " --model " + sphere + " --scale 0.1 --scene " + (dir / "base.json").string() +
-                     " --save " + (dir / "scene.json").string() + " --at 320,240 --snap");
+  Result r =
+      runMrgi("insert --session " + oni + " --model " + sphere + " --scale 0.1 --scene " +
+              (dir / "base.json").string() + " --save " + (dir / "scene.json").string() + " --at 320,240 --snap");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto report = nlohmann::json::parse(r.out);
   EXPECT_EQ(report["pose"]["by"], "first-frame");
@@ -1132,7 +1187,8 @@ TEST(Cli, AnObjectInsertedIntoARecordingWithoutAMarkerStaysOnItsFloorInEveryRepl
   empty["objects"] = nlohmann::json::array();
   std::ofstream(dir / "empty.json") << empty.dump();
   for (const char* name : {"scene", "empty"}) {
-    r = runMrgi("replay " + oni + " --scene " + (dir / (std::string(name) + ".json")).string() + " --mp4 \"\" --out " + (dir / name).string());
+    r = runMrgi("replay " + oni + " --scene " + (dir / (std::string(name) + ".json")).string() + " --mp4 \"\" --out " +
+                (dir / name).string());
     ASSERT_EQ(r.exitCode, 0) << r.err;
   }
   const auto summary = nlohmann::json::parse(slurp(dir / "scene" / "summary.json"));
@@ -1144,7 +1200,8 @@ TEST(Cli, AnObjectInsertedIntoARecordingWithoutAMarkerStaysOnItsFloorInEveryRepl
     EXPECT_EQ(pose["status"], "tracked") << f;
     char name[32];
     std::snprintf(name, sizeof name, "frame_%04zu.png", f);
-    const cv::Mat with = cv::imread((dir / "scene" / name).string()), without = cv::imread((dir / "empty" / name).string());
+    const cv::Mat with = cv::imread((dir / "scene" / name).string()),
+                  without = cv::imread((dir / "empty" / name).string());
     ASSERT_FALSE(with.empty() || without.empty()) << name;
     // The sphere covers about 40 x 40 pixels near the bottom centre in every frame, and stays there.
     cv::Mat diff;
@@ -1182,10 +1239,12 @@ TEST(Cli, TrackPrintsHowEveryFrameWasPosedAndRoomSaysWhatItRefused) {
   // The scan's look-around loses the marker and cannot be followed: refused, said once on stderr and counted.
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_room_tracked_" + std::to_string(::getpid()));
   fs::remove_all(out);
-  r = runMrgi("room " + (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-scan").string() + " --out " + out.string() + " --json");
+  r = runMrgi("room " + (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-scan").string() + " --out " + out.string() +
+              " --json");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_EQ(lines(r.err), 1) << r.err;
-  EXPECT_NE(r.err.find("9 of 18 frames not fused for their pose (9 lost, 0 held: --pose tracked)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("9 of 18 frames not fused for their pose (9 lost, 0 held: --pose tracked)"), std::string::npos)
+      << r.err;
   const auto summary = nlohmann::json::parse(r.out);
   EXPECT_EQ(summary["pose"]["lost"], 9);
   EXPECT_EQ(summary["integrated"], 9);
@@ -1238,7 +1297,8 @@ TEST(Cli, FisheyeImagesOfNanNegativeOrNoLightAreRefused) {
   for (const auto& [value, prefix, message] : cases) {
     cv::imwrite(exr.string(), cv::Mat(original.size(), original.type(), cv::Scalar::all(value)));
     fs::remove_all(dir / "out");
-    const Result r = runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --mp4 \"\" --out " + (dir / "out").string());
+    const Result r =
+        runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --mp4 \"\" --out " + (dir / "out").string());
     expectOneLineError(r, exr.string() + prefix);
     EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
   }
@@ -1269,19 +1329,24 @@ TEST(Cli, ConfigurationsThatCannotFitAreRefusedBeforeAllocating) {
   // 16 lights with 4096² RSMs need about 11 GB: refused in one line naming the scene and the knob, at once.
   std::string lights;
   for (int i = 0; i < 16; ++i)
-    lights += std::string(i ? ", " : "") + R"({"type": "point", "position": [0.)" + std::to_string(i) + R"(, 0, 1], "intensity": [1, 1, 1]})";
-  const fs::path scene = writeScene("huge_rsm.json", R"({"objects": [{"model": ")" + kModels + R"(sphere.ply", "scale": 0.06}],
+    lights += std::string(i ? ", " : "") + R"({"type": "point", "position": [0.)" + std::to_string(i) +
+              R"(, 0, 1], "intensity": [1, 1, 1]})";
+  const fs::path scene =
+      writeScene("huge_rsm.json", R"({"objects": [{"model": ")" + kModels + R"(sphere.ply", "scale": 0.06}],
       "lights": [)" + lights + R"(], "frame": {"rsm_size": 4096}})");
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_huge_" + std::to_string(::getpid()));
   const auto t0 = std::chrono::steady_clock::now();
-  expectOneLineError(runMrgi("replay " + session().string() + " --scene " + scene.string() + " --frames 1 --out " + out.string()),
-                     scene.string() + ": frame.rsm_size 4096 with 16 lights");
+  expectOneLineError(
+      runMrgi("replay " + session().string() + " --scene " + scene.string() + " --frames 1 --out " + out.string()),
+      scene.string() + ": frame.rsm_size 4096 with 16 lights");
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 30.0);
   // More lights than the pipeline carries: named too.
-  const fs::path many = writeScene("many_lights.json", R"({"objects": [{"model": ")" + kModels + R"(sphere.ply", "scale": 0.06}],
+  const fs::path many = writeScene("many_lights.json", R"({"objects": [{"model": ")" + kModels +
+                                                           R"(sphere.ply", "scale": 0.06}],
       "lights": [)" + lights + ", " + lights + R"(]})");
-  expectOneLineError(runMrgi("replay " + session().string() + " --scene " + many.string() + " --frames 1 --out " + out.string()),
-                     many.string() + ": lights: 32 lights, at most 16 are supported");
+  expectOneLineError(
+      runMrgi("replay " + session().string() + " --scene " + many.string() + " --frames 1 --out " + out.string()),
+      many.string() + ": lights: 32 lights, at most 16 are supported");
   fs::remove_all(out);
 }
 
@@ -1289,7 +1354,8 @@ TEST(Cli, CtrlCDuringRecordKeepsEveryCompleteFrame) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_record_int_" + std::to_string(::getpid()));
   fs::remove_all(out);
   const fs::path rec = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-pt";
-  const pid_t pid = spawnMrgi("record --source " + rec.string() + " --rate 4 --out " + out.string(), out.string() + ".log");
+  const pid_t pid =
+      spawnMrgi("record --source " + rec.string() + " --rate 4 --out " + out.string(), out.string() + ".log");
   ASSERT_TRUE(waitForFile(out / "colour" / "000001.png", 60));
   ::kill(pid, SIGINT);
   int status = 0;
@@ -1326,9 +1392,10 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
   fs::remove_all(dir);
   const std::string rec = std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-pt";
   const std::string scene = std::string(MRGI_SOURCE_DIR) + "/recordings/scenes/tabletop.json";
-  const Result r = runMrgi("live --source " + rec + " --scene " + scene + " --pose ground-truth --gl window --frames 3"
-                           " --screenshot " + (dir / "live.png").string() + " --record " + (dir / "rec").string() +
-                           " --record-now");
+  const Result r = runMrgi("live --source " + rec + " --scene " + scene +
+                           " --pose ground-truth --gl window --frames 3"
+                           " --screenshot " +
+                           (dir / "live.png").string() + " --record " + (dir / "rec").string() + " --record-now");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto summary = nlohmann::json::parse(r.out);
   EXPECT_EQ(summary["frames"], 3);
@@ -1345,7 +1412,9 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
   ASSERT_EQ(shot.rows, 600);
   // The view shows the same composite headless replay makes of the third frame, at 2x (marker axes aside).
   ASSERT_EQ(runMrgi("replay " + rec + " --scene " + scene + " --pose ground-truth --frames 3 --mp4 '' --out " +
-                    (dir / "replay").string()).exitCode, 0);
+                    (dir / "replay").string())
+                .exitCode,
+            0);
   EXPECT_GT(shareLikeReplay(shot, dir / "replay" / "frame_0002.png"), 0.95);
   // The panel holds text and widgets, not a blank strip.
   cv::Scalar mean, dev;
@@ -1362,9 +1431,10 @@ TEST(LiveWindow, DISABLED_BuildsTheRoomAsItGoesAndShowsIt) {
   fs::remove_all(dir);
   const std::string rec = std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-scan";
   const std::string scene = std::string(MRGI_SOURCE_DIR) + "/recordings/scenes/tabletop-room.json";
-  const Result r = runMrgi("live --source " + rec + " --scene " + scene + " --pose ground-truth --gl window --frames 4 --fuse-room"
-                           " --fuse-refresh 2 --view room_radiance --save-room " + (dir / "room").string() +
-                           " --screenshot " + (dir / "live.png").string());
+  const Result r = runMrgi("live --source " + rec + " --scene " + scene +
+                           " --pose ground-truth --gl window --frames 4 --fuse-room"
+                           " --fuse-refresh 2 --view room_radiance --save-room " +
+                           (dir / "room").string() + " --screenshot " + (dir / "live.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto summary = nlohmann::json::parse(r.out);
   EXPECT_EQ(summary["room"]["integrated"], 4);
@@ -1374,9 +1444,14 @@ TEST(LiveWindow, DISABLED_BuildsTheRoomAsItGoesAndShowsIt) {
   // four frames (at 2x), not the composite.
   const cv::Mat shot = cv::imread((dir / "live.png").string());
   ASSERT_FALSE(shot.empty());
-  ASSERT_EQ(runMrgi("replay " + rec + " --scene " + scene + " --pose ground-truth --frames 4 --fuse-room --fuse-refresh 2 --debug"
-                    " --mp4 '' --out " + (dir / "replay").string()).exitCode, 0);
-  for (const char* name : {"debug_0003_room_radiance.png", "frame_0003.png"}) ASSERT_TRUE(fs::exists(dir / "replay" / name)) << name;
+  ASSERT_EQ(runMrgi("replay " + rec + " --scene " + scene +
+                    " --pose ground-truth --frames 4 --fuse-room --fuse-refresh 2 --debug"
+                    " --mp4 '' --out " +
+                    (dir / "replay").string())
+                .exitCode,
+            0);
+  for (const char* name : {"debug_0003_room_radiance.png", "frame_0003.png"})
+    ASSERT_TRUE(fs::exists(dir / "replay" / name)) << name;
   EXPECT_GT(shareLikeReplay(shot, dir / "replay" / "debug_0003_room_radiance.png"), 0.95) << "the room's radiance";
   EXPECT_LT(shareLikeReplay(shot, dir / "replay" / "frame_0003.png"), 0.9) << "not the composite";
   fs::remove_all(dir);
@@ -1387,9 +1462,10 @@ TEST(InsertWindow, DISABLED_PreviewsThePlacementAndSavesIt) {
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_insert_win_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   const std::string rec = std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-synth";
-  const Result r = runMrgi("insert --session " + rec + " --model " + kModels + "sphere.ply --scale 0.05 --translate 0.1,0.05,0.3"
-                           " --snap --gl window --frames 3 --screenshot " + (dir / "insert.png").string() + " --save " +
-                           (dir / "scene.json").string());
+  const Result r = runMrgi("insert --session " + rec + " --model " + kModels +
+                           "sphere.ply --scale 0.05 --translate 0.1,0.05,0.3"
+                           " --snap --gl window --frames 3 --screenshot " +
+                           (dir / "insert.png").string() + " --save " + (dir / "scene.json").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto report = nlohmann::json::parse(r.out);
   EXPECT_TRUE(report["saved"].get<bool>());
@@ -1422,9 +1498,11 @@ TEST(Cli, ReplayFailsInOneLineWhenTheMarkerIsNeverSeen) {
   auto manifest = nlohmann::json::parse(slurp(dir / "s" / "manifest.json"));
   manifest["marker"]["id"] = manifest["marker"]["id"].get<int>() + 1;
   std::ofstream(dir / "s" / "manifest.json") << manifest.dump(2);
-  const fs::path scene = writeScene("nomarker.json", R"({"objects": [{"model": ")" + kModels +
-                                                         R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}], "lights": "manifest"})");
-  const Result r = runMrgi("replay " + (dir / "s").string() + " --scene " + scene.string() + " --out " + (dir / "out").string());
+  const fs::path scene = writeScene(
+      "nomarker.json", R"({"objects": [{"model": ")" + kModels +
+                           R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}], "lights": "manifest"})");
+  const Result r =
+      runMrgi("replay " + (dir / "s").string() + " --scene " + scene.string() + " --out " + (dir / "out").string());
   expectOneLineError(r, "no frame could be placed in 3 frames");
   EXPECT_TRUE(fs::exists(dir / "out" / "frame_0002.png"));  // the camera images are still written
   const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
@@ -1452,8 +1530,9 @@ TEST(Cli, SynthPutsTheTableOutdoorsUnderAnHdrEnvironment) {
   EXPECT_GT(centre[0] + centre[1] + centre[2], 0.1f);
   const cv::Mat colour = cv::imread((out / "colour" / "000000.png").string());
   EXPECT_GT(cv::mean(colour)[0], 30.0);  // lit
-  expectOneLineError(runMrgi(base + "--environment " + (out / "manifest.json").string() + " --out " + out.string() + "2"),
-                     "cannot be read as an HDR environment");
+  expectOneLineError(
+      runMrgi(base + "--environment " + (out / "manifest.json").string() + " --out " + out.string() + "2"),
+      "cannot be read as an HDR environment");
   expectOneLineError(runMrgi(base + "--render raycast --environment " + env + " --out " + out.string() + "3"),
                      "--environment needs --render pathtrace");
   EXPECT_FALSE(fs::exists(out.string() + "2"));
@@ -1487,7 +1566,8 @@ TEST(Cli, ABoxThatMovesInTheCarvingSessionLeavesNoGhost) {
   const fs::path before = base / "before", after = base / "after";
   ASSERT_EQ(runMrgi("room " + session + " --out " + before.string() + " --pose ground-truth --frames 4").exitCode, 0);
   ASSERT_EQ(runMrgi("room " + session + " --out " + after.string() + " --pose ground-truth").exitCode, 0);
-  const mrgi::reconstruction::RoomMesh b = mrgi::reconstruction::loadRoom(before.string()), a = mrgi::reconstruction::loadRoom(after.string());
+  const mrgi::reconstruction::RoomMesh b = mrgi::reconstruction::loadRoom(before.string()),
+                                       a = mrgi::reconstruction::loadRoom(after.string());
   EXPECT_GT(count(b, gt["box"]), 100) << "the box where it stood";
   EXPECT_EQ(count(b, gt["box_moves"]), 0);
   EXPECT_EQ(count(a, gt["box"]), 0) << "a ghost of the box where it stood";
@@ -1504,8 +1584,8 @@ TEST(Cli, ReplayBuildsTheRoomAsTheFramesComeAndLightsFromIt) {
   const fs::path base = fs::temp_directory_path() / ("mrgi_cli_fuse_" + std::to_string(::getpid()));
   fs::remove_all(base);
   const fs::path out = base / "replay", saved = base / "room";
-  const Result r = runMrgi("replay " + session + " --scene " + scene + " --fuse-room --fuse-refresh 4 --save-room " + saved.string() +
-                           " --out " + out.string() + " --frames 9 --pose ground-truth --mp4 \"\"");
+  const Result r = runMrgi("replay " + session + " --scene " + scene + " --fuse-room --fuse-refresh 4 --save-room " +
+                           saved.string() + " --out " + out.string() + " --frames 9 --pose ground-truth --mp4 \"\"");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
   EXPECT_EQ(s["room"]["integrated"], 9);
@@ -1515,17 +1595,18 @@ TEST(Cli, ReplayBuildsTheRoomAsTheFramesComeAndLightsFromIt) {
   for (int i = 0; i < 9; ++i)
     if (frames[i]["room_fusion"].contains("refreshed")) refreshed.push_back(i);
   EXPECT_EQ(refreshed, (std::vector<int>{0, 4, 8}));
-  EXPECT_LT(frames[0]["room_fusion"]["refreshed"].get<size_t>(), frames[8]["room_fusion"]["refreshed"].get<size_t>()) << "the room grows";
+  EXPECT_LT(frames[0]["room_fusion"]["refreshed"].get<size_t>(), frames[8]["room_fusion"]["refreshed"].get<size_t>())
+      << "the room grows";
   EXPECT_EQ(frames[0]["room"]["lights"]["count"], 4) << frames[0].dump();
   EXPECT_TRUE(frames[0].contains("view_mesh_detailed")) << "lit from the room on the first frame: " << frames[0].dump();
   const auto saved9 = mrgi::reconstruction::loadRoom(saved.string());
   EXPECT_GT(saved9.positions.size(), frames[8]["room_fusion"]["refreshed"].get<size_t>() / 2);
   // A saved room and a new one at once, or a room to save that is not being built: one-line errors.
-  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --fuse-room --room " + saved.string() + " --out " +
-                             (base / "x").string()),
+  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --fuse-room --room " + saved.string() +
+                             " --out " + (base / "x").string()),
                      "--fuse-room");
-  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --save-room " + (base / "y").string() + " --out " +
-                             (base / "x").string()),
+  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --save-room " + (base / "y").string() +
+                             " --out " + (base / "x").string()),
                      "--save-room");
   EXPECT_FALSE(fs::exists(base / "x"));
   fs::remove_all(base);
@@ -1560,8 +1641,8 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
   const fs::path replayOut = out.string() + "_replay";
   fs::remove_all(replayOut);
   const std::string scene = (fs::path(MRGI_SOURCE_DIR) / "recordings/scenes/tabletop.json").string();
-  const Result rr = runMrgi("replay " + session + " --scene " + scene + " --room " + out.string() + " --out " + replayOut.string() +
-                            " --frames 2 --pose ground-truth --mp4 \"\"");
+  const Result rr = runMrgi("replay " + session + " --scene " + scene + " --room " + out.string() + " --out " +
+                            replayOut.string() + " --frames 2 --pose ground-truth --mp4 \"\"");
   ASSERT_EQ(rr.exitCode, 0) << rr.err;
   const auto replaySummary = nlohmann::json::parse(slurp(replayOut / "summary.json"));
   const auto& frames = replaySummary["per_frame"];
@@ -1576,8 +1657,8 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
     const fs::path lit = out.string() + "_lit";
     fs::remove_all(lit);
     const std::string roomScene = (fs::path(MRGI_SOURCE_DIR) / "recordings/scenes/tabletop-room.json").string();
-    const Result rl = runMrgi("replay " + session + " --scene " + roomScene + " --room " + out.string() + " --out " + lit.string() +
-                              " --frames 1 --pose ground-truth --debug --mp4 \"\"");
+    const Result rl = runMrgi("replay " + session + " --scene " + roomScene + " --room " + out.string() + " --out " +
+                              lit.string() + " --frames 1 --pose ground-truth --debug --mp4 \"\"");
     ASSERT_EQ(rl.exitCode, 0) << rl.err;
     const auto s = nlohmann::json::parse(slurp(lit / "summary.json"));
     EXPECT_EQ(s["per_frame"][0]["room"]["lights"]["count"], 4) << s["per_frame"][0].dump();
@@ -1620,7 +1701,8 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
     const fs::path users = lit / "holiday.png";
     fs::copy_file(fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth/colour/000000.png", users);
     const std::string before = slurp(users);
-    expectOneLineError(runMrgi("room-lights " + out.string() + " --at 0 0 0.06 --map " + users.string()), "refusing to overwrite");
+    expectOneLineError(runMrgi("room-lights " + out.string() + " --at 0 0 0.06 --map " + users.string()),
+                       "refusing to overwrite");
     EXPECT_EQ(slurp(users), before);
     expectOneLineError(runMrgi("room-lights /nonexistent/room"), "/nonexistent/room");
     fs::remove_all(lit);
@@ -1647,22 +1729,25 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
     const fs::path noLights = bare / "scene.json";
     std::ofstream(noLights) << R"({"objects": [{"model": ")" << MRGI_SOURCE_DIR
                             << R"(/recordings/models/sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}]})";
-    const Result d = runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --room " + out.string() + " --out " +
-                             (bare / "out").string() + " --frames 1 --pose ground-truth --mp4 \"\"");
+    const Result d = runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --room " + out.string() +
+                             " --out " + (bare / "out").string() + " --frames 1 --pose ground-truth --mp4 \"\"");
     ASSERT_EQ(d.exitCode, 0) << d.err;
     const auto ds = nlohmann::json::parse(slurp(bare / "out" / "summary.json"));
     EXPECT_EQ(ds["per_frame"][0]["room"]["lights"]["count"], 4) << ds["per_frame"][0].dump();
-    expectOneLineError(runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --out " + (bare / "out2").string()),
-                       "no ground-truth lights");
+    expectOneLineError(
+        runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --out " + (bare / "out2").string()),
+        "no ground-truth lights");
     fs::remove_all(bare);
   }
   // A bad room stops replay before anything is written.
   fs::remove_all(replayOut);
-  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --room /nonexistent/room --out " + replayOut.string()),
-                     "/nonexistent/room");
+  expectOneLineError(
+      runMrgi("replay " + session + " --scene " + scene + " --room /nonexistent/room --out " + replayOut.string()),
+      "/nonexistent/room");
   EXPECT_FALSE(fs::exists(replayOut));
   // Writing again into its own output is fine; into someone else's folder is not, and nothing there changes.
-  EXPECT_EQ(runMrgi("room " + session + " --out " + out.string() + " --pose ground-truth --frames 2 --json").exitCode, 0);
+  EXPECT_EQ(runMrgi("room " + session + " --out " + out.string() + " --pose ground-truth --frames 2 --json").exitCode,
+            0);
   const fs::path mine = out.string() + "_mine";
   fs::create_directories(mine);
   std::ofstream(mine / "notes.txt") << "mine";
@@ -1670,11 +1755,13 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
   EXPECT_EQ(slurp(mine / "notes.txt"), "mine");
   EXPECT_FALSE(fs::exists(mine / "room.ply"));
   // Bad options and a session without any marker pose are one line each.
-  expectOneLineError(runMrgi("room " + session + " --out " + out.string() + "_x --voxel 0.02 --trunc 0.01"), "--trunc: must be at least 2 voxels");
+  expectOneLineError(runMrgi("room " + session + " --out " + out.string() + "_x --voxel 0.02 --trunc 0.01"),
+                     "--trunc: must be at least 2 voxels");
   const fs::path noTag = scratchSession("mrgi_cli_room_notag_", ::session(), 2);
   for (const auto& e : fs::directory_iterator(noTag / "s" / "colour"))  // flat grey frames: no tag to see
     cv::imwrite(e.path().string(), cv::Mat(120, 160, CV_8UC3, cv::Scalar(90, 90, 90)));
-  expectOneLineError(runMrgi("room " + (noTag / "s").string() + " --out " + (noTag / "room").string()), "no frame has a trusted camera pose (2 lost");
+  expectOneLineError(runMrgi("room " + (noTag / "s").string() + " --out " + (noTag / "room").string()),
+                     "no frame has a trusted camera pose (2 lost");
   fs::remove_all(noTag);
   fs::remove_all(out);
   fs::remove_all(mine);

@@ -1,16 +1,15 @@
 // Every class of bad input the reliability work reproduced from outside (tests/data/reproducers/cases.json),
 // fed through the mrgi binary: exit 1-127 (never a signal), exactly one line on stderr naming the file, and no
 // file changed outside --out (nor inside it when it held the user's files), no OpenCV temporary file left.
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -30,7 +29,8 @@ void spit(const fs::path& p, const std::string& bytes) {
 }
 
 std::string replaceAll(std::string s, const std::string& from, const std::string& to) {
-  for (size_t at = s.find(from); at != std::string::npos; at = s.find(from, at + to.size())) s.replace(at, from.size(), to);
+  for (size_t at = s.find(from); at != std::string::npos; at = s.find(from, at + to.size()))
+    s.replace(at, from.size(), to);
   return s;
 }
 
@@ -75,13 +75,13 @@ std::map<std::string, std::string> snapshot(const fs::path& root, const fs::path
   return files;
 }
 
-
 class Reproducer : public ::testing::TestWithParam<int> {};
 
 TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
   const json& c = cases()[GetParam()];
   SCOPED_TRACE(c["name"].get<std::string>());
-  const fs::path root = fs::temp_directory_path() / ("mrgi_repro_" + std::to_string(::getpid()) + "_" + std::to_string(GetParam()));
+  const fs::path root =
+      fs::temp_directory_path() / ("mrgi_repro_" + std::to_string(::getpid()) + "_" + std::to_string(GetParam()));
   fs::remove_all(root);
   const fs::path session = root / "s", data = root / "data", out = root / "out";
   fs::create_directories(data);
@@ -123,7 +123,8 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
       }
     }
   if (c.contains("copy"))
-    for (const auto& [target, source] : c["copy"].items()) spit(session / target, slurp(expand(source.get<std::string>())));
+    for (const auto& [target, source] : c["copy"].items())
+      spit(session / target, slurp(expand(source.get<std::string>())));
   if (c.contains("write"))
     for (const auto& [target, text] : c["write"].items()) spit(session / target, text.get<std::string>());
   if (c.contains("truncate"))
@@ -152,8 +153,9 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
   // private one here, which must stay empty.
   const fs::path temp = root / "opencv_temp";
   fs::create_directories(temp);
-  const std::string cmd = "cd " + out.parent_path().string() + " && OPENCV_TEMP_PATH=" + temp.string() + " " + std::string(MRGI_BINARY) + " " + expand(c["args"]) +
-                          " > " + (root / "stdout").string() + " 2> " + (root / "stderr").string();
+  const std::string cmd = "cd " + out.parent_path().string() + " && OPENCV_TEMP_PATH=" + temp.string() + " " +
+                          std::string(MRGI_BINARY) + " " + expand(c["args"]) + " > " + (root / "stdout").string() +
+                          " 2> " + (root / "stderr").string();
   const int status = std::system(cmd.c_str());
   const std::string err = slurp(root / "stderr");
   fs::remove(root / "stdout");
@@ -179,7 +181,8 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
 
 std::string caseName(const ::testing::TestParamInfo<int>& info) {
   std::string name;
-  for (char ch : cases()[info.param]["name"].get<std::string>()) name += std::isalnum(static_cast<unsigned char>(ch)) ? ch : '_';
+  for (char ch : cases()[info.param]["name"].get<std::string>())
+    name += std::isalnum(static_cast<unsigned char>(ch)) ? ch : '_';
   return std::to_string(info.param) + "_" + name;
 }
 

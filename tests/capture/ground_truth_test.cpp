@@ -1,9 +1,10 @@
 // The typed ground truth of a session manifest: every light type read (none silently dropped), the marker
 // pose, ambient and reference composites, and one-line errors naming the manifest and the key.
+#include "capture/ground_truth.h"
+
 #include <gtest/gtest.h>
 
 #include "capture/error.h"
-#include "capture/ground_truth.h"
 #include "capture/json_io.h"
 #include "capture/session.h"
 
@@ -53,16 +54,21 @@ TEST(GroundTruth, ReadsEveryLightTypeTheMarkerAmbientAndReferences) {
 TEST(GroundTruth, BadEntriesAreOneLineErrorsNamingTheKey) {
   const std::pair<const char*, const char*> cases[] = {
       {R"({"lights": [{"type": "area", "position": [0, 0, 0]}]})", "ground_truth.lights[0].type 'area'"},
-      {R"({"lights": [{"type": "point", "position": [0, 0]}]})", "ground_truth.lights[0].position must be an array of 3"},
-      {R"({"lights": [{"type": "directional", "direction": [0, 0, -1]}]})", "ground_truth.lights[0].irradiance_w_m2 is missing"},
+      {R"({"lights": [{"type": "point", "position": [0, 0]}]})",
+       "ground_truth.lights[0].position must be an array of 3"},
+      {R"({"lights": [{"type": "directional", "direction": [0, 0, -1]}]})",
+       "ground_truth.lights[0].irradiance_w_m2 is missing"},
       {R"({"lights": {}})", "ground_truth.lights must be an array"},
       {R"({"reference": {"scene": "s.json", "composite": "c.png", "delta": "d_NNNNNN.exr", "mask": "m_NNNNNN.png"}})",
        "has no NNNNNN"},
       {R"({"T_world_marker": [1, 2]})", "ground_truth.T_world_marker"},
       {R"({"scene": {"ambient_radiance": []}})", "ground_truth.scene.ambient_radiance must be an array of 3"},
-      {R"({"lights": [{"type": "point", "position": [], "intensity_w_sr": [1, 1, 1]}]})", "ground_truth.lights[0].position"},
-      {R"({"lights": [{"type": "point", "position": [0, 0, 1], "intensity_w_sr": [1]}]})", "ground_truth.lights[0].intensity_w_sr"},
-      {R"({"lights": [{"type": "point", "position": [0, 0, "x"], "intensity_w_sr": [1, 1, 1]}]})", "must hold finite numbers"},
+      {R"({"lights": [{"type": "point", "position": [], "intensity_w_sr": [1, 1, 1]}]})",
+       "ground_truth.lights[0].position"},
+      {R"({"lights": [{"type": "point", "position": [0, 0, 1], "intensity_w_sr": [1]}]})",
+       "ground_truth.lights[0].intensity_w_sr"},
+      {R"({"lights": [{"type": "point", "position": [0, 0, "x"], "intensity_w_sr": [1, 1, 1]}]})",
+       "must hold finite numbers"},
   };
   for (const auto& [text, expected] : cases) {
     try {

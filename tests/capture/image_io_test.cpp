@@ -1,21 +1,20 @@
 // Image codecs that name the file in every error and print nothing themselves: EXR through OpenEXR from
 // memory (no temporary files), PNG through libpng with our handlers.
+#include "capture/image_io.h"
+
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <limits>
-#include <tuple>
-#include <sstream>
-
-#include <gtest/gtest.h>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <tuple>
 
 #include "capture/error.h"
-#include "capture/image_io.h"
 
 namespace fs = std::filesystem;
 using namespace mrgi::capture;
@@ -29,7 +28,8 @@ fs::path scratch(const std::string& name) {
 }
 
 void writeBytes(const fs::path& p, const std::vector<unsigned char>& bytes) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  std::ofstream(p, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
 }
 
 cv::Mat ramp(int w, int h) {
@@ -100,8 +100,8 @@ TEST(ImageIo, DamagedExrIsOneErrorNamingTheFileWithNothingPrintedAndNoTemporaryF
   const std::vector<unsigned char> good = encodeExr(ramp(64, 48), true, p.string());
   std::vector<std::vector<unsigned char>> damaged;
   damaged.emplace_back(good.begin(), good.begin() + static_cast<long>(good.size() / 2));  // truncated
-  damaged.emplace_back(good.begin(), good.begin() + 12);                                   // header cut short
-  for (size_t at : {size_t(8), size_t(40), good.size() / 3, good.size() - 20}) {            // bit flips
+  damaged.emplace_back(good.begin(), good.begin() + 12);                                  // header cut short
+  for (size_t at : {size_t(8), size_t(40), good.size() / 3, good.size() - 20}) {          // bit flips
     std::vector<unsigned char> b = good;
     b[at] ^= 0xA5;
     damaged.push_back(b);
@@ -110,8 +110,9 @@ TEST(ImageIo, DamagedExrIsOneErrorNamingTheFileWithNothingPrintedAndNoTemporaryF
   const std::string key = "dataWindow";
   auto it = std::search(huge.begin(), huge.end(), key.begin(), key.end());
   ASSERT_NE(it, huge.end());
-  const size_t xMaxAt = static_cast<size_t>(it - huge.begin()) + key.size() + 1 + 6 + 4 + 8;  // name\0 "box2i"\0 size xMin yMin
-  huge[xMaxAt + 1] = 0x7f;  // xMax = 0x7f00 + 63
+  const size_t xMaxAt =
+      static_cast<size_t>(it - huge.begin()) + key.size() + 1 + 6 + 4 + 8;  // name\0 "box2i"\0 size xMin yMin
+  huge[xMaxAt + 1] = 0x7f;                                                  // xMax = 0x7f00 + 63
   damaged.push_back(huge);
   const int tempsBefore = opencvTempFiles();
   int refused = 0;
@@ -178,7 +179,8 @@ TEST(ImageIo, FormatsOutsideTheSupportedOnesNeverReachOpenCv) {
         (void)readColour(dicom);
       ADD_FAILURE() << "decoded";
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find(dicom + ": cannot decode image: not a supported format"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(dicom + ": cannot decode image: not a supported format"), std::string::npos)
+          << e.what();
     }
   }
 }
@@ -191,7 +193,8 @@ TEST(ImageIo, ExrHeaderAttributesLongerThanTheFileAreRefusedBeforeAllocation) {
     (void)readAny(file);
     ADD_FAILURE() << "decoded";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("declares 1664937503 bytes, past the end of the file"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("declares 1664937503 bytes, past the end of the file"), std::string::npos)
+        << e.what();
   }
   // Found by the image fuzzer (a time-out under ASan): a data window 5 million pixels wide; and a sound
   // file's window raised to 10000 x 10000, more pixels than any codec packs into its 1 KB. Both refused
@@ -200,13 +203,15 @@ TEST(ImageIo, ExrHeaderAttributesLongerThanTheFileAreRefusedBeforeAllocation) {
     (void)readAny(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/image_exr_huge_data_window.exr");
     ADD_FAILURE() << "decoded";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("EXR image of 5046273x5, at most 16384 a side"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("EXR image of 5046273x5, at most 16384 a side"), std::string::npos)
+        << e.what();
   }
   {
     const fs::path q = scratch("window.exr");
     std::vector<unsigned char> big = encodeExr(ramp(8, 8), true, q.string());
     const std::string key = "dataWindow";
-    const size_t box = static_cast<size_t>(std::search(big.begin(), big.end(), key.begin(), key.end()) - big.begin()) + key.size() + 1 + 6 + 4;
+    const size_t box = static_cast<size_t>(std::search(big.begin(), big.end(), key.begin(), key.end()) - big.begin()) +
+                       key.size() + 1 + 6 + 4;
     for (size_t k : {box + 8, box + 12}) {  // xMax, yMax = 9999
       big[k] = 0x0f, big[k + 1] = 0x27, big[k + 2] = 0, big[k + 3] = 0;
     }
@@ -261,8 +266,8 @@ TEST(ImageIo, FlatRadianceHdrDecodesAndDamagedOnesAreOneErrorNamingTheFile) {
   std::string text = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 4\n";
   std::vector<unsigned char> bytes(text.begin(), text.end());
   for (int i = 0; i < 8; ++i)
-    for (unsigned char b : {static_cast<unsigned char>(16 * i), static_cast<unsigned char>(128), static_cast<unsigned char>(255),
-                            static_cast<unsigned char>(i == 3 ? 0 : 129 + i)})
+    for (unsigned char b : {static_cast<unsigned char>(16 * i), static_cast<unsigned char>(128),
+                            static_cast<unsigned char>(255), static_cast<unsigned char>(i == 3 ? 0 : 129 + i)})
       bytes.push_back(b);
   const fs::path p = scratch("flat.hdr");
   writeBytes(p, bytes);
@@ -281,11 +286,13 @@ TEST(ImageIo, FlatRadianceHdrDecodesAndDamagedOnesAreOneErrorNamingTheFile) {
   std::vector<unsigned char> run = good;
   const size_t body = std::string(good.begin(), good.end()).find("+X 256\n") + 7;
   ASSERT_EQ(run[body], 2);  // run-length encoded
-  run[body + 4] = 128;     // the first run of the first scanline: a run of nothing
-  const std::string huge = "#?RADIANCE\n\n-Y 100000 +X 100000\n", xyze = "#?RADIANCE\nFORMAT=32-bit_rle_xyze\n\n-Y 1 +X 1\n0000",
+  run[body + 4] = 128;      // the first run of the first scanline: a run of nothing
+  const std::string huge = "#?RADIANCE\n\n-Y 100000 +X 100000\n",
+                    xyze = "#?RADIANCE\nFORMAT=32-bit_rle_xyze\n\n-Y 1 +X 1\n0000",
                     nores = "#?RADIANCE\n\n+Y 2 -X 2\n00000000";
   int cases = 0;
-  for (const auto& [name, data, message] : std::vector<std::tuple<std::string, std::vector<unsigned char>, std::string>>{
+  for (const auto& [name, data, message] :
+       std::vector<std::tuple<std::string, std::vector<unsigned char>, std::string>>{
            {"cut.hdr", cut, "truncated"},
            {"run.hdr", run, "out of bounds"},
            {"huge.hdr", {huge.begin(), huge.end()}, "at most 16384 a side"},
@@ -317,7 +324,8 @@ TEST(ImageIo, FloatImagesWithNanOrInfAreRefusedNamingThePixel) {
       (void)readAny(p.string());
       ADD_FAILURE() << "decoded";
     } catch (const InputError& e) {
-      EXPECT_EQ(std::string(e.what()), p.string() + ": holds a non-finite value at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ")");
+      EXPECT_EQ(std::string(e.what()), p.string() + ": holds a non-finite value at pixel (" + std::to_string(x) + ", " +
+                                           std::to_string(y) + ")");
     }
   }
 }

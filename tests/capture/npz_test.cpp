@@ -1,9 +1,10 @@
 // NumPy .npy arrays: a well-formed array parses to its values; malformed shapes and dtypes (found by the npy
 // fuzzer) are one-line errors naming the file, before anything is allocated for them.
+#include "capture/npz.h"
+
 #include <gtest/gtest.h>
 
 #include "capture/error.h"
-#include "capture/npz.h"
 
 namespace mrgi::capture {
 namespace {

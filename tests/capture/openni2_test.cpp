@@ -1,13 +1,12 @@
 // OpenNI2: no device and bad .oni files are reported as one-line errors, never crashes; a real Kinect
 // recording (../shared/data/oni-kinect-3dj: OpenNI 1.x, recorded mirrored, colour field of view 0) plays with
 // finite intrinsics, un-mirrored, depth and colour paired by time.
+#include <OpenNI.h>
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
-
-#include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
-
-#include <OpenNI.h>
 
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -59,7 +58,8 @@ TEST(OpenNI2, TruncatedRecordingSaysWhatIsKnown) {
     std::ofstream(path, std::ios::binary) << head;
   }
   const std::string msg = errorOf(path.string());
-  EXPECT_NE(msg.find(path.string() + ": cannot open .oni file (100000 bytes, an OpenNI 1.x recording header"), std::string::npos)
+  EXPECT_NE(msg.find(path.string() + ": cannot open .oni file (100000 bytes, an OpenNI 1.x recording header"),
+            std::string::npos)
       << msg;
   EXPECT_NE(msg.find("truncated or corrupt"), std::string::npos) << msg;
   EXPECT_EQ(msg.find_first_of("\n\t"), std::string::npos) << msg;

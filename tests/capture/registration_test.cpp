@@ -1,7 +1,7 @@
 // Depth -> colour registration against geometry known in closed form.
-#include <gtest/gtest.h>
-
 #include "capture/registration.h"
+
+#include <gtest/gtest.h>
 
 using namespace mrgi::capture;
 

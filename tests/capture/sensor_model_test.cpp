@@ -1,7 +1,7 @@
 // Depth sensor model: noise level follows sigma(z), holes and grazing dropouts appear, determinism.
-#include <gtest/gtest.h>
-
 #include "capture/sensor_model.h"
+
+#include <gtest/gtest.h>
 
 using namespace mrgi::capture;
 
@@ -35,5 +35,6 @@ TEST(SensorModel, DropoutsAtGrazingAnglesRangeAndHoles) {
   m.holesPerFrame = 5;
   const cv::Mat holes = applyDepthNoise(ideal, facingNormals(50, 50), 5000, 5000, 25, 25, m, 3);
   EXPECT_LT(cv::countNonZero(holes), 2500);
-  EXPECT_EQ(cv::norm(holes, applyDepthNoise(ideal, facingNormals(50, 50), 5000, 5000, 25, 25, m, 3), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(holes, applyDepthNoise(ideal, facingNormals(50, 50), 5000, 5000, 25, 25, m, 3), cv::NORM_INF),
+            0.0);
 }

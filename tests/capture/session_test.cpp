@@ -1,4 +1,7 @@
 // Session format: round trip, crash safety (truncation at every byte, SIGKILL at random moments), bad input.
+#include "capture/session.h"
+
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -6,15 +9,12 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
-#include <random>
-
-#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
 
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
-#include "capture/session.h"
 
 namespace fs = std::filesystem;
 using namespace mrgi::capture;
@@ -219,7 +219,8 @@ TEST(Session, WriterKilledAtRandomMomentsLeavesReplayableSession) {
     for (int i = 0; i < 10; ++i) w.append(syntheticFrame(i, 64, 48));
     fs::remove_all(timing);
   }
-  const int tenFramesUs = static_cast<int>(std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0).count());
+  const int tenFramesUs = static_cast<int>(
+      std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0).count());
   for (int trial = 0; trial < 24; ++trial) {
     const fs::path dir = freshDir("kill" + std::to_string(trial));
     const pid_t pid = fork();
@@ -246,7 +247,8 @@ TEST(Session, WriterKilledAtRandomMomentsLeavesReplayableSession) {
       int64_t n = 0;
       while (auto f = s.next()) {
         const Frame ref = syntheticFrame(static_cast<int>(n), 64, 48);
-        ASSERT_EQ(cv::norm(f->rgbd->colour, ref.rgbd->colour, cv::NORM_INF), 0.0) << "trial " << trial << " frame " << n;
+        ASSERT_EQ(cv::norm(f->rgbd->colour, ref.rgbd->colour, cv::NORM_INF), 0.0)
+            << "trial " << trial << " frame " << n;
         ++n;
       }
       EXPECT_EQ(n, s.frameCount());
@@ -277,7 +279,8 @@ TEST(Session, BadInputsGiveOneLineErrorsNamingTheFile) {
     return msg;
   };
   // Corrupt PNG.
-  std::string m = errorFor([&](const fs::path& dir) { std::ofstream(dir / "colour/000001.png", std::ios::trunc) << "not a png"; });
+  std::string m =
+      errorFor([&](const fs::path& dir) { std::ofstream(dir / "colour/000001.png", std::ios::trunc) << "not a png"; });
   EXPECT_NE(m.find("colour/000001.png"), std::string::npos) << m;
   EXPECT_NE(m.find("cannot decode"), std::string::npos) << m;
   // Truncated PNG.
@@ -294,7 +297,8 @@ TEST(Session, BadInputsGiveOneLineErrorsNamingTheFile) {
   // Non-monotonic timestamps.
   m = errorFor([&](const fs::path& dir) {
     std::ofstream f(dir / "frames.jsonl", std::ios::app);
-    f << R"({"index":3,"t":0.1,"colour":"colour/000000.png","depth":"depth/000000.png"})" << "\n";
+    f << R"({"index":3,"t":0.1,"colour":"colour/000000.png","depth":"depth/000000.png"})"
+      << "\n";
   });
   EXPECT_NE(m.find("frames.jsonl:4"), std::string::npos) << m;
   EXPECT_NE(m.find("does not increase"), std::string::npos) << m;
@@ -324,7 +328,8 @@ TEST(Session, BadInputsGiveOneLineErrorsNamingTheFile) {
     d.at<float>(5, 7) = std::numeric_limits<float>::quiet_NaN();
     cv::imwrite((dir / "depth/000000.tiff").string(), d);
     std::ofstream f(dir / "frames.jsonl", std::ios::trunc);
-    f << R"({"index":0,"t":0.1,"colour":"colour/000000.png","depth":"depth/000000.tiff"})" << "\n";
+    f << R"({"index":0,"t":0.1,"colour":"colour/000000.png","depth":"depth/000000.tiff"})"
+      << "\n";
   });
   EXPECT_NE(m.find("depth/000000.tiff: depth holds a non-finite"), std::string::npos) << m;
   // Not a session at all.

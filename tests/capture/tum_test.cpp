@@ -1,16 +1,16 @@
 // TUM RGB-D reader: association by timestamp, depth scale 5000, ground truth, bad lists. Uses the two real
 // TUM freiburg2 frames in ../shared/data/rgbd-slambook/ch7 (MIT), arranged as a TUM sequence in a temp dir.
+#include "capture/tum.h"
+
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
-
-#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "capture/error.h"
 #include "capture/frame_source.h"
-#include "capture/tum.h"
 
 namespace fs = std::filesystem;
 using namespace mrgi::capture;
@@ -27,7 +27,8 @@ fs::path makeTumDir() {
   fs::copy_file(kCh7 / "2.png", d / "rgb/100.033.png");
   fs::copy_file(kCh7 / "1_depth.png", d / "depth/100.004.png");
   fs::copy_file(kCh7 / "2_depth.png", d / "depth/100.041.png");
-  std::ofstream(d / "rgb.txt") << "# colour images\n# timestamp filename\n100.000 rgb/100.000.png\n100.033 rgb/100.033.png\n";
+  std::ofstream(d / "rgb.txt")
+      << "# colour images\n# timestamp filename\n100.000 rgb/100.000.png\n100.033 rgb/100.033.png\n";
   // 100.090 has no colour partner within 20 ms and must be skipped.
   std::ofstream(d / "depth.txt") << "100.004 depth/100.004.png\n100.041 depth/100.041.png\n100.090 depth/100.041.png\n";
   std::ofstream(d / "groundtruth.txt") << "# timestamp tx ty tz qx qy qz qw\n"

@@ -1,7 +1,7 @@
 // V4L2 buffer decoding with synthetic YUYV and MJPEG buffers; fisheye calibration files.
+#include <gtest/gtest.h>
 #include <linux/videodev2.h>
 
-#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -74,7 +74,8 @@ TEST(V4l2, MjpegDecodesToRgbAndRejectsCorruptFrames) {
   std::vector<uint8_t> garbage(500, 0x55);
   EXPECT_THROW(decodeV4l2Buffer(V4L2_PIX_FMT_MJPEG, garbage.data(), garbage.size(), 64, 48, 0, "t"), CaptureError);
   EXPECT_THROW(decodeV4l2Buffer(V4L2_PIX_FMT_MJPEG, jpeg.data(), jpeg.size(), 32, 48, 0, "t"), CaptureError);
-  EXPECT_THROW(decodeV4l2Buffer(v4l2_fourcc('N', 'V', '1', '2'), jpeg.data(), jpeg.size(), 64, 48, 0, "t"), CaptureError);
+  EXPECT_THROW(decodeV4l2Buffer(v4l2_fourcc('N', 'V', '1', '2'), jpeg.data(), jpeg.size(), 64, 48, 0, "t"),
+               CaptureError);
 }
 
 TEST(V4l2, ReadsTheRosFisheyeCalibration) {
@@ -94,7 +95,8 @@ TEST(V4l2, MissingDeviceIsAOneLineError) {
     open("v4l2:///dev/video-mrgi-none", o);
     FAIL();
   } catch (const CaptureError& e) {
-    EXPECT_NE(std::string(e.what()).find("v4l2:///dev/video-mrgi-none: cannot open camera"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("v4l2:///dev/video-mrgi-none: cannot open camera"), std::string::npos)
+        << e.what();
   }
 }
 

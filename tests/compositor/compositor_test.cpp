@@ -1,11 +1,12 @@
 // The GPU merge against its CPU reference (same math), plus the properties of Algorithm 1.
+#include "compositor/compositor.h"
+
 #include <gtest/gtest.h>
 
 #include <opencv2/imgproc.hpp>
 
-#include "compositor/compositor.h"
-#include "gl/context.h"
 #include "capture/colour.h"
+#include "gl/context.h"
 
 using namespace mrgi;
 

@@ -1,12 +1,13 @@
 // The bench's measures on hand-made inputs: error sums against a known truth, flicker of an unchanged and of
 // a changed delta, the Pareto front and presets, the sweep from the knob tables, and timing repeats that
 // are full runs.
+#include "evaluation/metrics.h"
+
 #include <gtest/gtest.h>
 
 #include <opencv2/imgproc.hpp>
 
 #include "evaluation/bench.h"
-#include "evaluation/metrics.h"
 #include "lighting/techniques/registry.h"
 #include "tests/lighting/test_scene.h"
 
@@ -66,7 +67,8 @@ TEST(Metrics, TwoNoisyReferencesGiveTheSquaredErrorWithoutTheirNoise) {
   // A known truth t (a smooth delta-like image), a result x = t + e with a known error pattern, and two
   // references r1, r2 = t + independent Gaussian noise far larger than e (as a few samples per pixel are).
   const int W = 320, H = 240;
-  cv::Mat t(H, W, CV_32FC3), x(H, W, CV_32FC3), r1(H, W, CV_32FC3), r2(H, W, CV_32FC3), noise1(H, W, CV_32FC3), noise2(H, W, CV_32FC3);
+  cv::Mat t(H, W, CV_32FC3), x(H, W, CV_32FC3), r1(H, W, CV_32FC3), r2(H, W, CV_32FC3), noise1(H, W, CV_32FC3),
+      noise2(H, W, CV_32FC3);
   cv::RNG rng(7);
   rng.fill(noise1, cv::RNG::NORMAL, 0.0, 0.2);
   rng.fill(noise2, cv::RNG::NORMAL, 0.0, 0.3);
@@ -107,10 +109,13 @@ TEST(Metrics, TwoNoisyReferencesGiveTheSquaredErrorWithoutTheirNoise) {
 
 TEST(Metrics, PresetsAreToldApartOnlyWhereTheirIntervalsDoNotOverlap) {
   auto record = [](double ms, double v, double lo, double hi) {
-    return nlohmann::json{{"technique", "dlpv"}, {"ms_lighting", ms},
-                          {"sessions", {{{"session", "s"}, {"rel_rms_delta_unbiased", {{"value", v}, {"lo", lo}, {"hi", hi}}}}}}};
+    return nlohmann::json{
+        {"technique", "dlpv"},
+        {"ms_lighting", ms},
+        {"sessions", {{{"session", "s"}, {"rel_rms_delta_unbiased", {{"value", v}, {"lo", lo}, {"hi", hi}}}}}}};
   };
-  nlohmann::json presets = {{"fast", record(10, 0.6, 0.5, 0.7)}, {"balanced", record(20, 0.3, 0.25, 0.35)},
+  nlohmann::json presets = {{"fast", record(10, 0.6, 0.5, 0.7)},
+                            {"balanced", record(20, 0.3, 0.25, 0.35)},
                             {"accurate", record(40, 0.28, 0.2, 0.33)}};
   const nlohmann::json d = mrgi::evaluation::presetDifferences(presets);
   EXPECT_TRUE(d["fast_vs_balanced"]["resolved"].get<bool>());
@@ -184,13 +189,15 @@ TEST(Metrics, TheGalleryCropsAroundTheObjectsAndShowsEachTechnique) {
   cv::Mat none(240, 320, CV_32FC4, cv::Scalar::all(0));
   for (int y = 0; y < 240; ++y)
     for (int x = 0; x < 320; ++x) none.at<cv::Vec4f>(y, x)[3] = mask.at<uchar>(y, x) ? 1.f : 0.f;
-  const cv::Mat g = mrgi::evaluation::galleryImage("test", composite, delta, mask, {{"none", composite, none}, {"none again", composite, none}});
+  const cv::Mat g = mrgi::evaluation::galleryImage("test", composite, delta, mask,
+                                                   {{"none", composite, none}, {"none again", composite, none}});
   ASSERT_EQ(g.type(), CV_8UC3);
   const int tile = 160;  // the 123-pixel crop, enlarged to 160
   EXPECT_EQ(g.cols, 8 + 3 * (2 * tile + 8 + 8));
   EXPECT_EQ(g.rows, 48 + 1 * (20 + tile + 8) + 8);
   // The shadow's centre (200, 130) is at (61, 91) in the crop, (79, 118) in a tile.
-  const cv::Point refDelta(8 + tile + 8 + 79, 48 + 20 + 118), techDelta(8 + (2 * tile + 8 + 8) + tile + 8 + 79, 48 + 20 + 118);
+  const cv::Point refDelta(8 + tile + 8 + 79, 48 + 20 + 118),
+      techDelta(8 + (2 * tile + 8 + 8) + tile + 8 + 79, 48 + 20 + 118);
   EXPECT_EQ(g.at<cv::Vec3b>(refDelta), cv::Vec3b(0, 0, 0));
   EXPECT_EQ(g.at<cv::Vec3b>(techDelta), cv::Vec3b(127, 127, 127));
 }
@@ -212,8 +219,11 @@ TEST(Metrics, FlickerIsZeroForAnUnchangedDeltaAndRelativeOtherwise) {
 
 TEST(Metrics, PresetsComeFromTheParetoFront) {
   auto rec = [](const char* t, double ms, double err) {
-    return nlohmann::json{{"technique", t}, {"knobs", nlohmann::json::object()}, {"ms_lighting", ms},
-                          {"rel_error_delta", err}, {"rel_error_virtual", err}};
+    return nlohmann::json{{"technique", t},
+                          {"knobs", nlohmann::json::object()},
+                          {"ms_lighting", ms},
+                          {"rel_error_delta", err},
+                          {"rel_error_virtual", err}};
   };
   const nlohmann::json records = {rec("a", 10, 0.5), rec("b", 20, 0.2), rec("c", 40, 0.1), rec("d", 50, 0.3),
                                   rec("e", 25, 0.15)};
@@ -252,16 +262,17 @@ TEST(Metrics, FreeKnobMovesAreCombinedIntoOneConfiguration) {
     });
     ASSERT_NE(it, all.end()) << technique << " " << varied << " " << value;
     configs.push_back(*it);
-    records.push_back({{"technique", technique}, {"ms_lighting", ms}, {"rel_error_delta", err}, {"rel_error_virtual", err}});
+    records.push_back(
+        {{"technique", technique}, {"ms_lighting", ms}, {"rel_error_delta", err}, {"rel_error_virtual", err}});
   };
   add("kinect-val", "", 0, 200, 0.25);
-  add("kinect-val", "frame.rsm_size", 64, 170, 0.25);     // free
-  add("kinect-val", "frame.rsm_size", 128, 175, 0.25);    // free, but 64 is faster
+  add("kinect-val", "frame.rsm_size", 64, 170, 0.25);        // free
+  add("kinect-val", "frame.rsm_size", 128, 175, 0.25);       // free, but 64 is faster
   add("kinect-val", "val.sparse_points", 256, 130, 0.2520);  // free: +0.8 %
-  add("kinect-val", "val.stride", 8, 160, 0.2530);        // costs 1.2 %
-  add("kinect-val", "val.occlusion", 0, 185, 0.25);       // saves 7.5 %: within the timing noise
+  add("kinect-val", "val.stride", 8, 160, 0.2530);           // costs 1.2 %
+  add("kinect-val", "val.occlusion", 0, 185, 0.25);          // saves 7.5 %: within the timing noise
   add("dlpv", "", 0, 600, 0.4);
-  add("dlpv", "frame.rsm_size", 128, 450, 0.4);           // dlpv's only free move
+  add("dlpv", "frame.rsm_size", 128, 450, 0.4);  // dlpv's only free move
   const auto combined = combinedConfigs(configs, records);
   ASSERT_EQ(combined.size(), 1u);
   const BenchConfig& c = combined.front();

@@ -1,12 +1,12 @@
 // GL backends and plumbing: render through an OSMesa (and EGL, where present) context, read back, compare
 // with known values; shader includes, defines and error locations; GPU timers. Window.* needs a display
 // (run under Xvfb by CTest) and saves a screenshot.
-#include <filesystem>
-#include <thread>
-
 #include <gtest/gtest.h>
+
+#include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 #include "compositor/compositor.h"
 #include "gl/context.h"
@@ -97,8 +97,9 @@ TEST(GL, CompileErrorNamesFileAndLine) {
   }
   // An error inside an included file names the included file and its own line.
   gl::registerShaderSource("gl/test_shaders/bad_include.glsl", "// line 1\nfloat f() { return missing; }\n");
-  gl::registerShaderSource("gl/test_shaders/includer.frag",
-                           "#version 450 core\n#include \"bad_include.glsl\"\nout vec4 c;\nvoid main() { c = vec4(f()); }\n");
+  gl::registerShaderSource(
+      "gl/test_shaders/includer.frag",
+      "#version 450 core\n#include \"bad_include.glsl\"\nout vec4 c;\nvoid main() { c = vec4(f()); }\n");
   try {
     gl::Program::graphics("lighting/gl/fullscreen.vert", "gl/test_shaders/includer.frag");
     FAIL();
@@ -106,7 +107,8 @@ TEST(GL, CompileErrorNamesFileAndLine) {
     EXPECT_NE(std::string(e.what()).find("gl/test_shaders/bad_include.glsl:2:"), std::string::npos) << e.what();
   }
   gl::registerShaderSource("gl/test_shaders/missing_include.frag", "#version 450 core\n#include \"nope.glsl\"\n");
-  EXPECT_THROW(gl::Program::graphics("lighting/gl/fullscreen.vert", "gl/test_shaders/missing_include.frag"), gl::GlError);
+  EXPECT_THROW(gl::Program::graphics("lighting/gl/fullscreen.vert", "gl/test_shaders/missing_include.frag"),
+               gl::GlError);
 }
 
 TEST(GL, ProfilerReportsNamedStages) {
@@ -114,7 +116,10 @@ TEST(GL, ProfilerReportsNamedStages) {
   gl::Profiler profiler;
   {
     auto outer = profiler.gpu("outer");
-    { auto inner = profiler.gpu("inner"); drawFullscreen("gl/test_shaders/uses_include.frag", {{"COLOUR_R", "1.0"}}, 256, 256); }
+    {
+      auto inner = profiler.gpu("inner");
+      drawFullscreen("gl/test_shaders/uses_include.frag", {{"COLOUR_R", "1.0"}}, 256, 256);
+    }
     auto cpu = profiler.cpu("cpu-only");
   }
   const auto times = profiler.resolve();

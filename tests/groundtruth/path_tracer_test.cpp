@@ -1,13 +1,14 @@
 // The reference path tracer against analytic results: furnaces, a plane under delta lights, an area light's
 // form factor, 1/sqrt(spp) convergence, determinism, and the ρ/μ differential images.
-#include <cmath>
+#include "groundtruth/path_tracer.h"
 
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
 #include "capture/session.h"
-#include "groundtruth/path_tracer.h"
 #include "lighting/scene_file.h"
 
 namespace mrgi::groundtruth {
@@ -15,7 +16,9 @@ namespace {
 
 constexpr double kPi = CV_PI;
 
-lighting::Mesh unitSphere() { return lighting::loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply"); }
+lighting::Mesh unitSphere() {
+  return lighting::loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
+}
 
 /// A camera at `eye` looking at `target` (OpenCV frame), w x h pixels, 60° horizontal field of view.
 PinholeCamera camera(cv::Vec3d eye, cv::Vec3d target, int w = 32, int h = 24) {
@@ -202,7 +205,8 @@ TEST(PathTracer, AreaLightConvergesToItsFormFactorAsOneOverSqrtSpp) {
   double mx = 0, my = 0;
   for (size_t i = 0; i < spps.size(); ++i) mx += spps[i] / 4, my += errors[i] / 4;
   double sxy = 0, sxx = 0;
-  for (size_t i = 0; i < spps.size(); ++i) sxy += (spps[i] - mx) * (errors[i] - my), sxx += (spps[i] - mx) * (spps[i] - mx);
+  for (size_t i = 0; i < spps.size(); ++i)
+    sxy += (spps[i] - mx) * (errors[i] - my), sxx += (spps[i] - mx) * (spps[i] - mx);
   EXPECT_NEAR(sxy / sxx, -0.5, 0.08);
   // No bias: the RMSE at 256 spp is the sampling noise alone (within 15 %).
   EXPECT_NEAR(std::exp(errors.back()), sigma / 16, 0.15 * sigma / 16);
@@ -325,7 +329,8 @@ TEST(PathTracer, TheFocusAroundTheObjectsTakesItsOwnSamples) {
   v.isVirtual = true;
   const int obj = with.addMaterial(v);
   const lighting::Mesh sphere = unitSphere();
-  with.addMesh(sphere.positions, sphere.normals, sphere.indices, obj, capture::makePose(cv::Matx33d::eye() * 0.05, {0.0, 0.0, 0.1}));
+  with.addMesh(sphere.positions, sphere.normals, sphere.indices, obj,
+               capture::makePose(cv::Matx33d::eye() * 0.05, {0.0, 0.0, 0.1}));
   const PinholeCamera cam = downCamera(1.5, 60, 40);
   const cv::Rect focus = virtualFocus(with, cam);
   ASSERT_FALSE(focus.empty());

@@ -1,8 +1,8 @@
 // The shading pass's directional ambient (SH bands 0-2) against its C++ twin, per pixel of a virtual cube
 // seen from above: top and side faces, every channel.
-#include <algorithm>
-
 #include <gtest/gtest.h>
+
+#include <algorithm>
 
 #include "lighting/object_shadow.h"
 #include "reconstruction/light_estimation.h"
@@ -18,9 +18,9 @@ TEST(AmbientSh, ShadingPassMatchesTheCppIrradiancePerPixel) {
   // A sky brighter overhead and towards +x, with some colour in band 2; no light and no uniform ambient.
   std::array<cv::Vec3d, 9> sh{};
   sh[0] = {0.8, 0.7, 0.6};
-  sh[2] = {0.5, 0.4, 0.3};    // y_10 ~ z
-  sh[3] = {0.2, 0.25, 0.1};   // y_11 ~ x
-  sh[6] = {0.05, -0.02, 0.0}; // y_20
+  sh[2] = {0.5, 0.4, 0.3};     // y_10 ~ z
+  sh[3] = {0.2, 0.25, 0.1};    // y_11 ~ x
+  sh[6] = {0.05, -0.02, 0.0};  // y_20
   pipe.setAmbientSh(sh);
   CameraView camera = test::topCamera(64, 64);
   camera.T_world_camera = capture::lookAtPose({0.9, -0.7, 0.8}, {0, 0, 0.15});  // top and two sides in view

@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include "lighting/object_shadow.h"
-
 #include "tests/lighting/test_scene.h"
 
 namespace mrgi::test {

@@ -2,15 +2,15 @@
 // going to 0, grazing angles, Phong exponents 0 to 1e4, SH bands 1 to 8, vanishing cones, empty scenes and a
 // virtual object outside the depth range. Every output must be finite and within a stated bound; some
 // cases also have exact values (nothing lights it -> exactly 0, linear in the flux).
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <functional>
 #include <limits>
 
-#include <gtest/gtest.h>
-
-#include "lighting/techniques/dlpv/lpv.h"
 #include "groundtruth/path_tracer.h"
 #include "lighting/sh.h"
+#include "lighting/techniques/dlpv/lpv.h"
 #include "lighting/techniques/kinect_val/val.h"
 #include "test_scene.h"
 
@@ -23,7 +23,7 @@ struct Extreme {
   Extreme(std::string n, double b, std::function<Outputs()> r, std::function<void(const Outputs&)> e = {})
       : name(std::move(n)), bound(b), run(std::move(r)), exact(std::move(e)) {}
   std::string name;
-  double bound;                    ///< every output's magnitude is at most this
+  double bound;  ///< every output's magnitude is at most this
   std::function<Outputs()> run;
   std::function<void(const Outputs&)> exact;  ///< optional further checks
 };
@@ -174,7 +174,8 @@ std::vector<Extreme> cases() {
   // SH bands 1..8 at poles, axes and denormal components: |Y_lm| ≤ sqrt((2l+1)/4π).
   for (int bands = 1; bands <= 8; ++bands)
     c.push_back({"ShBands" + std::to_string(bands), shBound(bands), [bands] { return shAt(bands); }});
-  for (const auto& [name, alpha] : {std::pair<const char*, double>{"ConeZonalAlphaE12", 1e-12}, {"ConeZonalAlphaE6", 1e-6},
+  for (const auto& [name, alpha] : {std::pair<const char*, double>{"ConeZonalAlphaE12", 1e-12},
+                                    {"ConeZonalAlphaE6", 1e-6},
                                     {"ConeZonalFullSphere", CV_PI}})
     c.push_back({name, 4 * CV_PI, [alpha = alpha] { return sh::coneZonal(alpha, 8); }});
   for (double k : {0.0, 1e2, 1e4})
@@ -186,13 +187,14 @@ std::vector<Extreme> cases() {
   c.push_back({"LpvDenormalFlux", 1e-30, [] { return lpvWithFlux(kDenormal, 8, false); }});
   c.push_back({"LpvNegativeDeltaManySteps", 1e6 * 512 * 10, [] { return lpvWithFlux(-1e6f, 64, true); }});
   c.push_back({"LpvNoSteps", 1e3 * 512 * 10, [] { return lpvWithFlux(1e3f, 0, false); }});
-  c.push_back({"LpvDampingOfAnEmptyCell", 1.0, [] {
-                 Outputs o;
-                 for (float d : {0.f, 0.5f, 1.f})
-                   for (const cv::Vec3f& dir : {cv::Vec3f(1, 0, 0), cv::Vec3f(0, 0, -1)})
-                     o.push_back(dampingFactor({0, 0, 0, 0}, dir, d)), o.push_back(dampingFactor({kDenormal, 1, 0, 0}, dir, d));
-                 return o;
-               }});
+  c.push_back(
+      {"LpvDampingOfAnEmptyCell", 1.0, [] {
+         Outputs o;
+         for (float d : {0.f, 0.5f, 1.f})
+           for (const cv::Vec3f& dir : {cv::Vec3f(1, 0, 0), cv::Vec3f(0, 0, -1)})
+             o.push_back(dampingFactor({0, 0, 0, 0}, dir, d)), o.push_back(dampingFactor({kDenormal, 1, 0, 0}, dir, d));
+         return o;
+       }});
   c.push_back({"LpvGridOfAPoint", 1.0, [] {
                  const LpvGrid g = fitGrid({0.2, 0.2, 0.2}, {0.2, 0.2, 0.2}, 4.0, 32);
                  EXPECT_GT(g.cellSize, 0.0);
@@ -214,54 +216,74 @@ std::vector<Extreme> cases() {
   c.push_back({"ValTouchingHugeFluxSharpLobe", 1e6 / 1e-4 * (1 / CV_PI + 0.5 * phongNorm(kMaxPhongExponent)) * 2, [] {
                  const Receiver r{{0, 0, 0}, {0, 0, 1}, cv::normalize(cv::Vec3f(1, 0, 1)), kMaxPhongExponent};
                  return gatherAndEvaluate(r, {valAt({0, 0, 0}, {0, 0, -1}, 1e-4f, 1e6f),
-                                              valAt(cv::normalize(cv::Vec3f(-1, 0, 1)) * 0.1f, cv::normalize(cv::Vec3f(1, 0, -1)), 1e-4f, 1e6f)});
+                                              valAt(cv::normalize(cv::Vec3f(-1, 0, 1)) * 0.1f,
+                                                    cv::normalize(cv::Vec3f(1, 0, -1)), 1e-4f, 1e6f)});
                }});
   c.push_back({"ValDenormalAndZeroArea", 1.0, [] {
                  const Receiver r{{0, 0, 0}, {0, 0, 1}, {0, 0, 1}, 0.f};
-                 return gatherAndEvaluate(r, {valAt({0, 0, 0.1f}, {0, 0, -1}, 0.f, kDenormal),
-                                              valAt({0, 0, 0.f}, {0, 0, -1}, 0.f, 0.f)});
+                 return gatherAndEvaluate(
+                     r, {valAt({0, 0, 0.1f}, {0, 0, -1}, 0.f, kDenormal), valAt({0, 0, 0.f}, {0, 0, -1}, 0.f, 0.f)});
                }});
-  c.push_back({"ValNoValsIsExactlyZero", 0.0, [] {
+  c.push_back({"ValNoValsIsExactlyZero", 0.0,
+               [] {
                  return gatherAndEvaluate({{0, 0, 0}, {0, 0, 1}, {0, 0, 1}, 10.f}, {});
-               }, allZero});
+               },
+               allZero});
   c.push_back({"ValGrazingReceiver", 1e3, [] {
                  // The VAL lies in the receiver's tangent plane, facing it: cos θ_i = 0.
-                 return gatherAndEvaluate({{0, 0, 0}, {0, 0, 1}, {1, 0, 0}, 100.f}, {valAt({0.2f, 0, 0}, {-1, 0, 0}, 1e-3f, 1.f)});
+                 return gatherAndEvaluate({{0, 0, 0}, {0, 0, 1}, {1, 0, 0}, 100.f},
+                                          {valAt({0.2f, 0, 0}, {-1, 0, 0}, 1e-3f, 1.f)});
                }});
   c.push_back({"PhongExponentFromRoughness", kMaxPhongExponent, [] {
-                 return Outputs{phongExponent(0.f), phongExponent(1e-30f), phongExponent(1.f), phongExponent(-1.f),
-                                phongExponent(2.f), phongLobe(1.f, kMaxPhongExponent), phongLobe(0.f, 0.f)};
+                 return Outputs{phongExponent(0.f),  phongExponent(1e-30f), phongExponent(1.f),
+                                phongExponent(-1.f), phongExponent(2.f),    phongLobe(1.f, kMaxPhongExponent),
+                                phongLobe(0.f, 0.f)};
                }});
   // Path tracer: empty scene, huge and zero intensity, a light on the surface, grazing sun, sharp lobes.
-  c.push_back({"PathTracerEmptySceneIsTheSky", 0.25, [] { return planeImage({}, {0.25f, 0.25f, 0.25f}, true); },
+  c.push_back({"PathTracerEmptySceneIsTheSky", 0.25,
+               [] {
+                 return planeImage({}, {0.25f, 0.25f, 0.25f}, true);
+               },
                [](const Outputs& o) {
                  for (double v : o) ASSERT_FLOAT_EQ(v, 0.25);
                }});
-  c.push_back({"PathTracerZeroIntensityIsBlack", 0.0, [] { return planeImage({pointLight({0, 0, 0.5f}, 0.f)}, {0, 0, 0}); }, allZero});
+  c.push_back({"PathTracerZeroIntensityIsBlack", 0.0,
+               [] {
+                 return planeImage({pointLight({0, 0, 0.5f}, 0.f)}, {0, 0, 0});
+               },
+               allZero});
   c.push_back({"PathTracerHugeIntensityScalesLinearly", 1e6, [] {
                  const Outputs a = planeImage({pointLight({0.1f, 0, 0.5f}, 1e6f)}, {0, 0, 0});
                  const Outputs b = planeImage({pointLight({0.1f, 0, 0.5f}, 1.f)}, {0, 0, 0});
                  for (size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(a[i], 1e6 * b[i], 1e-3 * a[i] + 1e-9);
                  return a;
                }});
-  c.push_back({"PathTracerLightOnTheSurface", 1e-4, [] { return planeImage({pointLight({0, 0, 0}, 5.f)}, {0, 0, 0}); }});
-  c.push_back({"PathTracerGrazingSunIsBlack", 0.0, [] {
+  c.push_back({"PathTracerLightOnTheSurface", 1e-4, [] {
+                 return planeImage({pointLight({0, 0, 0}, 5.f)}, {0, 0, 0});
+               }});
+  c.push_back({"PathTracerGrazingSunIsBlack", 0.0,
+               [] {
                  groundtruth::Light sun;
                  sun.type = groundtruth::LightType::Directional;
                  sun.direction = {1, 0, 0};
                  sun.irradiance = {100, 100, 100};
                  return planeImage({sun}, {0, 0, 0});
-               }, allZero});
-  c.push_back({"PathTracerSharpestLobeUnderASky", 1.0, [] { return planeImage({}, {1, 1, 1}, false, 0.5f, kMaxPhongExponent); }});
+               },
+               allZero});
+  c.push_back({"PathTracerSharpestLobeUnderASky", 1.0, [] {
+                 return planeImage({}, {1, 1, 1}, false, 0.5f, kMaxPhongExponent);
+               }});
   // GPU pipeline, every technique: nothing lit -> exactly 0; 1e6 W; an α -> 0 spot; a grazing sun; an
   // object outside the camera's depth range; a scene without a virtual object.
   for (const std::string& t : test::allTechniqueSpellings()) {
     const std::string n = "_" + test::testName(t) + "_";
-    c.push_back({"GL" + n + "ZeroLightIsExactlyZero", 0.0, [t] {
+    c.push_back({"GL" + n + "ZeroLightIsExactlyZero", 0.0,
+                 [t] {
                    SceneLight l = test::pointAbove();
                    l.intensity = {0, 0, 0};
                    return pipelineRun(t, l);
-                 }, allZero});
+                 },
+                 allZero});
     c.push_back({"GL" + n + "HugeFlux", 1e9, [t] {
                    SceneLight l = test::pointAbove();
                    l.intensity = cv::Vec3d::all(1e6);
@@ -273,8 +295,13 @@ std::vector<Extreme> cases() {
                    l.direction = cv::normalize(cv::Vec3d(1, 0, -1e-7));
                    return pipelineRun(t, l);
                  }});
-    c.push_back({"GL" + n + "ObjectBeyondTheDepthRange", 1e3, [t] { return pipelineRun(t, test::pointAbove(), {0, 0, -50}); }});
-    c.push_back({"GL" + n + "NoVirtualObject", 1e3, [t] { return pipelineRun(t, test::pointAbove(), {0, 0, 0}, 0.0); },
+    c.push_back({"GL" + n + "ObjectBeyondTheDepthRange", 1e3, [t] {
+                   return pipelineRun(t, test::pointAbove(), {0, 0, -50});
+                 }});
+    c.push_back({"GL" + n + "NoVirtualObject", 1e3,
+                 [t] {
+                   return pipelineRun(t, test::pointAbove(), {0, 0, 0}, 0.0);
+                 },
                  [t](const Outputs& o) {
                    // Real pixels: without an object there is nothing to add or remove (every 4th value is alpha).
                    PipelineConfig cfg;

@@ -59,7 +59,8 @@ TEST(Knobs, EveryDeclarationIsSane) {
   // The frame's knobs may appear inside a technique's section (older files): no technique may reuse them.
   const KnobGroup& frame = frameKnobGroup();
   for (const TechniqueInfo& t : techniques())
-    for (const KnobInfo& k : frame.knobs) EXPECT_EQ(t.knobs.find(k.name), nullptr) << t.name << " redeclares " << k.name;
+    for (const KnobInfo& k : frame.knobs)
+      EXPECT_EQ(t.knobs.find(k.name), nullptr) << t.name << " redeclares " << k.name;
 }
 
 TEST(Knobs, EveryKnobRoundTripsThroughASceneFile) {
@@ -103,8 +104,9 @@ TEST(Knobs, OutOfRangeOrMistypedValuesNameTheFileAndTheKey) {
       } else {
         const double below = k.lo - (k.type == KnobType::Int ? 1 : std::max(1e-3, std::abs(k.lo)));
         const double above = k.hi + std::max(1.0, std::abs(k.hi));
-        const std::string range = std::string(k.type == KnobType::Int ? ": must be an integer in [" : ": must be a finite number in [") +
-                                  mrgi::capture::formatNumber(k.lo) + ", " + mrgi::capture::formatNumber(k.hi) + "], not ";
+        const std::string range =
+            std::string(k.type == KnobType::Int ? ": must be an integer in [" : ": must be a finite number in [") +
+            mrgi::capture::formatNumber(k.lo) + ", " + mrgi::capture::formatNumber(k.hi) + "], not ";
         bad.push_back({literal(k, below), key + range + mrgi::capture::formatNumber(below)});
         bad.push_back({literal(k, above), key + range + mrgi::capture::formatNumber(above)});
         bad.push_back({"\"x\"", key + ": must be"});

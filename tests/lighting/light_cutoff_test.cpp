@@ -49,8 +49,12 @@ TEST(LightCutoff, TheBoundHoldsEverywhereInTheRegionsSphere) {
     SceneLight l;
     const cv::Vec3d at = region.centre() + randomUnit(rng) * (r * (1.001 + 6 * u(rng)));
     switch (trial % 3) {
-      case 0: l = point(at, 0.1 + 10 * u(rng)); break;
-      case 1: l = spot(at, region.centre() + randomUnit(rng) * (3 * r * u(rng)), 1 + 60 * u(rng), 5); break;
+      case 0:
+        l = point(at, 0.1 + 10 * u(rng));
+        break;
+      case 1:
+        l = spot(at, region.centre() + randomUnit(rng) * (3 * r * u(rng)), 1 + 60 * u(rng), 5);
+        break;
       default:
         l.type = LightType::Directional;
         l.direction = randomUnit(rng);
@@ -63,7 +67,8 @@ TEST(LightCutoff, TheBoundHoldsEverywhereInTheRegionsSphere) {
     for (int k = 0; k < 2000; ++k) {
       // Half the samples on the sphere's surface facing the light (where the bound is reached), half inside.
       cv::Vec3d x = region.centre() + randomUnit(rng) * (k % 2 ? r : r * std::cbrt(u(rng)));
-      if (k % 4 == 0 && l.type != LightType::Directional) x = region.centre() + cv::normalize(l.position - region.centre()) * r;
+      if (k % 4 == 0 && l.type != LightType::Directional)
+        x = region.centre() + cv::normalize(l.position - region.centre()) * r;
       cv::Vec3d n = randomUnit(rng);
       if (k % 3 == 0) n = l.type == LightType::Directional ? -l.direction : cv::normalize(l.position - x);
       const cv::Vec3d e = lighting::unshadowedIrradiance(l, x, n);
@@ -176,7 +181,8 @@ TEST(LightCutoff, ThePipelineRendersOnlyTheLightsThatMatter) {
     ASSERT_EQ(every.lightsRendered().size(), 3u);
     const cv::Mat c = every.downloadShade(), alb = every.downloadGBuffer(2);
     const Region region = *every.region();
-    const double leftOut = lighting::irradianceBound(lights[0], region)[0] + lighting::irradianceBound(lights[2], region)[0];
+    const double leftOut =
+        lighting::irradianceBound(lights[0], region)[0] + lighting::irradianceBound(lights[2], region)[0];
     // Every pixel, the object's radiance and the real pixels' delta: at most albedo / pi (0.9 the largest
     // here) x the left-out irradiance, direct and once more bounced off surfaces it lit (albedo < 1).
     double most = 0, mostOnObject = 0;

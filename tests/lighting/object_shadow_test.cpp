@@ -148,10 +148,12 @@ TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
     double worst = 0;
     for (int y = 0; y < shaded.rows; ++y)
       for (int x = 0; x < shaded.cols; ++x) {
-        const cv::Vec4f v = shaded.at<cv::Vec4f>(y, x), p = positions.at<cv::Vec4f>(y, x), n = normals.at<cv::Vec4f>(y, x);
+        const cv::Vec4f v = shaded.at<cv::Vec4f>(y, x), p = positions.at<cv::Vec4f>(y, x),
+                        n = normals.at<cv::Vec4f>(y, x);
         if (p[3] < 0.5f || v[3] > 0.5f) continue;
         ++real;
-        const cv::Vec3f e = ambientShadow(hidden, {p[0], p[1], p[2]}, cv::normalize(cv::Vec3f(n[0], n[1], n[2])), spheres);
+        const cv::Vec3f e =
+            ambientShadow(hidden, {p[0], p[1], p[2]}, cv::normalize(cv::Vec3f(n[0], n[1], n[2])), spheres);
         const cv::Vec3f expected = -e * (test::kFloorAlbedo[0] / CV_PI);
         shadowed += e[0] > 1e-3f;
         for (int c = 0; c < 3; ++c)

@@ -1,13 +1,13 @@
 // Scene files and model loading: the three formats load with the right geometry; every bad input names
 // the file and the key.
+#include "lighting/scene_file.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
-
-#include "lighting/scene_file.h"
 
 using namespace mrgi::lighting;
 
@@ -60,8 +60,9 @@ std::string writeModel(const std::string& name, const std::string& bytes) {
 }
 
 TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
-  const std::string header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                             "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string header =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   const std::string vertices = "0 0 0\n1 0 0\n0 1 0\n";
   struct Case {
     const char* name;
@@ -168,7 +169,8 @@ TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
     ADD_FAILURE() << "accepted an index past the vertices";
   } catch (const SceneError& e) {
     const std::string what = e.what();
-    EXPECT_TRUE(what.find("vertex 9999 of 3") != std::string::npos || what.find("out of range") != std::string::npos) << what;
+    EXPECT_TRUE(what.find("vertex 9999 of 3") != std::string::npos || what.find("out of range") != std::string::npos)
+        << what;
   }
   std::filesystem::remove(path);
 }
@@ -176,8 +178,9 @@ TEST(Models, BrokenPlyFilesAreRefusedNeverCrash) {
 TEST(Models, PlyBodiesShorterThanTheirHeaderAreRefusedAndWholeOnesLoad) {
   // A tetrahedron: 4 vertices, 4 triangles, in ASCII, little- and big-endian binary. assimp alone reads a
   // cut-off body as far as it goes and returns fewer faces without a word.
-  const std::string props = "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
-                            "element face 4\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string props =
+      "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 4\nproperty list uchar int vertex_indices\nend_header\n";
   const float v[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   const int f[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
   auto binary = [&](bool big) {
@@ -195,7 +198,8 @@ TEST(Models, PlyBodiesShorterThanTheirHeaderAreRefusedAndWholeOnesLoad) {
     }
     return std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") + " 1.0\n" + props + body;
   };
-  const std::string ascii = "ply\nformat ascii 1.0\n" + props + "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n";
+  const std::string ascii =
+      "ply\nformat ascii 1.0\n" + props + "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n";
   for (const std::string& whole : {ascii, binary(false), binary(true)}) {
     const std::string path = writeModel("mrgi_tetra.ply", whole);
     EXPECT_EQ(loadMesh(path).triangleCount(), 4u);
@@ -206,9 +210,12 @@ TEST(Models, PlyBodiesShorterThanTheirHeaderAreRefusedAndWholeOnesLoad) {
       const std::string cut = writeModel("mrgi_tetra_cut.ply", whole.substr(0, keep));
       try {
         const Mesh m = loadMesh(cut);
-        ADD_FAILURE() << "a PLY cut to " << keep << " of " << whole.size() << " bytes loaded with " << m.triangleCount() << " faces";
+        ADD_FAILURE() << "a PLY cut to " << keep << " of " << whole.size() << " bytes loaded with " << m.triangleCount()
+                      << " faces";
       } catch (const SceneError& e) {
-        EXPECT_NE(std::string(e.what()).find(cut + ": PLY file is truncated: the header declares 4 face"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find(cut + ": PLY file is truncated: the header declares 4 face"),
+                  std::string::npos)
+            << e.what();
       }
       std::filesystem::remove(cut);
     }
@@ -218,7 +225,8 @@ TEST(Models, PlyBodiesShorterThanTheirHeaderAreRefusedAndWholeOnesLoad) {
 
 TEST(Models, GltfIndicesPastTheVerticesAreRefused) {
   // Three vertices, a triangle (0, 1, N): N = 9999 and 0xFFFFFFF0 (embedded buffer, 32-bit indices).
-  const std::string head = R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "scene": 0, "nodes": [{"mesh": 0}],
+  const std::string head =
+      R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "scene": 0, "nodes": [{"mesh": 0}],
     "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
     "buffers": [{"byteLength": 48, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAEAAAA)";
   const std::string tail = R"("}],
@@ -246,7 +254,8 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
     "ambient_radiance": [0.1, 0.1, 0.1],
     "technique": "lpv-diff",
     "lpv": {"resolution": 16, "steps": 8, "rsm_size": 128, "size_factor": 3, "damping": 0.25}
-  })", kScenePath);
+  })",
+                                        kScenePath);
   ASSERT_EQ(s.objects.size(), 1u);
   EXPECT_NEAR(s.objects[0].mesh.boundsMax[0], 0.05f, 1e-6f);  // scaled
   EXPECT_NEAR(s.objects[0].T_marker_object(2, 3), 0.05, 1e-12);
@@ -256,11 +265,13 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   EXPECT_FLOAT_EQ(s.objects[0].material.roughness, 0.5f);
   // A material reflecting more than it receives is refused, naming the key.
   try {
-    parseScene(R"({"objects": [{"model": "../models/cube.obj", "material": {"albedo": [0.9, 0.2, 0.1], "specular": 0.2}}]})",
-               kScenePath);
+    parseScene(
+        R"({"objects": [{"model": "../models/cube.obj", "material": {"albedo": [0.9, 0.2, 0.1], "specular": 0.2}}]})",
+        kScenePath);
     ADD_FAILURE() << "accepted albedo + specular > 1";
   } catch (const SceneError& e) {
-    EXPECT_NE(std::string(e.what()).find("objects[0].material: albedo + specular exceeds 1"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("objects[0].material: albedo + specular exceeds 1"), std::string::npos)
+        << e.what();
   }
   EXPECT_EQ(s.lightSource, LightSource::Scene);
   ASSERT_EQ(s.lights.size(), 2u);
@@ -279,7 +290,7 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   const SceneDescription val = parseScene(R"({"technique": "dlpv+kinect-val",
     "val": {"sparse_points": 2048, "k_cache": 64, "occlusion": false, "stride": 2, "rsm_stride": 4,
             "fusion": true, "voxel": 0.03, "decay": 0.8, "brute_force": true}})",
-                                         kScenePath);
+                                          kScenePath);
   EXPECT_EQ(val.technique.real, "dlpv");
   EXPECT_EQ(val.technique.virtualObject, "kinect-val");
   const KnobValues& v = val.knobs.at("val");
@@ -294,7 +305,9 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
   EXPECT_EQ(v.at("brute_force"), 1.0);
   // The bundled shorthands and their roles; roles as an object; defaults when nothing is given.
   const std::map<std::string, std::pair<std::string, std::string>> roles = {
-      {"dlpv", {"dlpv", "dlpv"}}, {"lpv-diff", {"dlpv", "dlpv"}}, {"kinect-val", {"none", "kinect-val"}},
+      {"dlpv", {"dlpv", "dlpv"}},
+      {"lpv-diff", {"dlpv", "dlpv"}},
+      {"kinect-val", {"none", "kinect-val"}},
       {"dlpv+kinect-val", {"dlpv", "kinect-val"}}};
   for (const auto& [name, r] : roles) {
     const SceneDescription d = parseScene("{\"technique\": \"" + name + "\"}", kScenePath);
@@ -325,8 +338,8 @@ TEST(SceneFile, LightsFromTheRoomAndTheirKnobs) {
   EXPECT_EQ(d.lightSource, LightSource::Room);
   EXPECT_EQ(d.roomLightCount, 4);
   EXPECT_EQ(d.roomSaturatedGain, 0.0);  // estimated
-  const SceneDescription s =
-      parseScene(R"({"lights": "room", "room_light_count": 8, "room_saturated_gain": 30, "room_white_albedo": 0.7})", kScenePath);
+  const SceneDescription s = parseScene(
+      R"({"lights": "room", "room_light_count": 8, "room_saturated_gain": 30, "room_white_albedo": 0.7})", kScenePath);
   EXPECT_EQ(s.roomLightCount, 8);
   EXPECT_EQ(s.roomSaturatedGain, 30.0);
   EXPECT_EQ(s.roomWhiteAlbedo, 0.7);
@@ -341,12 +354,16 @@ TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
       {"{", "not valid JSON"},
       {R"({"object": []})", "object: unknown key"},
       {R"({"world": {}})", "world.first_frame_T_world_camera: missing"},
-      {R"({"world": {"first_frame_T_world_camera": [1, 0, 0]}})", "world.first_frame_T_world_camera: must be an array of 16"},
-      {R"({"world": {"first_frame_T_world_camera": [2,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]}})", "is not a rigid transform"},
-      {R"({"world": {"first_frame_T_world_camera": [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1], "x": 1}})", "world.x: unknown key"},
+      {R"({"world": {"first_frame_T_world_camera": [1, 0, 0]}})",
+       "world.first_frame_T_world_camera: must be an array of 16"},
+      {R"({"world": {"first_frame_T_world_camera": [2,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]}})",
+       "is not a rigid transform"},
+      {R"({"world": {"first_frame_T_world_camera": [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1], "x": 1}})",
+       "world.x: unknown key"},
       {R"({"objects": [{}]})", "objects[0].model: missing"},
       {R"({"objects": [{"model": "nope.obj"}]})", "objects[0].model:"},
-      {R"({"objects": [{"model": "../models/cube.obj", "scale": -1}]})", "objects[0].scale: must be a finite number in [1e-06, 1e+06], not -1"},
+      {R"({"objects": [{"model": "../models/cube.obj", "scale": -1}]})",
+       "objects[0].scale: must be a finite number in [1e-06, 1e+06], not -1"},
       {R"({"objects": [{"model": "../models/cube.obj", "material": {"albedo": [1, 2]}}]})",
        "objects[0].material.albedo: must be an array of 3 numbers"},
       {R"({"objects": [{"model": "../models/cube.obj", "material": {"albedo": [1, 2, 0]}}]})",

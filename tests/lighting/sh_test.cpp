@@ -1,10 +1,9 @@
+#include "lighting/sh.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-
 #include <opencv2/calib3d.hpp>
-
-#include "lighting/sh.h"
 
 using namespace mrgi::lighting;
 
@@ -174,7 +173,8 @@ TEST(SH, MonteCarloProjectionConverges) {
   auto f = [&](const cv::Vec3d& d) { return sh::reconstruct(L, d); };
   double err1 = 0, err2 = 0;
   const auto a = sh::projectMonteCarlo(f, 4, 1024), b = sh::projectMonteCarlo(f, 4, 65536);
-  for (size_t i = 0; i < L.size(); ++i) err1 = std::max(err1, std::abs(a[i] - L[i])), err2 = std::max(err2, std::abs(b[i] - L[i]));
+  for (size_t i = 0; i < L.size(); ++i)
+    err1 = std::max(err1, std::abs(a[i] - L[i])), err2 = std::max(err2, std::abs(b[i] - L[i]));
   EXPECT_LT(err2, 0.01);
   EXPECT_LT(err2, err1);
   EXPECT_THROW(sh::evaluate(cv::Vec3d(0, 0, 1), 9), std::invalid_argument);

@@ -45,7 +45,9 @@ cv::Mat fresh(const PipelineConfig& cfg, const Inputs& in) {
   return pipe.downloadShade();
 }
 
-std::set<std::string> skipped(const LightingPipeline& p) { return {p.skippedStages().begin(), p.skippedStages().end()}; }
+std::set<std::string> skipped(const LightingPipeline& p) {
+  return {p.skippedStages().begin(), p.skippedStages().end()};
+}
 
 class StageSkipping : public ::testing::TestWithParam<std::string> {};
 
@@ -91,8 +93,10 @@ TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChan
   in.ambient = {0.05, 0.05, 0.05};
   // The lights' pass (and with it every technique) reruns where a technique's per-light work reads the ambient.
   bool lightsReadAmbient = false;
-  for (const auto& t : pipe.techniques()) lightsReadAmbient = lightsReadAmbient || (t->lightInputs() & lighting::kInputAmbient);
-  check(lightsReadAmbient ? std::set<std::string>{"gbuffer"} : with({"gbuffer", "rsm"}, techniquesSkippedUnless(lighting::kInputAmbient)),
+  for (const auto& t : pipe.techniques())
+    lightsReadAmbient = lightsReadAmbient || (t->lightInputs() & lighting::kInputAmbient);
+  check(lightsReadAmbient ? std::set<std::string>{"gbuffer"}
+                          : with({"gbuffer", "rsm"}, techniquesSkippedUnless(lighting::kInputAmbient)),
         "new ambient");
   in.at = {0.05, 0.0, 0.1};
   pipe.setObjectTransform(0, capture::makePose(cv::Matx33d::eye(), in.at));

@@ -66,7 +66,8 @@ TEST_P(Conformance, UnlitIsExactlyZeroAndOutputsFollowTheRoles) {
     SceneLight off = pointAbove();
     off.intensity = {0, 0, 0};
     pipe.invalidate();
-    pipe.run(topCamera(64, 48), zeroLight ? std::vector<SceneLight>{off} : std::vector<SceneLight>{}, {0, 0, 0}, nullptr);
+    pipe.run(topCamera(64, 48), zeroLight ? std::vector<SceneLight>{off} : std::vector<SceneLight>{}, {0, 0, 0},
+             nullptr);
     EXPECT_EQ(maxAbsRgb(pipe.downloadShade()), 0.0) << (zeroLight ? "zero light" : "no light");
     for (const auto& t : pipe.techniques()) {
       const lighting::TechniqueOutputs o = t->outputs();
@@ -98,7 +99,9 @@ TEST_P(Conformance, UnlitIsExactlyZeroAndOutputsFollowTheRoles) {
       const cv::Mat d = lighting::download4(*o.realDelta);
       double onReal = 0;
       for (int i = 0; i < static_cast<int>(d.total()); ++i)
-        if (alb.at<cv::Vec4f>(i)[3] < 0.5f) onReal = std::max(onReal, cv::norm(cv::Vec3f(d.at<cv::Vec4f>(i)[0], d.at<cv::Vec4f>(i)[1], d.at<cv::Vec4f>(i)[2])));
+        if (alb.at<cv::Vec4f>(i)[3] < 0.5f)
+          onReal = std::max(onReal,
+                            cv::norm(cv::Vec3f(d.at<cv::Vec4f>(i)[0], d.at<cv::Vec4f>(i)[1], d.at<cv::Vec4f>(i)[2])));
       EXPECT_GT(onReal, 0.0) << t->name() << ": no real-pixel delta under two lights";
     }
     double onVirtual = 0;
@@ -106,7 +109,9 @@ TEST_P(Conformance, UnlitIsExactlyZeroAndOutputsFollowTheRoles) {
       if (!tex) continue;
       const cv::Mat v = lighting::download4(*tex);
       for (int i = 0; i < static_cast<int>(v.total()); ++i)
-        if (alb.at<cv::Vec4f>(i)[3] > 0.5f) onVirtual = std::max(onVirtual, cv::norm(cv::Vec3f(v.at<cv::Vec4f>(i)[0], v.at<cv::Vec4f>(i)[1], v.at<cv::Vec4f>(i)[2])));
+        if (alb.at<cv::Vec4f>(i)[3] > 0.5f)
+          onVirtual = std::max(
+              onVirtual, cv::norm(cv::Vec3f(v.at<cv::Vec4f>(i)[0], v.at<cv::Vec4f>(i)[1], v.at<cv::Vec4f>(i)[2])));
     }
     if (o.virtualIrradiance || o.virtualRadiance) {
       EXPECT_GT(onVirtual, 0.0) << t->name() << ": no indirect light on the object";

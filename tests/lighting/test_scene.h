@@ -69,7 +69,8 @@ inline TestScene makeScene(bool wall, double cube, cv::Vec3d at) {
 
 /// G-buffer size, volume resolution (the "lpv" group's) and RSM size of a test, with `technique`; the other
 /// knobs keep their defaults.
-inline PipelineConfig testConfig(int width, int height, int resolution, int rsmSize, const std::string& technique = "dlpv") {
+inline PipelineConfig testConfig(int width, int height, int resolution, int rsmSize,
+                                 const std::string& technique = "dlpv") {
   PipelineConfig cfg;
   cfg.width = width;
   cfg.height = height;

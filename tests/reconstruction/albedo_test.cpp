@@ -1,10 +1,11 @@
+#include "reconstruction/albedo.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "capture/colour.h"
 #include "capture/session.h"
-#include "reconstruction/albedo.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
 
@@ -48,10 +49,12 @@ TEST(Albedo, RecoversTheKnownTableAlbedoAndRejectsTheBoxShadow) {
 
   AlbedoLights lights;
   const auto& l = gt["lights"][0];
-  const cv::Vec3d lightWorld(l["position"][0].get<double>(), l["position"][1].get<double>(), l["position"][2].get<double>());
-  lights.points.push_back(AlbedoPointLight{
-      capture::transformPoint(T_camera_world, lightWorld),
-      cv::Vec3d(l["intensity_w_sr"][0].get<double>(), l["intensity_w_sr"][1].get<double>(), l["intensity_w_sr"][2].get<double>())});
+  const cv::Vec3d lightWorld(l["position"][0].get<double>(), l["position"][1].get<double>(),
+                             l["position"][2].get<double>());
+  lights.points.push_back(
+      AlbedoPointLight{capture::transformPoint(T_camera_world, lightWorld),
+                       cv::Vec3d(l["intensity_w_sr"][0].get<double>(), l["intensity_w_sr"][1].get<double>(),
+                                 l["intensity_w_sr"][2].get<double>())});
   const double ambient = gt["scene"]["ambient_radiance"][0];
   lights.ambientIrradiance = cv::Vec3d::all(CV_PI * ambient);
   const auto result = estimateAlbedo(f.colour, pos, nrm, f.colourIntrinsics, lights);
@@ -69,7 +72,8 @@ TEST(Albedo, RecoversTheKnownTableAlbedoAndRejectsTheBoxShadow) {
 
   cv::Vec3d table;
   for (const auto& m : gt["scene"]["materials"])
-    if (m["name"] == "table") table = {m["albedo"][0].get<double>(), m["albedo"][1].get<double>(), m["albedo"][2].get<double>()};
+    if (m["name"] == "table")
+      table = {m["albedo"][0].get<double>(), m["albedo"][1].get<double>(), m["albedo"][2].get<double>()};
   const cv::Vec3d boxLo(0.22, 0.75, -0.26), boxHi(0.37, 0.90, -0.11);
   int lit = 0, litGood = 0, shadow = 0, shadowRejected = 0, shadowFlagged = 0;
   // The fill in the box's shadow against the table's truth: inpainted at full resolution (the default) and
@@ -117,18 +121,20 @@ TEST(Albedo, RecoversTheKnownTableAlbedoAndRejectsTheBoxShadow) {
   ASSERT_GT(shadow, 100);
   ASSERT_GT(filled, 100);
   fillError /= filled, exactFillError /= filled, halfFillError /= filled;
-  std::printf("fill in the box shadow: %.1f %% off the table's albedo from 4 x 4 blocks, %.1f %% from 2 x 2, %.1f %% "
-              "inpainted at full resolution\n",
-              100 * fillError, 100 * halfFillError, 100 * exactFillError);
+  std::printf(
+      "fill in the box shadow: %.1f %% off the table's albedo from 4 x 4 blocks, %.1f %% from 2 x 2, %.1f %% "
+      "inpainted at full resolution\n",
+      100 * fillError, 100 * halfFillError, 100 * exactFillError);
   // Measured: 20.7 % against 36.5 % (full-resolution inpainting pulls in the box's and the shadow edge's colour).
   EXPECT_LT(fillError, 0.3);
   EXPECT_LT(fillError, exactFillError + 0.02);
   EXPECT_LT(halfFillError, exactFillError + 0.02);
   std::nth_element(red.begin(), red.begin() + red.size() / 2, red.end());
-  std::printf("table: %d lit px, %.1f%% within 10%% of truth, median red %.3f (truth %.3f); box shadow: %d px, "
-              "%.1f%% flagged shadowed, %.1f%% not used as measured\n",
-              lit, 100.0 * litGood / lit, red[red.size() / 2], table[0], shadow, 100.0 * shadowFlagged / shadow,
-              100.0 * shadowRejected / shadow);
+  std::printf(
+      "table: %d lit px, %.1f%% within 10%% of truth, median red %.3f (truth %.3f); box shadow: %d px, "
+      "%.1f%% flagged shadowed, %.1f%% not used as measured\n",
+      lit, 100.0 * litGood / lit, red[red.size() / 2], table[0], shadow, 100.0 * shadowFlagged / shadow,
+      100.0 * shadowRejected / shadow);
   // Measured: 99.5 % of lit table pixels within 10 %, median exact to 3 digits; of the visible box
   // shadow (a thin strip at the table's far edge) 74 % flagged by the screen-space test, 90 % rejected.
   EXPECT_NEAR(red[red.size() / 2], table[0], 0.03 * table[0]);

@@ -1,16 +1,16 @@
+#include "reconstruction/depth_filter.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
-#include <random>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
 #include <opencv2/ximgproc/edge_filter.hpp>
+#include <random>
 
 #include "reconstruction/depth.h"
-#include "reconstruction/depth_filter.h"
 
 using namespace mrgi;
 using reconstruction::DepthFilterOptions;
@@ -29,14 +29,16 @@ DepthFilterOptions plainOptions() {
 }
 
 cv::Mat readIclDepth(int i) {
-  const cv::Mat raw = cv::imread(kData + "/rgbd-open3d-iclnuim/depth/0000" + std::to_string(i) + ".png", cv::IMREAD_UNCHANGED);
+  const cv::Mat raw =
+      cv::imread(kData + "/rgbd-open3d-iclnuim/depth/0000" + std::to_string(i) + ".png", cv::IMREAD_UNCHANGED);
   cv::Mat d;
   raw.convertTo(d, CV_32F, 1.0 / 1000.0);
   return d;
 }
 
 cv::Mat readIclGuide(int i) {
-  return reconstruction::guideFromColour(cv::imread(kData + "/rgbd-open3d-iclnuim/color/0000" + std::to_string(i) + ".jpg"));
+  return reconstruction::guideFromColour(
+      cv::imread(kData + "/rgbd-open3d-iclnuim/color/0000" + std::to_string(i) + ".jpg"));
 }
 
 float maxAbsDiff(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask = {}) {
@@ -100,7 +102,7 @@ TEST(DepthFilter, HolesAreExcludedNotAveragedAsZeros) {
   // A plane is reproduced up to the shift of each window's valid-sample centroid (< 1 mm here).
   EXPECT_LT(maxAbsDiff(got, truth, valid), 1e-3f);
   EXPECT_LT(cv::mean(cv::abs(got - truth), valid)[0], 2e-4);
-  EXPECT_EQ(cv::countNonZero((got > 0) != valid), 0);             // holes stay holes without filling
+  EXPECT_EQ(cv::countNonZero((got > 0) != valid), 0);  // holes stay holes without filling
   // The naive filter (holes as zeros) is pulled far towards 0: the test can tell the difference.
   cv::Mat zeros = reconstruction::sanitizeDepth(holed, o.minDepth, o.maxDepth), naive;
   cv::ximgproc::guidedFilter(guide, zeros, naive, 5, o.eps);
@@ -159,8 +161,13 @@ TEST(DepthFilter, DegenerateInputsGiveFiniteOutput) {
   EXPECT_EQ(cv::countNonZero(single), 1);
   EXPECT_NEAR(single.at<float>(10, 10), 2.5f, 1e-6f);
   cv::Mat bad(30, 40, CV_32F);
-  const float specials[] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
-                            -std::numeric_limits<float>::infinity(), -1.f, 1e30f, 1e-30f, 1.0f};
+  const float specials[] = {std::numeric_limits<float>::quiet_NaN(),
+                            std::numeric_limits<float>::infinity(),
+                            -std::numeric_limits<float>::infinity(),
+                            -1.f,
+                            1e30f,
+                            1e-30f,
+                            1.0f};
   for (int i = 0; i < static_cast<int>(bad.total()); ++i) bad.at<float>(i) = specials[i % 7];
   const cv::Mat out = reconstruction::guidedFilterDepth(bad, guide, 4, o);
   EXPECT_TRUE(allFinite(out));

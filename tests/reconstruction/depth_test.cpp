@@ -1,6 +1,6 @@
-#include <gtest/gtest.h>
-
 #include "reconstruction/depth.h"
+
+#include <gtest/gtest.h>
 
 using namespace mrgi;
 

@@ -1,18 +1,18 @@
+#include "reconstruction/light_estimation.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
-#include <random>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
-#include "capture/v4l2_source.h"
-#include "lighting/sh.h"
 #include "capture/colour.h"
 #include "capture/image_io.h"
-#include "reconstruction/light_estimation.h"
+#include "capture/v4l2_source.h"
+#include "lighting/sh.h"
 #include "reconstruction/room_lights.h"
 
 using namespace mrgi;
@@ -22,7 +22,9 @@ namespace {
 
 const std::string kData = MRGI_SHARED_DATA;
 
-capture::FisheyeCalibration rosCalibration() { return capture::readFisheyeCalibration(kData + "/fisheye-ros-calib/ost.yaml"); }
+capture::FisheyeCalibration rosCalibration() {
+  return capture::readFisheyeCalibration(kData + "/fisheye-ros-calib/ost.yaml");
+}
 
 capture::FisheyeCalibration idealFisheye(int size = 200, double f = 50) {
   capture::FisheyeCalibration c;
@@ -151,7 +153,8 @@ TEST(MedianCut, UniformImageGivesEvenlySpreadLights) {
   EXPECT_NEAR(mean, 0.5, 0.08);
   double nearest = 180;
   for (size_t i = 0; i < lights.size(); ++i)
-    for (size_t j = i + 1; j < lights.size(); ++j) nearest = std::min(nearest, angleDeg(lights[i].direction, lights[j].direction));
+    for (size_t j = i + 1; j < lights.size(); ++j)
+      nearest = std::min(nearest, angleDeg(lights[i].direction, lights[j].direction));
   EXPECT_GT(nearest, 15.0);
 }
 
@@ -169,7 +172,8 @@ TEST(MedianCut, DegenerateImagesGiveFiniteLights) {
   cv::Mat sat;
   const cv::Mat white = linearRadiance(cv::Mat(c.height, c.width, CV_8UC3, cv::Scalar(255, 255, 255)), 1.0, &sat);
   EXPECT_EQ(cv::countNonZero(sat), c.width * c.height);
-  for (const auto& l : medianCut(white, rays, {})) EXPECT_TRUE(std::isfinite(l.power[0]) && std::isfinite(l.direction[0]));
+  for (const auto& l : medianCut(white, rays, {}))
+    EXPECT_TRUE(std::isfinite(l.power[0]) && std::isfinite(l.direction[0]));
   // NaN, inf and negative radiance are dropped, huge values stay finite in double.
   cv::Mat bad(c.height, c.width, CV_32FC3, cv::Scalar(std::nan(""), -1, 1e30));
   bad = linearRadiance(bad);
@@ -182,8 +186,11 @@ TEST(MedianCut, DegenerateImagesGiveFiniteLights) {
 TEST(MedianCut, IrradianceFromLightsConvergesOnRealHdrMaps) {
   const auto c = rosCalibration();
   const auto rays = fisheyeRays(c);
-  const std::vector<cv::Vec3d> normals{{0, 0, 1}, cv::normalize(cv::Vec3d(1, 0, 1)), cv::normalize(cv::Vec3d(0, -1, 1)),
-                                       cv::normalize(cv::Vec3d(-1, 1, 0.3)), {1, 0, 0}};
+  const std::vector<cv::Vec3d> normals{{0, 0, 1},
+                                       cv::normalize(cv::Vec3d(1, 0, 1)),
+                                       cv::normalize(cv::Vec3d(0, -1, 1)),
+                                       cv::normalize(cv::Vec3d(-1, 1, 0.3)),
+                                       {1, 0, 0}};
   for (const std::string name : {"city", "courtyard", "forest", "interior", "studio"}) {
     cv::Mat map = cv::imread(kData + "/hdr-blender-world/" + name + ".exr", cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(map.empty()) << name;
@@ -261,9 +268,11 @@ TEST(LightSplit, LightsPlusShRemainderHoldEveryNormalOnRealHdrMaps) {
       if (n[2] >= 0.2) worstFacing = std::max(worstFacing, relErr(irradianceFromSplit(split, n), E));
       worstPlain = std::max(worstPlain, relErr(irradianceFromLights(plain, n), E));
     }
-    std::printf("%-9s 16 lights: median cut alone %.1f %%, lights + SH remainder %.1f %% (%.1f %% facing the field by 12 degrees or more; "
-                "projection at threshold 1 %.1f %%)\n",
-                name.c_str(), 100 * worstPlain, 100 * worstSplit, 100 * worstFacing, 100 * worstBefore);
+    std::printf(
+        "%-9s 16 lights: median cut alone %.1f %%, lights + SH remainder %.1f %% (%.1f %% facing the field by 12 "
+        "degrees or more; "
+        "projection at threshold 1 %.1f %%)\n",
+        name.c_str(), 100 * worstPlain, 100 * worstSplit, 100 * worstFacing, 100 * worstBefore);
     // Within 5 % wherever the normal faces the field by 12 degrees or more; near the horizon the courtyard's
     // bright band of sky leaves 6.1 % (the SH remainder's three bands against the field's hard edge).
     EXPECT_LT(worstFacing, 0.05) << name;
@@ -287,7 +296,8 @@ TEST(LightSplit, EveryNormalOfAWholeSphereMapIsHeld) {
     normals.push_back({r * std::cos(a), r * std::sin(a), z});
   }
   std::vector<std::string> maps;
-  for (const char* n : {"city", "courtyard", "forest", "interior", "studio"}) maps.push_back(kData + "/hdr-blender-world/" + n + ".exr");
+  for (const char* n : {"city", "courtyard", "forest", "interior", "studio"})
+    maps.push_back(kData + "/hdr-blender-world/" + n + ".exr");
   for (const char* n : {"grace", "pisa", "uffizi"}) maps.push_back(kData + "/hdr-probes/" + n + ".hdr");
   double worstBefore = 0, worstAfter = 0;
   for (const std::string& path : maps) {
@@ -311,7 +321,8 @@ TEST(LightSplit, EveryNormalOfAWholeSphereMapIsHeld) {
     for (const auto& l : split.lights) total += l.power;
     const cv::Vec3d truth = totalPower(map, rays);
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(total[k], truth[k], 1e-6 * truth[k]) << path;
-    std::printf("%-28s worst normal %.1f %% (projection, threshold 1: %.1f %%)\n", path.substr(path.rfind('/') + 1).c_str(), 100 * worst, 100 * old);
+    std::printf("%-28s worst normal %.1f %% (projection, threshold 1: %.1f %%)\n",
+                path.substr(path.rfind('/') + 1).c_str(), 100 * worst, 100 * old);
     EXPECT_LT(worst, 0.095) << path;
     worstBefore = std::max(worstBefore, old), worstAfter = std::max(worstAfter, worst);
   }

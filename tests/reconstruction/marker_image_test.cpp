@@ -1,8 +1,9 @@
+#include "reconstruction/marker_image.h"
+
 #include <gtest/gtest.h>
 
 #include "capture/checks.h"
 #include "reconstruction/apriltag_family.h"
-#include "reconstruction/marker_image.h"
 
 TEST(MarkerImage, Tag36h11HasBordersFromTheLibrary) {
   mrgi::reconstruction::TagLayout layout{};

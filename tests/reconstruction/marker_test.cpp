@@ -1,17 +1,17 @@
+#include "reconstruction/marker.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <random>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "capture/npz.h"
-#include "reconstruction/marker.h"
 #include "reconstruction/marker_image.h"
 
 using namespace mrgi;
@@ -34,7 +34,8 @@ struct VispGroundTruth {
 
 VispGroundTruth readVispAprilTag() {
   VispGroundTruth gt;
-  std::ifstream det(kData + "/apriltag-visp/ground_truth_detection.txt"), pose(kData + "/apriltag-visp/ground_truth_pose.txt");
+  std::ifstream det(kData + "/apriltag-visp/ground_truth_detection.txt"),
+      pose(kData + "/apriltag-visp/ground_truth_pose.txt");
   std::string label;
   while (det >> label) {
     const int id = std::stoi(label.substr(label.rfind('_') + 1));
@@ -69,8 +70,10 @@ TEST(Marker, RealPhotoCornersAndPosesMatchGroundTruth) {
     worstT = std::max(worstT, translationError(pose->T_camera_tag, gt.poses.at(d.id)));
     worstR = std::max(worstR, rotationErrorDeg(pose->T_camera_tag, gt.poses.at(d.id)));
     std::printf("id %d  corner %.3f px  t %.2f mm  R %.3f deg amb %d rms %.3f alt %.3f\n", d.id,
-                cv::norm(d.corners[0] - gt.corners.at(d.id)[0]), 1e3 * translationError(pose->T_camera_tag, gt.poses.at(d.id)),
-                rotationErrorDeg(pose->T_camera_tag, gt.poses.at(d.id)), pose->ambiguous, pose->reprojectionRms, pose->alternativeRms);
+                cv::norm(d.corners[0] - gt.corners.at(d.id)[0]),
+                1e3 * translationError(pose->T_camera_tag, gt.poses.at(d.id)),
+                rotationErrorDeg(pose->T_camera_tag, gt.poses.at(d.id)), pose->ambiguous, pose->reprojectionRms,
+                pose->alternativeRms);
   }
   EXPECT_EQ(matched, static_cast<int>(gt.poses.size()));
   // Measured: worst corner 0.04 px, translation 0.4 mm, rotation 0.09 deg (12 tags, 0.4-0.6 m away).
@@ -138,7 +141,8 @@ TEST(Marker, DetectionInARegionAroundTheTagMatchesTheWholeImages) {
       EXPECT_TRUE(seen) << "image " << i << ", tag " << whole.id;
       compared += seen;
       // A region through the middle of the tag.
-      const double w = std::abs(whole.corners[1].x - whole.corners[0].x) + std::abs(whole.corners[2].x - whole.corners[1].x);
+      const double w =
+          std::abs(whole.corners[1].x - whole.corners[0].x) + std::abs(whole.corners[2].x - whole.corners[1].x);
       const cv::Rect half(cv::Point(static_cast<int>(whole.centre.x), static_cast<int>(whole.centre.y - w)),
                           cv::Point(static_cast<int>(whole.centre.x + 2 * w), static_cast<int>(whole.centre.y + w)));
       for (const TagDetection& d : detector.detect(img, half))
@@ -146,7 +150,8 @@ TEST(Marker, DetectionInARegionAroundTheTagMatchesTheWholeImages) {
       ++cut;
     }
   }
-  std::printf("%d tags: corners within %.3g px, centres within %.3g px of the whole image's\n", compared, maxDiff, centreDiff);
+  std::printf("%d tags: corners within %.3g px, centres within %.3g px of the whole image's\n", compared, maxDiff,
+              centreDiff);
   EXPECT_GT(compared, 30);
   EXPECT_EQ(compared, cut);
   EXPECT_LT(maxDiff, 1e-3);
@@ -177,7 +182,8 @@ TEST(Marker, RealRgbdSequencePosesMatchGroundTruth) {
       if (const auto plane = fitTagPlane(d, depth, seq.k)) {
         const TagPose refined = refinePoseWithDepth(*pose, *plane);
         if (refined.depthRefined) {
-          sumTd += translationError(refined.T_camera_tag, gt), sumRd += rotationErrorDeg(refined.T_camera_tag, gt), ++nd;
+          sumTd += translationError(refined.T_camera_tag, gt), sumRd += rotationErrorDeg(refined.T_camera_tag, gt),
+              ++nd;
         }
       }
       // What the pipeline does: re-seat only when the depth plane agrees with the image pose.
@@ -187,10 +193,12 @@ TEST(Marker, RealRgbdSequencePosesMatchGroundTruth) {
       reseated += gated->depthRefined;
     }
   }
-  std::printf("%d tag poses: mean t %.2f mm, R %.3f deg; worst t %.2f mm, R %.3f deg; depth-refined (%d): t %.2f mm R %.3f deg; "
-              "gated (%d re-seated): t %.2f mm R %.3f deg\n",
-              n, 1e3 * sumT / n, sumR / n, 1e3 * worstT, worstR, nd, 1e3 * sumTd / nd, sumRd / nd, reseated, 1e3 * sumTg / n,
-              sumRg / n);
+  std::printf(
+      "%d tag poses: mean t %.2f mm, R %.3f deg; worst t %.2f mm, R %.3f deg; depth-refined (%d): t %.2f mm R %.3f "
+      "deg; "
+      "gated (%d re-seated): t %.2f mm R %.3f deg\n",
+      n, 1e3 * sumT / n, sumR / n, 1e3 * worstT, worstR, nd, 1e3 * sumTd / nd, sumRd / nd, reseated, 1e3 * sumTg / n,
+      sumRg / n);
   // This sensor's depth on the tag is biased (3 cm, 6 degrees): the gate keeps the image poses.
   EXPECT_LT(1e3 * sumTg / n, 2.0);
   EXPECT_LT(sumRg / n, 0.4);
@@ -223,7 +231,8 @@ cv::Mat renderTagView(int id, double size, const capture::Pose& T_camera_tag, co
   const cv::Matx33d A(cell / scale, 0, -half * cell, 0, -cell / scale, half * cell, 0, 0, 1);
   const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
   const cv::Matx33d Rt(T_camera_tag(0, 0), T_camera_tag(0, 1), T_camera_tag(0, 3), T_camera_tag(1, 0),
-                       T_camera_tag(1, 1), T_camera_tag(1, 3), T_camera_tag(2, 0), T_camera_tag(2, 1), T_camera_tag(2, 3));
+                       T_camera_tag(1, 1), T_camera_tag(1, 3), T_camera_tag(2, 0), T_camera_tag(2, 1),
+                       T_camera_tag(2, 3));
   // Half-pixel shift: bitmap pixel centres sit at +0.5 cell/scale.
   const cv::Matx33d shift(1, 0, -0.5, 0, 1, -0.5, 0, 0, 1);
   const cv::Matx33d H = K * Rt * A * shift.inv();
@@ -245,7 +254,8 @@ capture::Pose lookAtTag(double distance, double tiltDeg, double yawDeg) {
 TEST(Marker, SyntheticViewGivesTheRenderedPoseAndFrameConvention) {
   const capture::Intrinsics k{640, 480, 600, 600, 319.5, 239.5};
   TagDetector detector;
-  for (const auto& [dist, tilt, yaw] : {std::tuple{0.5, 20.0, 0.0}, std::tuple{0.8, 45.0, 30.0}, std::tuple{0.4, -10.0, -50.0}}) {
+  for (const auto& [dist, tilt, yaw] :
+       {std::tuple{0.5, 20.0, 0.0}, std::tuple{0.8, 45.0, 30.0}, std::tuple{0.4, -10.0, -50.0}}) {
     const capture::Pose truth = lookAtTag(dist, tilt, yaw);
     const auto found = detector.detect(renderTagView(7, 0.1, truth, k));
     ASSERT_EQ(found.size(), 1u) << dist << " " << tilt << " " << yaw;
@@ -270,7 +280,8 @@ TEST(Marker, PartialGrazingAndEmptyViewsAreHandled) {
   // Half out of frame: not detected (or detected with a valid pose), never a crash.
   capture::Pose T = lookAtTag(0.5, 0, 0);
   T(0, 3) = 0.27;
-  for (const auto& d : detector.detect(renderTagView(3, 0.1, T, k))) EXPECT_TRUE(estimateTagPose(d, 0.1, k).has_value());
+  for (const auto& d : detector.detect(renderTagView(3, 0.1, T, k)))
+    EXPECT_TRUE(estimateTagPose(d, 0.1, k).has_value());
   // Grazing view (85 degrees).
   for (const auto& d : detector.detect(renderTagView(3, 0.1, lookAtTag(0.5, 85, 0), k))) {
     const auto p = estimateTagPose(d, 0.1, k);

@@ -1,14 +1,16 @@
 // Dense RGB-D odometry (reconstruction/odometry.h): each Gauss-Newton step is Open3D's own; the pyramid and
 // the coarse-to-fine driver are ours. Parity with Open3D's complete legacy odometry on real and synthetic
 // frame pairs, a frame against itself, frames that do not overlap, and extremes (no depth, one flat depth).
-#include <fstream>
+#include "reconstruction/odometry.h"
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 #include <open3d/camera/PinholeCameraIntrinsic.h>
 #include <open3d/geometry/Image.h>
 #include <open3d/geometry/RGBDImage.h>
 #include <open3d/pipelines/odometry/Odometry.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -16,7 +18,6 @@
 #include "capture/npz.h"
 #include "capture/registration.h"
 #include "reconstruction/marker.h"
-#include "reconstruction/odometry.h"
 
 namespace mrgi::reconstruction {
 namespace {
@@ -57,8 +58,9 @@ std::vector<Pair> synthPairs() {
   }
   std::vector<Pair> pairs;
   for (size_t i : {0, 5, 10, 15})
-    pairs.push_back({*frames[i].rgbd, *frames[i + 1].rgbd,
-                     capture::inversePose(*frames[i].groundTruthT_world_camera) * *frames[i + 1].groundTruthT_world_camera});
+    pairs.push_back(
+        {*frames[i].rgbd, *frames[i + 1].rgbd,
+         capture::inversePose(*frames[i].groundTruthT_world_camera) * *frames[i + 1].groundTruthT_world_camera});
   return pairs;
 }
 

@@ -1,12 +1,12 @@
+#include "reconstruction/plane.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
-
 #include <opencv2/calib3d.hpp>
 
 #include "reconstruction/depth.h"
-#include "reconstruction/plane.h"
 
 using namespace mrgi;
 
@@ -27,8 +27,8 @@ struct Room {
         const cv::Vec3d ray((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0);  // z = 1 in the camera
         const cv::Vec3d dw = R * ray;
         double t = std::numeric_limits<double>::infinity();
-        if (dw[2] < 0) t = std::min(t, -o[2] / dw[2]);          // floor
-        if (dw[1] > 0) t = std::min(t, (1.6 - o[1]) / dw[1]);   // wall
+        if (dw[2] < 0) t = std::min(t, -o[2] / dw[2]);                        // floor
+        if (dw[1] > 0) t = std::min(t, (1.6 - o[1]) / dw[1]);                 // wall
         if (std::isfinite(t)) depth.at<float>(y, x) = static_cast<float>(t);  // depth = z in camera = t
       }
   }
@@ -108,11 +108,13 @@ TEST(Plane, RestOnPlaneTouchesWithTheLowestPointAndAlignsUp) {
   const cv::Vec3d up = capture::rotationOf(T) * cv::Vec3d(0, 0, 1);
   EXPECT_NEAR(up.dot(floor.normal), 1.0, 1e-12);
   double lowest = 1e9;
-  for (const auto& c : corners) lowest = std::min(lowest, floor.signedDistance(capture::transformPoint(T, cv::Vec3d(c))));
+  for (const auto& c : corners)
+    lowest = std::min(lowest, floor.signedDistance(capture::transformPoint(T, cv::Vec3d(c))));
   EXPECT_NEAR(lowest, 0.0, 1e-12);
   // The cube's face rests flat: four corners touch.
   int touching = 0;
-  for (const auto& c : corners) touching += std::abs(floor.signedDistance(capture::transformPoint(T, cv::Vec3d(c)))) < 1e-9;
+  for (const auto& c : corners)
+    touching += std::abs(floor.signedDistance(capture::transformPoint(T, cv::Vec3d(c)))) < 1e-9;
   EXPECT_EQ(touching, 4);
   // Upside-down input: the half turn still lands on the plane.
   cv::Matx33d flip;

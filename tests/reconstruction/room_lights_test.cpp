@@ -1,11 +1,12 @@
 // Lights from the room model: a synthetic room (3 x 3 x 2.5 m) with one ceiling lamp whose every
 // observation clipped, a white floor lit by it, grey walls.
-#include <cmath>
+#include "reconstruction/room_lights.h"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "capture/colour.h"
-#include "reconstruction/room_lights.h"
 
 using namespace mrgi;
 using reconstruction::RoomMesh;
@@ -18,8 +19,8 @@ constexpr double kLampSide = 0.2;
 
 /// A grid quad: origin + i/n * a + j/n * b, normal n, radiance from f(position).
 template <class F>
-void addQuad(RoomMesh& m, const cv::Vec3d& origin, const cv::Vec3d& a, const cv::Vec3d& b, const cv::Vec3d& normal, int n, F radiance,
-             bool saturated) {
+void addQuad(RoomMesh& m, const cv::Vec3d& origin, const cv::Vec3d& a, const cv::Vec3d& b, const cv::Vec3d& normal,
+             int n, F radiance, bool saturated) {
   const uint32_t base = static_cast<uint32_t>(m.positions.size());
   for (int j = 0; j <= n; ++j)
     for (int i = 0; i <= n; ++i) {
@@ -33,7 +34,8 @@ void addQuad(RoomMesh& m, const cv::Vec3d& origin, const cv::Vec3d& a, const cv:
   for (int j = 0; j < n; ++j)
     for (int i = 0; i < n; ++i) {
       const uint32_t v = base + static_cast<uint32_t>(j * (n + 1) + i);
-      for (uint32_t k : {v, v + 1, v + static_cast<uint32_t>(n + 1), v + 1, v + static_cast<uint32_t>(n + 2), v + static_cast<uint32_t>(n + 1)})
+      for (uint32_t k : {v, v + 1, v + static_cast<uint32_t>(n + 1), v + 1, v + static_cast<uint32_t>(n + 2),
+                         v + static_cast<uint32_t>(n + 1)})
         m.indices.push_back(k);
     }
 }
@@ -45,7 +47,8 @@ double lampIrradiance(const cv::Vec3d& p) {
   const double dA = (kLampSide / n) * (kLampSide / n);
   for (int j = 0; j < n; ++j)
     for (int i = 0; i < n; ++i) {
-      const cv::Vec3d q = kLamp + cv::Vec3d(-kLampSide / 2 + (i + 0.5) * kLampSide / n, -kLampSide / 2 + (j + 0.5) * kLampSide / n, 0);
+      const cv::Vec3d q =
+          kLamp + cv::Vec3d(-kLampSide / 2 + (i + 0.5) * kLampSide / n, -kLampSide / 2 + (j + 0.5) * kLampSide / n, 0);
       const cv::Vec3d d = q - p;
       const double r2 = d.dot(d), r = std::sqrt(r2);
       E += kLampRadiance * dA * (d[2] / r) * (d[2] / r) / r2;  // cos at the floor x cos at the lamp (both vertical)
@@ -57,17 +60,21 @@ RoomMesh lampRoom() {
   RoomMesh m;
   const auto grey = [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kWall)); };
   // Floor: white, lit by the lamp and by the walls' and ceiling's radiance (a uniform upper hemisphere).
-  addQuad(m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 3, 0}, {0, 0, 1}, 40,
-          [](const cv::Vec3d& p) { return cv::Vec3f::all(static_cast<float>(kFloorAlbedo / CV_PI * (lampIrradiance(p) + CV_PI * kWall))); },
-          false);
+  addQuad(
+      m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 3, 0}, {0, 0, 1}, 40,
+      [](const cv::Vec3d& p) {
+        return cv::Vec3f::all(static_cast<float>(kFloorAlbedo / CV_PI * (lampIrradiance(p) + CV_PI * kWall)));
+      },
+      false);
   addQuad(m, {-1.5, -1.5, 2.5}, {3, 0, 0}, {0, 3, 0}, {0, 0, -1}, 20, grey, false);
   addQuad(m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 0, 2.5}, {0, 1, 0}, 20, grey, false);
   addQuad(m, {-1.5, 1.5, 0}, {3, 0, 0}, {0, 0, 2.5}, {0, -1, 0}, 20, grey, false);
   addQuad(m, {-1.5, -1.5, 0}, {0, 3, 0}, {0, 0, 2.5}, {1, 0, 0}, 20, grey, false);
   addQuad(m, {1.5, -1.5, 0}, {0, 3, 0}, {0, 0, 2.5}, {-1, 0, 0}, 20, grey, false);
   // The lamp: seen only clipped, its radiance the bound.
-  addQuad(m, kLamp - cv::Vec3d(kLampSide / 2, kLampSide / 2, 0), {kLampSide, 0, 0}, {0, kLampSide, 0}, {0, 0, -1}, 4,
-          [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kBound)); }, true);
+  addQuad(
+      m, kLamp - cv::Vec3d(kLampSide / 2, kLampSide / 2, 0), {kLampSide, 0, 0}, {0, kLampSide, 0}, {0, 0, -1}, 4,
+      [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kBound)); }, true);
   return m;
 }
 
@@ -118,7 +125,9 @@ TEST(RoomLights, AGivenGainIsUsedAndAnUnscannedRoomStaysFinite) {
   EXPECT_EQ(lights.gain, 10);
   // Only a floor: most directions miss (never scanned) and take the floor's mean radiance.
   RoomMesh floor;
-  addQuad(floor, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(0.1f); }, false);
+  addQuad(
+      floor, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(0.1f); },
+      false);
   const auto f = reconstruction::estimateRoomLights(floor, {0, 0, 0.3});
   EXPECT_LT(f.coverage, 0.5);
   EXPECT_FALSE(f.gainEstimated);
@@ -128,8 +137,12 @@ TEST(RoomLights, AGivenGainIsUsedAndAnUnscannedRoomStaysFinite) {
   EXPECT_THROW(reconstruction::estimateRoomLights(RoomMesh{}, {0, 0, 0}), std::invalid_argument);
   // An over-exposed recording: the whole floor clipped. Not a lamp: no gain is estimated, the bound stays.
   RoomMesh clipped;
-  addQuad(clipped, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(1.f); }, true);
-  addQuad(clipped, {-1, -1, 2}, {2, 0, 0}, {0, 2, 0}, {0, 0, -1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(0.1f); }, false);
+  addQuad(
+      clipped, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(1.f); },
+      true);
+  addQuad(
+      clipped, {-1, -1, 2}, {2, 0, 0}, {0, 2, 0}, {0, 0, -1}, 10, [](const cv::Vec3d&) { return cv::Vec3f::all(0.1f); },
+      false);
   const auto c = reconstruction::estimateRoomLights(clipped, {0, 0, 0.3});
   EXPECT_TRUE(c.overExposed);
   EXPECT_FALSE(c.gainEstimated);

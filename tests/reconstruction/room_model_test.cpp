@@ -1,5 +1,8 @@
 // The room model: fusion of depth from many poses (Open3D's ScalableTSDFVolume), carving of what moved,
 // refusal of poses that disagree with the model, the memory budget, and the saved room's round trip.
+#include "reconstruction/room_model.h"
+
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <cstring>
@@ -7,14 +10,11 @@
 #include <fstream>
 #include <functional>
 #include <map>
-#include <random>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "capture/colour.h"
 #include "capture/error.h"
-#include "reconstruction/room_model.h"
 
 namespace fs = std::filesystem;
 using namespace mrgi;
@@ -122,8 +122,10 @@ cv::Mat renderColour(const Scene& s, const capture::Pose& T, const std::function
     }
   return out;
 }
-cv::Mat renderColour(const Scene& s, const capture::Pose& T, double albedo, const std::vector<std::pair<cv::Vec3d, double>>& lights) {
-  return renderColour(s, T, [albedo](const cv::Vec3d&) { return albedo; }, lights);
+cv::Mat renderColour(const Scene& s, const capture::Pose& T, double albedo,
+                     const std::vector<std::pair<cv::Vec3d, double>>& lights) {
+  return renderColour(
+      s, T, [albedo](const cv::Vec3d&) { return albedo; }, lights);
 }
 
 cv::Mat grey(uchar v) { return cv::Mat(kK.height, kK.width, CV_8UC3, cv::Scalar(v, v, v)); }
@@ -151,7 +153,8 @@ TEST(RoomModel, APlaneSeenFromSeveralPosesFusesWithinItsNoise) {
   RoomModel room;  // 2 cm voxels, 8 cm truncation
   const Scene s;
   int k = 0;
-  for (const auto& T : orbit(6, 1.2, 0.9)) EXPECT_TRUE(room.integrate(renderDepth(s, T, 0.002, k++), grey(128), kK, T).integrated);
+  for (const auto& T : orbit(6, 1.2, 0.9))
+    EXPECT_TRUE(room.integrate(renderDepth(s, T, 0.002, k++), grey(128), kK, T).integrated);
   EXPECT_EQ(room.framesIntegrated(), 6);
   // The signed distance is 0 on the floor and positive above it (free space). It is projective (measured
   // along the viewing rays, as the fusion measures it), so 4 cm above an obliquely seen floor reads more than
@@ -180,7 +183,8 @@ TEST(RoomModel, APlaneSeenFromSeveralPosesFusesWithinItsNoise) {
     ++onFloor;
     EXPECT_NEAR(p[2], 0.f, 0.003f);
     EXPECT_GT(m.normals[i][2], 0.95f);
-    EXPECT_NEAR(m.radiance[i][1], capture::srgbToLinear(128 / 255.f), 0.005f) << m.confidence[i] << " " << int(m.saturated[i]);
+    EXPECT_NEAR(m.radiance[i][1], capture::srgbToLinear(128 / 255.f), 0.005f)
+        << m.confidence[i] << " " << int(m.saturated[i]);
   }
   EXPECT_GT(onFloor, 100);
 }
@@ -239,18 +243,20 @@ TEST(RoomModel, AFrameWhosePoseDisagreesWithTheModelChangesNothing) {
   s.box = true;
   s.boxMin = {0.1, 0.1, 0.0}, s.boxMax = {0.3, 0.3, 0.12};
   const auto views = orbit(5, 1.2, 0.9);
-  for (int i = 0; i < 4; ++i) ASSERT_TRUE(room.integrate(renderDepth(s, views[i], 0.002, i), grey(128), kK, views[i]).integrated);
+  for (int i = 0; i < 4; ++i)
+    ASSERT_TRUE(room.integrate(renderDepth(s, views[i], 0.002, i), grey(128), kK, views[i]).integrated);
   const size_t blocks = room.blocks();
   std::vector<double> before;
   for (double x = -0.5; x <= 0.5; x += 0.05)
     for (double y = -0.5; y <= 0.5; y += 0.05) before.push_back(room.signedDistance({x, y, 0.02}));
   // The last view's depth, reported with a pose off by 5 cm and 5 degrees.
   const capture::Pose truth = views[4];
-  const cv::Matx33d tilt = capture::rotationOf(capture::makePose(
-      cv::Matx33d(1, 0, 0, 0, std::cos(5 * CV_PI / 180), -std::sin(5 * CV_PI / 180), 0, std::sin(5 * CV_PI / 180), std::cos(5 * CV_PI / 180)),
-      cv::Vec3d()));
+  const cv::Matx33d tilt = capture::rotationOf(
+      capture::makePose(cv::Matx33d(1, 0, 0, 0, std::cos(5 * CV_PI / 180), -std::sin(5 * CV_PI / 180), 0,
+                                    std::sin(5 * CV_PI / 180), std::cos(5 * CV_PI / 180)),
+                        cv::Vec3d()));
   const capture::Pose bad = capture::makePose(capture::rotationOf(truth) * tilt,
-                                                                 capture::translationOf(truth) + cv::Vec3d(0.03, -0.03, 0.028));
+                                              capture::translationOf(truth) + cv::Vec3d(0.03, -0.03, 0.028));
   const cv::Mat depth = renderDepth(s, truth, 0.002, 99);
   const auto r = room.integrate(depth, grey(128), kK, bad);
   EXPECT_FALSE(r.integrated);
@@ -336,7 +342,8 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
     return errorOf(dir);
   };
   EXPECT_NE(errorOf(dir / "nope").find("room folder is missing"), std::string::npos);
-  EXPECT_NE(with(ply.substr(0, ply.size() / 2), json).find((dir / "room.ply").string() + ": PLY file is truncated"), std::string::npos);
+  EXPECT_NE(with(ply.substr(0, ply.size() / 2), json).find((dir / "room.ply").string() + ": PLY file is truncated"),
+            std::string::npos);
   EXPECT_NE(with(ply, "{\"format\": \"mrgi-room\", \"version\": 3}").find("version"), std::string::npos);
   // The appearance file: missing, cut short, for another mesh, holding a negative radiance.
   const fs::path npy = dir / "room_appearance.npy";
@@ -355,13 +362,15 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
     const size_t at = fewer.find("'shape': (") + 10;
     fewer.replace(at, fewer.find(',', at) - at, std::to_string(m.positions.size() - 1));
     fewer.resize(fewer.size() - 5 * sizeof(float));
-    EXPECT_NE(withAppearance(fewer).find(npy.string() + ": expected float32 (" + std::to_string(m.positions.size()) + ", 5)"),
-              std::string::npos)
+    EXPECT_NE(
+        withAppearance(fewer).find(npy.string() + ": expected float32 (" + std::to_string(m.positions.size()) + ", 5)"),
+        std::string::npos)
         << withAppearance(fewer);
     std::string negative = appearance;
     const float minus = -1.f;
     std::memcpy(&negative[negative.size() - sizeof(float) * 3], &minus, sizeof(float));
-    EXPECT_NE(withAppearance(negative).find(npy.string() + ": row " + std::to_string(m.positions.size() - 1)), std::string::npos)
+    EXPECT_NE(withAppearance(negative).find(npy.string() + ": row " + std::to_string(m.positions.size() - 1)),
+              std::string::npos)
         << withAppearance(negative);
   }
   fs::remove(npy);
@@ -373,55 +382,70 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
     EXPECT_EQ(with(ply, v1.dump()), "");
     const RoomMesh old = reconstruction::loadRoom(dir.string());
     ASSERT_EQ(old.radiance.size(), m.positions.size());
-    for (size_t i = 0; i < m.positions.size(); i += 97) EXPECT_LT(cv::norm(old.radiance[i] - m.radiance[i]), 0.01);  // 8-bit sRGB
+    for (size_t i = 0; i < m.positions.size(); i += 97)
+      EXPECT_LT(cv::norm(old.radiance[i] - m.radiance[i]), 0.01);  // 8-bit sRGB
   }
   std::ofstream(npy, std::ios::binary) << appearance;
   EXPECT_NE(with(ply, "{\"format\": \"other\"}").find((dir / "room.json").string() + ": format"), std::string::npos);
-  EXPECT_NE(with(ply, "{\"format\": 5}").find((dir / "room.json").string() + ": format"), std::string::npos);  // (the room fuzzer)
+  EXPECT_NE(with(ply, "{\"format\": 5}").find((dir / "room.json").string() + ": format"),
+            std::string::npos);  // (the room fuzzer)
   EXPECT_NE(with(ply, "{nope").find((dir / "room.json").string()), std::string::npos);
-  const std::string empty = "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
-                            "element face 0\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string empty =
+      "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 0\nproperty list uchar int vertex_indices\nend_header\n";
   const std::string emptyError = with(empty, json);
   EXPECT_TRUE(emptyError.find((dir / "room.ply").string() + ": room mesh is empty") != std::string::npos ||
-              emptyError.find((dir / "room.ply").string() + ": cannot read the room mesh") != std::string::npos) << emptyError;
-  const std::string outOfRange = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                                 "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
+              emptyError.find((dir / "room.ply").string() + ": cannot read the room mesh") != std::string::npos)
+      << emptyError;
+  const std::string outOfRange =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
   // Found by the room fuzzer: faces whose indices name no vertex crash Open3D's PLY reader (ear clipping
   // reads the vertices first); the PLY check refuses them before Open3D sees the file.
   const std::string clipped = [&] {
-    std::ifstream in(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/room_ply_ear_clipping_crash.ply", std::ios::binary);
+    std::ifstream in(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/room_ply_ear_clipping_crash.ply",
+                     std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});
   }();
-  EXPECT_NE(with(clipped, json).find((dir / "room.ply").string() + ": malformed PLY: face"), std::string::npos) << with(clipped, json);
+  EXPECT_NE(with(clipped, json).find((dir / "room.ply").string() + ": malformed PLY: face"), std::string::npos)
+      << with(clipped, json);
   // Found by the room fuzzer (CI): a vertex element of x and z only crashed Open3D's reader (a read at
   // address 8); so did, unchecked, a second vertex element or part of a normal.
   const std::string noY = [&] {
     std::ifstream in(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/room_ply_vertex_without_y.ply", std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});
   }();
-  EXPECT_NE(with(noY, json).find((dir / "room.ply").string() + ": malformed PLY header: a vertex element needs the properties x, y and z"),
+  EXPECT_NE(with(noY, json).find((dir / "room.ply").string() +
+                                 ": malformed PLY header: a vertex element needs the properties x, y and z"),
             std::string::npos)
       << with(noY, json);
-  const std::string twice = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
-                            "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                            "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  const std::string twice =
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+      "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
   EXPECT_NE(with(twice, json).find("element 'vertex' declared twice"), std::string::npos) << with(twice, json);
-  const std::string halfNormal = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                                 "property float nx\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
-                                 "0 0 0 1\n1 0 0 1\n0 1 0 1\n3 0 1 2\n";
-  EXPECT_NE(with(halfNormal, json).find("with some of nx, ny, nz needs all three"), std::string::npos) << with(halfNormal, json);
+  const std::string halfNormal =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "property float nx\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0 1\n1 0 0 1\n0 1 0 1\n3 0 1 2\n";
+  EXPECT_NE(with(halfNormal, json).find("with some of nx, ny, nz needs all three"), std::string::npos)
+      << with(halfNormal, json);
   // Found by the room fuzzer under UBSan: a count of 1e30 converted to int (undefined behaviour); typed keys
   // refuse it in one line.
   const std::string overflow = [&] {
     std::ifstream in(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/room_json_frames_overflow.json");
     return std::string(std::istreambuf_iterator<char>(in), {});
   }();
-  EXPECT_NE(with(ply, overflow).find((dir / "room.json").string() + ": key 'frames_integrated' must be an integer"), std::string::npos)
+  EXPECT_NE(with(ply, overflow).find((dir / "room.json").string() + ": key 'frames_integrated' must be an integer"),
+            std::string::npos)
       << with(ply, overflow);
-  EXPECT_NE(with(ply, R"({"format": "mrgi-room", "version": 1, "voxel_m": 0.02, "trunc_m": 0.08, "frames_refused": 4294967297})")
-                .find("key 'frames_refused' is out of range (4294967297)"),
-            std::string::npos);
-  EXPECT_NE(with(ply, R"({"format": "mrgi-room", "version": 1, "voxel_m": "a", "trunc_m": 0.08})").find("key 'voxel_m' must be a finite number"),
+  EXPECT_NE(
+      with(ply,
+           R"({"format": "mrgi-room", "version": 1, "voxel_m": 0.02, "trunc_m": 0.08, "frames_refused": 4294967297})")
+          .find("key 'frames_refused' is out of range (4294967297)"),
+      std::string::npos);
+  EXPECT_NE(with(ply, R"({"format": "mrgi-room", "version": 1, "voxel_m": "a", "trunc_m": 0.08})")
+                .find("key 'voxel_m' must be a finite number"),
             std::string::npos);
   const std::string e = with(outOfRange, json);
   EXPECT_NE(e.find("malformed PLY: face 0 names vertex 7 of 3"), std::string::npos) << e;
@@ -432,13 +456,17 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
 TEST(RoomModel, AppearanceIsRadianceAtExposureOneAndClippedObservationsOnlyBoundIt) {
   // The floor and wall (radiance 0.2) seen at exposures 1 and 2: the camera's bytes differ, the fused
   // radiance is 0.2 (a running mean of the bytes, as Open3D keeps, reads 0.3).
-  auto bytesOf = [](double linear) { return static_cast<uchar>(std::lround(255 * capture::linearToSrgb(static_cast<float>(linear)))); };
+  auto bytesOf = [](double linear) {
+    return static_cast<uchar>(std::lround(255 * capture::linearToSrgb(static_cast<float>(linear))));
+  };
   const Scene s;
   const auto views = orbit(4, 1.2, 0.9);
   RoomModel room;
   for (int i = 0; i < 4; ++i) {
     const double exposure = i % 2 ? 2.0 : 1.0;
-    ASSERT_TRUE(room.integrate(renderDepth(s, views[i], 0.001, i), grey(bytesOf(0.2 * exposure)), kK, views[i], exposure).integrated);
+    ASSERT_TRUE(
+        room.integrate(renderDepth(s, views[i], 0.001, i), grey(bytesOf(0.2 * exposure)), kK, views[i], exposure)
+            .integrated);
   }
   auto floorMean = [](const RoomMesh& m, float* confidence = nullptr) {
     cv::Vec3d sum(0, 0, 0);
@@ -475,7 +503,8 @@ TEST(RoomModel, AppearanceIsRadianceAtExposureOneAndClippedObservationsOnlyBound
       EXPECT_FLOAT_EQ(m.radiance[i][1], 2.f);
       EXPECT_EQ(m.confidence[i], 0.f);
     }
-  EXPECT_GT(flagged, static_cast<int>(m.positions.size()) * 8 / 10);  // the rest: edges and grazing views, no observation
+  EXPECT_GT(flagged,
+            static_cast<int>(m.positions.size()) * 8 / 10);  // the rest: edges and grazing views, no observation
   EXPECT_GT(lamp.appearanceBytes(), 0u);
 }
 
@@ -586,19 +615,24 @@ TEST(RoomModel, AFramesPixelsRestoreTheTextureTheRoomBlurs) {
   // kernel) under one lamp. The room's albedo is the stripes' blur; times the detail of a frame's pixel
   // (its radiance over the room's fused radiance) it is each stripe's own albedo again.
   Scene s;
-  const auto stripes = [](const cv::Vec3d& p) { return std::fmod(std::floor(p[1] / 0.02) + 1000.0, 2.0) < 1.0 ? 0.3 : 0.8; };
+  const auto stripes = [](const cv::Vec3d& p) {
+    return std::fmod(std::floor(p[1] / 0.02) + 1000.0, 2.0) < 1.0 ? 0.3 : 0.8;
+  };
   const std::vector<std::pair<cv::Vec3d, double>> lamps = {{{0.4, 0.2, 1.5}, 4.0}};
   RoomModel room;
   int k = 0;
   const auto poses = orbit(8, 1.3, 1.0);
-  for (const auto& T : poses) ASSERT_TRUE(room.integrate(renderDepth(s, T, 0.0005, k++), renderColour(s, T, stripes, lamps), kK, T).integrated);
+  for (const auto& T : poses)
+    ASSERT_TRUE(room.integrate(renderDepth(s, T, 0.0005, k++), renderColour(s, T, stripes, lamps), kK, T).integrated);
   const RoomMesh m = room.mesh();
   reconstruction::AlbedoLights lights;
   lights.points.push_back({lamps[0].first, cv::Vec3d::all(lamps[0].second)});
   const auto a = reconstruction::estimateRoomAlbedo(m, lights);
   // Room vertices by 1 cm cell, for the nearest vertex of a pixel's point.
   std::map<std::array<int, 3>, std::vector<uint32_t>> cells;
-  const auto cellOf = [](const cv::Vec3d& p) { return std::array<int, 3>{int(std::floor(p[0] / 0.01)), int(std::floor(p[1] / 0.01)), int(std::floor(p[2] / 0.01))}; };
+  const auto cellOf = [](const cv::Vec3d& p) {
+    return std::array<int, 3>{int(std::floor(p[0] / 0.01)), int(std::floor(p[1] / 0.01)), int(std::floor(p[2] / 0.01))};
+  };
   for (uint32_t i = 0; i < m.positions.size(); ++i) cells[cellOf(cv::Vec3d(m.positions[i]))].push_back(i);
   const capture::Pose& T = poses[3];
   const cv::Mat colour = renderColour(s, T, stripes, lamps), radiance = capture::radianceOf(colour, 1.0);
@@ -625,7 +659,8 @@ TEST(RoomModel, AFramesPixelsRestoreTheTextureTheRoomBlurs) {
                 if (const double dd = cv::norm(cv::Vec3d(m.positions[i]) - p); dd < bestD) bestD = dd, best = i;
       if (bestD > 0.02 || a.status[best] != reconstruction::AlbedoStatus::Measured) continue;
       const double truth = stripes(p);
-      const cv::Vec3f detail = reconstruction::albedoDetail(colour.at<cv::Vec3b>(y, x), radiance.at<cv::Vec3f>(y, x), m.radiance[best]);
+      const cv::Vec3f detail =
+          reconstruction::albedoDetail(colour.at<cv::Vec3b>(y, x), radiance.at<cv::Vec3f>(y, x), m.radiance[best]);
       ++checked;
       blurredGood += std::abs(a.albedo[best][0] - truth) < 0.05 * truth;
       detailedGood += std::abs(a.albedo[best][0] * detail[0] - truth) < 0.05 * truth;
@@ -635,10 +670,12 @@ TEST(RoomModel, AFramesPixelsRestoreTheTextureTheRoomBlurs) {
   EXPECT_GT(detailedGood, static_cast<int>(0.9 * checked)) << detailedGood << " of " << checked;
   // A clipped pixel's ratio is a lower bound: it only raises the room's albedo; a room too dark to divide by
   // keeps its albedo; the ratio is bounded.
-  EXPECT_EQ(reconstruction::albedoDetail({255, 100, 100}, {1.2f, 0.1f, 0.1f}, {0.5f, 0.5f, 0.5f}), cv::Vec3f(2.4f, 1, 1));
+  EXPECT_EQ(reconstruction::albedoDetail({255, 100, 100}, {1.2f, 0.1f, 0.1f}, {0.5f, 0.5f, 0.5f}),
+            cv::Vec3f(2.4f, 1, 1));
   EXPECT_EQ(reconstruction::albedoDetail({255, 255, 255}, {0.4f, 0.4f, 0.4f}, {0.5f, 0.5f, 0.5f}), cv::Vec3f(1, 1, 1));
   EXPECT_EQ(reconstruction::albedoDetail({10, 10, 10}, {0.01f, 0.01f, 0.01f}, {0.f, 0.5f, 0.5f}), cv::Vec3f(1, 1, 1));
-  EXPECT_EQ(reconstruction::albedoDetail({200, 1, 10}, {0.6f, 1e-6f, 0.01f}, {0.01f, 0.5f, 0.01f}), cv::Vec3f(4, 0.25f, 1));
+  EXPECT_EQ(reconstruction::albedoDetail({200, 1, 10}, {0.6f, 1e-6f, 0.01f}, {0.01f, 0.5f, 0.01f}),
+            cv::Vec3f(4, 0.25f, 1));
   EXPECT_EQ(reconstruction::albedoDetail({200, 1, 10}, {NAN, 0.1f, 0.1f}, {0.1f, 0.1f, 0.1f}), cv::Vec3f(1, 1, 1));
 }
 
@@ -648,7 +685,9 @@ TEST(RoomModel, ClippedTextureFinerThanTheVoxelsDoesNotDarkenTheirMean) {
   // that of the dark bands alone (0.55 of the voxels' true mean); counted at their bound, it stays within
   // 15 % below the true mean (the bound is below the light bands' radiance).
   Scene s;
-  const auto stripes = [](const cv::Vec3d& p) { return std::fmod(std::floor(p[1] / 0.02) + 1000.0, 2.0) < 1.0 ? 0.3 : 0.8; };
+  const auto stripes = [](const cv::Vec3d& p) {
+    return std::fmod(std::floor(p[1] / 0.02) + 1000.0, 2.0) < 1.0 ? 0.3 : 0.8;
+  };
   const std::pair<cv::Vec3d, double> lamp = {{0.4, 0.2, 1.5}, 11.0};
   RoomModel room;
   int k = 0, clippedPixels = 0;

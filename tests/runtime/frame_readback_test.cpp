@@ -76,7 +76,8 @@ TEST_P(FrameReadbacks, NoneOnTheFramePathWhenNoOutputNeedsThem) {
   EXPECT_TRUE(none.composites.empty());
   ASSERT_EQ(now.composites.size(), 3u);
   ASSERT_EQ(later.composites.size(), 3u);
-  for (size_t i = 0; i < 3; ++i) EXPECT_EQ(cv::norm(now.composites[i], later.composites[i], cv::NORM_INF), 0.0) << "frame " << i;
+  for (size_t i = 0; i < 3; ++i)
+    EXPECT_EQ(cv::norm(now.composites[i], later.composites[i], cv::NORM_INF), 0.0) << "frame " << i;
 }
 
 std::vector<std::string> names() {

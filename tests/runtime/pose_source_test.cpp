@@ -1,11 +1,13 @@
 // Camera poses beyond the marker: the pose modes' one spelling, dense RGB-D odometry against the tags' own
 // poses on real frames with every tag painted out after the first, on synthetic sessions against their ground
 // truth, the marker's bounded correction when the tag returns, and loss and relocalisation across a jump.
+#include "runtime/pose_source.h"
+
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <fstream>
 #include <functional>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -15,14 +17,13 @@
 #include "capture/npz.h"
 #include "capture/registration.h"
 #include "capture/session.h"
-#include "reconstruction/marker.h"
-#include "reconstruction/odometry.h"
-#include "evaluation/tracking_metrics.h"
 #include "compositor/compositor.h"
+#include "evaluation/tracking_metrics.h"
 #include "gl/context.h"
 #include "lighting/scene_file.h"
+#include "reconstruction/marker.h"
+#include "reconstruction/odometry.h"
 #include "runtime/frame_pipeline.h"
-#include "runtime/pose_source.h"
 #include "runtime/room_fusion.h"
 
 namespace mrgi::runtime {
@@ -65,7 +66,8 @@ Visp readVisp(int paintFrom) {
       for (const auto& [id, tag] : tags.items()) {
         std::vector<cv::Point2f> quad;
         cv::Point2f centre(0, 0);
-        for (const auto& rc : tag["tag_corners"]) quad.emplace_back(rc[1].get<float>(), rc[0].get<float>()), centre += quad.back() / 4;
+        for (const auto& rc : tag["tag_corners"])
+          quad.emplace_back(rc[1].get<float>(), rc[0].get<float>()), centre += quad.back() / 4;
         std::vector<cv::Point> grown;
         for (const auto& p : quad) grown.emplace_back(centre + 1.5f * (p - centre));
         cv::fillConvexPoly(rgb, grown, cv::Scalar(128, 128, 128));
@@ -76,7 +78,8 @@ Visp readVisp(int paintFrom) {
       for (const auto& rc : tag["tag_corners"]) c += cv::Point2d(rc[1].get<double>(), rc[0].get<double>()) / 4;
       centres.push_back(c);
       if (f == 0)
-        v.tagCentres.push_back(capture::translationOf(capture::inversePose(poseFromRows(tags["0"]["cMo"])) * poseFromRows(tag["cMo"])));
+        v.tagCentres.push_back(
+            capture::translationOf(capture::inversePose(poseFromRows(tags["0"]["cMo"])) * poseFromRows(tag["cMo"])));
     }
     v.seenCentres.push_back(centres);
     capture::Frame fr;
@@ -92,7 +95,8 @@ Visp readVisp(int paintFrom) {
   }
   // The board's camera poses (from every tag: steadier than one tag's) in tag 0's frame, the world the marker
   // anchors: through frame 0, so that what is measured is the motion since the anchor.
-  const capture::Pose T_tag_board = capture::inversePose(poseFromRows(data["detections"][0]["0"]["cMo"])) * poseFromRows(data["grid"][0]);
+  const capture::Pose T_tag_board =
+      capture::inversePose(poseFromRows(data["detections"][0]["0"]["cMo"])) * poseFromRows(data["grid"][0]);
   for (auto& T : v.T_world_camera) T = T_tag_board * T;
   return v;
 }
@@ -175,8 +179,8 @@ TEST(Odometry, PaintedVispFramesFollowTheTagsPoses) {
   const Visp v = readVisp(1);
   auto source = makePoseSource(PoseMode::Odometry, v.marker, std::nullopt);
   const Trajectory t = run(*source, v.frames, v.T_world_camera);
-  std::printf("painted ViSP, odometry: %d of %zu frames tracked, ATE RMSE %.2f mm, max %.2f mm, last frame %.2f mm\n", t.tracked,
-              v.frames.size(), 1e3 * t.ateRmseM, 1e3 * t.maxM, 1e3 * t.lastDriftM);
+  std::printf("painted ViSP, odometry: %d of %zu frames tracked, ATE RMSE %.2f mm, max %.2f mm, last frame %.2f mm\n",
+              t.tracked, v.frames.size(), 1e3 * t.ateRmseM, 1e3 * t.maxM, 1e3 * t.lastDriftM);
   EXPECT_EQ(t.tracked, 20);
   EXPECT_EQ(t.poses[0].by, PosedBy::Marker);
   for (size_t i = 1; i < t.poses.size(); ++i) {
@@ -202,16 +206,18 @@ TEST(Odometry, VispDepthDisagreesWithTheTagsMotion) {
   o.method = reconstruction::OdometryMethod::PointToPlane;  // depth alone
   const auto& a = *v.frames[0].rgbd;
   const auto& b = *v.frames[16].rgbd;
-  const reconstruction::OdometryFrame A(a.depth, a.colour, a.colourIntrinsics, o), B(b.depth, b.colour, b.colourIntrinsics, o);
+  const reconstruction::OdometryFrame A(a.depth, a.colour, a.colourIntrinsics, o),
+      B(b.depth, b.colour, b.colourIntrinsics, o);
   const auto estimate = reconstruction::estimateOdometry(B, A, capture::identityPose(), o);
   ASSERT_TRUE(estimate.solved);
   reconstruction::OdometryOptions measureOnly = o;
   measureOnly.iterations = {0, 0, 0};
   const capture::Pose tags = capture::inversePose(v.T_world_camera[0]) * v.T_world_camera[16];
   const auto atTags = reconstruction::estimateOdometry(B, A, tags, measureOnly);
-  std::printf("frame 16 against 0: depth residual %.1f mm at the tags' motion (%.1f mm, %.2f deg), %.1f mm at odometry's\n",
-              1e3 * atTags.inlierRmse, 1e3 * cv::norm(capture::translationOf(tags)), reconstruction::rotationErrorDeg(tags, capture::identityPose()),
-              1e3 * estimate.inlierRmse);
+  std::printf(
+      "frame 16 against 0: depth residual %.1f mm at the tags' motion (%.1f mm, %.2f deg), %.1f mm at odometry's\n",
+      1e3 * atTags.inlierRmse, 1e3 * cv::norm(capture::translationOf(tags)),
+      reconstruction::rotationErrorDeg(tags, capture::identityPose()), 1e3 * estimate.inlierRmse);
   EXPECT_GT(atTags.inlierRmse, 1.3 * estimate.inlierRmse);
   for (int f = 1; f <= 8; ++f) {
     const auto& c = *v.frames[f].rgbd;
@@ -243,8 +249,9 @@ TEST(Odometry, SyntheticSessionsFollowTheirGroundTruth) {
       sum2 += last * last;
     }
     const double rmse = std::sqrt(sum2 / static_cast<double>(frames.size() - anchor));
-    std::printf("%s, odometry: frames %zu-%zu tracked from the marker's anchor, drift RMSE %.2f mm, last frame %.2f mm\n",
-                name.c_str(), anchor, frames.size() - 1, 1e3 * rmse, 1e3 * last);
+    std::printf(
+        "%s, odometry: frames %zu-%zu tracked from the marker's anchor, drift RMSE %.2f mm, last frame %.2f mm\n",
+        name.c_str(), anchor, frames.size() - 1, 1e3 * rmse, 1e3 * last);
     EXPECT_LT(rmse, 6e-3) << name;  // measured 1.2 (synth) and 4.9 mm (carve, whose objects move)
     EXPECT_LT(last, 8e-3) << name;
   }
@@ -301,8 +308,10 @@ TEST(Tracking, TheReturningMarkerCorrectsWithoutAJump) {
   // odometry) and odometry alone. Tracked comes back to the marker: closer than odometry alone.
   const double pxTracked = centreReprojectionPx(v, t, 10, 20), pxOdometry = centreReprojectionPx(v, o, 10, 20),
                pxMarker = centreReprojectionPx(v, m, 10, 20);
-  std::printf("tags back from frame 10: their centres drawn %.2f px RMS (tracked), %.2f (odometry alone), %.2f (marker alone)\n",
-              pxTracked, pxOdometry, pxMarker);
+  std::printf(
+      "tags back from frame 10: their centres drawn %.2f px RMS (tracked), %.2f (odometry alone), %.2f (marker "
+      "alone)\n",
+      pxTracked, pxOdometry, pxMarker);
   EXPECT_LT(pxTracked, pxOdometry);
   EXPECT_LT(pxTracked, 2.0);
 }
@@ -327,8 +336,10 @@ TEST(Tracking, AJumpIsLostThenRelocalised) {
   EXPECT_FALSE(t.poses[6].tracked()) << "a blank frame is lost";
   int back = -1;
   for (int i = 7; i < 10 && back < 0; ++i) {
-    if (t.poses[i].tracked()) back = i;
-    else EXPECT_EQ(t.poses[i].fitness < 0 || t.poses[i].fitness < 0.9, true);
+    if (t.poses[i].tracked())
+      back = i;
+    else
+      EXPECT_EQ(t.poses[i].fitness < 0 || t.poses[i].fitness < 0.9, true);
   }
   ASSERT_GE(back, 0) << "relocalised within 3 frames";
   EXPECT_EQ(t.poses[back].by, PosedBy::Relocalised);
@@ -348,7 +359,8 @@ TEST(Tracking, FrameToModelAlignsEachFrameWithTheRoom) {
   for (const std::string name : {"tabletop-synth", "tabletop-pt"}) {
     RoomFusionOptions truthPoses;
     truthPoses.pose = PoseMode::GroundTruth;
-    const auto room = std::make_shared<const reconstruction::RoomMesh>(fuseRoom(kRecordings + name, truthPoses).model.mesh());
+    const auto room =
+        std::make_shared<const reconstruction::RoomMesh>(fuseRoom(kRecordings + name, truthPoses).model.mesh());
     const Synthetic session = readSynthetic(name);
     const auto& frames = session.frames;
     const auto& truth = session.truth;
@@ -357,8 +369,9 @@ TEST(Tracking, FrameToModelAlignsEachFrameWithTheRoom) {
     auto model = makePoseSource(PoseMode::Odometry, marker, std::nullopt);
     model->useModel(room);
     const Trajectory k = run(*keyframes, frames, truth), t = run(*model, frames, truth);
-    std::printf("%s, odometry: ATE RMSE %.2f mm against keyframes, %.2f mm against the room (last frame %.2f / %.2f mm)\n",
-                name.c_str(), 1e3 * k.ateRmseM, 1e3 * t.ateRmseM, 1e3 * k.lastDriftM, 1e3 * t.lastDriftM);
+    std::printf(
+        "%s, odometry: ATE RMSE %.2f mm against keyframes, %.2f mm against the room (last frame %.2f / %.2f mm)\n",
+        name.c_str(), 1e3 * k.ateRmseM, 1e3 * t.ateRmseM, 1e3 * k.lastDriftM, 1e3 * t.lastDriftM);
     EXPECT_EQ(t.tracked, static_cast<int>(frames.size()));
     for (size_t i = 1; i < t.poses.size(); ++i) EXPECT_EQ(t.poses[i].against, "model") << name << " " << i;
     // Measured: tabletop-synth 1.9 mm ATE either way; tabletop-pt 4.1 mm against the room (last frame 2.0 mm)
@@ -380,10 +393,12 @@ TEST(Tracking, TheDefaultRoomOfAScanLiesOnTheGroundTruthRoom) {
   RoomFusion truth = fuseRoom(scan, truthPoses);
   const auto mt = tracked.model.mesh(), mg = truth.model.mesh();
   const auto accuracy = evaluation::surfaceDistance(mt, mg), coverage = evaluation::surfaceDistance(mg, mt);
-  std::printf("tabletop-scan, tracked: %d of %lld frames fused (%lld lost, %lld held); surface %.2f mm mean (90 %%: %.2f mm) from the "
-              "ground-truth room, which it covers %.0f %% of (within 2 cm)\n",
-              tracked.model.framesIntegrated(), static_cast<long long>(tracked.frames), static_cast<long long>(tracked.lost),
-              static_cast<long long>(tracked.held), 1e3 * accuracy.meanM, 1e3 * accuracy.p90M, 100 * coverage.within2cm);
+  std::printf(
+      "tabletop-scan, tracked: %d of %lld frames fused (%lld lost, %lld held); surface %.2f mm mean (90 %%: %.2f mm) "
+      "from the "
+      "ground-truth room, which it covers %.0f %% of (within 2 cm)\n",
+      tracked.model.framesIntegrated(), static_cast<long long>(tracked.frames), static_cast<long long>(tracked.lost),
+      static_cast<long long>(tracked.held), 1e3 * accuracy.meanM, 1e3 * accuracy.p90M, 100 * coverage.within2cm);
   EXPECT_GE(tracked.model.framesIntegrated(), 8);
   EXPECT_EQ(tracked.held, 0);
   EXPECT_LT(accuracy.meanM, 0.01);
@@ -414,10 +429,13 @@ TEST(Tracking, AnOptimisedTrajectoryFusesTheRoomNearerTheTrueOne) {
     const auto mg = fuseRoom(path, truthPoses).model.mesh();
     const RoomFusion a = fuseRoom(path, single), b = fuseRoom(path, optimised);
     const Synthetic session = readSynthetic(c.name);
-    const auto ea = evaluation::trajectoryError(a.poses, session.truth), eb = evaluation::trajectoryError(b.poses, session.truth);
-    const auto da = evaluation::surfaceDistance(a.model.mesh(), mg), db = evaluation::surfaceDistance(b.model.mesh(), mg);
-    std::printf("%s: ATE %.2f -> %.2f mm (%d frames); room %.2f -> %.2f mm from the true one; %s\n", c.name, 1e3 * ea.ateRmseM,
-                1e3 * eb.ateRmseM, eb.tracked, 1e3 * da.meanM, 1e3 * db.meanM, b.trajectory.dump().c_str());
+    const auto ea = evaluation::trajectoryError(a.poses, session.truth),
+               eb = evaluation::trajectoryError(b.poses, session.truth);
+    const auto da = evaluation::surfaceDistance(a.model.mesh(), mg),
+               db = evaluation::surfaceDistance(b.model.mesh(), mg);
+    std::printf("%s: ATE %.2f -> %.2f mm (%d frames); room %.2f -> %.2f mm from the true one; %s\n", c.name,
+                1e3 * ea.ateRmseM, 1e3 * eb.ateRmseM, eb.tracked, 1e3 * da.meanM, 1e3 * db.meanM,
+                b.trajectory.dump().c_str());
     EXPECT_EQ(eb.tracked, ea.tracked) << c.name;
     EXPECT_LT(eb.ateRmseM, c.maxAteM) << c.name;
     EXPECT_LT(db.meanM, 0.01) << c.name;
@@ -448,7 +466,8 @@ TEST(Tracking, ASmallTagIsReseatedOnItsDepthPlane) {
   const Trajectory t = run(*marker, session.frames, session.truth);
   std::vector<double> errors;
   for (size_t i = 0; i < t.poses.size(); ++i)
-    if (t.poses[i].markerT_world_camera) errors.push_back(reconstruction::translationError(*t.poses[i].markerT_world_camera, session.truth[i]));
+    if (t.poses[i].markerT_world_camera)
+      errors.push_back(reconstruction::translationError(*t.poses[i].markerT_world_camera, session.truth[i]));
   ASSERT_GE(errors.size(), 4u);
   std::sort(errors.begin(), errors.end());
   EXPECT_LT(errors[errors.size() / 2], 0.012);  // 35 mm with the fixed 25 mm gate
@@ -470,7 +489,8 @@ TEST(Tracking, ARoomFusedAsTheFramesComeIsTrackedAgainst) {
     const auto replay = [&](bool track) {
       auto source = capture::open(kRecordings + name);
       const std::string scenePath = std::string(MRGI_SOURCE_DIR) + "/recordings/scenes/tabletop.json";
-      const LightingSetup setup = prepareLighting(lighting::loadScene(scenePath), scenePath, *source, name, PoseMode::Tracked, true);
+      const LightingSetup setup =
+          prepareLighting(lighting::loadScene(scenePath), scenePath, *source, name, PoseMode::Tracked, true);
       FrameOptions fo;
       fo.pose = PoseMode::Tracked;
       fo.fuse = std::make_shared<reconstruction::RoomModel>();
@@ -492,9 +512,11 @@ TEST(Tracking, ARoomFusedAsTheFramesComeIsTrackedAgainst) {
     };
     const auto [without, none] = replay(false);
     const auto [with, model] = replay(true);
-    std::printf("%s, replay --fuse-room: ATE %.2f mm tracking against keyframes, %.2f mm against the room as it is fused (%d frames "
-                "aligned with it)\n",
-                name.c_str(), 1e3 * without.ateRmseM, 1e3 * with.ateRmseM, model);
+    std::printf(
+        "%s, replay --fuse-room: ATE %.2f mm tracking against keyframes, %.2f mm against the room as it is fused (%d "
+        "frames "
+        "aligned with it)\n",
+        name.c_str(), 1e3 * without.ateRmseM, 1e3 * with.ateRmseM, model);
     EXPECT_EQ(none, 0);
     EXPECT_GE(model, static_cast<int>(session.truth.size()) - 3) << name;  // from the first refresh on
     EXPECT_EQ(with.tracked, without.tracked) << name;

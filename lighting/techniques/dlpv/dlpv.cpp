@@ -11,16 +11,38 @@ namespace mrgi::lighting {
 
 const std::vector<KnobBinding<DlpvKnobs>>& dlpvKnobTable() {
   static const std::vector<KnobBinding<DlpvKnobs>> table = {
-      {{"resolution", KnobType::Int, 4, 128, 32, "volume cells per axis", {8, 16, 48}, {8}, true}, &DlpvKnobs::resolution},
+      {{"resolution", KnobType::Int, 4, 128, 32, "volume cells per axis", {8, 16, 48}, {8}, true},
+       &DlpvKnobs::resolution},
       {{"steps", KnobType::Int, 0, 256, 16, "propagation steps", {4, 8, 32}, {4}, false}, &DlpvKnobs::steps},
-      {{"damping", KnobType::Real, 0.0, 1.0, 1.0,
-        "directional damping of lateral and backward propagation (0 = off)", {0.0, 0.5}, {}, false},
+      {{"damping",
+        KnobType::Real,
+        0.0,
+        1.0,
+        1.0,
+        "directional damping of lateral and backward propagation (0 = off)",
+        {0.0, 0.5},
+        {},
+        false},
        &DlpvKnobs::damping},
-      {{"direct_steps", KnobType::Int, 0, 256, 2,
-        "propagation steps of the direct (shadow) delta, at most steps: more = softer shadows, darker centre", {}, {}, false},
+      {{"direct_steps",
+        KnobType::Int,
+        0,
+        256,
+        2,
+        "propagation steps of the direct (shadow) delta, at most steps: more = softer shadows, darker centre",
+        {},
+        {},
+        false},
        &DlpvKnobs::directSteps},
-      {{"naive_difference", KnobType::Bool, 0, 1, 0,
-        "real pixels from two full volumes V^rho - V^mu instead of delta injection (the lpv-diff baseline)", {}, {}, false},
+      {{"naive_difference",
+        KnobType::Bool,
+        0,
+        1,
+        0,
+        "real pixels from two full volumes V^rho - V^mu instead of delta injection (the lpv-diff baseline)",
+        {},
+        {},
+        false},
        &DlpvKnobs::naiveDifference},
   };
   return table;
@@ -29,7 +51,8 @@ const std::vector<KnobBinding<DlpvKnobs>>& dlpvKnobTable() {
 TechniqueInfo dlpvTechniqueInfo() {
   TechniqueInfo t;
   t.name = "dlpv";
-  t.description = "Delta Light Propagation Volumes: the object's shadow and bounce on real pixels, V^rho bounce on the object";
+  t.description =
+      "Delta Light Propagation Volumes: the object's shadow and bounce on real pixels, V^rho bounce on the object";
   t.real = true;
   t.virtualObject = true;
   t.stagePrefixes = {"lpv."};
@@ -49,11 +72,13 @@ DlpvTechnique::DlpvTechnique(const TechniqueSetup& setup)
     : knobs_(knobsFrom(dlpvKnobTable(), setup.knobs)),
       real_(setup.real),
       virtual_(setup.virtualObject),
-      injectProgram_(gl::Program::graphics("lighting/techniques/dlpv/lpv_inject.vert", "lighting/techniques/dlpv/lpv_inject.geom",
+      injectProgram_(gl::Program::graphics("lighting/techniques/dlpv/lpv_inject.vert",
+                                           "lighting/techniques/dlpv/lpv_inject.geom",
                                            "lighting/techniques/dlpv/lpv_inject.frag")),
       propagateProgram_(gl::Program::compute("lighting/techniques/dlpv/lpv_propagate.comp")),
       addProgram_(gl::Program::compute("lighting/techniques/dlpv/lpv_add.comp")),
-      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/dlpv/dlpv_readout.frag")),
+      readoutProgram_(
+          gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/dlpv/dlpv_readout.frag")),
       out_(setup.frame->width(), setup.frame->height()) {}
 
 DlpvTechnique::Volume DlpvTechnique::makeVolume(int res) const {
@@ -293,7 +318,8 @@ cv::Mat volumeSlices(const LpvVolumeCpu& volume, int every, int cellPixels, doub
       for (int i = 0; i < res; ++i) {
         const auto& c = volume.at(i, j, k);
         const double l = capture::luminance(cv::Vec3d(c[0][0], c[1][0], c[2][0]));
-        const cv::Rect r(s * (res * cellPixels + gap) + i * cellPixels, (res - 1 - j) * cellPixels, cellPixels, cellPixels);
+        const cv::Rect r(s * (res * cellPixels + gap) + i * cellPixels, (res - 1 - j) * cellPixels, cellPixels,
+                         cellPixels);
         const cv::Vec3b colour = signedColour(l, scale);
         out(r).setTo(cv::Scalar(colour[0], colour[1], colour[2]));
       }
@@ -314,7 +340,8 @@ cv::Mat DlpvTechnique::debugImage(const std::string& view, const DebugContext&, 
 
 size_t DlpvTechnique::gpuBytes() const {
   size_t sum = out_.bytes();
-  for (const Volume* v : {&delta_, &rho_, &rhoFull_, &muFull_, &scratchA_, &scratchB_, &deltaDirect_, &rhoDirect_, &muDirect_})
+  for (const Volume* v :
+       {&delta_, &rho_, &rhoFull_, &muFull_, &scratchA_, &scratchB_, &deltaDirect_, &rhoDirect_, &muDirect_})
     sum += v->r.bytes() + v->g.bytes() + v->b.bytes();
   return sum;
 }

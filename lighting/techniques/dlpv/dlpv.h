@@ -14,10 +14,10 @@
 namespace mrgi::lighting {
 
 struct DlpvKnobs {
-  int resolution = 0;         ///< cells per axis
-  int steps = 0;              ///< propagation steps
-  double damping = 0;         ///< directional damping of lateral/backward propagation, [0, 1] (0 = off)
-  int directSteps = 0;        ///< steps the direct (shadow) delta propagates (joins that many before the end)
+  int resolution = 0;            ///< cells per axis
+  int steps = 0;                 ///< propagation steps
+  double damping = 0;            ///< directional damping of lateral/backward propagation, [0, 1] (0 = off)
+  int directSteps = 0;           ///< steps the direct (shadow) delta propagates (joins that many before the end)
   bool naiveDifference = false;  ///< two volumes differenced instead of delta injection
 };
 const std::vector<KnobBinding<DlpvKnobs>>& dlpvKnobTable();

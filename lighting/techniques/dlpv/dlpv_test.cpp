@@ -1,10 +1,12 @@
 // DLPV pipeline: GPU passes held to the C++ reference, and the properties the technique must have.
 // Test scenes use a z-up lighting world: a grey floor z = 0, a red wall at x = -0.5, a white virtual cube.
+#include "lighting/techniques/dlpv/dlpv.h"
+
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
 #include <map>
-
-#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -12,9 +14,8 @@
 #include "compositor/compositor.h"
 #include "gl/context.h"
 #include "lighting/pipeline.h"
-#include "lighting/techniques/dlpv/dlpv.h"
-#include "lighting/techniques/dlpv/lpv.h"
 #include "lighting/scene_file.h"
+#include "lighting/techniques/dlpv/lpv.h"
 #include "tests/lighting/test_scene.h"
 
 using namespace mrgi;
@@ -24,7 +25,9 @@ using namespace mrgi::test;
 namespace {
 
 /// The pipeline's DLPV instance.
-const DlpvTechnique& dlpv(const LightingPipeline& pipe) { return dynamic_cast<const DlpvTechnique&>(*pipe.technique("dlpv")); }
+const DlpvTechnique& dlpv(const LightingPipeline& pipe) {
+  return dynamic_cast<const DlpvTechnique&>(*pipe.technique("dlpv"));
+}
 
 /// A region equal to fitGrid(lo, hi, factor, res)'s volume.
 Region regionOf(const LpvGrid& g) { return Region{g.origin, g.side()}; }
@@ -73,7 +76,8 @@ TEST(Lpv, DirectionalLobeEnergyPerStepIsBounded) {
   LpvGrid g;
   g.resolution = 41;
   g.cellSize = 0.1;
-  for (const cv::Vec3f& dir : {cv::Vec3f(0, 0, 1), cv::normalize(cv::Vec3f(1, 1, 1)), cv::normalize(cv::Vec3f(1, 0.3f, 0))}) {
+  for (const cv::Vec3f& dir :
+       {cv::Vec3f(0, 0, 1), cv::normalize(cv::Vec3f(1, 1, 1)), cv::normalize(cv::Vec3f(1, 0.3f, 0))}) {
     LpvVolumeCpu v(41);
     const auto lobe = cosineLobe(dir);
     for (int i = 0; i < 4; ++i) v.at(20, 20, 20)[0][i] = lobe[i] / float(CV_PI);
@@ -167,7 +171,8 @@ TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
     injectReference(g, mu, &rho, ip, direct);
     ip = InjectParams{1.0f, kInjectIndirect, false, light.type, cv::Vec3f(light.position), cv::Vec3f(light.direction)};
     injectReference(g, rho, nullptr, ip, rhoVol);
-    const LpvVolumeCpu deltaCpu = propagateReference(g, delta, dlpv(pipe).knobs().steps, 0.5f, false, &direct, dlpv(pipe).knobs().directSteps);
+    const LpvVolumeCpu deltaCpu =
+        propagateReference(g, delta, dlpv(pipe).knobs().steps, 0.5f, false, &direct, dlpv(pipe).knobs().directSteps);
     const LpvVolumeCpu rhoCpu = propagateReference(g, rhoVol, dlpv(pipe).knobs().steps, 0.5f, true);
     const LpvVolumeCpu deltaGpu = dlpv(pipe).downloadVolume("delta"), rhoGpu = dlpv(pipe).downloadVolume("rho");
     ASSERT_GT(maxAbs(deltaCpu), 0.0f);
@@ -199,7 +204,6 @@ TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
 
 // ----------------------------------------------------------------------------------------- properties
 
-
 TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
   auto ctx = makeContext();
   const double cube = 0.16;
@@ -212,7 +216,8 @@ TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
     double core, bleeding;
   };
   std::map<std::pair<double, int>, Result> results;
-  for (auto [damping, directSteps] : {std::pair{0.0, 0}, {0.0, 1}, {0.0, 2}, {0.5, 1}, {0.5, 2}, {1.0, 1}, {1.0, 2}, {1.0, 4}}) {
+  for (auto [damping, directSteps] :
+       {std::pair{0.0, 0}, {0.0, 1}, {0.0, 2}, {0.5, 1}, {0.5, 2}, {1.0, 1}, {1.0, 2}, {1.0, 4}}) {
     cfg.set("lpv", "damping", damping);
     cfg.set("lpv", "direct_steps", directSteps);
     LightingPipeline pipe = makePipeline(cfg, s);
@@ -229,8 +234,10 @@ TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
         if (p[3] < 0.5f || alb.at<cv::Vec4f>(y, x)[3] > 0.5f) continue;
         const cv::Vec3d pw(p[0], p[1], p[2]);
         const float e = lum(irr.at<cv::Vec4f>(y, x));
-        if (inShadow(pw, sun.direction, centre, 0.5 * cube)) insideNeg += std::min(0.0f, e);
-        else outsideNeg += std::min(0.0f, e);
+        if (inShadow(pw, sun.direction, centre, 0.5 * cube))
+          insideNeg += std::min(0.0f, e);
+        else
+          outsideNeg += std::min(0.0f, e);
         if (inShadow(pw, sun.direction, centre, 0.25 * cube)) {  // the shadow's core
           coreSum += e;
           ++core;
@@ -247,8 +254,10 @@ TEST(GL, OccluderCastsNegativeDeltaOnlyInsideItsShadow) {
     // Every configuration darkens the shadow core clearly (the true loss is E cos = 8 W/m^2).
     EXPECT_LT(r.core, -0.5 * 0.8 * E) << "damping " << damping << ", direct steps " << directSteps;
     results[{damping, directSteps}] = r;
-    std::printf("direct steps %d, damping %.1f: shadow core %.2f W/m^2 (true -%.0f), negative energy outside the shadow %.1f %%\n",
-                directSteps, damping, r.core, 0.8 * E, 100 * r.bleeding);
+    std::printf(
+        "direct steps %d, damping %.1f: shadow core %.2f W/m^2 (true -%.0f), negative energy outside the shadow %.1f "
+        "%%\n",
+        directSteps, damping, r.core, 0.8 * E, 100 * r.bleeding);
   }
   // The defaults (damping 1, 2 direct steps) hold the shadow's depth within 15 % (measured 4 %), and the
   // damping removes both the over-dark centre and part of the bleeding that undamped propagation shows.
@@ -272,7 +281,8 @@ TEST(GL, WhiteObjectNextToRedWallReceivesRedBounce) {
   const LpvVolumeCpu rho = dlpv(pipe).downloadVolume("rho");
   const cv::Vec3f wallSide = irradianceReference(*dlpv(pipe).grid(), rho, {-0.4f, 0.0f, 0.1f}, {-1, 0, 0});
   const cv::Vec3f awaySide = irradianceReference(*dlpv(pipe).grid(), rho, {-0.2f, 0.0f, 0.1f}, {1, 0, 0});
-  std::printf("indirect on the face towards the red wall: (%.3f, %.3f, %.3f) W/m^2\n", wallSide[0], wallSide[1], wallSide[2]);
+  std::printf("indirect on the face towards the red wall: (%.3f, %.3f, %.3f) W/m^2\n", wallSide[0], wallSide[1],
+              wallSide[2]);
   EXPECT_GT(wallSide[0], 0.0f);
   EXPECT_GT(wallSide[0], 3.0f * wallSide[1]);  // red wall albedo (0.8, 0.1, 0.1) -> clearly red bounce
   EXPECT_GT(wallSide[0], 3.0f * wallSide[2]);
@@ -315,8 +325,8 @@ TEST(GL, GBufferMaskAndOcclusionBothWays) {
     return cv::Point(int(std::lround(100 * c[0] / c[2] + 59.5)), int(std::lround(100 * c[1] / c[2] + 44.5)));
   };
   const cv::Point right = pixelOf({0.06, -0.1, 0.12}), left = pixelOf({-0.06, -0.1, 0.12});
-  EXPECT_GT(alb.at<cv::Vec4f>(right)[3], 0.5f);  // virtual in front of the floor
-  EXPECT_LT(alb.at<cv::Vec4f>(left)[3], 0.5f);   // hidden by the real panel
+  EXPECT_GT(alb.at<cv::Vec4f>(right)[3], 0.5f);            // virtual in front of the floor
+  EXPECT_LT(alb.at<cv::Vec4f>(left)[3], 0.5f);             // hidden by the real panel
   EXPECT_NEAR(pos.at<cv::Vec4f>(left)[1], -0.15f, 1e-3f);  // ... whose position the G-buffer holds
   // Floor pixel: the G-buffer position lies on the ray through the pixel centre, on z = 0.
   const cv::Point fp = pixelOf({0.4, 0.5, 0.0});

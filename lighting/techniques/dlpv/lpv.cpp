@@ -22,8 +22,8 @@ float dot4(const std::array<float, 4>& a, const std::array<float, 4>& b) {
 }
 
 bool sameTexel(const RsmTexels& a, const RsmTexels& b, int x, int y) {
-  for (auto [ma, mb] : {std::pair{&a.position, &b.position}, {&a.normal, &b.normal}, {&a.flux, &b.flux},
-                        {&a.direct, &b.direct}})
+  for (auto [ma, mb] :
+       {std::pair{&a.position, &b.position}, {&a.normal, &b.normal}, {&a.flux, &b.flux}, {&a.direct, &b.direct}})
     if (std::memcmp(&ma->at<cv::Vec4f>(y, x), &mb->at<cv::Vec4f>(y, x), sizeof(cv::Vec4f)) != 0) return false;
   return true;
 }

@@ -5,9 +5,8 @@
 /// convention of lighting/sh.h. A cell stores radiant intensity (W/sr) as SH; radiance = intensity / cell².
 #include <array>
 #include <functional>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "lighting/frame/frame.h"
 #include "lighting/scene_file.h"
@@ -84,9 +83,10 @@ float dampingFactor(const std::array<float, 4>& luminanceSh, const cv::Vec3f& d,
 /// (all of them when lateSteps >= steps), so shadows blur less than bounce light. afterEachStep (optional):
 /// called with the accumulated volume after each step, 1 to `steps` (without a late volume, what a call
 /// with that many steps returns).
-LpvVolumeCpu propagateReference(const LpvGrid& grid, const LpvVolumeCpu& injected, int steps, float damping,
-                                bool clampNegative, const LpvVolumeCpu* late = nullptr, int lateSteps = 0,
-                                const std::function<void(int step, const LpvVolumeCpu& accumulated)>& afterEachStep = {});
+LpvVolumeCpu propagateReference(
+    const LpvGrid& grid, const LpvVolumeCpu& injected, int steps, float damping, bool clampNegative,
+    const LpvVolumeCpu* late = nullptr, int lateSteps = 0,
+    const std::function<void(int step, const LpvVolumeCpu& accumulated)>& afterEachStep = {});
 
 /// Irradiance (W/m²) at a surface point with unit normal n: trilinear SH at position + n * cell / 2, read as
 /// E = (1/cell²) sum_l A_l c_lm y_lm(-n), A = (pi, 2 pi / 3); 0 outside the grid.

@@ -15,24 +15,60 @@ const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable
   static const std::vector<KnobBinding<ImperfectVolumesKnobs>> table = {
       {{"resolution", KnobType::Int, 1, 128, 32, "voxels per axis of the grid over the region", {16, 48}, {16}, true},
        &ImperfectVolumesKnobs::resolution},
-      {{"points", KnobType::Int, 3, 19, 8, "points per triangle (virtual objects and the real mesh)", {3, 19}, {}, false},
+      {{"points",
+        KnobType::Int,
+        3,
+        19,
+        8,
+        "points per triangle (virtual objects and the real mesh)",
+        {3, 19},
+        {},
+        false},
        &ImperfectVolumesKnobs::points},
       {{"rays", KnobType::Int, 16, 256, 64, "rays per voxel", {16, 256}, {16}, true}, &ImperfectVolumesKnobs::rays},
-      {{"bands", KnobType::Int, 1, 8, 3, "SH bands of the incident radiance", {2, 4}, {}, false}, &ImperfectVolumesKnobs::bands},
-      {{"range", KnobType::Real, 0.001, 10.0, 0.5, "metres: a surface farther along a ray than this leaves the ambient",
-        {0.25, 1.0}, {}, true},
+      {{"bands", KnobType::Int, 1, 8, 3, "SH bands of the incident radiance", {2, 4}, {}, false},
+       &ImperfectVolumesKnobs::bands},
+      {{"range",
+        KnobType::Real,
+        0.001,
+        10.0,
+        0.5,
+        "metres: a surface farther along a ray than this leaves the ambient",
+        {0.25, 1.0},
+        {},
+        true},
        &ImperfectVolumesKnobs::range},
-      {{"bounces", KnobType::Int, 0, 3, 2, "light bounces off the volume's surfaces (0: ambient occlusion only)", {0, 1}, {1}, false},
+      {{"bounces",
+        KnobType::Int,
+        0,
+        3,
+        2,
+        "light bounces off the volume's surfaces (0: ambient occlusion only)",
+        {0, 1},
+        {1},
+        false},
        &ImperfectVolumesKnobs::bounces},
-      {{"object_rays", KnobType::Int, 0, 1024, 64,
+      {{"object_rays",
+        KnobType::Int,
+        0,
+        1024,
+        64,
         "rays per virtual-object pixel, marched from its surface point through the real-only volume (0: the "
         "object reads the voxels' SH like real pixels)",
-        {0, 256}, {0}, true},
+        {0, 256},
+        {0},
+        true},
        &ImperfectVolumesKnobs::objectRays},
-      {{"outer_resolution", KnobType::Int, 0, 128, 32,
+      {{"outer_resolution",
+        KnobType::Int,
+        0,
+        128,
+        32,
         "voxels per axis of the coarser volume the object's rays go on through past the grid (side: the grid's + 2 "
         "range; real surfaces only; 0: past the grid is the ambient)",
-        {0, 16}, {0}, true},
+        {0, 16},
+        {0},
+        true},
        &ImperfectVolumesKnobs::outerResolution},
   };
   return table;
@@ -64,13 +100,16 @@ size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real, bool virtualObject)
 TechniqueInfo imperfectVolumesTechniqueInfo() {
   TechniqueInfo t;
   t.name = "imperfect-volumes";
-  t.description = "Imperfect volumes: ambient occlusion and bounce light ray-marched through a voxelised point cloud, on real pixels and the object";
+  t.description =
+      "Imperfect volumes: ambient occlusion and bounce light ray-marched through a voxelised point cloud, on real "
+      "pixels and the object";
   t.real = true;
   t.virtualObject = true;
   t.stagePrefixes = {"iv."};
   t.knobs = groupOf("iv", imperfectVolumesKnobTable());
   t.create = [](const TechniqueSetup& s) { return std::make_unique<ImperfectVolumesTechnique>(s); };
-  t.estimateBytes = [](const KnobValues& values, const KnobValues&, bool real, bool virtualObject, int w, int h, size_t) {
+  t.estimateBytes = [](const KnobValues& values, const KnobValues&, bool real, bool virtualObject, int w, int h,
+                       size_t) {
     const ImperfectVolumesKnobs k = knobsFrom(imperfectVolumesKnobTable(), values);
     return voxelBytes(k, real, virtualObject) + 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
   };
@@ -97,7 +136,8 @@ IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int pe
     // N points, and on a triangle larger than a voxel at least 4 per voxel of its area, so that it leaves
     // no hole (a depth mesh's triangles are far smaller than a voxel; a cube's faces are not).
     const double area = 0.5 * cv::norm((x[1] - x[0]).cross(x[2] - x[0]));
-    const int count = static_cast<int>(std::min(65536.0, std::max<double>(perTriangle, std::ceil(4.0 * area / (grid.voxel * grid.voxel)))));
+    const int count = static_cast<int>(
+        std::min(65536.0, std::max<double>(perTriangle, std::ceil(4.0 * area / (grid.voxel * grid.voxel)))));
     for (int j = 0; j < count; ++j) {
       const cv::Vec2f r = iv::sampleOf(id, j);
       const float s = std::sqrt(r[0]);
@@ -169,8 +209,10 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
       reflectProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_reflect.comp",
                                            {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       hiddenProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_hidden.comp")),
-      coneProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_cone.comp", {{"SH_BANDS", std::to_string(knobs_.bands)}})),
-      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/imperfect_volumes/iv_readout.frag",
+      coneProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_cone.comp",
+                                        {{"SH_BANDS", std::to_string(knobs_.bands)}})),
+      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert",
+                                            "lighting/techniques/imperfect_volumes/iv_readout.frag",
                                             {{"SH_BANDS", std::to_string(knobs_.bands)}})),
       out_(setup.frame->width(), setup.frame->height()) {}
 
@@ -221,7 +263,8 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       outerPointCount_ = op.count();
       outerPoints_ = gl::Buffer::storage(std::max<size_t>(op.data.size(), 1) * sizeof(cv::Vec4f), op.data.data());
       outerOffsets_ = gl::Buffer::storage(op.offsets.size() * sizeof(uint32_t), op.offsets.data());
-      if (!outerVoxels_.id()) outerVoxels_ = gl::Buffer::storage(o.count() * 7 * sizeof(cv::Vec4f));  // the knob is fixed
+      if (!outerVoxels_.id())
+        outerVoxels_ = gl::Buffer::storage(o.count() * 7 * sizeof(cv::Vec4f));  // the knob is fixed
       outerGrid_ = o;
     }
     if (!objectDirections_.id() && virtual_ && knobs_.objectRays > 0) {
@@ -273,7 +316,8 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     if (const auto b = frame.objectBounds()) {
       // The objects' box, grown by a voxel's half diagonal: their points occupy whole voxels.
       const cv::Vec3d lo = b->first, hi = b->second;
-      coneBound_ = iv::Bound{cv::Vec3f(0.5 * (lo + hi)), static_cast<float>(0.5 * cv::norm(hi - lo) + 0.5 * std::sqrt(3.0) * g.voxel)};
+      coneBound_ = iv::Bound{cv::Vec3f(0.5 * (lo + hi)),
+                             static_cast<float>(0.5 * cv::norm(hi - lo) + 0.5 * std::sqrt(3.0) * g.voxel)};
       auto s = timed(profiler, "iv.cone");
       const gl::Program& p = coneProgram_;
       useVoxelRays(p, frame);
@@ -286,8 +330,11 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     }
   }
   gl::checkGlError("ImperfectVolumesTechnique::build()");
-  stats_ = {{"points", pointCount_},          {"voxels_gathered", neededCount_}, {"voxel_m", g.voxel},
-            {"real_triangles", pts.realTriangles}, {"virtual_triangles", pts.virtualTriangles}};
+  stats_ = {{"points", pointCount_},
+            {"voxels_gathered", neededCount_},
+            {"voxel_m", g.voxel},
+            {"real_triangles", pts.realTriangles},
+            {"virtual_triangles", pts.virtualTriangles}};
   if (outerGrid_) stats_["outer_points"] = outerPointCount_, stats_["outer_voxel_m"] = outerGrid_->voxel;
 }
 
@@ -469,7 +516,8 @@ iv::Incident ImperfectVolumesTechnique::downloadIncident(bool rho) const {
   return in;
 }
 
-cv::Mat ImperfectVolumesTechnique::debugImage(const std::string& view, const DebugContext&, nlohmann::json& info) const {
+cv::Mat ImperfectVolumesTechnique::debugImage(const std::string& view, const DebugContext&,
+                                              nlohmann::json& info) const {
   if (!grid_) return {};
   if (view == "iv_ao" && frame_) {
     // Per pixel: the occlusion of the scene with the objects (the fraction of the sphere's rays blocked
@@ -489,7 +537,8 @@ cv::Mat ImperfectVolumesTechnique::debugImage(const std::string& view, const Deb
       if (ao < 0.0f) continue;  // outside the grid
       const auto open = cv::saturate_cast<uchar>(255.0 * (1.0 - ao));
       const bool isVirtual = alb.at<cv::Vec4f>(i)[3] > 0.5f;
-      out.at<cv::Vec3b>(i) = isVirtual ? cv::Vec3b(open, open, static_cast<uchar>(open * 0.6)) : cv::Vec3b(open, open, open);
+      out.at<cv::Vec3b>(i) =
+          isVirtual ? cv::Vec3b(open, open, static_cast<uchar>(open * 0.6)) : cv::Vec3b(open, open, open);
       sum += ao, ++n;
     }
     info["debug_iv_mean_occlusion"] = n > 0 ? sum / n : 0.0;
@@ -510,7 +559,9 @@ cv::Mat ImperfectVolumesTechnique::debugImage(const std::string& view, const Deb
         const size_t idx = grid_->index(i, j, k);
         const int x = s * (res * cell + gap) + i * cell, y = (res - 1 - j) * cell;
         const uint8_t o = v.occupancy[idx];
-        const cv::Scalar occ = (o & iv::kVirtual) ? cv::Scalar(240, 200, 40) : (o & iv::kReal) ? cv::Scalar(160, 160, 160) : cv::Scalar(30, 30, 70);
+        const cv::Scalar occ = (o & iv::kVirtual) ? cv::Scalar(240, 200, 40)
+                               : (o & iv::kReal)  ? cv::Scalar(160, 160, 160)
+                                                  : cv::Scalar(30, 30, 70);
         out(cv::Rect(x, y, cell, cell)).setTo(occ);
         cv::Scalar ao(70, 10, 10);
         if (!in.computed.empty() && in.computed[idx]) {
@@ -528,9 +579,9 @@ nlohmann::json ImperfectVolumesTechnique::stats() const { return stats_; }
 
 size_t ImperfectVolumesTechnique::gpuBytes() const {
   size_t sum = out_.bytes();
-  for (const gl::Buffer* b : {&points_, &offsets_, &voxels_, &needed_, &directions_, &incidentRho_, &incidentMu_, &occlusionRho_,
-                              &occlusionMu_, &reflected_, &bounce_, &computed_, &objectDirections_, &reflectedSum_,
-                              &hidden_, &outerPoints_, &outerOffsets_, &outerVoxels_})
+  for (const gl::Buffer* b : {&points_, &offsets_, &voxels_, &needed_, &directions_, &incidentRho_, &incidentMu_,
+                              &occlusionRho_, &occlusionMu_, &reflected_, &bounce_, &computed_, &objectDirections_,
+                              &reflectedSum_, &hidden_, &outerPoints_, &outerOffsets_, &outerVoxels_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);
   return sum;
 }

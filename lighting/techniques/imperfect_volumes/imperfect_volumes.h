@@ -20,13 +20,13 @@
 namespace mrgi::lighting {
 
 struct ImperfectVolumesKnobs {
-  int resolution = 0;   ///< voxels per axis of the grid over the region
-  int points = 0;       ///< points per triangle (3-19)
-  int rays = 0;         ///< rays per voxel
-  int bands = 0;        ///< SH bands of the incident radiance
-  double range = 0;     ///< metres: a hit farther than this returns the ambient
-  int bounces = 0;      ///< 0: ambient occlusion only
-  int objectRays = 0;   ///< rays per virtual-object pixel through the mu volume (0: read the voxels' SH)
+  int resolution = 0;       ///< voxels per axis of the grid over the region
+  int points = 0;           ///< points per triangle (3-19)
+  int rays = 0;             ///< rays per voxel
+  int bands = 0;            ///< SH bands of the incident radiance
+  double range = 0;         ///< metres: a hit farther than this returns the ambient
+  int bounces = 0;          ///< 0: ambient occlusion only
+  int objectRays = 0;       ///< rays per virtual-object pixel through the mu volume (0: read the voxels' SH)
   int outerResolution = 0;  ///< voxels per axis of the outer volume the object's rays continue in (0: none)
 };
 const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable();
@@ -43,7 +43,8 @@ struct IvPoints {
   size_t count() const { return data.size() / 3; }
   size_t realTriangles = 0, virtualTriangles = 0;
 };
-IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle, const iv::Grid* without = nullptr);
+IvPoints ivScenePoints(const FrameResources& frame, const iv::Grid& grid, int perTriangle,
+                       const iv::Grid* without = nullptr);
 /// The outer volume's points: the real mesh outside `inner`, at the inner grid's density per voxel area
 /// (perTriangle scaled by (inner voxel / outer voxel)^2, at least 1).
 IvPoints ivOuterPoints(const FrameResources& frame, const iv::Grid& inner, const iv::Grid& outer, int perTriangle);
@@ -98,7 +99,8 @@ class ImperfectVolumesTechnique final : public Technique {
   /// The frame versions the volume was built from (geometry, lights, ambient).
   std::optional<std::array<uint64_t, 3>> builtFrom_;
   gl::Buffer points_, offsets_, voxels_, needed_, directions_, incidentRho_, incidentMu_, occlusionRho_, occlusionMu_,
-      reflected_, bounce_, computed_, objectDirections_, reflectedSum_, hidden_, outerPoints_, outerOffsets_, outerVoxels_;
+      reflected_, bounce_, computed_, objectDirections_, reflectedSum_, hidden_, outerPoints_, outerOffsets_,
+      outerVoxels_;
   size_t neededCount_ = 0, pointCount_ = 0, outerPointCount_ = 0;
   IrradianceTargets out_;
   gl::VertexArray emptyVao_;

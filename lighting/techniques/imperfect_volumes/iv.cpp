@@ -50,7 +50,8 @@ uint32_t hash(uint32_t x) {
 cv::Vec2f sampleOf(uint32_t triangle, int j) {
   const uint32_t h = hash(triangle);
   const float o1 = static_cast<float>(h & 0xffffu) / 65536.0f, o2 = static_cast<float>(h >> 16) / 65536.0f;
-  const float r1 = radicalInverse(static_cast<uint32_t>(j) + 1u, 2) + o1, r2 = radicalInverse(static_cast<uint32_t>(j) + 1u, 3) + o2;
+  const float r1 = radicalInverse(static_cast<uint32_t>(j) + 1u, 2) + o1,
+              r2 = radicalInverse(static_cast<uint32_t>(j) + 1u, 3) + o2;
   return {r1 - std::floor(r1), r2 - std::floor(r2)};
 }
 
@@ -60,7 +61,8 @@ std::vector<cv::Vec3f> rayDirections(int n) {
   const double golden = CV_PI * (3.0 - std::sqrt(5.0));
   for (int j = 0; j < n; ++j) {
     const double z = 1.0 - (2.0 * j + 1.0) / n, r = std::sqrt(std::max(0.0, 1.0 - z * z)), phi = golden * j;
-    out[static_cast<size_t>(j)] = cv::Vec3f(static_cast<float>(r * std::cos(phi)), static_cast<float>(r * std::sin(phi)), static_cast<float>(z));
+    out[static_cast<size_t>(j)] =
+        cv::Vec3f(static_cast<float>(r * std::cos(phi)), static_cast<float>(r * std::sin(phi)), static_cast<float>(z));
   }
   return out;
 }
@@ -83,7 +85,8 @@ Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
     if (!grid.voxelOf(cv::Vec3d(p.position), c)) continue;
     const size_t i = grid.index(c[0], c[1], c[2]);
     v.occupancy[i] |= p.isVirtual ? kVirtual : kReal;
-    const auto add = [&](std::vector<cv::Vec4f>& ex, std::vector<cv::Vec4f>& nr, std::vector<cv::Vec3f>& al, const cv::Vec3f& L) {
+    const auto add = [&](std::vector<cv::Vec4f>& ex, std::vector<cv::Vec4f>& nr, std::vector<cv::Vec3f>& al,
+                         const cv::Vec3f& L) {
       ex[i] += cv::Vec4f(L[0], L[1], L[2], 1.0f);
       nr[i] += cv::Vec4f(p.normal[0], p.normal[1], p.normal[2], 0.0f);
       al[i] += p.albedo;
@@ -167,8 +170,9 @@ cv::Vec3f exitantTowards(const cv::Vec4f& exitant, const cv::Vec4f& normalSum, c
 
 /// One gather: per needed voxel, L(w) = exitant[hit] towards the origin for hits within range, else the
 /// ambient (when `withAmbient`), projected to SH; adds into `out`.
-void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient* ambient, const std::vector<cv::Vec4f>& exitant,
-                const std::vector<cv::Vec3f>& dirs, Incident& out, bool countOcclusion) {
+void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient* ambient,
+                const std::vector<cv::Vec4f>& exitant, const std::vector<cv::Vec3f>& dirs, Incident& out,
+                bool countOcclusion) {
   const Grid& g = volume.grid;
   const int B = out.bands, C = B * B, R = g.resolution;
   const auto& normals = rho ? volume.normalRho : volume.normalMu;
@@ -194,7 +198,8 @@ void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient*
           }
           for (int c = 0; c < 3; ++c)
             if (L[c] != 0.0f)
-              for (int q = 0; q < C; ++q) acc[static_cast<size_t>(c * C + q)] += L[c] * basis[j][static_cast<size_t>(q)];
+              for (int q = 0; q < C; ++q)
+                acc[static_cast<size_t>(c * C + q)] += L[c] * basis[j][static_cast<size_t>(q)];
         }
         float* dst = out.sh.data() + v * static_cast<size_t>(3 * C);
         for (int q = 0; q < 3 * C; ++q) dst[q] += static_cast<float>(w * acc[static_cast<size_t>(q)]);
@@ -204,14 +209,15 @@ void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient*
 
 /// What one ray of the first gather brings (gatherPass with the ambient): the hit voxel's light towards the
 /// origin within range (none with no bounces), else the ambient of its direction.
-cv::Vec3f firstGatherRadiance(const Volume& volume, bool rho, const Options& o, const Ambient& ambient, const cv::Vec3i& from,
-                              const cv::Vec3f& d) {
+cv::Vec3f firstGatherRadiance(const Volume& volume, bool rho, const Options& o, const Ambient& ambient,
+                              const cv::Vec3i& from, const cv::Vec3f& d) {
   float t = 0;
   const int64_t h = march(volume, rho, from, d, &t);
   if (h >= 0 && t <= o.range) {
     if (o.bounces <= 0) return {0, 0, 0};
     const size_t hv = static_cast<size_t>(h);
-    return exitantTowards(rho ? volume.exitantRho[hv] : volume.exitantMu[hv], rho ? volume.normalRho[hv] : volume.normalMu[hv], -d);
+    return exitantTowards(rho ? volume.exitantRho[hv] : volume.exitantMu[hv],
+                          rho ? volume.normalRho[hv] : volume.normalMu[hv], -d);
   }
   return ambient.radiance(d);
 }
@@ -253,7 +259,8 @@ std::vector<cv::Vec3f> capDirections(const cv::Vec3f& axis, float cosAlpha, int 
 constexpr double kConeOutside = 1.0001;
 
 std::vector<float> coneCorrection(const Volume& volume, const std::vector<uint8_t>& computed, const Options& options,
-                                  const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const Bound& bound, int coneRays) {
+                                  const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const Bound& bound,
+                                  int coneRays) {
   const Grid& g = volume.grid;
   const int B = std::clamp(options.bands, 1, sh::kMaxBands), C = B * B, R = g.resolution;
   std::vector<float> out(g.count() * static_cast<size_t>(3 * C), 0.0f);
@@ -277,7 +284,8 @@ std::vector<float> coneCorrection(const Volume& volume, const std::vector<uint8_
           if (diff == cv::Vec3f(0, 0, 0)) return;
           const std::vector<double> y = sh::evaluate(cv::Vec3d(w), B);
           for (int ch = 0; ch < 3; ++ch)
-            for (int q = 0; q < C; ++q) acc[static_cast<size_t>(ch * C + q)] += weight * diff[ch] * y[static_cast<size_t>(q)];
+            for (int q = 0; q < C; ++q)
+              acc[static_cast<size_t>(ch * C + q)] += weight * diff[ch] * y[static_cast<size_t>(q)];
         };
         for (const cv::Vec3f& w : dirs)
           if (w.dot(u) >= cosA) add(w, -wUniform);
@@ -304,7 +312,8 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
   const std::vector<cv::Vec3f> dirs = rayDirections(o.rays);
   // Bounce 0: the ambient where no surface is hit within range (and ambient occlusion).
   const std::vector<cv::Vec4f> dark(g.count(), cv::Vec4f::all(0));
-  gatherPass(volume, rho, o, &ambient, o.bounces > 0 ? (rho ? volume.exitantRho : volume.exitantMu) : dark, dirs, out, true);
+  gatherPass(volume, rho, o, &ambient, o.bounces > 0 ? (rho ? volume.exitantRho : volume.exitantMu) : dark, dirs, out,
+             true);
   out.reflectedSum.assign(g.count(), cv::Vec3f(0, 0, 0));
   // Further bounces: occupied voxels reflect what the previous bounce brought them (no ambient: the
   // ambient stands for light from beyond the volume, already counted).
@@ -347,8 +356,8 @@ namespace {
 
 /// The first occupied voxel along a ray from x, sampled at t = (k + offset) voxel + from (k = 0, 1, ...), x's
 /// own voxel skipped; -1 when a sample leaves the grid (`exit` gets its t). marchFromPoint and marchOuter.
-int64_t marchSamples(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction, float offset, float from,
-                     float* distance, float* exit) {
+int64_t marchSamples(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction, float offset,
+                     float from, float* distance, float* exit) {
   const Grid& g = volume.grid;
   const float s = static_cast<float>(g.voxel);
   cv::Vec3i own(-1, -1, -1);
@@ -419,8 +428,8 @@ std::vector<cv::Vec3f> ambientHiddenByObjects(const Volume& volume, const Option
 }
 
 cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, const Options& options,
-                      const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x, const cv::Vec3f& n,
-                      const std::vector<cv::Vec3f>* hidden, const Volume* outer) {
+                      const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x,
+                      const cv::Vec3f& n, const std::vector<cv::Vec3f>* hidden, const Volume* outer) {
   cv::Vec3f change(0, 0, 0);
   if (dirs.empty() || incident.reflectedSum.size() != volume.grid.count()) return change;
   const auto& normals = rho ? volume.normalRho : volume.normalMu;
@@ -434,7 +443,8 @@ cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, 
     if (options.bounces > 0) {
       L = cv::Vec3f(direct[v][0], direct[v][1], direct[v][2]);
       if (!rho && hidden && hidden->size() == g.count())
-        for (int ch = 0; ch < 3; ++ch) L[ch] = std::max(0.0f, L[ch] - volume.albedoMu[v][ch] / static_cast<float>(CV_PI) * (*hidden)[v][ch]);
+        for (int ch = 0; ch < 3; ++ch)
+          L[ch] = std::max(0.0f, L[ch] - volume.albedoMu[v][ch] / static_cast<float>(CV_PI) * (*hidden)[v][ch]);
     }
     L += incident.reflectedSum[v];
     return true;
@@ -451,7 +461,8 @@ cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, 
       const auto v = static_cast<size_t>(o);
       const cv::Vec3f nSum(outer->normalMu[v][0], outer->normalMu[v][1], outer->normalMu[v][2]);
       cv::Vec3f L(0, 0, 0);
-      if (nSum.dot(-d) > 0 && options.bounces > 0) L = cv::Vec3f(outer->exitantMuLit[v][0], outer->exitantMuLit[v][1], outer->exitantMuLit[v][2]);
+      if (nSum.dot(-d) > 0 && options.bounces > 0)
+        L = cv::Vec3f(outer->exitantMuLit[v][0], outer->exitantMuLit[v][1], outer->exitantMuLit[v][2]);
       change += (L - ambient.radiance(d)) * c;
       continue;
     }
@@ -461,13 +472,16 @@ cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, 
     // cross voxel boundaries: a texture finer than the voxels, a tag's cells, mottles the object).
     const cv::Vec3f p = x + t * d;
     const cv::Vec3f q = (p - cv::Vec3f(g.origin)) * static_cast<float>(1.0 / g.voxel) - cv::Vec3f(0.5f, 0.5f, 0.5f);
-    const cv::Vec3i base(static_cast<int>(std::floor(q[0])), static_cast<int>(std::floor(q[1])), static_cast<int>(std::floor(q[2])));
-    const cv::Vec3f f = q - cv::Vec3f(static_cast<float>(base[0]), static_cast<float>(base[1]), static_cast<float>(base[2]));
+    const cv::Vec3i base(static_cast<int>(std::floor(q[0])), static_cast<int>(std::floor(q[1])),
+                         static_cast<int>(std::floor(q[2])));
+    const cv::Vec3f f =
+        q - cv::Vec3f(static_cast<float>(base[0]), static_cast<float>(base[1]), static_cast<float>(base[2]));
     cv::Vec3f sum(0, 0, 0), L(0, 0, 0);
     float wSum = 0;
     for (int corner = 0; corner < 8; ++corner) {
       const cv::Vec3i k = base + cv::Vec3i(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
-      if (k[0] < 0 || k[1] < 0 || k[2] < 0 || k[0] >= g.resolution || k[1] >= g.resolution || k[2] >= g.resolution) continue;
+      if (k[0] < 0 || k[1] < 0 || k[2] < 0 || k[0] >= g.resolution || k[1] >= g.resolution || k[2] >= g.resolution)
+        continue;
       const size_t v = g.index(k[0], k[1], k[2]);
       cv::Vec3f Lv;
       if (!volume.occupied(v, rho) || !sends(v, d, Lv)) continue;
@@ -484,8 +498,8 @@ cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, 
   return change * static_cast<float>(4.0 * CV_PI / static_cast<double>(dirs.size()));
 }
 
-std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std::vector<uint8_t>& computed, const cv::Vec3f& x,
-                                                  const cv::Vec3f& n) {
+std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std::vector<uint8_t>& computed,
+                                                 const cv::Vec3f& x, const cv::Vec3f& n) {
   const Grid& g = volume.grid;
   const float s = static_cast<float>(g.voxel);
   const cv::Vec3f p = x + 0.5f * s * n;
@@ -503,7 +517,8 @@ std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std
       for (int di = -1; di <= 1; ++di) {
         const cv::Vec3i c = centre + cv::Vec3i(di, dj, dk);
         if (c == own) continue;
-        if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] >= g.resolution || c[1] >= g.resolution || c[2] >= g.resolution) continue;
+        if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] >= g.resolution || c[1] >= g.resolution || c[2] >= g.resolution)
+          continue;
         const size_t v = g.index(c[0], c[1], c[2]);
         if (!computed[v]) continue;
         const cv::Vec3f q = cv::Vec3f(g.centre(c[0], c[1], c[2]));

@@ -5,9 +5,9 @@
 /// Points on the scene's surfaces (N random points per triangle, uniform barycentric) mark the voxels of a
 /// grid around the virtual objects occupied, in two versions: rho (real + virtual) and mu (real only), as DLPV
 /// does. Each occupied voxel keeps the light its surface sends out: the mean reflected radiance of its points
-/// (the technique lights them with the direct light and the unoccluded ambient) and their summed normal — a Lambertian surface element, seen from its front at the same radiance
-/// from every direction. (Two SH bands, as the paper stores it, make the same surface 25 % too bright seen
-/// head-on and leak 7 % of its flux backwards.)
+/// (the technique lights them with the direct light and the unoccluded ambient) and their summed normal — a Lambertian
+/// surface element, seen from its front at the same radiance from every direction. (Two SH bands, as the paper stores
+/// it, make the same surface 25 % too bright seen head-on and leak 7 % of its flux backwards.)
 ///
 /// Per voxel near a surface, N rays over the sphere (a spherical Fibonacci set, the same for every voxel)
 /// start past the voxel's own bounding sphere ((sqrt 3 / 2) voxel) and march one voxel per step to the first
@@ -28,10 +28,9 @@
 /// object's is E^mu minus the unoccluded ambient the shading pass already adds.
 #include <array>
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <utility>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "lighting/ambient.h"
 
@@ -52,8 +51,8 @@ struct Grid {
 /// A point on a surface: its reflected direct radiance in both versions of the scene (mu: without the
 /// virtual objects, which may shadow it in rho).
 struct Point {
-  cv::Vec3f position, normal;          ///< lighting world, unit normal
-  cv::Vec3f albedo{0.5f, 0.5f, 0.5f};  ///< linear
+  cv::Vec3f position, normal;                           ///< lighting world, unit normal
+  cv::Vec3f albedo{0.5f, 0.5f, 0.5f};                   ///< linear
   cv::Vec3f radianceRho{0, 0, 0}, radianceMu{0, 0, 0};  ///< W/m^2/sr, Lambertian
   bool isVirtual = false;
 };
@@ -92,10 +91,10 @@ Volume voxelise(const Grid& grid, const std::vector<Point>& points);
 using Ambient = lighting::Ambient;
 
 struct Options {
-  int rays = 64;        ///< per voxel, 1..1024
-  int bands = 3;        ///< SH bands of the incident radiance, 1..8
-  double range = 0.3;   ///< metres: a hit farther than this returns the ambient
-  int bounces = 1;      ///< 0: ambient occlusion only (no light from the volume's surfaces), up to 3
+  int rays = 64;            ///< per voxel, 1..1024
+  int bands = 3;            ///< SH bands of the incident radiance, 1..8
+  double range = 0.3;       ///< metres: a hit farther than this returns the ambient
+  int bounces = 1;          ///< 0: ambient occlusion only (no light from the volume's surfaces), up to 3
   bool everyVoxel = false;  ///< cast from every voxel, not only near surfaces (debug slices, tests)
 };
 
@@ -120,7 +119,8 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
 
 /// The first occupied voxel along a ray from voxel centre `from` (past its bounding sphere, one voxel per
 /// step); -1 when the ray leaves the grid. `distance` gets the march distance of the hit.
-int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction, float* distance = nullptr);
+int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction,
+              float* distance = nullptr);
 
 /// The first occupied voxel along a ray from surface point x: samples at (k + 1/2) voxel along the ray,
 /// x's own voxel skipped (its surface is x's own); -1 when the ray leaves the grid. `distance` as march();
@@ -136,7 +136,8 @@ Grid outerGrid(const Grid& inner, double range, int resolution);
 /// A ray continued in the outer volume from distance `from` (where it left the inner grid): samples at
 /// from + k outer voxels, x's own outer voxel skipped, the first occupied one (real points); -1 when it
 /// leaves the outer grid. `distance` as march().
-int64_t marchOuter(const Volume& outer, const cv::Vec3f& x, const cv::Vec3f& direction, float from, float* distance = nullptr);
+int64_t marchOuter(const Volume& outer, const cv::Vec3f& x, const cv::Vec3f& direction, float from,
+                   float* distance = nullptr);
 /// Per voxel with real points: the ambient irradiance the virtual objects hide from its surface (W/m^2),
 /// sum over the rays of `dirs` in front of its mean real normal of L_ambient cos theta 4 pi / N, for rays
 /// marched through the rho occupancy (as the gather: past the voxel's bounding sphere) whose first hit
@@ -158,8 +159,9 @@ std::vector<cv::Vec3f> ambientHiddenByObjects(const Volume& volume, const Option
 /// goes on through it (marchOuter) and a hit there brings its real points' light as the objects leave it
 /// lit (exitantMuLit; farther from the objects, neither the ambient they hide nor further bounces).
 cv::Vec3f pointGather(const Volume& volume, bool rho, const Incident& incident, const Options& options,
-                      const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x, const cv::Vec3f& n,
-                      const std::vector<cv::Vec3f>* hidden = nullptr, const Volume* outer = nullptr);
+                      const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const cv::Vec3f& x,
+                      const cv::Vec3f& n, const std::vector<cv::Vec3f>* hidden = nullptr,
+                      const Volume* outer = nullptr);
 
 /// A sphere enclosing the virtual objects (lighting world).
 struct Bound {
@@ -178,12 +180,13 @@ std::vector<cv::Vec3f> capDirections(const cv::Vec3f& axis, float cosAlpha, int 
 /// (Incident::sh's layout, `bands` bands), the real-pixel delta E^rho - E^mu then samples the objects as
 /// densely from every voxel. Voxels inside the bound (the cone is the whole sphere) get nothing.
 std::vector<float> coneCorrection(const Volume& volume, const std::vector<uint8_t>& computed, const Options& options,
-                                  const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const Bound& bound, int coneRays);
+                                  const Ambient& ambient, const std::vector<cv::Vec3f>& dirs, const Bound& bound,
+                                  int coneRays);
 
 /// The voxels the reconstruction reads at surface point x with unit normal n, with their weights (cos theta);
 /// empty where none qualifies (above).
-std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std::vector<uint8_t>& computed, const cv::Vec3f& x,
-                                                  const cv::Vec3f& n);
+std::vector<std::pair<size_t, float>> readVoxels(const Volume& volume, const std::vector<uint8_t>& computed,
+                                                 const cv::Vec3f& x, const cv::Vec3f& n);
 /// Irradiance (W/m^2) at surface point x with unit normal n from the incident SH (reconstruction above).
 /// Zero where no voxel qualifies.
 cv::Vec3f irradiance(const Volume& volume, const Incident& incident, const cv::Vec3f& x, const cv::Vec3f& n);

@@ -60,7 +60,8 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
     }
     EXPECT_GT(occupied, 100);
     EXPECT_GT(virtualVoxels, 10);
-    // A floor voxel away from the cube and the wall, lit unshadowed: albedo / pi times the lamp's and the ambient's irradiance.
+    // A floor voxel away from the cube and the wall, lit unshadowed: albedo / pi times the lamp's and the ambient's
+    // irradiance.
     const cv::Vec3d floorPoint(-0.2, -0.18, 0.001);
     cv::Vec3i c;
     ASSERT_TRUE(g.voxelOf(floorPoint, c));
@@ -93,7 +94,8 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
       iv::Incident in = iv::gather(vol, rho, o, amb);
       if (rho) {
         EXPECT_TRUE(t.coneBound());
-        const std::vector<float> add = iv::coneCorrection(vol, in.computed, o, amb, iv::rayDirections(o.rays), *t.coneBound(), t.coneRays());
+        const std::vector<float> add =
+            iv::coneCorrection(vol, in.computed, o, amb, iv::rayDirections(o.rays), *t.coneBound(), t.coneRays());
         for (size_t q = 0; q < in.sh.size(); ++q) in.sh[q] += add[q];
       }
       return in;
@@ -115,7 +117,8 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
 
     // Reconstruction per pixel: the real-pixel delta the GPU hands out against the reference at the
     // G-buffer's points.
-    const cv::Mat pos = pipe.frame().downloadGBuffer(0), nrm = pipe.frame().downloadGBuffer(1), alb = pipe.frame().downloadGBuffer(2);
+    const cv::Mat pos = pipe.frame().downloadGBuffer(0), nrm = pipe.frame().downloadGBuffer(1),
+                  alb = pipe.frame().downloadGBuffer(2);
     const cv::Mat delta = download4(*t.outputs().realDelta), virt = download4(*t.outputs().virtualIrradiance);
     const iv::Incident rhoIn = gatherOf(true), muIn = gatherOf(false);
     const std::vector<cv::Vec3f> objectDirs = iv::rayDirections(std::max(objectRays, 1));
@@ -154,9 +157,11 @@ TEST(GL, ImperfectVolumesGpuPassesMatchTheCppReference) {
       const cv::Vec3f eRho = iv::irradiance(vol, rhoIn, x, nn), eMu = iv::irradiance(vol, muIn, x, nn);
       if (alb.at<cv::Vec4f>(i)[3] > 0.5f) {
         // The object: what the real surfaces hide and send (mu: its own voxels are not in the way).
-        const cv::Vec3f expected = objectRays > 0 ? iv::pointGather(vol, false, muIn, o, amb, objectDirs, x, nn, &hidden, &outerVol)
-                                                  : eMu - iv::unoccludedAmbient(amb, nn);
-        if (objectRays > 0) outerHit += expected != iv::pointGather(vol, false, muIn, o, amb, objectDirs, x, nn, &hidden);
+        const cv::Vec3f expected =
+            objectRays > 0 ? iv::pointGather(vol, false, muIn, o, amb, objectDirs, x, nn, &hidden, &outerVol)
+                           : eMu - iv::unoccludedAmbient(amb, nn);
+        if (objectRays > 0)
+          outerHit += expected != iv::pointGather(vol, false, muIn, o, amb, objectDirs, x, nn, &hidden);
         virtualHit += objectRays > 0 && expected != cv::Vec3f(0, 0, 0);
         const cv::Vec4f got = virt.at<cv::Vec4f>(i);
         ++virtualChecked;

@@ -1,11 +1,12 @@
 // Imperfect volumes, reference math (iv.h): occupancy, ambient occlusion, one bounce against the analytic
 // form factor, reconstruction, extremes.
-#include <cmath>
+#include "lighting/techniques/imperfect_volumes/iv.h"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "lighting/object_shadow.h"
-#include "lighting/techniques/imperfect_volumes/iv.h"
 
 using namespace mrgi::lighting;
 
@@ -36,7 +37,8 @@ bool finite(const cv::Vec3f& v) { return std::isfinite(v[0]) && std::isfinite(v[
 double plateIrradiance(double L, double w, double h) {
   const double a = 0.5 * w / h, b = a;
   const double quarter = (a / std::sqrt(1 + a * a) * std::atan(b / std::sqrt(1 + a * a)) +
-                          b / std::sqrt(1 + b * b) * std::atan(a / std::sqrt(1 + b * b))) / (2 * CV_PI);
+                          b / std::sqrt(1 + b * b) * std::atan(a / std::sqrt(1 + b * b))) /
+                         (2 * CV_PI);
   return CV_PI * L * 4 * quarter;
 }
 
@@ -152,7 +154,8 @@ TEST(ImperfectVolumes, OneBounceBetweenParallelPlatesMatchesTheFormFactor) {
   const cv::Vec3f E = iv::irradiance(v, in, x, {0, 0, -1});
   const double h = (ceilK - floorK - 1) * voxel, w = (hi - lo) * voxel;
   const double expected = plateIrradiance(1.0, w, h);
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(E[c] / L[c], expected, 0.05 * expected) << "channel " << c;  // measured: 1.6 % low
+  for (int c = 0; c < 3; ++c)
+    EXPECT_NEAR(E[c] / L[c], expected, 0.05 * expected) << "channel " << c;  // measured: 1.6 % low
   // Facing away from the plate: nothing comes from behind (the receiver's back is its own plate).
   const cv::Vec3f back = iv::irradiance(v, in, x + cv::Vec3f(0, 0, float(voxel)), {0, 0, 1});
   EXPECT_LT(back[0], 0.05f * expected);
@@ -413,14 +416,15 @@ FloorDelta floorDeltaAroundABall(bool cone) {
     for (int j = 12; j < 21; ++j)
       for (int i = 12; i < 21; ++i) {
         const cv::Vec3f c(g.centre(i, j, k));
-        if (cv::norm(c - centre) <= radius) pts.push_back(pointIn(g, i, j, k, cv::normalize(c - centre + cv::Vec3f(0, 0, 1e-4f)), true));
+        if (cv::norm(c - centre) <= radius)
+          pts.push_back(pointIn(g, i, j, k, cv::normalize(c - centre + cv::Vec3f(0, 0, 1e-4f)), true));
       }
   const iv::Volume v = iv::voxelise(g, pts);
   iv::Incident rho = iv::gather(v, true, o, amb);
   const iv::Incident mu = iv::gather(v, false, o, amb);
   if (cone) {
-    const std::vector<float> add =
-        iv::coneCorrection(v, rho.computed, o, amb, iv::rayDirections(o.rays), {centre, radius + 0.5f * float(g.voxel)}, 32);
+    const std::vector<float> add = iv::coneCorrection(v, rho.computed, o, amb, iv::rayDirections(o.rays),
+                                                      {centre, radius + 0.5f * float(g.voxel)}, 32);
     for (size_t q = 0; q < rho.sh.size(); ++q) rho.sh[q] += add[q];
   }
   // The ball as the voxels hold it: its voxels' union, a sphere of the same volume.

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
@@ -18,7 +17,14 @@ const std::vector<KnobBinding<KinectValKnobs>>& kinectValKnobTable() {
        &KinectValKnobs::sparsePoints},
       {{"k_cache", KnobType::Int, 16, 512, 128, "VALs per shared-memory tile of the gather", {32, 512}, {}, true},
        &KinectValKnobs::kCache},
-      {{"occlusion", KnobType::Bool, 0, 1, 1, "disc-occluder approximation of the object's self-occlusion", {0, 1}, {0, 1}},
+      {{"occlusion",
+        KnobType::Bool,
+        0,
+        1,
+        1,
+        "disc-occluder approximation of the object's self-occlusion",
+        {0, 1},
+        {0, 1}},
        &KinectValKnobs::occlusion},
       {{"stride", KnobType::Int, 1, 64, 4, "RGB-D pixel stride of the real-surface VALs", {2, 8}, {}, false},
        &KinectValKnobs::stride},
@@ -28,10 +34,16 @@ const std::vector<KnobBinding<KinectValKnobs>>& kinectValKnobTable() {
        &KinectValKnobs::fusion},
       {{"voxel", KnobType::Real, 1e-3, 1.0, 0.02, "surfel voxel of the fusion, metres", {}, {}, true},
        &KinectValKnobs::voxel},
-      {{"decay", KnobType::Real, 0.0, 1.0, 0.0,
+      {{"decay",
+        KnobType::Real,
+        0.0,
+        1.0,
+        0.0,
         "confidence a surfel keeps per frame that should have seen it but did not (above 0 the same surface "
         "quantised into neighbouring voxels counts twice)",
-        {}, {}, false},
+        {},
+        {},
+        false},
        &KinectValKnobs::decay},
       {{"brute_force", KnobType::Bool, 0, 1, 0, "reference: every VAL gathered at every visible virtual pixel", {}, {}},
        &KinectValKnobs::bruteForce},
@@ -42,7 +54,8 @@ const std::vector<KnobBinding<KinectValKnobs>>& kinectValKnobTable() {
 TechniqueInfo kinectValTechniqueInfo() {
   TechniqueInfo t;
   t.name = "kinect-val";
-  t.description = "Kinect-VAL: real RGB-D surfaces and the object's lit texels as area lights on the object (diffuse + glossy)";
+  t.description =
+      "Kinect-VAL: real RGB-D surfaces and the object's lit texels as area lights on the object (diffuse + glossy)";
   t.real = false;
   t.virtualObject = true;
   t.stagePrefixes = {"val."};
@@ -51,7 +64,7 @@ TechniqueInfo kinectValTechniqueInfo() {
   t.estimateBytes = [](const KnobValues& k, const KnobValues& frame, bool, bool, int w, int h, size_t lights) {
     // Radiance and irradiance targets, and the slots of the virtual VALs (twice: built, then in the set).
     const size_t slots = std::max<size_t>(lights, 1) * ValGpu::rsmValCapacity(static_cast<int>(frame.at("rsm_size")),
-                                                                            static_cast<int>(k.at("rsm_stride")));
+                                                                              static_cast<int>(k.at("rsm_stride")));
     return 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h) + 2 * slots * sizeof(Val);
   };
   return t;
@@ -226,7 +239,8 @@ void KinectValTechnique::bruteForce(const FrameResources& frame, gl::Profiler* p
       if (p[3] < 0.5f || a[3] < 0.5f) continue;
       const int o = static_cast<int>(std::lround(n[3])) - 1;
       if (o < 0 || o >= static_cast<int>(objects_.size())) continue;
-      receivers.push_back(seenFrom({p[0], p[1], p[2]}, {n[0], n[1], n[2]}, eye, phongExponent(objects_[o].material.roughness)));
+      receivers.push_back(
+          seenFrom({p[0], p[1], p[2]}, {n[0], n[1], n[2]}, eye, phongExponent(objects_[o].material.roughness)));
       pixels.push_back(y * pos.cols + x);
       objects.push_back(o);
     }
@@ -279,7 +293,8 @@ nlohmann::json KinectValTechnique::stats() const {
     for (const auto& e : E) sum += capture::luminance(cv::Vec3d(e));
     const ValGpu::Counts c = gpu_.downloadCounts();
     irradianceStats_ = {{"mean_irradiance", E.empty() ? 0.0 : sum / static_cast<double>(E.size())},
-                        {"virtual_vals", c.virtualVals}, {"shadowed_vals", c.dimmed}};
+                        {"virtual_vals", c.virtualVals},
+                        {"shadowed_vals", c.dimmed}};
     if (!stats_.bruteForce && !prevE_.empty() && prevE_.size() == E.size() && sum > 0) {
       double change = 0;
       for (size_t i = 0; i < E.size(); ++i)
@@ -293,7 +308,8 @@ nlohmann::json KinectValTechnique::stats() const {
   return out;
 }
 
-cv::Mat KinectValTechnique::debugImage(const std::string& view, const DebugContext& context, nlohmann::json& info) const {
+cv::Mat KinectValTechnique::debugImage(const std::string& view, const DebugContext& context,
+                                       nlohmann::json& info) const {
   if (view == "val_irradiance") {
     // Bounce irradiance the virtual object receives, on a linear scale.
     const cv::Mat e = download4(irradiance_);

@@ -15,14 +15,14 @@
 namespace mrgi::lighting {
 
 struct KinectValKnobs {
-  int sparsePoints = 0;   ///< sparse shading points per object
-  int kCache = 0;         ///< VALs per shared-memory tile of the gather
-  bool occlusion = false; ///< disc-occluder approximation (§3.3)
-  int stride = 0;         ///< RGB-D pixel stride of the real VALs
-  int rsmStride = 0;      ///< RSM texel stride of the virtual VALs
-  bool fusion = false;    ///< fuse real VALs over frames in a world-space surfel map
-  double voxel = 0;       ///< surfel voxel, metres
-  double decay = 0;       ///< confidence a surfel keeps per frame that should have seen it but did not
+  int sparsePoints = 0;     ///< sparse shading points per object
+  int kCache = 0;           ///< VALs per shared-memory tile of the gather
+  bool occlusion = false;   ///< disc-occluder approximation (§3.3)
+  int stride = 0;           ///< RGB-D pixel stride of the real VALs
+  int rsmStride = 0;        ///< RSM texel stride of the virtual VALs
+  bool fusion = false;      ///< fuse real VALs over frames in a world-space surfel map
+  double voxel = 0;         ///< surfel voxel, metres
+  double decay = 0;         ///< confidence a surfel keeps per frame that should have seen it but did not
   bool bruteForce = false;  ///< reference: every VAL gathered at every visible virtual pixel (no occlusion)
 };
 const std::vector<KnobBinding<KinectValKnobs>>& kinectValKnobTable();
@@ -80,7 +80,7 @@ class KinectValTechnique final : public Technique {
   gl::Program meshProgram_;
   gl::Texture radiance_, irradiance_;
   gl::Framebuffer fb_;
-  Stats stats_;  ///< what the CPU knows of the last run (the GPU holds the VAL counts)
+  Stats stats_;                          ///< what the CPU knows of the last run (the GPU holds the VAL counts)
   std::vector<cv::Matx44d> transforms_;  ///< object placements of the last run
   /// The facts of a run (counts now; the irradiance and flicker, which need the sums on the CPU, when stats()
   /// is first asked after the run: nothing is read back on a run nobody asks about).

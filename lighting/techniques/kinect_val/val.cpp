@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-
 #include "capture/colour.h"
 #include "lighting/point_index.h"
 
@@ -130,7 +129,6 @@ SparsePoints sampleSparsePoints(const Mesh& mesh, int count) {
   return out;
 }
 
-
 VertexWeights vertexWeights(const Mesh& mesh, SparsePoints& points) {
   constexpr int K = VertexWeights::kNeighbours;
   VertexWeights w;
@@ -152,7 +150,7 @@ VertexWeights vertexWeights(const Mesh& mesh, SparsePoints& points) {
     float* ow = &w.weight[v * K];
     const float d0 = std::sqrt(d2[0]);
     points.discRadius[idx[0]] = std::max(points.discRadius[idx[0]], d0);  // Voronoi cell of idx[0]
-    if (d0 <= coincide) {  // the vertex is a sparse point: exact there
+    if (d0 <= coincide) {                                                 // the vertex is a sparse point: exact there
       oi[0] = static_cast<int32_t>(idx[0]);
       ow[0] = 1.f;
       continue;
@@ -203,7 +201,8 @@ float occlusion(size_t i, const cv::Vec3f& c, float R, const std::vector<cv::Vec
   const float cosL = n.dot(wl);
   if (cosL <= 0.f) return 0.f;
   // Tangent frame of the unit circle (Nusselt projection).
-  const cv::Vec3f t = std::abs(n[0]) < 0.9f ? cv::normalize(n.cross(cv::Vec3f(1, 0, 0))) : cv::normalize(n.cross(cv::Vec3f(0, 1, 0)));
+  const cv::Vec3f t =
+      std::abs(n[0]) < 0.9f ? cv::normalize(n.cross(cv::Vec3f(1, 0, 0))) : cv::normalize(n.cross(cv::Vec3f(0, 1, 0)));
   const cv::Vec3f b = n.cross(t);
   const float Rs = std::max(R, 1e-6f);
   const float areaL = kPi * Rs * Rs * cosL / (dl * dl + Rs * Rs);  // π F of a sphere
@@ -283,7 +282,8 @@ std::vector<Val> valsFromRsm(const RsmTexels& rsm, const SceneLight& light, int 
   return out;
 }
 
-size_t dimShadowedVals(std::vector<Val>& vals, const std::vector<LightShadowMaps>& lights, const cv::Vec3d& ambientRadiance) {
+size_t dimShadowedVals(std::vector<Val>& vals, const std::vector<LightShadowMaps>& lights,
+                       const cv::Vec3d& ambientRadiance) {
   size_t dimmed = 0;
   for (Val& v : vals) {
     cv::Vec3d with = CV_PI * ambientRadiance, without = with;

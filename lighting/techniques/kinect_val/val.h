@@ -12,14 +12,14 @@
 /// (algorithms.md writes φ_j w_j, which is W, not W/m²: its φ is the disc's exitance.)
 /// Outgoing radiance: L = (albedo/π) Σ E_j + specular · c_k Σ S_j, c_k = (k + 1) / (2π).
 /// Sparse points average two VPLs (diffuse, glossy) with weights ε + lum(E_j) / (mean exitance luminance)
-/// (a dark VAL pulls the averaged light less; the paper's weights w_j cos are flux-blind), renormalise them so that they reproduce E and S at the point (eq. 11), interpolate them per
-/// vertex over the 8 nearest sparse points (eq. 12–13) and evaluate them per pixel.
+/// (a dark VAL pulls the averaged light less; the paper's weights w_j cos are flux-blind), renormalise them so that
+/// they reproduce E and S at the point (eq. 11), interpolate them per vertex over the 8 nearest sparse points (eq.
+/// 12–13) and evaluate them per pixel.
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <random>
 #include <unordered_map>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "capture/types.h"
 #include "lighting/frame/frame.h"
@@ -28,13 +28,11 @@
 
 namespace mrgi::lighting {
 
-
 /// Numerical guards shared by the CPU and GPU paths.
-constexpr float kValEpsilon = 1e-10f;   ///< ε of eq. 7 and 13
-constexpr float kValMinCos = 0.05f;     ///< smallest cos ϑ' dividing in eq. 11 (diffuse VPL)
-constexpr float kValMinLobe = 1e-3f;    ///< smallest cos^k γ' dividing in eq. 11 (glossy VPL)
-constexpr float kValMinDist2 = 1e-6f;   ///< (1 mm)²: smallest squared distance to an averaged VPL
-
+constexpr float kValEpsilon = 1e-10f;  ///< ε of eq. 7 and 13
+constexpr float kValMinCos = 0.05f;    ///< smallest cos ϑ' dividing in eq. 11 (diffuse VPL)
+constexpr float kValMinLobe = 1e-3f;   ///< smallest cos^k γ' dividing in eq. 11 (glossy VPL)
+constexpr float kValMinDist2 = 1e-6f;  ///< (1 mm)²: smallest squared distance to an averaged VPL
 
 /// Disc form factor w_j (without the receiver cosine); 0 behind the disc, ≤ 1 for any distance.
 float discFormFactor(const Val& val, const cv::Vec3f& x);
@@ -47,24 +45,24 @@ struct Receiver {
 
 /// Sums of one receiver over a set of VALs (eq. 7 plus what the occlusion needs).
 struct ValGather {
-  cv::Vec3f E{0, 0, 0};      ///< Σ E_j, W/m²
-  cv::Vec3f S{0, 0, 0};      ///< Σ S_j
-  cv::Vec3f ld{0, 0, 0};     ///< Σ wd_j l_j
-  float wd = 0;              ///< Σ wd_j
-  cv::Vec3f ls{0, 0, 0};     ///< Σ ws_j l_j
-  float ws = 0;              ///< Σ ws_j
-  cv::Vec3f ldSq{0, 0, 0};   ///< Σ wd_j l_j² per axis (spread of the diffuse light)
+  cv::Vec3f E{0, 0, 0};     ///< Σ E_j, W/m²
+  cv::Vec3f S{0, 0, 0};     ///< Σ S_j
+  cv::Vec3f ld{0, 0, 0};    ///< Σ wd_j l_j
+  float wd = 0;             ///< Σ wd_j
+  cv::Vec3f ls{0, 0, 0};    ///< Σ ws_j l_j
+  float ws = 0;             ///< Σ ws_j
+  cv::Vec3f ldSq{0, 0, 0};  ///< Σ wd_j l_j² per axis (spread of the diffuse light)
   cv::Vec3f lsSq{0, 0, 0};
 };
 ValGather gatherReference(const Receiver& r, const std::vector<Val>& vals);
 
 /// The two averaged, renormalised VPLs of a sparse point (GPU layout: 4 × vec4).
 struct SparseVpl {
-  cv::Vec3f Ld{0, 0, 0};     ///< diffuse VPL "intensity": E = Ld cos / d²
-  float occlusionD = 1;      ///< 1 − o applied (diagnostic)
-  cv::Vec3f ld{0, 0, 0};     ///< diffuse VPL position
-  float radiusD = 0;         ///< spread of the diffuse light (sphere S_a radius)
-  cv::Vec3f Ls{0, 0, 0};     ///< glossy VPL: S = Ls cos^k γ / d²
+  cv::Vec3f Ld{0, 0, 0};  ///< diffuse VPL "intensity": E = Ld cos / d²
+  float occlusionD = 1;   ///< 1 − o applied (diagnostic)
+  cv::Vec3f ld{0, 0, 0};  ///< diffuse VPL position
+  float radiusD = 0;      ///< spread of the diffuse light (sphere S_a radius)
+  cv::Vec3f Ls{0, 0, 0};  ///< glossy VPL: S = Ls cos^k γ / d²
   float occlusionS = 1;
   cv::Vec3f ls{0, 0, 0};
   float radiusS = 0;
@@ -92,8 +90,8 @@ SparsePoints sampleSparsePoints(const Mesh& mesh, int count);
 /// weights when every weight is 0. Also fills points.discRadius.
 struct VertexWeights {
   static constexpr int kNeighbours = 8;
-  std::vector<int32_t> index;   ///< vertexCount × 8 (−1 = unused)
-  std::vector<float> weight;    ///< vertexCount × 8, summing to 1
+  std::vector<int32_t> index;  ///< vertexCount × 8 (−1 = unused)
+  std::vector<float> weight;   ///< vertexCount × 8, summing to 1
 };
 VertexWeights vertexWeights(const Mesh& mesh, SparsePoints& points);
 
@@ -123,5 +121,6 @@ struct LightShadowMaps {
 /// reflects exitance x E_with / E_without per channel (clamped to [0, 1]): direct light through the shadow
 /// maps with and without the objects (lightVisibility), plus the ambient's irradiance π L_a in both. So the
 /// object's underside gets no bounce from the table it shadows. Returns how many VALs changed.
-size_t dimShadowedVals(std::vector<Val>& vals, const std::vector<LightShadowMaps>& lights, const cv::Vec3d& ambientRadiance);
+size_t dimShadowedVals(std::vector<Val>& vals, const std::vector<LightShadowMaps>& lights,
+                       const cv::Vec3d& ambientRadiance);
 }  // namespace mrgi::lighting

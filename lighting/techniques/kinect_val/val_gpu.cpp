@@ -11,12 +11,14 @@ namespace mrgi::lighting {
 
 ValGpu::ValGpu(int kCache)
     : kCache_(kCache),
-      gather_(gl::Program::compute("lighting/techniques/kinect_val/val_gather.comp", {{"K_CACHE", std::to_string(kCache)}})),
+      gather_(gl::Program::compute("lighting/techniques/kinect_val/val_gather.comp",
+                                   {{"K_CACHE", std::to_string(kCache)}})),
       occlude_(gl::Program::compute("lighting/techniques/kinect_val/val_occlude.comp")),
       rsmVals_(gl::Program::compute("lighting/techniques/kinect_val/val_rsm.comp")),
       dim_(gl::Program::compute("lighting/techniques/kinect_val/val_dim.comp")),
       weights_(gl::Program::compute("lighting/techniques/kinect_val/val_weights.comp")) {
-  if (kCache < 16 || kCache > 512) throw std::invalid_argument("K_cache must be in 16..512, got " + std::to_string(kCache));
+  if (kCache < 16 || kCache > 512)
+    throw std::invalid_argument("K_cache must be in 16..512, got " + std::to_string(kCache));
   const Counts none;
   counts_ = gl::Buffer(sizeof(Counts), &none);
 }

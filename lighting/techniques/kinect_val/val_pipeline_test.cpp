@@ -205,7 +205,8 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
     const cv::Vec4f v = shade.at<cv::Vec4f>(i), p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i);
     if (p[3] < 0.5f || v[3] > 0.5f) continue;
     const cv::Vec3d pw(p[0], p[1], p[2]);
-    const float hidden = ambientShadow(sky, {p[0], p[1], p[2]}, {n[0], n[1], n[2]}, spheres)[0] * kFloorAlbedo[0] / static_cast<float>(CV_PI);
+    const float hidden = ambientShadow(sky, {p[0], p[1], p[2]}, {n[0], n[1], n[2]}, spheres)[0] * kFloorAlbedo[0] /
+                         static_cast<float>(CV_PI);
     // Shadow of a slightly smaller / larger box: the map's texels blur the exact edge.
     auto shadowed = [&](double h) { return inShadow(pw, sun.direction, centre, h); };
     if (shadowed(0.5 * cube - 0.01)) {
@@ -249,28 +250,33 @@ TEST(GL, KinectValBuildsItsValsOnTheGpuAsTheCppReferenceDoes) {
       const std::vector<Val> gpu = k.downloadVals();
 
       std::vector<Val> ref = real;
-      const size_t dimmed = dimShadowedVals(ref, {{light, pipe.frame().lightViews().at(0), pipe.frame().downloadShadowTexels(0)}}, ambient);
+      const size_t dimmed = dimShadowedVals(
+          ref, {{light, pipe.frame().lightViews().at(0), pipe.frame().downloadShadowTexels(0)}}, ambient);
       const std::vector<Val> virt = valsFromRsm(pipe.downloadRsm(true), light, stride);
       ref.insert(ref.end(), virt.begin(), virt.end());
       setValWeights(ref);
 
-      const std::string at = (light.type == LightType::Point ? "point light, stride " : "sun, stride ") + std::to_string(stride);
+      const std::string at =
+          (light.type == LightType::Point ? "point light, stride " : "sun, stride ") + std::to_string(stride);
       ASSERT_EQ(gpu.size(), ref.size()) << at;
       EXPECT_GT(virt.size(), 20u) << at;  // the cube's lit texels
       EXPECT_GT(dimmed, 20u) << at;       // floor VALs in its shadow
       const KinectValTechnique::Stats st = k.valStats();
       EXPECT_EQ(st.virtualVals, virt.size()) << at;
       EXPECT_EQ(st.shadowedVals, dimmed) << at;
-      const auto near = [](float a, float b) { return std::abs(a - b) <= 1e-5f * std::max(std::abs(a), std::abs(b)) + 1e-12f; };
+      const auto near = [](float a, float b) {
+        return std::abs(a - b) <= 1e-5f * std::max(std::abs(a), std::abs(b)) + 1e-12f;
+      };
       int wrong = 0;
       for (size_t i = 0; i < ref.size(); ++i) {
         const Val &g = gpu[i], &r = ref[i];
-        bool same = g.position == r.position && g.normal == r.normal && near(g.area, r.area) && near(g.weight, r.weight);
+        bool same =
+            g.position == r.position && g.normal == r.normal && near(g.area, r.area) && near(g.weight, r.weight);
         for (int c = 0; c < 3; ++c) same = same && near(g.flux[c], r.flux[c]);
         if (!same && ++wrong <= 3)
-          ADD_FAILURE() << at << ", VAL " << i << (i < real.size() ? " (real)" : " (virtual)") << ": gpu area " << g.area
-                        << " flux " << g.flux << " weight " << g.weight << ", reference area " << r.area << " flux " << r.flux
-                        << " weight " << r.weight;
+          ADD_FAILURE() << at << ", VAL " << i << (i < real.size() ? " (real)" : " (virtual)") << ": gpu area "
+                        << g.area << " flux " << g.flux << " weight " << g.weight << ", reference area " << r.area
+                        << " flux " << r.flux << " weight " << r.weight;
       }
       EXPECT_EQ(wrong, 0) << at;
     }

@@ -1,12 +1,13 @@
 // Kinect-VAL reference math (lighting/val.h): analytic disc lights, guards, renormalisation, sparse vs brute
 // force, occlusion, sparse sampling, k-d tree weights, RGB-D VALs and surfel fusion.
+#include "lighting/techniques/kinect_val/val.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
 #include "lighting/frame/real_scene.h"
-#include "lighting/techniques/kinect_val/val.h"
 
 using namespace mrgi;
 using lighting::Val;
@@ -83,7 +84,8 @@ TEST(Val, FarDiscIsAPointLightAndNearDiscIsBounded) {
 
 TEST(Val, NothingReachesThePoint) {
   // Lights behind the receiver, or facing away: zero light, finite VPLs, no NaN anywhere.
-  const std::vector<Val> vals = {disc({0, 0, -1}, {0, 0, 1}, 0.1f, {5, 5, 5}), disc({0, 0, 1}, {0, 0, 1}, 0.1f, {5, 5, 5})};
+  const std::vector<Val> vals = {disc({0, 0, -1}, {0, 0, 1}, 0.1f, {5, 5, 5}),
+                                 disc({0, 0, 1}, {0, 0, 1}, 0.1f, {5, 5, 5})};
   for (const auto& set : {vals, std::vector<Val>{}}) {
     const auto r = receiver({0, 0, 0}, {0, 0, 1}, {0, 0, 1}, 50);
     const auto g = lighting::gatherReference(r, set);
@@ -109,7 +111,8 @@ TEST(Val, RenormalisedVplsReproduceTheGatherAtThePoint) {
                           {1.f + u(rng), 1.f, 0.5f}));
     lighting::setValWeights(vals);
     const float k = trial < 10 ? 0.f : 8.f;
-    const auto r = receiver({0.2f * u(rng), 0.2f * u(rng), 0}, {0.2f * u(rng), 0.2f * u(rng), 1.f}, {u(rng), u(rng), 1.f}, k);
+    const auto r =
+        receiver({0.2f * u(rng), 0.2f * u(rng), 0}, {0.2f * u(rng), 0.2f * u(rng), 1.f}, {u(rng), u(rng), 1.f}, k);
     const auto g = lighting::gatherReference(r, vals);
     const auto vpl = lighting::normalizeReference(g, r);
     cv::Vec3f E, S;
@@ -142,7 +145,8 @@ TEST(Val, SparseEqualsBruteForceWhenEveryVertexIsASparsePoint) {
     sparse.push_back(lighting::normalizeReference(lighting::gatherReference(r, one), r));
   }
   float maxS = 0;
-  for (const auto& p : mesh.positions) maxS = std::max(maxS, lighting::gatherReference(receiver(p, {0, 0, 1}, eye - p, 20.f), one).S[0]);
+  for (const auto& p : mesh.positions)
+    maxS = std::max(maxS, lighting::gatherReference(receiver(p, {0, 0, 1}, eye - p, 20.f), one).S[0]);
   ASSERT_GT(maxS, 0.f);
   for (size_t v = 0; v < mesh.positions.size(); ++v) {
     const auto r = receiver(mesh.positions[v], mesh.normals[v], eye - mesh.positions[v], 20.f);
@@ -160,7 +164,8 @@ TEST(Val, SparseEqualsBruteForceWhenEveryVertexIsASparsePoint) {
 }
 
 TEST(Val, PhongExponentsFromOneToTenThousandStayFiniteAndBounded) {
-  std::vector<Val> vals = {disc({0, 0, 0.5f}, {0, 0, -1}, 0.05f, {1, 1, 1}), disc({0.3f, 0, 0.01f}, {-1, 0, 0}, 0.05f, {1, 1, 1})};
+  std::vector<Val> vals = {disc({0, 0, 0.5f}, {0, 0, -1}, 0.05f, {1, 1, 1}),
+                           disc({0.3f, 0, 0.01f}, {-1, 0, 0}, 0.05f, {1, 1, 1})};
   lighting::setValWeights(vals);
   for (float k : {0.f, 1.f, 10.f, 100.f, 1000.f, 1e4f}) {
     for (const cv::Vec3f& view : {cv::Vec3f(0, 0, 1), cv::Vec3f(1, 0, 0.01f), cv::Vec3f(0.3f, 0.2f, 1)}) {
@@ -185,10 +190,12 @@ TEST(Val, WallOfPixelVALsGivesPiTimesRadiance) {
   // A camera 1 m in front of a wide wall of uniform radiance L: the pixel VALs, summed at a receiver 10 cm in
   // front of the wall's centre and facing it, give E = π L F (F: the rectangle's form factor).
   const capture::Intrinsics k{320, 240, 80.0, 80.0, 159.5, 119.5};  // wide view: ±2 m at 1 m
-  cv::Mat depth(240, 320, CV_32FC3), normals(240, 320, CV_32FC3), colour(240, 320, CV_32FC3, cv::Scalar(0.2, 0.1, 0.05));
+  cv::Mat depth(240, 320, CV_32FC3), normals(240, 320, CV_32FC3),
+      colour(240, 320, CV_32FC3, cv::Scalar(0.2, 0.1, 0.05));
   for (int y = 0; y < 240; ++y)
     for (int x = 0; x < 320; ++x) {
-      depth.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>((x - k.cx) / k.fx), static_cast<float>((y - k.cy) / k.fy), 1.f);
+      depth.at<cv::Vec3f>(y, x) =
+          cv::Vec3f(static_cast<float>((x - k.cx) / k.fx), static_cast<float>((y - k.cy) / k.fy), 1.f);
       normals.at<cv::Vec3f>(y, x) = cv::Vec3f(0, 0, -1);
     }
   const auto vals = lighting::valsFromRgbd(depth, normals, colour, k, capture::identityPose(), 1);
@@ -199,8 +206,10 @@ TEST(Val, WallOfPixelVALsGivesPiTimesRadiance) {
   const auto g = lighting::gatherReference(receiver({0, 0, 0.9f}, {0, 0, 1}), vals);
   // Analytic: point-to-parallel-rectangle form factor, 4 quarters of 2 m × 1.5 m at h = 0.1 m.
   const double a = 2.0 / 0.1, b = 1.5 / 0.1;
-  const double F = 4 * (a / std::sqrt(1 + a * a) * std::atan(b / std::sqrt(1 + a * a)) +
-                        b / std::sqrt(1 + b * b) * std::atan(a / std::sqrt(1 + b * b))) / (2 * CV_PI);
+  const double F = 4 *
+                   (a / std::sqrt(1 + a * a) * std::atan(b / std::sqrt(1 + a * a)) +
+                    b / std::sqrt(1 + b * b) * std::atan(a / std::sqrt(1 + b * b))) /
+                   (2 * CV_PI);
   EXPECT_NEAR(g.E[0] / (CV_PI * 0.2 * F), 1.0, 0.01);
   EXPECT_NEAR(g.E[2] / g.E[0], 0.25, 1e-4);
   // Stride 4: the same light from 16× fewer VALs.
@@ -246,8 +255,10 @@ TEST(Val, TheRoomsValsCarryItsFluxAndLightAReceiverAsTheWallDoes) {
   EXPECT_NEAR(flux[2] / flux[0], 0.25, 1e-5);
   const auto g = lighting::gatherReference(receiver({0, 0, 0.8f}, {0, 0, 1}), vals);
   const double a = 2.0 / 0.2, b = 1.5 / 0.2;
-  const double F = 4 * (a / std::sqrt(1 + a * a) * std::atan(b / std::sqrt(1 + a * a)) +
-                        b / std::sqrt(1 + b * b) * std::atan(a / std::sqrt(1 + b * b))) / (2 * CV_PI);
+  const double F = 4 *
+                   (a / std::sqrt(1 + a * a) * std::atan(b / std::sqrt(1 + a * a)) +
+                    b / std::sqrt(1 + b * b) * std::atan(a / std::sqrt(1 + b * b))) /
+                   (2 * CV_PI);
   EXPECT_NEAR(g.E[0] / (CV_PI * 0.2 * F), 1.0, 0.02);  // the lamp corner is 2 m off, a sliver of F
   // At most maxVals: the cells grow; the flux stays.
   const auto few = lighting::valsFromRoom(room, 0.04f, 100);
@@ -274,8 +285,10 @@ TEST(Val, SparsePointsAreAreaUniformOnTheSurface) {
   for (const auto& p : pts.positions) {
     EXPECT_EQ(p[2], 0.f);
     upper += p[1] > 0;
-    if (p[1] > 0) EXPECT_LE(p[0] + p[1] / 2, 1.0001f);
-    else EXPECT_LE(p[0] / 3 - p[1] / 2, 1.0001f);
+    if (p[1] > 0)
+      EXPECT_LE(p[0] + p[1] / 2, 1.0001f);
+    else
+      EXPECT_LE(p[0] / 3 - p[1] / 2, 1.0001f);
   }
   EXPECT_EQ(upper, 100);
   // Low discrepancy: no two points closer than a fraction of the mean spacing on this plane.
@@ -320,15 +333,15 @@ TEST(Val, DiscOccludersShadowTheLightBetweenThemOnly) {
     lighting::occludeReference(pos, nrm, rad, vpl);
     return vpl[0].Ld[0];
   };
-  EXPECT_NEAR(occluded({0, 0, 0.5f}, 0.3f), 0.f, 1e-6);   // a big disc halfway: fully occluded
-  EXPECT_NEAR(occluded({0, 0, 0.5f}, 0.0f), 1.f, 1e-6);   // a zero disc: nothing
-  const float partial = occluded({0, 0, 0.5f}, 0.03f);    // a small disc: partly
+  EXPECT_NEAR(occluded({0, 0, 0.5f}, 0.3f), 0.f, 1e-6);  // a big disc halfway: fully occluded
+  EXPECT_NEAR(occluded({0, 0, 0.5f}, 0.0f), 1.f, 1e-6);  // a zero disc: nothing
+  const float partial = occluded({0, 0, 0.5f}, 0.03f);   // a small disc: partly
   EXPECT_GT(partial, 0.05f);
   EXPECT_LT(partial, 0.95f);
-  EXPECT_NEAR(occluded({0, 0, 1.5f}, 0.3f), 1.f, 1e-6);   // beyond the light: nothing
+  EXPECT_NEAR(occluded({0, 0, 1.5f}, 0.3f), 1.f, 1e-6);     // beyond the light: nothing
   EXPECT_NEAR(occluded({2.f, 0, 0.5f}, 0.05f), 1.f, 1e-6);  // off to the side: nothing
-  EXPECT_NEAR(occluded({0, 0, -0.5f}, 0.3f), 1.f, 1e-6);  // below the receiver: nothing
-  const float inside = occluded({0, 0, 0.95f}, 0.3f);    // inside the light sphere: faded
+  EXPECT_NEAR(occluded({0, 0, -0.5f}, 0.3f), 1.f, 1e-6);    // below the receiver: nothing
+  const float inside = occluded({0, 0, 0.95f}, 0.3f);       // inside the light sphere: faded
   EXPECT_GT(inside, 0.f);
   EXPECT_LT(inside, 1.f);
 }
@@ -338,7 +351,9 @@ TEST(Val, SurfelFusionKeepsUnseenSurfacesAndAveragesNoise) {
   std::normal_distribution<float> noise(0.f, 0.1f);
   auto frame = [&](float n) {
     std::vector<Val> v;
-    for (int i = 0; i < 10; ++i) v.push_back(disc({0.1f * i + 0.05f, 0.05f, 0.05f}, {0, 0, 1}, 0.01f, cv::Vec3f(1, 1, 1) * (1.f + n * noise(rng))));
+    for (int i = 0; i < 10; ++i)
+      v.push_back(
+          disc({0.1f * i + 0.05f, 0.05f, 0.05f}, {0, 0, 1}, 0.01f, cv::Vec3f(1, 1, 1) * (1.f + n * noise(rng))));
     return v;
   };
   lighting::SurfelOptions o;

@@ -1,11 +1,11 @@
 #include "lighting/techniques/pic/pic.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <cmath>
 #include <numeric>
 #include <optional>
 #include <queue>
@@ -49,8 +49,9 @@ void surfelAt(const SurfaceMesh& m, size_t t, float u, float v, Surfel& s) {
   const float w = 1.0f - u - v;
   s.position = w * m.positions[i0] + u * m.positions[i1] + v * m.positions[i2];
   const cv::Vec3f face = faceNormal(m, t);
-  s.normal = m.normals.size() == m.positions.size() ? normalised(w * m.normals[i0] + u * m.normals[i1] + v * m.normals[i2], face)
-                                                     : face;
+  s.normal = m.normals.size() == m.positions.size()
+                 ? normalised(w * m.normals[i0] + u * m.normals[i1] + v * m.normals[i2], face)
+                 : face;
   s.albedo = m.albedo.size() == m.positions.size() ? w * m.albedo[i0] + u * m.albedo[i1] + v * m.albedo[i2]
                                                    : cv::Vec3f(0.5f, 0.5f, 0.5f);
   s.triangle = static_cast<uint32_t>(t);
@@ -73,7 +74,8 @@ double meshArea(const SurfaceMesh& mesh) {
   return a;
 }
 
-std::vector<Surfel> placeSurfels(const SurfaceMesh& mesh, const SurfelOptions& options, const reconstruction::MeshRays* rays) {
+std::vector<Surfel> placeSurfels(const SurfaceMesh& mesh, const SurfelOptions& options,
+                                 const reconstruction::MeshRays* rays) {
   std::vector<Surfel> out;
   const size_t T = mesh.triangles();
   if (T == 0 || options.count <= 0) return out;
@@ -226,8 +228,10 @@ Hierarchy buildHierarchy(const std::vector<Surfel>& surfels, const ClusterOption
         for (size_t q = 0; q < found; ++q) {
           const auto j = static_cast<int32_t>(idx[q]);
           if (j == i) continue;
-          const double d = clusterDistance(a, h.nodes[static_cast<size_t>(active[static_cast<size_t>(j)])], h.eMax, options);
-          if (d < bestD[static_cast<size_t>(i)] || (d == bestD[static_cast<size_t>(i)] && j < best[static_cast<size_t>(i)]))
+          const double d =
+              clusterDistance(a, h.nodes[static_cast<size_t>(active[static_cast<size_t>(j)])], h.eMax, options);
+          if (d < bestD[static_cast<size_t>(i)] ||
+              (d == bestD[static_cast<size_t>(i)] && j < best[static_cast<size_t>(i)]))
             bestD[static_cast<size_t>(i)] = d, best[static_cast<size_t>(i)] = j;
         }
       }
@@ -333,7 +337,8 @@ CacheLinks linkCaches(const Hierarchy& h, const std::vector<Surfel>& surfels, co
         for (size_t s = 0; s < surfels.size(); ++s) {
           const Surfel& sf = surfels[s];
           const cv::Vec3d n(sf.normal);
-          const cv::Vec3d t0 = std::abs(n[0]) < 0.9 ? cv::normalize(n.cross(cv::Vec3d(1, 0, 0))) : cv::normalize(n.cross(cv::Vec3d(0, 1, 0)));
+          const cv::Vec3d t0 = std::abs(n[0]) < 0.9 ? cv::normalize(n.cross(cv::Vec3d(1, 0, 0)))
+                                                    : cv::normalize(n.cross(cv::Vec3d(0, 1, 0)));
           const cv::Vec3d t1 = n.cross(t0);
           const double radius = std::sqrt(static_cast<double>(sf.area) / CV_PI);
           const double a = static_cast<double>(sf.area) / spp;
@@ -351,7 +356,8 @@ CacheLinks linkCaches(const Hierarchy& h, const std::vector<Surfel>& surfels, co
             sh::evaluate(w, out.bands, y.data());
             sh::evaluate(w, 3, y9.data());
             for (int i = 0; i < B2; ++i)
-              for (int j = 0; j < 9; ++j) T[static_cast<size_t>(i * 9 + j)] += omega * y[static_cast<size_t>(i)] * y9[static_cast<size_t>(j)];
+              for (int j = 0; j < 9; ++j)
+                T[static_cast<size_t>(i * 9 + j)] += omega * y[static_cast<size_t>(i)] * y9[static_cast<size_t>(j)];
             if (cosS > 0) {
               front += omega;
               double* row = &S[s * static_cast<size_t>(B2)];
@@ -370,8 +376,8 @@ CacheLinks linkCaches(const Hierarchy& h, const std::vector<Surfel>& surfels, co
           for (int i = 0; i < B2; ++i) row[i] = a[i] + b[i];
         }
         // The cut: refine the node with the largest band-0 factor until `links` nodes (unseen nodes left out).
-        const std::vector<int32_t> done =
-            refineCut(h, L, [&](int32_t k) { return S[static_cast<size_t>(k) * static_cast<size_t>(B2)]; }, true);
+        const std::vector<int32_t> done = refineCut(
+            h, L, [&](int32_t k) { return S[static_cast<size_t>(k) * static_cast<size_t>(B2)]; }, true);
         for (size_t l = 0; l < done.size() && l < L; ++l) {
           const auto k = static_cast<size_t>(done[l]);
           out.node[c * L + l] = done[l];
@@ -392,8 +398,9 @@ CacheLinks linkCaches(const Hierarchy& h, const std::vector<Surfel>& surfels, co
 Receivers bounceReceivers(const Hierarchy& h, int count) {
   Receivers r;
   if (h.root < 0) return r;
-  const std::vector<int32_t> done = refineCut(h, static_cast<size_t>(std::max(1, count)),
-                                             [&h](int32_t k) { return static_cast<double>(h.nodes[static_cast<size_t>(k)].area); }, false);
+  const std::vector<int32_t> done = refineCut(
+      h, static_cast<size_t>(std::max(1, count)),
+      [&h](int32_t k) { return static_cast<double>(h.nodes[static_cast<size_t>(k)].area); }, false);
   r.nodes = done;
   // Every surfel's receiver: its ancestor in the cut (walk the cut's subtrees down).
   r.ofSurfel.assign(h.leaves, -1);
@@ -485,7 +492,8 @@ std::vector<cv::Vec3f> pullUp(const Hierarchy& h, const std::vector<cv::Vec3f>& 
   return f;
 }
 
-std::vector<cv::Vec3f> gatherCaches(const CacheLinks& links, const std::vector<cv::Vec3f>& nodeFlux, const Ambient& ambient) {
+std::vector<cv::Vec3f> gatherCaches(const CacheLinks& links, const std::vector<cv::Vec3f>& nodeFlux,
+                                    const Ambient& ambient) {
   const int B2 = links.bands * links.bands;
   const size_t C = links.caches(), L = static_cast<size_t>(links.links);
   std::vector<cv::Vec3f> out(C * static_cast<size_t>(B2), cv::Vec3f(0, 0, 0));
@@ -516,7 +524,8 @@ cv::Vec3f shLobeRadiance(const cv::Vec3f* sh, int bands, const cv::Vec3f& r, dou
   const std::vector<double> s = sh::phongLobeFactors(std::max(0.0, exponent), bands);
   cv::Vec3d sum(0, 0, 0);
   for (int l = 0; l < bands; ++l)
-    for (int m = -l; m <= l; ++m) sum += s[static_cast<size_t>(l)] * y[static_cast<size_t>(sh::index(l, m))] * cv::Vec3d(sh[sh::index(l, m)]);
+    for (int m = -l; m <= l; ++m)
+      sum += s[static_cast<size_t>(l)] * y[static_cast<size_t>(sh::index(l, m))] * cv::Vec3d(sh[sh::index(l, m)]);
   cv::Vec3f out(sum);
   for (int c = 0; c < 3; ++c)
     if (!std::isfinite(out[c])) out[c] = 0;
@@ -534,8 +543,8 @@ std::vector<cv::Vec3f> gridCaches(const cv::Vec3f& centre, float side, int resol
   return out;
 }
 
-std::vector<cv::Vec3f> interpolateGrid(const std::vector<cv::Vec3f>& cacheSh, const CacheLinks& links, const cv::Vec3f& centre,
-                                       float side, int resolution, const cv::Vec3f& x) {
+std::vector<cv::Vec3f> interpolateGrid(const std::vector<cv::Vec3f>& cacheSh, const CacheLinks& links,
+                                       const cv::Vec3f& centre, float side, int resolution, const cv::Vec3f& x) {
   const int R = std::max(1, resolution);
   const auto B2 = static_cast<size_t>(links.bands * links.bands);
   std::vector<cv::Vec3f> out(B2, cv::Vec3f(0, 0, 0));
@@ -633,7 +642,8 @@ class Writer {
   void array(const std::vector<T>& v) {
     static_assert(std::is_trivially_copyable_v<T>);
     value(static_cast<uint64_t>(v.size()));
-    if (!v.empty()) out_.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(T)));
+    if (!v.empty())
+      out_.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(T)));
   }
 
  private:
@@ -697,9 +707,12 @@ bool readLinks(Reader& r, CacheLinks& l) {
   int32_t bands = 0, links = 0;
   if (!r.value(bands) || !r.value(links) || bands < 1 || bands > sh::kMaxBands || links < 1) return false;
   l.bands = bands, l.links = links;
-  if (!readVec3s(r, l.positions) || !r.array(l.node) || !r.array(l.factor) || !r.array(l.transfer) || !r.array(l.backFraction)) return false;
+  if (!readVec3s(r, l.positions) || !r.array(l.node) || !r.array(l.factor) || !r.array(l.transfer) ||
+      !r.array(l.backFraction))
+    return false;
   const size_t C = l.positions.size(), L = static_cast<size_t>(links), B2 = static_cast<size_t>(bands * bands);
-  return l.node.size() == C * L && l.factor.size() == C * L * B2 && l.transfer.size() == C * B2 * 9 && l.backFraction.size() == C;
+  return l.node.size() == C * L && l.factor.size() == C * L * B2 && l.transfer.size() == C * B2 * 9 &&
+         l.backFraction.size() == C;
 }
 
 // Surfels: 12 floats (position, normal, albedo, area, barycentric) and their triangles.
@@ -752,7 +765,8 @@ bool readNodes(Reader& r, std::vector<Node>& nodes) {
     nodes[k].position = {x[0], x[1], x[2]};
     nodes[k].normal = {x[3], x[4], x[5]};
     nodes[k].area = x[6];
-    nodes[k].child[0] = i[4 * k], nodes[k].child[1] = i[4 * k + 1], nodes[k].parent = i[4 * k + 2], nodes[k].level = i[4 * k + 3];
+    nodes[k].child[0] = i[4 * k], nodes[k].child[1] = i[4 * k + 1], nodes[k].parent = i[4 * k + 2],
+    nodes[k].level = i[4 * k + 3];
   }
   return true;
 }
@@ -784,7 +798,8 @@ std::optional<Reader> openFile(const std::string& path, uint64_t key) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return std::nullopt;
   std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (bytes.size() < sizeof kMagic + sizeof(uint64_t) || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) return std::nullopt;
+  if (bytes.size() < sizeof kMagic + sizeof(uint64_t) || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+    return std::nullopt;
   Reader r(std::vector<char>(bytes.begin() + sizeof kMagic, bytes.end()));
   uint64_t k = 0;
   if (!r.value(k) || k != key) return std::nullopt;
@@ -811,14 +826,16 @@ bool loadMeshPrecompute(const std::string& path, uint64_t key, MeshPrecompute& o
   if (!r) return false;
   MeshPrecompute p;
   uint64_t leaves = 0;
-  if (!readSurfels(*r, p.surfels) || !readNodes(*r, p.hierarchy.nodes) || !r->value(leaves) || !r->value(p.hierarchy.root) ||
-      !r->value(p.hierarchy.eMax) || !r->array(p.receivers.nodes) || !r->array(p.receivers.ofSurfel) ||
-      !readVec3s(*r, p.receivers.positions) || !readLinks(*r, p.receiverLinks) || !r->done())
+  if (!readSurfels(*r, p.surfels) || !readNodes(*r, p.hierarchy.nodes) || !r->value(leaves) ||
+      !r->value(p.hierarchy.root) || !r->value(p.hierarchy.eMax) || !r->array(p.receivers.nodes) ||
+      !r->array(p.receivers.ofSurfel) || !readVec3s(*r, p.receivers.positions) || !readLinks(*r, p.receiverLinks) ||
+      !r->done())
     return false;
   // The structure the runtime walks: leaves first, children before parents, indices in range.
   const auto n = static_cast<int64_t>(p.hierarchy.nodes.size());
   p.hierarchy.leaves = static_cast<size_t>(leaves);
-  if (leaves != p.surfels.size() || (n > 0 && (p.hierarchy.root < 0 || p.hierarchy.root >= n)) || (n == 0 && p.hierarchy.root != -1))
+  if (leaves != p.surfels.size() || (n > 0 && (p.hierarchy.root < 0 || p.hierarchy.root >= n)) ||
+      (n == 0 && p.hierarchy.root != -1))
     return false;
   for (int64_t k = static_cast<int64_t>(leaves); k < n; ++k)
     for (int32_t c : p.hierarchy.nodes[static_cast<size_t>(k)].child)
@@ -827,7 +844,9 @@ bool loadMeshPrecompute(const std::string& path, uint64_t key, MeshPrecompute& o
     if (k < -1 || k >= static_cast<int64_t>(p.receivers.positions.size())) return false;
   for (int32_t k : p.receiverLinks.node)
     if (k < -1 || k >= n) return false;
-  if (p.receiverLinks.positions.size() != p.receivers.positions.size() || p.receivers.ofSurfel.size() != p.surfels.size()) return false;
+  if (p.receiverLinks.positions.size() != p.receivers.positions.size() ||
+      p.receivers.ofSurfel.size() != p.surfels.size())
+    return false;
   out = std::move(p);
   return true;
 }

@@ -12,10 +12,9 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "lighting/ambient.h"
 #include "lighting/scene_file.h"
@@ -66,7 +65,7 @@ struct Node {
   float area = 0;              ///< sum of its surfels' areas
   int32_t child[2] = {-1, -1};
   int32_t parent = -1;
-  int32_t level = 0;           ///< 0 for a surfel, 1 + the larger child level otherwise
+  int32_t level = 0;  ///< 0 for a surfel, 1 + the larger child level otherwise
 };
 
 /// Nodes 0 .. surfels-1 are the surfels (same order); every merge appends one node, so children precede
@@ -80,9 +79,9 @@ struct Hierarchy {
 };
 
 struct ClusterOptions {
-  double cn = 0.1;     ///< normal term weight C_n
-  double cb = 0.02;    ///< balance term weight C_b
-  int candidates = 12; ///< nearest cluster centres searched for each cluster's best partner
+  double cn = 0.1;      ///< normal term weight C_n
+  double cb = 0.02;     ///< balance term weight C_b
+  int candidates = 12;  ///< nearest cluster centres searched for each cluster's best partner
 };
 /// d(a, b) = |x_a - x_b|^2 / e_max^2 + C_n (1 - <n_a, n_b>) + C_b |A_a - A_b| / max(A_a, A_b).
 double clusterDistance(const Node& a, const Node& b, double eMax, const ClusterOptions& options);
@@ -100,8 +99,8 @@ std::vector<int32_t> refineCut(const Hierarchy& hierarchy, size_t count, const s
 
 /// Caches and their links.
 struct LinkOptions {
-  int bands = 4;        ///< SH bands of the caches' radiance, 1..8
-  int links = 128;      ///< linked nodes per cache (n_L)
+  int bands = 4;          ///< SH bands of the caches' radiance, 1..8
+  int links = 128;        ///< linked nodes per cache (n_L)
   int raysPerSurfel = 1;  ///< visibility rays from a cache to each surfel (points over its disc)
 };
 struct CacheLinks {
@@ -127,16 +126,16 @@ double surfelSolidAngle(double area, double cosine, double d);
 /// Links every cache: the solid-angle factors of each surfel (visibility by `rays`, the room's mesh), summed
 /// up the hierarchy, then the cut refined top-down by the largest band-0 factor until `links` nodes (nodes the
 /// cache cannot see are left out). `progress` (optional) receives the fraction done.
-CacheLinks linkCaches(const Hierarchy& hierarchy, const std::vector<Surfel>& surfels, const reconstruction::MeshRays& rays,
-                      const std::vector<cv::Vec3f>& positions, const LinkOptions& options,
-                      const std::function<void(double)>& progress = {});
+CacheLinks linkCaches(const Hierarchy& hierarchy, const std::vector<Surfel>& surfels,
+                      const reconstruction::MeshRays& rays, const std::vector<cv::Vec3f>& positions,
+                      const LinkOptions& options, const std::function<void(double)>& progress = {});
 
 /// Receivers of the progressive bounces: the hierarchy's cut of `count` nodes (the largest area split first),
 /// each with a cache at its centre lifted along its normal (2 mm + a tenth of its radius). A surfel reads its
 /// receiver's radiance about its own normal.
 struct Receivers {
-  std::vector<int32_t> nodes;      ///< the cut
-  std::vector<int32_t> ofSurfel;   ///< per surfel: its receiver (index into nodes)
+  std::vector<int32_t> nodes;        ///< the cut
+  std::vector<int32_t> ofSurfel;     ///< per surfel: its receiver (index into nodes)
   std::vector<cv::Vec3f> positions;  ///< the receivers' caches
 };
 Receivers bounceReceivers(const Hierarchy& hierarchy, int count);
@@ -152,8 +151,9 @@ using Ambient = lighting::Ambient;
 /// its normal) and the light.
 std::vector<uint8_t> surfelVisibility(const std::vector<Surfel>& surfels, const std::vector<SceneLight>& lights,
                                       const reconstruction::MeshRays& rays);
-/// Leaves' outgoing flux: albedo x (direct light (lighting::unshadowedIrradiance) x visibility + the ambient's irradiance + `bounce`) x area
-/// (bounce: the previous bounce's irradiance per surfel, may be empty). Finite, never negative.
+/// Leaves' outgoing flux: albedo x (direct light (lighting::unshadowedIrradiance) x visibility + the ambient's
+/// irradiance + `bounce`) x area (bounce: the previous bounce's irradiance per surfel, may be empty). Finite, never
+/// negative.
 std::vector<cv::Vec3f> surfelFlux(const std::vector<Surfel>& surfels, const std::vector<SceneLight>& lights,
                                   const std::vector<uint8_t>& visibility, const Ambient& ambient,
                                   const std::vector<cv::Vec3f>& bounce = {});
@@ -163,7 +163,8 @@ std::vector<cv::Vec3f> pullUp(const Hierarchy& hierarchy, const std::vector<cv::
 
 /// Each cache's SH radiance (caches x bands^2 x rgb): sum over its links of flux x G, minus the ambient the
 /// room hides (T a).
-std::vector<cv::Vec3f> gatherCaches(const CacheLinks& links, const std::vector<cv::Vec3f>& nodeFlux, const Ambient& ambient);
+std::vector<cv::Vec3f> gatherCaches(const CacheLinks& links, const std::vector<cv::Vec3f>& nodeFlux,
+                                    const Ambient& ambient);
 
 /// Shading from SH radiance (bands^2 rgb values): irradiance about n (clamped-cosine convolution, pi s_l(1))
 /// and the radiance averaged over the normalised Phong lobe of exponent `exponent` about r (s_l(exponent)).
@@ -174,8 +175,8 @@ cv::Vec3f shLobeRadiance(const cv::Vec3f* sh, int bands, const cv::Vec3f& r, dou
 std::vector<cv::Vec3f> gridCaches(const cv::Vec3f& centre, float side, int resolution);
 /// Trilinear interpolation of a grid's caches at x (clamped to the grid), each corner weighed by its
 /// (1 - backFraction) too (renormalised; plain trilinear where every corner is behind geometry).
-std::vector<cv::Vec3f> interpolateGrid(const std::vector<cv::Vec3f>& cacheSh, const CacheLinks& links, const cv::Vec3f& centre,
-                                       float side, int resolution, const cv::Vec3f& x);
+std::vector<cv::Vec3f> interpolateGrid(const std::vector<cv::Vec3f>& cacheSh, const CacheLinks& links,
+                                       const cv::Vec3f& centre, float side, int resolution, const cv::Vec3f& x);
 
 // ---- saved precompute
 /// What linkCaches and the hierarchy hold, in a file: "MRGIPIC1", `key`, then each part's arrays (size and

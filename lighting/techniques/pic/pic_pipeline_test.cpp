@@ -32,7 +32,9 @@ PipelineConfig picConfig(int chroma, bool rgb9e5, int receivers = 64) {
   return cfg;
 }
 
-const PicTechnique& picOf(const LightingPipeline& pipe) { return dynamic_cast<const PicTechnique&>(*pipe.technique("pic")); }
+const PicTechnique& picOf(const LightingPipeline& pipe) {
+  return dynamic_cast<const PicTechnique&>(*pipe.technique("pic"));
+}
 
 pic::Ambient ambientOf(const LightingPipeline& pipe) {
   pic::Ambient a;
@@ -80,7 +82,8 @@ TEST(GL, PicGpuMatchesTheCppReference) {
     ASSERT_EQ(gpuFlux.size(), flux1.size());
     for (size_t k = 0; k < flux1.size(); ++k) {
       const float m = std::max({flux1[k][0], flux1[k][1], flux1[k][2]});
-      for (int c = 0; c < 3; ++c) ASSERT_NEAR(gpuFlux[k][c], flux1[k][c], (packed ? 0.01f : 1e-4f) * m + 1e-7f) << "node " << k;
+      for (int c = 0; c < 3; ++c)
+        ASSERT_NEAR(gpuFlux[k][c], flux1[k][c], (packed ? 0.01f : 1e-4f) * m + 1e-7f) << "node " << k;
     }
     // Caches within 1 % of the largest coefficient (0.1 % unpacked).
     const std::vector<float> stored = t.downloadCaches(false);
@@ -91,7 +94,8 @@ TEST(GL, PicGpuMatchesTheCppReference) {
       const auto gpu = t.decodeCache(stored, c);
       for (size_t i = 0; i < b2; ++i)
         for (int ch = 0; ch < 3; ++ch)
-          ASSERT_NEAR(gpu[i][ch], caches[c * b2 + i][ch], (packed ? 0.01f : 1e-3f) * peak) << "cache " << c << " coefficient " << i;
+          ASSERT_NEAR(gpu[i][ch], caches[c * b2 + i][ch], (packed ? 0.01f : 1e-3f) * peak)
+              << "cache " << c << " coefficient " << i;
     }
     // Read-out: the object's pixels' irradiance from the interpolated caches about their normals.
     const cv::Mat pos = download4(pipe.frame().gPosition()), nrm = download4(pipe.frame().gNormal());
@@ -107,10 +111,12 @@ TEST(GL, PicGpuMatchesTheCppReference) {
       for (int x = 0; x < pos.cols; ++x) {
         const cv::Vec4f p = pos.at<cv::Vec4f>(y, x), n = nrm.at<cv::Vec4f>(y, x);
         if (p[3] < 0.5f || alb.at<cv::Vec4f>(y, x)[3] < 0.5f) continue;
-        const auto sh = pic::interpolateGrid(gpuSh, t.caches(), t.gridCentre(), t.gridSide(), t.knobs().grid, {p[0], p[1], p[2]});
+        const auto sh =
+            pic::interpolateGrid(gpuSh, t.caches(), t.gridCentre(), t.gridSide(), t.knobs().grid, {p[0], p[1], p[2]});
         const cv::Vec3f e = pic::shIrradiance(sh.data(), bands, cv::normalize(cv::Vec3f(n[0], n[1], n[2])));
         const cv::Vec4f g = out.at<cv::Vec4f>(y, x);
-        for (int ch = 0; ch < 3; ++ch) worst = std::max(worst, std::abs(double(g[ch]) - e[ch])), scale = std::max(scale, std::abs(double(e[ch])));
+        for (int ch = 0; ch < 3; ++ch)
+          worst = std::max(worst, std::abs(double(g[ch]) - e[ch])), scale = std::max(scale, std::abs(double(e[ch])));
         ++pixels;
       }
     EXPECT_GT(pixels, 100);
@@ -138,10 +144,11 @@ TEST(GL, PicWhiteCubeNextToARedWallReceivesRedBounce) {
     const auto at = pic::interpolateGrid(sh, t.caches(), t.gridCentre(), t.gridSide(), t.knobs().grid, x);
     return pic::shIrradiance(at.data(), t.knobs().bands, n);
   };
-  const cv::Vec3f towards = irradiance({-0.42f, 0, 0.06f}, {-1, 0, 0}), away = irradiance({-0.30f, 0, 0.06f}, {1, 0, 0});
+  const cv::Vec3f towards = irradiance({-0.42f, 0, 0.06f}, {-1, 0, 0}),
+                  away = irradiance({-0.30f, 0, 0.06f}, {1, 0, 0});
   ASSERT_GT(towards[0], 0.0f);
   EXPECT_GT(towards[0], 2.0f * towards[1]) << towards;  // red bounce from the wall (albedo 0.8 / 0.1)
-  EXPECT_LT(away[0], 1.3f * away[1]) << away;          // the grey floor's, away from it
+  EXPECT_LT(away[0], 1.3f * away[1]) << away;           // the grey floor's, away from it
 }
 
 TEST(GL, PicMovingLightRerunsOnlyTheRuntimeStages) {

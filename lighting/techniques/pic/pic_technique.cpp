@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-
 #include <opencv2/imgproc.hpp>
 
 #include "gl/error.h"
@@ -15,21 +14,77 @@ namespace mrgi::lighting {
 
 const std::vector<KnobBinding<PicKnobs>>& picKnobTable() {
   static const std::vector<KnobBinding<PicKnobs>> table = {
-      {{"surfels", KnobType::Int, 16, 65536, 4096, "surfels over the static real mesh (precomputed)", {1024, 16384}, {1024}, true},
+      {{"surfels",
+        KnobType::Int,
+        16,
+        65536,
+        4096,
+        "surfels over the static real mesh (precomputed)",
+        {1024, 16384},
+        {1024},
+        true},
        &PicKnobs::surfels},
-      {{"bands", KnobType::Int, 1, 8, 4, "SH bands of the caches' radiance", {2, 3, 6, 8}, {2}, false}, &PicKnobs::bands},
-      {{"chroma_bands", KnobType::Int, 0, 8, 0, "SH bands kept for the caches' chroma (Co, Cg); 0: as many as bands",
-        {1, 2}, {}, false},
+      {{"bands", KnobType::Int, 1, 8, 4, "SH bands of the caches' radiance", {2, 3, 6, 8}, {2}, false},
+       &PicKnobs::bands},
+      {{"chroma_bands",
+        KnobType::Int,
+        0,
+        8,
+        0,
+        "SH bands kept for the caches' chroma (Co, Cg); 0: as many as bands",
+        {1, 2},
+        {},
+        false},
        &PicKnobs::chromaBands},
-      {{"links", KnobType::Int, 4, 2048, 128, "hierarchy nodes linked to each cache (precomputed)", {32, 512}, {32}, true},
+      {{"links",
+        KnobType::Int,
+        4,
+        2048,
+        128,
+        "hierarchy nodes linked to each cache (precomputed)",
+        {32, 512},
+        {32},
+        true},
        &PicKnobs::links},
-      {{"grid", KnobType::Int, 1, 16, 6, "caches per axis of the grid over the region (precomputed)", {4, 10}, {}, false},
+      {{"grid",
+        KnobType::Int,
+        1,
+        16,
+        6,
+        "caches per axis of the grid over the region (precomputed)",
+        {4, 10},
+        {},
+        false},
        &PicKnobs::grid},
-      {{"receivers", KnobType::Int, 0, 4096, 256, "bounce receivers on a cut of the hierarchy (0: no bounce)", {0, 1024}, {0}, true},
+      {{"receivers",
+        KnobType::Int,
+        0,
+        4096,
+        256,
+        "bounce receivers on a cut of the hierarchy (0: no bounce)",
+        {0, 1024},
+        {0},
+        true},
        &PicKnobs::receivers},
-      {{"bounces", KnobType::Int, 0, 4, 1, "bounces per run (with progressive: added to the last run's)", {0, 2}, {}, false},
+      {{"bounces",
+        KnobType::Int,
+        0,
+        4,
+        1,
+        "bounces per run (with progressive: added to the last run's)",
+        {0, 2},
+        {},
+        false},
        &PicKnobs::bounces},
-      {{"progressive", KnobType::Bool, 0, 1, 0, "the bounce light carries over between runs (each run adds `bounces`)", {1}, {}, false},
+      {{"progressive",
+        KnobType::Bool,
+        0,
+        1,
+        0,
+        "the bounce light carries over between runs (each run adds `bounces`)",
+        {1},
+        {},
+        false},
        &PicKnobs::progressive},
       {{"rgb9e5", KnobType::Bool, 0, 1, 1, "surfel and node flux stored as RGB9E5 (else RGBA32F)", {0}, {}, false},
        &PicKnobs::rgb9e5},
@@ -38,7 +93,6 @@ const std::vector<KnobBinding<PicKnobs>>& picKnobTable() {
 }
 
 namespace {
-
 
 int chromaOf(const PicKnobs& k) { return k.chromaBands > 0 ? std::min(k.chromaBands, k.bands) : k.bands; }
 size_t cacheFloats(const PicKnobs& k) {
@@ -77,7 +131,9 @@ bool sameShadows(const std::vector<SceneLight>& a, const std::vector<SceneLight>
 TechniqueInfo picTechniqueInfo() {
   TechniqueInfo t;
   t.name = "pic";
-  t.description = "Precomputed illuminance composition: the static room's surfels, hierarchy and SH caches precomputed, relit per run (virtual object only)";
+  t.description =
+      "Precomputed illuminance composition: the static room's surfels, hierarchy and SH caches precomputed, relit per "
+      "run (virtual object only)";
   t.real = false;
   t.virtualObject = true;
   t.stagePrefixes = {"pic."};
@@ -89,7 +145,8 @@ TechniqueInfo picTechniqueInfo() {
     const auto b2 = static_cast<size_t>(k.bands * k.bands);
     const auto g = static_cast<size_t>(k.grid), caches = g * g * g, r = static_cast<size_t>(k.receivers);
     const size_t perCache = static_cast<size_t>(k.links) * (4 + 4 * b2) + 4 * b2 * 9 + 4 * cacheFloats(k) + 4;
-    return s * (48 + 4) + nodes * (16 + 8 + 4) + (caches + r) * perCache + 2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
+    return s * (48 + 4) + nodes * (16 + 8 + 4) + (caches + r) * perCache +
+           2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
   };
   return t;
 }
@@ -101,7 +158,8 @@ PicTechnique::PicTechnique(const TechniqueSetup& setup)
       lightProgram_(gl::Program::compute("lighting/techniques/pic/pic_light.comp", definesOf(knobs_))),
       pullProgram_(gl::Program::compute("lighting/techniques/pic/pic_pull.comp", definesOf(knobs_))),
       gatherProgram_(gl::Program::compute("lighting/techniques/pic/pic_gather.comp", definesOf(knobs_))),
-      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/pic/pic_readout.frag", definesOf(knobs_))),
+      readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/pic/pic_readout.frag",
+                                            definesOf(knobs_))),
       irradiance_(GL_TEXTURE_2D, GL_RGBA32F, setup.frame->width(), setup.frame->height()),
       radiance_(GL_TEXTURE_2D, GL_RGBA32F, setup.frame->width(), setup.frame->height()) {
   irradiance_.setFilter(GL_NEAREST, GL_NEAREST);
@@ -146,7 +204,8 @@ void PicTechnique::precomputeMesh(const FrameResources& frame) {
   uint64_t key = hashBytes(mesh_.indices.data(), mesh_.indices.size() * sizeof(uint32_t));
   key = hashBytes(mesh_.positions.data(), mesh_.positions.size() * sizeof(cv::Vec3f), key);
   key = hashBytes(mesh_.normals.data(), mesh_.normals.size() * sizeof(cv::Vec3f), key);
-  for (int k : {knobs_.surfels, knobs_.bands, knobs_.links, knobs_.receivers, 1 /* format */}) key = hashBytes(&k, sizeof k, key);
+  for (int k : {knobs_.surfels, knobs_.bands, knobs_.links, knobs_.receivers, 1 /* format */})
+    key = hashBytes(&k, sizeof k, key);
   geometryKey_ = key;
   const std::string file = cacheFile("mesh", key);
   pic::MeshPrecompute saved;
@@ -172,8 +231,8 @@ void PicTechnique::precomputeMesh(const FrameResources& frame) {
     report(0.1);
     const auto t2 = std::chrono::steady_clock::now();
     receivers_ = knobs_.receivers > 0 ? pic::bounceReceivers(hierarchy_, knobs_.receivers) : pic::Receivers{};
-    receiverLinks_ = pic::linkCaches(hierarchy_, surfels_, *rays_, receivers_.positions, {knobs_.bands, knobs_.links, 1},
-                                     [&](double f) { report(0.1 + 0.9 * f); });
+    receiverLinks_ = pic::linkCaches(hierarchy_, surfels_, *rays_, receivers_.positions,
+                                     {knobs_.bands, knobs_.links, 1}, [&](double f) { report(0.1 + 0.9 * f); });
     report(1.0);
     stats_["precompute_ms_surfels"] = msSurfels;
     stats_["precompute_ms_hierarchy"] = msHierarchy;
@@ -185,7 +244,8 @@ void PicTechnique::precomputeMesh(const FrameResources& frame) {
   // GPU: surfels, children and the inner nodes by level.
   uploadSurfels();
   std::vector<cv::Vec2i> children(hierarchy_.nodes.size(), cv::Vec2i(-1, -1));
-  for (size_t k = 0; k < hierarchy_.nodes.size(); ++k) children[k] = {hierarchy_.nodes[k].child[0], hierarchy_.nodes[k].child[1]};
+  for (size_t k = 0; k < hierarchy_.nodes.size(); ++k)
+    children[k] = {hierarchy_.nodes[k].child[0], hierarchy_.nodes[k].child[1]};
   children_ = bufferOf(children);
   levelsCount_ = hierarchy_.levels();
   levelFirst_.assign(static_cast<size_t>(std::max(levelsCount_, 1)), 0);
@@ -195,7 +255,8 @@ void PicTechnique::precomputeMesh(const FrameResources& frame) {
     levelFirst_[static_cast<size_t>(level)] = static_cast<int>(ordered.size());
     for (size_t k = hierarchy_.leaves; k < hierarchy_.nodes.size(); ++k)
       if (hierarchy_.nodes[k].level == level) ordered.push_back(static_cast<int>(k));
-    levelCount_[static_cast<size_t>(level)] = static_cast<int>(ordered.size()) - levelFirst_[static_cast<size_t>(level)];
+    levelCount_[static_cast<size_t>(level)] =
+        static_cast<int>(ordered.size()) - levelFirst_[static_cast<size_t>(level)];
   }
   levelNodes_ = bufferOf(ordered);
   const size_t nodes = std::max<size_t>(hierarchy_.nodes.size(), 1);
@@ -223,7 +284,8 @@ void PicTechnique::uploadSurfels() {
   surfelBuffer_ = bufferOf(s);
 }
 
-void PicTechnique::uploadLinks(const pic::CacheLinks& links, gl::Buffer& nodes, gl::Buffer& factors, gl::Buffer& transfer) {
+void PicTechnique::uploadLinks(const pic::CacheLinks& links, gl::Buffer& nodes, gl::Buffer& factors,
+                               gl::Buffer& transfer) {
   nodes = bufferOf(links.node);
   factors = bufferOf(links.factor);
   transfer = bufferOf(links.transfer);
@@ -240,7 +302,8 @@ void PicTechnique::placeGrid(const cv::Vec3f& centre, float side) {
   const std::string file = cacheFile("grid", key);
   const auto nodes = static_cast<int32_t>(hierarchy_.nodes.size());
   const auto valid = [&](const pic::CacheLinks& l) {
-    if (l.caches() != static_cast<size_t>(knobs_.grid * knobs_.grid * knobs_.grid) || l.bands != knobs_.bands) return false;
+    if (l.caches() != static_cast<size_t>(knobs_.grid * knobs_.grid * knobs_.grid) || l.bands != knobs_.bands)
+      return false;
     return std::all_of(l.node.begin(), l.node.end(), [&](int32_t k) { return k >= -1 && k < nodes; });
   };
   if (!file.empty() && pic::loadCacheLinks(file, key, caches_) && valid(caches_)) {
@@ -301,7 +364,8 @@ void PicTechnique::gather(const FrameResources& frame, bool receivers) {
   for (size_t k = 0; k < 9; ++k) a.sh[k] = cv::Vec3f(frame.ambientSh()[k]);
   const auto coefficients = a.coefficients();
   for (size_t k = 0; k < 9; ++k)
-    setVec3(p, std::string("uAmbientCoefficients[") + std::to_string(k) + "]", cv::Vec3d(pic::toYCoCg(coefficients[k])));
+    setVec3(p, std::string("uAmbientCoefficients[") + std::to_string(k) + "]",
+            cv::Vec3d(pic::toYCoCg(coefficients[k])));
   p.set("uCount", static_cast<int>(links.caches()));
   p.set("uLinks", links.links);
   p.set("uPacked", knobs_.rgb9e5 ? 1 : 0);
@@ -358,8 +422,9 @@ void PicTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   {
     auto s = timed(profiler, "pic.visibility", false);
     if (!visibility_.id() || !sameShadows(frame.lights(), visibilityLights_)) {
-      std::vector<SceneLight> lights(frame.lights().begin(), frame.lights().begin() +
-                                                                  static_cast<std::ptrdiff_t>(std::min<size_t>(frame.lights().size(), kMaxLights)));
+      std::vector<SceneLight> lights(
+          frame.lights().begin(),
+          frame.lights().begin() + static_cast<std::ptrdiff_t>(std::min<size_t>(frame.lights().size(), kMaxLights)));
       const std::vector<uint8_t> vis = pic::surfelVisibility(surfels_, lights, *rays_);
       std::vector<uint32_t> bits(surfels_.size(), 0);
       for (size_t i = 0; i < surfels_.size(); ++i)
@@ -437,10 +502,12 @@ std::vector<float> PicTechnique::downloadCaches(bool receivers) const {
 }
 
 std::vector<cv::Vec3f> PicTechnique::decodeCache(const std::vector<float>& stored, size_t cache) const {
-  const auto b2 = static_cast<size_t>(knobs_.bands * knobs_.bands), c2 = static_cast<size_t>(chromaBands() * chromaBands());
+  const auto b2 = static_cast<size_t>(knobs_.bands * knobs_.bands),
+             c2 = static_cast<size_t>(chromaBands() * chromaBands());
   const float* x = &stored[cache * cacheFloats(knobs_)];
   std::vector<cv::Vec3f> out(b2);
-  for (size_t i = 0; i < b2; ++i) out[i] = pic::fromYCoCg({x[i], i < c2 ? x[b2 + i] : 0.0f, i < c2 ? x[b2 + c2 + i] : 0.0f});
+  for (size_t i = 0; i < b2; ++i)
+    out[i] = pic::fromYCoCg({x[i], i < c2 ? x[b2 + i] : 0.0f, i < c2 ? x[b2 + c2 + i] : 0.0f});
   return out;
 }
 
@@ -549,8 +616,9 @@ cv::Mat PicTechnique::debugImage(const std::string& view, const DebugContext& co
 
 size_t PicTechnique::gpuBytes() const {
   size_t sum = irradiance_.bytes() + radiance_.bytes();
-  for (const gl::Buffer* b : {&surfelBuffer_, &visibility_, &children_, &levelNodes_, &cacheNodes_, &cacheFactors_, &cacheTransfer_,
-                              &cacheBack_, &cacheSh_, &receiverNodes_, &receiverFactors_, &receiverTransfer_, &receiverSh_})
+  for (const gl::Buffer* b :
+       {&surfelBuffer_, &visibility_, &children_, &levelNodes_, &cacheNodes_, &cacheFactors_, &cacheTransfer_,
+        &cacheBack_, &cacheSh_, &receiverNodes_, &receiverFactors_, &receiverTransfer_, &receiverSh_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);
   sum += static_cast<size_t>(knobs_.rgb9e5 ? (fluxP_.id() ? fluxP_.size() : 0) : (fluxF_.id() ? fluxF_.size() : 0));
   return sum;

@@ -26,15 +26,15 @@ class MeshRays;
 namespace mrgi::lighting {
 
 struct PicKnobs {
-  int surfels = 0;      ///< surfels over the static mesh
-  int bands = 0;        ///< SH bands of the caches
-  int chromaBands = 0;  ///< bands of the caches' chroma (0: as many as bands)
-  int links = 0;        ///< links per cache
-  int grid = 0;         ///< caches per axis of the grid over the region
-  int receivers = 0;    ///< bounce receivers (0: no bounce)
-  int bounces = 0;      ///< bounces per run
+  int surfels = 0;           ///< surfels over the static mesh
+  int bands = 0;             ///< SH bands of the caches
+  int chromaBands = 0;       ///< bands of the caches' chroma (0: as many as bands)
+  int links = 0;             ///< links per cache
+  int grid = 0;              ///< caches per axis of the grid over the region
+  int receivers = 0;         ///< bounce receivers (0: no bounce)
+  int bounces = 0;           ///< bounces per run
   bool progressive = false;  ///< the bounce light carries over between runs
-  bool rgb9e5 = false;  ///< flux stored as RGB9E5 (else RGBA32F)
+  bool rgb9e5 = false;       ///< flux stored as RGB9E5 (else RGBA32F)
 };
 const std::vector<KnobBinding<PicKnobs>>& picKnobTable();
 

@@ -1,19 +1,21 @@
 // Precomputed illuminance composition, the C++ reference (pic.h): surfels, hierarchy, links and the runtime
 // against analytic results.
+#include "lighting/techniques/pic/pic.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <set>
 
 #include "lighting/sh.h"
-#include "lighting/techniques/pic/pic.h"
 #include "reconstruction/mesh_rays.h"
 
 namespace mrgi::lighting::pic {
 namespace {
 
 /// An n x n grid of quads spanning `origin` + [0, 1] u + [0, 1] v, normal u x v, constant albedo.
-void addGrid(SurfaceMesh& m, const cv::Vec3f& origin, const cv::Vec3f& u, const cv::Vec3f& v, int n, const cv::Vec3f& albedo) {
+void addGrid(SurfaceMesh& m, const cv::Vec3f& origin, const cv::Vec3f& u, const cv::Vec3f& v, int n,
+             const cv::Vec3f& albedo) {
   const auto base = static_cast<uint32_t>(m.positions.size());
   for (int j = 0; j <= n; ++j)
     for (int i = 0; i <= n; ++i) {
@@ -46,8 +48,8 @@ reconstruction::MeshRays raysOf(const SurfaceMesh& m) { return reconstruction::M
 
 TEST(PicSurfels, TotalAreaIsTheMeshAreaAndEverySurfelLiesOnIt) {
   SurfaceMesh m;
-  addGrid(m, {0, 0, 0}, {2, 0, 0}, {0, 1, 0}, 8, {0.5f, 0.4f, 0.3f});   // 2 m^2 on z = 0
-  addGrid(m, {0, 0, 0}, {0, 0, 1}, {2, 0, 0}, 3, {0.2f, 0.2f, 0.2f});   // 2 m^2 on y = 0 (normal -y... u x v)
+  addGrid(m, {0, 0, 0}, {2, 0, 0}, {0, 1, 0}, 8, {0.5f, 0.4f, 0.3f});  // 2 m^2 on z = 0
+  addGrid(m, {0, 0, 0}, {0, 0, 1}, {2, 0, 0}, 3, {0.2f, 0.2f, 0.2f});  // 2 m^2 on y = 0 (normal -y... u x v)
   const auto rays = raysOf(m);
   EXPECT_NEAR(meshArea(m), 4.0, 1e-5);
   for (int relax : {0, 3}) {
@@ -76,7 +78,8 @@ TEST(PicSurfels, RelaxationEvensOutTheSpacing) {
   const auto halton = nearestNeighbourSpread(placeSurfels(m, {900, 0}, &rays));
   const auto relaxed = nearestNeighbourSpread(placeSurfels(m, {900, 4}, &rays));
   // 900 surfels of 1/900 m^2: a hexagonal packing spaces them 1.07 / 30 m apart.
-  EXPECT_LT(relaxed.second, 0.8 * halton.second) << "coefficient of variation " << halton.second << " -> " << relaxed.second;
+  EXPECT_LT(relaxed.second, 0.8 * halton.second)
+      << "coefficient of variation " << halton.second << " -> " << relaxed.second;
   EXPECT_GT(relaxed.first, halton.first);
   EXPECT_LT(relaxed.first, 1.1 / 30.0);
 }
@@ -97,7 +100,8 @@ TEST(PicHierarchy, NodesSumTheirChildrenAndOppositeFacesMergeLast) {
     const Node& n = h.nodes[k];
     ASSERT_LT(n.child[0], static_cast<int32_t>(k));
     ASSERT_LT(n.child[1], static_cast<int32_t>(k));
-    EXPECT_NEAR(n.area, h.nodes[static_cast<size_t>(n.child[0])].area + h.nodes[static_cast<size_t>(n.child[1])].area, 1e-5);
+    EXPECT_NEAR(n.area, h.nodes[static_cast<size_t>(n.child[0])].area + h.nodes[static_cast<size_t>(n.child[1])].area,
+                1e-5);
     EXPECT_TRUE(seen.insert(n.child[0]).second && seen.insert(n.child[1]).second);  // a tree
     // Every node except the root holds surfels of one face only: its normal is still +-z.
     if (static_cast<int32_t>(k) != h.root) {
@@ -127,7 +131,8 @@ TEST(PicLinks, OneSurfelFacingACacheGivesTheAnalyticIrradiance) {
       for (double theta : {0.0, 0.5, 1.2, 2.5}) {
         const cv::Vec3f n(static_cast<float>(std::sin(theta)), 0, static_cast<float>(std::cos(theta)));
         double expect = 0;
-        for (int l = 0; l < bands; ++l) expect += CV_PI * s1[static_cast<size_t>(l)] * (2 * l + 1) / (4 * CV_PI) * sh::legendre(l, std::cos(theta));
+        for (int l = 0; l < bands; ++l)
+          expect += CV_PI * s1[static_cast<size_t>(l)] * (2 * l + 1) / (4 * CV_PI) * sh::legendre(l, std::cos(theta));
         expect *= L * omega;
         const cv::Vec3f e = shIrradiance(sh.data(), bands, n);
         EXPECT_NEAR(e[1], expect, 1e-4 * L * omega) << "bands " << bands << " d " << d << " theta " << theta;
@@ -244,9 +249,11 @@ TEST(PicExtremes, BandsOneToEightExponentsAndFluxesStayFinite) {
   const Hierarchy h = buildHierarchy(s);
   for (int bands = 1; bands <= 8; ++bands) {
     // Caches on the floor itself (d -> 0 to a surfel), just above and far away.
-    const CacheLinks links = linkCaches(h, s, rays, {s[0].position, {0, 0, 1e-6f}, {0, 0, 0.1f}, {0, 0, 1e4f}}, {bands, 8, 2});
+    const CacheLinks links =
+        linkCaches(h, s, rays, {s[0].position, {0, 0, 1e-6f}, {0, 0, 0.1f}, {0, 0, 1e4f}}, {bands, 8, 2});
     for (float f : {0.0f, 1.0f, 1e20f}) {
-      const auto sh = gatherCaches(links, pullUp(h, std::vector<cv::Vec3f>(s.size(), cv::Vec3f(f, f, f))), {{1, 1, 1}, {}});
+      const auto sh =
+          gatherCaches(links, pullUp(h, std::vector<cv::Vec3f>(s.size(), cv::Vec3f(f, f, f))), {{1, 1, 1}, {}});
       for (size_t c = 0; c < links.caches(); ++c)
         for (double p : {0.0, 1.0, 10.0, 1e4})
           for (const cv::Vec3f& n : {cv::Vec3f(0, 0, 1), cv::Vec3f(0, 0, -1), cv::Vec3f(1, 0, 0)}) {

@@ -190,7 +190,8 @@ float texelArea(const cv::Vec3f& direct, const cv::Vec3f& beam, float cosine) {
   return across / std::max(cosine, 0.1f);
 }
 
-cv::Vec3f ambientFlux(const cv::Vec3f& flux, const cv::Vec3f& direct, const cv::Vec3f& eAmbient, float area, float share) {
+cv::Vec3f ambientFlux(const cv::Vec3f& flux, const cv::Vec3f& direct, const cv::Vec3f& eAmbient, float area,
+                      float share) {
   cv::Vec3f a(0, 0, 0);
   for (int c = 0; c < 3; ++c) {
     const float albedo = direct[c] > 0 ? std::clamp(flux[c] / direct[c], 0.0f, 1.0f) : 0.0f;
@@ -290,9 +291,9 @@ std::vector<SurfacePoint> surfacePoints(const std::vector<SurfaceSource>& source
   for (const SurfaceSource& src : sources) {
     if (!src.mesh) continue;
     const Mesh& m = *src.mesh;
-    const cv::Matx33d R(src.T_world_object(0, 0), src.T_world_object(0, 1), src.T_world_object(0, 2), src.T_world_object(1, 0),
-                        src.T_world_object(1, 1), src.T_world_object(1, 2), src.T_world_object(2, 0), src.T_world_object(2, 1),
-                        src.T_world_object(2, 2));
+    const cv::Matx33d R(src.T_world_object(0, 0), src.T_world_object(0, 1), src.T_world_object(0, 2),
+                        src.T_world_object(1, 0), src.T_world_object(1, 1), src.T_world_object(1, 2),
+                        src.T_world_object(2, 0), src.T_world_object(2, 1), src.T_world_object(2, 2));
     const cv::Matx33d N = R.inv().t();  // normals: the inverse transpose
     for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
       Triangle tri;
@@ -332,8 +333,8 @@ std::vector<SurfacePoint> surfacePoints(const std::vector<SurfaceSource>& source
   return out;
 }
 
-PixelLight surfaceLight(const SurfacePoint& s, const std::vector<PixelLight>& objectLights, const cv::Vec3f& ambientFront,
-                        const cv::Vec3f& ambientBack) {
+PixelLight surfaceLight(const SurfacePoint& s, const std::vector<PixelLight>& objectLights,
+                        const cv::Vec3f& ambientFront, const cv::Vec3f& ambientBack) {
   const cv::Vec3f front = ambientFront + gather(objectLights, s.position, s.normal);
   const cv::Vec3f back = ambientBack + gather(objectLights, s.position, -s.normal);
   PixelLight l;

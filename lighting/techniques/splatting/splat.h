@@ -36,9 +36,8 @@
 /// virtual object the delta is exactly 0. The object's indirect light is the splat of RSM^rho's lights
 /// (its own texels excluded: a surface does not light itself).
 #include <cstdint>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "lighting/scene_file.h"
 
@@ -102,9 +101,9 @@ cv::Vec3f splatIrradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec
 /// by F_k - F_{k-1} (F_k = boxCoverage of its box below the outermost level, the box's indicator at it,
 /// F_{-1} = 0), which telescope to the outermost box's indicator, so a far representative's weight ramps in
 /// as its exact splat ramps out instead of stepping n / farSamples(n, 1) times at its level-0 box (a seam
-/// across the object); the splats below the outermost level cover their band. The first samples of a light are a contiguous run of
-/// the R2 sequence (themselves low-discrepancy), and a level's weighted subset estimates the same sum as all n
-/// (their weights already hold 1/n), so over the levels each sample's expected splat is the bounded splat over
+/// across the object); the splats below the outermost level cover their band. The first samples of a light are a
+/// contiguous run of the R2 sequence (themselves low-discrepancy), and a level's weighted subset estimates the same sum
+/// as all n (their weights already hold 1/n), so over the levels each sample's expected splat is the bounded splat over
 /// the outermost box, which reaches 4^k times as far as level 0's, for about k + 1 times level 0's cost (16x the
 /// area for 1/16 of the lights). GLSL twin in splat.vert / splat.frag.
 constexpr int kFarStride = 16;  ///< samples per far light, and the ratio of I_low between levels
@@ -114,7 +113,8 @@ int farSamples(int count, int level);
 float farWeight(int count, int level);
 /// Sample `sample` (0-based within its light of `count` samples) splatted over `levels` far levels at (x, n):
 /// level 0's bounded splat plus each far level's shell, weighted.
-cv::Vec3f splatFar(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow, int sample, int count, int levels);
+cv::Vec3f splatFar(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow, int sample, int count,
+                   int levels);
 
 /// Surface lights: the object as the real surfaces see it beyond the lights' direct bounce. The RSMs show an
 /// object only where a light reaches it, so its unlit side, lit by the table's bounce, would send nothing
@@ -148,8 +148,8 @@ struct SurfaceSource {
 std::vector<SurfacePoint> surfacePoints(const std::vector<SurfaceSource>& sources, int count);
 /// A surface point's diffuse light from the object's lights (unbounded gather) and the ambient's irradiance
 /// about n and about -n.
-PixelLight surfaceLight(const SurfacePoint& s, const std::vector<PixelLight>& objectLights, const cv::Vec3f& ambientFront,
-                        const cv::Vec3f& ambientBack);
+PixelLight surfaceLight(const SurfacePoint& s, const std::vector<PixelLight>& objectLights,
+                        const cv::Vec3f& ambientFront, const cv::Vec3f& ambientBack);
 
 /// Sum pyramid of an importance map (square, side a power of two; level 0 = the map).
 struct Pyramid {
@@ -176,7 +176,8 @@ float texelArea(const cv::Vec3f& direct, const cv::Vec3f& beam, float cosine);
 /// sees once, so with L lights each carries 1 / L): albedo E_ambient A share, albedo = flux / direct per
 /// channel (clamped to [0, 1]; 0 without direct light). The RSMs hold only the lights' direct bounce; outdoors
 /// the sky's bounce off the table is most of what the object receives.
-cv::Vec3f ambientFlux(const cv::Vec3f& flux, const cv::Vec3f& direct, const cv::Vec3f& eAmbient, float area, float share);
+cv::Vec3f ambientFlux(const cv::Vec3f& flux, const cv::Vec3f& direct, const cv::Vec3f& eAmbient, float area,
+                      float share);
 
 /// The ambient occlusion of an RSM texel (CV_32FC4 world positions, w = 1 where a surface was seen, and
 /// normals), from the RSM itself as screen-space AO from the light: of 16 neighbours (8 directions at 2 and 5

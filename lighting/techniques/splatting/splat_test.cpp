@@ -40,7 +40,8 @@ double emitted(const PixelLight& l, float d = 1.0f, int nt = 2000, int np = 400)
     const double c = -1 + 2 * (i + 0.5) / nt, s = std::sqrt(1 - c * c);
     for (int j = 0; j < np; ++j) {
       const double ph = 2 * CV_PI * (j + 0.5) / np;
-      const cv::Vec3f w(static_cast<float>(s * std::cos(ph)), static_cast<float>(s * std::sin(ph)), static_cast<float>(c));
+      const cv::Vec3f w(static_cast<float>(s * std::cos(ph)), static_cast<float>(s * std::sin(ph)),
+                        static_cast<float>(c));
       sum += intensity(l, w, d)[0];
     }
   }
@@ -167,7 +168,8 @@ TEST(SplatBounds, FarLevelsSplatTheOutermostBoxInExpectation) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-1, 1);
   const float iLow = 0.05f;
-  const PixelLight lights[] = {diffuseLight({0, 0, 0}, {0, 0, 1}, 0.02f), glossyLight(200.0f, {0.3f, 0.0f, 1.0f}, 0.02f)};
+  const PixelLight lights[] = {diffuseLight({0, 0, 0}, {0, 0, 1}, 0.02f),
+                               glossyLight(200.0f, {0.3f, 0.0f, 1.0f}, 0.02f)};
   for (const PixelLight& l : lights)
     for (int levels : {0, 1, 2, 3})
       for (int n : {1, 7, 512, 1000}) {
@@ -200,7 +202,8 @@ TEST(SplatBounds, AFarRepresentativeRampsInAcrossItsBoxInsteadOfASeam) {
   // light, a circle drawn on whatever the face crosses (the object). Cross-faded, it ramps over the fade band:
   // no step between points 1/2000 of the box apart is more than a few hundredths of the largest value.
   const float iLow = 0.05f;
-  for (const PixelLight& l : {diffuseLight({0, 0, 0}, {0, 0, 1}, 0.02f), glossyLight(200.0f, {0.3f, 0.0f, 1.0f}, 0.02f)}) {
+  for (const PixelLight& l :
+       {diffuseLight({0, 0, 0}, {0, 0, 1}, 0.02f), glossyLight(200.0f, {0.3f, 0.0f, 1.0f}, 0.02f)}) {
     const SplatBox b = splatBox(l, iLow);
     float largest = 0, step = 0, previous = -1;
     for (int i = 0; i <= 4000; ++i) {
@@ -231,7 +234,8 @@ TEST(SplatBounds, FarLevelsCutLessOfADiffuseLightOnAPlane) {
       const float full = irradiance(l, p, up)[0];
       total += full;
       float cut = iLow;
-      for (int levels = 0; levels < 4; ++levels, cut /= kFarStride) missed[levels] += full - splatIrradiance(l, p, up, cut)[0];
+      for (int levels = 0; levels < 4; ++levels, cut /= kFarStride)
+        missed[levels] += full - splatIrradiance(l, p, up, cut)[0];
     }
   for (int k = 0; k < 4; ++k) missed[k] /= total;
   EXPECT_GT(missed[0], 0.1) << missed[0];  // a quarter of the region's side cuts a good part of a low light's bounce
@@ -274,7 +278,7 @@ TEST(SplatWarping, IsUnbiasedAndSamplesInProportionToTheImportance) {
     weightError = std::max(weightError, std::abs(s.weight * 64.0 * 64.0 * pdf - 1.0));
   }
   EXPECT_LT(weightError, 1e-9);  // weight = 1 / (texels x pdf), texels of the padded 64 x 64 map
-  double tv = 0;  // total variation distance between the sampled and the intended distribution
+  double tv = 0;                 // total variation distance between the sampled and the intended distribution
   for (int y = 0; y < f.rows; ++y)
     for (int x = 0; x < f.cols; ++x) tv += std::abs(count.at<double>(y, x) / n - p.at<double>(y, x) / sumP);
   EXPECT_LT(0.5 * tv, 0.01);

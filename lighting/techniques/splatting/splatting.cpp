@@ -11,25 +11,58 @@ namespace mrgi::lighting {
 
 const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable() {
   static const std::vector<KnobBinding<SplattingKnobs>> table = {
-      {{"vpls", KnobType::Int, 1, 16384, 1024, "pixel lights sampled per run, over all lights", {256, 4096}, {256}, true},
+      {{"vpls",
+        KnobType::Int,
+        1,
+        16384,
+        1024,
+        "pixel lights sampled per run, over all lights",
+        {256, 4096},
+        {256},
+        true},
        &SplattingKnobs::vpls},
-      {{"i_low", KnobType::Real, 1e-4, 1e4, 16.0,
+      {{"i_low",
+        KnobType::Real,
+        1e-4,
+        1e4,
+        16.0,
         "a splat ends where its light gives less than this x lum|Phi| / (pi s^2) (s: the region's side); a diffuse "
         "splat reaches s / sqrt(i_low)",
-        {4.0, 64.0}, {64.0}, true},
+        {4.0, 64.0},
+        {64.0},
+        true},
        &SplattingKnobs::iLow},
-      {{"widen", KnobType::Real, 0.0, 1.0, 0.02, "metres: a glossy lobe widens within this distance of its light",
-        {0.0, 0.05}, {}, false},
+      {{"widen",
+        KnobType::Real,
+        0.0,
+        1.0,
+        0.02,
+        "metres: a glossy lobe widens within this distance of its light",
+        {0.0, 0.05},
+        {},
+        false},
        &SplattingKnobs::widen},
-      {{"far_levels", KnobType::Int, 0, 3, 2,
+      {{"far_levels",
+        KnobType::Int,
+        0,
+        3,
+        2,
         "far-field levels: level k splats the first n / 16^k of a light's n samples 4^k times as far (their "
         "weight n / that), for about k + 1 times the splats' cost",
-        {0, 1, 3}, {0}, true},
+        {0, 1, 3},
+        {0},
+        true},
        &SplattingKnobs::farLevels},
-      {{"surface", KnobType::Int, 0, 4096, 256,
+      {{"surface",
+        KnobType::Int,
+        0,
+        4096,
+        256,
         "surface lights on the objects: their second bounce minus the light they hide from the real surfaces in "
         "front of them (0: the lights' RSMs alone)",
-        {0, 1024}, {0}, true},
+        {0, 1024},
+        {0},
+        true},
        &SplattingKnobs::surface},
   };
   return table;
@@ -80,20 +113,24 @@ void bindRsms(const FrameResources& frame) {
 TechniqueInfo splattingTechniqueInfo() {
   TechniqueInfo t;
   t.name = "splatting";
-  t.description = "Splatting: importance-sampled pixel lights of the RSMs splatted over their significant regions, on real pixels and the object";
+  t.description =
+      "Splatting: importance-sampled pixel lights of the RSMs splatted over their significant regions, on real pixels "
+      "and the object";
   t.real = true;
   t.virtualObject = true;
   t.stagePrefixes = {"splat."};
   t.knobs = groupOf("splat", splattingKnobTable());
   t.create = [](const TechniqueSetup& s) { return std::make_unique<SplattingTechnique>(s); };
-  t.estimateBytes = [](const KnobValues& values, const KnobValues& frame, bool real, bool virtualObject, int w, int h, size_t) {
+  t.estimateBytes = [](const KnobValues& values, const KnobValues& frame, bool real, bool virtualObject, int w, int h,
+                       size_t) {
     const SplattingKnobs k = knobsFrom(splattingKnobTable(), values);
     // Two importance pyramids over the padded RSM (4/3 of its texels), the lights (3 records per sample for
     // the delta, 1 for the object, plus one sample per light), the surface points and lights, the two outputs.
     const auto p = static_cast<size_t>(paddedSide(static_cast<int>(knobsFrom(frameKnobTable(), frame).rsmSize)));
     const size_t pyramid = 2 * (4 * p * p / 3 + 1) * sizeof(float);
     const size_t samples = static_cast<size_t>(k.vpls) + kMaxLights;
-    const size_t surface = real ? static_cast<size_t>(k.surface) * (sizeof(splat::SurfacePoint) + sizeof(splat::PixelLight)) : 0;
+    const size_t surface =
+        real ? static_cast<size_t>(k.surface) * (sizeof(splat::SurfacePoint) + sizeof(splat::PixelLight)) : 0;
     const bool objectLights = virtualObject || (real && k.surface > 0);
     return pyramid + ((real ? 3 : 0) + (objectLights ? 1 : 0)) * samples * sizeof(splat::PixelLight) + surface +
            2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
@@ -108,7 +145,8 @@ SplattingTechnique::SplattingTechnique(const TechniqueSetup& setup)
       importanceProgram_(gl::Program::compute("lighting/techniques/splatting/splat_importance.comp")),
       reduceProgram_(gl::Program::compute("lighting/techniques/splatting/splat_reduce.comp")),
       sampleProgram_(gl::Program::compute("lighting/techniques/splatting/splat_sample.comp")),
-      splatProgram_(gl::Program::graphics("lighting/techniques/splatting/splat.vert", "lighting/techniques/splatting/splat.frag")),
+      splatProgram_(gl::Program::graphics("lighting/techniques/splatting/splat.vert",
+                                          "lighting/techniques/splatting/splat.frag")),
       surfaceProgram_(gl::Program::compute("lighting/techniques/splatting/splat_surface.comp")),
       out_(setup.frame->width(), setup.frame->height()) {
   // Pyramid layout for the frame's RSM size: level 0 padded to a power of two, then halves down to 1 x 1.
@@ -220,7 +258,8 @@ void SplattingTechnique::sampleLight(const FrameResources& frame, size_t index, 
 
 void SplattingTechnique::surfaceLights(const FrameResources& frame) {
   std::vector<splat::SurfaceSource> sources;
-  for (const FrameObject& o : frame.objects()) sources.push_back({&o.source.mesh, o.T_world_object, o.source.material.albedo});
+  for (const FrameObject& o : frame.objects())
+    sources.push_back({&o.source.mesh, o.T_world_object, o.source.material.albedo});
   points_ = splat::surfacePoints(sources, knobs_.surface);
   if (points_.empty()) return;
   pointBuffer_.upload(0, static_cast<GLsizeiptr>(points_.size() * sizeof(splat::SurfacePoint)), points_.data());
@@ -229,7 +268,8 @@ void SplattingTechnique::surfaceLights(const FrameResources& frame) {
   p.set("uCount", static_cast<int>(points_.size()));
   p.set("uObjectLights", objectRecords_);
   setVec3(p, "uAmbient", frame.ambient());
-  for (int k = 0; k < 9; ++k) setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
+  for (int k = 0; k < 9; ++k)
+    setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, objectLights_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, pointBuffer_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, surfaceLights_.id());
@@ -311,7 +351,8 @@ std::vector<splat::PixelLight> SplattingTechnique::downloadLights(bool delta) co
   const int n = delta ? deltaRecords_ : objectRecords_;
   std::vector<splat::PixelLight> out(static_cast<size_t>(n));
   if (n > 0)
-    (delta ? deltaLights_ : objectLights_).download(0, static_cast<GLsizeiptr>(out.size() * sizeof(splat::PixelLight)), out.data());
+    (delta ? deltaLights_ : objectLights_)
+        .download(0, static_cast<GLsizeiptr>(out.size() * sizeof(splat::PixelLight)), out.data());
   return out;
 }
 
@@ -327,7 +368,8 @@ cv::Mat SplattingTechnique::debugImage(const std::string& view, const DebugConte
     cv::Mat a = download4(out_.realDelta), b = download4(out_.virtualIrradiance);
     cv::Mat img(a.size(), CV_8UC3);
     double peak = 1, sum = 0;
-    for (int i = 0; i < static_cast<int>(a.total()); ++i) peak = std::max(peak, double(a.at<cv::Vec4f>(i)[3] + b.at<cv::Vec4f>(i)[3]));
+    for (int i = 0; i < static_cast<int>(a.total()); ++i)
+      peak = std::max(peak, double(a.at<cv::Vec4f>(i)[3] + b.at<cv::Vec4f>(i)[3]));
     for (int i = 0; i < static_cast<int>(a.total()); ++i) {
       const double c = a.at<cv::Vec4f>(i)[3] + b.at<cv::Vec4f>(i)[3];
       sum += c;
@@ -375,7 +417,8 @@ nlohmann::json SplattingTechnique::stats() const {
 
 size_t SplattingTechnique::gpuBytes() const {
   size_t sum = out_.bytes();
-  for (const gl::Buffer* b : {&deltaPyramid_, &objectPyramid_, &deltaLights_, &objectLights_, &pointBuffer_, &surfaceLights_})
+  for (const gl::Buffer* b :
+       {&deltaPyramid_, &objectPyramid_, &deltaLights_, &objectLights_, &pointBuffer_, &surfaceLights_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);
   return sum;
 }

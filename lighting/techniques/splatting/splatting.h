@@ -19,11 +19,11 @@
 namespace mrgi::lighting {
 
 struct SplattingKnobs {
-  int vpls = 0;        ///< sampled pixel lights per run (over all lights)
-  double iLow = 0;     ///< I_low of a light: this x lum|Phi| / (pi s^2), s the region's side
-  double widen = 0;    ///< metres: a glossy lobe widens within this distance of its light
-  int farLevels = 0;   ///< far-field levels (splat.h splatFar): each reaches 4x further with 1/16 of the samples
-  int surface = 0;     ///< surface lights on the objects (splat.h surfaceLight); 0: none
+  int vpls = 0;       ///< sampled pixel lights per run (over all lights)
+  double iLow = 0;    ///< I_low of a light: this x lum|Phi| / (pi s^2), s the region's side
+  double widen = 0;   ///< metres: a glossy lobe widens within this distance of its light
+  int farLevels = 0;  ///< far-field levels (splat.h splatFar): each reaches 4x further with 1/16 of the samples
+  int surface = 0;    ///< surface lights on the objects (splat.h surfaceLight); 0: none
 };
 const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable();
 
@@ -74,11 +74,11 @@ class SplattingTechnique final : public Technique {
   gl::Program importanceProgram_, reduceProgram_, sampleProgram_, splatProgram_, surfaceProgram_;
   int padded_ = 0, levels_ = 0;
   std::pair<int, int> lastSamples_{0, 0};  ///< the last light's first sample index and sample count
-  float ambientShare_ = 0;                  ///< each sampled light's share of the ambient's bounce
-  float aoRadius_ = 0;                      ///< the last light's occlusion reach (occlusionRadius())
+  float ambientShare_ = 0;                 ///< each sampled light's share of the ambient's bounce
+  float aoRadius_ = 0;                     ///< the last light's occlusion reach (occlusionRadius())
   std::vector<int> levelOffsets_;
   gl::Buffer deltaPyramid_, objectPyramid_, deltaLights_, objectLights_;
-  std::vector<int> budget_;     ///< samples per light this run
+  std::vector<int> budget_;                   ///< samples per light this run
   std::vector<std::pair<int, int>> sampled_;  ///< this run's lights with samples: first sample index, count
   int deltaRecords_ = 0, objectRecords_ = 0, samplesSoFar_ = 0;
   std::vector<splat::SurfacePoint> points_;  ///< this run's surface points

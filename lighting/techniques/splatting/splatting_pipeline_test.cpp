@@ -1,6 +1,6 @@
-// Splatting on the lighting pipeline's frame resources (llvmpipe): the GPU's sampling, pixel lights and splats against the
-// C++ reference (splat.h), texels the object does not change cancel exactly, the splat bounds cut less than
-// I_low per light, and a white cube next to a red wall receives red bounce.
+// Splatting on the lighting pipeline's frame resources (llvmpipe): the GPU's sampling, pixel lights and splats against
+// the C++ reference (splat.h), texels the object does not change cancel exactly, the splat bounds cut less than I_low
+// per light, and a white cube next to a red wall receives red bounce.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,9 +8,9 @@
 #include <utility>
 
 #include "lighting/pipeline.h"
-#include "reconstruction/light_estimation.h"
 #include "lighting/techniques/splatting/splat.h"
 #include "lighting/techniques/splatting/splatting.h"
+#include "reconstruction/light_estimation.h"
 #include "tests/lighting/test_scene.h"
 
 using namespace mrgi;
@@ -111,7 +111,8 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
     for (int x = 0; x < rho.flux.cols; ++x) {
       if (imp.at<float>(y, x) <= 0.f) continue;
       const cv::Vec4f a = rho.flux.at<cv::Vec4f>(y, x), b = mu.flux.at<cv::Vec4f>(y, x);
-      exact += (rho.position.at<cv::Vec4f>(y, x)[3] > 0.5f ? a[0] : 0.f) - (mu.position.at<cv::Vec4f>(y, x)[3] > 0.5f ? b[0] : 0.f);
+      exact += (rho.position.at<cv::Vec4f>(y, x)[3] > 0.5f ? a[0] : 0.f) -
+               (mu.position.at<cv::Vec4f>(y, x)[3] > 0.5f ? b[0] : 0.f);
     }
   for (const splat::PixelLight& l : delta) estimate += l.flux[0];
   EXPECT_NEAR(estimate, exact, 0.05 * std::abs(exact) + 1e-6) << "exact " << exact;
@@ -119,7 +120,8 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
   // Splats: per pixel the far-field sum of the downloaded lights (splat.h splatFar: each light's own box, and
   // the first 32 and 2 of the 512 samples over the far levels' shells) and, on real pixels, of the 256 surface
   // lights; and level 0's cut of the delta's lights is never more than the sum of their I_low.
-  const cv::Mat pos = pipe.frame().downloadGBuffer(0), nrm = pipe.frame().downloadGBuffer(1), alb = pipe.frame().downloadGBuffer(2);
+  const cv::Mat pos = pipe.frame().downloadGBuffer(0), nrm = pipe.frame().downloadGBuffer(1),
+                alb = pipe.frame().downloadGBuffer(2);
   const std::vector<splat::PixelLight> surface = t.downloadSurfaceLights();
   EXPECT_EQ(surface.size(), 256u);
   const cv::Mat dOut = download4(*t.outputs().realDelta), vOut = download4(*t.outputs().virtualIrradiance);
@@ -144,7 +146,8 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
     for (size_t j = 0; !isVirtual && j < surface.size(); ++j) {
       const float iLow = splat::scaledILow(surface[j], t.iLowScale());
       if (iLow > 0)
-        splatted += splat::splatFar(surface[j], x, nn, iLow, static_cast<int>(j), static_cast<int>(surface.size()), t.knobs().farLevels);
+        splatted += splat::splatFar(surface[j], x, nn, iLow, static_cast<int>(j), static_cast<int>(surface.size()),
+                                    t.knobs().farLevels);
     }
     const cv::Vec4f got = isVirtual ? vOut.at<cv::Vec4f>(i) : dOut.at<cv::Vec4f>(i);
     const bool ok = std::abs(got[0] - splatted[0]) <= 1e-4f + 2e-3f * std::abs(splatted[0]);
@@ -174,7 +177,8 @@ TEST(GL, SplattingDeltaIsExactlyZeroWhereTheObjectChangesNoTexel) {
   const cv::Mat imp = t.downloadImportance(true);
   EXPECT_EQ(cv::countNonZero(imp), 0);
   const cv::Mat d = download4(*t.outputs().realDelta);
-  for (int i = 0; i < static_cast<int>(d.total()); ++i) ASSERT_EQ(cv::Vec3f(d.at<cv::Vec4f>(i)[0], d.at<cv::Vec4f>(i)[1], d.at<cv::Vec4f>(i)[2]), cv::Vec3f(0, 0, 0));
+  for (int i = 0; i < static_cast<int>(d.total()); ++i)
+    ASSERT_EQ(cv::Vec3f(d.at<cv::Vec4f>(i)[0], d.at<cv::Vec4f>(i)[1], d.at<cv::Vec4f>(i)[2]), cv::Vec3f(0, 0, 0));
 }
 
 // A white cube next to a red wall under a lamp: besides the grey floor's bounce, the wall's red reaches it.
@@ -213,7 +217,8 @@ TEST(GL, SplattingImportanceWeighsTexelsByTheirOcclusionInTheRsm) {
   double cornerAo = 0;
   for (int y = 0; y < rho.flux.rows; ++y)
     for (int x = 0; x < rho.flux.cols; ++x) {
-      const cv::Vec4f p = rho.position.at<cv::Vec4f>(y, x), n = rho.normal.at<cv::Vec4f>(y, x), f = rho.flux.at<cv::Vec4f>(y, x);
+      const cv::Vec4f p = rho.position.at<cv::Vec4f>(y, x), n = rho.normal.at<cv::Vec4f>(y, x),
+                      f = rho.flux.at<cv::Vec4f>(y, x);
       if (p[3] < 0.5f || n[3] > 0.5f) continue;
       const float ao = splat::rsmOcclusion(rho.position, rho.normal, {x, y}, t->occlusionRadius());
       const double want = splat::importance({f[0], f[1], f[2]}, ao, 0.0f);
@@ -266,7 +271,8 @@ TEST(GL, SplattingTheAmbientsBounceAndOcclusionJoinEachTexelsFlux) {
       const cv::Vec3f at(p[0], p[1], p[2]), nn(n[0], n[1], n[2]);
       const cv::Vec3f toLamp = cv::Vec3f(lamp.position) - at;
       const float d2 = toLamp.dot(toLamp);
-      const float area = splat::texelArea({d[0], d[1], d[2]}, cv::Vec3f(lamp.intensity) / d2, nn.dot(toLamp) / std::sqrt(d2));
+      const float area =
+          splat::texelArea({d[0], d[1], d[2]}, cv::Vec3f(lamp.intensity) / d2, nn.dot(toLamp) / std::sqrt(d2));
       const cv::Vec3d e = CV_PI * ambient + reconstruction::ambientShIrradiance(sh, cv::Vec3d(nn));
       const cv::Vec3f a = splat::ambientFlux({f[0], f[1], f[2]}, {d[0], d[1], d[2]}, cv::Vec3f(e), area, 1.0f);
       const cv::Vec3f o = splat::occluderFlux(ambientAlong(-cv::Vec3d(nn)), area, 1.0f);
@@ -311,7 +317,8 @@ TEST(GL, SplattingSurfaceLightsMatchTheReferenceAndHideTheSky) {
       };
       const splat::PixelLight want = splat::surfaceLight(points[i], object, e(points[i].normal), e(-points[i].normal));
       lit += want.flux[0] > 0;
-      good += cv::norm(got[i].flux - want.flux) <= 1e-6 + 2e-3 * cv::norm(want.flux) && got[i].position == want.position;
+      good +=
+          cv::norm(got[i].flux - want.flux) <= 1e-6 + 2e-3 * cv::norm(want.flux) && got[i].position == want.position;
     }
     EXPECT_NEAR(area, 6 * 0.12 * 0.12, 1e-4);
     EXPECT_GE(good, 254) << "of 256";
@@ -408,7 +415,8 @@ TEST(GL, SplattingAGlossySphereFocusesACausticWhereTheMirrorDirectionsMeetTheFlo
     LightingPipeline pipe = makePipeline(testConfig(128, 96, 16, 128, "none"), s);
     pipe.run(topCamera(128, 96), {spot}, {0, 0, 0}, nullptr);
     const auto t = runSplat(pipe, 4096, 1.0);
-    const cv::Mat d = download4(*t->outputs().realDelta), pos = pipe.frame().downloadGBuffer(0), alb = pipe.frame().downloadGBuffer(2);
+    const cv::Mat d = download4(*t->outputs().realDelta), pos = pipe.frame().downloadGBuffer(0),
+                  alb = pipe.frame().downloadGBuffer(2);
     Floor f;
     double w = 0;
     for (int i = 0; i < static_cast<int>(d.total()); ++i) {
@@ -426,7 +434,8 @@ TEST(GL, SplattingAGlossySphereFocusesACausticWhereTheMirrorDirectionsMeetTheFlo
   // The traced truth: the cone's rays (uniform in solid angle) off the sphere onto the floor.
   cv::Vec3d truth(0, 0, 0);
   int landed = 0;
-  const cv::Vec3d axis = cv::Vec3d(spot.direction), u = cv::normalize(axis.cross(cv::Vec3d(0, 0, 1))), v = axis.cross(u);
+  const cv::Vec3d axis = cv::Vec3d(spot.direction), u = cv::normalize(axis.cross(cv::Vec3d(0, 0, 1))),
+                  v = axis.cross(u);
   const double cosMax = std::cos(spot.spotHalfAngleDeg * CV_PI / 180.0);
   for (int i = 0; i < 200000; ++i) {
     const cv::Vec2d q = splat::samplePoint(i);
