@@ -1,13 +1,5 @@
 #include "reconstruction/room_model.h"
 
-#include <algorithm>
-#include <cmath>
-#include <filesystem>
-#include <fstream>
-#include <limits>
-#include <stdexcept>
-#include <unordered_set>
-
 #include <open3d/camera/PinholeCameraIntrinsic.h>
 #include <open3d/geometry/Image.h>
 #include <open3d/geometry/RGBDImage.h>
@@ -16,9 +8,18 @@
 #include <open3d/pipelines/integration/ScalableTSDFVolume.h>
 #include <open3d/pipelines/integration/UniformTSDFVolume.h>
 #include <open3d/utility/Logging.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
+#include <unordered_set>
 
+#include "capture/checks.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
@@ -27,7 +28,6 @@
 #include "capture/ply_check.h"
 #include "reconstruction/mesh_rays.h"
 #include "reconstruction/open3d_pose.h"
-#include "capture/checks.h"
 
 namespace fs = std::filesystem;
 namespace o3d = open3d;
@@ -46,7 +46,8 @@ Eigen::Vector3i floorDiv(const Eigen::Vector3i& a, int b) {
 
 struct Hash {
   size_t operator()(const Eigen::Vector3i& v) const {
-    return (static_cast<size_t>(v[0]) * 73856093u) ^ (static_cast<size_t>(v[1]) * 19349663u) ^ (static_cast<size_t>(v[2]) * 83492791u);
+    return (static_cast<size_t>(v[0]) * 73856093u) ^ (static_cast<size_t>(v[1]) * 19349663u) ^
+           (static_cast<size_t>(v[2]) * 83492791u);
   }
 };
 
@@ -101,11 +102,12 @@ struct RoomModel::Impl {
   std::shared_ptr<o3d::geometry::Image> multiplier;
   cv::Vec4d multiplierK;
 
-  void observe(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K, const capture::Pose& T, double exposure,
-               const RoomOptions& o) {
+  void observe(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K, const capture::Pose& T,
+               double exposure, const RoomOptions& o) {
     float lut[256];
     for (int i = 0; i < 256; ++i) lut[i] = static_cast<float>(capture::srgbToLinear(i / 255.f) / exposure);
-    const int s = o.appearanceStride > 0 ? o.appearanceStride : std::max(1, static_cast<int>(std::lround(K.fx / 131.0)));
+    const int s =
+        o.appearanceStride > 0 ? o.appearanceStride : std::max(1, static_cast<int>(std::lround(K.fx / 131.0)));
     const double inv = 1.0 / o.voxelM;
     const float fade = static_cast<float>(o.appearanceMemory - 1) / static_cast<float>(o.appearanceMemory);
     auto point = [&](int x, int y, float d) { return cv::Vec3d((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d); };
@@ -121,8 +123,8 @@ struct RoomModel::Impl {
                     b = depth.at<float>(y + s, x);
         // A depth edge mixes two surfaces' colours: no observation of either.
         const float tol = 0.05f * d;
-        if (!(l > 0 && r > 0 && u > 0 && b > 0) || std::abs(l - d) > tol || std::abs(r - d) > tol || std::abs(u - d) > tol ||
-            std::abs(b - d) > tol)
+        if (!(l > 0 && r > 0 && u > 0 && b > 0) || std::abs(l - d) > tol || std::abs(r - d) > tol ||
+            std::abs(u - d) > tol || std::abs(b - d) > tol)
           continue;
         const cv::Vec3d pc = point(x, y, d);
         cv::Vec3d n = (point(x + s, y, r) - point(x - s, y, l)).cross(point(x, y + s, b) - point(x, y - s, u));
@@ -164,7 +166,8 @@ struct RoomModel::Impl {
   /// which sparse sampling may have put only there): radiance, confidence, saturated.
   bool lookup(const Eigen::Vector3d& p, double voxel, cv::Vec3f& radiance, float& confidence, bool& saturated) const {
     const Eigen::Vector3d g = p / voxel;
-    const Eigen::Vector3i centre(static_cast<int>(std::floor(g[0])), static_cast<int>(std::floor(g[1])), static_cast<int>(std::floor(g[2])));
+    const Eigen::Vector3i centre(static_cast<int>(std::floor(g[0])), static_cast<int>(std::floor(g[1])),
+                                 static_cast<int>(std::floor(g[2])));
     // Per voxel its radiance and confidence: the unclipped mean, with the clipped observations that lay
     // next to unclipped pixels (brighter texture finer than the voxels) counted at max(their bound, that
     // mean); a voxel with only such clipped observations, at their bound. Clipped pixels among clipped ones
@@ -212,8 +215,8 @@ struct RoomModel::Impl {
 
   /// The blocks Open3D's integration touches for this depth: every block within the truncation distance of
   /// a sampled point (the same rule and the same sampling stride as ScalableTSDFVolume::Integrate).
-  std::unordered_set<Eigen::Vector3i, Hash> touched(const cv::Mat& depth, const capture::Intrinsics& K, const capture::Pose& T,
-                                                   double trunc) const {
+  std::unordered_set<Eigen::Vector3i, Hash> touched(const cv::Mat& depth, const capture::Intrinsics& K,
+                                                    const capture::Pose& T, double trunc) const {
     std::unordered_set<Eigen::Vector3i, Hash> out;
     const double unit = volume.volume_unit_length_;
     for (int y = 0; y < depth.rows; y += volume.depth_sampling_stride_)
@@ -248,7 +251,8 @@ double RoomModel::signedDistance(const cv::Vec3d& p) const {
   // Voxel centres sit at (i + 0.5) * voxel: trilinear over the 8 around p, all of them observed.
   const double v = options_.voxelM;
   const cv::Vec3d g(p[0] / v - 0.5, p[1] / v - 0.5, p[2] / v - 0.5);
-  const Eigen::Vector3i base(static_cast<int>(std::floor(g[0])), static_cast<int>(std::floor(g[1])), static_cast<int>(std::floor(g[2])));
+  const Eigen::Vector3i base(static_cast<int>(std::floor(g[0])), static_cast<int>(std::floor(g[1])),
+                             static_cast<int>(std::floor(g[2])));
   const cv::Vec3d f(g[0] - base[0], g[1] - base[1], g[2] - base[2]);
   double sum = 0;
   for (int c = 0; c < 8; ++c) {
@@ -261,7 +265,8 @@ double RoomModel::signedDistance(const cv::Vec3d& p) const {
   return sum * options_.truncM;
 }
 
-RoomIntegration RoomModel::checkPose(const cv::Mat& depth, const capture::Intrinsics& K, const capture::Pose& T_world_camera) const {
+RoomIntegration RoomModel::checkPose(const cv::Mat& depth, const capture::Intrinsics& K,
+                                     const capture::Pose& T_world_camera) const {
   RoomIntegration r;
   int valid = 0, observed = 0, far = 0;
   // About 80 x 60 samples whatever the resolution (every 4th pixel at 320 x 240, every 8th at 640 x 480):
@@ -272,7 +277,8 @@ RoomIntegration RoomModel::checkPose(const cv::Mat& depth, const capture::Intrin
       const float d = depth.at<float>(y, x);
       if (!(d > 0) || d > options_.maxDepthM) continue;
       ++valid;
-      const cv::Vec3d p = capture::transformPoint(T_world_camera, cv::Vec3d((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d));
+      const cv::Vec3d p =
+          capture::transformPoint(T_world_camera, cv::Vec3d((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d));
       const double s = signedDistance(p);
       if (std::isnan(s)) continue;
       ++observed;
@@ -317,7 +323,8 @@ void carveFreeSpace(const std::vector<o3d::pipelines::integration::UniformTSDFVo
           for (int z = 0; z < n; ++z) {
             auto& voxelData = v.voxels_[static_cast<size_t>(v.IndexOf(x, y, z))];
             if (!(voxelData.weight_ > 0) || !(voxelData.tsdf_ < 0)) continue;
-            const cv::Vec3d p(v.origin_(0) + (x + 0.5) * voxel, v.origin_(1) + (y + 0.5) * voxel, v.origin_(2) + (z + 0.5) * voxel);
+            const cv::Vec3d p(v.origin_(0) + (x + 0.5) * voxel, v.origin_(1) + (y + 0.5) * voxel,
+                              v.origin_(2) + (z + 0.5) * voxel);
             const cv::Vec3d pc = R * p + t;
             if (pc[2] <= 0) continue;
             const int u = static_cast<int>(std::lround(K.fx * pc[0] / pc[2] + K.cx)),
@@ -337,10 +344,12 @@ void carveFreeSpace(const std::vector<o3d::pipelines::integration::UniformTSDFVo
 
 RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colour, const capture::Intrinsics& K,
                                      const capture::Pose& T_world_camera, double exposure) {
-  if (!(exposure > 0) || !std::isfinite(exposure)) throw std::invalid_argument("RoomModel::integrate: exposure must be positive");
+  if (!(exposure > 0) || !std::isfinite(exposure))
+    throw std::invalid_argument("RoomModel::integrate: exposure must be positive");
   if (depthIn.type() != CV_32FC1 || colour.type() != CV_8UC3 || depthIn.size() != colour.size() ||
       depthIn.cols != K.width || depthIn.rows != K.height || !K.valid())
-    throw std::invalid_argument("RoomModel::integrate: depth (CV_32FC1) and colour (CV_8UC3) must match the intrinsics");
+    throw std::invalid_argument(
+        "RoomModel::integrate: depth (CV_32FC1) and colour (CV_8UC3) must match the intrinsics");
   // Depth past the range, and non-finite depth, is no observation.
   cv::Mat depth = depthIn.clone();
   for (int y = 0; y < depth.rows; ++y) {
@@ -461,7 +470,8 @@ size_t RoomModel::appearanceBytes() const {
   return impl_->appearance.size() * node + impl_->appearance.bucket_count() * sizeof(void*);
 }
 size_t RoomModel::bytes() const {
-  return blocks() * static_cast<size_t>(kBlockResolution * kBlockResolution * kBlockResolution) * sizeof(o3d::geometry::TSDFVoxel);
+  return blocks() * static_cast<size_t>(kBlockResolution * kBlockResolution * kBlockResolution) *
+         sizeof(o3d::geometry::TSDFVoxel);
 }
 
 // ---- shadow rays kept between meshes ---------------------------------------------------------------------
@@ -509,10 +519,13 @@ class PointGrid {
  private:
   template <typename V>
   cv::Vec3i cellOf(const V& p) const {
-    return {static_cast<int>(std::floor(p[0] / cell_)), static_cast<int>(std::floor(p[1] / cell_)), static_cast<int>(std::floor(p[2] / cell_))};
+    return {static_cast<int>(std::floor(p[0] / cell_)), static_cast<int>(std::floor(p[1] / cell_)),
+            static_cast<int>(std::floor(p[2] / cell_))};
   }
   static uint64_t keyOf(const cv::Vec3i& c) {
-    const auto u = [](int v) { return static_cast<uint64_t>(static_cast<int64_t>(v) + (int64_t{1} << 20)) & ((uint64_t{1} << 21) - 1); };
+    const auto u = [](int v) {
+      return static_cast<uint64_t>(static_cast<int64_t>(v) + (int64_t{1} << 20)) & ((uint64_t{1} << 21) - 1);
+    };
     return (u(c[0]) << 42) | (u(c[1]) << 21) | u(c[2]);
   }
   double cell_;
@@ -567,7 +580,8 @@ std::vector<uint8_t> RoomAlbedoCache::shadows(const RoomMesh& mesh, const Albedo
   for (size_t i = 0; i < n; ++i) {
     key[i] = edgeKey(mesh.positions[i], voxelM_);
     const auto it = entries_.find(key[i]);
-    if (it != entries_.end() && it->second.blockedAt.size() == L && cv::norm(it->second.position - mesh.positions[i]) <= moved) {
+    if (it != entries_.end() && it->second.blockedAt.size() == L &&
+        cv::norm(it->second.position - mesh.positions[i]) <= moved) {
       kept[i] = &it->second;
       keptKeys[key[i]] = 1;
     }
@@ -659,6 +673,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   RoomAlbedo out;
   out.albedo.assign(n, cv::Vec3f(0.5f, 0.5f, 0.5f));
   out.status.assign(n, AlbedoStatus::NoGeometry);
+  out.sent = out.albedo;
   if (n == 0 || mesh.indices.empty()) return out;
   const size_t L = lights.points.size() + lights.distant.size();
   std::vector<uint8_t> occluded(n * L, 0);
@@ -670,10 +685,13 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   // pi L / E: the albedo where measured; where saturated (L a lower bound) a lower bound of it, which the
   // vertex takes after the fill if its neighbours' albedo is less (a white patch beside black ones).
   std::vector<cv::Vec3f> bound(n, cv::Vec3f(0, 0, 0));
+  // E over what the lights and the ambient give (RoomAlbedo::sent).
+  std::vector<cv::Vec3f> gain(n, cv::Vec3f(1, 1, 1));
   for (size_t i = 0; i < n; ++i) {
     const cv::Vec3d p(mesh.positions[i]), nrm(mesh.normals[i]);
     const cv::Vec3d Lr(mesh.radiance[i]);
-    cv::Vec3d E = bounce ? cv::Vec3d((*bounce)[i]) : lights.ambientIrradiance, direct(0, 0, 0), normalSum(0, 0, 0), blocked(0, 0, 0);
+    cv::Vec3d E = bounce ? cv::Vec3d((*bounce)[i]) : lights.ambientIrradiance, direct(0, 0, 0), normalSum(0, 0, 0),
+              blocked(0, 0, 0);
     for (size_t l = 0; l < L; ++l) {
       cv::Vec3d e;
       double c;
@@ -697,6 +715,9 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
     }
     E += direct;
     const double sumN = normalSum[0] + normalSum[1] + normalSum[2], sumD = direct[0] + direct[1] + direct[2];
+    if (bounce && sumD > 0)
+      for (int k = 0; k < 3; ++k)
+        gain[i][k] = static_cast<float>(E[k] / std::max(direct[k] + lights.ambientIrradiance[k], 1e-9));
     AlbedoStatus st = AlbedoStatus::Measured;
     if (i < mesh.saturated.size() ? mesh.saturated[i] != 0 : std::max({Lr[0], Lr[1], Lr[2]}) >= saturated)
       st = AlbedoStatus::Saturated;
@@ -708,7 +729,8 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
       st = AlbedoStatus::Unlit;
     out.status[i] = st;
     if (st == AlbedoStatus::Measured || st == AlbedoStatus::Saturated)
-      for (int k = 0; k < 3; ++k) bound[i][k] = static_cast<float>(std::clamp(CV_PI * Lr[k] / std::max(E[k], 1e-9), 0.0, 1.0));
+      for (int k = 0; k < 3; ++k)
+        bound[i][k] = static_cast<float>(std::clamp(CV_PI * Lr[k] / std::max(E[k], 1e-9), 0.0, 1.0));
     if (st == AlbedoStatus::Measured) out.albedo[i] = bound[i];
   }
   std::vector<std::vector<uint32_t>> neighbours(n);
@@ -752,6 +774,9 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   for (size_t i = 0; i < n; ++i)
     if (out.status[i] == AlbedoStatus::Saturated)
       for (int k = 0; k < 3; ++k) out.albedo[i][k] = std::max(out.albedo[i][k], bound[i][k]);
+  out.sent.resize(n);
+  for (size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) out.sent[i][k] = std::min(1.0f, out.albedo[i][k] * gain[i][k]);
   return out;
 }
 
@@ -802,12 +827,14 @@ void saveRoom(const std::string& dir, const RoomMesh& mesh, const RoomInfo& info
     m.vertices_.emplace_back(p[0], p[1], p[2]);
     m.vertex_normals_.emplace_back(mesh.normals[i][0], mesh.normals[i][1], mesh.normals[i][2]);
     const cv::Vec3f& c = mesh.radiance[i];
-    m.vertex_colors_.emplace_back(capture::linearToSrgb(std::clamp(c[0], 0.f, 1.f)), capture::linearToSrgb(std::clamp(c[1], 0.f, 1.f)),
+    m.vertex_colors_.emplace_back(capture::linearToSrgb(std::clamp(c[0], 0.f, 1.f)),
+                                  capture::linearToSrgb(std::clamp(c[1], 0.f, 1.f)),
                                   capture::linearToSrgb(std::clamp(c[2], 0.f, 1.f)));
     for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
   }
   for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
-    m.triangles_.emplace_back(static_cast<int>(mesh.indices[t]), static_cast<int>(mesh.indices[t + 1]), static_cast<int>(mesh.indices[t + 2]));
+    m.triangles_.emplace_back(static_cast<int>(mesh.indices[t]), static_cast<int>(mesh.indices[t + 1]),
+                              static_cast<int>(mesh.indices[t + 2]));
   // Written beside and renamed over: a reader sees the old room or the new one, never half of one.
   const fs::path ply = fs::path(dir) / "room.ply", tmp = fs::path(dir) / ".room.partial.ply";
   if (!o3d::io::WriteTriangleMesh(tmp.string(), m, false, false, true, true, false, false))
@@ -839,11 +866,15 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   const fs::path json = fs::path(dir) / "room.json", ply = fs::path(dir) / "room.ply";
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw capture::InputError(dir, "room folder is missing");
-  if (!fs::is_regular_file(json, ec)) throw capture::InputError(json.string(), "missing (not a room folder written by mrgi room)");
-  const nlohmann::json j = capture::parseJson(capture::readFileBounded(json.string(), capture::kMaxTextFileBytes, "room description"), json.string());
-  if (!j.is_object() || !j.contains("format") || !j["format"].is_string() || j["format"].get<std::string>() != "mrgi-room")
+  if (!fs::is_regular_file(json, ec))
+    throw capture::InputError(json.string(), "missing (not a room folder written by mrgi room)");
+  const nlohmann::json j = capture::parseJson(
+      capture::readFileBounded(json.string(), capture::kMaxTextFileBytes, "room description"), json.string());
+  if (!j.is_object() || !j.contains("format") || !j["format"].is_string() ||
+      j["format"].get<std::string>() != "mrgi-room")
     throw capture::InputError(json.string(), "format: not \"mrgi-room\"");
-  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int64_t>() < 1 || j["version"].get<int64_t>() > 2)
+  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"].get<int64_t>() < 1 ||
+      j["version"].get<int64_t>() > 2)
     throw capture::InputError(json.string(), "version: only versions 1 and 2 are known");
   const int version = static_cast<int>(j["version"].get<int64_t>());
   RoomInfo ri;
@@ -857,7 +888,8 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   capture::checkPlyFile(ply.string());
   o3d::geometry::TriangleMesh m;
   o3d::io::ReadTriangleMeshOptions options;
-  if (!o3d::io::ReadTriangleMesh(ply.string(), m, options)) throw capture::InputError(ply.string(), "cannot read the room mesh (malformed or empty PLY)");
+  if (!o3d::io::ReadTriangleMesh(ply.string(), m, options))
+    throw capture::InputError(ply.string(), "cannot read the room mesh (malformed or empty PLY)");
   if (m.vertices_.empty() || m.triangles_.empty()) throw capture::InputError(ply.string(), "room mesh is empty");
   RoomMesh out;
   const bool normals = m.HasVertexNormals(), colours = m.HasVertexColors();
@@ -865,7 +897,8 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   for (size_t i = 0; i < m.vertices_.size(); ++i) {
     const auto& p = m.vertices_[i];
     const auto& n = m.vertex_normals_[i];
-    if (!p.allFinite() || !n.allFinite()) throw capture::InputError(ply.string(), "vertex " + std::to_string(i) + " is not finite");
+    if (!p.allFinite() || !n.allFinite())
+      throw capture::InputError(ply.string(), "vertex " + std::to_string(i) + " is not finite");
     out.positions.emplace_back(static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2]));
     out.normals.emplace_back(static_cast<float>(n[0]), static_cast<float>(n[1]), static_cast<float>(n[2]));
     const Eigen::Vector3d c = colours ? m.vertex_colors_[i] : Eigen::Vector3d(0.5, 0.5, 0.5);
@@ -877,19 +910,21 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
     for (int k = 0; k < 3; ++k) {
       const int i = m.triangles_[t][k];
       if (i < 0 || static_cast<size_t>(i) >= m.vertices_.size())
-        throw capture::InputError(ply.string(), "triangle " + std::to_string(t) + " names vertex " + std::to_string(i) + " of " +
-                                                    std::to_string(m.vertices_.size()));
+        throw capture::InputError(ply.string(), "triangle " + std::to_string(t) + " names vertex " + std::to_string(i) +
+                                                    " of " + std::to_string(m.vertices_.size()));
       out.indices.push_back(static_cast<uint32_t>(i));
     }
   const size_t n = out.positions.size();
   if (version >= 2) {
     const fs::path npy = fs::path(dir) / "room_appearance.npy";
     if (!fs::is_regular_file(npy, ec)) throw capture::InputError(npy.string(), "room appearance is missing");
-    const std::string bytes = capture::readFileBounded(npy.string(), capture::kMaxBinaryFileBytes, "room appearance array");
+    const std::string bytes =
+        capture::readFileBounded(npy.string(), capture::kMaxBinaryFileBytes, "room appearance array");
     const cv::Mat rows = capture::parseNpy(bytes, npy.string());
     if (rows.type() != CV_32FC1 || rows.cols != kAppearanceColumns || static_cast<size_t>(rows.rows) != n)
-      throw capture::InputError(npy.string(), "expected float32 (" + std::to_string(n) + ", " + std::to_string(kAppearanceColumns) +
-                                                  ") for the " + std::to_string(n) + " vertices of room.ply");
+      throw capture::InputError(npy.string(), "expected float32 (" + std::to_string(n) + ", " +
+                                                  std::to_string(kAppearanceColumns) + ") for the " +
+                                                  std::to_string(n) + " vertices of room.ply");
     for (size_t i = 0; i < n; ++i) {
       const float* r = rows.ptr<float>(static_cast<int>(i));
       for (int k = 0; k < kAppearanceColumns; ++k)

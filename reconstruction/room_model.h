@@ -4,11 +4,10 @@
 /// that light from surfaces out of the current view is still there, and real objects that move are carved
 /// away by later observations. The lighting world is the marker frame.
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <unordered_map>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "capture/types.h"
 #include "reconstruction/albedo.h"
@@ -16,9 +15,10 @@
 namespace mrgi::reconstruction {
 
 struct RoomOptions {
-  double voxelM = 0.02;    ///< voxel edge (metres)
-  double truncM = 0.08;    ///< truncation distance of the signed distance (metres, at least 2 voxels)
-  int maxBlocks = 8192;    ///< memory budget in voxel blocks (16^3 voxels each); frames that would grow past it are not integrated
+  double voxelM = 0.02;  ///< voxel edge (metres)
+  double truncM = 0.08;  ///< truncation distance of the signed distance (metres, at least 2 voxels)
+  int maxBlocks =
+      8192;  ///< memory budget in voxel blocks (16^3 voxels each); frames that would grow past it are not integrated
   double maxDepthM = 4.0;  ///< depth beyond this is not integrated
   /// A frame's pose is checked against the model before it is integrated: of its depth points that land in
   /// observed space, more than `outlierFraction` lying farther than `outlierM` from the fused surface mean
@@ -28,8 +28,8 @@ struct RoomOptions {
   double outlierFraction = 0.3;
   double minOverlap = 0.25;
   /// Fused appearance: every `appearanceStride`-th pixel's colour (0: chosen from the focal length, one
-  /// sample per 2 mrad, i.e. 2 at 320x240 and 4 at 640x480 for a Kinect-like lens) is an observation of the surface it sees,
-  /// as linear radiance at exposure 1 (decoded sRGB / the frame's exposure). Observations at grazing angles
+  /// sample per 2 mrad, i.e. 2 at 320x240 and 4 at 640x480 for a Kinect-like lens) is an observation of the surface it
+  /// sees, as linear radiance at exposure 1 (decoded sRGB / the frame's exposure). Observations at grazing angles
   /// (|cos| < grazingCos between the depth normal and the view ray), on depth edges, or with a channel at or
   /// above `clipLevel` (8-bit) are not averaged in; clipped ones only bound the radiance from below. The
   /// rest are weighted by confidence cos / z^2 (the sensor's noise grows with z^2, its footprint with
@@ -46,10 +46,10 @@ struct RoomOptions {
 /// What one integrate() call did.
 struct RoomIntegration {
   bool integrated = false;
-  std::string refused;          ///< why not: "pose disagrees with the model", "memory budget", "no valid depth"
-  double overlap = 0;           ///< fraction of the frame's sampled points in observed space
-  double inconsistent = 0;      ///< of those, the fraction farther than outlierM from the surface
-  size_t newBlocks = 0;         ///< blocks this frame allocated (or would have)
+  std::string refused;      ///< why not: "pose disagrees with the model", "memory budget", "no valid depth"
+  double overlap = 0;       ///< fraction of the frame's sampled points in observed space
+  double inconsistent = 0;  ///< of those, the fraction farther than outlierM from the surface
+  size_t newBlocks = 0;     ///< blocks this frame allocated (or would have)
 };
 
 /// A triangle mesh of the model's surface in the lighting world, with the fused appearance per vertex.
@@ -78,7 +78,8 @@ class RoomModel {
   RoomIntegration integrate(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K,
                             const capture::Pose& T_world_camera, double exposure = 1.0);
   /// The pose check alone: the fractions integrate() would decide on, and whether it would refuse.
-  RoomIntegration checkPose(const cv::Mat& depth, const capture::Intrinsics& K, const capture::Pose& T_world_camera) const;
+  RoomIntegration checkPose(const cv::Mat& depth, const capture::Intrinsics& K,
+                            const capture::Pose& T_world_camera) const;
   /// Signed distance to the fused surface at a point of the lighting world (metres, trilinear; positive in
   /// free space), or NaN where the volume has not been observed. It is the fusion's projective distance
   /// (along the viewing rays), at least the Euclidean one and at most the truncation distance.
@@ -86,7 +87,7 @@ class RoomModel {
 
   RoomMesh mesh() const;
   size_t blocks() const;
-  size_t bytes() const;  ///< voxel storage
+  size_t bytes() const;            ///< voxel storage
   size_t appearanceBytes() const;  ///< fused appearance storage (voxels with observations)
   int framesIntegrated() const { return integrated_; }
   int framesRefused() const { return refused_; }
@@ -106,6 +107,12 @@ class RoomModel {
 struct RoomAlbedo {
   std::vector<cv::Vec3f> albedo;
   std::vector<AlbedoStatus> status;
+  /// What a pass that bounces the lights off the room's surfaces (RSMs, injected points) should take as their
+  /// albedo so that they send their fused radiance: albedo x (E / (E_lights + ambient)), at most 1, with E the
+  /// vertex's whole irradiance (the room's bounce included; the albedo itself where no light reaches it). Such
+  /// passes bounce the lights' irradiance once; in a closed room the rest of its light is a third or more of
+  /// what its surfaces send. Equal to `albedo` without the room's bounce.
+  std::vector<cv::Vec3f> sent;
 };
 
 /// What estimateRoomAlbedo keeps between calls on successive meshes of one room (a live fusion's refreshes),
@@ -122,9 +129,9 @@ class RoomAlbedoCache {
   explicit RoomAlbedoCache(double voxelM = RoomOptions{}.voxelM);
   struct Stats {
     size_t vertices = 0, changedVertices = 0;  ///< of the last mesh: all, and new or moved
-    size_t raysCast = 0;       ///< shadow rays cast against the whole mesh
-    size_t raysRechecked = 0;  ///< rays that were free, cast again against the changed triangles only
-    size_t raysReused = 0;     ///< rays kept with no ray cast
+    size_t raysCast = 0;                       ///< shadow rays cast against the whole mesh
+    size_t raysRechecked = 0;                  ///< rays that were free, cast again against the changed triangles only
+    size_t raysReused = 0;                     ///< rays kept with no ray cast
     bool full = true;                          ///< everything was cast (first mesh, or the lights moved)
   };
   const Stats& lastStats() const { return stats_; }
@@ -147,8 +154,9 @@ class RoomAlbedoCache {
 /// are not cast again (RoomAlbedoCache).
 /// `bounce` (roomBounceIrradiance, one per vertex): the irradiance the room sends each vertex, in E instead of
 /// the lights' ambient.
-RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld, const AlbedoOptions& options = {},
-                              RoomAlbedoCache* cache = nullptr, const std::vector<cv::Vec3f>* bounce = nullptr);
+RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld,
+                              const AlbedoOptions& options = {}, RoomAlbedoCache* cache = nullptr,
+                              const std::vector<cv::Vec3f>* bounce = nullptr);
 
 /// The texture the fused room blurs over its voxels, recovered from a frame: the ratio of the radiance a pixel
 /// observes (rgb8 its 8-bit value, pixelRadiance the same at exposure 1) to the fused radiance of the room

@@ -1,16 +1,14 @@
 #include "runtime/frame_pipeline.h"
 
-#include "lighting/point_index.h"
-
 #include <algorithm>
 #include <cstdlib>
-
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/registration.h"
 #include "capture/session.h"
+#include "lighting/point_index.h"
 #include "reconstruction/albedo.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
@@ -21,15 +19,15 @@ using nlohmann::json;
 namespace mrgi::runtime {
 
 std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
-                                                     const capture::Pose& T_world_marker) {
+                                                      const capture::Pose& T_world_marker) {
   const capture::Pose T_marker_world = capture::inversePose(T_world_marker);
   const cv::Matx33d R = capture::rotationOf(T_marker_world);
   std::vector<lighting::SceneLight> out;
   for (const capture::GroundTruthLight& l : lights) {
     lighting::SceneLight s;
-    s.type = l.type == capture::GroundTruthLight::Type::Point ? lighting::LightType::Point
+    s.type = l.type == capture::GroundTruthLight::Type::Point  ? lighting::LightType::Point
              : l.type == capture::GroundTruthLight::Type::Spot ? lighting::LightType::Spot
-                                                                : lighting::LightType::Directional;
+                                                               : lighting::LightType::Directional;
     s.position = capture::transformPoint(T_marker_world, l.position);
     s.direction = R * l.direction;
     s.intensity = l.intensity;
@@ -41,8 +39,8 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
 }
 
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
-                              const capture::FrameSource& source, const std::string& sourcePath,
-                              PoseMode poseMode, bool roomGiven) {
+                              const capture::FrameSource& source, const std::string& sourcePath, PoseMode poseMode,
+                              bool roomGiven) {
   LightingSetup setup;
   setup.scene = std::move(scene);
   const capture::SessionManifest* manifest = source.sessionManifest();
@@ -103,15 +101,16 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
   pc.cacheDir = options_.cacheDir;
   if (options_.gpu) {
     // Refuse what cannot fit before allocating any of it (a 4096² RSM per light is gigabytes).
-    const size_t lights = setup_->fisheye ? static_cast<size_t>(setup_->scene.fisheyeLightCount) : setup_->lights.size();
+    const size_t lights =
+        setup_->fisheye ? static_cast<size_t>(setup_->scene.fisheyeLightCount) : setup_->lights.size();
     const size_t need = lighting::estimateGpuBytes(pc, lights), budget = gpuBudgetBytes();
     if (need > budget)
-      throw capture::CaptureError(setup_->scene.path.empty() ? "scene" : setup_->scene.path,
-                                  "frame.rsm_size " + std::to_string(static_cast<int>(pc.knobs.at("frame").at("rsm_size"))) +
-                                      " with " + std::to_string(lights) + " lights at " + std::to_string(width) + "x" +
-                                      std::to_string(height) + " needs " + std::to_string(need >> 20) +
-                                      " MiB of GPU memory, more than the " + std::to_string(budget >> 20) +
-                                      " MiB budget (MRGI_GPU_BUDGET_MB)");
+      throw capture::CaptureError(
+          setup_->scene.path.empty() ? "scene" : setup_->scene.path,
+          "frame.rsm_size " + std::to_string(static_cast<int>(pc.knobs.at("frame").at("rsm_size"))) + " with " +
+              std::to_string(lights) + " lights at " + std::to_string(width) + "x" + std::to_string(height) +
+              " needs " + std::to_string(need >> 20) + " MiB of GPU memory, more than the " +
+              std::to_string(budget >> 20) + " MiB budget (MRGI_GPU_BUDGET_MB)");
     pipeline_ = std::make_unique<lighting::LightingPipeline>(pc, setup_->scene.objects);
     // The room's environment is ray cast from the objects' centre over the whole sphere: it holds what every
     // real surface sends them, bounce included. (A fisheye's hemisphere looks up from elsewhere and misses
@@ -135,9 +134,11 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
   TrackingOptions tracking = options_.tracking;
   if (!setup_->markerGiven) tracking.worldFromFirstFrame = true;
   if (setup_->scene.firstFrameT_world_camera && !tracking.worldFromFirstFrame)
-    throw capture::CaptureError(setup_->scene.path.empty() ? "scene" : setup_->scene.path,
-                                "world: the scene's objects are placed in a recording's first frame, but this source has a marker");
-  if (setup_->scene.firstFrameT_world_camera && !options_.foundWorldAnew) tracking.firstFrameT_world_camera = *setup_->scene.firstFrameT_world_camera;
+    throw capture::CaptureError(
+        setup_->scene.path.empty() ? "scene" : setup_->scene.path,
+        "world: the scene's objects are placed in a recording's first frame, but this source has a marker");
+  if (setup_->scene.firstFrameT_world_camera && !options_.foundWorldAnew)
+    tracking.firstFrameT_world_camera = *setup_->scene.firstFrameT_world_camera;
   poses_ = makePoseSource(options_.pose, setup_->marker(), setup_->T_world_marker, tracking);
   // A saved room is what odometry aligns frames with first; so is a room being fused (trackFusedRoom), each
   // refreshed surface handed to the measuring thread between frames (locate()), since fusion runs on the
@@ -157,12 +158,13 @@ void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, 
     const cv::Matx33d R = capture::rotationOf(T_marker_world * T_world_fisheye);
     worldFisheyeRays_ = *fisheyeRays_;
     worldFisheyeRays_->directions = fisheyeRays_->directions.clone();
-    worldFisheyeRays_->directions.forEach<cv::Vec3f>([&R](cv::Vec3f& d, const int*) { d = cv::Vec3f(R * cv::Vec3d(d)); });
+    worldFisheyeRays_->directions.forEach<cv::Vec3f>(
+        [&R](cv::Vec3f& d, const int*) { d = cv::Vec3f(R * cv::Vec3d(d)); });
   }
   reconstruction::LightSplitOptions so;
   so.medianCut.count = setup_->scene.fisheyeLightCount;
-  const reconstruction::LightSplit split =
-      reconstruction::splitLights(reconstruction::linearRadiance(frame.fisheye->image, frame.fisheye->exposure), *worldFisheyeRays_, so);
+  const reconstruction::LightSplit split = reconstruction::splitLights(
+      reconstruction::linearRadiance(frame.fisheye->image, frame.fisheye->exposure), *worldFisheyeRays_, so);
   setup_->lights.clear();
   for (const auto& l : split.lights) {
     lighting::SceneLight sl;
@@ -209,7 +211,8 @@ void FramePipeline::estimateRoomLights() {
   ro.split.medianCut.count = setup_->scene.roomLightCount;
   ro.saturatedGain = setup_->scene.roomSaturatedGain;
   ro.whiteAlbedo = setup_->scene.roomWhiteAlbedo;
-  roomLightEstimate_ = std::make_shared<reconstruction::RoomLights>(reconstruction::estimateRoomLights(*options_.room, centre, ro));
+  roomLightEstimate_ =
+      std::make_shared<reconstruction::RoomLights>(reconstruction::estimateRoomLights(*options_.room, centre, ro));
   setup_->lights.clear();
   for (const reconstruction::RoomLight& l : roomLightEstimate_->lights) {
     lighting::SceneLight sl;
@@ -306,8 +309,8 @@ void FramePipeline::buildSurface(const capture::Frame& frame, PreparedFrame& p, 
   // when the technique asks for it (surfels out of view keep their light).
   auto s = profiler.cpu("real_vals");
   const capture::RgbdFrame& rgbd = *frame.rgbd;
-  auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::radianceOf(rgbd.colour, rgbd.exposure), rgbd.colourIntrinsics,
-                                     *r.T_marker_camera, needs_.realValOptions.stride);
+  auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::radianceOf(rgbd.colour, rgbd.exposure),
+                                     rgbd.colourIntrinsics, *r.T_marker_camera, needs_.realValOptions.stride);
   if (surfels_) {
     cv::Mat depth;
     cv::extractChannel(r.positions, depth, 2);
@@ -328,7 +331,8 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl
   reconstruction::RoomIntegration in;
   {
     auto s = profiler.cpu("room_fusion");
-    in = options_.fuse->integrate(measuredDepth(r), rgbd.colour, rgbd.colourIntrinsics, *r.T_marker_camera, rgbd.exposure);
+    in = options_.fuse->integrate(measuredDepth(r), rgbd.colour, rgbd.colourIntrinsics, *r.T_marker_camera,
+                                  rgbd.exposure);
   }
   r.info["room_fusion"] = {{"integrated", in.integrated}, {"blocks", options_.fuse->blocks()}};
   if (!in.integrated) r.info["room_fusion"]["refused"] = in.refused;
@@ -377,11 +381,13 @@ FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler
     return r;
   }
   // A session whose lights move: the frame's own ground-truth lights replace the manifest's.
-  if (frame.groundTruthLights && setup_->scene.lightSource == lighting::LightSource::Manifest && setup_->T_world_marker) {
+  if (frame.groundTruthLights && setup_->scene.lightSource == lighting::LightSource::Manifest &&
+      setup_->T_world_marker) {
     if (frame.groundTruthLights->size() > static_cast<size_t>(lighting::kMaxLights))
       throw capture::CaptureError("frames.jsonl", "frame " + std::to_string(frame.index) + ": " +
-                                                      std::to_string(frame.groundTruthLights->size()) + " lights, at most " +
-                                                      std::to_string(lighting::kMaxLights) + " are supported");
+                                                      std::to_string(frame.groundTruthLights->size()) +
+                                                      " lights, at most " + std::to_string(lighting::kMaxLights) +
+                                                      " are supported");
     setup_->lights = lightsInMarkerFrame(*frame.groundTruthLights, *setup_->T_world_marker);
     r.info["lights_from_frame"] = setup_->lights.size();
   }
@@ -407,8 +413,8 @@ FrameResult FramePipeline::measure(capture::Frame& frame, gl::Profiler& profiler
     auto s = profiler.cpu("depth_filter");
     reconstruction::DepthFilterOptions fo;
     const cv::Mat guide = reconstruction::guideFromColour(rgbd.colour);
-    depth = reconstruction::guidedFilterDepth(rgbd.depth, guide,
-                                              reconstruction::filterRadiusPixels(rgbd.depth, rgbd.colourIntrinsics, fo), fo);
+    depth = reconstruction::guidedFilterDepth(
+        rgbd.depth, guide, reconstruction::filterRadiusPixels(rgbd.depth, rgbd.colourIntrinsics, fo), fo);
   }
   {
     auto s = profiler.cpu("normals");
@@ -436,7 +442,8 @@ reconstruction::AlbedoLights FramePipeline::albedoLights(const capture::Pose& T_
   return al;
 }
 
-RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameResult& r, gl::Profiler& profiler) const {
+RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameResult& r,
+                                       gl::Profiler& profiler) const {
   RealSurface out;
   const capture::Pose T_camera_marker = capture::inversePose(*r.T_marker_camera);
   cv::Mat albedo;
@@ -460,7 +467,6 @@ RealSurface FramePipeline::realSurface(const capture::Frame& frame, const FrameR
   out.pixelAlbedo = albedo;
   return out;
 }
-
 
 void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Profiler& profiler) {
   if (roomLights_ && *roomLights_ == p.lights) {
@@ -493,7 +499,8 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
   const size_t cleared = (options_.room->indices.size() - room.indices.size()) / 3;
   // Lights listed apart from the room: what the objects hide from the real surfaces beside those lights is the
   // room's surfaces seen from the objects (lamps cleared above, saturated ones left out), not the listed ambient.
-  if (setup_->scene.lightSource != lighting::LightSource::Room && !setup_->scene.objects.empty() && !room.indices.empty()) {
+  if (setup_->scene.lightSource != lighting::LightSource::Room && !setup_->scene.objects.empty() &&
+      !room.indices.empty()) {
     auto sh = profiler.cpu("room_hidden");
     reconstruction::RoomLightOptions ro;
     ro.mapWidth = 64;
@@ -508,8 +515,8 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
   roomValsSet_ = false;
   // The lighting world (marker frame), as the room.
   if (!roomAlbedoCache_)
-    roomAlbedoCache_ = std::make_shared<reconstruction::RoomAlbedoCache>(options_.fuse ? options_.fuse->options().voxelM
-                                                                                      : reconstruction::RoomOptions{}.voxelM);
+    roomAlbedoCache_ = std::make_shared<reconstruction::RoomAlbedoCache>(
+        options_.fuse ? options_.fuse->options().voxelM : reconstruction::RoomOptions{}.voxelM);
   // What the room sends itself (its fused radiance, every bounce the camera saw) is the rest of each vertex's
   // irradiance beside the lights: without it a closed room's albedo comes out too bright by a half or more.
   std::vector<cv::Vec3f> bounce;
@@ -526,14 +533,21 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
   roomAlbedo_ = albedo.albedo;
   roomAlbedoStatus_ = albedo.status;
   std::vector<lighting::MeshVertex> vertices(room.positions.size());
-  for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.albedo[i]};
+  // The room's own mesh (RSMs, volumes, points: what bounces the lights) sends its fused radiance; the frame's
+  // view of it (the G-buffer's albedo, roomViewMesh) reflects by the true albedo.
+  for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = {room.positions[i], room.normals[i], albedo.sent[i]};
   pipeline_->setRealMesh(std::move(vertices), room.indices);
   roomLights_ = p.lights;
   size_t measured = 0;
   for (auto st : albedo.status) measured += st == reconstruction::AlbedoStatus::Measured;
-  info["room"] = {{"vertices", room.positions.size()}, {"albedo_measured", measured}, {"triangles_near_lights", cleared},
-                  {"albedo_rays", {{"cast", rays.raysCast}, {"rechecked", rays.raysRechecked}, {"reused", rays.raysReused},
-                                   {"changed_vertices", rays.changedVertices}}}};
+  info["room"] = {{"vertices", room.positions.size()},
+                  {"albedo_measured", measured},
+                  {"triangles_near_lights", cleared},
+                  {"albedo_rays",
+                   {{"cast", rays.raysCast},
+                    {"rechecked", rays.raysRechecked},
+                    {"reused", rays.raysReused},
+                    {"changed_vertices", rays.changedVertices}}}};
   if (roomLightEstimate_)
     info["room"]["lights"] = {{"count", roomLightEstimate_->lights.size()},
                               {"saturated_gain", roomLightEstimate_->gain},
@@ -542,18 +556,21 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
                               {"saturated_fraction", roomLightEstimate_->saturatedFraction},
                               {"over_exposed", roomLightEstimate_->overExposed},
                               {"coverage", roomLightEstimate_->coverage},
-                              {"ambient_radiance", {roomLightEstimate_->ambientRadiance[0], roomLightEstimate_->ambientRadiance[1],
-                                                    roomLightEstimate_->ambientRadiance[2]}}};
+                              {"ambient_radiance",
+                               {roomLightEstimate_->ambientRadiance[0], roomLightEstimate_->ambientRadiance[1],
+                                roomLightEstimate_->ambientRadiance[2]}}};
 }
 
 const reconstruction::MeshRays& FramePipeline::roomRays() {
   if (!options_.room) throw std::logic_error("FramePipeline::roomRays: no room");
-  if (!roomRays_) roomRays_ = std::make_shared<reconstruction::MeshRays>(options_.room->positions, options_.room->indices);
+  if (!roomRays_)
+    roomRays_ = std::make_shared<reconstruction::MeshRays>(options_.room->positions, options_.room->indices);
   return *roomRays_;
 }
 
 struct FramePipeline::RoomIndex {
-  explicit RoomIndex(const std::vector<cv::Vec3f>& positions) : cloud{positions}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
+  explicit RoomIndex(const std::vector<cv::Vec3f>& positions)
+      : cloud{positions}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
   lighting::PointCloudAdaptor cloud;
   lighting::PointKdTree tree;
 };
@@ -576,8 +593,8 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
     cv::Vec3f a = roomAlbedo_[nearest];
     const auto st = roomAlbedoStatus_[nearest];
     if (st != reconstruction::AlbedoStatus::Measured && st != reconstruction::AlbedoStatus::Saturated) return a;
-    const cv::Vec3f detail =
-        reconstruction::albedoDetail(rgbd.colour.at<cv::Vec3b>(px), radiance.at<cv::Vec3f>(px), options_.room->radiance[nearest]);
+    const cv::Vec3f detail = reconstruction::albedoDetail(rgbd.colour.at<cv::Vec3b>(px), radiance.at<cv::Vec3f>(px),
+                                                          options_.room->radiance[nearest]);
     for (int c = 0; c < 3; ++c) a[c] = std::min(1.0f, a[c] * detail[c]);
     return a;
   };
@@ -593,7 +610,8 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
     v.albedo = detailed(px, nearest);
     if (v.albedo != roomAlbedo_[nearest]) ++detailedVertices;
     for (int y = px.y; y < std::min(px.y + stride, radiance.rows); ++y)
-      for (int x = px.x; x < std::min(px.x + stride, radiance.cols); ++x) pixelAlbedo.at<cv::Vec3f>(y, x) = detailed({x, y}, nearest);
+      for (int x = px.x; x < std::min(px.x + stride, radiance.cols); ++x)
+        pixelAlbedo.at<cv::Vec3f>(y, x) = detailed({x, y}, nearest);
   }
   r.info["view_mesh_detailed"] = detailedVertices;
   pipeline_->setViewMesh(vertices, indices);
@@ -657,8 +675,10 @@ void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compos
     // The lights too dim at the objects to be worth rendering (frame knob light_cutoff), by index.
     nlohmann::json skippedLights = nlohmann::json::array();
     for (size_t i = 0, k = 0; i < p.lights.size(); ++i)
-      if (k < rendered.size() && rendered[k] == i) ++k;
-      else skippedLights.push_back(i);
+      if (k < rendered.size() && rendered[k] == i)
+        ++k;
+      else
+        skippedLights.push_back(i);
     r.info["lights_skipped"] = std::move(skippedLights);
   }
   // Each technique's facts of this frame (counts, flicker), under its name.

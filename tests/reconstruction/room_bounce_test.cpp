@@ -131,6 +131,19 @@ TEST(RoomBounce, TheRoomsAlbedoUnderALampAndItsOwnBounceIsTheTrueAlbedo) {
     EXPECT_GT(without.albedo[i][0], 0.95f) << i;
   }
   EXPECT_GT(measured, m.positions.size() * 9 / 10);
+  // What the lamp's bounce off the room should use for the room to send its fused radiance: for rho = 0.3,
+  // albedo x E / E_d = 0.3 / 0.7, and that times E_d is pi L.
+  const float L3 = static_cast<float>(0.3 * Ed / (CV_PI * 0.7));
+  m.radiance.assign(m.positions.size(), cv::Vec3f(L3, L3, L3));
+  const auto bounce3 = reconstruction::roomBounceIrradiance(m, rays);
+  const auto three = reconstruction::estimateRoomAlbedo(m, lights, {}, nullptr, &bounce3);
+  for (size_t i = 0; i < m.positions.size(); i += 17) {
+    if (three.status[i] != reconstruction::AlbedoStatus::Measured) continue;
+    EXPECT_NEAR(three.albedo[i][0], 0.3, 0.01) << i;
+    EXPECT_NEAR(three.sent[i][0], 0.3 / 0.7, 0.01) << i;
+    EXPECT_NEAR(three.sent[i][0] * Ed, CV_PI * L3, 0.01 * CV_PI * L3) << i;
+  }
+  EXPECT_EQ(without.sent, without.albedo) << "without the room's bounce the two agree";
   const std::vector<cv::Vec3f> wrongSize(3);
   EXPECT_THROW(reconstruction::estimateRoomAlbedo(m, lights, {}, nullptr, &wrongSize), std::invalid_argument);
 }
