@@ -16,13 +16,13 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "gl/context.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
 #include "lighting/techniques/registry.h"
-#include "tests/lighting/test_scene.h"  // the test scenes' quads
 
 using namespace mrgi;
 using namespace mrgi::lighting;
@@ -58,9 +58,9 @@ std::map<std::string, double> runScene(benchmark::State& state, const PipelineCo
   LightingPipeline pipe(cfg, {sphere});
   std::vector<MeshVertex> v;
   std::vector<uint32_t> idx;
-  test::addQuad(v, idx, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0.5f, 0.5f, 0.5f},
-                200);  // 1 cm triangles, like a depth mesh
-  test::addQuad(v, idx, {-0.4f, -1, 0}, {0, 2, 0}, {0, 0, 1.5f}, {0.8f, 0.1f, 0.1f}, 150);
+  appendGridQuad(v, idx, {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0.5f, 0.5f, 0.5f},
+                 200);  // 1 cm triangles, like a depth mesh
+  appendGridQuad(v, idx, {-0.4f, -1, 0}, {0, 2, 0}, {0, 0, 1.5f}, {0.8f, 0.1f, 0.1f}, 150);
   pipe.setRealMesh(v, idx);
   CameraView cam;
   cam.intrinsics = {320, 240, 300, 300, 159.5, 119.5};
@@ -95,9 +95,10 @@ void BM_ImperfectVolumes(benchmark::State& state) {
   const auto ms = runScene(state, cfg, [&](const LightingPipeline& pipe) {
     stats = pipe.stats().value("imperfect-volumes", nlohmann::json::object());
   });
-  for (const char* stage : {"iv.points", "iv.inject", "iv.gather", "iv.readout"})
+  for (const char* stage : {"iv.points", "iv.inject", "iv.gather", "iv.cone", "iv.readout"})
     state.counters[std::string(stage).substr(3) + "_ms"] = ms.count(stage) ? ms.at(stage) : 0.0;
   const double gathered = stats.value("voxels_gathered", 0.0);
+  if (!(gathered > 0) || !(stats.value("points", 0.0) > 0)) state.SkipWithError("imperfect volumes gathered nothing");
   state.counters["points"] = stats.value("points", 0.0);
   state.counters["voxels_gathered"] = gathered;
   state.counters["work"] =
@@ -158,22 +159,23 @@ void BM_Pic(benchmark::State& state) {
 
 }  // namespace
 
-// Resolution (voxels gathered), rays and bounces one at a time around the defaults (32, 64, 1, 8 points);
-// points per triangle for the voxelisation.
-BENCHMARK(BM_ImperfectVolumes)
-    ->Args({16, 64, 1, 8})
-    ->Args({32, 64, 1, 8})
-    ->Args({48, 64, 1, 8})
-    ->Args({64, 64, 1, 8})
-    ->Args({32, 16, 1, 8})
-    ->Args({32, 128, 1, 8})
-    ->Args({32, 256, 1, 8})
-    ->Args({32, 64, 2, 8})
-    ->Args({32, 64, 3, 8})
-    ->Args({32, 64, 1, 3})
-    ->Args({32, 64, 1, 19})
-    ->Unit(benchmark::kMillisecond)
-    ->Iterations(3);
+/// Rows around the knob table's defaults (the registry's): first the defaults, then resolution (voxels
+/// gathered), rays, bounces and points per triangle one at a time.
+void imperfectVolumesRows(benchmark::internal::Benchmark* b) {
+  const KnobGroup& group = findTechnique("imperfect-volumes")->knobs;
+  const auto def = [&](const std::string& name) -> int64_t {
+    for (const KnobInfo& k : group.knobs)
+      if (k.name == name) return static_cast<int64_t>(k.def);
+    throw std::logic_error("lighting_bench: imperfect volumes have no knob " + name);
+  };
+  const int64_t r = def("resolution"), n = def("rays"), bounces = def("bounces"), points = def("points");
+  b->Args({r, n, bounces, points});
+  for (int64_t v : {16, 48, 64}) b->Args({v, n, bounces, points});
+  for (int64_t v : {16, 128, 256}) b->Args({r, v, bounces, points});
+  for (int64_t v : {1, 3}) b->Args({r, n, v, points});
+  for (int64_t v : {3, 19}) b->Args({r, n, bounces, v});
+}
+BENCHMARK(BM_ImperfectVolumes)->Apply(imperfectVolumesRows)->Unit(benchmark::kMillisecond)->Iterations(3);
 // Light count 64 .. 16384 at the defaults (I_low 16, 2 far levels, 256 surface lights); at 1024 lights the
 // splat size (I_low 4 and 64), far levels 0, 1 and 3, and surface lights 0 and 1024.
 BENCHMARK(BM_Splatting)

@@ -88,6 +88,22 @@ void GpuMesh::draw() const {
   glDrawElements(GL_TRIANGLES, count_, GL_UNSIGNED_INT, nullptr);
 }
 
+void appendGridQuad(std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices, const cv::Vec3f& p0,
+                    const cv::Vec3f& e1, const cv::Vec3f& e2, const cv::Vec3f& albedo, int n) {
+  n = std::max(n, 1);
+  const cv::Vec3f normal = cv::normalize(e1.cross(e2));
+  const auto base = static_cast<uint32_t>(vertices.size());
+  const auto un = static_cast<uint32_t>(n);
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i)
+      vertices.push_back({p0 + e1 * (static_cast<float>(i) / n) + e2 * (static_cast<float>(j) / n), normal, albedo});
+  for (uint32_t j = 0; j < un; ++j)
+    for (uint32_t i = 0; i < un; ++i) {
+      const uint32_t a = base + j * (un + 1) + i, b = a + 1, c = a + un + 2, d = a + un + 1;
+      indices.insert(indices.end(), {a, b, c, a, c, d});
+    }
+}
+
 void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo,
                        const capture::Pose& T_world_camera, std::vector<MeshVertex>& vertices,
                        std::vector<uint32_t>& indices) {

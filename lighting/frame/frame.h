@@ -54,6 +54,11 @@ void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& alb
                        const capture::Pose& T_world_camera, std::vector<MeshVertex>& vertices,
                        std::vector<uint32_t>& indices);
 
+/// Appends the parallelogram p0 + s e1 + t e2 (s, t in [0, 1]) as an n x n grid of triangle pairs facing
+/// e1 x e2, of one albedo (test and benchmark scenes: a floor, a wall).
+void appendGridQuad(std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices, const cv::Vec3f& p0,
+                    const cv::Vec3f& e1, const cv::Vec3f& e2, const cv::Vec3f& albedo, int n = 8);
+
 /// Camera matrices (OpenCV camera frame: x right, y down, z forward). Image row 0 maps to NDC y = -1, so
 /// framebuffer rows come back in cv::Mat order.
 cv::Matx44d projectionFromIntrinsics(const capture::Intrinsics& k, double nearPlane, double farPlane);

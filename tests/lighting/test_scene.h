@@ -30,15 +30,7 @@ inline std::unique_ptr<gl::Context> makeContext() {
 /// Quad p0, p0+e1, p0+e1+e2, p0+e2, normal e1 x e2, subdivided n x n (so the real mesh resembles a depth mesh).
 inline void addQuad(std::vector<MeshVertex>& v, std::vector<uint32_t>& idx, cv::Vec3f p0, cv::Vec3f e1, cv::Vec3f e2,
                     cv::Vec3f albedo, int n = 8) {
-  const cv::Vec3f normal = cv::normalize(e1.cross(e2));
-  const auto base = static_cast<uint32_t>(v.size());
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) v.push_back({p0 + e1 * (float(i) / n) + e2 * (float(j) / n), normal, albedo});
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const uint32_t a = base + j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
-      idx.insert(idx.end(), {a, b, c, a, c, d});
-    }
+  appendGridQuad(v, idx, p0, e1, e2, albedo, n);
 }
 
 const cv::Vec3f kFloorAlbedo(0.5f, 0.5f, 0.5f);
