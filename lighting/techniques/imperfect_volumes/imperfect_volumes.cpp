@@ -371,13 +371,8 @@ void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
   const bool accumulate = !rho && knobs_.bounces > 1 && virtual_;  // the object's rays read the mu bounces
   if (accumulate) reflectedSum_.clear();
   const gl::Program& p = gatherProgram_;
-  common(p);
-  p.set("uRays", knobs_.rays);
-  p.set("uRange", static_cast<float>(knobs_.range));
-  setAmbientUniforms(p, frame);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
+  useVoxelRays(p, frame);
+  p.set("uRho", rho ? 1 : 0);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, incident.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, occlusion.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, reflected_.id());
