@@ -48,11 +48,7 @@ struct LiveOptions {
   bool noLoop = false;
   PoseMode pose = PoseMode::Tracked;
   std::string view = "composite";
-  std::string room;       ///< mrgi room output: the real scene of the lighting
-  bool fuseRoom = false;  ///< build the room from the frames as they come
-  int fuseRefresh = 30;
-  bool trackRoom = false;  ///< with fuseRoom: odometry aligns each frame with the room being fused
-  std::string saveRoom;    ///< with fuseRoom: the room at the end, as mrgi room writes it
+  RoomFlags rooms;  ///< --room, --fuse-room and their company
 };
 
 std::string defaultRecordDir() {
@@ -131,25 +127,11 @@ int runLive(const LiveOptions& o) {
       if (!base->fisheye) throw capture::CaptureError(o.in.fisheye, "delivered no fisheye frame");
       base->scene.ambientFromManifest = false;
     } else {
-      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose, !o.room.empty() || o.fuseRoom);
+      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose, o.rooms.any());
     }
   }
 
-  std::shared_ptr<const reconstruction::RoomMesh> room;
-  if (!o.room.empty()) {
-    if (!base)
-      throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
-    room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
-  }
-  if (o.fuseRoom && !o.room.empty())
-    throw std::invalid_argument("--fuse-room builds a new room; --room " + o.room + " uses a saved one: pass one");
-  if (o.fuseRoom && !base)
-    throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
-  if (!o.saveRoom.empty() && !o.fuseRoom)
-    throw std::invalid_argument("--save-room " + o.saveRoom + " needs --fuse-room");
-  if (o.trackRoom && !o.fuseRoom)
-    throw FlagError("--track-room", "needs --fuse-room (a saved --room is tracked against already)");
-  if (!o.saveRoom.empty()) prepareOutputDirectory(o.saveRoom, "room.json", "mrgi room");
+  const std::shared_ptr<const reconstruction::RoomMesh> room = openRoom(o.rooms, static_cast<bool>(base));
 
   const cv::Size win = WindowUi::windowSize(width, height);
   gl::ContextConfig cfg;
@@ -173,11 +155,11 @@ int runLive(const LiveOptions& o) {
   fo.pose = o.pose;
   fo.foundWorldAnew = true;  // a scene placed in a recording's first-frame world is placed in this camera's first frame
   fo.room = room;
-  fo.cacheDir = o.room;  // techniques keep what they precompute beside the saved room
+  fo.cacheDir = o.rooms.room;  // techniques keep what they precompute beside the saved room
   fo.progress = precomputeProgress();
-  if (o.fuseRoom) fo.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds of the pipeline
-  fo.fuseRefresh = o.fuseRefresh;
-  fo.trackFusedRoom = o.trackRoom;
+  if (o.rooms.fuse) fo.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds of the pipeline
+  fo.fuseRefresh = o.rooms.fuseRefresh;
+  fo.trackFusedRoom = o.rooms.track;
   fo.techniqueStats = false;  // the window shows none: nothing of them is read back
   std::unique_ptr<FramePipeline> frames;
   auto rebuild = [&] {
@@ -226,7 +208,7 @@ int runLive(const LiveOptions& o) {
   // reads nothing: then the worker is joined first and frames are worked on in the loop.
   std::future<runtime::FrameAhead> ahead;
   std::optional<runtime::FrameAhead> pending;  // a frame the worker delivered that the loop has not taken yet
-  const auto overlap = [&] { return gpuView() && !o.fuseRoom && !paused && !needRebuild; };
+  const auto overlap = [&] { return gpuView() && !o.rooms.fuse && !paused && !needRebuild; };
   const auto join = [&] {
     if (ahead.valid()) pending = ahead.get();
   };
@@ -269,7 +251,7 @@ int runLive(const LiveOptions& o) {
         if (next.stages) profiler.adopt(*next.stages);
         if (next.prepared) ++preparedAhead;
         std::optional<PreparedFrame> prepared = std::move(next.prepared);
-        if (!prepared && !o.fuseRoom)
+        if (!prepared && !o.rooms.fuse)
           prepared = frames->prepare(*frame, profiler);  // before the worker prepares the next
         if (overlap()) ahead = runtime::readAhead([&live] { return live.next(); }, frames.get());
         if (prepared) {
@@ -441,9 +423,9 @@ int runLive(const LiveOptions& o) {
     summary["room"] = {{"integrated", fo.fuse->framesIntegrated()},
                        {"refused", fo.fuse->framesRefused()},
                        {"blocks", fo.fuse->blocks()}};
-    if (!o.saveRoom.empty() && fo.fuse->framesIntegrated() > 0 &&
-        !runtime::saveRoomModel(o.saveRoom, *fo.fuse, live.name()).positions.empty())
-      summary["room"]["saved"] = o.saveRoom;
+    if (!o.rooms.save.empty() && fo.fuse->framesIntegrated() > 0 &&
+        !runtime::saveRoomModel(o.rooms.save, *fo.fuse, live.name()).positions.empty())
+      summary["room"]["saved"] = o.rooms.save;
   }
   std::printf("%s\n", jsonText(summary, o.in.source.empty() ? o.in.device : o.in.source).c_str());
   return InterruptGuard::interrupted() ? 130 : 0;
@@ -462,21 +444,7 @@ Action addLive(CLI::App& app) {
   app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")
       ->check(numberIn(1, 1e6));
   app.add_option("--scene", o->scene, "scene file: virtual objects relative to the marker, lights, technique, knobs");
-  app.add_option("--room", o->room,
-                 "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
-  app.add_flag("--fuse-room", o->fuseRoom,
-               "build the room model from the frames as they come (every frame with a pose fused; its surface lights "
-               "the scene from the first such frame, refreshed every --fuse-refresh frames)");
-  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")
-      ->check(numberIn(1, 100000))
-      ->capture_default_str();
-  app.add_flag(
-      "--track-room", o->trackRoom,
-      "with --fuse-room and odometry or tracked poses, align each frame with the room as fused so far (its surface "
-      "at each refresh) before the keyframes; off by default: with the marker in view it placed the bundled "
-      "sessions' frames worse (ATE 6 -> 10 mm)");
-  app.add_option("--save-room", o->saveRoom,
-                 "with --fuse-room: write the room when the demo ends (as mrgi room --out does)");
+  addRoomFlags(app, o->rooms, "when the demo ends");
   app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
       ->check(techniqueValidator());
   app.add_option("--preset", o->preset, "measured preset (overrides the scene file's knobs)")

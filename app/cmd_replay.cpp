@@ -84,11 +84,7 @@ struct ReplayOptions {
   bool sequential = false;         ///< no frame prepared on the worker while GL works on the one before
   std::string mp4 = "replay.mp4";  ///< inside --out; empty: none
   double fps = 0;                  ///< 0: from the source's timestamps
-  std::string room;                ///< mrgi room output: the real scene of the lighting
-  bool fuseRoom = false;           ///< build the room from the frames as they come
-  int fuseRefresh = 30;
-  bool trackRoom = false;  ///< with fuseRoom: odometry aligns each frame with the room being fused
-  std::string saveRoom;    ///< with fuseRoom: the room at the end, as mrgi room writes it
+  RoomFlags rooms;                 ///< --room, --fuse-room and their company
 };
 
 int runReplay(const ReplayOptions& o) {
@@ -103,25 +99,11 @@ int runReplay(const ReplayOptions& o) {
     lighting::SceneDescription scene = lighting::loadScene(o.scene);
     if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
     if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
-    setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose, !o.room.empty() || o.fuseRoom);
+    setup = prepareLighting(std::move(scene), o.scene, *source, o.source, o.pose, o.rooms.any());
   }
   // A bad room stops here too.
-  std::shared_ptr<const reconstruction::RoomMesh> room;
-  if (!o.room.empty()) {
-    if (!setup)
-      throw std::invalid_argument("--room " + o.room + ": needs --scene (the room is the real scene of the lighting)");
-    room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
-  }
-  if (o.fuseRoom && !o.room.empty())
-    throw std::invalid_argument("--fuse-room builds a new room; --room " + o.room + " uses a saved one: pass one");
-  if (o.fuseRoom && !setup)
-    throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
-  if (!o.saveRoom.empty() && !o.fuseRoom)
-    throw std::invalid_argument("--save-room " + o.saveRoom + " needs --fuse-room");
-  if (o.trackRoom && !o.fuseRoom)
-    throw FlagError("--track-room", "needs --fuse-room (a saved --room is tracked against already)");
+  const std::shared_ptr<const reconstruction::RoomMesh> room = openRoom(o.rooms, static_cast<bool>(setup));
   if (!o.mp4.empty()) checkInsideOutput(o.mp4, "--mp4");
-  if (!o.saveRoom.empty()) prepareOutputDirectory(o.saveRoom, "room.json", "mrgi room");
   prepareOutputDirectory(o.out, "summary.json", "mrgi replay");
 
   gl::ContextConfig cfg;
@@ -138,11 +120,11 @@ int runReplay(const ReplayOptions& o) {
   fo.meshStride = o.meshStride;
   fo.reuse = !o.recomputeAll;
   fo.room = room;
-  fo.cacheDir = o.room;  // techniques keep what they precompute beside the saved room
+  fo.cacheDir = o.rooms.room;  // techniques keep what they precompute beside the saved room
   fo.progress = precomputeProgress();
-  if (o.fuseRoom) fo.fuse = std::make_shared<reconstruction::RoomModel>();
-  fo.fuseRefresh = o.fuseRefresh;
-  fo.trackFusedRoom = o.trackRoom;
+  if (o.rooms.fuse) fo.fuse = std::make_shared<reconstruction::RoomModel>();
+  fo.fuseRefresh = o.rooms.fuseRefresh;
+  fo.trackFusedRoom = o.rooms.track;
   FramePipeline frames(std::move(setup), width, height, fo);
   lighting::LightingPipeline* pipeline = frames.lighting();
 
@@ -173,7 +155,7 @@ int runReplay(const ReplayOptions& o) {
   // take (a damaged frame past --frames is never touched). Its error surfaces when the loop takes it.
   // --debug's views and --fuse-room's refreshes read the pipeline's state between frames: there, and with
   // --sequential, the worker only reads and the frame is worked on in the loop, one stage after another.
-  const bool overlap = !o.sequential && !o.debug && !o.fuseRoom;
+  const bool overlap = !o.sequential && !o.debug && !o.rooms.fuse;
   using Clock = std::chrono::steady_clock;
   const auto readNext = [&source, &frames, overlap] {
     return runtime::readAhead([&source] { return source->next(); }, overlap ? &frames : nullptr);
@@ -377,9 +359,9 @@ int runReplay(const ReplayOptions& o) {
   if (const reconstruction::RoomModel* live = frames.liveRoom()) {
     summary["room"] = {
         {"integrated", live->framesIntegrated()}, {"refused", live->framesRefused()}, {"blocks", live->blocks()}};
-    if (!o.saveRoom.empty() && live->framesIntegrated() > 0 &&
-        !runtime::saveRoomModel(o.saveRoom, *live, o.source).positions.empty())
-      summary["room"]["saved"] = o.saveRoom;
+    if (!o.rooms.save.empty() && live->framesIntegrated() > 0 &&
+        !runtime::saveRoomModel(o.rooms.save, *live, o.source).positions.empty())
+      summary["room"]["saved"] = o.rooms.save;
   }
   capture::writeFileAtomically(fs::path(o.out) / "summary.json", jsonText(summary, o.source, 2) + "\n");
   if (const LightingSetup* setup = frames.setup(); setup && posed == 0 && done > 0 && !interrupted)
@@ -421,20 +403,7 @@ Action addReplay(CLI::App& app) {
   addPoseOption(app, o->pose);
   allowEmpty(
       app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str());
-  app.add_option("--room", o->room,
-                 "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
-  app.add_flag("--fuse-room", o->fuseRoom,
-               "build the room model from the frames as they come (every frame with a pose fused; its surface lights "
-               "the scene from the first such frame, refreshed every --fuse-refresh frames)");
-  app.add_option("--fuse-refresh", o->fuseRefresh, "frames between refreshes of the fused room's surface")
-      ->check(numberIn(1, 100000))
-      ->capture_default_str();
-  app.add_flag(
-      "--track-room", o->trackRoom,
-      "with --fuse-room and odometry or tracked poses, align each frame with the room as fused so far (its surface "
-      "at each refresh) before the keyframes; off by default: with the marker in view it placed the bundled "
-      "sessions' frames worse (ATE 6 -> 10 mm)");
-  app.add_option("--save-room", o->saveRoom, "with --fuse-room: write the room at the end (as mrgi room --out does)");
+  addRoomFlags(app, o->rooms, "at the end");
   app.add_option("--fps", o->fps, "video frame rate (default: the recording's)")
       ->check(numberIn(capture::kMinFrameRate, capture::kMaxFrameRate));
   app.add_flag("--recompute-all", o->recomputeAll,

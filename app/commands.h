@@ -4,7 +4,10 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <map>
+#include <memory>
+#include <string>
 
+#include "reconstruction/room_model.h"
 #include "runtime/pose_source.h"
 
 namespace mrgi::runtime {}
@@ -25,6 +28,22 @@ std::map<CLI::App*, Action> addCommands(CLI::App& app);
 CLI::Validator techniqueValidator();
 /// --pose MODE (runtime/pose_source.h), the same in every command that places a camera.
 CLI::Option* addPoseOption(CLI::App& app, runtime::PoseMode& mode);
+
+/// The room flags of replay and live: a saved room as the real scene of the lighting, or one fused as the
+/// frames come (refreshed, tracked against, saved at the end).
+struct RoomFlags {
+  std::string room;      ///< --room: mrgi room output
+  bool fuse = false;     ///< --fuse-room
+  int fuseRefresh = 30;  ///< --fuse-refresh
+  bool track = false;    ///< --track-room: odometry aligns each frame with the room being fused
+  std::string save;      ///< --save-room: the fused room at the end, as mrgi room writes it
+  bool any() const { return !room.empty() || fuse; }
+};
+/// Registers --room, --fuse-room, --fuse-refresh, --track-room and --save-room; `saveWhen` ends --save-room's help.
+void addRoomFlags(CLI::App& app, RoomFlags& flags, const std::string& saveWhen);
+/// Checks the room flags together (one-line errors naming the flag), readies --save-room's folder and loads
+/// --room (nullptr when none). `lit`: a scene is set up to be lit (a room needs one).
+std::shared_ptr<const reconstruction::RoomMesh> openRoom(const RoomFlags& flags, bool lit);
 
 Action addInfo(CLI::App& app);
 Action addReplay(CLI::App& app);
