@@ -528,22 +528,12 @@ struct BrightnessSums {
   double ratio() const { return truth > 0 ? ours / truth : 0.0; }
 };
 
-/// Irradiance at `p` for normal n from a set of lights (shadows aside) plus a uniform ambient.
+/// Irradiance at `p` for normal n from a set of lights (shadows aside, lighting::unshadowedIrradiance) plus a
+/// uniform ambient.
 cv::Vec3d irradianceAt(const std::vector<lighting::SceneLight>& lights, const cv::Vec3d& ambient, const cv::Vec3d& p,
                        const cv::Vec3d& n) {
   cv::Vec3d E = ambient * CV_PI;
-  for (const auto& l : lights) {
-    if (l.type == lighting::LightType::Directional) {
-      E += l.irradiance * std::max(0.0, -n.dot(l.direction));
-      continue;
-    }
-    cv::Vec3d d = l.position - p;
-    const double r2 = std::max(d.dot(d), 1e-8);
-    d /= std::sqrt(r2);
-    double spot = 1;
-    if (l.type == lighting::LightType::Spot && -d.dot(l.direction) < l.spotCos()) spot = 0;
-    E += l.intensity * (spot * std::max(0.0, n.dot(d)) / r2);
-  }
+  for (const auto& l : lights) E += lighting::unshadowedIrradiance(l, p, n);
   return E;
 }
 

@@ -1,6 +1,7 @@
 #include "capture/checks.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cfloat>
 #include <cmath>
 #include <cstdio>
@@ -129,6 +130,60 @@ std::string readFileBounded(const std::string& path, std::uintmax_t maxBytes, co
   if (bytes.size() > maxBytes)
     throw InputError(path, "grew past the " + sizeText(maxBytes) + " a " + kind + " may be while it was read");
   return bytes;
+}
+
+std::string calibrationYamlShapeError(const std::string& text) {
+  const auto isNumberChar = [](char c) {
+    return (c >= '0' && c <= '9') || c == '.' || c == '-' || c == '+' || c == 'e' || c == 'E' || c == ',' || c == ' ';
+  };
+  int depth = 0;  // open '[' of a flow list running over lines
+  bool started = false;
+  std::size_t at = 0, number = 0;
+  while (at < text.size()) {
+    std::size_t end = text.find('\n', at);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + at, end - at);
+    at = end + 1;
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const auto where = [&](const std::string& why) { return "line " + std::to_string(number) + ": " + why; };
+    const std::size_t first = line.find_first_not_of(' ');
+    if (first == std::string_view::npos || line[first] == '#') continue;
+    std::string_view rest = line.substr(first);
+    if (!started && depth == 0 && (rest.rfind("%YAML", 0) == 0 || rest == "---")) continue;
+    started = true;
+    // The value part, or the whole line inside a flow list.
+    std::string_view value = rest;
+    if (depth == 0) {
+      std::size_t k = 0;
+      while (k < rest.size() && (std::isalnum(static_cast<unsigned char>(rest[k])) || rest[k] == '_')) ++k;
+      if (k == 0 || k >= rest.size() || rest[k] != ':' ||
+          !(std::isalpha(static_cast<unsigned char>(rest[0])) || rest[0] == '_'))
+        return where("not a 'key: value' line");
+      value = rest.substr(k + 1);
+      const std::size_t v = value.find_first_not_of(' ');
+      value = v == std::string_view::npos ? std::string_view() : value.substr(v);
+      if (value.rfind("!!opencv-matrix", 0) == 0) value.remove_prefix(15);
+    }
+    for (std::size_t k = 0; k < value.size(); ++k) {
+      const char c = value[k];
+      if (c == '#' && (k == 0 || value[k - 1] == ' ')) break;  // a comment to the end of the line
+      if (c == '[') {
+        if (++depth > 1) return where("a list inside a list");
+      } else if (c == ']') {
+        if (--depth < 0) return where("a ']' closes no list");
+      } else if (depth > 0) {
+        if (!isNumberChar(c)) return where("a list holds something other than numbers");
+      } else if (c == '{' || c == '}' || c == '&' || c == '*' || c == '|' || c == '>' || c == '!' || c == '\t' ||
+                 (k == 0 && (c == '-' || c == '?') && value.size() > 1 && value[1] == ' ')) {
+        return where("'" + std::string(1, c) + "' (only plain values and lists of numbers)");
+      } else if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) {
+        return where("a character outside printable ASCII");
+      }
+    }
+  }
+  if (depth != 0) return "a list is not closed";
+  return {};
 }
 
 int yamlNestingDepth(const std::string& text) {

@@ -81,6 +81,12 @@ std::uintmax_t checkFileBounded(const std::string& path, std::uintmax_t maxBytes
 /// levels ("[", "{" outside quotes and comments). A calibration nests 3 levels.
 int yamlNestingDepth(const std::string& text);
 constexpr int kMaxYamlDepth = 32;
+/// Empty when `text` has the shape of a camera calibration in YAML (ROS camera_calibration's or OpenCV's):
+/// an optional "%YAML" directive and "---", then only "key: value" lines (keys of letters, digits and '_';
+/// values plain scalars, "!!opencv-matrix", or flow lists of numbers, which may run over lines) and comments;
+/// otherwise the first line that is not, and why. OpenCV's YAML parser hangs or crashes on some text of
+/// other shapes (block sequences, flow mappings: found by the fisheye_yaml fuzzer), so nothing else reaches it.
+std::string calibrationYamlShapeError(const std::string& text);
 
 /// A message from a library (assimp, OpenCV, Open3D) or a user's value cut to one printable line of about
 /// maxChars (control characters become spaces; UTF-8 is kept whole) for quoting.

@@ -192,6 +192,13 @@ void checkPlyFile(const std::string& path) {
             }
           }
         }
+        // Readers take an ASCII body as one stream of numbers: a value too many on a line shifts every
+        // element after it (found by the room fuzzer: a fifth vertex line of four numbers made the faces
+        // after it two- and one-sided, and Open3D's normals read past its vertices).
+        std::string extra;
+        if (words >> extra)
+          throw InputError(path, "malformed PLY: " + e.name + " element " + std::to_string(i) +
+                                     " has more values than its properties");
       }
     }
     return;

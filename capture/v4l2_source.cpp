@@ -105,6 +105,8 @@ FisheyeCalibration readFisheyeCalibration(const std::string& path) {
   std::string text = readFileBounded(path, 1 << 20, "calibration YAML");
   if (yamlNestingDepth(text) > kMaxYamlDepth)
     throw CaptureError(path, "calibration YAML nests deeper than " + std::to_string(kMaxYamlDepth) + " levels");
+  if (const std::string why = calibrationYamlShapeError(text); !why.empty())
+    throw CaptureError(path, "not a camera calibration (ROS or OpenCV YAML): " + why);
   cv::FileStorage fsr;
   try {
     // ROS writes YAML without OpenCV's "%YAML:1.0" directive; add it and parse from memory.

@@ -891,8 +891,17 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   if (!o3d::io::ReadTriangleMesh(ply.string(), m, options))
     throw capture::InputError(ply.string(), "cannot read the room mesh (malformed or empty PLY)");
   if (m.vertices_.empty() || m.triangles_.empty()) throw capture::InputError(ply.string(), "room mesh is empty");
+  // Every index checked before anything follows one (Open3D's normals would read past the vertices).
+  for (size_t t = 0; t < m.triangles_.size(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const int i = m.triangles_[t][k];
+      if (i < 0 || static_cast<size_t>(i) >= m.vertices_.size())
+        throw capture::InputError(ply.string(), "triangle " + std::to_string(t) + " names vertex " + std::to_string(i) +
+                                                    " of " + std::to_string(m.vertices_.size()));
+    }
   RoomMesh out;
-  const bool normals = m.HasVertexNormals(), colours = m.HasVertexColors();
+  const bool normals = m.HasVertexNormals() && m.vertex_normals_.size() == m.vertices_.size(),
+             colours = m.HasVertexColors() && m.vertex_colors_.size() == m.vertices_.size();
   if (!normals) m.ComputeVertexNormals();
   for (size_t i = 0; i < m.vertices_.size(); ++i) {
     const auto& p = m.vertices_[i];
@@ -906,14 +915,8 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
                               static_cast<float>(capture::srgbToLinear(std::clamp(c[1], 0.0, 1.0))),
                               static_cast<float>(capture::srgbToLinear(std::clamp(c[2], 0.0, 1.0))));
   }
-  for (size_t t = 0; t < m.triangles_.size(); ++t)
-    for (int k = 0; k < 3; ++k) {
-      const int i = m.triangles_[t][k];
-      if (i < 0 || static_cast<size_t>(i) >= m.vertices_.size())
-        throw capture::InputError(ply.string(), "triangle " + std::to_string(t) + " names vertex " + std::to_string(i) +
-                                                    " of " + std::to_string(m.vertices_.size()));
-      out.indices.push_back(static_cast<uint32_t>(i));
-    }
+  for (const auto& tri : m.triangles_)
+    for (int k = 0; k < 3; ++k) out.indices.push_back(static_cast<uint32_t>(tri[k]));
   const size_t n = out.positions.size();
   if (version >= 2) {
     const fs::path npy = fs::path(dir) / "room_appearance.npy";

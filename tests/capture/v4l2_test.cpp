@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/v4l2_source.h"
@@ -110,4 +111,26 @@ TEST(FisheyeCalibration, MalformedYamlFoundByTheFuzzerIsAOneLineError) {
   } catch (const CaptureError& e) {
     EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0u) << e.what();
   }
+}
+
+TEST(FisheyeCalibration, OnlyCalibrationShapedYamlReachesOpenCvsParser) {
+  // Found by the fisheye_yaml fuzzer: 22 bytes of block sequences and a flow mapping kept OpenCV's YAML
+  // parser busy for over a minute. Text that is not "key: value" lines and lists of numbers never reaches it.
+  const std::string path = std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/fisheye_yaml_parser_hang.yaml";
+  try {
+    readFisheyeCalibration(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const CaptureError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              path + ": not a camera calibration (ROS or OpenCV YAML): line 2: not a 'key: value' line");
+  }
+  EXPECT_EQ(
+      calibrationYamlShapeError("%YAML:1.0\n---\na: 1\nm: !!opencv-matrix\n  rows: 1\n  data: [ 1., -2e-3,\n    3 ]\n"),
+      "");
+  EXPECT_EQ(calibrationYamlShapeError("a: {b: 1}\n"), "line 1: '{' (only plain values and lists of numbers)");
+  EXPECT_EQ(calibrationYamlShapeError("a:\n  - 1\n"), "line 2: not a 'key: value' line");
+  EXPECT_EQ(calibrationYamlShapeError("a: [1, [2]]\n"), "line 1: a list inside a list");
+  EXPECT_EQ(calibrationYamlShapeError("a: [1, x]\n"), "line 1: a list holds something other than numbers");
+  EXPECT_EQ(calibrationYamlShapeError("a: [1, 2\n"), "a list is not closed");
+  EXPECT_EQ(calibrationYamlShapeError("a: &x 1\n"), "line 1: '&' (only plain values and lists of numbers)");
 }

@@ -419,6 +419,17 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
                                  ": malformed PLY header: a vertex element needs the properties x, y and z"),
             std::string::npos)
       << with(noY, json);
+  // Found by the room fuzzer: a vertex line with a value too many shifted Open3D's stream of numbers, its
+  // faces came out one- and two-sided and its normals read past the vertices (a crash).
+  const std::string tooMany = [&] {
+    std::ifstream in(std::string(MRGI_SOURCE_DIR) + "/tests/data/fuzz/room_ply_a_value_too_many.ply", std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  EXPECT_NE(
+      with(tooMany, json)
+          .find((dir / "room.ply").string() + ": malformed PLY: vertex element 4 has more values than its properties"),
+      std::string::npos)
+      << with(tooMany, json);
   const std::string twice =
       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
       "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
