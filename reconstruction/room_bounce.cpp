@@ -84,27 +84,10 @@ std::vector<cv::Vec3f> roomBounceIrradiance(const RoomMesh& mesh, const MeshRays
     for (size_t w = 0; w < threads; ++w) pool.emplace_back(gather, n * w / threads, n * (w + 1) / threads);
     for (auto& th : pool) th.join();
   }
-  std::vector<std::vector<uint32_t>> neighbours(n);
-  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
-    for (int a = 0; a < 3; ++a) {
-      const uint32_t u = mesh.indices[t + a], v = mesh.indices[t + (a + 1) % 3];
-      if (u < n && v < n) neighbours[u].push_back(v), neighbours[v].push_back(u);
-    }
   // Vertices without rays (between the sampled ones, or with no usable normal) take their known neighbours'
   // mean, ring by ring.
-  for (int pass = 0; pass < 64; ++pass) {
-    std::vector<std::pair<size_t, cv::Vec3f>> filled;
-    for (size_t i = 0; i < n; ++i) {
-      if (known[i]) continue;
-      cv::Vec3f sum(0, 0, 0);
-      int count = 0;
-      for (uint32_t j : neighbours[i])
-        if (known[j]) sum += E[j], ++count;
-      if (count > 0) filled.emplace_back(i, sum / static_cast<float>(count));
-    }
-    if (filled.empty()) break;
-    for (const auto& [i, e] : filled) E[i] = e, known[i] = 1;
-  }
+  const std::vector<std::vector<uint32_t>> neighbours = meshNeighbours(mesh.indices, n);
+  fillFromNeighbours(E, known, neighbours);
   if (options.smoothing > 0) {
     std::vector<cv::Vec3f> next(n);
     for (int pass = 0; pass < options.smoothing; ++pass) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <stdexcept>
 
 #include "capture/checks.h"
@@ -33,7 +34,8 @@ FisheyeRays latLongRays(int width) {
   return r;
 }
 
-RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o) {
+RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o,
+                              const MeshRays* given) {
   if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");
   if (room.radiance.size() != room.positions.size())
     throw std::invalid_argument("estimateRoomLights: no radiance per vertex");
@@ -46,7 +48,9 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
       !(o.minPointDistance >= 0))
     throw std::invalid_argument("estimateRoomLights: options out of range");
   const FisheyeRays rays = latLongRays(o.mapWidth);
-  const MeshRays mesh(room.positions, room.indices);
+  std::optional<MeshRays> built;
+  if (!given) built.emplace(room.positions, room.indices);
+  const MeshRays& mesh = given ? *given : *built;
   const int W = rays.directions.cols, H = rays.directions.rows;
   cv::Mat L(H, W, CV_32FC3, cv::Scalar::all(0)), hitPos(H, W, CV_32FC3, cv::Scalar::all(0));
   cv::Mat saturated(H, W, CV_8UC1, cv::Scalar(0)), hit(H, W, CV_8UC1, cv::Scalar(0));

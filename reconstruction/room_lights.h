@@ -19,6 +19,8 @@
 
 namespace mrgi::reconstruction {
 
+class MeshRays;
+
 struct RoomLightOptions {
   int mapWidth = 256;  ///< lat-long environment map width (height = width / 2)
   LightSplitOptions split = [] {
@@ -74,7 +76,9 @@ struct RoomLights {
 /// from +x towards +y), in the FisheyeRays form splitLights takes.
 FisheyeRays latLongRays(int width);
 
-/// Throws std::invalid_argument for an empty mesh or options out of range.
-RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& options = {});
+/// Throws std::invalid_argument for an empty mesh or options out of range. `rays`: rays against `room` itself,
+/// when the caller has them (else they are built here).
+RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& options = {},
+                              const MeshRays* rays = nullptr);
 
 }  // namespace mrgi::reconstruction

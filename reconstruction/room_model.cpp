@@ -663,6 +663,33 @@ cv::Vec3f albedoDetail(const cv::Vec3b& rgb8, const cv::Vec3f& pixelRadiance, co
   return detail;
 }
 
+std::vector<std::vector<uint32_t>> meshNeighbours(const std::vector<uint32_t>& indices, size_t vertices) {
+  std::vector<std::vector<uint32_t>> neighbours(vertices);
+  for (size_t t = 0; t + 2 < indices.size(); t += 3)
+    for (int a = 0; a < 3; ++a) {
+      const uint32_t u = indices[t + a], v = indices[t + (a + 1) % 3];
+      if (u < vertices && v < vertices) neighbours[u].push_back(v), neighbours[v].push_back(u);
+    }
+  return neighbours;
+}
+
+void fillFromNeighbours(std::vector<cv::Vec3f>& values, std::vector<uint8_t>& known,
+                        const std::vector<std::vector<uint32_t>>& neighbours, int rings) {
+  for (int ring = 0; ring < rings; ++ring) {
+    std::vector<std::pair<size_t, cv::Vec3f>> filled;
+    for (size_t i = 0; i < values.size(); ++i) {
+      if (known[i]) continue;
+      cv::Vec3f sum(0, 0, 0);
+      int count = 0;
+      for (uint32_t j : neighbours[i])
+        if (known[j]) sum += values[j], ++count;
+      if (count > 0) filled.emplace_back(i, sum / static_cast<float>(count));
+    }
+    if (filled.empty()) break;
+    for (const auto& [i, v] : filled) values[i] = v, known[i] = 1;
+  }
+}
+
 RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, const AlbedoOptions& options,
                               RoomAlbedoCache* cache, const std::vector<cv::Vec3f>* bounce) {
   if (bounce && bounce->size() != mesh.positions.size())
@@ -733,12 +760,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
         bound[i][k] = static_cast<float>(std::clamp(CV_PI * Lr[k] / std::max(E[k], 1e-9), 0.0, 1.0));
     if (st == AlbedoStatus::Measured) out.albedo[i] = bound[i];
   }
-  std::vector<std::vector<uint32_t>> neighbours(n);
-  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
-    for (int a = 0; a < 3; ++a) {
-      const uint32_t u = mesh.indices[t + a], v = mesh.indices[t + (a + 1) % 3];
-      neighbours[u].push_back(v), neighbours[v].push_back(u);
-    }
+  const std::vector<std::vector<uint32_t>> neighbours = meshNeighbours(mesh.indices, n);
   // A shadow's edge is blurred in the fused colour (voxels, and averaging over views): the two rings of
   // vertices around a shadow are rejected with it, or their darker colour would read as a darker albedo.
   for (int ring = 0; ring < 2; ++ring) {
@@ -756,20 +778,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   if (options.fill) {
     std::vector<uint8_t> known(n);
     for (size_t i = 0; i < n; ++i) known[i] = out.status[i] == AlbedoStatus::Measured;
-    for (int pass = 0; pass < 64; ++pass) {
-      std::vector<size_t> filled;
-      std::vector<cv::Vec3f> values;
-      for (size_t i = 0; i < n; ++i) {
-        if (known[i]) continue;
-        cv::Vec3f sum(0, 0, 0);
-        int count = 0;
-        for (uint32_t j : neighbours[i])
-          if (known[j]) sum += out.albedo[j], ++count;
-        if (count > 0) filled.push_back(i), values.push_back(sum / static_cast<float>(count));
-      }
-      if (filled.empty()) break;
-      for (size_t k = 0; k < filled.size(); ++k) out.albedo[filled[k]] = values[k], known[filled[k]] = 1;
-    }
+    fillFromNeighbours(out.albedo, known, neighbours);
   }
   for (size_t i = 0; i < n; ++i)
     if (out.status[i] == AlbedoStatus::Saturated)

@@ -100,6 +100,13 @@ class RoomModel {
   int integrated_ = 0, refused_ = 0;
 };
 
+/// Each vertex's neighbours along a triangle mesh's edges (`vertices` of them; indices past them left out).
+std::vector<std::vector<uint32_t>> meshNeighbours(const std::vector<uint32_t>& indices, size_t vertices);
+/// Values not `known` take the mean of their known neighbours, ring by ring (each ring from the values known
+/// before it), until none is left that a known one reaches or `rings` rings are done; filled values become known.
+void fillFromNeighbours(std::vector<cv::Vec3f>& values, std::vector<uint8_t>& known,
+                        const std::vector<std::vector<uint32_t>>& neighbours, int rings = 64);
+
 /// Per-vertex albedo of the room under known lights (all in the lighting world), as estimateAlbedo does per
 /// pixel: k_d = pi * L / E with E the lights' direct irradiance (shadows ray-cast against the room itself)
 /// plus the ambient. Vertices in a light's shadow, saturated, grazing or unlit are rejected and filled from

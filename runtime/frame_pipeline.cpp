@@ -497,6 +497,8 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
     }
   }
   const size_t cleared = (options_.room->indices.size() - room.indices.size()) / 3;
+  // Rays against this room, for what it hides from real surfaces and what it sends itself.
+  const reconstruction::MeshRays clearedRays(room.positions, room.indices);
   // Lights listed apart from the room: what the objects hide from the real surfaces beside those lights is the
   // room's surfaces seen from the objects (lamps cleared above, saturated ones left out), not the listed ambient.
   if (setup_->scene.lightSource != lighting::LightSource::Room && !setup_->scene.objects.empty() &&
@@ -505,7 +507,7 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
     reconstruction::RoomLightOptions ro;
     ro.mapWidth = 64;
     ro.saturatedGain = 1;
-    const reconstruction::RoomLights seen = reconstruction::estimateRoomLights(room, objectsCentre(), ro);
+    const reconstruction::RoomLights seen = reconstruction::estimateRoomLights(room, objectsCentre(), ro, &clearedRays);
     lighting::Ambient hidden;
     hidden.uniform = cv::Vec3f(seen.surfacesSh[0] * 0.28209479177387814);  // Y_00
     for (size_t k = 1; k < 9; ++k) hidden.sh[k] = cv::Vec3f(seen.surfacesSh[k]);
@@ -522,10 +524,9 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
   std::vector<cv::Vec3f> bounce;
   {
     auto sb = profiler.cpu("room_bounce");
-    const reconstruction::MeshRays rays(room.positions, room.indices);
     reconstruction::RoomBounceOptions bo;
     bo.outside = p.ambient;
-    bounce = reconstruction::roomBounceIrradiance(room, rays, bo);
+    bounce = reconstruction::roomBounceIrradiance(room, clearedRays, bo);
   }
   const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(
       room, albedoLights(capture::identityPose(), p.lights, p.ambient), {}, roomAlbedoCache_.get(), &bounce);
@@ -607,11 +608,11 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
     if (i >= mesh.pixels.size()) continue;
     const cv::Point px(cvRound(mesh.pixels[i][0]), cvRound(mesh.pixels[i][1]));
     if (!frameRect.contains(px)) continue;
-    v.albedo = detailed(px, nearest);
-    if (v.albedo != roomAlbedo_[nearest]) ++detailedVertices;
     for (int y = px.y; y < std::min(px.y + stride, radiance.rows); ++y)
       for (int x = px.x; x < std::min(px.x + stride, radiance.cols); ++x)
         pixelAlbedo.at<cv::Vec3f>(y, x) = detailed({x, y}, nearest);
+    v.albedo = pixelAlbedo.at<cv::Vec3f>(px);  // the vertex's own pixel heads its block
+    if (v.albedo != roomAlbedo_[nearest]) ++detailedVertices;
   }
   r.info["view_mesh_detailed"] = detailedVertices;
   pipeline_->setViewMesh(vertices, indices);
