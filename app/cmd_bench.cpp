@@ -18,8 +18,6 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/output.h"
-#include "app/tabletop.h"
 #include "capture/checks.h"
 #include "capture/colour.h"
 #include "capture/error.h"
@@ -32,6 +30,7 @@
 #include "evaluation/bench.h"
 #include "evaluation/metrics.h"
 #include "evaluation/reference_scene.h"
+#include "evaluation/tabletop.h"
 #include "evaluation/tracking_metrics.h"
 #include "gl/context.h"
 #include "gl/profiler.h"
@@ -44,6 +43,7 @@
 #include "reconstruction/depth_filter.h"
 #include "reconstruction/room_lights.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/output.h"
 #include "runtime/room_fusion.h"
 
 namespace fs = std::filesystem;

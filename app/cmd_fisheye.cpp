@@ -10,7 +10,6 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/output.h"
 #include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
@@ -19,6 +18,7 @@
 #include "reconstruction/fisheye_calibration.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/room_lights.h"
+#include "runtime/output.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

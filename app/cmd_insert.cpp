@@ -12,7 +12,6 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/output.h"
 #include "app/window_ui.h"
 #include "capture/checks.h"
 #include "capture/error.h"
@@ -23,6 +22,7 @@
 #include "reconstruction/plane.h"
 #include "runtime/debug_view.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/output.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

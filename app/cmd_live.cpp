@@ -14,7 +14,6 @@
 #include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/live_source.h"
-#include "app/output.h"
 #include "app/window_ui.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -26,6 +25,7 @@
 #include "lighting/techniques/registry.h"
 #include "runtime/debug_view.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/output.h"
 #include "runtime/presets.h"
 #include "runtime/room_fusion.h"
 

@@ -9,9 +9,9 @@
 #include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/live_source.h"
-#include "app/output.h"
 #include "capture/error.h"
 #include "capture/session.h"
+#include "runtime/output.h"
 
 using nlohmann::json;
 

@@ -8,7 +8,6 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/output.h"
 #include "capture/colour.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -17,6 +16,7 @@
 #include "compositor/compositor.h"
 #include "evaluation/reference_scene.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/output.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

@@ -18,7 +18,6 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/output.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
@@ -31,6 +30,7 @@
 #include "runtime/background_writer.h"
 #include "runtime/debug_view.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/output.h"
 #include "runtime/presets.h"
 #include "runtime/room_fusion.h"
 

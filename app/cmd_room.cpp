@@ -7,7 +7,6 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/output.h"
 #include "capture/checks.h"
 #include "capture/colour.h"
 #include "capture/error.h"
@@ -16,6 +15,7 @@
 #include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
 #include "runtime/debug_view.h"
+#include "runtime/output.h"
 #include "runtime/room_fusion.h"
 
 using nlohmann::json;

@@ -8,7 +8,6 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/output.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/image_io.h"
@@ -16,6 +15,7 @@
 #include "capture/session.h"
 #include "reconstruction/depth_filter.h"
 #include "reconstruction/marker.h"
+#include "runtime/output.h"
 #include "runtime/pose_source.h"
 
 using nlohmann::json;

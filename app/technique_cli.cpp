@@ -3,8 +3,8 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/output.h"
 #include "lighting/techniques/registry.h"
+#include "runtime/output.h"
 
 namespace mrgi::app {
 

@@ -1,4 +1,4 @@
-#include "app/output.h"
+#include "runtime/output.h"
 
 #include <unistd.h>
 #include <zlib.h>
@@ -23,7 +23,7 @@
 
 namespace fs = std::filesystem;
 
-namespace mrgi::app {
+namespace mrgi::runtime {
 
 void writeExr(const std::string& path, const cv::Mat& rgb, bool half) {
   // Outputs hold only finite numbers: a computation that gave nan or inf is an error, never a file of them.
@@ -261,4 +261,4 @@ std::function<void(const std::string& what, double fraction)> precomputeProgress
   };
 }
 
-}  // namespace mrgi::app
+}  // namespace mrgi::runtime

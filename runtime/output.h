@@ -8,7 +8,7 @@
 #include <opencv2/videoio.hpp>
 #include <string>
 
-namespace mrgi::app {
+namespace mrgi::runtime {
 
 /// The text of a JSON document about to be printed or written; a non-finite number in it (which would be
 /// written as null) is an error naming `input`, the file or flag its numbers came from.
@@ -82,4 +82,4 @@ class Mp4Writer {
   int frames_ = 0;
 };
 
-}  // namespace mrgi::app
+}  // namespace mrgi::runtime

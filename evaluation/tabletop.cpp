@@ -1,11 +1,11 @@
-#include "app/tabletop.h"
+#include "evaluation/tabletop.h"
 
 #include <cmath>
 
 #include "capture/session.h"
 #include "reconstruction/marker_image.h"
 
-namespace mrgi::app {
+namespace mrgi::evaluation {
 
 namespace {
 constexpr float kTableTop = 0.75f;
@@ -99,4 +99,4 @@ capture::Pose orbitCamera(int i, int n) {
   return capture::lookAtPose(pos, target);
 }
 
-}  // namespace mrgi::app
+}  // namespace mrgi::evaluation

@@ -9,7 +9,7 @@
 #include "capture/types.h"
 #include "groundtruth/scene.h"
 
-namespace mrgi::app {
+namespace mrgi::evaluation {
 
 struct TabletopConfig {
   std::string tagFamily = "tag36h11";
@@ -39,4 +39,4 @@ Tabletop buildTabletop(const TabletopConfig& config);
 /// Camera i of n on the orbit: OpenCV camera frame (x right, y down, z forward) in the world.
 capture::Pose orbitCamera(int i, int n);
 
-}  // namespace mrgi::app
+}  // namespace mrgi::evaluation
