@@ -37,9 +37,7 @@ namespace {
 
 struct LiveOptions {
   LiveSourceOptions in;
-  std::string scene;
-  std::string technique, preset;
-  std::string presets = MRGI_DEFAULT_PRESETS;
+  SceneChoice scene{"", "", MRGI_DEFAULT_PRESETS, ""};
   std::string gl = "window";
   int frames = 0;
   std::string screenshot;
@@ -113,21 +111,19 @@ int runLive(const LiveOptions& o) {
 
   std::optional<LightingSetup> base;
   lighting::SceneDescription scene;
-  if (!o.scene.empty()) {
-    scene = lighting::loadScene(o.scene);
-    if (!o.preset.empty()) applyPreset(loadPreset(o.presets, o.preset), scene);
-    if (!o.technique.empty()) scene.technique = lighting::parseTechniqueChoice(o.technique, &scene.knobs);
+  if (!o.scene.scene.empty()) {
+    scene = loadChosenScene(o.scene);
     if (scene.lightSource == lighting::LightSource::Fisheye && o.in.source.empty()) {
       // Live: the lights come from the V4L2 fisheye camera, not from a session manifest.
       if (o.in.fisheye.empty())
-        throw capture::CaptureError(o.scene, "lights: \"fisheye\" needs --fisheye /dev/videoN live");
+        throw capture::CaptureError(o.scene.scene, "lights: \"fisheye\" needs --fisheye /dev/videoN live");
       scene.lightSource = lighting::LightSource::Scene;
-      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose);
+      base = prepareLighting(scene, o.scene.scene, live.source(), live.name(), o.pose);
       base->fisheye = live.fisheyeCalibration();
       if (!base->fisheye) throw capture::CaptureError(o.in.fisheye, "delivered no fisheye frame");
       base->scene.ambientFromManifest = false;
     } else {
-      base = prepareLighting(scene, o.scene, live.source(), live.name(), o.pose, o.rooms.any());
+      base = prepareLighting(scene, o.scene.scene, live.source(), live.name(), o.pose, o.rooms.any());
     }
   }
 
@@ -342,9 +338,9 @@ int runLive(const LiveOptions& o) {
       if (realChanged || virtualChanged) choice.name = lighting::canonicalName(choice), needRebuild = true;
       if (ImGui::Combo("preset", &presetIndex, presetNames, 5) && presetIndex < 4) {
         if (presetIndex == 0)
-          scene = lighting::loadScene(o.scene);
+          scene = lighting::loadScene(o.scene.scene);
         else
-          applyPreset(loadPreset(o.presets, presetNames[presetIndex]), scene);
+          applyPreset(loadPreset(o.scene.presets, presetNames[presetIndex]), scene);
         needRebuild = true;
       }
       // Every knob of the shared resources and of the techniques in use, from their declarations.
@@ -443,13 +439,14 @@ Action addLive(CLI::App& app) {
                  "its calibration (YAML from mrgi calibrate-fisheye)");
   app.add_option("--fisheye-every", o->in.fisheyeEvery, "grab a fisheye frame every N depth frames")
       ->check(numberIn(1, 1e6));
-  app.add_option("--scene", o->scene, "scene file: virtual objects relative to the marker, lights, technique, knobs");
+  app.add_option("--scene", o->scene.scene,
+                 "scene file: virtual objects relative to the marker, lights, technique, knobs");
   addRoomFlags(app, o->rooms, "when the demo ends");
-  app.add_option("--technique", o->technique, "lighting technique, overrides the scene file's")
+  app.add_option("--technique", o->scene.technique, "lighting technique, overrides the scene file's")
       ->check(techniqueValidator());
-  app.add_option("--preset", o->preset, "measured preset (overrides the scene file's knobs)")
+  app.add_option("--preset", o->scene.preset, "measured preset (overrides the scene file's knobs)")
       ->check(CLI::IsMember({"fast", "balanced", "accurate"}));
-  app.add_option("--presets", o->presets, "presets file written by mrgi bench --presets")->capture_default_str();
+  app.add_option("--presets", o->scene.presets, "presets file written by mrgi bench --presets")->capture_default_str();
   app.add_option("--gl", o->gl, "GL backend (the live demo needs a window; use mrgi replay headless)")
       ->check(CLI::IsMember({"window"}));
   app.add_option("--frames", o->frames, "stop after N frames (0 = until the window closes)")->check(numberIn(0, 1e9));

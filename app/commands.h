@@ -9,6 +9,7 @@
 
 #include "reconstruction/room_model.h"
 #include "runtime/pose_source.h"
+#include "runtime/session_setup.h"
 
 namespace mrgi::runtime {}
 namespace mrgi::evaluation {}
@@ -31,14 +32,7 @@ CLI::Option* addPoseOption(CLI::App& app, runtime::PoseMode& mode);
 
 /// The room flags of replay and live: a saved room as the real scene of the lighting, or one fused as the
 /// frames come (refreshed, tracked against, saved at the end).
-struct RoomFlags {
-  std::string room;      ///< --room: mrgi room output
-  bool fuse = false;     ///< --fuse-room
-  int fuseRefresh = 30;  ///< --fuse-refresh
-  bool track = false;    ///< --track-room: odometry aligns each frame with the room being fused
-  std::string save;      ///< --save-room: the fused room at the end, as mrgi room writes it
-  bool any() const { return !room.empty() || fuse; }
-};
+using RoomFlags = runtime::RoomOptions;
 /// Registers --room, --fuse-room, --fuse-refresh, --track-room and --save-room; `saveWhen` ends --save-room's help.
 void addRoomFlags(CLI::App& app, RoomFlags& flags, const std::string& saveWhen);
 /// Checks the room flags together (one-line errors naming the flag), readies --save-room's folder and loads

@@ -10,8 +10,6 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
-#include "runtime/output.h"
-#include "evaluation/tabletop.h"
 #include "capture/checks.h"
 #include "capture/colour.h"
 #include "capture/error.h"
@@ -19,8 +17,10 @@
 #include "capture/sensor_model.h"
 #include "capture/session.h"
 #include "evaluation/reference_scene.h"
+#include "evaluation/tabletop.h"
 #include "lighting/scene_file.h"
 #include "reconstruction/light_estimation.h"
+#include "runtime/output.h"
 
 namespace fs = std::filesystem;
 
@@ -28,9 +28,9 @@ namespace mrgi::evaluation {
 namespace {
 
 using groundtruth::PathTracer;
+using groundtruth::RayCaster;
 using runtime::writeExr;
 using runtime::writePng;
-using groundtruth::RayCaster;
 
 /// The look-around: standing at the table's front edge, the camera turns a full circle twice, once
 /// looking 35 degrees up (walls, ceiling, the lamp) and once 20 degrees down (the floor, the table's far
@@ -229,13 +229,13 @@ capture::SessionManifest sessionManifest(const SynthOptions& o, const TabletopCo
 
 /// What the RGB-D sensor records of a render: the colour at `exposure` with its noise, the depth with the
 /// sensor's noise model.
-capture::RgbdFrame sensorFrame(const RgbdRender& r, const capture::Intrinsics& k, double exposure,
-                               uint64_t noiseSeed, uint64_t depthSeed) {
+capture::RgbdFrame sensorFrame(const RgbdRender& r, const capture::Intrinsics& k, double exposure, uint64_t noiseSeed,
+                               uint64_t depthSeed) {
   capture::RgbdFrame rgbd;
   rgbd.colour = cameraImage(exposure == 1.0 ? r.radiance : cv::Mat(r.radiance * exposure), noiseSeed);
   rgbd.exposure = exposure;
-  rgbd.depth = capture::applyDepthNoise(r.depth, r.normals, k.fx, k.fy, k.cx, k.cy, capture::DepthNoiseModel{},
-                                        depthSeed);
+  rgbd.depth =
+      capture::applyDepthNoise(r.depth, r.normals, k.fx, k.fy, k.cx, k.cy, capture::DepthNoiseModel{}, depthSeed);
   rgbd.colourIntrinsics = rgbd.depthIntrinsics = k;
   return rgbd;
 }
@@ -298,12 +298,11 @@ bool describeReference(const SynthOptions& o, nlohmann::json& groundTruth) {
   }
   if (!o.scene.empty())
     // Paths in the manifest are relative to the session directory.
-    groundTruth["reference"] = {
-        {"scene", fs::relative(fs::absolute(o.scene), fs::absolute(o.out)).generic_string()},
-        {"composite", "reference/NNNNNN.png"},
-        {"delta", "reference/delta_NNNNNN.exr"},
-        {"mask", "reference/mask_NNNNNN.png"},
-        {"note", "the camera image of the room with the scene's objects, same noise"}};
+    groundTruth["reference"] = {{"scene", fs::relative(fs::absolute(o.scene), fs::absolute(o.out)).generic_string()},
+                                {"composite", "reference/NNNNNN.png"},
+                                {"delta", "reference/delta_NNNNNN.exr"},
+                                {"mask", "reference/mask_NNNNNN.png"},
+                                {"note", "the camera image of the room with the scene's objects, same noise"}};
   // A reference delta of its own two renders, more samples around the objects (path-traced frames only).
   const bool focusedReference = !o.scene.empty() && o.referenceFocusSpp > 0 && pathTrace;
   if (focusedReference) {
@@ -420,8 +419,12 @@ int writeSynthSession(const SynthOptions& o) {
       const RayCaster& withObjects = litAugmentedRc ? *litAugmentedRc : *augmentedCaster;
       groundtruth::PathTraceOptions rhoOptions = po;
       rhoOptions.progress = [&bar, i, total](double x) { bar((i + 0.5 + 0.5 * x) / total); };
-      const ReferenceRender ref{withObjects, room, litAugmented ? *litAugmented : augmented, rhoOptions,
-                                focusedReference ? o.referenceFocusSpp : 0, pathTrace};
+      const ReferenceRender ref{withObjects,
+                                room,
+                                litAugmented ? *litAugmented : augmented,
+                                rhoOptions,
+                                focusedReference ? o.referenceFocusSpp : 0,
+                                pathTrace};
       writeReference(ref, {m.colour, *frame.groundTruthT_world_camera}, r.radiance, exposure, noiseSeed,
                      fs::path(o.out) / "reference", i);
     }
