@@ -16,7 +16,8 @@ Action addReplay(CLI::App& app) {
   app.add_option("--frames", o->frames, "replay at most N frames (0 = all)")->check(numberIn(0, 1e9));
   app.add_option("--gl", o->gl, "GL backend: osmesa (headless, default), egl (headless GPU), window")
       ->check(CLI::IsMember({"osmesa", "egl", "window"}));
-  app.add_option("--scene", o->scene.scene, "scene file (JSON): virtual objects relative to the marker, lights, technique");
+  app.add_option("--scene", o->scene.scene,
+                 "scene file (JSON): virtual objects relative to the marker, lights, technique");
   app.add_option("--technique", o->scene.technique, "lighting technique, overrides the scene file's")
       ->check(techniqueValidator());
   app.add_option("--preset", o->scene.preset, "technique and knobs from a measured preset (overrides the scene file's)")

@@ -3,6 +3,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <algorithm>
 #include <assimp/Importer.hpp>
 #include <cmath>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include <sstream>
 
 #include "capture/checks.h"
+#include "capture/image_io.h"
 #include "capture/json_io.h"
 #include "capture/ply_check.h"
 #include "capture/types.h"
@@ -422,6 +424,40 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
 
 SceneDescription loadScene(const std::string& path) {
   return parseScene(capture::readFileBounded(path, capture::kMaxTextFileBytes, "scene file"), path);
+}
+
+json readSceneDocument(const std::string& path) {
+  const std::string text = capture::readFileBounded(path, capture::kMaxTextFileBytes, "scene file");
+  parseScene(text, path);  // validates with key-named errors
+  return capture::parseJson(text, path);
+}
+
+void rebaseModelPaths(json& doc, const std::string& from, const std::string& to) {
+  if (!doc.contains("objects")) return;
+  for (auto& obj : doc["objects"]) {
+    fs::path m = obj["model"].get<std::string>();
+    if (m.is_relative()) m = fs::absolute(fs::path(from).parent_path() / m);
+    obj["model"] = fs::proximate(m, fs::absolute(fs::path(to).parent_path())).generic_string();
+  }
+}
+
+void writeSceneDocument(const std::string& path, const json& doc) {
+  capture::writeFileAtomically(path, doc.dump(2) + "\n");
+}
+
+cv::Vec3d eulerDegrees(const cv::Matx33d& R) {
+  const double r2d = 180.0 / CV_PI;
+  const double sy = std::clamp(-R(2, 0), -1.0, 1.0);
+  const double b = std::asin(sy);
+  double a, c;
+  if (std::abs(sy) < 1 - 1e-9) {
+    a = std::atan2(R(2, 1), R(2, 2));
+    c = std::atan2(R(1, 0), R(0, 0));
+  } else {  // gimbal lock: x and z turn about the same axis
+    a = 0;
+    c = std::atan2(-R(0, 1), R(1, 1));
+  }
+  return {a * r2d, b * r2d, c * r2d};
 }
 
 }  // namespace mrgi::lighting

@@ -6,6 +6,7 @@
 /// metres). The lighting world of `mrgi replay` is the marker frame: the tag is fixed in the room, so the
 /// volume stays axis-aligned in a frame that does not move with the camera.
 #include <cmath>
+#include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <stdexcept>
@@ -112,5 +113,17 @@ struct SceneDescription {
 SceneDescription loadScene(const std::string& path);
 /// Same from a JSON text (path used in messages and to resolve models).
 SceneDescription parseScene(const std::string& text, const std::string& path);
+
+// Writing scene files (mrgi insert): the document is edited as JSON, checked by the parser, and written whole.
+
+/// A scene file's document, checked by parseScene (errors name the key). Throws SceneError.
+nlohmann::json readSceneDocument(const std::string& path);
+/// Rewrites the document's relative model paths, relative to the scene file `from`, relative to `to`'s folder.
+void rebaseModelPaths(nlohmann::json& doc, const std::string& from, const std::string& to);
+/// Writes the document atomically (indented; the folder must exist).
+void writeSceneDocument(const std::string& path, const nlohmann::json& doc);
+/// Euler angles in degrees of R = Rz Ry Rx, the inverse of an object's "rotate_deg" (x, then y, then z about the
+/// marker's axes); in gimbal lock (y = +-90 degrees) x is 0.
+cv::Vec3d eulerDegrees(const cv::Matx33d& R);
 
 }  // namespace mrgi::lighting
