@@ -6,14 +6,13 @@
 #include <string>
 #include <vector>
 
+#include "capture/error.h"
+
 namespace mrgi::app {
 
-/// A flag's value that only the command can judge (two flags together, a value against the input): main
-/// prints "mrgi: <flag>: <problem>" and exits 2, as for a value CLI11 refused.
-class FlagError : public std::runtime_error {
- public:
-  FlagError(const std::string& flag, const std::string& problem) : std::runtime_error(flag + ": " + problem) {}
-};
+/// A flag's value that only the command can judge (capture/error.h): main prints "mrgi: <flag>: <problem>" and
+/// exits 2, as for a value CLI11 refused.
+using FlagError = capture::FlagError;
 
 /// A number in [lo, hi] (finite; bounds printed as "%g"). Replaces CLI::Range, whose message prints
 /// DBL_MAX as 309 digits and which lets nan through.

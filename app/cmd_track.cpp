@@ -1,217 +1,15 @@
-// mrgi track: AprilTag marker pose per frame of a session (or one image), as JSON lines.
-#include <cstdio>
-#include <map>
-#include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <set>
-#include <sstream>
+// mrgi track: the flags of tracking a marker or the camera per frame (runtime/track.h).
+#include <memory>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "capture/error.h"
-#include "capture/frame_source.h"
-#include "capture/image_io.h"
-#include "capture/registration.h"
-#include "capture/session.h"
-#include "reconstruction/depth_filter.h"
-#include "reconstruction/marker.h"
-#include "runtime/output.h"
-#include "runtime/pose_source.h"
-
-using nlohmann::json;
+#include "runtime/track.h"
 
 namespace mrgi::app {
-namespace {
-
-struct TrackOptions {
-  std::string input;
-  bool json = false;
-  std::string family;
-  double size = 0;
-  int id = -1;
-  std::string intrinsics;
-  double hold = 0.5;
-  bool noSmooth = false;
-  double smoothCutoff = -1, smoothBeta = -1, smoothDerivative = -1;  ///< < 0: the tracker's defaults
-  bool refineDepth = false;
-  float decimate = 1.0f;
-  std::optional<runtime::PoseMode> pose;  ///< set: one camera pose per frame from that source instead of per tag
-};
-
-capture::Intrinsics parseIntrinsics(const std::string& text, const cv::Size& size) {
-  const std::vector<double> v = parseNumbers(text);  // four finite numbers, checked by the flag's validator
-  if (!(v[0] > 0) || !(v[1] > 0))
-    throw FlagError("--intrinsics", "the focal lengths fx, fy must be positive, not '" + text + "'");
-  return {size.width, size.height, v[0], v[1], v[2], v[3]};
-}
-
-json poseJson(const capture::Pose& T) {
-  json rows = json::array();
-  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
-  return rows;
-}
-
-/// --pose: the camera's pose per frame from a pose source, one line each, then a summary on stderr.
-int runCameraTrack(const TrackOptions& o) {
-  auto source = capture::open(o.input);
-  if (!source->info().hasRgbd) throw capture::CaptureError(o.input, "has no RGB-D frames to track");
-  runtime::MarkerSpec marker;
-  std::optional<capture::Pose> T_world_marker;
-  runtime::TrackingOptions tracking;
-  tracking.worldFromFirstFrame = true;  // no marker named: a first frame without a tag founds the world
-  if (const capture::SessionManifest* manifest = source->sessionManifest()) {
-    if (const auto& m = manifest->marker)
-      marker = {m->family, m->sizeMetres, m->id}, tracking.worldFromFirstFrame = false;
-    T_world_marker = manifest->truth.T_world_marker;
-  }
-  if (!o.family.empty()) marker.family = o.family;
-  if (o.size > 0) marker.size = o.size;
-  if (o.id >= 0) marker.id = o.id;
-  if (o.id >= 0) checkTagId(marker.family, o.id, "--id");
-  auto poses = runtime::makePoseSource(*o.pose, marker, T_world_marker, tracking);
-  gl::Profiler profiler;
-  std::map<std::string, int> counts;
-  int64_t frames = 0;
-  while (auto frame = source->next()) {
-    if (!frame->rgbd) continue;
-    capture::ensureRegistered(*frame->rgbd);
-    const runtime::CameraPose p = poses->locate(*frame, profiler);
-    ++frames;
-    ++counts[p.tracked() ? runtime::toString(p.by) : "lost"];
-    json line = {
-        {"frame", frame->index}, {"status", p.status()}, {"by", p.tracked() ? json(runtime::toString(p.by)) : json()}};
-    line["T_camera_world"] = p.tracked() ? poseJson(capture::inversePose(*p.T_world_camera)) : json();
-    if (p.fitness >= 0) line["fitness"] = p.fitness, line["inlier_rmse_m"] = p.inlierRmse;
-    if (p.correctionM > 0 || p.correctionDeg > 0)
-      line["correction_m"] = p.correctionM, line["correction_deg"] = p.correctionDeg;
-    if (o.json) {
-      std::printf("%s\n", jsonText(line, o.input).c_str());
-    } else if (p.tracked()) {
-      const cv::Vec3d c = capture::translationOf(*p.T_world_camera);
-      std::printf("frame %lld: tracked by %s, camera at (%.4f, %.4f, %.4f) m\n", static_cast<long long>(frame->index),
-                  runtime::toString(p.by), c[0], c[1], c[2]);
-    } else {
-      std::printf("frame %lld: lost\n", static_cast<long long>(frame->index));
-    }
-    std::fflush(stdout);
-  }
-  std::string summary;
-  for (const auto& [by, n] : counts) summary += (summary.empty() ? "" : ", ") + std::to_string(n) + " " + by;
-  std::fprintf(stderr, "%lld frames (--pose %s): %s\n", static_cast<long long>(frames), runtime::toString(*o.pose),
-               summary.c_str());
-  if (counts["lost"] == frames)
-    throw capture::CaptureError(o.input,
-                                std::string("no frame could be placed (--pose ") + runtime::toString(*o.pose) + ")");
-  return 0;
-}
-
-int runTrack(const TrackOptions& o) {
-  if (o.pose) return runCameraTrack(o);
-  // Inputs: one image (with --intrinsics) or any frame source.
-  std::unique_ptr<capture::FrameSource> source;
-  std::optional<capture::Frame> single;
-  std::string family = o.family.empty() ? "tag36h11" : o.family;
-  double size = o.size;
-  int wantedId = o.id;
-  if (capture::isImageFile(o.input)) {
-    if (o.intrinsics.empty()) throw capture::CaptureError(o.input, "a single image needs --intrinsics fx,fy,cx,cy");
-    const cv::Mat img = capture::readColour(o.input);
-    capture::RgbdFrame rgbd;
-    rgbd.colour = img;
-    rgbd.colourIntrinsics = parseIntrinsics(o.intrinsics, img.size());
-    single = capture::Frame{};
-    single->rgbd = rgbd;
-  } else {
-    source = capture::open(o.input);
-    if (!source->info().hasRgbd) throw capture::CaptureError(o.input, "has no colour frames to track a marker in");
-    if (const capture::SessionManifest* manifest = source->sessionManifest())
-      if (const auto& m = manifest->marker) {
-        if (o.family.empty()) family = m->family;
-        if (!(size > 0)) size = m->sizeMetres;
-        if (wantedId < 0 && m->id >= 0) wantedId = m->id;
-      }
-  }
-  if (!(size > 0)) size = 0.1;
-  if (o.id >= 0) checkTagId(family, o.id, "--id");
-  reconstruction::DetectorOptions dopt;
-  dopt.family = family;
-  dopt.decimate = o.decimate;
-  const reconstruction::TagDetector detector(dopt);
-  reconstruction::TrackerOptions topt;
-  topt.holdSeconds = o.hold;
-  topt.smooth = !o.noSmooth;
-  if (o.smoothCutoff >= 0) topt.minCutoff = o.smoothCutoff;
-  if (o.smoothBeta >= 0) topt.beta = o.smoothBeta;
-  if (o.smoothDerivative >= 0) topt.derivativeCutoff = o.smoothDerivative;
-  std::map<int, reconstruction::MarkerTrack> tracks;
-  if (wantedId >= 0) tracks.emplace(wantedId, reconstruction::MarkerTrack(topt));
-  bool everSeen = false;
-
-  auto process = [&](const capture::Frame& frame) {
-    const capture::RgbdFrame& f = *frame.rgbd;
-    const auto detections = detector.detect(f.colour);
-    std::map<int, std::pair<reconstruction::TagDetection, reconstruction::TagPose>> measured;
-    cv::Mat depth;
-    if (o.refineDepth && !f.depth.empty() && f.depthRegistered) depth = f.depth;
-    for (const auto& d : detections) {
-      if (wantedId >= 0 && d.id != wantedId) continue;
-      auto it = tracks.find(d.id);
-      const capture::Pose* previous = it != tracks.end() ? it->second.lastMeasured() : nullptr;
-      const auto pose = reconstruction::measureTagPose(d, size, f.colourIntrinsics, depth, previous);
-      if (!pose) continue;
-      measured.emplace(d.id, std::make_pair(d, *pose));
-      tracks.try_emplace(d.id, reconstruction::MarkerTrack(topt));
-    }
-    everSeen |= !measured.empty();
-    if (tracks.empty()) {  // nothing seen yet and no id asked for
-      const json line = {{"frame", frame.index}, {"status", "lost"}, {"id", nullptr}, {"T_camera_tag", nullptr}};
-      std::printf("%s\n", o.json ? jsonText(line, o.input).c_str()
-                                 : ("frame " + std::to_string(frame.index) + ": no tag").c_str());
-      return;
-    }
-    for (auto& [id, track] : tracks) {
-      const auto m = measured.find(id);
-      const auto status = track.update(
-          frame.timestamp, m != measured.end() ? std::optional(m->second.second.T_camera_tag) : std::nullopt);
-      json line = {{"frame", frame.index}, {"status", reconstruction::toString(status)}, {"id", id}};
-      line["T_camera_tag"] =
-          (status != reconstruction::TrackStatus::Lost && track.pose()) ? poseJson(*track.pose()) : json();
-      if (m != measured.end()) {
-        line["reprojection_rms_px"] = m->second.second.reprojectionRms;
-        line["ambiguous"] = m->second.second.ambiguous;
-        line["depth_refined"] = m->second.second.depthRefined;
-        line["decision_margin"] = m->second.first.decisionMargin;
-      }
-      if (o.json) {
-        std::printf("%s\n", jsonText(line, o.input).c_str());
-      } else if (track.pose() && status != reconstruction::TrackStatus::Lost) {
-        const auto& T = *track.pose();
-        std::printf("frame %lld: tag %d %s, t = (%.4f, %.4f, %.4f) m\n", static_cast<long long>(frame.index), id,
-                    reconstruction::toString(status), T(0, 3), T(1, 3), T(2, 3));
-      } else {
-        std::printf("frame %lld: tag %d lost\n", static_cast<long long>(frame.index), id);
-      }
-    }
-    std::fflush(stdout);
-  };
-
-  if (single) {
-    process(*single);
-  } else {
-    while (auto frame = source->next())
-      if (frame->rgbd) process(*frame);
-  }
-  if (!everSeen) {
-    const std::string what = family + (wantedId >= 0 ? " id " + std::to_string(wantedId) : std::string(" tag"));
-    throw capture::CaptureError(o.input, "marker never seen (" + what + " not detected in any frame)");
-  }
-  return 0;
-}
-
-}  // namespace
 
 Action addTrack(CLI::App& app) {
   auto o = std::make_shared<TrackOptions>();
+  auto intrinsics = std::make_shared<std::string>();
   app.add_option("input", o->input, "session directory, TUM sequence, .oni file, or one image (with --intrinsics)")
       ->required();
   app.add_flag("--json", o->json,
@@ -228,7 +26,7 @@ Action addTrack(CLI::App& app) {
       ->check(numberIn(1e-3, 10));
   app.add_option("--id", o->id, "track only this tag id (default: the session's marker, else every tag)")
       ->check(numberIn(0, 1e6));
-  app.add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy in pixels, for a single image input")
+  app.add_option("--intrinsics", *intrinsics, "fx,fy,cx,cy in pixels, for a single image input")
       ->check(numberList(4, -1e6, 1e6));
   app.add_option("--hold", o->hold, "seconds to hold the last pose after the tag disappears before 'lost'")
       ->check(numberIn(0, 3600));
@@ -241,9 +39,15 @@ Action addTrack(CLI::App& app) {
                "re-seat the pose on the depth plane under the tag (registered depth)");
   app.add_option("--decimate", o->decimate, "detect quads on an image decimated by this factor (faster)")
       ->check(numberIn(1.0, 8.0));
-  return [o, pose, poseOption] {
+  return [o, pose, poseOption, intrinsics] {
     if (poseOption->count() > 0) o->pose = *pose;
-    return runTrack(*o);
+    if (!intrinsics->empty()) {
+      const std::vector<double> v = parseNumbers(*intrinsics);  // four finite numbers, checked by the validator
+      if (!(v[0] > 0) || !(v[1] > 0))
+        throw FlagError("--intrinsics", "the focal lengths fx, fy must be positive, not '" + *intrinsics + "'");
+      o->intrinsics = cv::Vec4d(v[0], v[1], v[2], v[3]);
+    }
+    return track(*o);
   };
 }
 

@@ -13,4 +13,11 @@ class InputError : public std::runtime_error {
 /// The name the capture code uses.
 using CaptureError = InputError;
 
+/// A flag's (or an option's) value that only the work behind it can judge (two flags together, a value against
+/// the input): "<flag>: <problem>"; the command line exits 2 for it, as for a value its parser refused.
+class FlagError : public std::runtime_error {
+ public:
+  FlagError(const std::string& flag, const std::string& problem) : std::runtime_error(flag + ": " + problem) {}
+};
+
 }  // namespace mrgi::capture

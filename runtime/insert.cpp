@@ -39,8 +39,8 @@ json baseDocument(const InsertOptions& o, const capture::SessionManifest* manife
   else if (!o.room.empty())
     doc["lights"] = "room";
   else
-    throw capture::CaptureError(o.session,
-                                "has neither a fisheye camera nor ground-truth lights; pass --scene with lights or --room");
+    throw capture::CaptureError(
+        o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights or --room");
   return doc;
 }
 
@@ -136,7 +136,8 @@ std::optional<std::string> Insertion::snap(const SnapUp& upChoice) {
   for (const auto& p : planes) inMarker.push_back(reconstruction::transformPlane(p, T_marker_camera));
   const cv::Vec3d up = upChoice.kind == SnapUp::Kind::Camera
                            ? capture::rotationOf(T_marker_camera) * cv::Vec3d(0, -1, 0)
-                           : upChoice.kind == SnapUp::Kind::Marker ? cv::Vec3d(0, 0, 1) : upChoice.given;
+                       : upChoice.kind == SnapUp::Kind::Marker ? cv::Vec3d(0, 0, 1)
+                                                               : upChoice.given;
   const auto plane =
       reconstruction::supportPlane(inMarker, capture::translationOf(obj.T_marker_object), up, labels,
                                    capture::inversePose(T_marker_camera), frame_->rgbd->colourIntrinsics);

@@ -41,8 +41,7 @@ class Insertion {
   /// Reads the base scene and adds the object (bad input stops here, before anything is written), opens the GL
   /// context `contextFor(width, height)` describes for the recording's image size, and measures the frame.
   /// Throws when the frame has no camera pose.
-  Insertion(const InsertOptions& options,
-            const std::function<gl::ContextConfig(int width, int height)>& contextFor);
+  Insertion(const InsertOptions& options, const std::function<gl::ContextConfig(int width, int height)>& contextFor);
   /// Puts the object's origin on the surface seen at pixel (u, v). Throws when outside the image or without depth.
   void placeAtPixel(int u, int v);
   /// Rests the object (as placed so far in document()) on the plane below it, found in the frame's depth;
