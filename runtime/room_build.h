@@ -13,9 +13,9 @@ namespace mrgi::runtime {
 struct BuildRoomOptions {
   std::string source, out;  ///< the recording; the room folder written (room.ply, room_appearance.npy, room.json)
   PoseMode pose = PoseMode::Tracked;
-  int frames = 0;        ///< at most this many frames read (0 = all)
-  int every = 1;         ///< every Nth frame integrated
-  int trackEvery = 0;    ///< odometry against the room fused so far, its surface anew every N fused frames
+  int frames = 0;      ///< at most this many frames read (0 = all)
+  int every = 1;       ///< every Nth frame integrated
+  int trackEvery = 0;  ///< odometry against the room fused so far, its surface anew every N fused frames
   bool noOptimise = false;
   reconstruction::RoomOptions room;
   bool json = false;  ///< one JSON object on stdout instead of lines
@@ -24,7 +24,7 @@ struct BuildRoomOptions {
 int buildRoom(const BuildRoomOptions& o);
 
 struct RoomLightsOptions {
-  std::string room;  ///< room folder
+  std::string room;          ///< room folder
   cv::Vec3d at{0, 0, 0.06};  ///< where the virtual object will be, marker frame (metres)
   int count = 4;
   double gain = 0, whiteAlbedo = 0.8;
