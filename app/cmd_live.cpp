@@ -13,10 +13,10 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/live_source.h"
 #include "app/window_ui.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
+#include "capture/live_source.h"
 #include "capture/session.h"
 #include "compositor/compositor.h"
 #include "gl/context.h"
@@ -25,6 +25,7 @@
 #include "lighting/techniques/registry.h"
 #include "runtime/debug_view.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/live_session.h"
 #include "runtime/output.h"
 #include "runtime/presets.h"
 #include "runtime/room_fusion.h"
@@ -36,7 +37,7 @@ namespace mrgi::app {
 namespace {
 
 struct LiveOptions {
-  LiveSourceOptions in;
+  capture::LiveSourceOptions in;
   SceneChoice scene{"", "", MRGI_DEFAULT_PRESETS, ""};
   std::string gl = "window";
   int frames = 0;
@@ -48,13 +49,6 @@ struct LiveOptions {
   std::string view = "composite";
   RoomFlags rooms;  ///< --room, --fuse-room and their company
 };
-
-std::string defaultRecordDir() {
-  char buf[64];
-  const std::time_t t = std::time(nullptr);
-  std::strftime(buf, sizeof buf, "live-%Y%m%d-%H%M%S", std::localtime(&t));
-  return buf;
-}
 
 /// A knob's widget from its declaration (slider over its declared range, logarithmic where declared, or a
 /// checkbox); true once the user lets go of it after a change (the pipeline is rebuilt then, not on every
@@ -103,289 +97,190 @@ bool roleCombo(const char* label, std::string& name, bool real) {
   return true;
 }
 
+/// The panel's technique section: a combo per role, the preset and every knob of the techniques in use; true
+/// when the scene changed (the pipeline is rebuilt).
+bool techniquePanel(lighting::SceneDescription& scene, int& presetIndex, const SceneChoice& choice) {
+  const char* presetNames[] = {"scene file", "fast", "balanced", "accurate", "custom"};
+  lighting::TechniqueChoice& technique = scene.technique;
+  bool changed = false;
+  const bool realChanged = roleCombo("real pixels", technique.real, true);
+  const bool virtualChanged = roleCombo("virtual object", technique.virtualObject, false);
+  if (realChanged || virtualChanged) technique.name = lighting::canonicalName(technique), changed = true;
+  if (ImGui::Combo("preset", &presetIndex, presetNames, 5) && presetIndex < 4) {
+    if (presetIndex == 0)
+      scene = lighting::loadScene(choice.scene);
+    else
+      applyPreset(loadPreset(choice.presets, presetNames[presetIndex]), scene);
+    changed = true;
+  }
+  // Every knob of the shared resources and of the techniques in use, from their declarations.
+  bool edited = false;
+  std::vector<const lighting::KnobGroup*> groups{&lighting::frameKnobGroup()};
+  for (const auto& a : lighting::assignRoles(scene.technique)) groups.push_back(&a.info->knobs);
+  for (const lighting::KnobGroup* g : groups) {
+    ImGui::Separator();
+    ImGui::TextUnformatted(g->key.c_str());
+    ImGui::PushID(g->key.c_str());
+    for (const lighting::KnobInfo& k : g->knobs) edited |= knobWidget(k, scene.knobs[g->key][k.name]);
+    ImGui::PopID();
+  }
+  if (edited) presetIndex = 4, changed = true;
+  return changed;
+}
+
+/// The panel's stage times (ms, CPU and GPU) and the stages skipped on this frame.
+void stagesPanel(const std::map<std::string, gl::StageTime>& stages, const json& info) {
+  if (ImGui::BeginTable("stages", 3)) {
+    ImGui::TableSetupColumn("stage");
+    ImGui::TableSetupColumn("cpu");
+    ImGui::TableSetupColumn("gpu");
+    ImGui::TableHeadersRow();
+    for (const auto& [name, t] : stages) {
+      ImGui::TableNextRow();
+      ImGui::TableNextColumn();
+      ImGui::TextUnformatted(name.c_str());
+      ImGui::TableNextColumn();
+      ImGui::Text("%.1f", t.cpuMs);
+      ImGui::TableNextColumn();
+      ImGui::Text("%.1f", t.gpuMs);
+    }
+    ImGui::EndTable();
+  }
+  if (info.contains("skipped")) {
+    std::string s;
+    for (const auto& k : info["skipped"]) s += (s.empty() ? "" : ", ") + k.get<std::string>();
+    ImGui::TextWrapped("skipped (inputs unchanged): %s", s.c_str());
+  }
+}
+
+/// The panel's status: source, frame, rate, marker, how the frame was posed, lights.
+void statusPanel(LiveSession& live, const std::string& status, double fps, PoseMode mode) {
+  const FrameResult& result = live.result();
+  const FramePipeline& frames = live.frames();
+  ImGui::Text("%s", live.source().name().c_str());
+  ImGui::Text("frame %lld  %s", live.frame() ? static_cast<long long>(live.frame()->index) : -1LL, status.c_str());
+  ImGui::Text("%.1f fps, pipeline %.1f ms", fps, live.frameMs());
+  const std::string marker = result.info.value("marker", std::string(frames.setup() ? "-" : "no scene"));
+  ImGui::Text("marker: %s", marker.c_str());
+  if (!frames.setup()) return;
+  // How this frame was posed; a lost frame is drawn without the objects (ARKit's "not available").
+  if (result.pose.tracked())
+    ImGui::Text("pose: %s (%s)", toString(result.pose.by), toString(mode));
+  else
+    ImGui::TextColored(ImVec4(1.f, 0.35f, 0.3f, 1.f), "pose: LOST - objects hidden (%s)", toString(mode));
+  if (result.pose.fitness >= 0)
+    ImGui::Text("tracking: fitness %.2f, rmse %.1f mm", result.pose.fitness, 1e3 * result.pose.inlierRmse);
+  ImGui::Text("lights: %zu", live.lightCount());
+}
+
+/// The view: the compositor's texture (with the marker's axes) for the composite, else the debug view read back.
+void showView(WindowUi& ui, LiveSession& live, const DebugView& v, bool axes, bool fresh, cv::Mat& view) {
+  FrameResult& result = live.result();
+  const auto& frame = live.frame();
+  if (v == Views::kComposite && frame) {
+    std::vector<WindowUi::Line> lines;
+    if (axes && result.T_marker_camera) {
+      const LightingSetup* setup = live.frames().setup();
+      const auto p =
+          markerAxesPixels(frame->rgbd->colourIntrinsics, *result.T_marker_camera, setup ? setup->tagSize : 0.1);
+      const cv::Vec3b colours[3] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}};
+      for (int i = 0; i < 3; ++i) lines.push_back({{p[0].x, p[0].y, p[i + 1].x, p[i + 1].y}, colours[i]});
+    }
+    const gl::Texture& out = live.compositor().output();
+    ui.showTexture(out.id(), out.width(), out.height(), debugViewName(v), lines);
+    return;
+  }
+  if (frame && result.composite.empty()) result.composite = live.compositor().readOutput();  // left on the GPU
+  if (fresh || view.empty() || ImGui::IsAnyItemActive())
+    view = frame ? renderDebugView(v, live.frames(), result, frame->rgbd->colourIntrinsics, live.lastFisheye())
+                 : cv::Mat();
+  ui.showImage(view, std::string(debugViewName(v)) + (view.empty() ? " (nothing to show on this frame)" : ""));
+}
+
 int runLive(const LiveOptions& o) {
   checkReplaceable(o.screenshot, "--screenshot", "mrgi live");
-  LiveSource live(o.in);
-  const capture::SourceInfo& info = live.source().info();
-  const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
-
-  std::optional<LightingSetup> base;
-  lighting::SceneDescription scene;
-  if (!o.scene.scene.empty()) {
-    scene = loadChosenScene(o.scene);
-    if (scene.lightSource == lighting::LightSource::Fisheye && o.in.source.empty()) {
-      // Live: the lights come from the V4L2 fisheye camera, not from a session manifest.
-      if (o.in.fisheye.empty())
-        throw capture::CaptureError(o.scene.scene, "lights: \"fisheye\" needs --fisheye /dev/videoN live");
-      scene.lightSource = lighting::LightSource::Scene;
-      base = prepareLighting(scene, o.scene.scene, live.source(), live.name(), o.pose);
-      base->fisheye = live.fisheyeCalibration();
-      if (!base->fisheye) throw capture::CaptureError(o.in.fisheye, "delivered no fisheye frame");
-      base->scene.ambientFromManifest = false;
-    } else {
-      base = prepareLighting(scene, o.scene.scene, live.source(), live.name(), o.pose, o.rooms.any());
+  LiveSessionOptions so;
+  so.in = o.in, so.scene = o.scene, so.pose = o.pose, so.rooms = o.rooms, so.record = o.record;
+  so.recordNow = o.recordNow;
+  so.room = openRoom(o.rooms, !o.scene.scene.empty());
+  LiveSession live(so, [&](int width, int height) {
+    const cv::Size win = WindowUi::windowSize(width, height);
+    gl::ContextConfig cfg;
+    cfg.backend = gl::parseBackend(o.gl);
+    cfg.width = win.width;
+    cfg.height = win.height;
+    cfg.title = "mrgi live: " + (o.in.source.empty() ? o.in.device : o.in.source);
+    try {
+      return gl::createContext(cfg);
+    } catch (const gl::GlError& e) {
+      // The backend suggests a headless backend; the live demo has none (mrgi replay is its headless twin).
+      std::string why = e.what();
+      why = why.substr(0, why.find("; use --gl"));
+      throw gl::GlError(why + "; the live demo needs a display (mrgi replay runs headless)");
     }
-  }
-
-  const std::shared_ptr<const reconstruction::RoomMesh> room = openRoom(o.rooms, static_cast<bool>(base));
-
-  const cv::Size win = WindowUi::windowSize(width, height);
-  gl::ContextConfig cfg;
-  cfg.backend = gl::parseBackend(o.gl);
-  cfg.width = win.width;
-  cfg.height = win.height;
-  cfg.title = "mrgi live: " + live.name();
-  std::unique_ptr<gl::Context> context;
-  try {
-    context = gl::createContext(cfg);
-  } catch (const gl::GlError& e) {
-    // The backend suggests a headless backend; the live demo has none (mrgi replay is its headless twin).
-    std::string why = e.what();
-    why = why.substr(0, why.find("; use --gl"));
-    throw gl::GlError(why + "; the live demo needs a display (mrgi replay runs headless)");
-  }
-  WindowUi ui(*context);
-  compositor::Compositor compositor(width, height);
-
-  FrameOptions fo;
-  fo.pose = o.pose;
-  fo.foundWorldAnew = true;  // a scene placed in a recording's first-frame world is placed in this camera's first frame
-  fo.room = room;
-  fo.cacheDir = o.rooms.room;  // techniques keep what they precompute beside the saved room
-  fo.progress = precomputeProgress();
-  if (o.rooms.fuse) fo.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds of the pipeline
-  fo.fuseRefresh = o.rooms.fuseRefresh;
-  fo.trackFusedRoom = o.rooms.track;
-  fo.techniqueStats = false;  // the window shows none: nothing of them is read back
-  std::unique_ptr<FramePipeline> frames;
-  auto rebuild = [&] {
-    std::optional<LightingSetup> s = base;
-    if (s) s->scene = scene;
-    // Lights and ambient estimated from the last fisheye frame carry over (the next one may be many frames
-    // away).
-    if (s && frames && frames->setup()) {
-      s->lights = frames->setup()->lights;
-      s->ambient = frames->setup()->ambient;
-      s->ambientSh = frames->setup()->ambientSh;
-    }
-    frames = std::make_unique<FramePipeline>(std::move(s), width, height, fo);
-  };
-  rebuild();
-
-  std::vector<DebugView> views = debugViews(*frames);
+  });
+  WindowUi ui(live.context());
+  std::vector<DebugView> views = debugViews(live.frames());
   int viewIndex = 0;
   for (size_t i = 0; i < views.size(); ++i)
     if (o.view == debugViewName(views[i])) viewIndex = static_cast<int>(i);
-  bool axes = true, paused = false, step = false, needRebuild = false, ended = false;
+  bool axes = true, paused = false, step = false, needRebuild = false;
   int presetIndex = 0;  // 0 = the scene file's knobs
-  const char* presetNames[] = {"scene file", "fast", "balanced", "accurate", "custom"};
-  std::optional<capture::SessionWriter> recorder;
-  std::string recordDir = o.record.empty() ? defaultRecordDir() : o.record;
-  bool recording = o.recordNow;
-
-  std::optional<capture::Frame> frame;
-  FrameResult result;
-  cv::Mat lastFisheye, view;
-  std::map<std::string, gl::StageTime> stages;
-  double fps = 0, frameMs = 0, pipelineMs = 0;
-  std::chrono::steady_clock::time_point loopStart, loopEnd;  // the first frame's start, the last frame's end
-  int64_t processed = 0;
-  std::map<std::string, int64_t> posedBy;  // frames by how they were posed (marker, odometry, ..., lost)
+  cv::Mat view;
+  double fps = 0;
   std::string status = "starting";
   InterruptGuard guard;
-  const double period = info.fps > 0 ? 1.0 / info.fps : 0.0;
+  const double fpsSource = live.source().info().fps, period = fpsSource > 0 ? 1.0 / fpsSource : 0.0;
   auto last = std::chrono::steady_clock::now();
-  gl::Profiler profiler;
-  const auto gpuView = [&] { return views[viewIndex] == Views::kComposite; };
-
-  // While the composite view plays, frame n + 1 is read and prepared (marker, depth filter, albedo, real mesh
-  // and VALs: FramePipeline::prepare) on a worker while GL renders frame n. The other views read the
-  // pipeline between frames, a rebuild replaces it, fusion refreshes what rendering reads and a paused demo
-  // reads nothing: then the worker is joined first and frames are worked on in the loop.
-  std::future<runtime::FrameAhead> ahead;
-  std::optional<runtime::FrameAhead> pending;  // a frame the worker delivered that the loop has not taken yet
-  const auto overlap = [&] { return gpuView() && !o.rooms.fuse && !paused && !needRebuild; };
-  const auto join = [&] {
-    if (ahead.valid()) pending = ahead.get();
-  };
-  size_t lightCount = 0;      // of the frame shown (the worker may be changing the setup's)
-  int64_t preparedAhead = 0;  // frames the worker prepared
-
   while (!InterruptGuard::interrupted() && ui.beginFrame()) {
-    if (!overlap()) join();
+    const bool composite = views[viewIndex] == Views::kComposite;
+    if (!composite || paused || needRebuild) live.join();  // the pipeline is read or replaced between frames
     if (needRebuild) {
-      rebuild();
-      if (pending) pending->prepared.reset();  // prepared by the pipeline just replaced: worked on again
-      views = debugViews(*frames);
+      live.rebuild();
+      views = debugViews(live.frames());
       viewIndex = std::min(viewIndex, static_cast<int>(views.size()) - 1);
       needRebuild = false;
     }
     bool fresh = false;
     if (!paused || step) {
+      fresh = live.advance(views[viewIndex] == Views::kComposite, !paused);
+      if (fresh) status = "playing";
+      if (live.ended()) status = "end of " + live.source().name(), paused = true;
       step = false;
-      join();
-      runtime::FrameAhead next;
-      if (pending) {
-        next = std::move(*pending);
-        pending.reset();
-      } else {
-        next.frame = live.next();
-      }
-      if (next.frame && next.frame->rgbd) {
-        if (recording) {
-          const capture::Frame& arrived = next.arrived ? *next.arrived : *next.frame;  // before registration
-          if (!recorder) recorder.emplace(recordDir, manifestFor(live.source(), arrived));
-          recorder->append(arrived);
-        }
-        frame = std::move(next.frame);
-        // The composite view shows the compositor's texture as it is (the marker axes drawn over it): nothing
-        // is read back. Every other view reads what it shows.
-        compositor.setReadback(gpuView() ? compositor::Compositor::Readback::None
-                                         : compositor::Compositor::Readback::Now);
-        const auto t0 = std::chrono::steady_clock::now();
-        if (processed == 0) loopStart = t0;
-        if (next.stages) profiler.adopt(*next.stages);
-        if (next.prepared) ++preparedAhead;
-        std::optional<PreparedFrame> prepared = std::move(next.prepared);
-        if (!prepared && !o.rooms.fuse)
-          prepared = frames->prepare(*frame, profiler);  // before the worker prepares the next
-        if (overlap()) ahead = runtime::readAhead([&live] { return live.next(); }, frames.get());
-        if (prepared) {
-          lightCount = prepared->lights.size();
-          frames->render(*frame, *prepared, compositor, profiler);
-          result = std::move(prepared->result);
-        } else {
-          result = frames->process(*frame, compositor, profiler);
-          lightCount = frames->setup() ? frames->setup()->lights.size() : 0;
-        }
-        frameMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        pipelineMs += frameMs;
-        // Stage times a frame late, when their GPU timestamps have arrived (the loop never waits for them).
-        profiler.endFrame();
-        for (auto& t : profiler.collect(false)) stages = std::move(t.stages);
-        if (frame->fisheye) lastFisheye = frame->fisheye->image;
-        ++processed;
-        if (frames->setup()) ++posedBy[result.pose.tracked() ? toString(result.pose.by) : "lost"];
-        fresh = true;
-        status = "playing";
-      } else if (!next.frame) {
-        status = "end of " + live.name();
-        paused = ended = true;
-      }
     }
-    if (gpuView() && frame) {
-      std::vector<WindowUi::Line> lines;
-      if (axes && result.T_marker_camera) {
-        const auto p = markerAxesPixels(frame->rgbd->colourIntrinsics, *result.T_marker_camera,
-                                        frames->setup() ? frames->setup()->tagSize : 0.1);
-        const cv::Vec3b colours[3] = {{255, 0, 0}, {0, 255, 0}, {0, 0, 255}};
-        for (int i = 0; i < 3; ++i) lines.push_back({{p[0].x, p[0].y, p[i + 1].x, p[i + 1].y}, colours[i]});
-      }
-      ui.showTexture(compositor.output().id(), compositor.output().width(), compositor.output().height(),
-                     debugViewName(views[viewIndex]), lines);
-    } else {
-      if (frame && result.composite.empty()) result.composite = compositor.readOutput();  // left on the GPU before
-      if (fresh || view.empty() || ImGui::IsAnyItemActive())
-        view = frame ? renderDebugView(views[viewIndex], *frames, result, frame->rgbd->colourIntrinsics, lastFisheye)
-                     : cv::Mat();
-      ui.showImage(view, std::string(debugViewName(views[viewIndex])) +
-                             (view.empty() ? " (nothing to show on this frame)" : ""));
-    }
-
+    showView(ui, live, views[viewIndex], axes, fresh, view);
     ui.beginPanel("mrgi live");
-    ImGui::Text("%s", live.name().c_str());
-    ImGui::Text("frame %lld  %s", frame ? static_cast<long long>(frame->index) : -1LL, status.c_str());
     const auto now = std::chrono::steady_clock::now();
     const double dt = std::chrono::duration<double>(now - last).count();
     last = now;
     if (dt > 0) fps = fps > 0 ? 0.9 * fps + 0.1 / dt : 1.0 / dt;
-    ImGui::Text("%.1f fps, pipeline %.1f ms", fps, frameMs);
-    const std::string marker = result.info.value("marker", std::string(frames->setup() ? "-" : "no scene"));
-    ImGui::Text("marker: %s", marker.c_str());
-    if (frames->setup()) {
-      // How this frame was posed; a lost frame is drawn without the objects (ARKit's "not available").
-      if (result.pose.tracked())
-        ImGui::Text("pose: %s (%s)", toString(result.pose.by), toString(o.pose));
-      else
-        ImGui::TextColored(ImVec4(1.f, 0.35f, 0.3f, 1.f), "pose: LOST - objects hidden (%s)", toString(o.pose));
-      if (result.pose.fitness >= 0)
-        ImGui::Text("tracking: fitness %.2f, rmse %.1f mm", result.pose.fitness, 1e3 * result.pose.inlierRmse);
-    }
-    if (frames->setup()) ImGui::Text("lights: %zu", lightCount);
+    statusPanel(live, status, fps, o.pose);
     ImGui::Checkbox("pause", &paused);
     ImGui::SameLine();
     if (ImGui::Button("step")) step = true;
     ImGui::SameLine();
-    if (ImGui::Checkbox("record", &recording) && !recording && recorder) {
-      status = "recorded " + std::to_string(recorder->framesWritten()) + " frames into " + recordDir;
-      recorder.reset();
-      recordDir = o.record.empty() ? defaultRecordDir() : o.record + "-" + std::to_string(processed);
-    }
-    if (recording)
-      ImGui::Text("recording into %s (%lld frames)", recordDir.c_str(),
-                  static_cast<long long>(recorder ? recorder->framesWritten() : 0));
-
+    bool recording = live.recording();
+    if (ImGui::Checkbox("record", &recording))
+      if (std::string said = live.setRecording(recording); !said.empty()) status = said;
+    if (live.recording())
+      ImGui::Text("recording into %s (%lld frames)", live.recordDir().c_str(),
+                  static_cast<long long>(live.framesRecorded()));
     if (ImGui::CollapsingHeader("View", ImGuiTreeNodeFlags_DefaultOpen)) {
       for (size_t i = 0; i < views.size(); ++i)
         if (ImGui::RadioButton(debugViewName(views[i]), viewIndex == static_cast<int>(i)))
           viewIndex = static_cast<int>(i), view.release();
       ImGui::Checkbox("marker axes", &axes);
     }
-    if (frames->setup() && ImGui::CollapsingHeader("Technique and knobs", ImGuiTreeNodeFlags_DefaultOpen)) {
-      lighting::TechniqueChoice& choice = scene.technique;
-      const bool realChanged = roleCombo("real pixels", choice.real, true);
-      const bool virtualChanged = roleCombo("virtual object", choice.virtualObject, false);
-      if (realChanged || virtualChanged) choice.name = lighting::canonicalName(choice), needRebuild = true;
-      if (ImGui::Combo("preset", &presetIndex, presetNames, 5) && presetIndex < 4) {
-        if (presetIndex == 0)
-          scene = lighting::loadScene(o.scene.scene);
-        else
-          applyPreset(loadPreset(o.scene.presets, presetNames[presetIndex]), scene);
-        needRebuild = true;
-      }
-      // Every knob of the shared resources and of the techniques in use, from their declarations.
-      bool edited = false;
-      std::vector<const lighting::KnobGroup*> groups{&lighting::frameKnobGroup()};
-      for (const auto& a : lighting::assignRoles(choice)) groups.push_back(&a.info->knobs);
-      for (const lighting::KnobGroup* g : groups) {
-        ImGui::Separator();
-        ImGui::TextUnformatted(g->key.c_str());
-        ImGui::PushID(g->key.c_str());
-        for (const lighting::KnobInfo& k : g->knobs) edited |= knobWidget(k, scene.knobs[g->key][k.name]);
-        ImGui::PopID();
-      }
-      if (edited) presetIndex = 4, needRebuild = true;
-    }
-    if (ImGui::CollapsingHeader("Stages (ms)", ImGuiTreeNodeFlags_DefaultOpen)) {
-      if (ImGui::BeginTable("stages", 3)) {
-        ImGui::TableSetupColumn("stage");
-        ImGui::TableSetupColumn("cpu");
-        ImGui::TableSetupColumn("gpu");
-        ImGui::TableHeadersRow();
-        for (const auto& [name, t] : stages) {
-          ImGui::TableNextRow();
-          ImGui::TableNextColumn();
-          ImGui::TextUnformatted(name.c_str());
-          ImGui::TableNextColumn();
-          ImGui::Text("%.1f", t.cpuMs);
-          ImGui::TableNextColumn();
-          ImGui::Text("%.1f", t.gpuMs);
-        }
-        ImGui::EndTable();
-      }
-      if (result.info.contains("skipped")) {
-        std::string s;
-        for (const auto& k : result.info["skipped"]) s += (s.empty() ? "" : ", ") + k.get<std::string>();
-        ImGui::TextWrapped("skipped (inputs unchanged): %s", s.c_str());
-      }
-    }
+    if (live.frames().setup() && ImGui::CollapsingHeader("Technique and knobs", ImGuiTreeNodeFlags_DefaultOpen))
+      needRebuild |= techniquePanel(live.scene(), presetIndex, o.scene);
+    if (ImGui::CollapsingHeader("Stages (ms)", ImGuiTreeNodeFlags_DefaultOpen))
+      stagesPanel(live.stages(), live.result().info);
     ui.endPanel();
-
-    const bool done =
-        o.frames > 0 && (processed >= o.frames || ended);  // a scripted run never waits on a closed source
+    // A scripted run never waits on a closed source.
+    const bool done = o.frames > 0 && (live.processed() >= o.frames || live.ended());
     cv::Mat shot;
     ui.endFrame(done && !o.screenshot.empty() ? &shot : nullptr);
-    if (fresh) loopEnd = std::chrono::steady_clock::now();
+    if (fresh) live.shown();
     if (done) {
       if (!o.screenshot.empty()) {
         createParentDirectory(o.screenshot);
@@ -394,35 +289,13 @@ int runLive(const LiveOptions& o) {
       break;
     }
     // A recording plays no faster than it was recorded.
-    if (fresh && live.recording() && period > 0 && o.frames == 0) {
+    if (fresh && live.source().recording() && period > 0 && o.frames == 0) {
       const double spent = std::chrono::duration<double>(std::chrono::steady_clock::now() - now).count();
       if (spent < period) std::this_thread::sleep_for(std::chrono::duration<double>(period - spent));
     }
   }
-  json summary = {{"source", live.name()},
-                  {"frames", processed},
-                  {"pose", {{"mode", toString(o.pose)}, {"frames", posedBy}}},
-                  {"window", {context->width(), context->height()}},
-                  {"renderer", context->renderer()}};
-  // Throughput of the window loop (frame, UI and swap; no writes), from the first frame's start to the last's
-  // end, and the mean time of the frame pipeline alone within it.
-  if (processed > 0) {
-    const double wallMs = std::chrono::duration<double, std::milli>(loopEnd - loopStart).count();
-    summary["wall_ms_per_frame"] = wallMs / static_cast<double>(processed);
-    summary["fps"] = wallMs > 0 ? 1e3 * static_cast<double>(processed) / wallMs : 0.0;
-    summary["pipeline_ms_per_frame"] = pipelineMs / static_cast<double>(processed);
-    summary["prepared_ahead"] = preparedAhead;
-  }
-  if (!o.screenshot.empty() && o.frames > 0 && (processed >= o.frames || ended)) summary["screenshot"] = o.screenshot;
-  if (recorder) summary["recorded"] = {{"session", recordDir}, {"frames", recorder->framesWritten()}};
-  if (fo.fuse) {
-    summary["room"] = {{"integrated", fo.fuse->framesIntegrated()},
-                       {"refused", fo.fuse->framesRefused()},
-                       {"blocks", fo.fuse->blocks()}};
-    if (!o.rooms.save.empty() && fo.fuse->framesIntegrated() > 0 &&
-        !runtime::saveRoomModel(o.rooms.save, *fo.fuse, live.name()).positions.empty())
-      summary["room"]["saved"] = o.rooms.save;
-  }
+  const bool shot = !o.screenshot.empty() && o.frames > 0 && (live.processed() >= o.frames || live.ended());
+  const json summary = live.finish(shot ? o.screenshot : std::string());
   std::printf("%s\n", jsonText(summary, o.in.source.empty() ? o.in.device : o.in.source).c_str());
   return InterruptGuard::interrupted() ? 130 : 0;
 }

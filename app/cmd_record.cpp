@@ -8,8 +8,8 @@
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
-#include "app/live_source.h"
 #include "capture/error.h"
+#include "capture/live_source.h"
 #include "capture/session.h"
 #include "runtime/output.h"
 
@@ -19,14 +19,14 @@ namespace mrgi::app {
 namespace {
 
 struct RecordOptions {
-  LiveSourceOptions in;
+  capture::LiveSourceOptions in;
   std::string out;
   int64_t frames = 0;
   double rate = 0;  ///< --source: frames per second to read at (0 = as fast as possible)
 };
 
 int runRecord(const RecordOptions& o) {
-  LiveSource live(o.in);
+  capture::LiveSource live(o.in);
   InterruptGuard guard;
   ProgressBar bar("record");
   std::optional<capture::SessionWriter> writer;
@@ -53,7 +53,7 @@ int runRecord(const RecordOptions& o) {
     if (!frame) break;
     if (!frame->rgbd) continue;
     if (!writer) {
-      capture::SessionManifest m = manifestFor(live.source(), *frame);
+      capture::SessionManifest m = capture::manifestFor(live, *frame);
       if (!m.fisheye) m.fisheye = live.fisheyeCalibration();  // nullopt without a fisheye camera
       writer.emplace(o.out, m);                               // refuses a folder that holds anything
     }

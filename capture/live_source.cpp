@@ -1,12 +1,11 @@
-#include "app/live_source.h"
+#include "capture/live_source.h"
 
 #include <algorithm>
 
-#include "app/cli_checks.h"
 #include "capture/error.h"
 #include "capture/v4l2_source.h"
 
-namespace mrgi::app {
+namespace mrgi::capture {
 
 LiveSource::LiveSource(LiveSourceOptions o) : o_(std::move(o)) {
   if (!o_.source.empty() && !o_.fisheye.empty())
@@ -14,29 +13,29 @@ LiveSource::LiveSource(LiveSourceOptions o) : o_(std::move(o)) {
                     "a fisheye camera is read only beside a live depth sensor, not with --source (a recording's "
                     "fisheye frames come from the recording)");
   if (!o_.source.empty()) {
-    source_ = capture::open(o_.source);
+    source_ = open(o_.source);
     name_ = o_.source;
   } else {
     try {
-      source_ = capture::open(o_.device);
-    } catch (const capture::CaptureError& e) {
-      throw capture::CaptureError(o_.device, std::string("no depth sensor (") + e.what() +
-                                                 "); use --source SESSION or FILE.oni to play a recording instead");
+      source_ = open(o_.device);
+    } catch (const CaptureError& e) {
+      throw CaptureError(o_.device, std::string("no depth sensor (") + e.what() +
+                                        "); use --source SESSION or FILE.oni to play a recording instead");
     }
     name_ = o_.device;
     if (!o_.fisheye.empty()) {
-      capture::OpenOptions fo;
+      OpenOptions fo;
       fo.fisheyeCalibration = o_.fisheyeCalibration;
-      fisheye_ = capture::open("v4l2://" + o_.fisheye, fo);
+      fisheye_ = open("v4l2://" + o_.fisheye, fo);
     }
   }
-  if (!source_->info().hasRgbd) throw capture::CaptureError(name_, "has no RGB-D frames");
+  if (!source_->info().hasRgbd) throw CaptureError(name_, "has no RGB-D frames");
 }
 
-std::optional<capture::Frame> LiveSource::next() {
+std::optional<Frame> LiveSource::next() {
   auto f = source_->next();
   if (!f && recording() && o_.loop) {
-    source_ = capture::open(o_.source);  // from the start again
+    source_ = open(o_.source);  // from the start again
     ++loops_;
     f = source_->next();
   }
@@ -49,20 +48,20 @@ std::optional<capture::Frame> LiveSource::next() {
   return f;
 }
 
-std::optional<capture::FisheyeCalibration> LiveSource::fisheyeCalibration() {
+std::optional<FisheyeCalibration> LiveSource::fisheyeCalibration() {
   if (fisheye_ && !calibration_)
     if (auto f = fisheye_->next(); f && f->fisheye) calibration_ = f->fisheye->calibration;
   return calibration_;
 }
 
-capture::SessionManifest manifestFor(const capture::FrameSource& source, const capture::Frame& first) {
-  if (const capture::SessionManifest* s = source.sessionManifest()) {
-    capture::SessionManifest m = *s;
+SessionManifest manifestFor(const FrameSource& source, const Frame& first) {
+  if (const SessionManifest* s = source.sessionManifest()) {
+    SessionManifest m = *s;
     if (m.groundTruth.is_object()) m.groundTruth.erase("reference");  // its files are not copied
     m.truth.reference.reset();
     return m;
   }
-  capture::SessionManifest m;
+  SessionManifest m;
   m.colour = first.rgbd->colourIntrinsics;
   m.depth = first.rgbd->depthIntrinsics;
   m.depthRegistered = first.rgbd->depthRegistered;
@@ -71,4 +70,4 @@ capture::SessionManifest manifestFor(const capture::FrameSource& source, const c
   return m;
 }
 
-}  // namespace mrgi::app
+}  // namespace mrgi::capture

@@ -8,7 +8,7 @@
 #include "capture/frame_source.h"
 #include "capture/session.h"
 
-namespace mrgi::app {
+namespace mrgi::capture {
 
 struct LiveSourceOptions {
   std::string source;  ///< session, TUM or .oni; empty: the depth sensor
@@ -19,29 +19,32 @@ struct LiveSourceOptions {
   bool loop = false;               ///< play a recording again from the start at its end
 };
 
-class LiveSource {
+/// The depth sensor (with the fisheye camera's frames every N), or a recording played through the same interface.
+class LiveSource : public FrameSource {
  public:
-  /// Throws a one-line CaptureError when no sensor is there ("... use --source").
+  /// Throws a one-line CaptureError when no sensor is there ("... use --source"), FlagError("--fisheye") for a
+  /// fisheye camera beside a recording.
   explicit LiveSource(LiveSourceOptions o);
-  const capture::FrameSource& source() const { return *source_; }
+  const SourceInfo& info() const override { return source_->info(); }
+  const SessionManifest* sessionManifest() const override { return source_->sessionManifest(); }
   const std::string& name() const { return name_; }
   bool recording() const { return !o_.source.empty(); }
   /// The next frame (with a fisheye frame every N); nullopt at the end of a recording that does not loop.
-  std::optional<capture::Frame> next();
+  std::optional<Frame> next() override;
   /// The fisheye camera's calibration (sensor with --fisheye), else nullopt: that of the fisheye frames
   /// next() handed out, or of one frame grabbed for it before any.
-  std::optional<capture::FisheyeCalibration> fisheyeCalibration();
+  std::optional<FisheyeCalibration> fisheyeCalibration();
 
  private:
   LiveSourceOptions o_;
-  std::unique_ptr<capture::FrameSource> source_, fisheye_;
+  std::unique_ptr<FrameSource> source_, fisheye_;
   std::string name_;
   int64_t loops_ = 0, count_ = 0;
-  std::optional<capture::FisheyeCalibration> calibration_;
+  std::optional<FisheyeCalibration> calibration_;
 };
 
 /// The manifest a recording of this source starts with: a session's own (its ground-truth reference files
 /// stay behind), else the first frame's intrinsics and its fisheye calibration.
-capture::SessionManifest manifestFor(const capture::FrameSource& source, const capture::Frame& first);
+SessionManifest manifestFor(const FrameSource& source, const Frame& first);
 
-}  // namespace mrgi::app
+}  // namespace mrgi::capture
