@@ -3,7 +3,7 @@
 // real pixel:    background + exposure * delta          (delta already holds E_delta * albedo / pi)
 // virtual pixel: exposure * the virtual object's shaded radiance
 // The camera's linear values are scene radiance x its exposure; the lighting works in scene radiance.
-#include "lighting/colour.glsl"
+#include "compositor/colour.glsl"
 
 layout(binding = 0) uniform sampler2D uBackground;  // RGBA8, sRGB-encoded camera image, row 0 = top
 layout(binding = 1) uniform sampler2D uDelta;       // RGBA32F linear: rgb = delta radiance, a = 1 on virtual pixels

@@ -30,6 +30,7 @@
 #include "groundtruth/raycaster.h"
 #include "lighting/debug_views.h"
 #include "lighting/pipeline.h"
+#include "lighting/techniques/kinect_val/real_vals.h"  // --against bruteforce: real VALs subsampled by count
 #include "lighting/techniques/registry.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
@@ -58,6 +59,10 @@ int runBruteForce(const BenchOptions& o) {
         "--technique " + o.technique +
         ": --against bruteforce needs a virtual-object technique with brute_force and sparse_points knobs");
   const std::string group = info->knobs.key;
+  if (const lighting::KnobInfo* k = info->knobs.find("k_cache"); k && (o.kCache < k->lo || o.kCache > k->hi))
+    throw capture::FlagError("--k-cache", "must be in [" + capture::formatNumber(k->lo) + ", " +
+                                              capture::formatNumber(k->hi) + "] (" + group + ".k_cache), not " +
+                                              std::to_string(o.kCache));
   if (o.sessions.empty()) throw std::invalid_argument("--session: none given");
   const std::string& session = o.sessions.front();
   auto source = capture::open(session);
@@ -132,8 +137,10 @@ int runBruteForce(const BenchOptions& o) {
       vals.push_back(v);
     }
     // Brute force: the reference image of the object's bounce light and the cost of its gather.
+    auto input = std::make_shared<lighting::RealVals>();
+    input->vals = vals;
     auto brute = makePipeline(64, false, true);
-    brute->setRealVals(vals);
+    brute->setTechniqueInput(info->name, input);
     const auto bruteStages = bestStages(*brute, view, std::max(1, std::min(o.repeats, 2)));
     const cv::Mat reference = brute->downloadShade();
     const size_t pixels = brute->stats().value(info->name, nlohmann::json::object()).value("receivers", size_t(0));
@@ -152,7 +159,7 @@ int runBruteForce(const BenchOptions& o) {
         auto pipe = makePipeline(sparseCount, occlusion, false);
         const double msPrecompute =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        pipe->setRealVals(vals);
+        pipe->setTechniqueInput(info->name, input);
         const auto stages = bestStages(*pipe, view, o.repeats);
         const cv::Mat shade = pipe->downloadShade();
         double err = 0;

@@ -13,7 +13,9 @@
 #include "capture/error.h"
 #include "capture/image_io.h"
 #include "evaluation/bench.h"
+#include "lighting/frame/frame.h"
 #include "lighting/techniques/registry.h"
+#include "lighting/techniques/technique.h"
 
 using nlohmann::json;
 

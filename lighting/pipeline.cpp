@@ -75,10 +75,9 @@ bool changed(const std::optional<FrameVersions>& at, const FrameVersions& now, u
   return ((inputs & kInputCamera) && at->camera != now.camera) ||
          ((inputs & kInputGeometry) && at->geometry != now.geometry) ||
          ((inputs & kInputLights) && at->lights != now.lights) ||
-         ((inputs & kInputAmbient) && at->ambient != now.ambient) ||
-         ((inputs & kInputRealVals) && at->realVals != now.realVals);
+         ((inputs & kInputAmbient) && at->ambient != now.ambient) || ((inputs & kInputOwn) && at->own != now.own);
 }
-constexpr unsigned kAllInputs = kInputCamera | kInputGeometry | kInputLights | kInputAmbient | kInputRealVals;
+constexpr unsigned kAllInputs = kInputCamera | kInputGeometry | kInputLights | kInputAmbient | kInputOwn;
 }  // namespace
 
 LightingPipeline::LightingPipeline(const PipelineConfig& config, const std::vector<VirtualObject>& objects)
@@ -109,13 +108,11 @@ LightingPipeline::LightingPipeline(const PipelineConfig& config, const std::vect
 
 bool LightingPipeline::idle(const Technique& t) const { return environment_ && &t == virtual_ && &t != real_; }
 
-TechniqueNeeds LightingPipeline::needs() const {
-  TechniqueNeeds out;
-  for (const auto& t : techniques_) {
-    if (idle(*t)) continue;
-    const TechniqueNeeds n = t->needs();
-    if (n.realVals) out = n;
-  }
+std::vector<std::pair<std::string, std::unique_ptr<TechniqueInputBuilder>>> LightingPipeline::inputBuilders() const {
+  std::vector<std::pair<std::string, std::unique_ptr<TechniqueInputBuilder>>> out;
+  for (const auto& t : techniques_)
+    if (!idle(*t))
+      if (auto b = t->inputBuilder()) out.emplace_back(t->name(), std::move(b));
   return out;
 }
 

@@ -83,7 +83,7 @@ class LightingPipeline {
   /// Whether the ambient (uniform and SH) is an environment seen at the virtual objects — the room's fused
   /// radiance or a fisheye image — which already holds the light real surfaces bounce onto them. Then the
   /// shading pass does not add the virtual-role technique's bounce again, and a technique that serves only
-  /// the virtual role is not run (nor asks for real VALs). Off by default (listed lights and ambient).
+  /// the virtual role is not run (nor builds its own inputs). Off by default (listed lights and ambient).
   void setEnvironment(bool holdsRealBounce) {
     if (holdsRealBounce == environment_) return;
     environment_ = holdsRealBounce;
@@ -103,10 +103,13 @@ class LightingPipeline {
     hiddenAmbient_ = hidden;
     shadeAt_.reset();
   }
-  /// The real-surface area lights (lighting world) of the next runs, for techniques that need them.
-  void setRealVals(std::vector<Val> vals) { frame_->setRealVals(std::move(vals)); }
-  /// What the techniques need from the application (real VALs and how to build them).
-  TechniqueNeeds needs() const;
+  /// The builders of the techniques' own inputs from a frame or a room (lighting/frame/technique_input.h): the
+  /// technique's name and its builder, for each technique in use that has one.
+  std::vector<std::pair<std::string, std::unique_ptr<TechniqueInputBuilder>>> inputBuilders() const;
+  /// A technique's own input (built by its builder) for the next runs.
+  void setTechniqueInput(const std::string& technique, std::shared_ptr<const TechniqueInput> input) {
+    frame_->setTechniqueInput(technique, std::move(input));
+  }
 
   /// Renders what changed and shades every pixel. Stages timed on profiler ("gbuffer", "rsm", the
   /// techniques' own stages, "shade"). lights: at most kMaxLights.

@@ -119,8 +119,7 @@ FramePipeline::FramePipeline(std::optional<LightingSetup> setup, int width, int 
     // A setup that already carries a directional ambient (lights estimated before, e.g. a live window's
     // pipeline rebuilt for new knobs) shades with it from the first frame.
     pipeline_->setAmbientSh(setup_->ambientSh);
-    needs_ = pipeline_->needs();
-    if (needs_.realVals && needs_.realValOptions.fusion) surfels_.emplace(needs_.realValOptions.surfels);
+    inputBuilders_ = pipeline_->inputBuilders();
   }
   if (setup_->fisheye) fisheyeRays_ = reconstruction::fisheyeRays(*setup_->fisheye);
   if (setup_->scene.lightSource == lighting::LightSource::Room && !options_.fuse) {
@@ -304,22 +303,17 @@ void FramePipeline::buildSurface(const capture::Frame& frame, PreparedFrame& p, 
   if (!setup_ || !pipeline_ || !r.T_marker_camera || options_.room || r.reusedSurface || p.surface) return;
   p.surface = realSurface(frame, r, profiler);
   if (options_.reuse) surfaceCache_ = SurfaceCache{*r.T_marker_camera, thumbnail_.clone(), r.positions, r.normals};
-  if (!needs_.realVals) return;
-  // Real surfaces as area lights: the seen radiance of every stride-th filtered pixel, fused over frames
-  // when the technique asks for it (surfels out of view keep their light).
-  auto s = profiler.cpu("real_vals");
+  if (inputBuilders_.empty()) return;
+  // The techniques' own inputs from this frame (e.g. real surfaces as light sources).
+  auto s = profiler.cpu("technique_inputs");
   const capture::RgbdFrame& rgbd = *frame.rgbd;
-  auto vals = lighting::valsFromRgbd(r.positions, r.normals, capture::radianceOf(rgbd.colour, rgbd.exposure),
-                                     rgbd.colourIntrinsics, *r.T_marker_camera, needs_.realValOptions.stride);
-  if (surfels_) {
-    cv::Mat depth;
-    cv::extractChannel(r.positions, depth, 2);
-    surfels_->integrate(vals, depth, rgbd.colourIntrinsics, *r.T_marker_camera);
-    vals = surfels_->vals();
+  const lighting::InputFrame in{r.positions, r.normals, capture::radianceOf(rgbd.colour, rgbd.exposure),
+                                rgbd.colourIntrinsics, *r.T_marker_camera};
+  for (auto& [name, builder] : inputBuilders_) {
+    auto input = builder->fromFrame(in);
+    p.result.info.update(input->facts());
+    p.inputs.emplace_back(name, std::move(input));
   }
-  p.result.info["real_vals"] = vals.size();
-  if (surfels_) p.result.info["surfels"] = surfels_->size();
-  p.realVals = std::move(vals);
 }
 
 void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler) {
@@ -341,10 +335,10 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl
   auto s = profiler.cpu("room_mesh");
   auto mesh = std::make_shared<const reconstruction::RoomMesh>(options_.fuse->mesh());
   if (mesh->positions.empty()) return;
-  // Everything derived from the room follows its new surface: its albedo and real VALs (useRoom), the
+  // Everything derived from the room follows its new surface: its albedo and the techniques' inputs (useRoom), the
   // nearest-vertex index of the view mesh, the rays of the debug views, and lights from the room.
   options_.room = std::move(mesh);
-  roomLights_.reset();  // useRoom() re-estimates the albedo and re-sets the VALs
+  roomLights_.reset();  // useRoom() re-estimates the albedo and builds the techniques' inputs again
   roomIndex_.reset();
   roomRays_.reset();
   framesSinceRefresh_ = 0;
@@ -514,7 +508,7 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
     pipeline_->setHiddenAmbient(hidden);
   }
   roomIndices_ = room.indices;
-  roomValsSet_ = false;
+  roomInputsSet_ = false;
   // The lighting world (marker frame), as the room.
   if (!roomAlbedoCache_)
     roomAlbedoCache_ = std::make_shared<reconstruction::RoomAlbedoCache>(
@@ -638,32 +632,34 @@ void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compos
     r.composite = compositor.composite(rgbd.colour, cv::Mat(), cv::Mat(), &profiler);
     return;
   }
-  const bool val = needs_.realVals;
+  const bool own = !inputBuilders_.empty();
   if (options_.room) {
     useRoom(p, r.info, profiler);
     if (!r.reusedSurface) roomViewMesh(rgbd, r, profiler);
   } else if (r.reusedSurface) {
     for (const char* stage : {"albedo", "mesh"}) r.info["skipped"].push_back(stage);
-    if (val) r.info["skipped"].push_back("real_vals");
+    if (own) r.info["skipped"].push_back("technique_inputs");
   } else {
     buildSurface(frame, p, profiler);  // prepared already, unless measured only
     pipeline_->setRealMesh(std::move(p.surface->vertices), std::move(p.surface->indices));
     pipeline_->setRealPixelAlbedo(p.surface->pixelAlbedo);
     p.surface.reset();
-    if (p.realVals) pipeline_->setRealVals(std::move(*p.realVals));
-    p.realVals.reset();
+    for (auto& [name, input] : p.inputs) pipeline_->setTechniqueInput(name, std::move(input));
+    p.inputs.clear();
   }
-  if (val && options_.room) {
-    // Real surfaces as area lights from the room: every surface it holds, in view or not, once per room
-    // (again when the lights, and so the triangles cleared around them, change).
-    if (!roomValsSet_) {
-      auto s = profiler.cpu("real_vals");
-      auto vals = lighting::valsFromRoom(*options_.room, 0.04f, 16384, &roomIndices_);
-      r.info["real_vals"] = vals.size();
-      pipeline_->setRealVals(std::move(vals));
-      roomValsSet_ = true;
+  if (own && options_.room) {
+    // The techniques' own inputs from the room: every surface it holds, in view or not, once per room (again
+    // when the lights, and so the triangles cleared around them, change).
+    if (!roomInputsSet_) {
+      auto s = profiler.cpu("technique_inputs");
+      for (auto& [name, builder] : inputBuilders_) {
+        auto input = builder->fromRoom(*options_.room, roomIndices_);
+        r.info.update(input->facts());
+        pipeline_->setTechniqueInput(name, std::move(input));
+      }
+      roomInputsSet_ = true;
     } else {
-      r.info["skipped"].push_back("real_vals");
+      r.info["skipped"].push_back("technique_inputs");
     }
   }
   lighting::CameraView view;

@@ -16,7 +16,6 @@
 #include "capture/ground_truth.h"
 #include "compositor/compositor.h"
 #include "gl/profiler.h"
-#include "lighting/frame/real_scene.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
 #include "reconstruction/light_estimation.h"
@@ -73,8 +72,8 @@ struct FrameOptions {
   bool gpu = true;  ///< false: measure() and realSurface() only, no lighting pipeline (no GL context needed)
   /// Skip work whose inputs did not change: while the camera stays put (pose within 1 mm and 0.1 degree of
   /// the frame the real surface was built from) and the colour image has not changed (mean change of a
-  /// 32x24 thumbnail below 1 %), the real surface (filtered depth, normals, albedo, mesh, real VALs) is
-  /// kept and the camera pose snaps to that frame's; the lighting pipeline skips its own unchanged stages.
+  /// 32x24 thumbnail below 1 %), the real surface (filtered depth, normals, albedo, mesh, the techniques' own inputs)
+  /// is kept and the camera pose snaps to that frame's; the lighting pipeline skips its own unchanged stages.
   bool reuse = true;
   /// The fused model of the room (mrgi room, in the marker frame): when set, it is the real scene of the
   /// lighting (G-buffer, RSMs, shadows) instead of each frame's depth mesh, with its albedo estimated once
@@ -83,7 +82,7 @@ struct FrameOptions {
   /// Build the room as the frames arrive (live, replay --fuse-room): every frame with a pose is fused into
   /// this model (shared: a pipeline rebuilt with new knobs keeps fusing into it), and its surface becomes
   /// `room` on the pipeline's first such frame and then every `fuseRefresh` frames (the albedo, the lights
-  /// from the room and the room's VALs follow). Null: none.
+  /// from the room and the techniques' inputs from it follow). Null: none.
   std::shared_ptr<reconstruction::RoomModel> fuse;
   int fuseRefresh = 30;
   /// With `fuse` and odometry or tracked poses: each refreshed surface becomes what the next frames are
@@ -125,13 +124,14 @@ struct RealSurface {
 };
 
 /// The CPU half of a frame (FramePipeline::prepare): its measurement and, lit from its own depth, its real
-/// surface and real VALs, with the lights and ambient it is to be lit under. It touches no GL, so the next
-/// frame's may be made on another thread while the GL half of this one runs.
+/// surface and the techniques' own inputs, with the lights and ambient it is to be lit under. It touches no GL, so the
+/// next frame's may be made on another thread while the GL half of this one runs.
 struct PreparedFrame {
   FrameResult result;
-  std::optional<RealSurface> surface;                  ///< the real scene from this frame's depth, when built
-  std::optional<std::vector<lighting::Val>> realVals;  ///< its real VALs, when the techniques need them
-  std::vector<lighting::SceneLight> lights;            ///< marker frame, as they were for this frame
+  std::optional<RealSurface> surface;  ///< the real scene from this frame's depth, when built
+  /// The techniques' own inputs from this frame (technique name, input), when built.
+  std::vector<std::pair<std::string, std::shared_ptr<const lighting::TechniqueInput>>> inputs;
+  std::vector<lighting::SceneLight> lights;  ///< marker frame, as they were for this frame
   cv::Vec3d ambient{0, 0, 0};
   std::array<cv::Vec3d, 9> ambientSh{};
 };
@@ -142,10 +142,10 @@ class FramePipeline {
   FramePipeline(std::optional<LightingSetup> setup, int width, int height, const FrameOptions& options);
   /// Processes one frame (registers its depth if needed) inside the current GL context: prepare, then render.
   FrameResult process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler);
-  /// The CPU half of process(): measure(), then the real surface and real VALs from the frame's depth. It
-  /// touches neither GL nor anything render() reads, so a frame loop may prepare frame n + 1 on another
-  /// thread while render() works on frame n (frames prepared in order; `profiler` then one of that thread's
-  /// own, CPU stages only). With FrameOptions::fuse it only measures: fusion refreshes what render() reads.
+  /// The CPU half of process(): measure(), then the real surface and the techniques' own inputs from the frame's depth.
+  /// It touches neither GL nor anything render() reads, so a frame loop may prepare frame n + 1 on another thread while
+  /// render() works on frame n (frames prepared in order; `profiler` then one of that thread's own, CPU stages only).
+  /// With FrameOptions::fuse it only measures: fusion refreshes what render() reads.
   PreparedFrame prepare(capture::Frame& frame, gl::Profiler& profiler);
   /// The GL half of process(): a prepared frame lit and composited (background only without a marker pose).
   void render(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor,
@@ -190,8 +190,8 @@ class FramePipeline {
   std::optional<reconstruction::FisheyeRays> fisheyeRays_;
   std::optional<reconstruction::FisheyeRays> worldFisheyeRays_;  ///< the same rays in the lighting world
   std::unique_ptr<PoseSource> poses_;
-  lighting::TechniqueNeeds needs_;              ///< what the scene's techniques need (real VALs)
-  std::optional<lighting::SurfelMap> surfels_;  ///< fusion of real VALs over frames, when asked for
+  /// The builders of the techniques' own inputs (technique name, builder; they may fuse over frames).
+  std::vector<std::pair<std::string, std::unique_ptr<lighting::TechniqueInputBuilder>>> inputBuilders_;
   /// The frame the lighting pipeline's real surface was built from (FrameOptions::reuse).
   struct SurfaceCache {
     capture::Pose T_marker_camera;
@@ -205,7 +205,7 @@ class FramePipeline {
   /// The room albedo's shadow rays kept between refreshes of a fused room: a refresh casts what changed.
   std::shared_ptr<reconstruction::RoomAlbedoCache> roomAlbedoCache_;
   std::vector<uint32_t> roomIndices_;  ///< the room's triangles the lighting sees (none around point lights)
-  bool roomValsSet_ = false;           ///< the lighting has the room's real VALs for roomIndices_
+  bool roomInputsSet_ = false;         ///< the techniques' own inputs are built from the room for roomIndices_
   struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)
   std::shared_ptr<RoomIndex> roomIndex_;
   std::shared_ptr<reconstruction::MeshRays> roomRays_;
@@ -216,8 +216,8 @@ class FramePipeline {
   /// FrameOptions::fuse: the measured frame into the live room, and the room's surface refreshed when due.
   void fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
   void useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Profiler& profiler);
-  /// The real surface (and real VALs) of a frame lit from its own depth, unless it has one, its last one
-  /// holds, or a room lights it; keeps the reuse cache.
+  /// The real surface (and the techniques' own inputs) of a frame lit from its own depth, unless it has one, its last
+  /// one holds, or a room lights it; keeps the reuse cache.
   void buildSurface(const capture::Frame& frame, PreparedFrame& p, gl::Profiler& profiler);
   /// "lights": "room": the lights and ambient from the room model, once (the room is static).
   void estimateRoomLights();

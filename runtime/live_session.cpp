@@ -84,8 +84,8 @@ void LiveSession::rebuild() {
 
 bool LiveSession::advance(bool composite, bool ahead) {
   // While the composite view plays, frame n + 1 is read and prepared (marker, depth filter, albedo, real mesh
-  // and VALs: FramePipeline::prepare) on a worker while GL renders frame n. The other views read the pipeline
-  // between frames and fusion refreshes what rendering reads: there frames are worked on in the loop.
+  // and the techniques' own inputs: FramePipeline::prepare) on a worker while GL renders frame n. The other views read
+  // the pipeline between frames and fusion refreshes what rendering reads: there frames are worked on in the loop.
   ahead = ahead && composite && !o_.rooms.fuse;
   join();
   FrameAhead next;
@@ -108,8 +108,7 @@ bool LiveSession::advance(bool composite, bool ahead) {
   frame_ = std::move(next.frame);
   // The composite view shows the compositor's texture as it is: nothing is read back. Every other view reads
   // what it shows.
-  compositor_->setReadback(composite ? compositor::Compositor::Readback::None
-                                     : compositor::Compositor::Readback::Now);
+  compositor_->setReadback(composite ? compositor::Compositor::Readback::None : compositor::Compositor::Readback::Now);
   const auto t0 = std::chrono::steady_clock::now();
   if (processed_ == 0) loopStart_ = t0;
   if (next.stages) profiler_.adopt(*next.stages);
@@ -142,8 +141,7 @@ std::string LiveSession::setRecording(bool on) {
     return {};
   }
   recording_ = false;
-  const std::string said =
-      "recorded " + std::to_string(recorder_->framesWritten()) + " frames into " + recordDir_;
+  const std::string said = "recorded " + std::to_string(recorder_->framesWritten()) + " frames into " + recordDir_;
   recorder_.reset();
   recordDir_ = o_.record.empty() ? defaultRecordDir() : o_.record + "-" + std::to_string(processed_);
   return said;

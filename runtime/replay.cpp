@@ -127,9 +127,9 @@ int replay(const ReplayOptions& o) {
   int64_t done = 0, posed = 0;
   std::map<std::string, int64_t> posedBy;  ///< frames by how they were posed (marker, odometry, ..., lost)
   const auto start = std::chrono::steady_clock::now();
-  // Frame n + 1 is read, decoded and prepared (marker, depth filter, normals, albedo, real mesh and VALs: the
-  // CPU half of the frame pipeline) on a worker thread while GL works on frame n; only a frame the loop will
-  // take (a damaged frame past --frames is never touched). Its error surfaces when the loop takes it.
+  // Frame n + 1 is read, decoded and prepared (marker, depth filter, normals, albedo, real mesh and the techniques' own
+  // inputs: the CPU half of the frame pipeline) on a worker thread while GL works on frame n; only a frame the loop
+  // will take (a damaged frame past --frames is never touched). Its error surfaces when the loop takes it.
   // --debug's views and --fuse-room's refreshes read the pipeline's state between frames: there, and with
   // --sequential, the worker only reads and the frame is worked on in the loop, one stage after another.
   const bool overlap = !o.sequential && !o.debug && !o.rooms.fuse;

@@ -419,14 +419,19 @@ void FrameResources::setRealPixelAlbedo(const cv::Mat& albedo) {
 
 void FrameResources::setObjectTransform(size_t i, const cv::Matx44d& T) { objects_.at(i).T_world_object = T; }
 
-void FrameResources::setRealVals(std::vector<Val> vals) {
-  realVals_ = std::move(vals);
-  realValsDirty_ = true;
+void FrameResources::setTechniqueInput(const std::string& technique, std::shared_ptr<const TechniqueInput> input) {
+  techniqueInputs_[technique] = std::move(input);
+  ownDirty_ = true;
+}
+
+const TechniqueInput* FrameResources::techniqueInput(const std::string& technique) const {
+  const auto it = techniqueInputs_.find(technique);
+  return it == techniqueInputs_.end() ? nullptr : it->second.get();
 }
 
 void FrameResources::invalidate() {
   seen_.reset();
-  geometryDirty_ = realValsDirty_ = true;
+  geometryDirty_ = ownDirty_ = true;
 }
 
 void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& lights,
@@ -488,8 +493,8 @@ const FrameVersions& FrameResources::update(const CameraView& camera, const std:
   if (fresh || geometryDirty_ || in.objects != seen_->objects) ++versions_.geometry;
   if (fresh || in.lights != seen_->lights) ++versions_.lights;
   if (fresh || in.ambient != seen_->ambient) ++versions_.ambient;
-  if (fresh || realValsDirty_) ++versions_.realVals;
-  geometryDirty_ = realValsDirty_ = false;
+  if (fresh || ownDirty_) ++versions_.own;
+  geometryDirty_ = ownDirty_ = false;
   seen_ = std::move(in);
   camera_ = camera;
   lights_ = lights;

@@ -17,10 +17,10 @@
 #include "gl/objects.h"
 #include "gl/profiler.h"
 #include "gl/program.h"
-#include "lighting/frame/real_scene.h"
+#include "lighting/frame/technique_input.h"
 #include "lighting/knobs.h"
 #include "lighting/object_shadow.h"
-#include "lighting/scene_file.h"
+#include "lighting/scene.h"
 #include "reconstruction/depth_filter.h"
 
 namespace mrgi::lighting {
@@ -161,16 +161,16 @@ struct FrameConfig {
 
 /// Which inputs changed: counters bumped on every change, compared by consumers.
 struct FrameVersions {
-  uint64_t camera = 0, geometry = 0, lights = 0, ambient = 0, realVals = 0;
+  uint64_t camera = 0, geometry = 0, lights = 0, ambient = 0, own = 0;
 };
 
 /// Inputs a consumer's results depend on (bit set).
 enum FrameInput : unsigned {
-  kInputCamera = 1u,     ///< intrinsics, pose, clip planes (the G-buffer)
-  kInputGeometry = 2u,   ///< real mesh and object placements (G-buffer, RSMs, region)
-  kInputLights = 4u,     ///< the lights (RSMs, shadow maps)
-  kInputAmbient = 8u,    ///< the ambient radiance
-  kInputRealVals = 16u,  ///< the real-surface area lights
+  kInputCamera = 1u,    ///< intrinsics, pose, clip planes (the G-buffer)
+  kInputGeometry = 2u,  ///< real mesh and object placements (G-buffer, RSMs, region)
+  kInputLights = 4u,    ///< the lights (RSMs, shadow maps)
+  kInputAmbient = 8u,   ///< the ambient radiance
+  kInputOwn = 16u,      ///< the techniques' own inputs from the frame (technique_input.h)
 };
 
 /// A virtual object as the frame holds it: its mesh in model space (also on the GPU), material, placement.
@@ -207,7 +207,8 @@ class FrameResources {
   /// The ambient's directional part (radiance as SH bands 0-2, lighting world; LightingPipeline::setAmbientSh);
   /// a change counts as an ambient change at the next update().
   void setAmbientSh(const std::array<cv::Vec3d, 9>& sh) { ambientSh_ = sh; }
-  void setRealVals(std::vector<Val> vals);
+  /// A technique's own input (technique_input.h) for the next run; a change counts as a kInputOwn change.
+  void setTechniqueInput(const std::string& technique, std::shared_ptr<const TechniqueInput> input);
   /// Compares with the last run's inputs and bumps the versions of what changed. Returns the versions.
   const FrameVersions& update(const CameraView& camera, const std::vector<SceneLight>& lights,
                               const cv::Vec3d& ambient);
@@ -223,7 +224,8 @@ class FrameResources {
   const std::vector<MeshVertex>& realVertices() const { return realVertices_; }
   const std::vector<uint32_t>& realIndices() const { return realIndices_; }
   const std::vector<FrameObject>& objects() const { return objects_; }
-  const std::vector<Val>& realVals() const { return realVals_; }
+  /// The technique's own input as last set, nullptr when none.
+  const TechniqueInput* techniqueInput(const std::string& technique) const;
   /// World bounding box of the placed objects (nullopt without objects).
   std::optional<std::pair<cv::Vec3d, cv::Vec3d>> objectBounds() const;
   /// The region of the last run (nullopt when no object was placed and no fixed region is set).
@@ -283,7 +285,7 @@ class FrameResources {
   gl::Texture pixelAlbedo_;  ///< setRealPixelAlbedo's, RGB32F
   bool hasPixelAlbedo_ = false;
   bool viewDirty_ = false;
-  std::vector<Val> realVals_;
+  std::map<std::string, std::shared_ptr<const TechniqueInput>> techniqueInputs_;
   std::optional<Region> region_;
   CameraView camera_;
   std::vector<SceneLight> lights_;
@@ -296,7 +298,7 @@ class FrameResources {
     std::vector<double> camera, objects, lights, ambient;
   };
   std::optional<Seen> seen_;
-  bool geometryDirty_ = true, realValsDirty_ = true;
+  bool geometryDirty_ = true, ownDirty_ = true;
 
   gl::Program gbufferProgram_, rsmProgram_, shadowProgram_;
   gl::Texture objectPosition_, objectDepth_;

@@ -2,6 +2,9 @@
 
 #include <stdexcept>
 
+#include "lighting/frame/frame.h"
+#include "lighting/techniques/technique.h"
+
 namespace mrgi::lighting {
 
 // Each technique's folder defines its entry; these lines are the registry.

@@ -13,9 +13,12 @@
 #include <vector>
 
 #include "lighting/knobs.h"
-#include "lighting/techniques/technique.h"
+#include "lighting/scene.h"
 
 namespace mrgi::lighting {
+
+class Technique;  // lighting/techniques/technique.h: what create() builds (GL); the registry itself holds none
+struct TechniqueSetup;
 
 /// An alias: a name standing for the technique with some knobs set ("lpv-diff").
 struct TechniqueAlias {

@@ -1,5 +1,5 @@
 #pragma once
-/// The one interface every lighting technique implements (DLPV, Kinect-VAL, and those to come). A technique
+/// The one interface every lighting technique implements (lighting/techniques/*/, listed by the registry). A technique
 /// reads the frame's shared resources (lighting/frame/frame.h), declares which of their versions its results
 /// depend on, and hands out GPU textures the shared shading pass adds: a real-pixel delta and/or the
 /// virtual object's indirect light. It never draws the direct light, shadows or ambient (the shading pass
@@ -23,12 +23,6 @@ namespace mrgi::lighting {
 
 /// What a technique is asked to provide.
 enum class Role { Real, Virtual };
-
-/// What the technique needs from the frame besides the G-buffer and the RSMs.
-struct TechniqueNeeds {
-  bool realVals = false;          ///< real-surface area lights (FrameResources::setRealVals)
-  RealValOptions realValOptions;  ///< how the application should build them (stride, fusion)
-};
 
 /// Outputs, RGBA32F textures of the output size; nullptr = none (the shading pass reads zero).
 struct TechniqueOutputs {
@@ -94,7 +88,9 @@ class Technique {
   /// Further inputs its per-light work (beginLights, light, endLights) depends on: a change reruns the
   /// lights' pass (RSMs included), as a change of lights or geometry does.
   virtual unsigned lightInputs() const { return 0; }
-  virtual TechniqueNeeds needs() const { return {}; }
+  /// What builds the technique's own input from each frame or a room (lighting/frame/technique_input.h), read
+  /// back from FrameResources::techniqueInput(name()); nullptr: it needs none.
+  virtual std::unique_ptr<TechniqueInputBuilder> inputBuilder() const { return nullptr; }
   /// Whether the real-pixel delta already contains the object's direct shadow on real surfaces (otherwise
   /// the shading pass adds it from the shadow maps).
   virtual bool accountsForDirectShadow() const { return false; }

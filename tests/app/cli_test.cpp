@@ -612,7 +612,7 @@ TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
       EXPECT_EQ(s["frames"], frames);
       EXPECT_EQ(s["overlapped"], mode.empty()) << mode;
       // The worker's stages are reported as their frame's.
-      for (const char* stage : {"depth_filter", "albedo", "mesh", "real_vals"})
+      for (const char* stage : {"depth_filter", "albedo", "mesh", "technique_inputs"})
         EXPECT_GT(s["stages_ms"][stage]["cpu_ms"].get<double>(), 0.0) << stage << mode;
       if (source == moving)
         for (int i = 0; i < frames; ++i) EXPECT_EQ(s["per_frame"][i]["lights_from_frame"], 1) << i;

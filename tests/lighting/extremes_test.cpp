@@ -146,13 +146,8 @@ Outputs pipelineRun(const std::string& technique, const SceneLight& light, cv::V
   PipelineConfig cfg = test::testConfig(48, 48, 16, 64, technique);
   cfg.set("val", "sparse_points", 64);
   LightingPipeline pipe = test::makePipeline(cfg, s);
-  if (pipe.needs().realVals) {
-    std::vector<Val> vals;
-    for (int i = 0; i < 64; ++i)
-      vals.push_back(valAt({-0.5f, -0.9f + 0.028f * i, 0.3f}, {1, 0, 0}, 1e-3f,
-                           static_cast<float>(light.intensity[0] + light.irradiance[0]) * 1e-3f));
-    pipe.setRealVals(vals);
-  }
+  // Real surfaces as bright as the light (for techniques that take them as light sources).
+  test::setTechniqueInputs(pipe, test::wallFrame(static_cast<float>(light.intensity[0] + light.irradiance[0])));
   pipe.run(test::topCamera(48, 48), {light}, cv::Vec3d::all(ambient), nullptr);
   Outputs o;
   append(o, pipe.downloadShade());

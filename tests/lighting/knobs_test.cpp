@@ -7,8 +7,10 @@
 #include <set>
 
 #include "capture/checks.h"
+#include "lighting/frame/frame.h"
 #include "lighting/scene_file.h"
 #include "lighting/techniques/registry.h"
+#include "lighting/techniques/technique.h"
 
 namespace mrgi::lighting {
 namespace {

@@ -10,23 +10,6 @@
 namespace mrgi::test {
 namespace {
 
-using lighting::Val;
-
-std::vector<Val> wallVals(float exitance) {
-  std::vector<Val> vals;
-  const int n = 16;
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      Val v;
-      v.position = {-0.5f, -1.f + 2.f * (i + 0.5f) / n, 1.5f * (j + 0.5f) / n};
-      v.normal = {1, 0, 0};
-      v.area = 2.f * 1.5f / (n * n);
-      v.flux = cv::Vec3f(exitance, exitance * 0.1f, exitance * 0.1f) * v.area;
-      vals.push_back(v);
-    }
-  return vals;
-}
-
 struct Inputs {
   CameraView camera;
   std::vector<SceneLight> lights;
@@ -40,7 +23,7 @@ cv::Mat fresh(const PipelineConfig& cfg, const Inputs& in) {
   TestScene s = makeScene(true, 0.15, {0, 0, 0.1});
   LightingPipeline pipe = makePipeline(cfg, s);
   pipe.setObjectTransform(0, capture::makePose(cv::Matx33d::eye(), in.at));
-  if (pipe.needs().realVals) pipe.setRealVals(wallVals(in.valExitance));
+  setTechniqueInputs(pipe, wallFrame(in.valExitance));
   pipe.run(in.camera, in.lights, in.ambient, nullptr);
   return pipe.downloadShade();
 }
@@ -57,7 +40,7 @@ TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChan
   cfg.set("val", "sparse_points", 64);
   TestScene s = makeScene(true, 0.15, {0, 0, 0.1});
   LightingPipeline pipe = makePipeline(cfg, s);
-  const bool val = pipe.needs().realVals;
+  const bool own = !pipe.inputBuilders().empty();
   // Each technique's update reruns when one of the inputs it declares changed (or the lights / geometry did).
   auto techniquesSkippedUnless = [&](unsigned changed) {
     std::set<std::string> out;
@@ -68,7 +51,7 @@ TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChan
   Inputs in;
   in.camera = topCamera(64, 48);
   in.lights = {pointAbove()};
-  if (val) pipe.setRealVals(wallVals(in.valExitance));
+  setTechniqueInputs(pipe, wallFrame(in.valExitance));
   auto check = [&](std::set<std::string> expect, const char* what) {
     pipe.run(in.camera, in.lights, in.ambient, nullptr);
     EXPECT_EQ(skipped(pipe), expect) << what;
@@ -103,10 +86,10 @@ TEST_P(StageSkipping, SkipsUnchangedStagesAndMatchesAFreshPipelineAfterEveryChan
   check({}, "object moved");
   pipe.setRealMesh(s.vertices, s.indices);  // the same mesh uploaded again still counts as new geometry
   check({}, "real mesh set");
-  if (val) {
+  if (own) {
     in.valExitance = 4.f;
-    pipe.setRealVals(wallVals(in.valExitance));
-    check(with({"gbuffer", "rsm"}, techniquesSkippedUnless(lighting::kInputRealVals)), "new real VALs");
+    setTechniqueInputs(pipe, wallFrame(in.valExitance));
+    check(with({"gbuffer", "rsm"}, techniquesSkippedUnless(lighting::kInputOwn)), "new inputs of their own");
   }
   pipe.invalidate();
   check({}, "invalidated");

@@ -13,7 +13,6 @@ namespace mrgi::test {
 namespace {
 
 using lighting::Role;
-using lighting::Val;
 
 /// Every spelling that puts each technique in each role it supports, with "none" in the other.
 std::vector<std::string> roleSpellings() {
@@ -25,21 +24,6 @@ std::vector<std::string> roleSpellings() {
     for (const auto& a : t.aliases) out.push_back(a.name);
   }
   return out;
-}
-
-/// Real-surface area lights on the red wall, each with exitance `exitance`.
-std::vector<Val> wallVals(float exitance) {
-  std::vector<Val> vals;
-  for (int j = 0; j < 8; ++j)
-    for (int i = 0; i < 8; ++i) {
-      Val v;
-      v.position = {-0.5f, -1.f + 2.f * (i + 0.5f) / 8, 1.5f * (j + 0.5f) / 8};
-      v.normal = {1, 0, 0};
-      v.area = 2.f * 1.5f / 64;
-      v.flux = cv::Vec3f(exitance, exitance * 0.1f, exitance * 0.1f) * v.area;
-      vals.push_back(v);
-    }
-  return vals;
 }
 
 double maxAbsRgb(const cv::Mat& m) {
@@ -57,12 +41,11 @@ TEST_P(Conformance, UnlitIsExactlyZeroAndOutputsFollowTheRoles) {
   cfg.set("val", "sparse_points", 64);
   const TestScene s = makeScene(true, 0.15, {0, 0, 0.1});
   LightingPipeline pipe = makePipeline(cfg, s);
-  const bool vals = pipe.needs().realVals;
   ASSERT_GE(pipe.techniques().size(), 1u);
 
   // Nothing lights the scene: no light, no ambient, dark real surfaces -> every output exactly 0.
   for (const bool zeroLight : {false, true}) {
-    if (vals) pipe.setRealVals(wallVals(0.f));
+    setTechniqueInputs(pipe, wallFrame(0.f));
     SceneLight off = pointAbove();
     off.intensity = {0, 0, 0};
     pipe.invalidate();
@@ -87,7 +70,7 @@ TEST_P(Conformance, UnlitIsExactlyZeroAndOutputsFollowTheRoles) {
   }
 
   // Lit: each technique adds something where it serves, reports its GPU memory, stats and debug views.
-  if (vals) pipe.setRealVals(wallVals(2.f));
+  setTechniqueInputs(pipe, wallFrame(2.f));
   pipe.run(topCamera(64, 48), {pointAbove(), sunDown(8.0)}, {0.02, 0.02, 0.02}, nullptr);
   const cv::Mat alb = pipe.downloadGBuffer(2);
   size_t sum = pipe.frame().gpuBytes();

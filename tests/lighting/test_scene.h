@@ -14,6 +14,7 @@
 namespace mrgi::test {
 
 using lighting::CameraView;
+using lighting::InputFrame;
 using lighting::LightingPipeline;
 using lighting::MeshVertex;
 using lighting::PipelineConfig;
@@ -134,6 +135,38 @@ inline SceneLight pointAbove() {
   l.position = {0.3, 0.2, 1.2};
   l.intensity = {5, 5, 5};
   return l;
+}
+
+/// A wall of real surface seen head-on, as a technique's input builder takes a frame (technique_input.h): the
+/// plane x = -0.5 facing +x over y in [-1, 1], z in [0, 1.5], of uniform exitance (W/m^2) in red and a tenth of
+/// it in green and blue (radiance exitance / pi), from a 32 x 24 camera at x = 1.
+inline InputFrame wallFrame(float exitance) {
+  InputFrame f;
+  const int w = 32, h = 24;
+  const double d = 1.5, focal = 24.0;
+  f.intrinsics = {w, h, focal, focal, (w - 1) / 2.0, (h - 1) / 2.0};
+  f.positions.create(h, w, CV_32FC3);
+  f.normals.create(h, w, CV_32FC3);
+  const float L = exitance / static_cast<float>(CV_PI);
+  f.radiance = cv::Mat(h, w, CV_32FC3, cv::Scalar(L, 0.1f * L, 0.1f * L));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      f.positions.at<cv::Vec3f>(y, x) =
+          cv::Vec3f(static_cast<float>((x - f.intrinsics.cx) / focal * d),
+                    static_cast<float>((y - f.intrinsics.cy) / focal * d), static_cast<float>(d));
+      f.normals.at<cv::Vec3f>(y, x) = {0, 0, -1};
+    }
+  // Camera x = world y, camera y (down) = world -z, camera z (forward) = world -x.
+  f.T_world_camera = capture::Pose(0, 0, -1, 1.0, 1, 0, 0, 0, 0, -1, 0, 0.75, 0, 0, 0, 1);
+  return f;
+}
+
+/// Builds every technique's own input (if it has one) from `frame` and hands it to the pipeline; false when no
+/// technique in use takes one.
+inline bool setTechniqueInputs(LightingPipeline& pipe, const InputFrame& frame) {
+  auto builders = pipe.inputBuilders();
+  for (auto& [name, builder] : builders) pipe.setTechniqueInput(name, builder->fromFrame(frame));
+  return !builders.empty();
 }
 
 inline float lum(const cv::Vec4f& v) { return 0.2126f * v[0] + 0.7152f * v[1] + 0.0722f * v[2]; }

@@ -118,14 +118,11 @@ KinectValTechnique::KinectValTechnique(const TechniqueSetup& setup)
   fb_.finalise(2);
 }
 
-TechniqueNeeds KinectValTechnique::needs() const {
-  TechniqueNeeds n;
-  n.realVals = true;
-  n.realValOptions.stride = knobs_.stride;
-  n.realValOptions.fusion = knobs_.fusion;
-  n.realValOptions.surfels.voxel = static_cast<float>(knobs_.voxel);
-  n.realValOptions.surfels.decay = static_cast<float>(knobs_.decay);
-  return n;
+std::unique_ptr<TechniqueInputBuilder> KinectValTechnique::inputBuilder() const {
+  SurfelOptions surfels;
+  surfels.voxel = static_cast<float>(knobs_.voxel);
+  surfels.decay = static_cast<float>(knobs_.decay);
+  return std::make_unique<RealValBuilder>(knobs_.stride, knobs_.fusion, surfels);
 }
 
 void KinectValTechnique::beginLights(const FrameResources& frame, gl::Profiler*) {
@@ -141,7 +138,9 @@ void KinectValTechnique::light(const FrameResources& frame, size_t index, gl::Pr
 void KinectValTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   const CameraView& camera = frame.camera();
   const cv::Vec3f eye(capture::translationOf(camera.T_world_camera));
-  const std::vector<Val>& realVals = frame.realVals();
+  static const std::vector<Val> kNone;
+  const auto* input = dynamic_cast<const RealVals*>(frame.techniqueInput(name()));
+  const std::vector<Val>& realVals = input ? input->vals : kNone;
   stats_ = {realVals.size(), 0, 0, 0, knobs_.bruteForce};
   transforms_.clear();
   for (const FrameObject& o : frame.objects()) transforms_.push_back(o.T_world_object);

@@ -32,10 +32,8 @@ class KinectValTechnique final : public Technique {
   explicit KinectValTechnique(const TechniqueSetup& setup);
 
   std::string name() const override { return "kinect-val"; }
-  unsigned inputs() const override {
-    return kInputCamera | kInputGeometry | kInputLights | kInputAmbient | kInputRealVals;
-  }
-  TechniqueNeeds needs() const override;
+  unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights | kInputAmbient | kInputOwn; }
+  std::unique_ptr<TechniqueInputBuilder> inputBuilder() const override;
   void beginLights(const FrameResources& frame, gl::Profiler* profiler) override;
   void light(const FrameResources& frame, size_t index, gl::Profiler* profiler) override;
   void update(const FrameResources& frame, gl::Profiler* profiler) override;

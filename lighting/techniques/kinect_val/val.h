@@ -25,6 +25,7 @@
 #include "lighting/frame/frame.h"
 #include "lighting/material.h"
 #include "lighting/scene_file.h"
+#include "lighting/techniques/kinect_val/real_vals.h"
 
 namespace mrgi::lighting {
 

@@ -17,6 +17,13 @@ using namespace mrgi::test;
 
 namespace {
 
+/// Hands Kinect-VAL these real VALs (its own input), as its builder would from a frame.
+void setRealVals(LightingPipeline& pipe, std::vector<Val> vals) {
+  auto input = std::make_shared<RealVals>();
+  input->vals = std::move(vals);
+  pipe.setTechniqueInput("kinect-val", input);
+}
+
 /// VALs tiling the quad p0 + [0,1] e1 + [0,1] e2 (n x n cells, normal e1 x e2) with a uniform exitance M:
 /// the real surfaces as the depth sensor would hand them over, without the sensor.
 void addQuadVals(std::vector<Val>& vals, cv::Vec3f p0, cv::Vec3f e1, cv::Vec3f e2, cv::Vec3f exitance, int n) {
@@ -80,7 +87,7 @@ CameraView sideCamera() {
 /// Shades the scene without lights or ambient: virtual pixels then carry the Kinect-VAL radiance alone.
 cv::Mat bounceOnly(const PipelineConfig& cfg, const TestScene& s, const std::vector<Val>& vals) {
   LightingPipeline pipe = makePipeline(cfg, s);
-  pipe.setRealVals(vals);
+  setRealVals(pipe, vals);
   pipe.run(sideCamera(), {}, {0, 0, 0}, nullptr);
   return pipe.downloadShade();
 }
@@ -136,7 +143,7 @@ TEST(GL, KinectValBruteForceMatchesTheCppReferencePerPixel) {
   const auto vals = roomVals();
   const PipelineConfig cfg = valConfig("kinect-val", 256, true);
   LightingPipeline pipe = makePipeline(cfg, s);
-  pipe.setRealVals(vals);
+  setRealVals(pipe, vals);
   const CameraView cam = sideCamera();
   pipe.run(cam, {}, {0, 0, 0}, nullptr);
   const cv::Mat shade = pipe.downloadShade(), pos = pipe.downloadGBuffer(0), nrm = pipe.downloadGBuffer(1);
@@ -171,7 +178,7 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
   PipelineConfig cfg = testConfig(160, 120, 16, 256, "kinect-val");
   LightingPipeline pipe = makePipeline(cfg, s);
   const std::vector<Val> original = roomVals();
-  pipe.setRealVals(original);
+  setRealVals(pipe, original);
   SceneLight sun = sunDown(10.0);
   sun.direction = {0.6, 0.0, -0.8};
   const double ambient = 0.1;  // W/m^2/sr: pi * 0.1 W/m^2 still reach the shadow
@@ -243,7 +250,7 @@ TEST(GL, KinectValBuildsItsValsOnTheGpuAsTheCppReferenceDoes) {
       cfg.set("val", "rsm_stride", stride);
       LightingPipeline pipe = makePipeline(cfg, s);
       const std::vector<Val> real = roomVals();
-      pipe.setRealVals(real);
+      setRealVals(pipe, real);
       const cv::Vec3d ambient = cv::Vec3d::all(0.1);
       pipe.run(topCamera(160, 120), {light}, ambient, nullptr);
       const KinectValTechnique& k = kval(pipe);
@@ -290,7 +297,7 @@ TEST(GL, DlpvPlusKinectValKeepsDlpvsRealPixelsAndReplacesTheObjectsBounce) {
   auto render = [&](const std::string& t) {
     PipelineConfig cfg = valConfig(t, 512, false, true);
     LightingPipeline pipe = makePipeline(cfg, s);
-    pipe.setRealVals(roomVals());
+    setRealVals(pipe, roomVals());
     pipe.run(sideCamera(), {sun}, {0, 0, 0}, nullptr);
     const bool hasVal = pipe.technique("kinect-val") != nullptr;
     return std::pair{pipe.downloadShade(), hasVal ? kval(pipe).valStats() : KinectValTechnique::Stats{}};
@@ -368,7 +375,7 @@ TEST(GL, KinectValPixelPassMatchesTheCppInterpolationAndEvaluation) {
   s.objects.push_back(o);
   PipelineConfig cfg = valConfig("kinect-val", 64, false, true);
   LightingPipeline pipe = makePipeline(cfg, s);
-  pipe.setRealVals(roomVals());
+  setRealVals(pipe, roomVals());
   CameraView cam;
   cam.intrinsics = {128, 96, 120, 120, 63.5, 47.5};
   cam.T_world_camera = capture::lookAtPose({-0.1, -0.2, 1.2}, {-0.2, 0.0, 0.3});

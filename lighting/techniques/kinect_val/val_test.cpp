@@ -7,7 +7,7 @@
 #include <cmath>
 #include <random>
 
-#include "lighting/frame/real_scene.h"
+#include "lighting/techniques/kinect_val/real_vals.h"
 
 using namespace mrgi;
 using lighting::Val;

@@ -1,4 +1,4 @@
-// sRGB transfer functions (IEC 61966-2-1); C++ twin: lighting/colour.h.
+// sRGB transfer functions (IEC 61966-2-1); C++ twin: capture/colour.h (compositor_test holds them together).
 vec3 srgbToLinear(vec3 c) {
   c = clamp(c, 0.0, 1.0);
   return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), greaterThan(c, vec3(0.04045)));

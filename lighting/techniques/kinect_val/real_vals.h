@@ -1,13 +1,14 @@
 #pragma once
-/// The real scene as light sources: real-surface virtual area lights (Lambertian discs of the seen
-/// radiance) from RGB-D pixels, fused over frames in a world-space surfel map. Shared by every technique
-/// that lets real surfaces light the virtual object.
+/// Kinect-VAL's own input: the real scene as light sources, real-surface virtual area lights (Lambertian discs
+/// of the seen radiance) from RGB-D pixels, fused over frames in a world-space surfel map, or from a room model.
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <unordered_map>
 #include <vector>
 
 #include "capture/types.h"
+#include "lighting/frame/technique_input.h"
 #include "reconstruction/room_model.h"
 
 namespace mrgi::lighting {
@@ -52,12 +53,6 @@ struct SurfelOptions {
   float minConfidence = 0.05f;
   float maxConfidence = 10.f;
 };
-/// How an application builds the real-surface area lights a technique asks for.
-struct RealValOptions {
-  int stride = 4;      ///< RGB-D pixel stride
-  bool fusion = true;  ///< fuse them over frames in a SurfelMap
-  SurfelOptions surfels;
-};
 
 class SurfelMap {
  public:
@@ -80,6 +75,27 @@ class SurfelMap {
   };
   SurfelOptions o_;
   std::unordered_map<uint64_t, Surfel> map_;
+};
+
+/// The real VALs of a frame or a room, as the frame holds them for Kinect-VAL (FrameResources::techniqueInput).
+struct RealVals : TechniqueInput {
+  std::vector<Val> vals;
+  size_t surfels = 0;  ///< the surfel map's size when fused over frames
+  nlohmann::json facts() const override;
+};
+
+/// How Kinect-VAL's real VALs are built: every stride-th RGB-D pixel, fused over frames in a SurfelMap when
+/// `fusion`; from a room, its surfaces gathered into 4 cm cells (at most 16384).
+class RealValBuilder : public TechniqueInputBuilder {
+ public:
+  RealValBuilder(int stride, bool fusion, const SurfelOptions& surfels);
+  std::shared_ptr<const TechniqueInput> fromFrame(const InputFrame& frame) override;
+  std::shared_ptr<const TechniqueInput> fromRoom(const reconstruction::RoomMesh& room,
+                                                 const std::vector<uint32_t>& indices) override;
+
+ private:
+  int stride_;
+  std::optional<SurfelMap> surfels_;
 };
 
 }  // namespace mrgi::lighting

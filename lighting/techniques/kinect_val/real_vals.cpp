@@ -1,7 +1,8 @@
-#include "lighting/frame/real_scene.h"
+#include "lighting/techniques/kinect_val/real_vals.h"
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 #include <tuple>
 #include <unordered_map>
 
@@ -171,6 +172,39 @@ std::vector<Val> SurfelMap::vals() const {
     out.push_back(v);
   }
   setValWeights(out);
+  return out;
+}
+
+nlohmann::json RealVals::facts() const {
+  nlohmann::json j = {{"real_vals", vals.size()}};
+  if (surfels > 0) j["surfels"] = surfels;
+  return j;
+}
+
+RealValBuilder::RealValBuilder(int stride, bool fusion, const SurfelOptions& surfels) : stride_(stride) {
+  if (fusion) surfels_.emplace(surfels);
+}
+
+std::shared_ptr<const TechniqueInput> RealValBuilder::fromFrame(const InputFrame& f) {
+  // Real surfaces as area lights: the seen radiance of every stride-th filtered pixel, fused over frames when
+  // asked for (surfels out of view keep their light).
+  auto out = std::make_shared<RealVals>();
+  out->vals = valsFromRgbd(f.positions, f.normals, f.radiance, f.intrinsics, f.T_world_camera, stride_);
+  if (surfels_) {
+    cv::Mat depth;
+    cv::extractChannel(f.positions, depth, 2);
+    surfels_->integrate(out->vals, depth, f.intrinsics, f.T_world_camera);
+    out->vals = surfels_->vals();
+    out->surfels = surfels_->size();
+  }
+  return out;
+}
+
+std::shared_ptr<const TechniqueInput> RealValBuilder::fromRoom(const reconstruction::RoomMesh& room,
+                                                               const std::vector<uint32_t>& indices) {
+  // Every surface the room holds, in view or not.
+  auto out = std::make_shared<RealVals>();
+  out->vals = valsFromRoom(room, 0.04f, 16384, &indices);
   return out;
 }
 
