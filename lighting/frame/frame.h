@@ -1,5 +1,6 @@
 #pragma once
-/// One frame's shared lighting resources, owned once and read by every technique: the camera and its
+/// One frame's shared lighting resources, owned once and read by every technique: the inputs of a run and the
+/// versions that say what changed, and the passes that render from them (lighting/frame/passes.h): the camera's
 /// G-buffer (real mesh + virtual objects, explicit mask, depth test both ways), the virtual objects, the real
 /// scene (mesh, real-surface area lights), the lights with their light views fitted to the region that
 /// matters, per light RSM^rho (real + virtual) and RSM^mu (real only), the shadow maps, and version counters
@@ -8,8 +9,11 @@
 /// pipeline (lighting/pipeline.h) reruns a consumer only when one of them moved.
 #include <array>
 #include <cstdint>
+#include <map>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "capture/checks.h"
@@ -17,6 +21,7 @@
 #include "gl/objects.h"
 #include "gl/profiler.h"
 #include "gl/program.h"
+#include "lighting/frame/passes.h"
 #include "lighting/frame/technique_input.h"
 #include "lighting/knobs.h"
 #include "lighting/object_shadow.h"
@@ -26,120 +31,6 @@
 namespace mrgi::lighting {
 
 constexpr int kMaxLights = capture::kMaxLightCount;
-
-/// Interleaved vertex of every mesh the pipeline draws.
-struct MeshVertex {
-  cv::Vec3f position;  ///< model frame, metres
-  cv::Vec3f normal;    ///< unit
-  cv::Vec3f albedo;    ///< linear RGB
-};
-
-/// A mesh on the GPU (immutable; rebuilt when its vertices change).
-class GpuMesh {
- public:
-  GpuMesh() = default;
-  GpuMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
-  void draw() const;
-  bool empty() const { return count_ == 0; }
-
- private:
-  gl::Buffer vertices_, indices_;
-  gl::VertexArray vao_;
-  GLsizei count_ = 0;
-};
-
-/// The real-scene mesh in the lighting world: DepthMesh vertices (camera frame) moved by T_world_camera,
-/// each with the albedo estimated at its pixel (albedo CV_32FC3, linear; empty = 0.5 grey).
-void buildRealVertices(const reconstruction::DepthMesh& mesh, const cv::Mat& albedo,
-                       const capture::Pose& T_world_camera, std::vector<MeshVertex>& vertices,
-                       std::vector<uint32_t>& indices);
-
-/// Appends the parallelogram p0 + s e1 + t e2 (s, t in [0, 1]) as an n x n grid of triangle pairs facing
-/// e1 x e2, of one albedo (test and benchmark scenes: a floor, a wall).
-void appendGridQuad(std::vector<MeshVertex>& vertices, std::vector<uint32_t>& indices, const cv::Vec3f& p0,
-                    const cv::Vec3f& e1, const cv::Vec3f& e2, const cv::Vec3f& albedo, int n = 8);
-
-/// Camera matrices (OpenCV camera frame: x right, y down, z forward). Image row 0 maps to NDC y = -1, so
-/// framebuffer rows come back in cv::Mat order.
-cv::Matx44d projectionFromIntrinsics(const capture::Intrinsics& k, double nearPlane, double farPlane);
-cv::Matx44d orthographicProjection(double halfExtent, double nearPlane, double farPlane);
-std::array<float, 16> toGl(const cv::Matx44d& m);
-/// Inverse transpose of T's rotation part (normals).
-cv::Matx33f normalMatrix(const cv::Matx44d& T);
-void setMat3(const gl::Program& p, const std::string& name, const cv::Matx33f& m);
-void setVec3(const gl::Program& p, const std::string& name, const cv::Vec3d& v);
-/// uLightType of the shaders: 0 point, 1 spot, 2 directional.
-int shaderLightType(LightType t);
-/// A timed stage when there is a profiler (GPU timer queries too when `gpu`).
-std::optional<gl::Profiler::Scope> timed(gl::Profiler* profiler, const char* name, bool gpu = true);
-
-/// The region that matters for the virtual objects: an axis-aligned cube in the lighting world, centred on
-/// the objects' bounding box, side = size factor x its largest edge (never below 1 mm). Light views are
-/// fitted to it; volume techniques place their grids in it.
-struct Region {
-  cv::Vec3d origin{0, 0, 0};  ///< the corner with the smallest coordinates
-  double side = 1.0;
-  cv::Vec3d centre() const { return origin + cv::Vec3d::all(0.5 * side); }
-  /// Radius of the bounding sphere.
-  double radius() const { return 0.5 * std::sqrt(3.0) * side; }
-};
-Region fitRegion(const cv::Vec3d& lo, const cv::Vec3d& hi, double sizeFactor);
-
-/// The most unshadowed irradiance `light` can give a point of the region's bounding sphere, whatever the
-/// point's normal (W/m^2 per channel): a directional light's irradiance; a point light's intensity over the
-/// squared distance to the sphere's nearest point; a spot's the same, or exactly 0 when its cone misses the
-/// sphere. Infinite for a point or spot light inside the sphere. Bounds the light's share of everything the
-/// objects change: their direct light, the shadow they cast (its receivers lie behind them from the light),
-/// what they bounce.
-cv::Vec3d irradianceBound(const SceneLight& light, const Region& region);
-/// The lights worth rendering for the region, by index in `lights` (in order): the dimmest lights (by
-/// irradianceBound, ascending) are left out for as long as, in every channel, the bounds of those left out
-/// sum to at most `cutoff` of the sum over all lights with a finite bound plus the ambient's irradiance
-/// (pi x ambient radiance). cutoff 0: every light. A light with an infinite bound is always kept.
-std::vector<size_t> lightsThatMatter(const std::vector<SceneLight>& lights, const cv::Vec3d& ambientRadiance,
-                                     const Region& region, double cutoff);
-
-/// How one light sees the region: perspective for point/spot lights (frustum around the region's bounding
-/// sphere), orthographic for directional ones (fitted to the region).
-struct LightView {
-  cv::Matx44d viewProj;
-  double focalPixels = 0;  ///< perspective
-  double texelArea = 0;    ///< orthographic, m^2
-  double shadowBias = 0;   ///< metres
-  /// The objects' shadow map: the same light fitted to the objects' bounding sphere (holding them alone).
-  /// objectShadowBias < 0: none (a point light too close to the objects for one view; RSM^rho tests them).
-  cv::Matx44d objectViewProj = cv::Matx44d::eye();
-  double objectShadowBias = -1;  ///< metres
-};
-LightView fitLightView(const SceneLight& light, const Region& region, int rsmSize);
-/// Adds the objects' view to `view`: orthographic over the sphere (centre, radius) for a directional light,
-/// a perspective frustum around it for a point or spot light (none when the light is within 1.05 radii).
-void fitObjectView(LightView& view, const SceneLight& light, const cv::Vec3d& centre, double radius, int size);
-
-struct CameraView {
-  capture::Intrinsics intrinsics;
-  capture::Pose T_world_camera;
-  double nearPlane = 0.05, farPlane = 20.0;
-};
-
-/// RSM texels as read back from the GPU (CV_32FC4 each, size x size): world position (w = 1 where a surface
-/// was seen), normal facing the light (w = object index + 1 on virtual surfaces, 0 on real ones), reflected flux
-/// (albedo x flux through the texel, W), incident flux through the texel (W).
-struct RsmTexels {
-  cv::Mat position, normal, flux, direct;
-};
-
-/// One light's shadow maps as downloaded (CV_32FC4 world positions, w = 1 where a surface was seen):
-/// RSM^mu, and either the objects' map or, where the light's view has none, RSM^rho (the other empty).
-struct ShadowTexels {
-  cv::Mat rho, mu, objects;
-};
-
-/// The GPU textures of one reflective shadow map (RGBA32F, size x size, nearest filtering).
-struct Rsm {
-  gl::Texture position, normal, flux, direct, depth;
-  gl::Framebuffer fb;
-};
 
 /// Knobs of the shared resources (scene key "frame").
 struct FrameKnobs {
@@ -171,14 +62,6 @@ enum FrameInput : unsigned {
   kInputLights = 4u,    ///< the lights (RSMs, shadow maps)
   kInputAmbient = 8u,   ///< the ambient radiance
   kInputOwn = 16u,      ///< the techniques' own inputs from the frame (technique_input.h)
-};
-
-/// A virtual object as the frame holds it: its mesh in model space (also on the GPU), material, placement.
-struct FrameObject {
-  VirtualObject source;  ///< mesh (model space, scaled) and material (a copy)
-  GpuMesh gpu;
-  OccluderSphere sphere;  ///< the sphere it stands as for the shadow of the ambient, model space (object_shadow.h)
-  cv::Matx44d T_world_object = cv::Matx44d::eye();
 };
 
 class FrameResources {
@@ -221,13 +104,13 @@ class FrameResources {
   const cv::Vec3d& ambient() const { return ambient_; }
   const std::array<cv::Vec3d, 9>& ambientSh() const { return ambientSh_; }
   /// The real mesh as last set (CPU copy, lighting world).
-  const std::vector<MeshVertex>& realVertices() const { return realVertices_; }
-  const std::vector<uint32_t>& realIndices() const { return realIndices_; }
-  const std::vector<FrameObject>& objects() const { return objects_; }
+  const std::vector<MeshVertex>& realVertices() const { return geometry_.realVertices(); }
+  const std::vector<uint32_t>& realIndices() const { return geometry_.realIndices(); }
+  const std::vector<FrameObject>& objects() const { return geometry_.objects(); }
   /// The technique's own input as last set, nullptr when none.
   const TechniqueInput* techniqueInput(const std::string& technique) const;
   /// World bounding box of the placed objects (nullopt without objects).
-  std::optional<std::pair<cv::Vec3d, cv::Vec3d>> objectBounds() const;
+  std::optional<std::pair<cv::Vec3d, cv::Vec3d>> objectBounds() const { return geometry_.objectBounds(); }
   /// The region of the last run (nullopt when no object was placed and no fixed region is set).
   const std::optional<Region>& region() const { return region_; }
 
@@ -236,37 +119,38 @@ class FrameResources {
   void renderGBuffer();
   /// Light i's view, RSMs (rho, mu) and the objects' shadow map; their positions go into the shadow arrays.
   void renderLight(size_t i);
-  void clearLightViews() { views_.clear(); }
+  void clearLightViews() { lightPass_.clear(); }
 
   /// Draws the real mesh (and the objects when includeVirtual) with `program` (uModel, uNormalModel,
   /// uViewProj, uVirtual, uObject set here).
   void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
-                 bool cameraView = false) const;
+                 bool cameraView = false) const {
+    geometry_.drawScene(program, includeVirtual, viewProj, cameraView);
+  }
   /// Draws the objects alone (uModel, uNormalModel, uVirtual = 1, uObject set here; uViewProj by the caller).
-  void drawObjects(const gl::Program& program) const;
+  void drawObjects(const gl::Program& program) const { geometry_.drawObjects(program); }
 
   // ---- results
-  const gl::Texture& gPosition() const { return gPosition_; }  ///< xyz world, w = 1 where a surface was seen
-  const gl::Texture& gNormal() const {
-    return gNormal_;
-  }  ///< xyz unit normal towards the camera, w = object index + 1 (0 real)
-  const gl::Texture& gAlbedo() const { return gAlbedo_; }  ///< rgb albedo, a = 1 on virtual surfaces
-  const gl::Texture& gDepth() const { return gDepth_; }
+  const gl::Texture& gPosition() const { return gbuffer_.position(); }  ///< xyz world, w = 1 where a surface was seen
+  /// xyz unit normal towards the camera, w = object index + 1 (0 real)
+  const gl::Texture& gNormal() const { return gbuffer_.normal(); }
+  const gl::Texture& gAlbedo() const { return gbuffer_.albedo(); }  ///< rgb albedo, a = 1 on virtual surfaces
+  const gl::Texture& gDepth() const { return gbuffer_.depth(); }
   /// Light views of the lights rendered so far this run (all of them after the RSM stage).
-  const std::vector<LightView>& lightViews() const { return views_; }
+  const std::vector<LightView>& lightViews() const { return lightPass_.views(); }
   /// The RSMs of the light rendered last.
-  const Rsm& rsmRho() const { return rsmRho_; }
-  const Rsm& rsmMu() const { return rsmMu_; }
-  RsmTexels downloadRsm(bool rho) const;
+  const Rsm& rsmRho() const { return lightPass_.rsmRho(); }
+  const Rsm& rsmMu() const { return lightPass_.rsmMu(); }
+  RsmTexels downloadRsm(bool rho) const { return lightPass_.downloadRsm(rho); }
   /// Per light: RSM^rho / RSM^mu world positions (layer = light index; allocated for the lights of the run).
-  const gl::Texture& shadowRho() const { return shadowRho_; }
-  const gl::Texture& shadowMu() const { return shadowMu_; }
+  const gl::Texture& shadowRho() const { return lightPass_.shadowRho(); }
+  const gl::Texture& shadowMu() const { return lightPass_.shadowMu(); }
   /// Per light: the objects' world positions in their own view (LightView::objectViewProj).
-  const gl::Texture& shadowObjects() const { return shadowObjects_; }
+  const gl::Texture& shadowObjects() const { return lightPass_.shadowObjects(); }
   /// Light i's layers of the three shadow arrays (lights of the last run).
-  ShadowTexels downloadShadowTexels(size_t i) const;
+  ShadowTexels downloadShadowTexels(size_t i) const { return lightPass_.downloadShadowTexels(i); }
   /// Binds the three shadow arrays where lighting/direct_light.glsl reads them (units 12, 13, 14).
-  void bindShadowMaps() const;
+  void bindShadowMaps() const { lightPass_.bindShadowMaps(); }
   /// A zeroed RGBA32F texture of the output size (stands in for an output no technique provides).
   const gl::Texture& zero();
   /// CV_32FC4 G-buffer channel: 0 position, 1 normal, 2 albedo (a = virtual).
@@ -276,14 +160,10 @@ class FrameResources {
   static size_t estimateBytes(const FrameConfig& config, size_t lights);
 
  private:
-  Rsm makeRsm(int size) const;
-  void renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual);
-
   FrameConfig config_;
-  std::vector<FrameObject> objects_;
-  GpuMesh realMesh_, viewMesh_;
-  gl::Texture pixelAlbedo_;  ///< setRealPixelAlbedo's, RGB32F
-  bool hasPixelAlbedo_ = false;
+  FrameGeometry geometry_;
+  GBufferPass gbuffer_;
+  LightPass lightPass_;
   bool viewDirty_ = false;
   std::map<std::string, std::shared_ptr<const TechniqueInput>> techniqueInputs_;
   std::optional<Region> region_;
@@ -291,39 +171,18 @@ class FrameResources {
   std::vector<SceneLight> lights_;
   cv::Vec3d ambient_{0, 0, 0};
   std::array<cv::Vec3d, 9> ambientSh_{};
-  std::vector<MeshVertex> realVertices_;
-  std::vector<uint32_t> realIndices_;
   FrameVersions versions_;
   struct Seen {
     std::vector<double> camera, objects, lights, ambient;
   };
   std::optional<Seen> seen_;
   bool geometryDirty_ = true, ownDirty_ = true;
-
-  gl::Program gbufferProgram_, rsmProgram_, shadowProgram_;
-  gl::Texture objectPosition_, objectDepth_;
-  gl::Framebuffer objectFb_;
-  gl::Texture gPosition_, gNormal_, gAlbedo_, gDepth_;
-  gl::Framebuffer gbufferFb_;
-  Rsm rsmRho_, rsmMu_;
-  gl::Texture shadowRho_, shadowMu_, shadowObjects_, zero_;
-  std::vector<LightView> views_;
+  gl::Texture zero_;
 };
 
 /// The uniforms of lighting/direct_light.glsl (uLightCount, uLightType[i], ...) for `lights` seen through
 /// `views` (a light without a view: nothing occludes it).
 void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& lights, const std::vector<LightView>& views);
-
-/// C++ twin of lighting/direct_light.glsl: one shadow-map test (1 lit, 0 occluded; bias < 0: no map, lit),
-/// a light's visibility with or without the objects, and a light's irradiance before shadowing.
-float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
-                 cv::Vec3d x, const cv::Vec3d& n);
-float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,
-                      const cv::Vec3d& x, const cv::Vec3d& n);
-cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& n);
-
-/// CV_32FC4 download of an RGBA32F 2D texture.
-cv::Mat download4(const gl::Texture& t);
 
 /// The objects' glossy lobes for a shader declaring `uniform float uSpecular[16], uExponent[16]` (its
 /// MAX_OBJECTS): object k's material specular and Phong exponent, 0 beyond the frame's objects.

@@ -1,5 +1,6 @@
 #include "gl/program.h"
 
+#include <cstdlib>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -60,8 +61,10 @@ struct Expander {
   }
 };
 
-ShaderHandle compileStage(GLenum stage, const std::string& name, const Defines& defines) {
+ShaderHandle compileStage(GLenum stage, const std::string& name, const Defines& defines,
+                          std::unordered_set<std::string>& declared) {
   const PreprocessedSource src = preprocessShader(name, defines);
+  for (const std::string& u : declaredUniforms(src.text)) declared.insert(u);
   ShaderHandle shader(glCreateShader(stage));
   const char* text = src.text.c_str();
   glShaderSource(shader.id(), 1, &text, nullptr);
@@ -131,29 +134,38 @@ std::string mapShaderLog(const std::string& log, const std::vector<std::string>&
 
 Program Program::graphics(const std::string& vert, const std::string& frag, const Defines& defines) {
   std::vector<ShaderHandle> shaders;
-  shaders.push_back(compileStage(GL_VERTEX_SHADER, vert, defines));
-  shaders.push_back(compileStage(GL_FRAGMENT_SHADER, frag, defines));
+  auto declared = std::make_shared<std::unordered_set<std::string>>();
+  shaders.push_back(compileStage(GL_VERTEX_SHADER, vert, defines, *declared));
+  shaders.push_back(compileStage(GL_FRAGMENT_SHADER, frag, defines, *declared));
   Program p;
-  p.handle_ = link(shaders, vert + " + " + frag);
+  p.name_ = vert + " + " + frag;
+  p.handle_ = link(shaders, p.name_);
+  p.declared_ = std::move(declared);
   return p;
 }
 
 Program Program::graphics(const std::string& vert, const std::string& geom, const std::string& frag,
                           const Defines& defines) {
   std::vector<ShaderHandle> shaders;
-  shaders.push_back(compileStage(GL_VERTEX_SHADER, vert, defines));
-  shaders.push_back(compileStage(GL_GEOMETRY_SHADER, geom, defines));
-  shaders.push_back(compileStage(GL_FRAGMENT_SHADER, frag, defines));
+  auto declared = std::make_shared<std::unordered_set<std::string>>();
+  shaders.push_back(compileStage(GL_VERTEX_SHADER, vert, defines, *declared));
+  shaders.push_back(compileStage(GL_GEOMETRY_SHADER, geom, defines, *declared));
+  shaders.push_back(compileStage(GL_FRAGMENT_SHADER, frag, defines, *declared));
   Program p;
-  p.handle_ = link(shaders, vert + " + " + geom + " + " + frag);
+  p.name_ = vert + " + " + geom + " + " + frag;
+  p.handle_ = link(shaders, p.name_);
+  p.declared_ = std::move(declared);
   return p;
 }
 
 Program Program::compute(const std::string& comp, const Defines& defines) {
   std::vector<ShaderHandle> shaders;
-  shaders.push_back(compileStage(GL_COMPUTE_SHADER, comp, defines));
+  auto declared = std::make_shared<std::unordered_set<std::string>>();
+  shaders.push_back(compileStage(GL_COMPUTE_SHADER, comp, defines, *declared));
   Program p;
-  p.handle_ = link(shaders, comp);
+  p.name_ = comp;
+  p.handle_ = link(shaders, p.name_);
+  p.declared_ = std::move(declared);
   return p;
 }
 
@@ -161,8 +173,67 @@ GLint Program::location(const std::string& name) const {
   auto it = locations_.find(name);
   if (it != locations_.end()) return it->second;
   const GLint loc = glGetUniformLocation(handle_.id(), name.c_str());
+  if (loc < 0 && declared_ && strictUniforms()) {
+    const std::string base = name.substr(0, name.find_first_of("[."));
+    if (!declared_->count(base))
+      throw GlError("program " + name_ + ": sets the uniform '" + name + "', which no stage declares");
+  }
   locations_.emplace(name, loc);
   return loc;
+}
+
+std::set<std::string> declaredUniforms(const std::string& source) {
+  // Comments out, then each "uniform ... ;" statement that is not a block: the identifiers before '[', '=' or
+  // ',' of each declarator.
+  std::string text;
+  text.reserve(source.size());
+  for (size_t i = 0; i < source.size(); ++i) {
+    if (source.compare(i, 2, "//") == 0) {
+      i = source.find('\n', i);
+      if (i == std::string::npos) break;
+    } else if (source.compare(i, 2, "/*") == 0) {
+      i = source.find("*/", i + 2);
+      if (i == std::string::npos) break;
+      ++i;
+      continue;
+    }
+    text += source[i];
+  }
+  std::set<std::string> out;
+  static const std::regex word(R"(\buniform\b)");
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), word); it != std::sregex_iterator(); ++it) {
+    const size_t start = static_cast<size_t>(it->position() + it->length());
+    const size_t end = text.find_first_of(";{", start);
+    if (end == std::string::npos || text[end] == '{') continue;  // a uniform block
+    std::string decl = text.substr(start, end - start);
+    for (char& c : decl)
+      if (c == '\n' || c == '\t') c = ' ';
+    size_t from = 0;
+    while (from <= decl.size()) {
+      size_t comma = decl.find(',', from);
+      if (comma == std::string::npos) comma = decl.size();
+      std::string part = decl.substr(from, comma - from);
+      part = part.substr(0, part.find_first_of("[="));
+      while (!part.empty() && part.back() == ' ') part.pop_back();
+      const size_t sp = part.find_last_of(' ');
+      const std::string name = sp == std::string::npos ? part : part.substr(sp + 1);
+      if (!name.empty()) out.insert(name);
+      from = comma + 1;
+    }
+  }
+  return out;
+}
+
+bool strictUniforms() {
+  static const bool strict = [] {
+    if (const char* e = std::getenv("MRGI_STRICT_UNIFORMS")) return std::string(e) != "0";
+#ifndef NDEBUG
+    return true;
+#else
+    return false;
+#endif
+  }();
+  return strict;
 }
 
 }  // namespace mrgi::gl

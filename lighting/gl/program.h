@@ -1,8 +1,11 @@
 #pragma once
 /// GLSL programs built from embedded shader files, with `#include "file"` and `#define` variants.
 /// Compile and link errors are thrown as one line naming the shader file and line.
+#include <memory>
+#include <set>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 
@@ -29,6 +32,15 @@ PreprocessedSource preprocessShader(const std::string& name, const Defines& defi
 /// location as the original "file:line: " through origins.
 std::string mapShaderLog(const std::string& log, const std::vector<std::string>& origins);
 
+/// The names of the uniforms a preprocessed source declares ("uniform vec3 uA[4];" -> "uA"; blocks aside),
+/// comments skipped.
+std::set<std::string> declaredUniforms(const std::string& source);
+
+/// Whether setting a uniform no stage of the program declares (a misspelt name) is an error: the environment's
+/// MRGI_STRICT_UNIFORMS (1 or 0; the tests set 1), else on in debug builds and off in release builds, where
+/// such a call does nothing, as GL's location -1 does.
+bool strictUniforms();
+
 class Program {
  public:
   Program() = default;
@@ -42,8 +54,11 @@ class Program {
 
   GLuint id() const { return handle_.id(); }
   void use() const { glUseProgram(handle_.id()); }
-  /// Uniform location by name, cached; -1 if the uniform is absent or optimised away.
+  /// Uniform location by name ("uA", "uA[2]"), cached; -1 if it is optimised away. A name no stage declares
+  /// throws GlError naming the program when strictUniforms(), else gives -1.
   GLint location(const std::string& name) const;
+  /// Whether one of its stages declares the uniform (shared drawing code that sets what only some programs use).
+  bool declares(const std::string& name) const { return declared_ && declared_->count(name) > 0; }
   void set(const std::string& name, int v) const { glProgramUniform1i(id(), location(name), v); }
   void set(const std::string& name, float v) const { glProgramUniform1f(id(), location(name), v); }
   void set(const std::string& name, float x, float y) const { glProgramUniform2f(id(), location(name), x, y); }
@@ -60,6 +75,8 @@ class Program {
 
  private:
   ProgramHandle handle_;
+  std::string name_;                                                 ///< its shaders' names, for messages
+  std::shared_ptr<const std::unordered_set<std::string>> declared_;  ///< uniforms its stages declare
   mutable std::unordered_map<std::string, GLint> locations_;
 };
 

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <set>
 #include <thread>
 
 #include "compositor/compositor.h"
@@ -109,6 +110,35 @@ TEST(GL, CompileErrorNamesFileAndLine) {
   gl::registerShaderSource("gl/test_shaders/missing_include.frag", "#version 450 core\n#include \"nope.glsl\"\n");
   EXPECT_THROW(gl::Program::graphics("lighting/gl/fullscreen.vert", "gl/test_shaders/missing_include.frag"),
                gl::GlError);
+}
+
+TEST(ShaderUniforms, DeclaredNamesAreReadFromTheSourceWithoutCommentsOrBlocks) {
+  const std::string src =
+      "#version 450 core\n"
+      "uniform float uA; // uniform int uCommented;\n"
+      "/* uniform vec2 uBlockComment; */\n"
+      "layout(binding = 0) uniform sampler2D uTex;\n"
+      "uniform vec3 uL[4], uM = vec3(1.0);\n"
+      "uniform Block { float uInBlock; };\n"
+      "uniform\n  mat4 uSplit;\n";
+  EXPECT_EQ(gl::declaredUniforms(src), (std::set<std::string>{"uA", "uTex", "uL", "uM", "uSplit"}));
+}
+
+TEST(GL, AMisspeltUniformIsAnErrorNamingTheProgram) {
+  // The tests run with MRGI_STRICT_UNIFORMS=1 (tests/CMakeLists.txt); a name the shader declares is set, one it
+  // does not is refused in one line naming the program and the uniform.
+  ASSERT_TRUE(gl::strictUniforms());
+  auto ctx = makeContext(gl::Backend::OSMesa);
+  const gl::Program p = gl::Program::graphics("lighting/gl/fullscreen.vert", "gl/test_shaders/solid.frag");
+  EXPECT_TRUE(p.declares("uColour"));
+  EXPECT_NO_THROW(p.set("uColour", 1.f, 0.f, 0.f, 1.f));
+  try {
+    p.set("uColor", 1.f, 0.f, 0.f, 1.f);
+    ADD_FAILURE() << "a misspelt uniform was set without an error";
+  } catch (const gl::GlError& e) {
+    EXPECT_NE(std::string(e.what()).find("gl/test_shaders/solid.frag"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("'uColor'"), std::string::npos) << e.what();
+  }
 }
 
 TEST(GL, ProfilerReportsNamedStages) {

@@ -1,0 +1,161 @@
+#include "lighting/frame/light_view.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+#include "gl/error.h"
+#include "lighting/frame/mesh.h"
+
+namespace mrgi::lighting {
+
+Region fitRegion(const cv::Vec3d& lo, const cv::Vec3d& hi, double sizeFactor) {
+  const cv::Vec3d extent = hi - lo;
+  const double edge = std::max({extent[0], extent[1], extent[2], 1e-3});
+  Region r;
+  r.side = edge * sizeFactor;
+  r.origin = 0.5 * (lo + hi) - cv::Vec3d::all(0.5 * r.side);
+  return r;
+}
+
+cv::Vec3d irradianceBound(const SceneLight& light, const Region& region) {
+  if (light.type == LightType::Directional) return light.irradiance;
+  const cv::Vec3d toCentre = region.centre() - light.position;
+  const double d = cv::norm(toCentre), r = region.radius();
+  if (!(d > r)) return cv::Vec3d::all(std::numeric_limits<double>::infinity());
+  if (light.type == LightType::Spot) {
+    // The cone misses the sphere when the angle from its axis to the centre exceeds the half angle by more
+    // than the sphere's angular radius.
+    const double off = std::acos(std::clamp(toCentre.dot(light.direction) / d, -1.0, 1.0));
+    if (off - std::asin(r / d) > light.spotHalfAngleDeg * CV_PI / 180.0) return {0, 0, 0};
+  }
+  return light.intensity / ((d - r) * (d - r));
+}
+
+std::vector<size_t> lightsThatMatter(const std::vector<SceneLight>& lights, const cv::Vec3d& ambientRadiance,
+                                     const Region& region, double cutoff) {
+  std::vector<size_t> kept(lights.size());
+  std::iota(kept.begin(), kept.end(), size_t{0});
+  if (!(cutoff > 0)) return kept;
+  std::vector<cv::Vec3d> bound(lights.size());
+  cv::Vec3d total = CV_PI * ambientRadiance;
+  for (size_t i = 0; i < lights.size(); ++i) {
+    bound[i] = irradianceBound(lights[i], region);
+    if (std::isfinite(bound[i][0] + bound[i][1] + bound[i][2])) total += bound[i];
+  }
+  auto brightest = [](const cv::Vec3d& b) { return std::max({b[0], b[1], b[2]}); };
+  std::vector<size_t> order = kept;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return brightest(bound[a]) < brightest(bound[b]); });
+  std::vector<bool> skip(lights.size(), false);
+  cv::Vec3d skipped{0, 0, 0};
+  for (size_t i : order) {
+    const cv::Vec3d next = skipped + bound[i];
+    bool within = true;
+    for (int c = 0; c < 3; ++c) within = within && next[c] <= cutoff * total[c];
+    if (!within) break;
+    skipped = next;
+    skip[i] = true;
+  }
+  kept.clear();
+  for (size_t i = 0; i < lights.size(); ++i)
+    if (!skip[i]) kept.push_back(i);
+  return kept;
+}
+
+LightView fitLightView(const SceneLight& light, const Region& region, int size) {
+  LightView v;
+  const cv::Vec3d centre = region.centre();
+  const double radius = region.radius();
+  if (light.type == LightType::Directional) {
+    const double back = 4.0 * radius;  // room for occluders in front of the region
+    const cv::Vec3d eye = centre - light.direction * back;
+    v.viewProj =
+        orthographicProjection(radius, 0.0, back + radius) * capture::inversePose(capture::lookAtPose(eye, centre));
+    const double texel = 2.0 * radius / size;
+    v.texelArea = texel * texel;
+    v.shadowBias = 2.0 * texel;
+  } else {
+    const double dist = cv::norm(centre - light.position);
+    if (dist < 1e-6) throw std::invalid_argument("a point light sits at the centre of the region around the objects");
+    const double half = std::asin(std::min(radius / dist, std::sin(80.0 * CV_PI / 180.0)));
+    v.focalPixels = 0.5 * size / std::tan(half);
+    capture::Intrinsics k;
+    k.width = k.height = size;
+    k.fx = k.fy = v.focalPixels;
+    k.cx = k.cy = 0.5 * size - 0.5;
+    v.viewProj = projectionFromIntrinsics(k, std::max(1e-3, 0.01 * dist), dist + radius) *
+                 capture::inversePose(capture::lookAtPose(light.position, centre));
+    v.shadowBias = 2.0 * (dist + radius) / v.focalPixels;
+  }
+  return v;
+}
+
+void fitObjectView(LightView& v, const SceneLight& light, const cv::Vec3d& centre, double radius, int size) {
+  radius = std::max(radius, 1e-4);
+  v.objectShadowBias = -1;
+  if (light.type == LightType::Directional) {
+    const cv::Vec3d eye = centre - light.direction * (2.0 * radius);
+    v.objectViewProj =
+        orthographicProjection(radius, 0.0, 3.0 * radius) * capture::inversePose(capture::lookAtPose(eye, centre));
+    v.objectShadowBias = 2.0 * (2.0 * radius / size);
+    return;
+  }
+  const double dist = cv::norm(centre - light.position);
+  if (!(dist > 1.05 * radius)) return;  // the light is (almost) among the objects: no single view holds them
+  const double half = std::asin(radius / dist);
+  const double focal = 0.5 * size / std::tan(half);
+  capture::Intrinsics k;
+  k.width = k.height = size;
+  k.fx = k.fy = focal;
+  k.cx = k.cy = 0.5 * size - 0.5;
+  v.objectViewProj = projectionFromIntrinsics(k, std::max(1e-4, dist - radius), dist + radius) *
+                     capture::inversePose(capture::lookAtPose(light.position, centre));
+  v.objectShadowBias = 2.0 * (dist + radius) / focal;
+}
+
+float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
+                 cv::Vec3d x, const cv::Vec3d& n) {
+  if (bias < 0 || positions.empty()) return 1.f;
+  x += n * bias;
+  const cv::Vec4d c = viewProj * cv::Vec4d(x[0], x[1], x[2], 1.0);
+  if (c[3] <= 0) return 1.f;
+  const double u = c[0] / c[3], v = c[1] / c[3];
+  if (std::abs(u) > 1 || std::abs(v) > 1) return 1.f;
+  const int col = std::clamp(static_cast<int>(std::floor((u * 0.5 + 0.5) * positions.cols)), 0, positions.cols - 1);
+  const int row = std::clamp(static_cast<int>(std::floor((v * 0.5 + 0.5) * positions.rows)), 0, positions.rows - 1);
+  const cv::Vec4f s = positions.at<cv::Vec4f>(row, col);
+  if (s[3] < 0.5f) return 1.f;
+  const cv::Vec3d occ(s[0], s[1], s[2]);
+  double self, other;
+  if (light.type == LightType::Directional) {
+    self = x.dot(light.direction);
+    other = occ.dot(light.direction);
+  } else {
+    self = cv::norm(x - light.position);
+    other = cv::norm(occ - light.position);
+  }
+  return other < self - bias ? 0.f : 1.f;
+}
+
+float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,
+                      const cv::Vec3d& x, const cv::Vec3d& n) {
+  if (!withObjects) return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n);
+  if (view.objectShadowBias < 0) return shadowTest(maps.rho, light, view.viewProj, view.shadowBias, x, n);
+  return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) *
+         shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
+}
+
+cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& n) {
+  if (light.type == LightType::Directional) return light.irradiance * std::max(-n.dot(light.direction), 0.0);
+  const cv::Vec3d l = light.position - x;
+  const double d2 = std::max(l.dot(l), 1e-8);
+  const cv::Vec3d ln = l / std::sqrt(d2);
+  if (light.type == LightType::Spot && (-ln).dot(light.direction) < light.spotCos()) return {0, 0, 0};
+  return light.intensity * (std::max(n.dot(ln), 0.0) / d2);
+}
+
+}  // namespace mrgi::lighting

@@ -1,0 +1,297 @@
+#include "lighting/frame/passes.h"
+
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+#include "gl/error.h"
+
+namespace mrgi::lighting {
+
+// ---------------------------------------------------------------------------------------------- geometry
+
+FrameGeometry::FrameGeometry(const std::vector<VirtualObject>& objects) {
+  objects_.reserve(objects.size());
+  for (const VirtualObject& o : objects) {
+    std::vector<MeshVertex> v(o.mesh.positions.size());
+    for (size_t i = 0; i < v.size(); ++i) v[i] = {o.mesh.positions[i], o.mesh.normals[i], o.material.albedo};
+    FrameObject fo;
+    fo.source = o;
+    fo.gpu = GpuMesh(v, o.mesh.indices);
+    fo.sphere = occluderSphere(o.mesh);
+    fo.sphere.albedo = o.material.albedo;
+    fo.T_world_object = o.T_marker_object;
+    objects_.push_back(std::move(fo));
+  }
+}
+
+void FrameGeometry::setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
+  realMesh_ = GpuMesh(vertices, indices);
+  realVertices_ = std::move(vertices);
+  realIndices_ = std::move(indices);
+}
+
+void FrameGeometry::setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
+  viewMesh_ = GpuMesh(vertices, indices);
+}
+
+std::optional<std::pair<cv::Vec3d, cv::Vec3d>> FrameGeometry::objectBounds() const {
+  if (objects_.empty()) return std::nullopt;
+  cv::Vec3d lo = cv::Vec3d::all(1e30), hi = cv::Vec3d::all(-1e30);
+  for (const FrameObject& o : objects_) {
+    const cv::Vec3f& bmin = o.source.mesh.boundsMin;
+    const cv::Vec3f& bmax = o.source.mesh.boundsMax;
+    for (int c = 0; c < 8; ++c) {
+      const cv::Vec3d corner((c & 1) ? bmax[0] : bmin[0], (c & 2) ? bmax[1] : bmin[1], (c & 4) ? bmax[2] : bmin[2]);
+      const cv::Vec3d w = capture::transformPoint(o.T_world_object, corner);
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], w[k]);
+        hi[k] = std::max(hi[k], w[k]);
+      }
+    }
+  }
+  return std::pair{lo, hi};
+}
+
+void FrameGeometry::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
+                               bool cameraView) const {
+  program.use();
+  const auto vp = toGl(viewProj);
+  program.setMat4("uViewProj", vp.data());
+  const auto id = toGl(cv::Matx44d::eye());
+  program.setMat4("uModel", id.data());
+  setMat3(program, "uNormalModel", cv::Matx33f::eye());
+  // Which surface a texel shows: the G-buffer and the RSMs record it, the shadow maps need not.
+  const bool tagged = program.declares("uObject"), virtualFlag = program.declares("uVirtual");
+  if (virtualFlag) program.set("uVirtual", 0.0f);
+  if (tagged) program.set("uObject", 0.0f);
+  if (cameraView && !viewMesh_.empty())
+    viewMesh_.draw();
+  else
+    realMesh_.draw();
+  if (includeVirtual) drawObjects(program);
+}
+
+void FrameGeometry::drawObjects(const gl::Program& program) const {
+  program.use();
+  const bool tagged = program.declares("uObject");
+  if (program.declares("uVirtual")) program.set("uVirtual", 1.0f);
+  for (size_t i = 0; i < objects_.size(); ++i) {
+    if (tagged) program.set("uObject", static_cast<float>(i + 1));
+    const auto m = toGl(objects_[i].T_world_object);
+    program.setMat4("uModel", m.data());
+    setMat3(program, "uNormalModel", normalMatrix(objects_[i].T_world_object));
+    objects_[i].gpu.draw();
+  }
+}
+
+// ---------------------------------------------------------------------------------------------- G-buffer
+
+GBufferPass::GBufferPass(int width, int height)
+    : width_(width),
+      height_(height),
+      program_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/gbuffer.frag")),
+      position_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
+      normal_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
+      albedo_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
+      depth_(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, width, height) {
+  for (auto* t : {&position_, &normal_, &albedo_}) t->setFilter(GL_NEAREST, GL_NEAREST);
+  fb_.attachColour(0, position_);
+  fb_.attachColour(1, normal_);
+  fb_.attachColour(2, albedo_);
+  fb_.attachDepth(depth_);
+  fb_.finalise(3);
+}
+
+bool GBufferPass::setPixelAlbedo(const cv::Mat& albedo) {
+  const bool use =
+      !albedo.empty() && albedo.type() == CV_32FC3 && albedo.cols == width_ && albedo.rows == height_;
+  if (!use && !hasPixelAlbedo_) return false;
+  hasPixelAlbedo_ = use;
+  if (!use) return true;
+  if (pixelAlbedo_.id() == 0) {
+    pixelAlbedo_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA16F, width_, height_);
+    pixelAlbedo_.setFilter(GL_NEAREST, GL_NEAREST);
+  }
+  // Half floats, four channels: what the texture holds, so the driver converts nothing (an albedo needs no
+  // more than half precision: 2^-11 relative).
+  cv::Mat rgba, half;
+  cv::cvtColor(albedo, rgba, cv::COLOR_RGB2RGBA);
+  rgba.convertTo(half, CV_16F);
+  pixelAlbedo_.upload(GL_RGBA, GL_HALF_FLOAT, half.data, 8);
+  return true;
+}
+
+void GBufferPass::render(const FrameGeometry& geometry, const CameraView& camera) {
+  fb_.bind();
+  glViewport(0, 0, width_, height_);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  const float zero[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 3; ++i) glClearNamedFramebufferfv(fb_.id(), GL_COLOR, i, zero);
+  const float one = 1.0f;
+  glClearNamedFramebufferfv(fb_.id(), GL_DEPTH, 0, &one);
+  const cv::Matx44d view = capture::inversePose(camera.T_world_camera);
+  setVec3(program_, "uEye", capture::translationOf(camera.T_world_camera));
+  program_.set("uPixelAlbedo", hasPixelAlbedo_ ? 1 : 0);
+  if (hasPixelAlbedo_) pixelAlbedo_.bind(0);
+  geometry.drawScene(program_, true,
+            projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * view, true);
+  glDisable(GL_DEPTH_TEST);
+}
+
+size_t GBufferPass::gpuBytes() const {
+  size_t sum = 0;
+  for (const gl::Texture* t : {&position_, &normal_, &albedo_, &depth_}) sum += t->bytes();
+  return sum;
+}
+
+// ---------------------------------------------------------------------------------------------- lights
+
+namespace {
+
+Rsm makeRsm(int size) {
+  Rsm r{gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, size, size),
+        gl::Texture(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, size, size),
+        gl::Framebuffer()};
+  for (auto* t : {&r.position, &r.normal, &r.flux, &r.direct}) t->setFilter(GL_NEAREST, GL_NEAREST);
+  r.fb.attachColour(0, r.position);
+  r.fb.attachColour(1, r.normal);
+  r.fb.attachColour(2, r.flux);
+  r.fb.attachColour(3, r.direct);
+  r.fb.attachDepth(r.depth);
+  r.fb.finalise(4);
+  return r;
+}
+
+}  // namespace
+
+LightPass::LightPass(int rsmSize, int shadowSize)
+    : rsmSize_(rsmSize),
+      shadowSize_(shadowSize),
+      rsmProgram_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/rsm.frag")),
+      shadowProgram_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/shadow.frag")),
+      objectPosition_(GL_TEXTURE_2D, GL_RGBA32F, shadowSize, shadowSize),
+      objectDepth_(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, shadowSize, shadowSize),
+      rsmRho_(makeRsm(rsmSize)),
+      rsmMu_(makeRsm(rsmSize)) {
+  objectPosition_.setFilter(GL_NEAREST, GL_NEAREST);
+  objectFb_.attachColour(0, objectPosition_);
+  objectFb_.attachDepth(objectDepth_);
+  objectFb_.finalise(1);
+}
+
+void LightPass::renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual,
+                          const FrameGeometry& geometry) {
+  const int size = rsmSize_;
+  rsm.fb.bind();
+  glViewport(0, 0, size, size);
+  const float zero[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 4; ++i) glClearNamedFramebufferfv(rsm.fb.id(), GL_COLOR, i, zero);
+  const float one = 1.0f;
+  glClearNamedFramebufferfv(rsm.fb.id(), GL_DEPTH, 0, &one);
+  const gl::Program& p = rsmProgram_;
+  p.set("uLightType", shaderLightType(light.type));
+  setVec3(p, "uLightPosition", light.position);
+  setVec3(p, "uLightDirection", light.direction);
+  setVec3(p, "uLightPower", light.type == LightType::Directional ? light.irradiance : light.intensity);
+  p.set("uSpotCos", static_cast<float>(light.spotCos()));
+  p.set("uFocal", static_cast<float>(view.focalPixels));
+  p.set("uCentre", 0.5f * size);
+  p.set("uTexelArea", static_cast<float>(view.texelArea));
+  geometry.drawScene(p, includeVirtual, view.viewProj);
+}
+
+void LightPass::render(size_t i, size_t lightCount, const SceneLight& light, const Region& region,
+                       const FrameGeometry& geometry) {
+  if (views_.size() != i) throw std::logic_error("LightPass::render(): lights must be rendered in order");
+  LightView view = fitLightView(light, region, rsmSize_);
+  const auto bounds = geometry.objectBounds();
+  if (bounds)
+    fitObjectView(view, light, 0.5 * (bounds->first + bounds->second), 0.5 * cv::norm(bounds->second - bounds->first),
+                  shadowSize_);
+  views_.push_back(view);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  renderRsm(rsmRho_, light, views_.back(), true, geometry);
+  renderRsm(rsmMu_, light, views_.back(), false, geometry);
+  const int m = shadowSize_;
+  if (view.objectShadowBias >= 0) {
+    objectFb_.bind();
+    glViewport(0, 0, m, m);
+    const float zero[4] = {0, 0, 0, 0};
+    glClearNamedFramebufferfv(objectFb_.id(), GL_COLOR, 0, zero);
+    const float one = 1.0f;
+    glClearNamedFramebufferfv(objectFb_.id(), GL_DEPTH, 0, &one);
+    const auto vp = toGl(view.objectViewProj);
+    shadowProgram_.use();
+    shadowProgram_.setMat4("uViewProj", vp.data());
+    geometry.drawObjects(shadowProgram_);
+  }
+  glDisable(GL_DEPTH_TEST);
+  const int n = rsmSize_;
+  // Shadow arrays: one layer per light of this run (allocated for the lights there are).
+  const int layers = static_cast<int>(lightCount);
+  auto ensureLayers = [&](gl::Texture& t, int size) {
+    if (t.id() && t.depth() >= layers) return;
+    t = gl::Texture(GL_TEXTURE_2D_ARRAY, GL_RGBA32F, size, size, layers);
+    t.setFilter(GL_NEAREST, GL_NEAREST);
+  };
+  if (i == 0) {
+    ensureLayers(shadowRho_, n);
+    ensureLayers(shadowMu_, n);
+    ensureLayers(shadowObjects_, m);
+  }
+  const auto layer = static_cast<GLint>(i);
+  glCopyImageSubData(rsmRho_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowRho_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
+                     layer, n, n, 1);
+  glCopyImageSubData(rsmMu_.position.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowMu_.id(), GL_TEXTURE_2D_ARRAY, 0, 0, 0,
+                     layer, n, n, 1);
+  if (view.objectShadowBias >= 0)
+    glCopyImageSubData(objectPosition_.id(), GL_TEXTURE_2D, 0, 0, 0, 0, shadowObjects_.id(), GL_TEXTURE_2D_ARRAY, 0, 0,
+                       0, layer, m, m, 1);
+}
+
+ShadowTexels LightPass::downloadShadowTexels(size_t i) const {
+  if (i >= views_.size())
+    throw std::out_of_range("LightPass::downloadShadowTexels(): no such light in the last run");
+  auto layer = [&](const gl::Texture& t) {
+    cv::Mat m(t.height(), t.width(), CV_32FC4);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    gl::countSynchronousReadback();
+    glGetTextureSubImage(t.id(), 0, 0, 0, static_cast<GLint>(i), t.width(), t.height(), 1, GL_RGBA, GL_FLOAT,
+                         static_cast<GLsizei>(m.total() * m.elemSize()), m.ptr());
+    return m;
+  };
+  // RSM^rho is read only where the light has no objects' map (lightVisibility), so only then downloaded.
+  ShadowTexels out{cv::Mat(), layer(shadowMu_), cv::Mat()};
+  if (views_[i].objectShadowBias >= 0)
+    out.objects = layer(shadowObjects_);
+  else
+    out.rho = layer(shadowRho_);
+  return out;
+}
+
+void LightPass::bindShadowMaps() const {
+  shadowRho_.bind(12);
+  shadowMu_.bind(13);
+  shadowObjects_.bind(14);
+}
+
+RsmTexels LightPass::downloadRsm(bool rho) const {
+  const Rsm& r = rho ? rsmRho_ : rsmMu_;
+  return {download4(r.position), download4(r.normal), download4(r.flux), download4(r.direct)};
+}
+
+size_t LightPass::gpuBytes() const {
+  size_t sum = 0;
+  for (const gl::Texture* t : {&shadowRho_, &shadowMu_, &shadowObjects_, &objectPosition_, &objectDepth_})
+    sum += t->bytes();
+  for (const Rsm* r : {&rsmRho_, &rsmMu_})
+    for (const gl::Texture* t : {&r->position, &r->normal, &r->flux, &r->direct, &r->depth}) sum += t->bytes();
+  return sum;
+}
+
+}  // namespace mrgi::lighting

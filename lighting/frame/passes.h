@@ -1,0 +1,122 @@
+#pragma once
+/// The frame's render passes, each with its declared inputs and outputs (lighting/frame/frame.h composes them
+/// into the resources the techniques read):
+///   FrameGeometry  — what every pass draws: the real mesh (and the camera's view of the real surface), the
+///                    virtual objects with their placements.
+///   GBufferPass    — in: geometry, camera, the real surfaces' per-pixel albedo; out: world position, normal
+///                    (w = object index + 1), albedo (a = virtual), depth, at the output size.
+///   LightPass      — in: geometry, one light, the region that matters; out: that light's view, its RSMs
+///                    (rho: real + virtual, mu: real only), the objects' shadow map, and its layer of the three
+///                    shadow arrays the shading pass reads.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "gl/objects.h"
+#include "gl/program.h"
+#include "lighting/frame/mesh.h"
+#include "lighting/frame/light_view.h"
+#include "lighting/object_shadow.h"
+#include "lighting/scene.h"
+
+namespace mrgi::lighting {
+
+/// A virtual object as the frame holds it: its mesh in model space (also on the GPU), material, placement.
+struct FrameObject {
+  VirtualObject source;  ///< mesh (model space, scaled) and material (a copy)
+  GpuMesh gpu;
+  OccluderSphere sphere;  ///< the sphere it stands as for the shadow of the ambient, model space (object_shadow.h)
+  cv::Matx44d T_world_object = cv::Matx44d::eye();
+};
+
+class FrameGeometry {
+ public:
+  explicit FrameGeometry(const std::vector<VirtualObject>& objects);
+  /// The real mesh (lighting world), kept on the CPU too.
+  void setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
+  /// The real surface as the camera sees it now, drawn into the G-buffer instead of the real mesh.
+  void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
+  void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) { objects_.at(i).T_world_object = T_world_object; }
+
+  const std::vector<MeshVertex>& realVertices() const { return realVertices_; }
+  const std::vector<uint32_t>& realIndices() const { return realIndices_; }
+  const std::vector<FrameObject>& objects() const { return objects_; }
+  /// World bounding box of the placed objects (nullopt without objects).
+  std::optional<std::pair<cv::Vec3d, cv::Vec3d>> objectBounds() const;
+
+  /// Draws the real mesh (the view mesh when `cameraView` and there is one) and the objects when
+  /// `includeVirtual`, with `program` (uModel, uNormalModel, uViewProj set here, and uVirtual, uObject where it
+  /// declares them).
+  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
+                 bool cameraView = false) const;
+  /// Draws the objects alone (uModel, uNormalModel, and uVirtual = 1, uObject where declared; uViewProj by the
+  /// caller).
+  void drawObjects(const gl::Program& program) const;
+
+ private:
+  std::vector<FrameObject> objects_;
+  GpuMesh realMesh_, viewMesh_;
+  std::vector<MeshVertex> realVertices_;
+  std::vector<uint32_t> realIndices_;
+};
+
+class GBufferPass {
+ public:
+  GBufferPass(int width, int height);
+  /// The real surfaces' albedo per camera pixel (CV_32FC3 linear, the pass's size; negative: none at that pixel)
+  /// instead of the vertices'; empty or another size: the vertices'. Returns whether what the pass draws changed.
+  bool setPixelAlbedo(const cv::Mat& albedo);
+  void render(const FrameGeometry& geometry, const CameraView& camera);
+
+  const gl::Texture& position() const { return position_; }  ///< xyz world, w = 1 where a surface was seen
+  const gl::Texture& normal() const { return normal_; }      ///< xyz unit normal, w = object index + 1 (0 real)
+  const gl::Texture& albedo() const { return albedo_; }      ///< rgb albedo, a = 1 on virtual surfaces
+  const gl::Texture& depth() const { return depth_; }
+  size_t gpuBytes() const;
+
+ private:
+  int width_, height_;
+  gl::Program program_;
+  gl::Texture position_, normal_, albedo_, depth_;
+  gl::Framebuffer fb_;
+  gl::Texture pixelAlbedo_;  ///< setPixelAlbedo's, RGBA16F
+  bool hasPixelAlbedo_ = false;
+};
+
+class LightPass {
+ public:
+  LightPass(int rsmSize, int shadowSize);
+  /// Forgets the last run's light views (the next render() is light 0).
+  void clear() { views_.clear(); }
+  /// Light i of `lightCount` (in order): its view fitted to the region (and to the objects for their own map),
+  /// its RSMs and the objects' shadow map, copied into layer i of the shadow arrays.
+  void render(size_t i, size_t lightCount, const SceneLight& light, const Region& region,
+              const FrameGeometry& geometry);
+
+  const std::vector<LightView>& views() const { return views_; }
+  const Rsm& rsmRho() const { return rsmRho_; }
+  const Rsm& rsmMu() const { return rsmMu_; }
+  RsmTexels downloadRsm(bool rho) const;
+  const gl::Texture& shadowRho() const { return shadowRho_; }
+  const gl::Texture& shadowMu() const { return shadowMu_; }
+  const gl::Texture& shadowObjects() const { return shadowObjects_; }
+  ShadowTexels downloadShadowTexels(size_t i) const;
+  /// Binds the three shadow arrays where lighting/direct_light.glsl reads them (units 12, 13, 14).
+  void bindShadowMaps() const;
+  size_t gpuBytes() const;
+
+ private:
+  void renderRsm(Rsm& rsm, const SceneLight& light, const LightView& view, bool includeVirtual,
+                 const FrameGeometry& geometry);
+
+  int rsmSize_, shadowSize_;
+  gl::Program rsmProgram_, shadowProgram_;
+  gl::Texture objectPosition_, objectDepth_;
+  gl::Framebuffer objectFb_;
+  Rsm rsmRho_, rsmMu_;
+  gl::Texture shadowRho_, shadowMu_, shadowObjects_;
+  std::vector<LightView> views_;
+};
+
+}  // namespace mrgi::lighting
