@@ -48,7 +48,8 @@ FramePipeline measuringPipeline(const capture::FrameSource& source, PoseMode pos
 
 /// The tracker's poses of every measured frame (the first pass of an optimised fusion), each posed frame
 /// added to the trajectory's graph; then the optimised poses, with the tracker's facts of each frame.
-std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusionOptions& o, nlohmann::json& facts) {
+std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusionOptions& o, nlohmann::json& facts,
+                                       std::vector<std::optional<capture::Pose>>& trackerPoses) {
   auto source = capture::open(path);
   FramePipeline frames = measuringPipeline(*source, o.pose);
   reconstruction::TrajectoryOptions to = o.trajectory;
@@ -66,6 +67,7 @@ std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusion
                                             to.odometry, frame->rgbd->exposure),
               {posed ? pose.T_world_camera : std::nullopt, pose.markerT_world_camera});
     poses.push_back(pose);
+    trackerPoses.push_back(posed ? pose.T_world_camera : std::nullopt);
   }
   const reconstruction::TrajectoryResult t = graph.optimise();
   for (size_t i = 0; i < poses.size(); ++i)
@@ -85,11 +87,11 @@ std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusion
 RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
                     const std::function<void(const nlohmann::json&, const reconstruction::RoomModel&)>& onFrame) {
   const bool tracks = o.pose == PoseMode::Odometry || o.pose == PoseMode::Tracked;
-  RoomFusion out{reconstruction::RoomModel(o.room), 0, 0, 0, 0, {}, {}, nlohmann::json::array(), {}, nullptr};
+  RoomFusion out{reconstruction::RoomModel(o.room), 0, 0, 0, 0, {}, {}, nlohmann::json::array(), {}, nullptr, {}};
   std::optional<std::vector<CameraPose>> given;
   if (o.optimise && tracks && o.trackEvery == 0) {
     nlohmann::json facts;
-    given = optimisedPoses(path, o, facts);
+    given = optimisedPoses(path, o, facts, out.trackerPoses);
     out.trajectory = facts;
   }
   auto source = capture::open(path);

@@ -31,6 +31,8 @@ struct RoomFusion {
   std::vector<std::optional<capture::Pose>> poses;
   /// The optimised trajectory's facts (edges, pruned, how far frames moved), when it was optimised; else null.
   nlohmann::json trajectory;
+  /// When it was optimised: each measured frame's pose as the tracker gave it before (nullopt: lost or held).
+  std::vector<std::optional<capture::Pose>> trackerPoses;
   /// Median of fuseMs (0 without any).
   double medianFuseMs() const;
   /// Median of surfaceMs: a frame's whole real-surface cost (filter, normals, fusion, appearance).

@@ -53,7 +53,7 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> FrameGeometry::objectBounds() con
 }
 
 void FrameGeometry::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
-                               bool cameraView) const {
+                              bool cameraView) const {
   program.use();
   const auto vp = toGl(viewProj);
   program.setMat4("uViewProj", vp.data());
@@ -103,8 +103,7 @@ GBufferPass::GBufferPass(int width, int height)
 }
 
 bool GBufferPass::setPixelAlbedo(const cv::Mat& albedo) {
-  const bool use =
-      !albedo.empty() && albedo.type() == CV_32FC3 && albedo.cols == width_ && albedo.rows == height_;
+  const bool use = !albedo.empty() && albedo.type() == CV_32FC3 && albedo.cols == width_ && albedo.rows == height_;
   if (!use && !hasPixelAlbedo_) return false;
   hasPixelAlbedo_ = use;
   if (!use) return true;
@@ -135,7 +134,7 @@ void GBufferPass::render(const FrameGeometry& geometry, const CameraView& camera
   program_.set("uPixelAlbedo", hasPixelAlbedo_ ? 1 : 0);
   if (hasPixelAlbedo_) pixelAlbedo_.bind(0);
   geometry.drawScene(program_, true,
-            projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * view, true);
+                     projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * view, true);
   glDisable(GL_DEPTH_TEST);
 }
 
@@ -255,8 +254,7 @@ void LightPass::render(size_t i, size_t lightCount, const SceneLight& light, con
 }
 
 ShadowTexels LightPass::downloadShadowTexels(size_t i) const {
-  if (i >= views_.size())
-    throw std::out_of_range("LightPass::downloadShadowTexels(): no such light in the last run");
+  if (i >= views_.size()) throw std::out_of_range("LightPass::downloadShadowTexels(): no such light in the last run");
   auto layer = [&](const gl::Texture& t) {
     cv::Mat m(t.height(), t.width(), CV_32FC4);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);

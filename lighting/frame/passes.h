@@ -15,8 +15,8 @@
 
 #include "gl/objects.h"
 #include "gl/program.h"
-#include "lighting/frame/mesh.h"
 #include "lighting/frame/light_view.h"
+#include "lighting/frame/mesh.h"
 #include "lighting/object_shadow.h"
 #include "lighting/scene.h"
 
@@ -37,7 +37,9 @@ class FrameGeometry {
   void setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
   /// The real surface as the camera sees it now, drawn into the G-buffer instead of the real mesh.
   void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
-  void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) { objects_.at(i).T_world_object = T_world_object; }
+  void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) {
+    objects_.at(i).T_world_object = T_world_object;
+  }
 
   const std::vector<MeshVertex>& realVertices() const { return realVertices_; }
   const std::vector<uint32_t>& realIndices() const { return realIndices_; }
