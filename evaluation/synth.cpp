@@ -437,6 +437,7 @@ int writeSynthSession(const SynthOptions& o) {
       frame.fisheye = std::move(ff);
     }
     writer.append(frame);
+    bar(static_cast<double>(i + 1) / total);  // ray-cast frames report no progress of their own
   }
   return total;
 }

@@ -1,0 +1,61 @@
+// Placing an object on a recorded frame (runtime/insert.h), without the command line: the base scene extended,
+// the object put on the surface seen at a pixel, rested on the table's plane, and the scene file written so that
+// it parses back to the same placement.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+
+#include "capture/error.h"
+#include "lighting/scene_file.h"
+#include "runtime/insert.h"
+
+namespace fs = std::filesystem;
+
+namespace mrgi::runtime {
+namespace {
+
+const std::string kSource = MRGI_SOURCE_DIR;
+
+gl::ContextConfig headless(int width, int height) {
+  gl::ContextConfig cfg;
+  cfg.width = width;
+  cfg.height = height;
+  return cfg;
+}
+
+TEST(Insert, APixelsSurfacePointThenTheTablePlanePlaceTheObjectAndTheSceneParsesBack) {
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_insert_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  InsertOptions o;
+  o.session = kSource + "/recordings/tabletop-synth";
+  o.model = kSource + "/recordings/models/sphere.ply";
+  o.scale = 0.05;
+  o.scene = kSource + "/recordings/scenes/tabletop.json";
+  o.save = (dir / "placed.json").string();
+  o.pose = PoseMode::GroundTruth;
+  Insertion in(o, headless);
+  const size_t base = lighting::loadScene(o.scene).objects.size();
+  EXPECT_EQ(in.index(), base);  // appended after the base scene's objects
+  // The table is the marker's plane (z = 0 in the marker frame): the surface point of a pixel on it lies there.
+  in.placeAtPixel(330, 300);
+  const nlohmann::json& placed = in.document()["objects"][in.index()]["translate"];
+  EXPECT_NEAR(placed[2].get<double>(), 0.0, 0.01);
+  // Rested on the plane below: the sphere's centre one radius above the table.
+  EXPECT_EQ(in.snap(SnapUp{}), std::nullopt);
+  const nlohmann::json& rested = in.document()["objects"][in.index()]["translate"];
+  EXPECT_NEAR(rested[2].get<double>(), 0.05, 0.01);
+  EXPECT_NEAR(rested[0].get<double>(), placed[0].get<double>(), 1e-6);
+  EXPECT_TRUE(in.report().contains("plane"));
+  in.save();
+  const lighting::SceneDescription back = lighting::loadScene(o.save);
+  ASSERT_EQ(back.objects.size(), base + 1);
+  EXPECT_NEAR(back.objects.back().T_marker_object(2, 3), rested[2].get<double>(), 1e-9);
+  // A pixel outside the image and one without depth are errors naming what is wrong.
+  EXPECT_THROW(in.placeAtPixel(-1, 0), std::invalid_argument);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mrgi::runtime
