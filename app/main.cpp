@@ -11,6 +11,7 @@
 #include "capture/checks.h"
 #include "capture/image_io.h"
 #include "capture/memory.h"
+#include "runtime/threads.h"
 
 namespace {
 /// Every message ends as one printable line of bounded length: a library may quote a whole file.
@@ -18,6 +19,7 @@ std::string oneLine(const std::string& message) { return mrgi::capture::excerpt(
 }  // namespace
 
 int main(int argc, char** argv) {
+  mrgi::runtime::shareCoresWithGl(argv);
   mrgi::capture::keepFrameMemory();
   CLI::App app{
       "mrgi: a mixed-reality compositor for RGB-D footage (differential rendering with real-time global illumination)"};
