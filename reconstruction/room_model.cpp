@@ -536,7 +536,7 @@ class PointGrid {
 
 RoomAlbedoCache::RoomAlbedoCache(double voxelM) : voxelM_(voxelM > 0 ? voxelM : RoomOptions{}.voxelM) {}
 
-std::vector<uint8_t> RoomAlbedoCache::shadows(const RoomMesh& mesh, const AlbedoLights& lights) {
+std::vector<uint8_t> RoomAlbedoCache::shadows(const RoomMesh& mesh, const AlbedoLights& lights, const MeshRays* rays) {
   const size_t n = mesh.positions.size(), P = lights.points.size(), L = P + lights.distant.size();
   // The segment of a vertex's shadow ray to light l: origin a voxel's worth off the surface, unit direction, length.
   struct Ray {
@@ -598,6 +598,7 @@ std::vector<uint8_t> RoomAlbedoCache::shadows(const RoomMesh& mesh, const Albedo
   // RaycastingScene, built on it too, finds no hits in the Debian package); each built when first needed.
   std::unique_ptr<MeshRays> all, fresh;
   const auto whole = [&]() -> const MeshRays& {
+    if (rays) return *rays;
     if (!all) all = std::make_unique<MeshRays>(mesh.positions, mesh.indices);
     return *all;
   };
@@ -691,7 +692,7 @@ void fillFromNeighbours(std::vector<cv::Vec3f>& values, std::vector<uint8_t>& kn
 }
 
 RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, const AlbedoOptions& options,
-                              RoomAlbedoCache* cache, const std::vector<cv::Vec3f>* bounce) {
+                              RoomAlbedoCache* cache, const std::vector<cv::Vec3f>* bounce, const MeshRays* rays) {
   if (bounce && bounce->size() != mesh.positions.size())
     throw std::invalid_argument("estimateRoomAlbedo(): " + std::to_string(bounce->size()) + " bounce irradiances for " +
                                 std::to_string(mesh.positions.size()) + " vertices");
@@ -706,7 +707,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   std::vector<uint8_t> occluded(n * L, 0);
   if (options.shadowTest && L > 0) {
     RoomAlbedoCache once;
-    occluded = (cache ? *cache : once).shadows(mesh, lights);
+    occluded = (cache ? *cache : once).shadows(mesh, lights, rays);
   }
   const double saturated = capture::srgbToLinear(options.saturationLevel / 255.f);
   // pi L / E: the albedo where measured; where saturated (L a lower bound) a lower bound of it, which the

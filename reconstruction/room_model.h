@@ -14,6 +14,8 @@
 
 namespace mrgi::reconstruction {
 
+class MeshRays;  // reconstruction/mesh_rays.h
+
 struct RoomOptions {
   double voxelM = 0.02;  ///< voxel edge (metres)
   double truncM = 0.08;  ///< truncation distance of the signed distance (metres, at least 2 voxels)
@@ -144,7 +146,8 @@ class RoomAlbedoCache {
   const Stats& lastStats() const { return stats_; }
   /// One flag per vertex and light (row-major, vertex-major): 1 where something blocks the segment from just
   /// off the vertex (2 cm along its normal) to the light; updates the cache to `mesh`.
-  std::vector<uint8_t> shadows(const RoomMesh& mesh, const AlbedoLights& lights);
+  /// `rays`: rays against `mesh` the caller has built already (else built here when needed).
+  std::vector<uint8_t> shadows(const RoomMesh& mesh, const AlbedoLights& lights, const MeshRays* rays = nullptr);
 
  private:
   struct Entry {
@@ -160,10 +163,10 @@ class RoomAlbedoCache {
 /// With a cache, the shadow rays of vertices and lights the change since the cache's last mesh cannot affect
 /// are not cast again (RoomAlbedoCache).
 /// `bounce` (roomBounceIrradiance, one per vertex): the irradiance the room sends each vertex, in E instead of
-/// the lights' ambient.
+/// the lights' ambient. `rays`: rays against `mesh` the caller has already (one BVH per room, not one per use).
 RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lightsInWorld,
                               const AlbedoOptions& options = {}, RoomAlbedoCache* cache = nullptr,
-                              const std::vector<cv::Vec3f>* bounce = nullptr);
+                              const std::vector<cv::Vec3f>* bounce = nullptr, const MeshRays* rays = nullptr);
 
 /// The texture the fused room blurs over its voxels, recovered from a frame: the ratio of the radiance a pixel
 /// observes (rgb8 its 8-bit value, pixelRadiance the same at exposure 1) to the fused radiance of the room

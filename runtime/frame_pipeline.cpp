@@ -522,8 +522,9 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
     bo.outside = p.ambient;
     bounce = reconstruction::roomBounceIrradiance(room, clearedRays, bo);
   }
-  const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(
-      room, albedoLights(capture::identityPose(), p.lights, p.ambient), {}, roomAlbedoCache_.get(), &bounce);
+  const reconstruction::RoomAlbedo albedo =
+      reconstruction::estimateRoomAlbedo(room, albedoLights(capture::identityPose(), p.lights, p.ambient), {},
+                                         roomAlbedoCache_.get(), &bounce, &clearedRays);
   const auto& rays = roomAlbedoCache_->lastStats();
   roomAlbedo_ = albedo.albedo;
   roomAlbedoStatus_ = albedo.status;

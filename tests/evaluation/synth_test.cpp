@@ -1,14 +1,14 @@
 // A synthetic session written by the library (evaluation/synth.h), without the command line: its frames, its
 // ground truth and each frame's reference, readable through the same source as any recording.
-#include <gtest/gtest.h>
+#include "evaluation/synth.h"
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 
 #include "capture/frame_source.h"
 #include "capture/session.h"
-#include "evaluation/synth.h"
 
 namespace fs = std::filesystem;
 

@@ -1,15 +1,15 @@
 // Placing an object on a recorded frame (runtime/insert.h), without the command line: the base scene extended,
 // the object put on the surface seen at a pixel, rested on the table's plane, and the scene file written so that
 // it parses back to the same placement.
-#include <gtest/gtest.h>
+#include "runtime/insert.h"
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 
 #include "capture/error.h"
 #include "lighting/scene_file.h"
-#include "runtime/insert.h"
 
 namespace fs = std::filesystem;
 
