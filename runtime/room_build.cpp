@@ -146,8 +146,12 @@ int roomLights(const RoomLightsOptions& o) {
                                 : "given",
                 100 * l.coverage);
     for (const auto& x : l.lights)
-      std::printf("  %s at (%.3f, %.3f, %.3f), irradiance %.4g\n", x.point ? "point" : "directional", x.position[0],
-                  x.position[1], x.position[2], capture::luminance(x.irradiance));
+      if (x.point)
+        std::printf("  point at (%.3f, %.3f, %.3f), irradiance %.4g\n", x.position[0], x.position[1], x.position[2],
+                    capture::luminance(x.irradiance));
+      else  // no surface in its region: it has a direction, no position
+        std::printf("  directional, towards (%.3f, %.3f, %.3f) from the point, irradiance %.4g\n", x.direction[0],
+                    x.direction[1], x.direction[2], capture::luminance(x.irradiance));
   }
   return 0;
 }
