@@ -899,13 +899,15 @@ int runSweep(const BenchOptions& o) {
             wholeText += buf;
           }
         }
+      // The sweep counts its own configurations; the combined moves that follow it, theirs.
+      const std::string counter = (from > 0 ? "[combined " : "[") + std::to_string(ci - from + 1) + "/" +
+                                  std::to_string(configs.size() - from) + "]";
       std::printf(
-          "[%zu/%zu] %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker "
+          "%s %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker "
           "%.3f%s\n",
-          ci + 1, configs.size(), r["technique"].get<std::string>().c_str(), c.varied.c_str(),
-          r["knobs"].dump().c_str(), r["ms_total"].get<double>(), r["ms_lighting"].get<double>(),
-          r["rel_error_delta"].get<double>(), r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(),
-          r["flicker"].get<double>(), wholeText.c_str());
+          counter.c_str(), r["technique"].get<std::string>().c_str(), c.varied.c_str(), r["knobs"].dump().c_str(),
+          r["ms_total"].get<double>(), r["ms_lighting"].get<double>(), r["rel_error_delta"].get<double>(),
+          r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(), r["flicker"].get<double>(), wholeText.c_str());
       std::fflush(stdout);
       records.push_back(r);
     }
@@ -953,6 +955,12 @@ int runSweep(const BenchOptions& o) {
               {"preset_differences", doc["preset_differences"]}};
     capture::writeFileAtomically(o.presets, p.dump(2) + "\n");
   });
+  // Where everything went, one line each.
+  for (const auto& [what, path] : {std::pair<const char*, const std::string*>{"json", &o.json},
+                                   {"csv", &o.csv},
+                                   {"html report", &o.html},
+                                   {"presets", &o.presets}})
+    if (!path->empty()) std::printf("%s: %s\n", what, fs::absolute(*path).string().c_str());
   for (const char* name : {"fast", "balanced", "accurate"})
     if (doc["presets"].contains(name))
       std::printf("preset %-8s: %s %s\n", name, doc["presets"][name]["technique"].get<std::string>().c_str(),
