@@ -105,9 +105,7 @@ int interactive(const InsertFlags& f, Insertion& in, const SnapUp& up) {
     }
   }
   if (unsaved) std::fprintf(stderr, "mrgi: insert window closed without saving; %s unchanged\n", save.c_str());
-  json& report = in.report();
-  report["translate"] = obj["translate"];
-  report["rotate_deg"] = obj["rotate_deg"];
+  json report = in.report();  // the placement as the window left it
   report["saved"] = !unsaved;
   std::printf("%s\n", jsonText(report, f.o.session).c_str());
   return 0;
@@ -141,12 +139,13 @@ int runInsert(InsertFlags& f) {
   if (f.snap)
     if (const auto why = in.snap(up)) throw capture::CaptureError(f.o.session, *why);
   if (window) return interactive(f, in, up);
+  json report = in.report();
   if (!f.preview.empty()) {
     writePng(f.preview, in.render(), "mrgi insert");
-    in.report()["preview"] = f.preview;
+    report["preview"] = f.preview;
   }
   in.save();
-  std::printf("%s\n", jsonText(in.report(), f.o.session).c_str());
+  std::printf("%s\n", jsonText(report, f.o.session).c_str());
   return 0;
 }
 

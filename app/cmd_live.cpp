@@ -229,6 +229,7 @@ int runLive(const LiveOptions& o) {
   cv::Mat view;
   double fps = 0;
   std::string status = "starting";
+  std::string screenshot;  // the file written, once it is
   InterruptGuard guard;
   const double fpsSource = live.source().info().fps, period = fpsSource > 0 ? 1.0 / fpsSource : 0.0;
   auto last = std::chrono::steady_clock::now();
@@ -285,6 +286,7 @@ int runLive(const LiveOptions& o) {
       if (!o.screenshot.empty()) {
         createParentDirectory(o.screenshot);
         writePng(o.screenshot, shot, "mrgi live");
+        screenshot = o.screenshot;
       }
       break;
     }
@@ -294,8 +296,7 @@ int runLive(const LiveOptions& o) {
       if (spent < period) std::this_thread::sleep_for(std::chrono::duration<double>(period - spent));
     }
   }
-  const bool shot = !o.screenshot.empty() && o.frames > 0 && (live.processed() >= o.frames || live.ended());
-  const json summary = live.finish(shot ? o.screenshot : std::string());
+  const json summary = live.finish(screenshot);
   std::printf("%s\n", jsonText(summary, o.in.source.empty() ? o.in.device : o.in.source).c_str());
   return InterruptGuard::interrupted() ? 130 : 0;
 }

@@ -103,10 +103,15 @@ Insertion::Insertion(const InsertOptions& o, const std::function<gl::ContextConf
     for (double v : world->val) m.push_back(v);
     doc_["world"] = {{"first_frame_T_world_camera", m}};
   }
-  report_ = {{"scene", o.save}, {"object", index_}};
-  report_["pose"] = result_.pose.facts();
-  report_["translate"] = doc_["objects"][index_]["translate"];
-  report_["rotate_deg"] = doc_["objects"][index_]["rotate_deg"];
+  facts_ = {{"scene", o.save}, {"object", index_}, {"pose", result_.pose.facts()}};
+}
+
+json Insertion::report() const {
+  json r = facts_;
+  const json& placed = doc_["objects"][index_];
+  r["translate"] = placed["translate"];
+  r["rotate_deg"] = placed["rotate_deg"];
+  return r;
 }
 
 void Insertion::placeAtPixel(int u, int v) {
@@ -122,7 +127,6 @@ void Insertion::placeAtPixel(int u, int v) {
   const cv::Vec3d t = capture::transformPoint(*result_.T_marker_camera, cv::Vec3d(p));
   obj.T_marker_object = capture::makePose(capture::rotationOf(obj.T_marker_object), t);
   doc_["objects"][index_]["translate"] = vec(t);
-  report_["translate"] = doc_["objects"][index_]["translate"];
   frames_->lighting()->setObjectTransform(index_, obj.T_marker_object);
 }
 
@@ -147,9 +151,7 @@ std::optional<std::string> Insertion::snap(const SnapUp& upChoice) {
   obj.T_marker_object = reconstruction::restOnPlane(obj.T_marker_object, obj.mesh.positions, *plane);
   doc_["objects"][index_]["translate"] = vec(capture::translationOf(obj.T_marker_object));
   doc_["objects"][index_]["rotate_deg"] = vec(lighting::eulerDegrees(capture::rotationOf(obj.T_marker_object)), 1e-4);
-  report_["plane"] = {{"normal", vec(plane->normal)}, {"d", plane->d}, {"pixels", plane->inliers}};
-  report_["translate"] = doc_["objects"][index_]["translate"];
-  report_["rotate_deg"] = doc_["objects"][index_]["rotate_deg"];
+  facts_["plane"] = {{"normal", vec(plane->normal)}, {"d", plane->d}, {"pixels", plane->inliers}};
   frames_->lighting()->setObjectTransform(index_, obj.T_marker_object);
   return std::nullopt;
 }

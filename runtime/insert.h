@@ -52,9 +52,10 @@ class Insertion {
   /// Writes document() to the save file (atomically).
   void save() const;
 
-  nlohmann::json& document() { return doc_; }   ///< the scene file being written
-  size_t index() const { return index_; }       ///< the object's index in it
-  nlohmann::json& report() { return report_; }  ///< what was done: scene, object, pose, plane, translate, rotate
+  nlohmann::json& document() { return doc_; }  ///< the scene file being written
+  size_t index() const { return index_; }      ///< the object's index in it
+  /// What was done: scene, object, pose, the plane rested on, and the placement as the document has it now.
+  nlohmann::json report() const;
   gl::Context& context() { return *context_; }
   const capture::Frame& frame() const { return *frame_; }
   const FrameResult& measured() const { return result_; }
@@ -64,7 +65,8 @@ class Insertion {
  private:
   InsertOptions o_;
   std::unique_ptr<capture::FrameSource> source_;
-  nlohmann::json doc_, report_;
+  nlohmann::json doc_;
+  nlohmann::json facts_;  ///< report()'s own part: scene, object, pose, plane
   size_t index_ = 0;
   std::string savePath_;
   lighting::SceneDescription scene_;
