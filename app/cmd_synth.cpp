@@ -41,6 +41,9 @@ Action addSynth(CLI::App& app) {
   app.add_option("--scan", o->scan,
                  "append N look-around frames (walls, ceiling, the lamp; no marker in view, no reference)")
       ->check(numberIn(0, 100000));
+  app.add_option("--scan-jpeg", o->scanJpegQuality,
+                 "store the look-around's colour as JPEG at this quality (1-100; 0 = PNG, lossless as the orbit's)")
+      ->check(numberIn(0, 100));
   app.add_flag("--move-light", o->moveLight,
                "the lamp moves a third of the way round the table over the orbit (each frame records its lights)");
   app.add_flag("--move-box", o->moveBox,

@@ -630,4 +630,17 @@ std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& na
   return bytes;
 }
 
+std::vector<unsigned char> encodeJpeg(const cv::Mat& image, int quality, const std::string& nameForErrors) {
+  cv::Mat bgr;
+  if (image.channels() == 3)
+    cv::cvtColor(image, bgr, cv::COLOR_RGB2BGR);
+  else
+    bgr = image;
+  std::vector<unsigned char> bytes;
+  if (image.depth() != CV_8U ||
+      !cv::imencode(".jpg", bgr, bytes, {cv::IMWRITE_JPEG_QUALITY, std::clamp(quality, 1, 100)}))
+    throw CaptureError(nameForErrors, "cannot encode JPEG");
+  return bytes;
+}
+
 }  // namespace mrgi::capture

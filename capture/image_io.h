@@ -21,6 +21,8 @@ cv::Mat readAny(const std::string& path);
 cv::Mat depthToUnits(const cv::Mat& depthMetres, double unitsMetres);
 /// Encodes an RGB or grey image (8/16-bit) to PNG bytes; throws CaptureError on failure.
 std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors);
+/// Encodes an 8-bit RGB or grey image to JPEG bytes at `quality` (1-100); throws CaptureError on failure.
+std::vector<unsigned char> encodeJpeg(const cv::Mat& image, int quality, const std::string& nameForErrors);
 
 /// Encodes a 32-bit float RGB (or grey) image to OpenEXR bytes in memory (ZIP; half or full float).
 std::vector<unsigned char> encodeExr(const cv::Mat& rgb, bool half, const std::string& nameForErrors);

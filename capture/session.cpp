@@ -241,8 +241,10 @@ void SessionWriter::append(const Frame& frame) {
       throw CaptureError(dir_, "colour frame does not match the manifest's size/type");
     if (f.depth.type() != CV_32FC1 || f.depth.cols != manifest_.depth.width || f.depth.rows != manifest_.depth.height)
       throw CaptureError(dir_, "depth frame does not match the manifest's size/type");
-    const std::string colourName = frameName("colour", i, "png"), depthName = frameName("depth", i, "png");
-    writeFileAtomically(dir / colourName, encodePng(f.colour, colourName));
+    const std::string colourName = frameName("colour", i, jpegQuality_ > 0 ? "jpg" : "png"),
+                      depthName = frameName("depth", i, "png");
+    writeFileAtomically(dir / colourName, jpegQuality_ > 0 ? encodeJpeg(f.colour, jpegQuality_, colourName)
+                                                           : encodePng(f.colour, colourName));
     writeFileAtomically(dir / depthName, encodePng(depthToUnits(f.depth, manifest_.depthUnitsMetres), depthName));
     line["colour"] = colourName;
     line["depth"] = depthName;

@@ -58,6 +58,9 @@ class SessionWriter {
   /// index line. Frame timestamps must increase. colour as RGB CV_8UC3; depth metres CV_32FC1.
   void append(const Frame& frame);
   int64_t framesWritten() const { return written_; }
+  /// The colour images of the frames appended from now on: JPEG at this quality (1-100; smaller, lossy), or
+  /// PNG (0, the default: lossless).
+  void setColourJpegQuality(int quality) { jpegQuality_ = quality; }
   const std::string& directory() const { return dir_; }
 
  private:
@@ -65,6 +68,7 @@ class SessionWriter {
   SessionManifest manifest_;
   int indexFd_ = -1;
   int64_t written_ = 0;
+  int jpegQuality_ = 0;
   double lastTimestamp_ = 0.0;
 };
 

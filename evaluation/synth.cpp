@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -32,15 +33,29 @@ using groundtruth::RayCaster;
 using runtime::writeExr;
 using runtime::writePng;
 
-/// The look-around: standing at the table's front edge, the camera turns a full circle twice, once
-/// looking 35 degrees up (walls, ceiling, the lamp) and once 20 degrees down (the floor, the table's far
-/// side and the box's back).
-capture::Pose scanCamera(int i, int n) {
-  const cv::Vec3d eye(0.0, 1.35, 0.95);
-  const int half = std::max(1, n / 2);
-  const bool up = i < half;
-  const int k = up ? i : i - half, m = up ? half : std::max(1, n - half);
-  const double yaw = -CV_PI + 2 * CV_PI * (k + 0.5) / m, pitch = (up ? 35.0 : -20.0) * CV_PI / 180;
+/// The look-around, as a person scanning the room would move (a camera at 30 frames a second, every few
+/// frames kept): from where the orbit ends the camera steps back, still looking at the table, to stand a
+/// metre in front of it; there it turns a full circle, tilting 35 degrees up on the way out (walls, ceiling,
+/// the lamp) and back down to the table and its marker at the end. It turns at an even rate, so consecutive
+/// frames overlap (at 36 frames about 12 degrees apart against a 63-degree field of view), and it moves only
+/// while it sees the table: a view of bare walls holds rotation well and translation poorly.
+capture::Pose scanCamera(int i, int n, const capture::Pose& orbitEnd) {
+  const cv::Vec3d start = capture::translationOf(orbitEnd), eye(0.0, 1.4, 1.0), table(0.0, 0.75, 0.0);
+  const double t = (i + 1.0) / std::max(1, n);          // 0 is the orbit's last frame
+  const auto ramp = [](double x, double a, double b) {  // 0 before a, 1 after b, smooth between
+    const double u = std::clamp((x - a) / (b - a), 0.0, 1.0);
+    return u * u * (3 - 2 * u);
+  };
+  constexpr double kStep = 0.15;  // the share of the frames that step back
+  if (t <= kStep) {
+    const cv::Vec3d pos = start + (eye - start) * ramp(t, 0.0, kStep);
+    return capture::lookAtPose(pos, table);
+  }
+  const cv::Vec3d d = cv::normalize(table - eye);
+  const double yaw0 = std::atan2(d[0], -d[2]), pitch0 = std::asin(d[1]), up = 35.0 * CV_PI / 180;
+  const double u = (t - kStep) / (1 - kStep);
+  const double pitch = pitch0 + (up - pitch0) * (ramp(u, 0.0, 0.25) - ramp(u, 0.75, 1.0));
+  const double yaw = yaw0 + 2 * CV_PI * u;
   const cv::Vec3d dir(std::cos(pitch) * std::sin(yaw), std::sin(pitch), -std::cos(pitch) * std::cos(yaw));
   return capture::lookAtPose(eye, eye + dir);
 }
@@ -380,11 +395,13 @@ int writeSynthSession(const SynthOptions& o) {
   const int total = o.frames + o.scan;
   for (int i = 0; i < total; ++i) {
     const bool scanning = i >= o.frames;
+    writer.setColourJpegQuality(scanning ? o.scanJpegQuality : 0);
     capture::Frame frame;
     frame.index = i;
     frame.timestamp = i / 30.0;
     frame.groundTruthT_world_camera =
-        scanning ? scanCamera(i - o.frames, o.scan) : orbitCamera(o.staticCamera ? 0 : i, o.frames);
+        scanning ? scanCamera(i - o.frames, o.scan, orbitCamera(o.staticCamera ? 0 : o.frames - 1, o.frames))
+                 : orbitCamera(o.staticCamera ? 0 : i, o.frames);
     po.seed = o.seed * 1000003u + static_cast<uint64_t>(i);
     // With a reference the frame's two renders share its step of the bar.
     const double share = augmentedCaster && pathTrace && !scanning ? 0.5 : 1.0;

@@ -28,6 +28,7 @@ struct SynthOptions {
   std::string environment;      ///< HDR equirect EXR: outdoors under it instead of the room
   double environmentScale = 0;  ///< 0: a white upward surface in the open reads 0.6
   int scan = 0;                 ///< look-around frames after the orbit (walls, ceiling, the lamp)
+  int scanJpegQuality = 0;      ///< the look-around's colour as JPEG at this quality (0: PNG, as the orbit's)
   /// Relative exposure; none: "auto", the exposure at which at most 1 % of the pixels clip (per frame).
   std::optional<double> exposure = 1.0;
   bool moveBox = false;    ///< the box moves to the front of the table a third of the way through (carving)

@@ -4,6 +4,7 @@
 #include <open3d/t/pipelines/odometry/RGBDOdometry.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -272,7 +273,68 @@ struct OdometrySolver {
     out.T_target_source = poseOf(pose);
     out.solved = true;
     measure(S.levels[0], T.levels[0], out, o);
+    if (o.weakDirection > 0 && out.fitness > 0 && method != OdometryMethod::PointToPlane) {
+      const cv::Matx33d held = heldDirections(S.levels[levels - 1], T.levels[levels - 1], out.T_target_source, o);
+      // The motion from init, D = T * init^-1 (target frame): its translation along the directions the view
+      // does not hold is taken back to init's, its rotation kept.
+      cv::Matx31d values;
+      cv::Matx33d vectors;  // rows
+      cv::eigen(held, values, vectors);
+      const capture::Pose D = out.T_target_source * capture::inversePose(init);
+      cv::Vec3d t = capture::translationOf(D);
+      for (int i = 0; i < 3; ++i)
+        if (values(i) < o.weakDirection) {
+          const cv::Vec3d v(vectors(i, 0), vectors(i, 1), vectors(i, 2));
+          t -= v * v.dot(t);
+          ++out.weakDirections;
+        }
+      if (out.weakDirections > 0) {
+        out.T_target_source = capture::makePose(capture::rotationOf(D), t) * init;
+        measure(S.levels[0], T.levels[0], out, o);
+      }
+    }
     return out;
+  }
+
+  /// How well the inliers hold each direction of translation: the mean over them of n n^T (their target
+  /// normals) plus g g^T for the pixels whose
+  /// intensity gradient is an edge (g: how the intensity there changes per metre the camera moves). Taken at
+  /// the coarsest level: there a normal averages the depth's noise away (the finest level's normals, 2-3 m
+  /// away, scatter enough to make a bare wall look as if it held every direction) and noise makes no edge.
+  static cv::Matx33d heldDirections(const OdometryFrame::Impl::Level& s, const OdometryFrame::Impl::Level& t,
+                                    const capture::Pose& T, const OdometryOptions& o) {
+    constexpr float kEdge = 0.03f;  // intensity per coarse pixel (the sensor's noise there: about 0.002)
+    const cv::Matx33d R = capture::rotationOf(T);
+    const cv::Vec3d tr = capture::translationOf(T);
+    cv::Matx33d held = cv::Matx33d::zeros();
+    size_t inliers = 0;
+    const bool intensity = !t.intensity.empty();
+    for (int y = 0; y < s.vertices.rows; ++y)
+      for (int x = 0; x < s.vertices.cols; ++x) {
+        const cv::Vec3f v = s.vertices.at<cv::Vec3f>(y, x);
+        if (!std::isfinite(v[0])) continue;
+        const cv::Vec3d p = R * cv::Vec3d(v) + tr;
+        if (!(p[2] > 0)) continue;
+        const int u = static_cast<int>(std::lround(t.k.fx * p[0] / p[2] + t.k.cx));
+        const int w = static_cast<int>(std::lround(t.k.fy * p[1] / p[2] + t.k.cy));
+        if (u < 0 || w < 0 || u >= t.vertices.cols || w >= t.vertices.rows) continue;
+        const cv::Vec3f q = t.vertices.at<cv::Vec3f>(w, u);
+        const cv::Vec3f n = t.normals.at<cv::Vec3f>(w, u);
+        if (!std::isfinite(q[0]) || !std::isfinite(n[0])) continue;
+        const double r = (p - cv::Vec3d(q)).dot(cv::Vec3d(n));
+        if (std::abs(r) > o.depthOutlierM || std::abs(p[2] - q[2]) > o.depthOutlierM) continue;
+        ++inliers;
+        const cv::Vec3d nd(n);
+        held += nd * nd.t();
+        if (!intensity || u < 1 || w < 1 || u + 1 >= t.intensity.cols || w + 1 >= t.intensity.rows) continue;
+        const float gx = 0.5f * (t.intensity.at<float>(w, u + 1) - t.intensity.at<float>(w, u - 1));
+        const float gy = 0.5f * (t.intensity.at<float>(w + 1, u) - t.intensity.at<float>(w - 1, u));
+        if (!(std::hypot(gx, gy) > kEdge)) continue;  // also NaN
+        const double ax = gx * t.k.fx / p[2], ay = gy * t.k.fy / p[2];
+        const cv::Vec3d g(ax, ay, -(ax * p[0] + ay * p[1]) / p[2]);
+        held += g * g.t();
+      }
+    return inliers ? held * (1.0 / static_cast<double>(inliers)) : held;
   }
 
   /// Quality at the finest level: projective association of the source's vertices into the target, the
@@ -281,8 +343,8 @@ struct OdometrySolver {
                       const OdometryOptions& o) {
     const cv::Matx33d R = capture::rotationOf(out.T_target_source);
     const cv::Vec3d tr = capture::translationOf(out.T_target_source);
-    size_t valid = 0, inliers = 0;
-    double sum2 = 0;
+    size_t valid = 0, overlapping = 0, inliers = 0;
+    double sum2 = 0, range2 = 0;
     for (int y = 0; y < s.vertices.rows; ++y)
       for (int x = 0; x < s.vertices.cols; ++x) {
         const cv::Vec3f v = s.vertices.at<cv::Vec3f>(y, x);
@@ -296,13 +358,19 @@ struct OdometrySolver {
         const cv::Vec3f q = t.vertices.at<cv::Vec3f>(w, u);
         const cv::Vec3f n = t.normals.at<cv::Vec3f>(w, u);
         if (!std::isfinite(q[0]) || !std::isfinite(n[0])) continue;
+        ++overlapping;
         const double r = (p - cv::Vec3d(q)).dot(cv::Vec3d(n));
         if (std::abs(r) > o.depthOutlierM || std::abs(p[2] - q[2]) > o.depthOutlierM) continue;
         ++inliers;
         sum2 += r * r;
+        const double z2 = std::max(1.0, p[2] * p[2]);
+        range2 += r * r / (z2 * z2);
       }
-    out.fitness = valid ? static_cast<double>(inliers) / static_cast<double>(valid) : 0.0;
+    const auto ratio = [](size_t a, size_t b) { return b ? static_cast<double>(a) / static_cast<double>(b) : 0.0; };
+    out.fitness = ratio(inliers, valid);
+    out.overlap = ratio(overlapping, valid);
     out.inlierRmse = inliers ? std::sqrt(sum2 / static_cast<double>(inliers)) : 0.0;
+    out.rangeRmse = inliers ? std::sqrt(range2 / static_cast<double>(inliers)) : 0.0;
   }
 };
 

@@ -74,9 +74,10 @@ const char* toString(PosedBy b) {
 nlohmann::json CameraPose::facts() const {
   nlohmann::json j = {
       {"status", status()}, {"by", tracked() ? nlohmann::json(toString(by)) : nlohmann::json()}, {"marker", marker}};
-  if (fitness >= 0) j["fitness"] = fitness, j["inlier_rmse_m"] = inlierRmse;
+  if (fitness >= 0) j["fitness"] = fitness, j["overlap"] = overlap, j["inlier_rmse_m"] = inlierRmse;
   if (!against.empty()) j["against"] = against;
   if (correctionM > 0 || correctionDeg > 0) j["correction_m"] = correctionM, j["correction_deg"] = correctionDeg;
+  if (markerReset) j["marker_reset"] = true;
   return j;
 }
 
@@ -262,12 +263,20 @@ class OdometryPoses : public PoseSource {
     bool newKeyframe = false;
     if (mode_ == PoseMode::Tracked && marker && !founded_) {
       const capture::Pose M = capture::inversePose(*marker);
+      cv::Vec3d w, t;  // the marker's pose from the tracked one
+      if (pose) splitPose(capture::inversePose(*pose) * M, w, t);
+      const double angleDeg = cv::norm(w) * 180.0 / CV_PI, dist = cv::norm(t);
+      // Drift gathers over the frames the tag is away and the pull takes it back a bounded step a frame; a
+      // disagreement that grew by more than the override since the last frame the marker saw is this frame's
+      // alignment having slid: the marker places the camera outright.
+      if (pose && markerGap_ &&
+          (dist - markerGap_->first > o_.markerOverrideM || angleDeg - markerGap_->second > o_.markerOverrideDeg)) {
+        pose.reset();
+        out.correctionM = dist, out.correctionDeg = angleDeg, out.markerReset = true;
+      }
       if (pose) {
         // A complementary filter: the pose moves towards the marker's by a bounded step (no jump).
-        cv::Vec3d w, t;
-        splitPose(capture::inversePose(*pose) * M, w, t);
         double gainW = o_.markerGain, gainT = o_.markerGain;
-        const double angleDeg = cv::norm(w) * 180.0 / CV_PI, dist = cv::norm(t);
         if (angleDeg * gainW > o_.maxCorrectionDeg) gainW = o_.maxCorrectionDeg / angleDeg;
         if (dist * gainT > o_.maxCorrectionM) gainT = o_.maxCorrectionM / dist;
         const capture::Pose corrected = *pose * joinPose(w * gainW, t * gainT);
@@ -278,12 +287,15 @@ class OdometryPoses : public PoseSource {
         pose = corrected;
         out.correctionM = dist * gainT;
         out.correctionDeg = angleDeg * gainW;
+        markerGap_ = {dist - out.correctionM, angleDeg - out.correctionDeg};
       } else {
-        pose = M;  // after a loss (or where odometry failed) the marker places the camera outright
+        pose = M;  // after a loss, or where odometry failed or slid, the marker places the camera outright
+        markerGap_ = {0.0, 0.0};
         newKeyframe = true;
       }
       out.by = PosedBy::Marker;
     }
+    if (!pose || out.by != PosedBy::Marker) markerGap_.reset();
     if (!pose) {
       lost_ = true;
       velocity_.reset();
@@ -304,13 +316,15 @@ class OdometryPoses : public PoseSource {
 
   /// The quality gate: absolute limits, and against the recent trusted frames' medians.
   bool trusted(const reconstruction::OdometryResult& r) const {
-    if (!r.solved || r.fitness < o_.minFitness || r.inlierRmse > o_.maxRmseM) return false;
-    if (recentFitness_.size() < 3) return true;
+    if (!r.solved || r.overlap < o_.minOverlap || r.inlierShare() < o_.minFitness || r.rangeRmse > o_.maxRmseM)
+      return false;
+    if (recentShare_.size() < 3) return true;
     const auto median = [](std::deque<double> v) {
       std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
       return v[v.size() / 2];
     };
-    return r.fitness >= o_.fitnessRatio * median(recentFitness_) && r.inlierRmse <= o_.rmseRatio * median(recentRmse_);
+    return r.inlierShare() >= o_.fitnessRatio * median(recentShare_) &&
+           r.rangeRmse <= o_.rmseRatio * median(recentRangeRmse_);
   }
 
   /// Odometry against the current keyframe, then against the previous frame; the pose when one is trusted.
@@ -324,8 +338,7 @@ class OdometryPoses : public PoseSource {
       if (velocity_ && !trusted(r))
         r = reconstruction::estimateOdometry(odo, target, T_target_world * lastPose_, o_.odometry);
       if (!r.solved) return std::nullopt;
-      out.fitness = r.fitness;
-      out.inlierRmse = r.inlierRmse;
+      out.setQuality(r);
       lastFitness_ = r.fitness;
       if (!trusted(r)) return std::nullopt;
       return T_world_target * r.T_target_source;
@@ -341,8 +354,7 @@ class OdometryPoses : public PoseSource {
       const reconstruction::OdometryFrame target(view.depth, view.luminance, k0, mo);
       const auto r = reconstruction::estimateOdometry(odo, target, capture::identityPose(), mo);
       if (r.solved && trusted(r)) {
-        out.fitness = r.fitness;
-        out.inlierRmse = r.inlierRmse;
+        out.setQuality(r);
         out.against = "model";
         return predicted * r.T_target_source;
       }
@@ -389,8 +401,7 @@ class OdometryPoses : public PoseSource {
       const capture::Pose T_camera_kf = joinPose(cv::Vec3d(rvec), cv::Vec3d(tvec));
       const auto r = reconstruction::estimateOdometry(odo, kf.frame, capture::inversePose(T_camera_kf), o_.odometry);
       if (!trusted(r)) continue;
-      out.fitness = r.fitness;
-      out.inlierRmse = r.inlierRmse;
+      out.setQuality(r);
       current_ = n;
       return kf.T_world_camera * r.T_target_source;
     }
@@ -415,10 +426,10 @@ class OdometryPoses : public PoseSource {
     lost_ = false;
     lastPose_ = *out.T_world_camera;
     if (out.fitness >= 0) {
-      recentFitness_.push_back(out.fitness);
-      recentRmse_.push_back(out.inlierRmse);
-      while (static_cast<int>(recentFitness_.size()) > o_.qualityWindow)
-        recentFitness_.pop_front(), recentRmse_.pop_front();
+      recentShare_.push_back(out.overlap > 0 ? out.fitness / out.overlap : 0.0);
+      recentRangeRmse_.push_back(out.rangeRmse);
+      while (static_cast<int>(recentShare_.size()) > o_.qualityWindow)
+        recentShare_.pop_front(), recentRangeRmse_.pop_front();
     }
     previous_ = odo;
     bool add = force || keyframes_.empty() || keyframeFailed_;
@@ -463,7 +474,11 @@ class OdometryPoses : public PoseSource {
   std::vector<Keyframe> keyframes_;
   size_t current_ = 0;
   double lastFitness_ = 1.0;
-  std::deque<double> recentFitness_, recentRmse_;  ///< of the last trusted frames (TrackingOptions::qualityWindow)
+  /// How far the marker's pose lay from the tracked one after its correction (metres, degrees), when the last
+  /// frame saw the marker.
+  std::optional<std::pair<double, double>> markerGap_;
+  /// Inlier shares and range-scaled RMSEs of the last trusted frames (TrackingOptions::qualityWindow).
+  std::deque<double> recentShare_, recentRangeRmse_;
   bool keyframeFailed_ = false;
   cv::Ptr<cv::ORB> orb_;
   std::shared_ptr<const reconstruction::RoomMesh> model_;

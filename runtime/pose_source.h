@@ -42,9 +42,13 @@ struct CameraPose {
   PosedBy by = PosedBy::None;
   /// The marker's own state this frame ("tracked", "held", "lost"; "-" when the mode does not look for it).
   std::string marker = "-";
-  /// Odometry's quality of this frame when it ran: inliers over pixels with depth, and their point-to-plane
-  /// RMSE (metres); negative when it did not run.
-  double fitness = -1, inlierRmse = -1;
+  /// Odometry's quality of this frame when it ran: inliers over pixels with depth, the share of those pixels
+  /// the two views have in common, and the inliers' point-to-plane RMSE (metres; scaled to 1 m range:
+  /// rangeRmse, reconstruction::OdometryResult); negative when it did not run.
+  double fitness = -1, overlap = -1, inlierRmse = -1, rangeRmse = -1;
+  void setQuality(const reconstruction::OdometryResult& r) {
+    fitness = r.fitness, overlap = r.overlap, inlierRmse = r.inlierRmse, rangeRmse = r.rangeRmse;
+  }
   /// What odometry aligned the frame with: "model" (the room seen from the predicted pose), "keyframe" or
   /// "previous" (the frame before); empty when it did not place the frame.
   std::string against;
@@ -53,6 +57,9 @@ struct CameraPose {
   std::optional<capture::Pose> markerT_world_camera;
   /// Marker correction applied to the odometry pose this frame (metres, degrees), when the tag was seen.
   double correctionM = 0, correctionDeg = 0;
+  /// The marker placed the pose outright because odometry had slid (TrackingOptions::markerOverrideM); the
+  /// correction is then how far it had slid.
+  bool markerReset = false;
   bool tracked() const { return T_world_camera.has_value(); }
   /// The marker's last pose kept while its tag is briefly unseen (marker mode): drawn, never fused.
   bool held() const { return by == PosedBy::Marker && marker == "held"; }
@@ -71,16 +78,22 @@ struct MarkerSpec {
 
 struct TrackingOptions {
   reconstruction::OdometryOptions odometry;
-  /// Below this fitness or above this RMSE a frame's odometry is not trusted: the frame is lost. Past the
-  /// first frames the gate follows the sensor: a frame is also lost below `fitnessRatio` times, or above
-  /// `rmseRatio` times, the median of the last `qualityWindow` trusted frames (a real sensor's residual is
-  /// several times a synthetic one's; a wrong alignment stands out against either).
+  /// The quality gate. A frame's odometry is not trusted, and the frame is lost, when the views share less
+  /// than `minOverlap` of its pixels, when fewer than `minFitness` of the shared pixels are inliers (the
+  /// alignment's quality, not how far the camera turned), or when the inliers' RMSE scaled to 1 m range is
+  /// above `maxRmseM` (a far wall's residual is held to what its range lets the sensor measure). Past the
+  /// first frames the gate follows the sensor: a frame is also lost below `fitnessRatio` times the median
+  /// inlier share, or above `rmseRatio` times the median range-scaled RMSE, of the last `qualityWindow`
+  /// trusted frames (a real sensor's residual is several times a synthetic one's; a wrong alignment stands
+  /// out against either).
+  double minOverlap = 0.3;
   double minFitness = 0.5;
   double maxRmseM = 0.015;
   double fitnessRatio = 0.8, rmseRatio = 1.6;
   int qualityWindow = 15;
-  /// A new keyframe is taken when the frame's fitness against the current one drops below this (the view
-  /// has moved on) or it lies farther than keyframeDistanceM / keyframeAngleDeg from it.
+  /// A new keyframe is taken when the frame's fitness against the current one (inliers over all its pixels)
+  /// drops below this (the view has moved on) or it lies farther than keyframeDistanceM / keyframeAngleDeg
+  /// from it.
   double keyframeFitness = 0.8;
   double keyframeDistanceM = 0.15, keyframeAngleDeg = 15.0;
   int maxKeyframes = 64;
@@ -89,6 +102,11 @@ struct TrackingOptions {
   /// back over a few frames instead of jumping the object. A sighting after a loss places the pose outright.
   double markerGain = 0.1;
   double maxCorrectionM = 0.004, maxCorrectionDeg = 0.4;
+  /// A sighting whose disagreement with the tracked pose grew by more than this since the last frame (which
+  /// saw the marker too) is not drift (which gathers over the frames the tag is away) but this frame's
+  /// alignment having slid and still passed the gate (a near-planar view, a fast step): the marker places
+  /// the pose outright, as after a loss.
+  double markerOverrideM = 0.03, markerOverrideDeg = 3.0;
   /// ORB relocalisation: at least this many PnP inliers, then confirmed by dense odometry against the keyframe.
   int relocaliseMinInliers = 25;
   /// What a frame is aligned with the room model by (PoseSource::useModel): point to plane, as KinectFusion

@@ -62,11 +62,11 @@ int runCameraTrack(const TrackOptions& o) {
     const CameraPose p = poses->locate(*frame, profiler);
     ++frames;
     ++counts[p.tracked() ? toString(p.by) : "lost"];
-    json line = {{"frame", frame->index}, {"status", p.status()}, {"by", p.tracked() ? json(toString(p.by)) : json()}};
+    // How the frame was posed (CameraPose::facts: status, by, the marker's state, odometry's quality, the
+    // marker's correction), its number and pose.
+    json line = p.facts();
+    line["frame"] = frame->index;
     line["T_camera_world"] = p.tracked() ? poseJson(capture::inversePose(*p.T_world_camera)) : json();
-    if (p.fitness >= 0) line["fitness"] = p.fitness, line["inlier_rmse_m"] = p.inlierRmse;
-    if (p.correctionM > 0 || p.correctionDeg > 0)
-      line["correction_m"] = p.correctionM, line["correction_deg"] = p.correctionDeg;
     if (o.json) {
       std::printf("%s\n", jsonText(line, o.input).c_str());
     } else if (p.tracked()) {

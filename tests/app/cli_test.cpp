@@ -1236,19 +1236,21 @@ TEST(Cli, TrackPrintsHowEveryFrameWasPosedAndRoomSaysWhatItRefused) {
   EXPECT_EQ(n, 20);
   EXPECT_NE(r.err.find("20 frames (--pose odometry): 1 marker, 19 odometry"), std::string::npos) << r.err;
   expectOneLineError(runMrgi("track " + synth + " --pose markr"), "--pose");
-  // The scan's look-around loses the marker and cannot be followed: refused, said once on stderr and counted.
-  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_room_tracked_" + std::to_string(::getpid()));
-  fs::remove_all(out);
-  r = runMrgi("room " + (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-scan").string() + " --out " + out.string() +
-              " --json");
+  // A frame the sensor lost (no depth, a flat grey image) cannot be posed: `room` refuses it, says so once on
+  // stderr and counts it.
+  const fs::path dir =
+      scratchSession("mrgi_cli_room_tracked_", fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-pt", 3);
+  cv::imwrite((dir / "s" / "colour" / "000001.png").string(), cv::Mat(240, 320, CV_8UC3, cv::Scalar(90, 90, 90)));
+  cv::imwrite((dir / "s" / "depth" / "000001.png").string(), cv::Mat::zeros(240, 320, CV_16U));
+  r = runMrgi("room " + (dir / "s").string() + " --out " + (dir / "room").string() + " --json");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_EQ(lines(r.err), 1) << r.err;
-  EXPECT_NE(r.err.find("9 of 18 frames not fused for their pose (9 lost, 0 held: --pose tracked)"), std::string::npos)
+  EXPECT_NE(r.err.find("1 of 3 frames not fused for their pose (1 lost, 0 held: --pose tracked)"), std::string::npos)
       << r.err;
   const auto summary = nlohmann::json::parse(r.out);
-  EXPECT_EQ(summary["pose"]["lost"], 9);
-  EXPECT_EQ(summary["integrated"], 9);
-  fs::remove_all(out);
+  EXPECT_EQ(summary["pose"]["lost"], 1);
+  EXPECT_EQ(summary["integrated"], 2);
+  fs::remove_all(dir);
 }
 
 TEST(Cli, CorruptPngFramesAreOneLineWithNoLibraryMessages) {

@@ -98,6 +98,42 @@ TEST(Session, RoundTripPreservesPixelsDepthAndPoses) {
   fs::remove_all(dir);
 }
 
+TEST(Session, ColourCanBeStoredAsJpegFromAFrameOn) {
+  // The first frame lossless (PNG), the next two JPEG at quality 95: named .jpg in the index, read back within
+  // a few levels of what was written (a smooth ramp), depth untouched; quality 0 goes back to PNG.
+  const fs::path dir = freshDir("jpeg");
+  {
+    SessionWriter w(dir.string(), smallManifest());
+    w.append(syntheticFrame(0));
+    w.setColourJpegQuality(95);
+    w.append(syntheticFrame(1));
+    w.append(syntheticFrame(2));
+    w.setColourJpegQuality(0);
+    w.append(syntheticFrame(3));
+  }
+  EXPECT_TRUE(fs::exists(dir / "colour" / "000000.png"));
+  EXPECT_TRUE(fs::exists(dir / "colour" / "000001.jpg"));
+  EXPECT_TRUE(fs::exists(dir / "colour" / "000002.jpg"));
+  EXPECT_TRUE(fs::exists(dir / "colour" / "000003.png"));
+  EXPECT_FALSE(fs::exists(dir / "colour" / "000001.png"));
+  SessionSource s(dir.string());
+  for (int i = 0; i < 4; ++i) {
+    const auto f = s.next();
+    ASSERT_TRUE(f);
+    const Frame ref = syntheticFrame(i);
+    const double err =
+        cv::norm(f->rgbd->colour, ref.rgbd->colour, cv::NORM_L1) / static_cast<double>(ref.rgbd->colour.total() * 3);
+    if (i == 1 || i == 2) {
+      EXPECT_GT(err, 0.0) << i;  // lossy
+      EXPECT_LT(err, 3.0) << i;  // mean levels off
+    } else {
+      EXPECT_EQ(err, 0.0) << i;
+    }
+    EXPECT_LT(cv::norm(f->rgbd->depth, ref.rgbd->depth, cv::NORM_INF), 1e-6);
+  }
+  fs::remove_all(dir);
+}
+
 TEST(Session, FramesCarryTheirOwnLightsWhenTheLightsMove) {
   const fs::path dir = freshDir("movinglights");
   {
