@@ -130,6 +130,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
         near.push_back(i);
     const size_t step = std::max<size_t>(1, near.size() / 4000);
     std::vector<double> gains;
+    constexpr double kLampReach = 0.1;  // metres short of a cell a shadow ray stops: two cells, a lamp's size
     for (size_t k = 0; k < near.size(); k += step) {
       const size_t i = near[k];
       const cv::Vec3d p(room.positions[i]), n(room.normals[i]);
@@ -141,7 +142,9 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
         d /= r;
         const double c = n.dot(d);
         if (c <= 0.2) continue;  // grazing: the estimate would divide by little
-        if (mesh.occluded(p + 0.01 * n, d, r * 0.98)) continue;
+        // Shadowed only by what lies between: the saturated cells sit on the lamp's side that faces the centre,
+        // and the lamp's own body (solid to the depth sensor) would hide them from every surface above it.
+        if (mesh.occluded(p + 0.01 * n, d, r - kLampReach)) continue;
         Ebound += s.intensity * c / (r * r);
       }
       // Vertices the saturated regions do not light (shadowed, facing away) tell nothing about them, nor do
