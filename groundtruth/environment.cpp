@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "capture/colour.h"
 
 namespace mrgi::groundtruth {
 namespace {
-constexpr float kPi = 3.14159265358979f;
 
 /// Index i with cdf[i] <= x < cdf[i + 1] (cdf ascending, cdf.front() = 0, cdf.back() = 1).
 int findInterval(const float* cdf, int n, float x) {
@@ -28,7 +28,7 @@ EnvironmentMap::EnvironmentMap(const cv::Mat& radiance, float scale) {
   // Weight of a texel: its luminance times its solid angle (proportional to sin theta).
   std::vector<double> weight(static_cast<size_t>(W) * H), rowSum(H, 0.0);
   for (int y = 0; y < H; ++y) {
-    const double sinTheta = std::sin(kPi * (y + 0.5) / H);
+    const double sinTheta = std::sin(std::numbers::pi_v<float> * (y + 0.5) / H);
     for (int x = 0; x < W; ++x) {
       const double w = capture::luminance(cv::Vec3d(image_.at<cv::Vec3f>(y, x))) * sinTheta;
       weight[static_cast<size_t>(y) * W + x] = w;
@@ -37,7 +37,7 @@ EnvironmentMap::EnvironmentMap(const cv::Mat& radiance, float scale) {
   }
   double total = 0;
   for (double r : rowSum) total += r;
-  integral_ = total * (2.0 * kPi / W) * (kPi / H);
+  integral_ = total * (2.0 * std::numbers::pi_v<float> / W) * (std::numbers::pi_v<float> / H);
   rowCdf_.assign(H + 1, 0.f);
   colCdf_.assign(static_cast<size_t>(H) * (W + 1), 0.f);
   texelPdf_.assign(static_cast<size_t>(W) * H, 0.f);
@@ -62,13 +62,13 @@ EnvironmentMap::EnvironmentMap(const cv::Mat& radiance, float scale) {
 cv::Vec2f EnvironmentMap::uvOf(const cv::Vec3f& d) {
   const float theta = std::acos(std::clamp(d[1], -1.f, 1.f));
   const float phi = std::atan2(d[0], -d[2]);  // (-pi, pi], 0 at -z
-  float u = 0.5f + phi / (2.f * kPi);
+  float u = 0.5f + phi / (2.f * std::numbers::pi_v<float>);
   if (u >= 1.f) u -= 1.f;
-  return {u, theta / kPi};
+  return {u, theta / std::numbers::pi_v<float>};
 }
 
 cv::Vec3f EnvironmentMap::directionOf(float u, float v) {
-  const float phi = (u - 0.5f) * 2.f * kPi, theta = v * kPi;
+  const float phi = (u - 0.5f) * 2.f * std::numbers::pi_v<float>, theta = v * std::numbers::pi_v<float>;
   const float s = std::sin(theta);
   return {s * std::sin(phi), std::cos(theta), -s * std::cos(phi)};
 }
@@ -103,10 +103,11 @@ float EnvironmentMap::pdf(const cv::Vec3f& d) const {
   const int W = image_.cols, H = image_.rows;
   const int x = std::clamp(static_cast<int>(uv[0] * W), 0, W - 1),
             y = std::clamp(static_cast<int>(uv[1] * H), 0, H - 1);
-  const float sinTheta = std::sin(kPi * uv[1]);
+  const float sinTheta = std::sin(std::numbers::pi_v<float> * uv[1]);
   if (!(sinTheta > 1e-7f)) return 0.f;
   // p(texel) spread uniformly over the texel's (u, v) area 1/(W H), which covers (2 pi^2 sin theta) / (W H) sr.
-  return texelPdf_[static_cast<size_t>(y) * W + x] * static_cast<float>(W * H) / (2.f * kPi * kPi * sinTheta);
+  return texelPdf_[static_cast<size_t>(y) * W + x] * static_cast<float>(W * H) /
+         (2.f * std::numbers::pi_v<float> * std::numbers::pi_v<float> * sinTheta);
 }
 
 }  // namespace mrgi::groundtruth

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <numbers>
 #include <thread>
 #include <vector>
 
@@ -11,7 +12,6 @@
 
 namespace mrgi::groundtruth {
 namespace {
-constexpr float kPi = 3.14159265358979f;
 
 float lum(const cv::Vec3f& c) { return static_cast<float>(capture::luminance(cv::Vec3d(c))); }
 
@@ -97,7 +97,7 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng, bool 
     const bool glossy = lum(m.specular) > 0.f;
     // f(wi) cos(theta_i) of the real-time material: the glossy term carries no cosine (see Material).
     auto fcos = [&](cv::Vec3f wi, float cosI) -> cv::Vec3f {
-      cv::Vec3f f = hit->albedo * (cosI / kPi);
+      cv::Vec3f f = hit->albedo * (cosI / std::numbers::pi_v<float>);
       if (glossy) f += m.specular * (ck * phongPower(refl.dot(wi), k));
       return f;
     };
@@ -111,8 +111,9 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng, bool 
     const float wd = lum(hit->albedo), ws = glossy ? lum(m.specular) : 0.f;
     const float pd = wd + ws > 0.f ? wd / (wd + ws) : 1.f;
     auto bsdfPdf = [&](cv::Vec3f wi, float cosI) {
-      float p = pd * cosI / kPi;
-      if (ws > 0.f) p += (1.f - pd) * (k <= 0.f ? 1.f / (2.f * kPi) : ck * phongPower(refl.dot(wi), k));
+      float p = pd * cosI / std::numbers::pi_v<float>;
+      if (ws > 0.f)
+        p += (1.f - pd) * (k <= 0.f ? 1.f / (2.f * std::numbers::pi_v<float>) : ck * phongPower(refl.dot(wi), k));
       return p;
     };
     const bool continues = depth < options_.bounces && wd + ws > 0.f;
@@ -129,7 +130,7 @@ cv::Vec3f PathTracer::trace(cv::Vec3f origin, cv::Vec3f dir, cv::RNG& rng, bool 
     }
     if (!continues) break;
     const float u0 = rng.uniform(0.f, 1.f), u1 = rng.uniform(0.f, 1.f), u2 = rng.uniform(0.f, 1.f);
-    const float phi = 2.f * kPi * u2;
+    const float phi = 2.f * std::numbers::pi_v<float> * u2;
     cv::Vec3f wi;
     if (u0 < pd)
       wi = aroundAxis(n, std::sqrt(1.f - u1), phi);

@@ -4,11 +4,11 @@
 
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <stdexcept>
 
 namespace mrgi::groundtruth {
 namespace {
-constexpr float kPi = 3.14159265358979f;
 
 /// Smallest t > tNear at which the ray meets the sphere, or +inf.
 float hitSphere(cv::Vec3f o, cv::Vec3f d, cv::Vec3f c, float r, float tNear) {
@@ -156,14 +156,14 @@ RayCaster::Incident RayCaster::incident(size_t i, cv::Vec3f p, cv::Vec3f g) cons
 cv::Vec3f RayCaster::shadeDirect(const Hit& hit) const {
   if (hit.light >= 0) {
     const Light& l = scene_.lights[hit.light];
-    return l.intensity * (1.f / (kPi * l.radius * l.radius));
+    return l.intensity * (1.f / (std::numbers::pi_v<float> * l.radius * l.radius));
   }
   cv::Vec3f e(0, 0, 0);
   for (size_t i = 0; i < scene_.lights.size(); ++i) {
     const Incident in = incident(i, hit.position, hit.normal);
     e += in.irradiance * std::max(hit.shading.dot(in.direction), 0.f);
   }
-  return hit.albedo.mul(e * (1.f / kPi) + scene_.ambient);
+  return hit.albedo.mul(e * (1.f / std::numbers::pi_v<float>)+scene_.ambient);
 }
 
 }  // namespace mrgi::groundtruth

@@ -18,71 +18,6 @@ using nlohmann::json;
 
 namespace mrgi::runtime {
 
-std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
-                                                      const capture::Pose& T_world_marker) {
-  const capture::Pose T_marker_world = capture::inversePose(T_world_marker);
-  const cv::Matx33d R = capture::rotationOf(T_marker_world);
-  std::vector<lighting::SceneLight> out;
-  for (const capture::GroundTruthLight& l : lights) {
-    lighting::SceneLight s;
-    s.type = l.type == capture::GroundTruthLight::Type::Point  ? lighting::LightType::Point
-             : l.type == capture::GroundTruthLight::Type::Spot ? lighting::LightType::Spot
-                                                               : lighting::LightType::Directional;
-    s.position = capture::transformPoint(T_marker_world, l.position);
-    s.direction = R * l.direction;
-    s.intensity = l.intensity;
-    s.irradiance = l.irradiance;
-    s.spotHalfAngleDeg = l.spotHalfAngleDeg;
-    out.push_back(s);
-  }
-  return out;
-}
-
-LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
-                              const capture::FrameSource& source, const std::string& sourcePath, PoseMode poseMode,
-                              bool roomGiven) {
-  LightingSetup setup;
-  setup.scene = std::move(scene);
-  const capture::SessionManifest* manifest = source.sessionManifest();
-  const capture::GroundTruth* truth = manifest ? &manifest->truth : nullptr;
-  // Neither listed lights nor a fisheye, and a room: the lights come from the room.
-  if (!setup.scene.lightsGiven && roomGiven && !(truth && truth->listsLights) && !(manifest && manifest->fisheye))
-    setup.scene.lightSource = lighting::LightSource::Room;
-  if (manifest && manifest->marker) {
-    setup.tagFamily = manifest->marker->family;
-    setup.tagSize = manifest->marker->sizeMetres;
-    setup.tagId = manifest->marker->id;
-    setup.markerGiven = true;
-  }
-  if (truth) setup.T_world_marker = truth->T_world_marker;
-  if (setup.scene.lightSource == lighting::LightSource::Scene) {
-    setup.lights = setup.scene.lights;
-  } else if (setup.scene.lightSource == lighting::LightSource::Fisheye) {
-    if (!manifest || !manifest->fisheye)
-      throw capture::CaptureError(sceneFile, "lights: \"fisheye\" but " + sourcePath + " has no fisheye calibration");
-    setup.fisheye = manifest->fisheye;
-    // Lights come from the environment image, which already holds all the room's light: no extra ambient.
-    setup.scene.ambientFromManifest = false;
-  } else if (setup.scene.lightSource == lighting::LightSource::Room) {
-    // Estimated by the frame pipeline from its room model; the room's radiance holds all the light.
-    setup.scene.ambientFromManifest = false;
-  } else {
-    if (!truth || !truth->listsLights || !setup.T_world_marker)
-      throw capture::CaptureError(sceneFile, "lights: \"manifest\" but " + sourcePath +
-                                                 " has no ground-truth lights; list the lights in the scene file");
-    setup.lights = lightsInMarkerFrame(truth->lights, *setup.T_world_marker);
-  }
-  setup.ambient = setup.scene.ambientRadiance;
-  if (setup.scene.ambientFromManifest && truth && truth->ambientRadiance) setup.ambient = *truth->ambientRadiance;
-  if (setup.lights.size() > static_cast<size_t>(lighting::kMaxLights))
-    throw capture::CaptureError(setup.scene.lightSource == lighting::LightSource::Scene ? sceneFile : sourcePath,
-                                "lights: " + std::to_string(setup.lights.size()) + " lights, at most " +
-                                    std::to_string(lighting::kMaxLights) + " are supported");
-  if (poseMode == PoseMode::GroundTruth && !setup.T_world_marker)
-    throw capture::CaptureError(sourcePath, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
-  return setup;
-}
-
 size_t gpuBudgetBytes() {
   size_t mb = 4096;
   if (const char* env = std::getenv("MRGI_GPU_BUDGET_MB")) {
@@ -273,20 +208,6 @@ FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor
   }
   render(frame, p, compositor, profiler);
   return std::move(p.result);
-}
-
-std::future<FrameAhead> readAhead(std::function<std::optional<capture::Frame>()> next, FramePipeline* pipeline) {
-  return std::async(std::launch::async, [next = std::move(next), pipeline] {
-    FrameAhead a;
-    a.frame = next();
-    a.in = std::chrono::steady_clock::now();
-    if (a.frame && a.frame->rgbd && pipeline) {
-      a.arrived = *a.frame;  // shares the images: registration replaces the depth, never writes into it
-      a.stages = std::make_unique<gl::Profiler>();
-      a.prepared = pipeline->prepare(*a.frame, *a.stages);
-    }
-    return a;
-  });
 }
 
 PreparedFrame FramePipeline::prepare(capture::Frame& frame, gl::Profiler& profiler) {

@@ -1,6 +1,7 @@
 #pragma once
-// The per-frame work every application shares (replay, insert, and later live): marker pose, filtered
-// depth, estimated lights and albedo, real mesh, lighting and compositing of one RGB-D frame.
+// The per-frame work every application shares (replay, insert, live): camera pose, filtered depth, estimated
+// lights and albedo, real mesh, lighting and compositing of one RGB-D frame. What lights the frames is
+// runtime/lighting_setup.h, what a frame carries runtime/frame_data.h, reading ahead runtime/read_ahead.h.
 #include <chrono>
 #include <functional>
 #include <future>
@@ -23,44 +24,15 @@
 #include "reconstruction/mesh_rays.h"
 #include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
+#include "runtime/frame_data.h"
+#include "runtime/lighting_setup.h"
 #include "runtime/pose_source.h"
+#include "runtime/read_ahead.h"
 
 namespace mrgi::runtime {
 
-/// What the lighting path needs besides the frames: the scene, the marker and the lights.
-struct LightingSetup {
-  lighting::SceneDescription scene;
-  std::string tagFamily = "tag36h11";
-  double tagSize = 0.16;
-  int tagId = -1;
-  bool markerGiven =
-      false;  ///< the source's manifest names its marker; without one a first frame without a tag founds the world
-  std::vector<lighting::SceneLight> lights;  ///< marker frame
-  cv::Vec3d ambient{0, 0, 0};
-  /// The ambient's directional part: radiance as SH bands 1-2 (band 0 is `ambient`; lighting/sh.h
-  /// convention, lighting world), from a fisheye's or the room's remainder after its lights; zero otherwise.
-  std::array<cv::Vec3d, 9> ambientSh{};
-  std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
-  /// The marker the setup's source carries (family, size, id).
-  MarkerSpec marker() const { return {tagFamily, tagSize, tagId}; }
-  std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
-};
-
 /// The GPU memory a frame pipeline may take: MRGI_GPU_BUDGET_MB (MiB) when set, else 4096 MiB.
 size_t gpuBudgetBytes();
-
-/// A session's ground-truth lights (world frame, every type) in the marker frame.
-std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
-                                                      const capture::Pose& T_world_marker);
-
-/// Resolves a loaded scene against a source (marker from the manifest, lights from the scene, the
-/// manifest's ground truth or its fisheye calibration). `sceneFile` and `sourcePath` name the culprit in
-/// errors; PoseMode::GroundTruth needs the manifest's T_world_marker.
-/// `roomGiven`: a room model will light the frames; a scene that does not say where its lights come from
-/// then takes them from the room when the source lists none and has no fisheye.
-LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
-                              const capture::FrameSource& source, const std::string& sourcePath, PoseMode poseMode,
-                              bool roomGiven = false);
 
 struct FrameOptions {
   PoseMode pose = PoseMode::Tracked;  ///< where each frame's camera pose comes from (runtime/pose_source.h)
@@ -98,42 +70,6 @@ struct FrameOptions {
   std::function<void(const std::string& what, double fraction)> progress;
   /// Where techniques keep their precomputed data between runs (a saved room's folder); empty: nowhere.
   std::string cacheDir;
-};
-
-struct FrameResult {
-  cv::Mat composite;                             ///< 8-bit RGB, same order as the camera image
-  std::optional<capture::Pose> T_marker_camera;  ///< nullopt when the frame is lost (CameraPose)
-  CameraPose pose;                               ///< how the frame was posed
-  cv::Mat positions, normals;                    ///< camera frame, from the filtered depth (empty without a scene)
-  bool lit = false;                              ///< the lighting pipeline ran (a scene and a marker pose)
-  bool reusedSurface = false;  ///< static camera: the last frame's real surface was kept (FrameOptions::reuse)
-  double exposure = 1.0;       ///< the colour image's exposure (capture::RgbdFrame::exposure)
-  nlohmann::json info = nlohmann::json::object();  ///< per-frame facts for the stats (marker status, lights)
-};
-
-/// A measured frame's filtered depth (metres, the z of its positions; 0 where none), as the room model
-/// fuses it.
-cv::Mat measuredDepth(const FrameResult& r);
-
-/// The real scene as the lighting sees it: the filtered depth's mesh in the marker frame, each vertex
-/// with the albedo estimated at its pixel under the setup's lights.
-struct RealSurface {
-  std::vector<lighting::MeshVertex> vertices;
-  std::vector<uint32_t> indices;
-  cv::Mat pixelAlbedo;  ///< CV_32FC3 per colour pixel (the vertices sample it every meshStride pixels)
-};
-
-/// The CPU half of a frame (FramePipeline::prepare): its measurement and, lit from its own depth, its real
-/// surface and the techniques' own inputs, with the lights and ambient it is to be lit under. It touches no GL, so the
-/// next frame's may be made on another thread while the GL half of this one runs.
-struct PreparedFrame {
-  FrameResult result;
-  std::optional<RealSurface> surface;  ///< the real scene from this frame's depth, when built
-  /// The techniques' own inputs from this frame (technique name, input), when built.
-  std::vector<std::pair<std::string, std::shared_ptr<const lighting::TechniqueInput>>> inputs;
-  std::vector<lighting::SceneLight> lights;  ///< marker frame, as they were for this frame
-  cv::Vec3d ambient{0, 0, 0};
-  std::array<cv::Vec3d, 9> ambientSh{};
 };
 
 class FramePipeline {
@@ -236,17 +172,5 @@ class FramePipeline {
   void roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
   cv::Mat thumbnail_;  ///< of the frame being processed
 };
-
-/// A frame read ahead of a frame loop on a worker thread, and prepared there when a pipeline was given.
-struct FrameAhead {
-  std::optional<capture::Frame> frame;       ///< nullopt at the end of the source
-  std::optional<capture::Frame> arrived;     ///< as read, before preparing registered its depth (shares the images)
-  std::chrono::steady_clock::time_point in;  ///< when it was read and decoded
-  std::optional<PreparedFrame> prepared;     ///< FramePipeline::prepare's result
-  std::unique_ptr<gl::Profiler> stages;      ///< the CPU stages of preparing it (gl::Profiler::adopt)
-};
-/// Reads the next frame with `next` on a worker thread and, with `pipeline`, prepares it there (the caller
-/// prepares nothing else with that pipeline until the result is taken). A read error surfaces at get().
-std::future<FrameAhead> readAhead(std::function<std::optional<capture::Frame>()> next, FramePipeline* pipeline);
 
 }  // namespace mrgi::runtime

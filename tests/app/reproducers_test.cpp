@@ -16,7 +16,7 @@ using nlohmann::json;
 
 namespace {
 
-std::string slurp(const fs::path& p) {
+std::string readWhole(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   std::stringstream ss;
   ss << in.rdbuf();
@@ -35,7 +35,8 @@ std::string replaceAll(std::string s, const std::string& from, const std::string
 }
 
 const json& cases() {
-  static const json all = json::parse(slurp(fs::path(MRGI_SOURCE_DIR) / "tests/data/reproducers/cases.json"))["cases"];
+  static const json all =
+      json::parse(readWhole(fs::path(MRGI_SOURCE_DIR) / "tests/data/reproducers/cases.json"))["cases"];
   return all;
 }
 
@@ -70,7 +71,7 @@ std::map<std::string, std::string> snapshot(const fs::path& root, const fs::path
       it.disable_recursion_pending();
       continue;
     }
-    if (it->is_regular_file()) files[it->path().string()] = slurp(it->path());
+    if (it->is_regular_file()) files[it->path().string()] = readWhole(it->path());
   }
   return files;
 }
@@ -90,7 +91,7 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
     fs::copy(fs::path(MRGI_SOURCE_DIR) / "tests/data" / sub, data / sub, fs::copy_options::recursive);
   const std::string models = (fs::path(MRGI_SOURCE_DIR) / "recordings/models").string();
   for (const auto& e : fs::recursive_directory_iterator(data))
-    if (e.path().extension() == ".json") spit(e.path(), replaceAll(slurp(e.path()), "{models}", models));
+    if (e.path().extension() == ".json") spit(e.path(), replaceAll(readWhole(e.path()), "{models}", models));
   auto expand = [&](std::string s) {
     s = replaceAll(s, "{session}", session.string());
     s = replaceAll(s, "{data}", data.string());
@@ -104,12 +105,12 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
       const size_t hash = target.find('#');
       const fs::path file = session / target.substr(0, hash);
       if (hash == std::string::npos) {
-        json doc = json::parse(slurp(file));
+        json doc = json::parse(readWhole(file));
         doc.merge_patch(patch);
         spit(file, doc.dump(2) + "\n");
       } else {
         const int line = std::stoi(target.substr(hash + 1));
-        std::istringstream lines(slurp(file));
+        std::istringstream lines(readWhole(file));
         std::string text, l;
         for (int i = 0; std::getline(lines, l); ++i) {
           if (i == line) {
@@ -124,17 +125,17 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
     }
   if (c.contains("copy"))
     for (const auto& [target, source] : c["copy"].items())
-      spit(session / target, slurp(expand(source.get<std::string>())));
+      spit(session / target, readWhole(expand(source.get<std::string>())));
   if (c.contains("write"))
     for (const auto& [target, text] : c["write"].items()) spit(session / target, text.get<std::string>());
   if (c.contains("truncate"))
     for (const auto& [target, keep] : c["truncate"].items()) {
-      const std::string bytes = slurp(session / target);
+      const std::string bytes = readWhole(session / target);
       spit(session / target, bytes.substr(0, static_cast<size_t>(bytes.size() * keep.get<double>())));
     }
   if (c.contains("xor"))
     for (const auto& [target, at] : c["xor"].items()) {
-      std::string bytes = slurp(session / target);
+      std::string bytes = readWhole(session / target);
       bytes[static_cast<size_t>(bytes.size() * at.get<double>())] ^= 0x5A;
       spit(session / target, bytes);
     }
@@ -157,7 +158,7 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
                           std::string(MRGI_BINARY) + " " + expand(c["args"]) + " > " + (root / "stdout").string() +
                           " 2> " + (root / "stderr").string();
   const int status = std::system(cmd.c_str());
-  const std::string err = slurp(root / "stderr");
+  const std::string err = readWhole(root / "stderr");
   fs::remove(root / "stdout");
   fs::remove(root / "stderr");
   ASSERT_FALSE(WIFSIGNALED(status)) << err;

@@ -20,10 +20,10 @@ using namespace mrgi::reconstruction;
 
 namespace {
 
-const std::string kData = MRGI_SHARED_DATA;
+const std::string kProbeData = MRGI_SHARED_DATA;
 
 capture::FisheyeCalibration rosCalibration() {
-  return capture::readFisheyeCalibration(kData + "/fisheye-ros-calib/ost.yaml");
+  return capture::readFisheyeCalibration(kProbeData + "/fisheye-ros-calib/ost.yaml");
 }
 
 capture::FisheyeCalibration idealFisheye(int size = 200, double f = 50) {
@@ -192,7 +192,7 @@ TEST(MedianCut, IrradianceFromLightsConvergesOnRealHdrMaps) {
                                        cv::normalize(cv::Vec3d(-1, 1, 0.3)),
                                        {1, 0, 0}};
   for (const std::string name : {"city", "courtyard", "forest", "interior", "studio"}) {
-    cv::Mat map = cv::imread(kData + "/hdr-blender-world/" + name + ".exr", cv::IMREAD_UNCHANGED);
+    cv::Mat map = cv::imread(kProbeData + "/hdr-blender-world/" + name + ".exr", cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(map.empty()) << name;
     cv::cvtColor(map, map, cv::COLOR_BGR2RGB);
     map = cv::max(map, 0.0);  // lossy EXR compression leaves tiny negatives
@@ -241,7 +241,7 @@ TEST(LightSplit, LightsPlusShRemainderHoldEveryNormalOnRealHdrMaps) {
     normals.push_back({r * std::cos(a), r * std::sin(a), z});  // z in (0, 1): the upper half of 128
   }
   for (const std::string name : {"city", "courtyard", "forest", "interior", "studio"}) {
-    cv::Mat map = cv::imread(kData + "/hdr-blender-world/" + name + ".exr", cv::IMREAD_UNCHANGED);
+    cv::Mat map = cv::imread(kProbeData + "/hdr-blender-world/" + name + ".exr", cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(map.empty()) << name;
     cv::cvtColor(map, map, cv::COLOR_BGR2RGB);
     map = cv::max(map, 0.0);
@@ -297,8 +297,8 @@ TEST(LightSplit, EveryNormalOfAWholeSphereMapIsHeld) {
   }
   std::vector<std::string> maps;
   for (const char* n : {"city", "courtyard", "forest", "interior", "studio"})
-    maps.push_back(kData + "/hdr-blender-world/" + n + ".exr");
-  for (const char* n : {"grace", "pisa", "uffizi"}) maps.push_back(kData + "/hdr-probes/" + n + ".hdr");
+    maps.push_back(kProbeData + "/hdr-blender-world/" + n + ".exr");
+  for (const char* n : {"grace", "pisa", "uffizi"}) maps.push_back(kProbeData + "/hdr-probes/" + n + ".hdr");
   double worstBefore = 0, worstAfter = 0;
   for (const std::string& path : maps) {
     cv::Mat map = capture::readAny(path);

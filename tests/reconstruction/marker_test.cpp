@@ -19,7 +19,7 @@ using namespace mrgi::reconstruction;
 
 namespace {
 
-const std::string kData = MRGI_SHARED_DATA;
+const std::string kMarkerData = MRGI_SHARED_DATA;
 
 capture::Pose poseFromRt(const cv::Vec3d& t, const cv::Vec3d& r) {
   cv::Matx33d R;
@@ -34,8 +34,8 @@ struct VispGroundTruth {
 
 VispGroundTruth readVispAprilTag() {
   VispGroundTruth gt;
-  std::ifstream det(kData + "/apriltag-visp/ground_truth_detection.txt"),
-      pose(kData + "/apriltag-visp/ground_truth_pose.txt");
+  std::ifstream det(kMarkerData + "/apriltag-visp/ground_truth_detection.txt"),
+      pose(kMarkerData + "/apriltag-visp/ground_truth_pose.txt");
   std::string label;
   while (det >> label) {
     const int id = std::stoi(label.substr(label.rfind('_') + 1));
@@ -53,7 +53,7 @@ VispGroundTruth readVispAprilTag() {
 }  // namespace
 
 TEST(Marker, RealPhotoCornersAndPosesMatchGroundTruth) {
-  const cv::Mat img = cv::imread(kData + "/apriltag-visp/AprilTag.png", cv::IMREAD_GRAYSCALE);
+  const cv::Mat img = cv::imread(kMarkerData + "/apriltag-visp/AprilTag.png", cv::IMREAD_GRAYSCALE);
   ASSERT_FALSE(img.empty());
   const capture::Intrinsics k{640, 480, 615.167, 615.168, 312.189, 243.437};
   const auto gt = readVispAprilTag();
@@ -92,7 +92,7 @@ struct VispSequence {
 
 VispSequence readVispSequence() {
   VispSequence s;
-  const std::string dir = kData + "/rgbd-visp-apriltag/";
+  const std::string dir = kMarkerData + "/rgbd-visp-apriltag/";
   const auto cam = nlohmann::json::parse(std::ifstream(dir + "cam.json"));
   s.k = {cam["w"], cam["h"], cam["px"], cam["py"], cam["u0"], cam["v0"]};
   const auto data = nlohmann::json::parse(std::ifstream(dir + "apriltag_data.json"));
@@ -115,11 +115,11 @@ TEST(Marker, DetectionInARegionAroundTheTagMatchesTheWholeImages) {
   // the 20 frames of the ViSP RGB-D sequence) every tag found in its search region has the corners found on
   // the whole image (to float rounding: 4e-5 px), and a region that cuts a tag gives no detection of it well
   // inside.
-  std::vector<cv::Mat> images{cv::imread(kData + "/apriltag-visp/AprilTag.png", cv::IMREAD_COLOR)};
+  std::vector<cv::Mat> images{cv::imread(kMarkerData + "/apriltag-visp/AprilTag.png", cv::IMREAD_COLOR)};
   for (int f = 0; f < 20; ++f) {
     char n[16];
     std::snprintf(n, sizeof n, "%04d", f);
-    images.push_back(cv::imread(kData + "/rgbd-visp-apriltag/color_image_" + n + ".png", cv::IMREAD_COLOR));
+    images.push_back(cv::imread(kMarkerData + "/rgbd-visp-apriltag/color_image_" + n + ".png", cv::IMREAD_COLOR));
   }
   TagDetector detector;
   int compared = 0, cut = 0;
@@ -166,7 +166,7 @@ TEST(Marker, RealRgbdSequencePosesMatchGroundTruth) {
   for (int f = 0; f < 20; ++f) {
     char name[64];
     std::snprintf(name, sizeof name, "%04d", f);
-    const std::string dir = kData + "/rgbd-visp-apriltag/";
+    const std::string dir = kMarkerData + "/rgbd-visp-apriltag/";
     const cv::Mat img = cv::imread(dir + "color_image_" + name + ".png", cv::IMREAD_GRAYSCALE);
     cv::Mat depth;
     capture::readNpzArray(dir + "depth_image_" + name + ".npz", "data.npy").convertTo(depth, CV_32F, 0.001);

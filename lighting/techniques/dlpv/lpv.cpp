@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <numbers>
 
 #include "lighting/sh.h"
 
 namespace mrgi::lighting {
 
 namespace {
-constexpr float kPi = 3.14159265358979f;
 using sh::kY00;
 using sh::kY1;
 constexpr float kCos0 = sh::kCosineBand0;
@@ -75,7 +75,7 @@ void injectReference(const LpvGrid& grid, const RsmTexels& source, const RsmTexe
         const auto lobe = cosineLobe(dir);
         CellSh& cell = volume.at(c[0], c[1], c[2]);
         for (int ch = 0; ch < 3; ++ch)
-          for (int i = 0; i < 4; ++i) cell[ch][i] += params.sign * flux[ch] / kPi * lobe[i];
+          for (int i = 0; i < 4; ++i) cell[ch][i] += params.sign * flux[ch] / std::numbers::pi_v<float> * lobe[i];
       };
       if (params.mode & kInjectIndirect) {
         const cv::Vec4f n = source.normal.at<cv::Vec4f>(y, x);
@@ -147,7 +147,7 @@ LpvVolumeCpu propagateReference(const LpvGrid& grid, const LpvVolumeCpu& injecte
               for (int ch = 0; ch < 3; ++ch) {
                 float flux = w * solid * dot4(src[ch], y);
                 if (clampNegative) flux = std::max(flux, 0.0f);
-                for (int c = 0; c < 4; ++c) out[ch][c] += flux / kPi * lobe[c];
+                for (int c = 0; c < 4; ++c) out[ch][c] += flux / std::numbers::pi_v<float> * lobe[c];
               }
             }
           }
@@ -194,7 +194,8 @@ cv::Vec3f irradianceReference(const LpvGrid& grid, const LpvVolumeCpu& volume, c
   const float inv = 1.0f / (cell * cell);
   cv::Vec3f e;
   for (int ch = 0; ch < 3; ++ch)
-    e[ch] = inv * (kPi * c[ch][0] * y[0] + (2.0f * kPi / 3.0f) * (c[ch][1] * y[1] + c[ch][2] * y[2] + c[ch][3] * y[3]));
+    e[ch] = inv * (std::numbers::pi_v<float> * c[ch][0] * y[0] +
+                   (2.0f * std::numbers::pi_v<float> / 3.0f) * (c[ch][1] * y[1] + c[ch][2] * y[2] + c[ch][3] * y[3]));
   return e;
 }
 

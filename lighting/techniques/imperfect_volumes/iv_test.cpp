@@ -29,7 +29,7 @@ iv::Point pointIn(const iv::Grid& g, int i, int j, int k, const cv::Vec3f& n = {
   return p;
 }
 
-bool finite(const cv::Vec3f& v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
+bool finiteRgb(const cv::Vec3f& v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
 
 /// Irradiance at the centre of a w x w plate at height h, facing it, from the plate's Lambertian radiance L:
 /// pi L F with F the form factor of a point to a parallel rectangle centred below it (four corner rectangles,
@@ -358,7 +358,7 @@ TEST(ImperfectVolumes, ExtremesStayFinite) {
       o.bounces = 3;
       const iv::Incident in = iv::gather(v, true, o, amb);
       for (float c : in.sh) ASSERT_TRUE(std::isfinite(c)) << bands << " bands, " << rays << " rays";
-      EXPECT_TRUE(finite(iv::irradiance(v, in, cv::Vec3f(g.centre(4, 4, 2)), {0, 0, 1})));
+      EXPECT_TRUE(finiteRgb(iv::irradiance(v, in, cv::Vec3f(g.centre(4, 4, 2)), {0, 0, 1})));
     }
   // Empty volume, all occupied, one voxel, no points, points outside and NaN points.
   iv::Options o;
@@ -380,14 +380,14 @@ TEST(ImperfectVolumes, ExtremesStayFinite) {
     const iv::Volume full = iv::voxelise(g, all);
     const iv::Incident f = iv::gather(full, true, o, amb);
     for (float c : f.sh) ASSERT_TRUE(std::isfinite(c));
-    EXPECT_TRUE(finite(iv::irradiance(full, f, {0, 0, 0}, {0, 0, 1})));
+    EXPECT_TRUE(finiteRgb(iv::irradiance(full, f, {0, 0, 0}, {0, 0, 1})));
   }
   // A degenerate normal and a grazing one.
   const iv::Grid g = unitGrid(8);
   const iv::Volume v = iv::voxelise(g, {pointIn(g, 4, 4, 4, {0, 0, 0})});
   const iv::Incident in = iv::gather(v, true, o, amb);
-  EXPECT_TRUE(finite(iv::irradiance(v, in, cv::Vec3f(g.centre(4, 4, 4)), {0, 0, 0})));
-  EXPECT_TRUE(finite(iv::irradiance(v, in, cv::Vec3f(g.centre(4, 4, 4)), {1, 0, 0})));
+  EXPECT_TRUE(finiteRgb(iv::irradiance(v, in, cv::Vec3f(g.centre(4, 4, 4)), {0, 0, 0})));
+  EXPECT_TRUE(finiteRgb(iv::irradiance(v, in, cv::Vec3f(g.centre(4, 4, 4)), {1, 0, 0})));
 }
 
 namespace {

@@ -2,14 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <tuple>
 #include <unordered_map>
 
 namespace mrgi::lighting {
 namespace {
-
-constexpr float kPi = static_cast<float>(CV_PI);
 
 float lum(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 
@@ -43,7 +42,7 @@ std::vector<Val> valsFromRgbd(const cv::Mat& positions, const cv::Mat& normals, 
                (p[2] / range) / cosV;
       v.position = R * p + t;
       v.normal = R * n;
-      v.flux = L * (kPi * v.area);
+      v.flux = L * (std::numbers::pi_v<float> * v.area);
       out.push_back(v);
     }
   setValWeights(out);
@@ -74,7 +73,7 @@ std::vector<Val> valsFromRoom(const reconstruction::RoomMesh& room, float cell, 
       const double a = area[i];
       s.position += a * cv::Vec3d(room.positions[i]);
       s.normal += a * cv::Vec3d(room.normals[i]);
-      s.flux += (kPi * a) * cv::Vec3d(room.radiance[i]);
+      s.flux += (std::numbers::pi_v<float> * a) * cv::Vec3d(room.radiance[i]);
       s.area += a;
     }
     if (cells.size() > maxVals) continue;

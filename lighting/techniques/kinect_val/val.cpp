@@ -2,14 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "capture/colour.h"
 #include "lighting/point_index.h"
 
 namespace mrgi::lighting {
 namespace {
-
-constexpr float kPi = static_cast<float>(CV_PI);
 
 cv::Vec3f reflectView(const Receiver& r) { return 2.f * r.normal.dot(r.view) * r.normal - r.view; }
 
@@ -20,7 +19,7 @@ float discFormFactor(const Val& val, const cv::Vec3f& x) {
   const float dist2 = d.dot(d);
   if (!(dist2 > 0.f)) return 0.f;  // the receiver at the disc centre: no defined direction
   const float cosJ = std::clamp(val.normal.dot(d) / std::sqrt(dist2), 0.f, 1.f);  // rounding can exceed 1
-  const float denom = kPi * dist2 + val.area;
+  const float denom = std::numbers::pi_v<float> * dist2 + val.area;
   return denom > 0.f ? val.area * cosJ / denom : 0.f;
 }
 
@@ -33,7 +32,7 @@ ValGather gatherReference(const Receiver& r, const std::vector<Val>& vals) {
     const cv::Vec3f w = dist2 > 0.f ? dir / std::sqrt(dist2) : cv::Vec3f(0, 0, 0);
     const float cosI = std::max(r.normal.dot(w), 0.f);
     const float cosJ = std::max(-v.normal.dot(w), 0.f);
-    const float denom = kPi * dist2 + v.area;
+    const float denom = std::numbers::pi_v<float> * dist2 + v.area;
     const float geo = denom > 0.f ? cosJ / denom : 0.f;  // E_j = φ_j · geo · cos ϑ_i ≤ φ_j / a_j
     const float lobe = cosI > 0.f ? phongLobe(refl.dot(w), r.exponent) : 0.f;
     g.E += v.flux * (geo * cosI);
@@ -88,7 +87,7 @@ void evaluateVpl(const SparseVpl& v, const Receiver& r, cv::Vec3f& E, cv::Vec3f&
 
 cv::Vec3f valRadiance(const cv::Vec3f& E, const cv::Vec3f& S, const cv::Vec3f& albedo, const cv::Vec3f& specular,
                       float exponent) {
-  return albedo.mul(E) * (1.f / kPi) + specular.mul(S) * phongNorm(exponent);
+  return albedo.mul(E) * (1.f / std::numbers::pi_v<float>)+specular.mul(S) * phongNorm(exponent);
 }
 
 SparsePoints sampleSparsePoints(const Mesh& mesh, int count) {
@@ -205,7 +204,7 @@ float occlusion(size_t i, const cv::Vec3f& c, float R, const std::vector<cv::Vec
       std::abs(n[0]) < 0.9f ? cv::normalize(n.cross(cv::Vec3f(1, 0, 0))) : cv::normalize(n.cross(cv::Vec3f(0, 1, 0)));
   const cv::Vec3f b = n.cross(t);
   const float Rs = std::max(R, 1e-6f);
-  const float areaL = kPi * Rs * Rs * cosL / (dl * dl + Rs * Rs);  // π F of a sphere
+  const float areaL = std::numbers::pi_v<float> * Rs * Rs * cosL / (dl * dl + Rs * Rs);  // π F of a sphere
   const float hl = 0.5f * std::sqrt(areaL);
   const float lx = wl.dot(t), ly = wl.dot(b);
   float covered = 0.f;
@@ -219,8 +218,9 @@ float occlusion(size_t i, const cv::Vec3f& c, float R, const std::vector<cv::Vec
     const float cosX = n.dot(wo);
     if (cosX <= 0.f || dk >= dl) continue;  // behind the point or beyond the light centre
     const float fade = std::min((dl - dk) / Rs, 1.f);
-    const float a = kPi * radius[k] * radius[k];
-    const float areaO = kPi * a * std::abs(nrm[k].dot(wo)) * cosX / (kPi * d2 + a);  // π F of a two-sided disc
+    const float a = std::numbers::pi_v<float> * radius[k] * radius[k];
+    const float areaO = std::numbers::pi_v<float> * a * std::abs(nrm[k].dot(wo)) * cosX /
+                        (std::numbers::pi_v<float> * d2 + a);  // π F of a two-sided disc
     const float ho = 0.5f * std::sqrt(areaO);
     const float ox = wo.dot(t), oy = wo.dot(b);
     const float w = std::max(0.f, std::min(lx + hl, ox + ho) - std::max(lx - hl, ox - ho));

@@ -2,20 +2,22 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "capture/colour.h"
 
 namespace mrgi::lighting::splat {
 
 namespace {
-constexpr float kPi = static_cast<float>(CV_PI);
 /// Luminance of |c| (a subtracted light weighs by its magnitude).
 float absLum(const cv::Vec3f& c) {
   return static_cast<float>(capture::luminance({std::abs(c[0]), std::abs(c[1]), std::abs(c[2])}));
 }
 }  // namespace
 
-float peakPerFlux(float exponent) { return exponent > 0 ? (exponent + 1.0f) / (2.0f * kPi) : 1.0f / kPi; }
+float peakPerFlux(float exponent) {
+  return exponent > 0 ? (exponent + 1.0f) / (2.0f * std::numbers::pi_v<float>) : 1.0f / std::numbers::pi_v<float>;
+}
 
 float widenedExponent(float exponent, float d, float widen) {
   if (!(widen > 0)) return exponent;
@@ -25,12 +27,13 @@ float widenedExponent(float exponent, float d, float widen) {
 cv::Vec3f intensity(const PixelLight& l, const cv::Vec3f& w, float d) {
   const float cn = l.normal.dot(w);
   if (!(cn > 0)) return {0, 0, 0};
-  if (!(l.exponent > 0)) return l.flux * (cn / kPi);
+  if (!(l.exponent > 0)) return l.flux * (cn / std::numbers::pi_v<float>);
   const float P = widenedExponent(l.exponent, d, l.widen);
   const float ca = std::max(l.axis.dot(w), 0.0f);
   // cos^0 = 1 (also for ca = 0: the fully widened lobe is uniform over the hemisphere).
   const float lobe = P > 0 ? std::pow(ca, P) : 1.0f;
-  return l.flux * ((P + 1.0f) / (2.0f * kPi) * lobe);  // normalised at every widened P', also P' = 0
+  return l.flux *
+         ((P + 1.0f) / (2.0f * std::numbers::pi_v<float>)*lobe);  // normalised at every widened P', also P' = 0
 }
 
 cv::Vec3f irradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n) {
@@ -41,7 +44,7 @@ cv::Vec3f irradiance(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n
   const cv::Vec3f w = v / d;
   const float cr = -n.dot(w);
   if (!(cr > 0)) return {0, 0, 0};
-  return intensity(l, w, d) * (cr / (d2 + std::max(l.area, 0.0f) / kPi));
+  return intensity(l, w, d) * (cr / (d2 + std::max(l.area, 0.0f) / std::numbers::pi_v<float>));
 }
 
 float outline(float x, float n) {

@@ -1,0 +1,49 @@
+#pragma once
+// What lights a session's frames besides the frames themselves: the scene, the marker and the lights,
+// resolved once against the source (its manifest's marker and ground truth, or its fisheye calibration).
+#include <array>
+#include <optional>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "capture/frame_source.h"
+#include "capture/ground_truth.h"
+#include "lighting/scene_file.h"
+#include "runtime/pose_source.h"
+
+namespace mrgi::runtime {
+
+/// What the lighting path needs besides the frames: the scene, the marker and the lights.
+struct LightingSetup {
+  lighting::SceneDescription scene;
+  std::string tagFamily = "tag36h11";
+  double tagSize = 0.16;
+  int tagId = -1;
+  bool markerGiven =
+      false;  ///< the source's manifest names its marker; without one a first frame without a tag founds the world
+  std::vector<lighting::SceneLight> lights;  ///< marker frame
+  cv::Vec3d ambient{0, 0, 0};
+  /// The ambient's directional part: radiance as SH bands 1-2 (band 0 is `ambient`; lighting/sh.h
+  /// convention, lighting world), from a fisheye's or the room's remainder after its lights; zero otherwise.
+  std::array<cv::Vec3d, 9> ambientSh{};
+  std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
+  /// The marker the setup's source carries (family, size, id).
+  MarkerSpec marker() const { return {tagFamily, tagSize, tagId}; }
+  std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
+};
+
+/// A session's ground-truth lights (world frame, every type) in the marker frame.
+std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
+                                                      const capture::Pose& T_world_marker);
+
+/// Resolves a loaded scene against a source (marker from the manifest, lights from the scene, the
+/// manifest's ground truth or its fisheye calibration). `sceneFile` and `sourcePath` name the culprit in
+/// errors; PoseMode::GroundTruth needs the manifest's T_world_marker.
+/// `roomGiven`: a room model will light the frames; a scene that does not say where its lights come from
+/// then takes them from the room when the source lists none and has no fisheye.
+LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
+                              const capture::FrameSource& source, const std::string& sourcePath, PoseMode poseMode,
+                              bool roomGiven = false);
+
+}  // namespace mrgi::runtime
