@@ -10,8 +10,8 @@
 #include <utility>
 #include <vector>
 
-#include "lighting/frame/technique_input.h"
 #include "lighting/frame/mesh.h"
+#include "lighting/frame/technique_input.h"
 #include "lighting/scene.h"
 #include "runtime/pose_source.h"
 

@@ -2,8 +2,8 @@
 // What lights a session's frames besides the frames themselves: the scene, the marker and the lights,
 // resolved once against the source (its manifest's marker and ground truth, or its fisheye calibration).
 #include <array>
-#include <optional>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
