@@ -612,14 +612,21 @@ std::vector<unsigned char> encodeExr(const cv::Mat& rgb, bool half, const std::s
   }
 }
 
-std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors) {
-  // A fresh matrix for the conversion: `bgr = image` would share the caller's pixels, and cvtColor would
-  // then swap the caller's channels in place.
+namespace {
+/// An RGB image in OpenCV's channel order, a grey one as it is. A fresh matrix for the conversion: `bgr =
+/// image` would share the caller's pixels, and cvtColor would then swap the caller's channels in place.
+cv::Mat toBgr(const cv::Mat& image) {
   cv::Mat bgr;
   if (image.channels() == 3)
     cv::cvtColor(image, bgr, cv::COLOR_RGB2BGR);
   else
     bgr = image;
+  return bgr;
+}
+}  // namespace
+
+std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors) {
+  const cv::Mat bgr = toBgr(image);
   // Run-length deflate (Z_RLE) after PNG's row filters: on camera frames and composites half the time of the
   // default strategy at level 3 and 15 % smaller (BM_EncodePng); the writer thread shares the CPU with the
   // frame loop.
@@ -631,11 +638,7 @@ std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& na
 }
 
 std::vector<unsigned char> encodeJpeg(const cv::Mat& image, int quality, const std::string& nameForErrors) {
-  cv::Mat bgr;
-  if (image.channels() == 3)
-    cv::cvtColor(image, bgr, cv::COLOR_RGB2BGR);
-  else
-    bgr = image;
+  const cv::Mat bgr = toBgr(image);
   std::vector<unsigned char> bytes;
   if (image.depth() != CV_8U ||
       !cv::imencode(".jpg", bgr, bytes, {cv::IMWRITE_JPEG_QUALITY, std::clamp(quality, 1, 100)}))

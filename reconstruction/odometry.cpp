@@ -296,76 +296,86 @@ struct OdometrySolver {
     return out;
   }
 
+  /// What one source pixel's vertex meets in the target at pose T (projective association).
+  struct Association {
+    cv::Vec3d p;       ///< the source vertex in the target's frame
+    int u = 0, w = 0;  ///< the target pixel it lands on
+    cv::Vec3d n;       ///< the target's normal there
+    double r = 0;      ///< point-to-plane residual (metres)
+    bool overlaps = false, inlier = false;
+  };
+  /// Calls visit(a) for each source pixel with depth: whether it lands on a target pixel with depth
+  /// (overlaps) and, within the outlier distance of it, is an inlier.
+  template <class Visit>
+  static void associate(const OdometryFrame::Impl::Level& s, const OdometryFrame::Impl::Level& t,
+                        const capture::Pose& T, const OdometryOptions& o, Visit&& visit) {
+    const cv::Matx33d R = capture::rotationOf(T);
+    const cv::Vec3d tr = capture::translationOf(T);
+    for (int y = 0; y < s.vertices.rows; ++y)
+      for (int x = 0; x < s.vertices.cols; ++x) {
+        const cv::Vec3f v = s.vertices.at<cv::Vec3f>(y, x);
+        if (!std::isfinite(v[0])) continue;
+        Association a;
+        a.p = R * cv::Vec3d(v) + tr;
+        if (a.p[2] > 0) {
+          a.u = static_cast<int>(std::lround(t.k.fx * a.p[0] / a.p[2] + t.k.cx));
+          a.w = static_cast<int>(std::lround(t.k.fy * a.p[1] / a.p[2] + t.k.cy));
+          if (a.u >= 0 && a.w >= 0 && a.u < t.vertices.cols && a.w < t.vertices.rows) {
+            const cv::Vec3f q = t.vertices.at<cv::Vec3f>(a.w, a.u);
+            const cv::Vec3f n = t.normals.at<cv::Vec3f>(a.w, a.u);
+            a.overlaps = std::isfinite(q[0]) && std::isfinite(n[0]);
+            if (a.overlaps) {
+              a.n = cv::Vec3d(n);
+              a.r = (a.p - cv::Vec3d(q)).dot(a.n);
+              a.inlier = std::abs(a.r) <= o.depthOutlierM && std::abs(a.p[2] - q[2]) <= o.depthOutlierM;
+            }
+          }
+        }
+        visit(a);
+      }
+  }
+
   /// How well the inliers hold each direction of translation: the mean over them of n n^T (their target
-  /// normals) plus g g^T for the pixels whose
-  /// intensity gradient is an edge (g: how the intensity there changes per metre the camera moves). Taken at
-  /// the coarsest level: there a normal averages the depth's noise away (the finest level's normals, 2-3 m
-  /// away, scatter enough to make a bare wall look as if it held every direction) and noise makes no edge.
+  /// normals) plus g g^T for the pixels whose intensity gradient is an edge (g: how the intensity there
+  /// changes per metre the camera moves). Taken at the coarsest level: there a normal averages the depth's
+  /// noise away (the finest level's normals, 2-3 m away, scatter enough to make a bare wall look as if it
+  /// held every direction) and noise makes no edge.
   static cv::Matx33d heldDirections(const OdometryFrame::Impl::Level& s, const OdometryFrame::Impl::Level& t,
                                     const capture::Pose& T, const OdometryOptions& o) {
     constexpr float kEdge = 0.03f;  // intensity per coarse pixel (the sensor's noise there: about 0.002)
-    const cv::Matx33d R = capture::rotationOf(T);
-    const cv::Vec3d tr = capture::translationOf(T);
     cv::Matx33d held = cv::Matx33d::zeros();
     size_t inliers = 0;
-    const bool intensity = !t.intensity.empty();
-    for (int y = 0; y < s.vertices.rows; ++y)
-      for (int x = 0; x < s.vertices.cols; ++x) {
-        const cv::Vec3f v = s.vertices.at<cv::Vec3f>(y, x);
-        if (!std::isfinite(v[0])) continue;
-        const cv::Vec3d p = R * cv::Vec3d(v) + tr;
-        if (!(p[2] > 0)) continue;
-        const int u = static_cast<int>(std::lround(t.k.fx * p[0] / p[2] + t.k.cx));
-        const int w = static_cast<int>(std::lround(t.k.fy * p[1] / p[2] + t.k.cy));
-        if (u < 0 || w < 0 || u >= t.vertices.cols || w >= t.vertices.rows) continue;
-        const cv::Vec3f q = t.vertices.at<cv::Vec3f>(w, u);
-        const cv::Vec3f n = t.normals.at<cv::Vec3f>(w, u);
-        if (!std::isfinite(q[0]) || !std::isfinite(n[0])) continue;
-        const double r = (p - cv::Vec3d(q)).dot(cv::Vec3d(n));
-        if (std::abs(r) > o.depthOutlierM || std::abs(p[2] - q[2]) > o.depthOutlierM) continue;
-        ++inliers;
-        const cv::Vec3d nd(n);
-        held += nd * nd.t();
-        if (!intensity || u < 1 || w < 1 || u + 1 >= t.intensity.cols || w + 1 >= t.intensity.rows) continue;
-        const float gx = 0.5f * (t.intensity.at<float>(w, u + 1) - t.intensity.at<float>(w, u - 1));
-        const float gy = 0.5f * (t.intensity.at<float>(w + 1, u) - t.intensity.at<float>(w - 1, u));
-        if (!(std::hypot(gx, gy) > kEdge)) continue;  // also NaN
-        const double ax = gx * t.k.fx / p[2], ay = gy * t.k.fy / p[2];
-        const cv::Vec3d g(ax, ay, -(ax * p[0] + ay * p[1]) / p[2]);
-        held += g * g.t();
-      }
+    const cv::Mat& I = t.intensity;
+    associate(s, t, T, o, [&](const Association& a) {
+      if (!a.inlier) return;
+      ++inliers;
+      held += a.n * a.n.t();
+      if (I.empty() || a.u < 1 || a.w < 1 || a.u + 1 >= I.cols || a.w + 1 >= I.rows) return;
+      const float gx = 0.5f * (I.at<float>(a.w, a.u + 1) - I.at<float>(a.w, a.u - 1));
+      const float gy = 0.5f * (I.at<float>(a.w + 1, a.u) - I.at<float>(a.w - 1, a.u));
+      if (!(std::hypot(gx, gy) > kEdge)) return;  // also NaN
+      const double ax = gx * t.k.fx / a.p[2], ay = gy * t.k.fy / a.p[2];
+      const cv::Vec3d g(ax, ay, -(ax * a.p[0] + ay * a.p[1]) / a.p[2]);
+      held += g * g.t();
+    });
     return inliers ? held * (1.0 / static_cast<double>(inliers)) : held;
   }
 
-  /// Quality at the finest level: projective association of the source's vertices into the target, the
-  /// point-to-plane residual of each association within the outlier distance.
+  /// Quality at the finest level: of the source's pixels with depth, those that overlap the target and the
+  /// inliers among them, with the inliers' point-to-plane RMSE, plain and scaled to 1 m range.
   static void measure(const OdometryFrame::Impl::Level& s, const OdometryFrame::Impl::Level& t, OdometryResult& out,
                       const OdometryOptions& o) {
-    const cv::Matx33d R = capture::rotationOf(out.T_target_source);
-    const cv::Vec3d tr = capture::translationOf(out.T_target_source);
     size_t valid = 0, overlapping = 0, inliers = 0;
     double sum2 = 0, range2 = 0;
-    for (int y = 0; y < s.vertices.rows; ++y)
-      for (int x = 0; x < s.vertices.cols; ++x) {
-        const cv::Vec3f v = s.vertices.at<cv::Vec3f>(y, x);
-        if (!std::isfinite(v[0])) continue;
-        ++valid;
-        const cv::Vec3d p = R * cv::Vec3d(v) + tr;
-        if (!(p[2] > 0)) continue;
-        const int u = static_cast<int>(std::lround(t.k.fx * p[0] / p[2] + t.k.cx));
-        const int w = static_cast<int>(std::lround(t.k.fy * p[1] / p[2] + t.k.cy));
-        if (u < 0 || w < 0 || u >= t.vertices.cols || w >= t.vertices.rows) continue;
-        const cv::Vec3f q = t.vertices.at<cv::Vec3f>(w, u);
-        const cv::Vec3f n = t.normals.at<cv::Vec3f>(w, u);
-        if (!std::isfinite(q[0]) || !std::isfinite(n[0])) continue;
-        ++overlapping;
-        const double r = (p - cv::Vec3d(q)).dot(cv::Vec3d(n));
-        if (std::abs(r) > o.depthOutlierM || std::abs(p[2] - q[2]) > o.depthOutlierM) continue;
-        ++inliers;
-        sum2 += r * r;
-        const double z2 = std::max(1.0, p[2] * p[2]);
-        range2 += r * r / (z2 * z2);
-      }
+    associate(s, t, out.T_target_source, o, [&](const Association& a) {
+      ++valid;
+      overlapping += a.overlaps;
+      if (!a.inlier) return;
+      ++inliers;
+      sum2 += a.r * a.r;
+      const double z2 = std::max(1.0, a.p[2] * a.p[2]);
+      range2 += a.r * a.r / (z2 * z2);
+    });
     const auto ratio = [](size_t a, size_t b) { return b ? static_cast<double>(a) / static_cast<double>(b) : 0.0; };
     out.fitness = ratio(inliers, valid);
     out.overlap = ratio(overlapping, valid);
