@@ -22,7 +22,7 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # Skipped by default: GL-only tests (their work is Mesa's; the CLI tests still drive every GL path of ours
 # under ASan) and the numerical tests of a minute or more each under ASan (sweeps, path tracing, HDR maps,
 # fusing whole recordings into rooms: the RoomModel unit tests run the same fusion under ASan).
-exclude="^GL[./]|^AllTechniques/|Window|^Lpv\.DirectionalLobe|^Cli\.InsertSnaps|^Cli\.SynthPathTraces|^Cli\.ReferencePathTraces|^MedianCut\.Irradiance|^LightSplit\.Lights|^Cli\.ReplayEstimatesLightsFromTheSessionFisheye|^Cli\.Bench|^Cli\.RoomFuses|^Cli\.ReplayBuildsTheRoom|^Tracking\.TheDefaultRoom|^Tracking\.ALookAround|^Cli\.AnObjectInsertedIntoARecordingWithoutAMarker"
+exclude="^GL[./]|^AllTechniques/|Window|^Lpv\.DirectionalLobe|^Cli\.InsertSnaps|^Cli\.SynthPathTraces|^Cli\.ReferencePathTraces|^MedianCut\.Irradiance|^LightSplit\.Lights|^Cli\.ReplayEstimatesLightsFromTheSessionFisheye|^Cli\.Bench|^BenchRun\.|^Cli\.RoomFuses|^Cli\.ReplayBuildsTheRoom|^Tracking\.TheDefaultRoom|^Tracking\.ALookAround|^Cli\.AnObjectInsertedIntoARecordingWithoutAMarker"
 if [[ $all -eq 1 ]]; then
   ctest --test-dir build-fuzz -j2 --output-on-failure --timeout 900 -E "Window"
 else

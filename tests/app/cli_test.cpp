@@ -716,61 +716,29 @@ TEST(Cli, BenchKinectValWritesSparseAndBruteForceRecords) {
   expectOneLineError(runMrgi("bench --against bruteforce --technique dlpv --json " + out.string()), "--technique dlpv");
 }
 
-TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
+TEST(Cli, BenchWritesWhatItsFlagsNameAndReplayTakesItsPresets) {
+  // The command line over the bench's harness (whose sweep of every technique is BenchRun.*): one technique,
+  // the files its flags name, said on stdout, and presets replay takes.
   const fs::path scene = writeScene("bench_sphere.json", R"({"objects": [{"model": ")" + kModels +
                                                              R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
       "lights": "manifest", "lpv": {"resolution": 16, "steps": 8, "rsm_size": 128}})");
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_sweep_" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  const Result r = runMrgi("bench --quick --session " + session().string() + " --scene " + scene.string() +
-                           " --frames 2 --ref-frames 1 --ref-spp 4 --json " + (dir / "b.json").string() + " --csv " +
-                           (dir / "b.csv").string() + " --html " + (dir / "b.html").string() + " --presets " +
-                           (dir / "presets.json").string());
+  const Result r = runMrgi("bench --quick --technique dlpv --session " + session().string() + " --scene " +
+                           scene.string() + " --frames 2 --ref-frames 1 --ref-spp 4 --json " +
+                           (dir / "b.json").string() + " --csv " + (dir / "b.csv").string() + " --html " +
+                           (dir / "b.html").string() + " --presets " + (dir / "presets.json").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto doc = nlohmann::json::parse(slurp(dir / "b.json"));
   std::set<std::string> techniques;
-  for (const auto& rec : doc["records"]) {
-    techniques.insert(rec["technique"].get<std::string>());
-    for (const char* key : {"ms_total", "ms_lighting", "rmse_delta", "rel_error_delta", "rel_error_delta_near",
-                            "rel_error_virtual", "ssim", "flicker", "gpu_mb"}) {
-      ASSERT_TRUE(rec.contains(key)) << key;
-      const double v = rec[key].get<double>();
-      EXPECT_TRUE(std::isfinite(v) && v >= 0) << key << " " << v;
-    }
-    EXPECT_GT(rec["ms_lighting"].get<double>(), 0.0);
-    EXPECT_GT(rec["rel_error_virtual"].get<double>(), 0.0);  // a real-time approximation is never exact
-    EXPECT_LT(rec["rel_error_virtual"].get<double>(), 1.0);
-    EXPECT_GT(rec["ssim"].get<double>(), 0.8);
-    EXPECT_LE(rec["ssim"].get<double>(), 1.0);
-    EXPECT_GT(rec["gpu_mb"].get<double>(), 0.1);
-    EXPECT_TRUE(rec["ms_stages"].contains("gbuffer"));
-  }
-  // Every technique and alias, and each pairing of a technique that serves real pixels with another one for
-  // the virtual object (Kinect-VAL and precomputed illuminance composition serve the virtual object only).
-  EXPECT_EQ(techniques,
-            (std::set<std::string>{"dlpv", "lpv-diff", "kinect-val", "imperfect-volumes", "splatting", "pic",
-                                   "dlpv+kinect-val", "dlpv+imperfect-volumes", "dlpv+splatting", "dlpv+pic",
-                                   "imperfect-volumes+dlpv", "imperfect-volumes+kinect-val",
-                                   "imperfect-volumes+splatting", "imperfect-volumes+pic", "splatting+dlpv",
-                                   "splatting+kinect-val", "splatting+imperfect-volumes", "splatting+pic"}));
-  // A coarser volume costs less GPU memory than the defaults.
-  double mbDefault = 0, mbCoarse = 0;
-  for (const auto& rec : doc["records"])
-    if (rec["technique"] == "dlpv" && rec["varied"] == "")
-      mbDefault = rec["gpu_mb"];
-    else if (rec["technique"] == "dlpv" && rec["varied"] == "lpv.resolution")
-      mbCoarse = rec["gpu_mb"];
-  EXPECT_LT(mbCoarse, mbDefault);
+  for (const auto& rec : doc["records"]) techniques.insert(rec["technique"].get<std::string>());
+  EXPECT_EQ(techniques, (std::set<std::string>{"dlpv", "lpv-diff"}));
   EXPECT_EQ(lines(slurp(dir / "b.csv")), static_cast<int>(doc["records"].size()) + 1);
-  const std::string html = slurp(dir / "b.html");
-  EXPECT_NE(html.find("<svg"), std::string::npos);
-  EXPECT_NE(html.find("data:image/png;base64,"), std::string::npos);
-  EXPECT_EQ(html.find("src='http"), std::string::npos);  // self-contained
-  // Presets: three, from the records, and replay uses them.
+  EXPECT_NE(slurp(dir / "b.html").find("<svg"), std::string::npos);
+  for (const char* file : {"b.json", "b.csv", "b.html", "presets.json"})
+    EXPECT_NE(r.out.find(fs::absolute(dir / file).string()), std::string::npos) << file << ": " << r.out;
   const auto presets = nlohmann::json::parse(slurp(dir / "presets.json"));
   for (const char* name : {"fast", "balanced", "accurate"}) ASSERT_TRUE(presets["presets"].contains(name)) << name;
-  EXPECT_LE(presets["presets"]["fast"]["ms_lighting"].get<double>(),
-            presets["presets"]["accurate"]["ms_lighting"].get<double>());
   const fs::path out = dir / "replay";
   const Result rp = runMrgi("replay " + session().string() + " --scene " + scene.string() +
                             " --frames 1 --pose ground-truth"
@@ -783,6 +751,7 @@ TEST(Cli, BenchSweepsTechniquesAgainstThePathTracerAndPicksPresets) {
   expectOneLineError(runMrgi("replay " + session().string() + " --scene " + scene.string() +
                              " --preset fast --presets " + scene.string() + " --out " + out.string()),
                      "has no preset \"fast\"");
+  expectOneLineError(runMrgi("bench --quick --technique dlvp --session " + session().string()), "--technique");
   fs::remove_all(dir);
 }
 
