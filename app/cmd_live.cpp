@@ -221,9 +221,14 @@ int runLive(const LiveOptions& o) {
   });
   WindowUi ui(live.context());
   std::vector<DebugView> views = debugViews(live.frames());
-  int viewIndex = 0;
+  int viewIndex = -1;
   for (size_t i = 0; i < views.size(); ++i)
     if (o.view == debugViewName(views[i])) viewIndex = static_cast<int>(i);
+  if (viewIndex < 0) {  // a misspelt view is an error, not the composite shown instead
+    std::string names;
+    for (const auto& v : views) names += (names.empty() ? "" : ", ") + std::string(debugViewName(v));
+    throw FlagError("--view", "no view '" + o.view + "' here (this scene and technique have: " + names + ")");
+  }
   bool axes = true, paused = false, step = false, needRebuild = false;
   int presetIndex = 0;  // 0 = the scene file's knobs
   cv::Mat view;

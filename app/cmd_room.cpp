@@ -13,7 +13,8 @@ Action addRoomLights(CLI::App& app) {
   auto o = std::make_shared<RoomLightsOptions>();
   auto at = std::make_shared<std::vector<double>>(std::vector<double>{0, 0, 0.06});
   app.add_option("room", o->room, "room folder (mrgi room)")->required();
-  app.add_option("--at", *at, "where the virtual object will be, marker frame (metres)")
+  app.add_option("--at", *at, "where the virtual object will be, marker frame (metres: x,y,z or x y z)")
+      ->delimiter(',')
       ->expected(3)
       ->check(numberIn(-1e4, 1e4))
       ->capture_default_str();
