@@ -57,6 +57,9 @@ int interactive(const InsertFlags& f, Insertion& in, const SnapUp& up) {
     status = "saved " + save;
   };
   while (!InterruptGuard::interrupted() && ui.beginFrame()) {
+    // A scripted run (--frames N) saves before drawing its last frame: its screenshot shows what was saved.
+    const bool last = f.frames > 0 && shown + 1 >= f.frames;
+    if (last) saveNow();
     if (dirty) {
       view = in.render(doc);
       drawMarkerAxes(view, in.frame().rgbd->colourIntrinsics, *in.measured().T_marker_camera, in.setup().tagSize);
@@ -95,12 +98,11 @@ int interactive(const InsertFlags& f, Insertion& in, const SnapUp& up) {
     if (ImGui::Button("save")) saveNow();
     ImGui::TextWrapped("%s", status.c_str());
     ui.endPanel();
-    const bool done = f.frames > 0 && ++shown >= f.frames;
+    ++shown;
     cv::Mat shot;
-    ui.endFrame(done && !f.screenshot.empty() ? &shot : nullptr);
-    if (done) {
+    ui.endFrame(last && !f.screenshot.empty() ? &shot : nullptr);
+    if (last) {
       if (!f.screenshot.empty()) writePng(f.screenshot, shot, "mrgi insert");
-      saveNow();
       break;
     }
   }
