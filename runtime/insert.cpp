@@ -120,9 +120,25 @@ void Insertion::placeAtPixel(int u, int v) {
     throw std::invalid_argument("--at " + std::to_string(u) + "," + std::to_string(v) + ": outside the " +
                                 std::to_string(width) + "x" + std::to_string(height) + " image");
   const cv::Vec3f p = result_.positions.at<cv::Vec3f>(v, u);
-  if (!(p[2] > 0))
+  if (!(p[2] > 0)) {
+    // Where there is depth instead: the nearest pixel with it, and how much of the frame has it.
+    long best = -1, with = 0;
+    int bu = 0, bv = 0;
+    for (int y = 0; y < height; ++y)
+      for (int x = 0; x < width; ++x) {
+        if (!(result_.positions.at<cv::Vec3f>(y, x)[2] > 0)) continue;
+        ++with;
+        const long d = static_cast<long>(x - u) * (x - u) + static_cast<long>(y - v) * (y - v);
+        if (best < 0 || d < best) best = d, bu = x, bv = y;
+      }
+    const std::string where =
+        best < 0 ? "the frame has no depth at all"
+                 : "the nearest pixel with depth is " + std::to_string(bu) + "," + std::to_string(bv) + "; " +
+                       std::to_string(static_cast<int>(100.0 * static_cast<double>(with) / (width * height))) +
+                       " % of the frame has depth";
     throw capture::CaptureError(o_.session, "frame " + std::to_string(o_.frame) + ": no depth at pixel " +
-                                                std::to_string(u) + "," + std::to_string(v));
+                                                std::to_string(u) + "," + std::to_string(v) + " (" + where + ")");
+  }
   lighting::VirtualObject& obj = scene_.objects[index_];
   const cv::Vec3d t = capture::transformPoint(*result_.T_marker_camera, cv::Vec3d(p));
   obj.T_marker_object = capture::makePose(capture::rotationOf(obj.T_marker_object), t);
