@@ -4,7 +4,6 @@
 #include <open3d/t/pipelines/odometry/RGBDOdometry.h>
 
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <opencv2/imgproc.hpp>

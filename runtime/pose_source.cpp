@@ -316,8 +316,7 @@ class OdometryPoses : public PoseSource {
 
   /// The quality gate: absolute limits, and against the recent trusted frames' medians.
   bool trusted(const reconstruction::OdometryResult& r) const {
-    if (!r.solved || r.overlap < o_.minOverlap || r.inlierShare() < o_.minFitness || r.rangeRmse > o_.maxRmseM)
-      return false;
+    if (!o_.gate.passes(r)) return false;
     if (recentShare_.size() < 3) return true;
     const auto median = [](std::deque<double> v) {
       std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());

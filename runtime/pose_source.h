@@ -78,17 +78,12 @@ struct MarkerSpec {
 
 struct TrackingOptions {
   reconstruction::OdometryOptions odometry;
-  /// The quality gate. A frame's odometry is not trusted, and the frame is lost, when the views share less
-  /// than `minOverlap` of its pixels, when fewer than `minFitness` of the shared pixels are inliers (the
-  /// alignment's quality, not how far the camera turned), or when the inliers' RMSE scaled to 1 m range is
-  /// above `maxRmseM` (a far wall's residual is held to what its range lets the sensor measure). Past the
-  /// first frames the gate follows the sensor: a frame is also lost below `fitnessRatio` times the median
-  /// inlier share, or above `rmseRatio` times the median range-scaled RMSE, of the last `qualityWindow`
-  /// trusted frames (a real sensor's residual is several times a synthetic one's; a wrong alignment stands
-  /// out against either).
-  double minOverlap = 0.3;
-  double minFitness = 0.5;
-  double maxRmseM = 0.015;
+  /// The quality gate. A frame's odometry is not trusted, and the frame is lost, when `gate` refuses it
+  /// (reconstruction::OdometryGate). Past the first frames the gate follows the sensor: a frame is also lost
+  /// below `fitnessRatio` times the median inlier share, or above `rmseRatio` times the median range-scaled
+  /// RMSE, of the last `qualityWindow` trusted frames (a real sensor's residual is several times a synthetic
+  /// one's; a wrong alignment stands out against either).
+  reconstruction::OdometryGate gate;
   double fitnessRatio = 0.8, rmseRatio = 1.6;
   int qualityWindow = 15;
   /// A new keyframe is taken when the frame's fitness against the current one (inliers over all its pixels)
