@@ -455,7 +455,7 @@ TEST(Tracking, TheDefaultRoomOfAScanLiesOnTheGroundTruthRoom) {
     if (line["pose"]["status"] == "lost") EXPECT_FALSE(line["integrated"].get<bool>()) << line.dump();
   // Lights from either room: the lamp, whose every observation clipped, within 10 % of its true irradiance at
   // the object (the white-patch gain on its clip bound: the surfaces it lights see the bound's cells past the
-  // lamp's own body; without that the room at the true poses read 65 % bright, at the tracked ones 25 %).
+  // lamp's own body; without that the tracked room read 44 % bright).
   const auto source = capture::open(scan);  // owns the manifest
   const auto* manifest = source->sessionManifest();
   ASSERT_TRUE(manifest && manifest->truth.T_world_marker && !manifest->truth.lights.empty());
@@ -481,7 +481,7 @@ TEST(Tracking, AnOptimisedTrajectoryFusesTheRoomNearerTheTrueOne) {
   // mrgi room optimises the tracked trajectory before fusing (a pose graph of odometry, loop-closure and
   // marker edges: each sighting counts for the whole trajectory instead of pulling the next frames a bounded
   // step). Against the true poses and the room fused at them, next to the tracker's own poses. Measured (ATE,
-  // tracker -> optimised): pt 5.95 -> 2.66 mm, hdr 4.93 -> 2.73, scan 4.42 -> 2.70, carve 7.49 -> 6.90 (its
+  // tracker -> optimised): pt 5.95 -> 2.66 mm, hdr 4.93 -> 2.73, scan 4.23 -> 2.69, carve 7.49 -> 6.90 (its
   // 160 x 120 view of the tag: four sightings, three more refused or flipped).
   struct Case {
     const char* name;
