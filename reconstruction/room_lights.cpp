@@ -34,6 +34,64 @@ FisheyeRays latLongRays(int width) {
   return r;
 }
 
+namespace {
+
+/// Push-pull fill (Gortler et al. 1996) of the lat-long map's texels no ray covered: each coarser level the
+/// solid-angle-weighted mean of the 2x2 texels below it, over the covered unsaturated texels only (a lamp's
+/// clipped radiance is a bound, not a colour to spread); an uncovered texel takes the coarser levels' values,
+/// interpolated. Nothing covered: black.
+void fillUncovered(cv::Mat& L, const cv::Mat& hit, const cv::Mat& saturated, const cv::Mat& solidAngle) {
+  std::vector<cv::Mat> sum{cv::Mat(L.size(), CV_64FC3, cv::Scalar::all(0))}, weight{cv::Mat(L.size(), CV_64FC1, 0.0)};
+  for (int v = 0; v < L.rows; ++v)
+    for (int u = 0; u < L.cols; ++u)
+      if (hit.at<uchar>(v, u) && !saturated.at<uchar>(v, u)) {
+        const double w = solidAngle.at<double>(v, u);
+        sum[0].at<cv::Vec3d>(v, u) = cv::Vec3d(L.at<cv::Vec3f>(v, u)) * w;
+        weight[0].at<double>(v, u) = w;
+      }
+  while (sum.back().rows > 1 && sum.back().cols > 1) {
+    const cv::Mat &s = sum.back(), &w = weight.back();
+    cv::Mat S((s.rows + 1) / 2, (s.cols + 1) / 2, CV_64FC3, cv::Scalar::all(0)), Wc(S.size(), CV_64FC1, 0.0);
+    for (int v = 0; v < s.rows; ++v)
+      for (int u = 0; u < s.cols; ++u)
+        S.at<cv::Vec3d>(v / 2, u / 2) += s.at<cv::Vec3d>(v, u), Wc.at<double>(v / 2, u / 2) += w.at<double>(v, u);
+    sum.push_back(S), weight.push_back(Wc);
+  }
+  // Pull: each level's texels without weight sample the coarser level's filled values bilinearly (wrapping
+  // in longitude), so that a filled region is smooth rather than blocky.
+  auto sample = [](const cv::Mat& m, double y, double x) {
+    const int y0 = static_cast<int>(std::floor(y)), x0 = static_cast<int>(std::floor(x));
+    const double fy = y - y0, fx = x - x0;
+    auto at = [&](int yy, int xx) {
+      yy = std::clamp(yy, 0, m.rows - 1), xx = ((xx % m.cols) + m.cols) % m.cols;
+      return m.at<cv::Vec3d>(yy, xx);
+    };
+    return (1 - fy) * ((1 - fx) * at(y0, x0) + fx * at(y0, x0 + 1)) +
+           fy * ((1 - fx) * at(y0 + 1, x0) + fx * at(y0 + 1, x0 + 1));
+  };
+  cv::Mat filled(sum.back().size(), CV_64FC3, cv::Scalar::all(0));
+  for (int v = 0; v < filled.rows; ++v)
+    for (int u = 0; u < filled.cols; ++u) {
+      const double w = weight.back().at<double>(v, u);
+      if (w > 0) filled.at<cv::Vec3d>(v, u) = sum.back().at<cv::Vec3d>(v, u) / w;
+    }
+  for (size_t l = sum.size() - 1; l-- > 0;) {
+    cv::Mat finer(sum[l].size(), CV_64FC3);
+    for (int v = 0; v < finer.rows; ++v)
+      for (int u = 0; u < finer.cols; ++u) {
+        const double w = weight[l].at<double>(v, u);
+        finer.at<cv::Vec3d>(v, u) = w > 0 ? cv::Vec3d(sum[l].at<cv::Vec3d>(v, u) / w)
+                                          : cv::Vec3d(sample(filled, (v + 0.5) / 2 - 0.5, (u + 0.5) / 2 - 0.5));
+      }
+    filled = finer;
+  }
+  for (int v = 0; v < L.rows; ++v)
+    for (int u = 0; u < L.cols; ++u)
+      if (!hit.at<uchar>(v, u)) L.at<cv::Vec3f>(v, u) = cv::Vec3f(filled.at<cv::Vec3d>(v, u));
+}
+
+}  // namespace
+
 RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o,
                               const MeshRays* given) {
   if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");
@@ -54,8 +112,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   const int W = rays.directions.cols, H = rays.directions.rows;
   cv::Mat L(H, W, CV_32FC3, cv::Scalar::all(0)), hitPos(H, W, CV_32FC3, cv::Scalar::all(0));
   cv::Mat saturated(H, W, CV_8UC1, cv::Scalar(0)), hit(H, W, CV_8UC1, cv::Scalar(0));
-  double covered = 0, unsatOmega = 0, satOmega = 0;
-  cv::Vec3d unsatSum(0, 0, 0);
+  double covered = 0, satOmega = 0;
   for (int v = 0; v < H; ++v)
     for (int u = 0; u < W; ++u) {
       const cv::Vec3d d(rays.directions.at<cv::Vec3f>(v, u));
@@ -73,18 +130,14 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
       saturated.at<uchar>(v, u) = sat(a) || sat(b) || sat(c) ? 255 : 0;
       const double omega = rays.solidAngle.at<double>(v, u);
       covered += omega;
-      if (!saturated.at<uchar>(v, u))
-        unsatSum += rad * omega, unsatOmega += omega;
-      else
-        satOmega += omega;
+      if (saturated.at<uchar>(v, u)) satOmega += omega;
     }
   RoomLights out;
   out.coverage = covered / (4 * CV_PI);
-  // Directions the room does not cover (never scanned) take the mean unsaturated radiance: unknown, not dark.
-  const cv::Vec3f fill = unsatOmega > 0 ? cv::Vec3f(unsatSum / unsatOmega) : cv::Vec3f(0, 0, 0);
-  for (int v = 0; v < H; ++v)
-    for (int u = 0; u < W; ++u)
-      if (!hit.at<uchar>(v, u)) L.at<cv::Vec3f>(v, u) = fill;
+  // Directions the room does not cover (never scanned: the ceiling straight above a table, seen from a camera
+  // that looked up at most so far) continue the unsaturated surfaces around them: unknown, not dark, and more
+  // like the ceiling beside them than like the room's mean.
+  fillUncovered(L, hit, saturated, rays.solidAngle);
 
   // The unsaturated environment as SH (what the room's surfaces other than lamps and windows send the centre;
   // E_rest at any normal for the gain below).

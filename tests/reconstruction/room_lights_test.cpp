@@ -148,3 +148,51 @@ TEST(RoomLights, AGivenGainIsUsedAndAnUnscannedRoomStaysFinite) {
   EXPECT_FALSE(c.gainEstimated);
   EXPECT_EQ(c.gain, 1.0);
 }
+
+TEST(RoomLights, DirectionsNeverScannedContinueTheSurfacesAroundThem) {
+  // A room whose ceiling (bright, 0.5) was never scanned straight above the object: a 1.6 m square hole over
+  // it, 20 degrees around the zenith from the centre; walls and floor dark (0.05). The hole's directions take
+  // the ceiling around them, not the mean of what was scanned (0.08 here), so the irradiance from above stays the
+  // closed room's.
+  constexpr double kCeiling = 0.5;
+  const auto dark = [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kWall)); };
+  const auto bright = [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kCeiling)); };
+  auto walls = [&](RoomMesh& m) {
+    addQuad(m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 3, 0}, {0, 0, 1}, 20, dark, false);
+    addQuad(m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 0, 2.5}, {0, 1, 0}, 20, dark, false);
+    addQuad(m, {-1.5, 1.5, 0}, {3, 0, 0}, {0, 0, 2.5}, {0, -1, 0}, 20, dark, false);
+    addQuad(m, {-1.5, -1.5, 0}, {0, 3, 0}, {0, 0, 2.5}, {1, 0, 0}, 20, dark, false);
+    addQuad(m, {1.5, -1.5, 0}, {0, 3, 0}, {0, 0, 2.5}, {-1, 0, 0}, 20, dark, false);
+  };
+  RoomMesh closed, holed;
+  walls(closed), walls(holed);
+  addQuad(closed, {-1.5, -1.5, 2.5}, {3, 0, 0}, {0, 3, 0}, {0, 0, -1}, 30, bright, false);
+  addQuad(holed, {-1.5, -1.5, 2.5}, {3, 0, 0}, {0, 0.7, 0}, {0, 0, -1}, 30, bright, false);  // y < -0.8
+  addQuad(holed, {-1.5, 0.8, 2.5}, {3, 0, 0}, {0, 0.7, 0}, {0, 0, -1}, 30, bright, false);   // y > 0.8
+  addQuad(holed, {-1.5, -0.8, 2.5}, {0.7, 0, 0}, {0, 1.6, 0}, {0, 0, -1}, 10, bright, false);
+  addQuad(holed, {0.8, -0.8, 2.5}, {0.7, 0, 0}, {0, 1.6, 0}, {0, 0, -1}, 10, bright, false);
+  const cv::Vec3d centre(0, 0, 0.3);
+  const auto a = reconstruction::estimateRoomLights(closed, centre),
+             b = reconstruction::estimateRoomLights(holed, centre);
+  EXPECT_GT(a.coverage, 0.99);
+  EXPECT_LT(b.coverage, 0.98);
+  const auto rays = reconstruction::latLongRays(b.environment.cols);
+  double worst = 0;
+  int texels = 0;
+  auto irradianceUp = [&](const cv::Mat& L) {
+    double E = 0;
+    for (int v = 0; v < L.rows; ++v)
+      for (int u = 0; u < L.cols; ++u) {
+        const double c = rays.directions.at<cv::Vec3f>(v, u)[2];
+        if (c > 0) E += capture::luminance(cv::Vec3d(L.at<cv::Vec3f>(v, u))) * c * rays.solidAngle.at<double>(v, u);
+      }
+    return E;
+  };
+  for (int v = 0; v < b.environment.rows; ++v)
+    for (int u = 0; u < b.environment.cols; ++u)
+      if (rays.directions.at<cv::Vec3f>(v, u)[2] > std::cos(15 * CV_PI / 180))
+        worst = std::max(worst, std::abs(b.environment.at<cv::Vec3f>(v, u)[1] - kCeiling)), ++texels;
+  EXPECT_GT(texels, 50);
+  EXPECT_LT(worst, 0.05 * kCeiling);  // the mean fill put 0.08 there
+  EXPECT_NEAR(irradianceUp(b.environment), irradianceUp(a.environment), 0.02 * irradianceUp(a.environment));
+}
