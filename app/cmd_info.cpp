@@ -14,7 +14,8 @@ nlohmann::json intrinsicsJson(const capture::Intrinsics& k) {
 
 Action addInfo(CLI::App& app) {
   auto source = std::make_shared<std::string>();
-  app.add_option("SOURCE", *source, "session directory, TUM directory, .oni file or device URI")->required();
+  app.add_option("SOURCE", *source, "session directory, TUM directory, Open3D RGB-D folder, .oni file or device URI")
+      ->required();
   return [source] {
     auto src = capture::open(*source);
     const capture::SourceInfo& info = src->info();

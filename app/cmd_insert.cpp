@@ -156,7 +156,8 @@ int runInsert(InsertFlags& f) {
 Action addInsert(CLI::App& app) {
   auto f = std::make_shared<InsertFlags>();
   InsertOptions* o = &f->o;
-  app.add_option("--session", o->session, "session (or TUM / .oni) whose marker anchors the object")->required();
+  app.add_option("--session", o->session, "session (or TUM / Open3D folder / .oni) whose marker anchors the object")
+      ->required();
   app.add_option("--model", o->model, "model file: OBJ, PLY or glTF")->required();
   app.add_option("--translate", f->translate, "x,y,z in metres in the marker frame")
       ->delimiter(',')
@@ -184,6 +185,7 @@ Action addInsert(CLI::App& app) {
       ->expected(2);
   app.add_flag("--snap", f->snap, "rest the object on the plane below it (planes from the frame's depth)");
   addPoseOption(app, o->pose);
+  addFolderCalibration(app, o->open);
   app.add_option(
          "--up", f->up,
          "up direction for --snap: camera (image up, default), marker (tag normal) or x,y,z in the marker frame")

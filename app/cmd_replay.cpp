@@ -11,7 +11,8 @@ namespace mrgi::app {
 Action addReplay(CLI::App& app) {
   auto o = std::make_shared<ReplayOptions>();
   o->scene.presets = MRGI_DEFAULT_PRESETS;
-  app.add_option("SESSION", o->source, "session directory, TUM directory or .oni file")->required();
+  app.add_option("SESSION", o->source, "session directory, TUM directory, Open3D RGB-D folder or .oni file")
+      ->required();
   app.add_option("--out", o->out, "output folder for frame_NNNN.png and summary.json")->required();
   app.add_option("--frames", o->frames, "replay at most N frames (0 = all)")->check(numberIn(0, 1e9));
   app.add_option("--gl", o->gl, "GL backend: osmesa (headless, default), egl (headless GPU), window")
@@ -31,6 +32,7 @@ Action addReplay(CLI::App& app) {
                "median-cut lights; with --room the fused room seen from the camera (radiance, albedo) "
                "and, lit from the room, its environment at the object with its lights");
   addPoseOption(app, o->pose);
+  addFolderCalibration(app, o->open);
   allowEmpty(
       app.add_option("--mp4", o->mp4, "video of the composites inside --out (\"\" = none)")->capture_default_str());
   addRoomFlags(app, o->rooms, "at the end");

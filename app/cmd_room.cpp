@@ -35,10 +35,12 @@ Action addRoomLights(CLI::App& app) {
 
 Action addRoom(CLI::App& app) {
   auto o = std::make_shared<BuildRoomOptions>();
-  app.add_option("source", o->source, "recording to build the room from (session, TUM sequence, .oni file)")
+  app.add_option("source", o->source,
+                 "recording to build the room from (session, TUM sequence, Open3D RGB-D folder, .oni file)")
       ->required();
   app.add_option("--out", o->out, "room folder to write (room.ply, room_appearance.npy, room.json)")->required();
   addPoseOption(app, o->pose);
+  addFolderCalibration(app, o->open);
   app.add_option("--frames", o->frames, "read at most N frames (0 = all)")->check(numberIn(0, 1e9));
   app.add_option("--every", o->every, "integrate every Nth frame")->check(numberIn(1, 1e6));
   app.add_option(

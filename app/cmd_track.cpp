@@ -10,7 +10,8 @@ namespace mrgi::app {
 Action addTrack(CLI::App& app) {
   auto o = std::make_shared<TrackOptions>();
   auto intrinsics = std::make_shared<std::string>();
-  app.add_option("input", o->input, "session directory, TUM sequence, .oni file, or one image (with --intrinsics)")
+  app.add_option("input", o->input,
+                 "session directory, TUM sequence, Open3D RGB-D folder, .oni file, or one image (with --intrinsics)")
       ->required();
   app.add_flag("--json", o->json,
                "one JSON object per line per frame and tag: frame, status, id, T_camera_tag (with --pose: per frame: "
@@ -26,8 +27,14 @@ Action addTrack(CLI::App& app) {
       ->check(numberIn(1e-3, 10));
   app.add_option("--id", o->id, "track only this tag id (default: the session's marker, else every tag)")
       ->check(numberIn(0, 1e6));
-  app.add_option("--intrinsics", *intrinsics, "fx,fy,cx,cy in pixels, for a single image input")
+  app.add_option("--intrinsics", *intrinsics,
+                 "fx,fy,cx,cy in pixels, for a single image input or a TUM or Open3D folder (default: its "
+                 "camera_intrinsic.json or camera.json, else the format's default, said on stderr)")
       ->check(numberList(4, -1e6, 1e6));
+  app.add_option("--depth-scale", o->depthUnitsPerMetre,
+                 "depth units per metre of a TUM or Open3D folder's 16-bit depth images (default: TUM 5000, Open3D "
+                 "1000)")
+      ->check(numberAbove(0, 1e7));
   app.add_option("--hold", o->hold, "seconds to hold the last pose after the tag disappears before 'lost'")
       ->check(numberIn(0, 3600));
   app.add_flag("--no-smooth", o->noSmooth, "report raw per-frame poses (no One-Euro smoothing)");

@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "capture/frame_source.h"
 #include "reconstruction/room_model.h"
 #include "runtime/pose_source.h"
 #include "runtime/session_setup.h"
@@ -29,6 +30,9 @@ std::map<CLI::App*, Action> addCommands(CLI::App& app);
 CLI::Validator techniqueValidator();
 /// --pose MODE (runtime/pose_source.h), the same in every command that places a camera.
 CLI::Option* addPoseOption(CLI::App& app, runtime::PoseMode& mode);
+
+/// --intrinsics fx,fy,cx,cy and --depth-scale: a TUM or Open3D folder's calibration (capture::OpenOptions).
+void addFolderCalibration(CLI::App& app, capture::OpenOptions& open);
 
 /// The room flags of replay and live: a saved room as the real scene of the lighting, or one fused as the
 /// frames come (refreshed, tracked against, saved at the end).

@@ -32,6 +32,24 @@ CLI::Option* addPoseOption(CLI::App& app, runtime::PoseMode& mode) {
                     ")");
 }
 
+void addFolderCalibration(CLI::App& app, capture::OpenOptions& open) {
+  app.add_option_function<std::string>(
+         "--intrinsics",
+         [&open](const std::string& v) {
+           const std::vector<double> n = parseNumbers(v);  // four finite numbers, checked by the validator
+           if (!(n[0] > 0) || !(n[1] > 0))
+             throw FlagError("--intrinsics", "the focal lengths fx, fy must be positive, not '" + v + "'");
+           open.intrinsics = std::array<double, 4>{n[0], n[1], n[2], n[3]};
+         },
+         "fx,fy,cx,cy in pixels: the camera of a TUM or Open3D folder (default: its camera_intrinsic.json or "
+         "camera.json, else the format's default, said on stderr)")
+      ->check(numberList(4, -1e6, 1e6));
+  app.add_option("--depth-scale", open.depthUnitsPerMetre,
+                 "depth units per metre of a TUM or Open3D folder's 16-bit depth images (default: TUM 5000, Open3D "
+                 "1000)")
+      ->check(numberAbove(0, 1e7));
+}
+
 void addRoomFlags(CLI::App& app, RoomFlags& flags, const std::string& saveWhen) {
   app.add_option("--room", flags.room,
                  "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");

@@ -10,6 +10,7 @@
 #include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/image_io.h"
+#include "capture/open3d_folder.h"
 
 namespace fs = std::filesystem;
 
@@ -70,7 +71,7 @@ Intrinsics tumIntrinsics(const std::string& name, int width, int height) {
   return k;
 }
 
-TumSource::TumSource(const std::string& directory) : dir_(directory) {
+TumSource::TumSource(const std::string& directory, const OpenOptions& options) : dir_(directory) {
   quietOpenCv();
   const fs::path dir(directory);
   // Each image list names one file per line, every one of them present.
@@ -131,7 +132,22 @@ TumSource::TumSource(const std::string& directory) : dir_(directory) {
   info_.uri = directory;
   info_.kind = "tum";
   info_.frameCount = static_cast<int64_t>(items_.size());
-  info_.colourIntrinsics = tumIntrinsics(fs::absolute(dir).lexically_normal().string(), first.cols, first.rows);
+  const std::string name = fs::absolute(dir).lexically_normal().string();
+  std::optional<Intrinsics> known;
+  std::error_code ec;
+  for (const char* file : {"camera_intrinsic.json", "camera.json"})
+    if (fs::exists(dir / file, ec)) {
+      known = readOpen3dIntrinsics((dir / file).string());
+      if (known->width != first.cols || known->height != first.rows)
+        throw CaptureError((dir / file).string(), "is for " + std::to_string(known->width) + "x" +
+                                                      std::to_string(known->height) + " images, the frames are " +
+                                                      std::to_string(first.cols) + "x" + std::to_string(first.rows));
+      break;
+    }
+  if (!known && name.find("freiburg") != std::string::npos) known = tumIntrinsics(name, first.cols, first.rows);
+  info_.colourIntrinsics = folderIntrinsics(directory, options, known, tumIntrinsics(name, first.cols, first.rows),
+                                            first.cols, first.rows, info_.calibrationNote);
+  unitsPerMetre_ = folderDepthUnits(directory, options, kTumDepthUnitsPerMetre);
   info_.depthIntrinsics = info_.colourIntrinsics;
   info_.hasRgbd = true;
   info_.hasGroundTruth = !gt.empty();
@@ -149,7 +165,7 @@ std::optional<Frame> TumSource::next() {
   f.groundTruthT_world_camera = it.pose;
   RgbdFrame r;
   r.colour = readColour(it.colour);
-  r.depth = readDepth(it.depth, 1.0 / kTumDepthUnitsPerMetre);
+  r.depth = readDepth(it.depth, 1.0 / unitsPerMetre_);
   const Intrinsics& k = info_.colourIntrinsics;
   if (r.colour.cols != k.width || r.colour.rows != k.height)
     throw CaptureError(it.colour, "image size differs from the sequence's first frame");

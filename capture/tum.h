@@ -27,11 +27,13 @@ std::vector<std::pair<size_t, size_t>> associateTimestamps(const std::vector<dou
                                                            double maxGap);
 
 /// Intrinsics of the TUM Kinects by sequence name (freiburg1/2/3), else the ROS default 525/319.5/239.5.
+/// A folder may carry its own calibration (camera_intrinsic.json or camera.json, Open3D's format), or be
+/// given one (OpenOptions::intrinsics).
 Intrinsics tumIntrinsics(const std::string& directoryName, int width, int height);
 
 class TumSource final : public FrameSource {
  public:
-  explicit TumSource(const std::string& directory);
+  explicit TumSource(const std::string& directory, const OpenOptions& options = {});
   const SourceInfo& info() const override { return info_; }
   std::optional<Frame> next() override;
 
@@ -44,6 +46,7 @@ class TumSource final : public FrameSource {
   std::string dir_;
   std::vector<Item> items_;
   SourceInfo info_;
+  double unitsPerMetre_ = kTumDepthUnitsPerMetre;
   size_t cursor_ = 0;
 };
 

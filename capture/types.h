@@ -107,13 +107,15 @@ struct Frame {
 /// What a source can tell before reading frames.
 struct SourceInfo {
   std::string uri;
-  std::string kind;                   ///< "session", "tum", "openni2", "v4l2"
+  std::string kind;                   ///< "session", "tum", "open3d", "openni2", "v4l2"
   std::optional<int64_t> frameCount;  ///< unknown for live devices
   Intrinsics colourIntrinsics, depthIntrinsics;
   bool hasRgbd = false;
   bool hasFisheye = false;
   bool hasGroundTruth = false;
   double fps = 0;  ///< nominal frame rate: a recording's median frame interval, a device's mode (0 = unknown)
+  /// Set when the intrinsics are a default rather than the recording's own: one line for the user.
+  std::string calibrationNote;
 };
 
 /// The frame rates a recording may have (Hz): outside them its timestamps say nothing usable about its pace.

@@ -305,13 +305,13 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
     }
   }
 
-  if (doc.contains("lights")) {
+  if (doc.contains("lights") && !(doc["lights"].is_string() && doc["lights"].get<std::string>() == "auto")) {
     s.lightsGiven = true;
     const json& l = doc["lights"];
     if (l.is_string()) {
       const std::string v = l.get<std::string>();
       if (v != "manifest" && v != "fisheye" && v != "room")
-        r.fail("lights", "must be \"manifest\", \"fisheye\", \"room\" or an array of lights");
+        r.fail("lights", "must be \"auto\", \"manifest\", \"fisheye\", \"room\" or an array of lights");
       s.lightSource = v == "manifest"  ? LightSource::Manifest
                       : v == "fisheye" ? LightSource::Fisheye
                                        : LightSource::Room;
@@ -352,7 +352,7 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
         s.lights.push_back(light);
       }
     } else {
-      r.fail("lights", "must be \"manifest\", \"fisheye\", \"room\" or an array of lights");
+      r.fail("lights", "must be \"auto\", \"manifest\", \"fisheye\", \"room\" or an array of lights");
     }
   }
   if (doc.contains("room_light_count"))

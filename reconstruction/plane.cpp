@@ -137,8 +137,11 @@ std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, cons
   // The centre's viewing ray meets the plane at t: n . (t r) + d = 0.
   const cv::Vec3d ray((cx - k.cx) / k.fx, (cy - k.cy) / k.fy, 1.0);
   const double denom = n.dot(ray);
-  const cv::Vec3d origin =
-      std::abs(denom) > 1e-6 && -chosen->d / denom > 0 ? ray * (-chosen->d / denom) : chosen->centroid;
+  // A view along the floor meets it far beyond what it saw (20 m for a camera held level): there the origin is
+  // the plane's seen centroid instead.
+  const bool meets = std::abs(denom) > 1e-6 && -chosen->d / denom > 0 &&
+                     cv::norm(ray * (-chosen->d / denom)) <= 2 * cv::norm(chosen->centroid);
+  const cv::Vec3d origin = meets ? ray * (-chosen->d / denom) : chosen->centroid;
   cv::Vec3d x = cv::Vec3d(1, 0, 0) - n * n[0];
   if (cv::norm(x) < 1e-6) x = cv::Vec3d(0, 0, 1) - n * n[2];
   x /= cv::norm(x);

@@ -41,7 +41,8 @@ std::optional<Plane> supportPlane(const std::vector<Plane>& planes, const cv::Ve
 
 /// A world founded on a frame without a marker: z up along the dominant plane under the view's centre (the
 /// plane whose pixels hold the image centre, else the largest one facing the camera from below it: the floor
-/// or the table), its origin where the centre's viewing ray meets that plane, x along the camera's x axis
+/// or the table), its origin where the centre's viewing ray meets that plane (its seen centroid when the ray
+/// meets it beyond twice the centroid's distance: a view along the floor), x along the camera's x axis
 /// laid on the plane. Returns T_camera_world; nullopt when the frame holds no such plane.
 std::optional<capture::Pose> worldOnDominantPlane(const cv::Mat& positions, const cv::Mat& normals,
                                                   const capture::Intrinsics& k);

@@ -8,6 +8,8 @@
 #include "lighting/scene_file.h"
 #include "reconstruction/plane.h"
 #include "runtime/output.h"
+#include "runtime/room_fusion.h"
+#include "runtime/source.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -39,8 +41,7 @@ json baseDocument(const InsertOptions& o, const capture::SessionManifest* manife
   else if (!o.room.empty())
     doc["lights"] = "room";
   else
-    throw capture::CaptureError(
-        o.session, "has neither a fisheye camera nor ground-truth lights; pass --scene with lights or --room");
+    doc["lights"] = "auto";  // lit from the room fused from the recording (replay fuses it as the frames come)
   return doc;
 }
 
@@ -49,7 +50,7 @@ json toJson(const cv::Vec3d& v) { return {v[0], v[1], v[2]}; }
 }  // namespace
 
 Insertion::Insertion(const InsertOptions& o, const std::function<gl::ContextConfig(int, int)>& contextFor) : o_(o) {
-  source_ = capture::open(o.session);
+  source_ = openSource(o.session, o.open);
   if (!source_->info().hasRgbd) throw capture::CaptureError(o.session, "has no RGB-D frames");
   doc_ = baseDocument(o, source_->sessionManifest());
   if (!doc_.contains("objects")) doc_["objects"] = json::array();
@@ -80,6 +81,19 @@ Insertion::Insertion(const InsertOptions& o, const std::function<gl::ContextConf
   frameOptions_.pose = o.pose;
   if (!o.room.empty())
     frameOptions_.room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
+  if (setup.lightsFromFusedRoom) {
+    // The preview is lit as replay will light it by its end: from the room of every frame.
+    RoomFusionOptions fusion;
+    fusion.pose = o.pose;
+    fusion.open = o.open;
+    RoomFusion fused = fuseRoom(o.session, fusion);
+    auto mesh = std::make_shared<reconstruction::RoomMesh>(fused.model.mesh());
+    if (mesh->positions.empty())
+      throw capture::CaptureError(o.session, "lists no lights and no room could be fused from its frames (" +
+                                                 std::to_string(fused.posed) + " of " + std::to_string(fused.frames) +
+                                                 " posed); list lights in a scene file (--scene)");
+    frameOptions_.room = std::move(mesh);
+  }
   context_ = gl::createContext(contextFor(width, height));
   compositor_ = std::make_unique<compositor::Compositor>(width, height);
   frames_ = std::make_unique<FramePipeline>(setup, width, height, frameOptions_);

@@ -17,8 +17,9 @@
 namespace mrgi::runtime {
 
 struct InsertOptions {
-  std::string session;  ///< the recording whose frame the object is placed on
-  std::string model;    ///< OBJ, PLY or glTF
+  std::string session;        ///< the recording whose frame the object is placed on
+  capture::OpenOptions open;  ///< a folder's calibration and depth scale
+  std::string model;          ///< OBJ, PLY or glTF
   cv::Vec3d translate{0, 0, 0}, rotateDeg{0, 0, 0};
   double scale = 1.0;
   cv::Vec3d albedo{0.8, 0.8, 0.8};

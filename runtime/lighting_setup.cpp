@@ -1,11 +1,13 @@
 #include "runtime/lighting_setup.h"
 
+#include <cstdio>
 #include <string>
 #include <utility>
 
 #include "capture/error.h"
 #include "capture/session.h"
 #include "lighting/pipeline.h"
+#include "runtime/source.h"
 
 namespace mrgi::runtime {
 
@@ -37,15 +39,23 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
   const capture::SessionManifest* manifest = source.sessionManifest();
   const capture::GroundTruth* truth = manifest ? &manifest->truth : nullptr;
   // Neither listed lights nor a fisheye, and a room: the lights come from the room.
-  if (!setup.scene.lightsGiven && roomGiven && !(truth && truth->listsLights) && !(manifest && manifest->fisheye))
+  if (!setup.scene.lightsGiven && !(truth && truth->listsLights) && !(manifest && manifest->fisheye)) {
     setup.scene.lightSource = lighting::LightSource::Room;
+    if (!roomGiven) {
+      setup.lightsFromFusedRoom = true;
+      std::fprintf(stderr,
+                   "note: %s lists no lights and has no fisheye camera: the scene is lit from the room fused from "
+                   "its frames (\"lights\": \"auto\"; list lights in the scene file or pass --room to choose)\n",
+                   sourcePath.c_str());
+    }
+  }
   if (manifest && manifest->marker) {
     setup.tagFamily = manifest->marker->family;
     setup.tagSize = manifest->marker->sizeMetres;
     setup.tagId = manifest->marker->id;
     setup.markerGiven = true;
   }
-  if (truth) setup.T_world_marker = truth->T_world_marker;
+  setup.T_world_marker = groundTruthT_world_marker(source);
   if (setup.scene.lightSource == lighting::LightSource::Scene) {
     setup.lights = setup.scene.lights;
   } else if (setup.scene.lightSource == lighting::LightSource::Fisheye) {

@@ -31,6 +31,10 @@ struct LightingSetup {
   /// The marker the setup's source carries (family, size, id).
   MarkerSpec marker() const { return {tagFamily, tagSize, tagId}; }
   std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame
+  /// The scene leaves its lights to the source ("lights": "auto" or no "lights"), which lists none, has no
+  /// fisheye and was given no room: the lights come from a room fused from the recording (as the frames come
+  /// in replay and live; before the preview in insert). The caller fuses it.
+  bool lightsFromFusedRoom = false;
 };
 
 /// A session's ground-truth lights (world frame, every type) in the marker frame.
@@ -41,7 +45,8 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
 /// manifest's ground truth or its fisheye calibration). `sceneFile` and `sourcePath` name the culprit in
 /// errors; PoseMode::GroundTruth needs the manifest's T_world_marker.
 /// `roomGiven`: a room model will light the frames; a scene that does not say where its lights come from
-/// then takes them from the room when the source lists none and has no fisheye.
+/// then takes them from the room when the source lists none and has no fisheye (without a room:
+/// lightsFromFusedRoom, said once on stderr).
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
                               const capture::FrameSource& source, const std::string& sourcePath, PoseMode poseMode,
                               bool roomGiven = false);

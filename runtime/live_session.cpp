@@ -47,7 +47,8 @@ LiveSession::LiveSession(const LiveSessionOptions& o,
   fo_.room = o.room;
   fo_.cacheDir = o.rooms.room;  // techniques keep what they precompute beside the saved room
   fo_.progress = precomputeProgress();
-  if (o.rooms.fuse) fo_.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds
+  fuse_ = o.rooms.fuse || (base_ && base_->lightsFromFusedRoom);
+  if (fuse_) fo_.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds
   fo_.fuseRefresh = o.rooms.fuseRefresh;
   fo_.trackFusedRoom = o.rooms.track;
   fo_.techniqueStats = false;  // the window shows none: nothing of them is read back
@@ -86,7 +87,7 @@ bool LiveSession::advance(bool composite, bool ahead) {
   // While the composite view plays, frame n + 1 is read and prepared (marker, depth filter, albedo, real mesh
   // and the techniques' own inputs: FramePipeline::prepare) on a worker while GL renders frame n. The other views read
   // the pipeline between frames and fusion refreshes what rendering reads: there frames are worked on in the loop.
-  ahead = ahead && composite && !o_.rooms.fuse;
+  ahead = ahead && composite && !fuse_;
   join();
   FrameAhead next;
   if (pending_) {
@@ -114,7 +115,7 @@ bool LiveSession::advance(bool composite, bool ahead) {
   if (next.stages) profiler_.adopt(*next.stages);
   if (next.prepared) ++preparedAhead_;
   std::optional<PreparedFrame> prepared = std::move(next.prepared);
-  if (!prepared && !o_.rooms.fuse) prepared = frames_->prepare(*frame_, profiler_);  // before the worker's next
+  if (!prepared && !fuse_) prepared = frames_->prepare(*frame_, profiler_);  // before the worker's next
   if (ahead) ahead_ = readAhead([this] { return live_->next(); }, frames_.get());
   if (prepared) {
     lightCount_ = prepared->lights.size();

@@ -81,6 +81,7 @@ class LiveSession {
   LiveSessionOptions o_;
   std::unique_ptr<capture::LiveSource> live_;
   std::optional<LightingSetup> base_;
+  bool fuse_ = false;  ///< a room is fused as the frames come (--fuse-room, or the lights come from it)
   lighting::SceneDescription scene_;
   FrameOptions fo_;
   std::unique_ptr<gl::Context> context_;

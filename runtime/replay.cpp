@@ -33,6 +33,7 @@
 #include "runtime/output.h"
 #include "runtime/presets.h"
 #include "runtime/room_fusion.h"
+#include "runtime/source.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -71,7 +72,7 @@ class Latency {
 
 int replay(const ReplayOptions& o) {
   const gl::Backend backend = gl::parseBackend(o.gl);
-  auto source = capture::open(o.source);
+  auto source = openSource(o.source, o.open);
   const capture::SourceInfo& info = source->info();
   if (!info.hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames to replay");
   const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
@@ -99,7 +100,8 @@ int replay(const ReplayOptions& o) {
   fo.room = room;
   fo.cacheDir = o.rooms.room;  // techniques keep what they precompute beside the saved room
   fo.progress = precomputeProgress();
-  if (o.rooms.fuse) fo.fuse = std::make_shared<reconstruction::RoomModel>();
+  const bool fuse = o.rooms.fuse || (setup && setup->lightsFromFusedRoom);
+  if (fuse) fo.fuse = std::make_shared<reconstruction::RoomModel>();
   fo.fuseRefresh = o.rooms.fuseRefresh;
   fo.trackFusedRoom = o.rooms.track;
   FramePipeline frames(std::move(setup), width, height, fo);
@@ -132,7 +134,7 @@ int replay(const ReplayOptions& o) {
   // will take (a damaged frame past --frames is never touched). Its error surfaces when the loop takes it.
   // --debug's views and --fuse-room's refreshes read the pipeline's state between frames: there, and with
   // --sequential, the worker only reads and the frame is worked on in the loop, one stage after another.
-  const bool overlap = !o.sequential && !o.debug && !o.rooms.fuse;
+  const bool overlap = !o.sequential && !o.debug && !fuse;
   using Clock = std::chrono::steady_clock;
   const auto readNext = [&source, &frames, overlap] {
     return runtime::readAhead([&source] { return source->next(); }, overlap ? &frames : nullptr);

@@ -12,9 +12,10 @@
 namespace mrgi::runtime {
 
 struct ReplayOptions {
-  std::string source;  ///< session directory, TUM directory or .oni file
-  std::string out;     ///< output folder (new, empty, or an earlier replay's)
-  int frames = 0;      ///< at most this many frames (0 = all)
+  std::string source;         ///< session directory, TUM directory, Open3D folder or .oni file
+  capture::OpenOptions open;  ///< a folder's calibration and depth scale
+  std::string out;            ///< output folder (new, empty, or an earlier replay's)
+  int frames = 0;             ///< at most this many frames (0 = all)
   std::string gl = "osmesa";
   SceneChoice scene;  ///< empty scene file: the camera images only
   bool dumpDelta = false;

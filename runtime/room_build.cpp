@@ -15,6 +15,8 @@
 #include "runtime/debug_view.h"
 #include "runtime/output.h"
 #include "runtime/room_fusion.h"
+#include "runtime/room_preview.h"
+#include "runtime/source.h"
 
 using nlohmann::json;
 namespace fs = std::filesystem;
@@ -27,7 +29,7 @@ int buildRoom(const BuildRoomOptions& o) {
                              "must be at least 2 voxels (2 x --voxel = " + capture::formatNumber(2 * o.room.voxelM) +
                                  " m), not " + capture::formatNumber(o.room.truncM));
   o.room.validate("mrgi room");
-  auto source = capture::open(o.source);
+  auto source = openSource(o.source, o.open);
   const capture::SourceInfo& info = source->info();
   if (!info.hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames to build a room from");
   const LightingSetup setup = markerSetup(*source);
@@ -40,6 +42,7 @@ int buildRoom(const BuildRoomOptions& o) {
   const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
   RoomFusionOptions fo;
   fo.pose = o.pose;
+  fo.open = o.open;
   fo.room = o.room;
   fo.limit = limit;
   fo.every = o.every;
@@ -61,6 +64,16 @@ int buildRoom(const BuildRoomOptions& o) {
                                     : "no frame could be integrated (every pose disagreed or the budget was reached)");
   const reconstruction::RoomMesh mesh = saveRoomModel(o.out, room, o.source);
   if (mesh.positions.empty()) throw capture::CaptureError(o.source, "the fused room has no surface");
+  // The picture a person looks at: the room from the first fused camera and from above, and its lights.
+  std::optional<capture::Pose> firstCamera;
+  for (const auto& p : fusion.poses)
+    if (p) {
+      firstCamera = *p;
+      break;
+    }
+  double coverage = 0;
+  const std::string preview = (std::filesystem::path(o.out) / "preview.png").string();
+  writePng(preview, roomPreview(mesh, firstCamera, info.colourIntrinsics, {}, &coverage), "mrgi room");
   const json summary = {{"frames", seen},
                         {"integrated", room.framesIntegrated()},
                         {"refused", room.framesRefused()},
@@ -74,7 +87,14 @@ int buildRoom(const BuildRoomOptions& o) {
                         {"triangles", mesh.triangleCount()},
                         {"fuse_ms_median", fusion.medianFuseMs()},
                         {"surface_ms_median", fusion.medianSurfaceMs()},
-                        {"per_frame", fusion.perFrame}};
+                        {"per_frame", fusion.perFrame},
+                        {"preview", preview},
+                        {"coverage_at_object", coverage}};
+  if (coverage < 0.5)
+    std::fprintf(stderr,
+                 "warning: %s: the room covers %.0f %% of the directions around the object's place (0, 0, 0.06): "
+                 "lights from it miss the rest (scan around, the ceiling included)\n",
+                 o.out.c_str(), 100 * coverage);
   if (fusion.lost + fusion.held > 0)
     std::fprintf(stderr,
                  "warning: %s: %lld of %lld frames not fused for their pose (%lld lost, %lld held: --pose %s)\n",
@@ -97,6 +117,8 @@ int buildRoom(const BuildRoomOptions& o) {
       o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(),
       static_cast<double>(room.bytes()) / (1 << 20), room.framesIntegrated(), static_cast<long long>(seen),
       fusion.medianFuseMs(), fusion.medianSurfaceMs());
+  std::printf("wrote %s: the room from its first camera and from above, and its lights at the object\n",
+              preview.c_str());
   return 0;
 }
 

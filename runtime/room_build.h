@@ -11,7 +11,8 @@
 namespace mrgi::runtime {
 
 struct BuildRoomOptions {
-  std::string source, out;  ///< the recording; the room folder written (room.ply, room_appearance.npy, room.json)
+  std::string source, out;    ///< the recording; the room folder written (room.ply, room_appearance.npy, room.json)
+  capture::OpenOptions open;  ///< a folder's calibration and depth scale
   PoseMode pose = PoseMode::Tracked;
   int frames = 0;      ///< at most this many frames read (0 = all)
   int every = 1;       ///< every Nth frame integrated

@@ -7,6 +7,7 @@
 #include "capture/error.h"
 #include "capture/session.h"
 #include "lighting/gl/profiler.h"
+#include "runtime/source.h"
 
 namespace mrgi::runtime {
 
@@ -19,7 +20,7 @@ LightingSetup markerSetup(const capture::FrameSource& source) {
     setup.tagId = manifest->marker->id;
     setup.markerGiven = true;
   }
-  if (manifest) setup.T_world_marker = manifest->truth.T_world_marker;
+  setup.T_world_marker = groundTruthT_world_marker(source);
   return setup;
 }
 
@@ -50,7 +51,7 @@ FramePipeline measuringPipeline(const capture::FrameSource& source, PoseMode pos
 /// added to the trajectory's graph; then the optimised poses, with the tracker's facts of each frame.
 std::vector<CameraPose> optimisedPoses(const std::string& path, const RoomFusionOptions& o, nlohmann::json& facts,
                                        std::vector<std::optional<capture::Pose>>& trackerPoses) {
-  auto source = capture::open(path);
+  auto source = openSource(path, o.open);
   FramePipeline frames = measuringPipeline(*source, o.pose);
   reconstruction::TrajectoryOptions to = o.trajectory;
   to.odometry = FrameOptions{}.tracking.odometry;
@@ -94,7 +95,7 @@ RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
     given = optimisedPoses(path, o, facts, out.trackerPoses);
     out.trajectory = facts;
   }
-  auto source = capture::open(path);
+  auto source = openSource(path, o.open);
   FramePipeline frames = measuringPipeline(*source, o.pose);
   if (given) frames.usePoses(makeGivenPoseSource(o.pose, *given));
   gl::Profiler profiler;

@@ -41,6 +41,7 @@ struct RoomFusion {
 
 struct RoomFusionOptions {
   PoseMode pose = PoseMode::Tracked;
+  capture::OpenOptions open;  ///< a folder's calibration and depth scale
   reconstruction::RoomOptions room;
   int64_t limit = -1;  ///< frames read (< 0: all)
   int every = 1;       ///< every `every`-th frame is integrated

@@ -17,6 +17,7 @@
 #include "reconstruction/marker.h"
 #include "runtime/output.h"
 #include "runtime/pose_source.h"
+#include "runtime/source.h"
 
 using nlohmann::json;
 
@@ -35,18 +36,27 @@ json poseJson(const capture::Pose& T) {
   return rows;
 }
 
+/// A folder's calibration and depth scale from the flags (--intrinsics also serves a single image).
+capture::OpenOptions folderOptions(const TrackOptions& o) {
+  capture::OpenOptions open;
+  if (o.intrinsics)
+    open.intrinsics =
+        std::array<double, 4>{(*o.intrinsics)[0], (*o.intrinsics)[1], (*o.intrinsics)[2], (*o.intrinsics)[3]};
+  open.depthUnitsPerMetre = o.depthUnitsPerMetre;
+  return open;
+}
+
 /// --pose: the camera's pose per frame from a pose source, one line each, then a summary on stderr.
 int runCameraTrack(const TrackOptions& o) {
-  auto source = capture::open(o.input);
+  auto source = openSource(o.input, folderOptions(o));
   if (!source->info().hasRgbd) throw capture::CaptureError(o.input, "has no RGB-D frames to track");
   MarkerSpec marker;
-  std::optional<capture::Pose> T_world_marker;
+  std::optional<capture::Pose> T_world_marker = groundTruthT_world_marker(*source);
   TrackingOptions tracking;
   tracking.worldFromFirstFrame = true;  // no marker named: a first frame without a tag founds the world
   if (const capture::SessionManifest* manifest = source->sessionManifest()) {
     if (const auto& m = manifest->marker)
       marker = {m->family, m->sizeMetres, m->id}, tracking.worldFromFirstFrame = false;
-    T_world_marker = manifest->truth.T_world_marker;
   }
   if (!o.family.empty()) marker.family = o.family;
   if (o.size > 0) marker.size = o.size;
@@ -107,7 +117,7 @@ int track(const TrackOptions& o) {
     single = capture::Frame{};
     single->rgbd = rgbd;
   } else {
-    source = capture::open(o.input);
+    source = openSource(o.input, folderOptions(o));
     if (!source->info().hasRgbd) throw capture::CaptureError(o.input, "has no colour frames to track a marker in");
     if (const capture::SessionManifest* manifest = source->sessionManifest())
       if (const auto& m = manifest->marker) {

@@ -15,7 +15,8 @@ struct TrackOptions {
   std::string family;                   ///< empty: the session's, else tag36h11
   double size = 0;                      ///< tag edge, metres; 0: the session's, else 0.1
   int id = -1;                          ///< only this tag (-1: the session's marker, else every tag)
-  std::optional<cv::Vec4d> intrinsics;  ///< fx, fy, cx, cy for a single image
+  std::optional<cv::Vec4d> intrinsics;  ///< fx, fy, cx, cy for a single image or a TUM or Open3D folder
+  double depthUnitsPerMetre = 0;        ///< a folder's depth units per metre (0: the format's own)
   double hold = 0.5;                    ///< seconds the last pose is held after the tag disappears
   bool noSmooth = false;
   double smoothCutoff = -1, smoothBeta = -1, smoothDerivative = -1;  ///< < 0: the tracker's defaults

@@ -123,6 +123,8 @@ open(f"{out}/binary_v2", 'wb').write(json.dumps(meta2).encode() + b"\0" + head +
 PY
 printf '# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n1305031102.211214 rgb/1305031102.211214.png\n' > "$seeds/tum_fuzz/rgb.txt"
 printf '# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n' > "$seeds/tum_fuzz/groundtruth.txt"
+cp ../shared/data/rgbd-open3d-iclnuim/trajectory.log "$seeds/tum_fuzz/" 2>/dev/null || true
+cp ../shared/data/rgbd-open3d-iclnuim/camera.json "$seeds/tum_fuzz/" 2>/dev/null || true
 cp ../shared/data/fisheye-ros-calib/ost.yaml "$seeds/fisheye_yaml_fuzz/" 2>/dev/null || true
 # Fisheye frames: a 32x24 sky as half-float EXR, Radiance HDR and PNG, each under its own first byte.
 { printf '\x00'; cat fuzz/seeds/fisheye/sky.exr; } > "$seeds/fisheye_fuzz/exr"

@@ -276,6 +276,34 @@ TEST(Cli, TrackFollowsTheMarkerOfTheBundledSession) {
   }
 }
 
+TEST(Cli, AnOpen3dFolderOpensWithItsTrajectoryAndSaysWhichCalibration) {
+  // Open3D's RGB-D layout (color/, depth/, calibration JSON, trajectory.log): info names it, track follows it
+  // at its own poses, and the one line on stderr says which of its two calibration files was taken.
+  const std::string dir = std::string(MRGI_SHARED_DATA) + "/rgbd-open3d-iclnuim";
+  const Result info = runMrgi("info " + dir);
+  ASSERT_EQ(info.exitCode, 0) << info.err;
+  const auto j = nlohmann::json::parse(info.out);
+  EXPECT_EQ(j["kind"], "open3d");
+  EXPECT_EQ(j["frame_count"], 5);
+  EXPECT_EQ(j["has_ground_truth"], true);
+  const Result gt = runMrgi("track " + dir + " --pose ground-truth --json");
+  ASSERT_EQ(gt.exitCode, 0) << gt.err;
+  const auto lines = jsonLines(gt.out);
+  ASSERT_EQ(lines.size(), 5u);
+  for (const auto& l : lines) EXPECT_EQ(l["by"], "ground-truth");
+  // T_camera_world of frame 0: the inverse of trajectory.log's first camera-to-world pose (its translation
+  // -0.311, 0.573, 2.126 m).
+  const cv::Matx44d T = matFromRows(lines[0]["T_camera_world"]).inv();
+  EXPECT_NEAR(T(2, 3), 2.1264800183565487, 1e-9);
+  EXPECT_NE(gt.err.find("note: " + dir + ": 2 calibration files disagree; camera_primesense.json takes"),
+            std::string::npos)
+      << gt.err;
+  const Result given = runMrgi("track " + dir + " --pose odometry --json --intrinsics 525,525,319.5,239.5");
+  ASSERT_EQ(given.exitCode, 0) << given.err;
+  EXPECT_EQ(given.err.find("note:"), std::string::npos) << given.err;
+  expectOneLineError(runMrgi("track " + dir + " --pose odometry --depth-scale 0"), "--depth-scale");
+}
+
 TEST(Cli, TrackSingleImageAndItsErrors) {
   const std::string img = std::string(MRGI_SHARED_DATA) + "/apriltag-visp/AprilTag.png";
   const Result r = runMrgi("track " + img + " --intrinsics 615.167,615.168,312.189,243.437 --size 0.053 --json");
@@ -465,6 +493,42 @@ fs::path scratchSession(const std::string& name, const fs::path& source, int fra
   return dir;
 }
 }  // namespace
+
+TEST(Cli, ABareRecordingIsLitFromItsRoomByDefault) {
+  // The ViSP desk recording lists no lights and has no fisheye: insert places an object without a scene file
+  // (its preview lit from the room fused from every frame), saves "lights": "auto", and replay lights it from
+  // the room fused as the frames come. One line on stderr says so each time.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_bare_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string session = (dir / "visp").string();
+  ASSERT_EQ(runMrgi("import-visp " + std::string(MRGI_SHARED_DATA) + "/rgbd-visp-apriltag --out " + session).exitCode,
+            0);
+  const Result ins = runMrgi("insert --session " + session + " --model " + kModels +
+                             "sphere.ply --scale 0.045 --at 480,380 --snap --save " + (dir / "scene.json").string() +
+                             " --preview " + (dir / "preview.png").string());
+  ASSERT_EQ(ins.exitCode, 0) << ins.err;
+  EXPECT_NE(ins.err.find("lists no lights and has no fisheye camera"), std::string::npos) << ins.err;
+  EXPECT_EQ(std::count(ins.err.begin(), ins.err.end(), '\n'), 1) << ins.err;
+  const auto scene = nlohmann::json::parse(slurp(dir / "scene.json"));
+  EXPECT_EQ(scene["lights"], "auto");
+  const Result rep = runMrgi("replay " + session + " --scene " + (dir / "scene.json").string() +
+                             " --frames 3 --dump-delta --out " + (dir / "out").string());
+  ASSERT_EQ(rep.exitCode, 0) << rep.err;
+  EXPECT_NE(rep.err.find("lit from the room fused from its frames"), std::string::npos) << rep.err;
+  // Every frame draws the object, lit: its pixels neither black nor clipped.
+  for (int f = 0; f < 3; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%04d.png", f);
+    const cv::Mat mask = cv::imread((dir / "out" / (std::string("mask_") + name)).string(), cv::IMREAD_GRAYSCALE);
+    const cv::Mat frame = cv::imread((dir / "out" / (std::string("frame_") + name)).string(), cv::IMREAD_GRAYSCALE);
+    ASSERT_FALSE(mask.empty() || frame.empty()) << f;
+    EXPECT_GT(cv::countNonZero(mask), 2000) << f;
+    const double level = cv::mean(frame, mask)[0];
+    EXPECT_GT(level, 60) << f;
+    EXPECT_LT(level, 250) << f;
+  }
+  fs::remove_all(dir);
+}
 
 TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
   const fs::path scene = writeScene("sphere.json", R"({"objects": [{"model": ")" + kModels +
@@ -1213,9 +1277,11 @@ TEST(Cli, TrackPrintsHowEveryFrameWasPosedAndRoomSaysWhatItRefused) {
   cv::imwrite((dir / "s" / "depth" / "000001.png").string(), cv::Mat::zeros(240, 320, CV_16U));
   r = runMrgi("room " + (dir / "s").string() + " --out " + (dir / "room").string() + " --json");
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  EXPECT_EQ(lines(r.err), 1) << r.err;
+  // Two lines: the refused frame, and how little of the room around the object three orbit frames cover.
+  EXPECT_EQ(lines(r.err), 2) << r.err;
   EXPECT_NE(r.err.find("1 of 3 frames not fused for their pose (1 lost, 0 held: --pose tracked)"), std::string::npos)
       << r.err;
+  EXPECT_NE(r.err.find("of the directions around the object's place"), std::string::npos) << r.err;
   const auto summary = nlohmann::json::parse(r.out);
   EXPECT_EQ(summary["pose"]["lost"], 1);
   EXPECT_EQ(summary["integrated"], 2);
@@ -1601,11 +1667,26 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
   const std::string session = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
   const Result r = runMrgi("room " + session + " --out " + out.string() + " --pose ground-truth --frames 8 --json");
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  EXPECT_EQ(r.err, "");
   const auto summary = nlohmann::json::parse(r.out);
   EXPECT_EQ(summary["frames"], 8);
   EXPECT_EQ(summary["integrated"], 8);
   EXPECT_GT(summary["triangles"].get<int>(), 10000);
+  // An orbit of the table sees little of the room around the object: one line says so, nothing else.
+  const double coverage = summary["coverage_at_object"].get<double>();
+  EXPECT_GT(coverage, 0.05);
+  EXPECT_LT(coverage, 0.5);
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("the room covers"), std::string::npos) << r.err;
+  // preview.png: the room from the first camera (radiance, albedo), from above, and its lights at the object;
+  // from the first camera the room holds most of the view (the table and the wall behind it).
+  EXPECT_EQ(summary["preview"], (out / "preview.png").string());
+  const cv::Mat preview = cv::imread((out / "preview.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(preview.empty());
+  EXPECT_EQ(preview.cols, 640);
+  EXPECT_GT(preview.rows, 2 * 240 + 320);
+  cv::Mat firstView = preview(cv::Rect(0, 30, 320, 200)), unscanned;
+  cv::inRange(firstView, cv::Scalar(70, 30, 30), cv::Scalar(70, 30, 30), unscanned);  // BGR of the dark blue
+  EXPECT_LT(cv::countNonZero(unscanned), 0.3 * firstView.total());
   // The table top is the marker frame's z = 0 plane: the fused surface lies on it around the tag.
   mrgi::reconstruction::RoomInfo info;
   const auto mesh = mrgi::reconstruction::loadRoom(out.string(), &info);
@@ -1721,9 +1802,13 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
     ASSERT_EQ(d.exitCode, 0) << d.err;
     const auto ds = nlohmann::json::parse(slurp(bare / "out" / "summary.json"));
     EXPECT_EQ(ds["per_frame"][0]["room"]["lights"]["count"], 4) << ds["per_frame"][0].dump();
-    expectOneLineError(
-        runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --out " + (bare / "out2").string()),
-        "no ground-truth lights");
+    // Without a room the lights come from the room fused as the frames come, said in one line.
+    const Result fused = runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --out " +
+                                 (bare / "out2").string() + " --frames 1 --pose ground-truth --mp4 \"\"");
+    ASSERT_EQ(fused.exitCode, 0) << fused.err;
+    EXPECT_NE(fused.err.find("lit from the room fused from its frames"), std::string::npos) << fused.err;
+    const auto fs2 = nlohmann::json::parse(slurp(bare / "out2" / "summary.json"));
+    EXPECT_TRUE(fs2["per_frame"][0].contains("room")) << fs2["per_frame"][0].dump();
     fs::remove_all(bare);
   }
   // A bad room stops replay before anything is written.

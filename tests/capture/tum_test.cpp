@@ -83,3 +83,31 @@ TEST(Tum, NonMonotonicListIsAnErrorNamingFileAndLine) {
   }
   fs::remove_all(d);
 }
+
+TEST(Tum, AFolderOfUnknownCameraFallsBackAndSaysSoOrTakesItsCalibration) {
+  // The same frames in a folder whose name says no Kinect: the ROS default, said in one line; a
+  // camera_intrinsic.json beside the lists, or the flags' values, are taken instead.
+  const fs::path named = makeTumDir();
+  const fs::path d = fs::temp_directory_path() / ("mrgi_tum_unknown_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::rename(named, d);
+  auto bare = open(d.string());
+  EXPECT_DOUBLE_EQ(bare->info().colourIntrinsics.fx, 525.0);
+  EXPECT_NE(bare->info().calibrationNote.find("no calibration beside the frames"), std::string::npos);
+  std::ofstream(d / "camera_intrinsic.json")
+      << R"({"width": 640, "height": 480, "intrinsic_matrix": [520.9, 0, 0, 0, 521.0, 0, 325.1, 249.7, 1]})";
+  auto calibrated = open(d.string());
+  EXPECT_DOUBLE_EQ(calibrated->info().colourIntrinsics.fy, 521.0);
+  EXPECT_TRUE(calibrated->info().calibrationNote.empty());
+  OpenOptions o;
+  o.intrinsics = std::array<double, 4>{500, 500, 320, 240};
+  o.depthUnitsPerMetre = 1000;
+  auto given = open(d.string(), o);
+  EXPECT_DOUBLE_EQ(given->info().colourIntrinsics.fx, 500.0);
+  const cv::Mat raw = cv::imread((kCh7 / "1_depth.png").string(), cv::IMREAD_UNCHANGED);
+  cv::Point p;
+  double maxRaw = 0;
+  cv::minMaxLoc(raw, nullptr, &maxRaw, nullptr, &p);
+  EXPECT_FLOAT_EQ(given->next()->rgbd->depth.at<float>(p), static_cast<float>(maxRaw / 1000.0));
+  fs::remove_all(d);
+}

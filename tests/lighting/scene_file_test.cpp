@@ -372,7 +372,7 @@ TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
       {R"({"lights": [{"type": "point", "position": [0, 0, 1]}]})", "lights[0].intensity: missing"},
       {R"({"lights": [{"type": "directional", "direction": [0, 0, 0], "irradiance": [1, 1, 1]}]})",
        "lights[0].direction: must not be the zero vector"},
-      {R"({"lights": "sun"})", "lights: must be \"manifest\""},
+      {R"({"lights": "sun"})", "lights: must be \"auto\", \"manifest\""},
       {R"({"technique": "rtx"})", "technique: unknown technique 'rtx'"},
       {R"({"lpv": {"resolution": 1000}})", "lpv.resolution: must be an integer in [4, 128], not 1000"},
       {R"({"lpv": {"steps": 2.5}})", "lpv.steps: must be an integer"},

@@ -64,6 +64,7 @@ TEST(PrepareLighting, ManifestLightsWithoutGroundTruthNameTheSceneAndTheSource) 
   const ManifestOnly source{capture::SessionManifest{}};
   lighting::SceneDescription scene;
   scene.lightSource = lighting::LightSource::Manifest;
+  scene.lightsGiven = true;  // "lights": "manifest" (without the key the room fused from the frames lights it)
   try {
     prepareLighting(scene, "scene.json", source, "session-dir", PoseMode::Marker);
     ADD_FAILURE() << "accepted";

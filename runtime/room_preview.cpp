@@ -1,0 +1,152 @@
+#include "runtime/room_preview.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
+
+#include "capture/colour.h"
+#include "lighting/debug_views.h"
+#include "reconstruction/mesh_rays.h"
+#include "reconstruction/room_bounce.h"
+#include "reconstruction/room_lights.h"
+#include "runtime/debug_view.h"
+
+namespace mrgi::runtime {
+
+namespace {
+
+/// A camera at `eye` looking at `target` (OpenCV axes: x right, y down, z forward), world z up.
+capture::Pose lookAt(const cv::Vec3d& eye, const cv::Vec3d& target) {
+  const cv::Vec3d z = cv::normalize(target - eye);
+  cv::Vec3d x = z.cross(cv::Vec3d(0, 0, 1));
+  if (cv::norm(x) < 1e-6) x = cv::Vec3d(1, 0, 0);
+  x = cv::normalize(x);
+  const cv::Vec3d y = z.cross(x);
+  const cv::Matx33d R(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]);
+  return capture::makePose(R, eye);
+}
+
+void label(cv::Mat& img, const std::string& text, cv::Point at, double scale = 0.45) {
+  cv::putText(img, text, at, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 3, cv::LINE_AA);
+  cv::putText(img, text, at, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+}
+
+/// The values seen from a camera as RGB8: scaled so that the 99th percentile of what was hit reads 0.8
+/// (`scale` 0: found here), dark blue where nothing was.
+cv::Mat view(const reconstruction::MeshRays& rays, const reconstruction::RoomMesh& room,
+             const std::vector<cv::Vec3f>& values, const capture::Intrinsics& k, const capture::Pose& T,
+             double scale) {
+  cv::Mat hit;
+  cv::Mat linear = roomSeenFrom(rays, room, values, k, T, &hit);
+  if (scale <= 0) {
+    std::vector<double> lum;
+    for (int y = 0; y < linear.rows; ++y)
+      for (int x = 0; x < linear.cols; ++x)
+        if (hit.at<uchar>(y, x)) lum.push_back(capture::luminance(cv::Vec3d(linear.at<cv::Vec3f>(y, x))));
+    const double p = lum.empty() ? 0.0 : lighting::percentile99(lum);
+    scale = p > 0 ? 0.8 / p : 1.0;
+  }
+  cv::Mat img = capture::encodeSrgb(linear * scale);
+  img.setTo(cv::Scalar(30, 30, 70), ~hit);
+  return img;
+}
+
+}  // namespace
+
+cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<capture::Pose>& T_world_camera,
+                    const capture::Intrinsics& k, const RoomPreviewOptions& o, double* coverage) {
+  const int W = std::max(64, o.width), H = W * 3 / 4;
+  const reconstruction::MeshRays rays(room.positions, room.indices);
+  reconstruction::RoomLightOptions lo;
+  lo.split.medianCut.count = o.lightCount;
+  const reconstruction::RoomLights lights = reconstruction::estimateRoomLights(room, o.at, lo, &rays);
+  if (coverage) *coverage = lights.coverage;
+
+  // The albedo under the room's own lights and the light it sends itself (as the frame pipeline takes it).
+  reconstruction::AlbedoLights al;
+  for (const auto& l : lights.lights) {
+    if (l.point) {
+      al.points.push_back({l.position, l.intensity});
+    } else {
+      reconstruction::EstimatedLight e;
+      e.direction = l.direction;
+      e.power = l.irradiance;
+      al.distant.push_back(e);
+    }
+  }
+  reconstruction::RoomBounceOptions bo;
+  bo.outside = lights.ambientRadiance;
+  const std::vector<cv::Vec3f> bounce = reconstruction::roomBounceIrradiance(room, rays, bo);
+  const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, al, {}, nullptr, &bounce, &rays);
+
+  // Cameras: the recording's first (scaled to the view's size), and one 1.5 m from the object's place at 55
+  // degrees above it, on the first camera's side, brought inside the room where its ceiling or a wall is nearer.
+  cv::Vec3d side(1, 0, 0);
+  if (T_world_camera) {
+    const cv::Vec3d c = capture::translationOf(*T_world_camera) - o.at;
+    if (std::hypot(c[0], c[1]) > 1e-3) side = cv::normalize(cv::Vec3d(c[0], c[1], 0));
+  }
+  const double elevation = 55 * CV_PI / 180;
+  const cv::Vec3d up = side * std::cos(elevation) + cv::Vec3d(0, 0, std::sin(elevation));
+  double distance = 1.5;
+  if (const auto h = rays.intersect(o.at, up, distance); h.hit) distance = 0.9 * h.t;
+  const cv::Vec3d eye = o.at + up * std::max(distance, 0.3);
+  std::vector<std::pair<std::string, std::pair<capture::Intrinsics, capture::Pose>>> cameras;
+  if (T_world_camera && k.valid()) {
+    const double s = static_cast<double>(W) / k.width;
+    cameras.push_back({"first frame's camera", {{W, H, k.fx * s, k.fy * s, k.cx * s, k.cy * s}, *T_world_camera}});
+  }
+  const double f = 0.5 * W / std::tan(35 * CV_PI / 180);  // 70 degrees across
+  cameras.push_back({"from above", {{W, H, f, f, (W - 1) / 2.0, (H - 1) / 2.0}, lookAt(eye, o.at)}});
+
+  std::vector<cv::Mat> rows;
+  for (const auto& [name, cam] : cameras) {
+    cv::Mat r = view(rays, room, room.radiance, cam.first, cam.second, 0);
+    cv::Mat a = view(rays, room, albedo.albedo, cam.first, cam.second, 1.0);
+    label(r, "radiance, " + name, {6, 18});
+    label(a, "albedo, " + name, {6, 18});
+    cv::Mat row;
+    cv::hconcat(r, a, row);
+    rows.push_back(row);
+  }
+  // The environment at the object: the map at the views' width, then one line per light.
+  cv::Mat env = roomLightsImage(lights);
+  cv::resize(env, env, cv::Size(2 * W, W), 0, 0, cv::INTER_NEAREST);
+  const double sx = static_cast<double>(env.cols) / lights.environment.cols;
+  char line[200];
+  for (size_t i = 0; i < lights.lights.size(); ++i) {
+    const auto& l = lights.lights[i];
+    const cv::Vec3d d = l.direction;
+    const double theta = std::acos(std::clamp(d[2], -1.0, 1.0)), phi = std::atan2(d[1], d[0]);
+    const int u = static_cast<int>(std::fmod(phi + 2 * CV_PI, 2 * CV_PI) / (2 * CV_PI) * env.cols);
+    const int v = static_cast<int>(theta / CV_PI * env.rows);
+    cv::circle(env, {u, v}, static_cast<int>(6 * sx), cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+    label(env, std::to_string(i + 1), {u + static_cast<int>(7 * sx), v - 4});
+  }
+  std::snprintf(line, sizeof line, "the room at (%.2f, %.2f, %.2f): covers %.0f %% of the directions", o.at[0],
+                o.at[1], o.at[2], 100 * lights.coverage);
+  label(env, line, {6, 18});
+  cv::Mat legend(22 * static_cast<int>(lights.lights.size() + 1), env.cols, CV_8UC3, cv::Scalar(20, 20, 20));
+  for (size_t i = 0; i < lights.lights.size(); ++i) {
+    const auto& l = lights.lights[i];
+    if (l.point)
+      std::snprintf(line, sizeof line, "%zu: point at (%.2f, %.2f, %.2f), irradiance %.3g%s", i + 1, l.position[0],
+                    l.position[1], l.position[2], capture::luminance(l.irradiance),
+                    l.saturatedFraction > 0.5 ? " (clipped: its gain estimated)" : "");
+    else
+      std::snprintf(line, sizeof line, "%zu: directional towards (%.2f, %.2f, %.2f), irradiance %.3g", i + 1,
+                    l.direction[0], l.direction[1], l.direction[2], capture::luminance(l.irradiance));
+    label(legend, line, {6, 16 + 22 * static_cast<int>(i)});
+  }
+  std::snprintf(line, sizeof line, "and an SH remainder of mean radiance %.3g", capture::luminance(lights.ambientRadiance));
+  label(legend, line, {6, 16 + 22 * static_cast<int>(lights.lights.size())});
+  rows.push_back(env);
+  rows.push_back(legend);
+  cv::Mat out;
+  cv::vconcat(rows, out);
+  return out;
+}
+
+}  // namespace mrgi::runtime
