@@ -202,7 +202,7 @@ int runLive(const LiveOptions& o) {
   LiveSessionOptions so;
   so.in = o.in, so.scene = o.scene, so.pose = o.pose, so.rooms = o.rooms, so.record = o.record;
   so.recordNow = o.recordNow;
-  so.room = openRoom(o.rooms, !o.scene.scene.empty());
+  so.room = openRoom(so.rooms, !o.scene.scene.empty());
   LiveSession live(so, [&](int width, int height) {
     const cv::Size win = WindowUi::windowSize(width, height);
     gl::ContextConfig cfg;

@@ -41,7 +41,9 @@ using RoomFlags = runtime::RoomOptions;
 void addRoomFlags(CLI::App& app, RoomFlags& flags, const std::string& saveWhen);
 /// Checks the room flags together (one-line errors naming the flag), readies --save-room's folder and loads
 /// --room (nullptr when none). `lit`: a scene is set up to be lit (a room needs one).
-std::shared_ptr<const reconstruction::RoomMesh> openRoom(const RoomFlags& flags, bool lit);
+/// Without --room and --per-frame-mesh, a lit scene's real scene is the room fused as the frames come: `flags`
+/// then gets fuse set.
+std::shared_ptr<const reconstruction::RoomMesh> openRoom(RoomFlags& flags, bool lit);
 
 Action addInfo(CLI::App& app);
 Action addReplay(CLI::App& app);

@@ -55,7 +55,11 @@ void addRoomFlags(CLI::App& app, RoomFlags& flags, const std::string& saveWhen) 
                  "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
   app.add_flag("--fuse-room", flags.fuse,
                "build the room model from the frames as they come (every frame with a pose fused; its surface lights "
-               "the scene from the first such frame, refreshed every --fuse-refresh frames)");
+               "the scene from the first such frame, refreshed every --fuse-refresh frames): the default with a "
+               "scene unless --room or --per-frame-mesh");
+  app.add_flag("--per-frame-mesh", flags.perFrameMesh,
+               "light each frame from its own depth mesh instead of the room fused as the frames come (every "
+               "world-space pass then redone each frame)");
   app.add_option("--fuse-refresh", flags.fuseRefresh, "frames between refreshes of the fused room's surface")
       ->check(numberIn(1, 100000))
       ->capture_default_str();
@@ -68,7 +72,7 @@ void addRoomFlags(CLI::App& app, RoomFlags& flags, const std::string& saveWhen) 
                  "with --fuse-room: write the room " + saveWhen + " (as mrgi room --out does)");
 }
 
-std::shared_ptr<const reconstruction::RoomMesh> openRoom(const RoomFlags& flags, bool lit) {
+std::shared_ptr<const reconstruction::RoomMesh> openRoom(RoomFlags& flags, bool lit) {
   std::shared_ptr<const reconstruction::RoomMesh> room;
   if (!flags.room.empty()) {
     if (!lit)
@@ -80,10 +84,21 @@ std::shared_ptr<const reconstruction::RoomMesh> openRoom(const RoomFlags& flags,
     throw std::invalid_argument("--fuse-room builds a new room; --room " + flags.room + " uses a saved one: pass one");
   if (flags.fuse && !lit)
     throw std::invalid_argument("--fuse-room needs --scene (the room is the real scene of the lighting)");
-  if (!flags.save.empty() && !flags.fuse)
-    throw std::invalid_argument("--save-room " + flags.save + " needs --fuse-room");
-  if (flags.track && !flags.fuse)
-    throw FlagError("--track-room", "needs --fuse-room (a saved --room is tracked against already)");
+  if (flags.perFrameMesh && (flags.fuse || !flags.room.empty()))
+    throw FlagError("--per-frame-mesh",
+                    "lights each frame from its own depth: it takes neither --room nor --fuse-room");
+  // The default real scene of a lit replay or live window: the room fused as the frames come. Its world-space
+  // lighting (the RSMs, the volumes, the VALs) is then redone at its refreshes only, not every frame.
+  const bool fuse = flags.fuse || (lit && flags.room.empty() && !flags.perFrameMesh);
+  if (!flags.save.empty() && !fuse)
+    throw std::invalid_argument(
+        "--save-room " + flags.save +
+        " needs the room fused as the frames come (--scene, without --room or --per-frame-mesh)");
+  if (flags.track && !fuse)
+    throw FlagError("--track-room",
+                    "needs the room fused as the frames come (a saved --room is tracked against "
+                    "already; --per-frame-mesh has none)");
+  flags.fuse = fuse;
   if (!flags.save.empty()) prepareOutputDirectory(flags.save, "room.json", "mrgi room");
   return room;
 }

@@ -107,8 +107,8 @@ std::vector<std::pair<int64_t, Pose>> readOpen3dTrajectory(const std::string& pa
     std::istringstream head(line);
     double id = 0;
     if (!(head >> id) || !std::isfinite(id) || id < 0 || id > 1e9 || id != std::floor(id))
-      throw CaptureError(where, "a pose block starts with its frame id (a whole number), not '" + excerpt(line, 60) +
-                                    "'");
+      throw CaptureError(where,
+                         "a pose block starts with its frame id (a whole number), not '" + excerpt(line, 60) + "'");
     cv::Matx44d T;
     for (int r = 0; r < 4; ++r) {
       if (!nextLine()) throw CaptureError(where, "the pose block ends before its 4 matrix rows");
@@ -118,8 +118,8 @@ std::vector<std::pair<int64_t, Pose>> readOpen3dTrajectory(const std::string& pa
           throw CaptureError(path + ":" + std::to_string(lineNo), "a matrix row needs 4 finite numbers");
     }
     const cv::Matx33d R(T(0, 0), T(0, 1), T(0, 2), T(1, 0), T(1, 1), T(1, 2), T(2, 0), T(2, 1), T(2, 2));
-    if (cv::norm(R.t() * R - cv::Matx33d::eye()) > 1e-3 || std::abs(T(3, 0)) + std::abs(T(3, 1)) + std::abs(T(3, 2)) > 1e-6 ||
-        std::abs(T(3, 3) - 1) > 1e-6)
+    if (cv::norm(R.t() * R - cv::Matx33d::eye()) > 1e-3 ||
+        std::abs(T(3, 0)) + std::abs(T(3, 1)) + std::abs(T(3, 2)) > 1e-6 || std::abs(T(3, 3) - 1) > 1e-6)
       throw CaptureError(where, "the pose is not a rigid transform (rotation and translation)");
     out.emplace_back(static_cast<int64_t>(id), makePose(R, cv::Vec3d(T(0, 3), T(1, 3), T(2, 3))));
   }
@@ -160,9 +160,9 @@ Open3dFolderSource::Open3dFolderSource(const std::string& directory, const OpenO
     if (fs::exists(dir / name, ec)) {
       const Intrinsics k = readOpen3dIntrinsics((dir / name).string());
       if (k.width != first.cols || k.height != first.rows)
-        throw CaptureError((dir / name).string(),
-                           "is for " + std::to_string(k.width) + "x" + std::to_string(k.height) +
-                               " images, the frames are " + std::to_string(first.cols) + "x" + std::to_string(first.rows));
+        throw CaptureError((dir / name).string(), "is for " + std::to_string(k.width) + "x" + std::to_string(k.height) +
+                                                      " images, the frames are " + std::to_string(first.cols) + "x" +
+                                                      std::to_string(first.rows));
       if (std::none_of(candidates.begin(), candidates.end(), [&](const auto& c) { return c.second == k; }))
         candidates.emplace_back(name, k);
     }
@@ -183,19 +183,22 @@ Open3dFolderSource::Open3dFolderSource(const std::string& directory, const OpenO
         const double e = posedDepthDisagreement(da, *a->pose, db, *b->pose, k);
         if (e < best) best = e, fromFile = k, info_.calibrationNote = name;
       }
-      info_.calibrationNote = directory + ": " + std::to_string(candidates.size()) +
-                              " calibration files disagree; " + info_.calibrationNote +
+      info_.calibrationNote = directory + ": " + std::to_string(candidates.size()) + " calibration files disagree; " +
+                              info_.calibrationNote +
                               " takes, its depths agreeing best through trajectory.log's poses (give --intrinsics "
                               "fx,fy,cx,cy to choose)";
     } else {
-      info_.calibrationNote = directory + ": " + std::to_string(candidates.size()) +
-                              " calibration files disagree; " + candidates.front().first +
-                              " takes (give --intrinsics fx,fy,cx,cy to choose)";
+      info_.calibrationNote = directory + ": " + std::to_string(candidates.size()) + " calibration files disagree; " +
+                              candidates.front().first + " takes (give --intrinsics fx,fy,cx,cy to choose)";
     }
   }
   // Open3D's own default camera (PrimeSense), scaled to the frames' size.
-  const Intrinsics primeSense{first.cols, first.rows, 525.0 * first.cols / 640.0, 525.0 * first.rows / 480.0,
-                              (first.cols - 1) / 2.0, (first.rows - 1) / 2.0};
+  const Intrinsics primeSense{first.cols,
+                              first.rows,
+                              525.0 * first.cols / 640.0,
+                              525.0 * first.rows / 480.0,
+                              (first.cols - 1) / 2.0,
+                              (first.rows - 1) / 2.0};
   info_.uri = directory;
   info_.kind = "open3d";
   info_.frameCount = static_cast<int64_t>(items_.size());

@@ -48,6 +48,8 @@ struct PreparedFrame {
   std::optional<RealSurface> surface;  ///< the real scene from this frame's depth, when built
   /// The techniques' own inputs from this frame (technique name, input), when built.
   std::vector<std::pair<std::string, std::shared_ptr<const lighting::TechniqueInput>>> inputs;
+  /// FrameOptions::fuse: the room's surface refreshed after this frame was fused (render() takes it up).
+  std::shared_ptr<const reconstruction::RoomMesh> refreshedRoom;
   std::vector<lighting::SceneLight> lights;  ///< marker frame, as they were for this frame
   cv::Vec3d ambient{0, 0, 0};
   std::array<cv::Vec3d, 9> ambientSh{};

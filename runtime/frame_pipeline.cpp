@@ -120,6 +120,8 @@ void FramePipeline::useAmbientSh(const std::array<cv::Vec3d, 9>& sh) {
   setup_->ambientSh = directional;  // render() hands it to the lighting with the frame's lights
 }
 
+bool FramePipeline::litByRoom() const { return setup_ && setup_->scene.lightSource == lighting::LightSource::Room; }
+
 void FramePipeline::takeLights(PreparedFrame& p) const {
   if (!setup_) return;
   p.lights = setup_->lights;
@@ -202,10 +204,6 @@ cv::Mat measuredDepth(const FrameResult& r) {
 
 FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler) {
   PreparedFrame p = prepare(frame, profiler);
-  if (options_.fuse) {
-    fuseFrame(*frame.rgbd, p.result, profiler);
-    takeLights(p);  // lights from a refreshed room
-  }
   render(frame, p, compositor, profiler);
   return std::move(p.result);
 }
@@ -213,9 +211,17 @@ FrameResult FramePipeline::process(capture::Frame& frame, compositor::Compositor
 PreparedFrame FramePipeline::prepare(capture::Frame& frame, gl::Profiler& profiler) {
   PreparedFrame p;
   p.result = measure(frame, profiler);
-  takeLights(p);
-  // Fusion may give the frame a room to be lit by instead: its surface is then left to render().
-  if (!options_.fuse) buildSurface(frame, p, profiler);
+  // The frame's own lights (a fisheye's, a session's per frame) as measure() left them; lights from the room are
+  // the rendering thread's (render() takes them).
+  if (!litByRoom()) takeLights(p);
+  if (options_.fuse) {
+    // Fused on the thread that prepares (a worker while GL renders the frame before; frames in order); a
+    // refreshed surface is handed to render(), which alone changes what the lighting reads (the room, its
+    // lights), so the frame is lit by it as if fused and rendered in one go.
+    fuseFrame(*frame.rgbd, p, profiler);
+    return p;
+  }
+  buildSurface(frame, p, profiler);
   return p;
 }
 
@@ -237,7 +243,8 @@ void FramePipeline::buildSurface(const capture::Frame& frame, PreparedFrame& p, 
   }
 }
 
-void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler) {
+void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, PreparedFrame& p, gl::Profiler& profiler) {
+  FrameResult& r = p.result;
   if (!r.T_marker_camera || r.positions.empty() || r.reusedSurface) return;
   if (r.pose.held()) {
     r.info["room_fusion"] = {{"integrated", false}, {"refused", "held pose"}, {"blocks", options_.fuse->blocks()}};
@@ -252,17 +259,22 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl
   r.info["room_fusion"] = {{"integrated", in.integrated}, {"blocks", options_.fuse->blocks()}};
   if (!in.integrated) r.info["room_fusion"]["refused"] = in.refused;
   ++framesSinceRefresh_;
-  if (!in.integrated || (options_.room && framesSinceRefresh_ < std::max(options_.fuseRefresh, 1))) return;
+  if (!in.integrated || (fusedSurface_ && framesSinceRefresh_ < std::max(options_.fuseRefresh, 1))) return;
   auto s = profiler.cpu("room_mesh");
   auto mesh = std::make_shared<const reconstruction::RoomMesh>(options_.fuse->mesh());
   if (mesh->positions.empty()) return;
+  fusedSurface_ = true;
+  framesSinceRefresh_ = 0;
+  p.refreshedRoom = std::move(mesh);
+}
+
+void FramePipeline::useRefreshedRoom(std::shared_ptr<const reconstruction::RoomMesh> mesh, FrameResult& r) {
   // Everything derived from the room follows its new surface: its albedo and the techniques' inputs (useRoom), the
   // nearest-vertex index of the view mesh, the rays of the debug views, and lights from the room.
   options_.room = std::move(mesh);
   roomLights_.reset();  // useRoom() re-estimates the albedo and builds the techniques' inputs again
   roomIndex_.reset();
   roomRays_.reset();
-  framesSinceRefresh_ = 0;
   if (options_.trackFusedRoom && (options_.pose == PoseMode::Odometry || options_.pose == PoseMode::Tracked)) {
     std::lock_guard<std::mutex> lock(pendingModelMutex_);
     pendingModel_ = options_.room;
@@ -546,6 +558,8 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
 
 void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor,
                            gl::Profiler& profiler) {
+  if (p.refreshedRoom) useRefreshedRoom(std::move(p.refreshedRoom), p.result);
+  if (litByRoom()) takeLights(p);  // lights from the room as it now is
   FrameResult& r = p.result;
   const capture::RgbdFrame& rgbd = *frame.rgbd;
   if (!setup_ || !r.T_marker_camera) {

@@ -150,7 +150,10 @@ class FramePipeline {
   std::mutex pendingModelMutex_;
   std::shared_ptr<const reconstruction::RoomMesh> pendingModel_;
   /// FrameOptions::fuse: the measured frame into the live room, and the room's surface refreshed when due.
-  void fuseFrame(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
+  void fuseFrame(const capture::RgbdFrame& rgbd, PreparedFrame& p, gl::Profiler& profiler);
+  /// A refreshed surface of the room being fused becomes the room the frames are lit by (render's thread).
+  void useRefreshedRoom(std::shared_ptr<const reconstruction::RoomMesh> mesh, FrameResult& r);
+  bool fusedSurface_ = false;  ///< the fusion has produced a surface (the preparing thread's)
   void useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Profiler& profiler);
   /// The real surface (and the techniques' own inputs) of a frame lit from its own depth, unless it has one, its last
   /// one holds, or a room lights it; keeps the reuse cache.
@@ -161,6 +164,8 @@ class FramePipeline {
   void useAmbientSh(const std::array<cv::Vec3d, 9>& sh);
   /// The setup's lights and ambient as they are now, for a frame to be lit under.
   void takeLights(PreparedFrame& p) const;
+  /// The lights come from the room (estimated by the rendering thread, taken in render()).
+  bool litByRoom() const;
   std::shared_ptr<const reconstruction::RoomLights> roomLightEstimate_;
   cv::Vec3d objectsCentre() const;  ///< the scene's objects' centre, marker frame
   /// The setup's lights and ambient as the albedo estimate takes them, in the frame T_frame_marker maps to

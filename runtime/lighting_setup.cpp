@@ -41,13 +41,11 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
   // Neither listed lights nor a fisheye, and a room: the lights come from the room.
   if (!setup.scene.lightsGiven && !(truth && truth->listsLights) && !(manifest && manifest->fisheye)) {
     setup.scene.lightSource = lighting::LightSource::Room;
-    if (!roomGiven) {
-      setup.lightsFromFusedRoom = true;
-      std::fprintf(stderr,
-                   "note: %s lists no lights and has no fisheye camera: the scene is lit from the room fused from "
-                   "its frames (\"lights\": \"auto\"; list lights in the scene file or pass --room to choose)\n",
-                   sourcePath.c_str());
-    }
+    setup.lightsFromFusedRoom = !roomGiven;
+    std::fprintf(stderr,
+                 "note: %s lists no lights and has no fisheye camera: the scene is lit from the room (\"lights\": "
+                 "\"auto\"; list lights in the scene file to choose)\n",
+                 sourcePath.c_str());
   }
   if (manifest && manifest->marker) {
     setup.tagFamily = manifest->marker->family;

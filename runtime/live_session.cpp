@@ -85,9 +85,9 @@ void LiveSession::rebuild() {
 
 bool LiveSession::advance(bool composite, bool ahead) {
   // While the composite view plays, frame n + 1 is read and prepared (marker, depth filter, albedo, real mesh
-  // and the techniques' own inputs: FramePipeline::prepare) on a worker while GL renders frame n. The other views read
-  // the pipeline between frames and fusion refreshes what rendering reads: there frames are worked on in the loop.
-  ahead = ahead && composite && !fuse_;
+  // and the techniques' own inputs, or its fusion into the room: FramePipeline::prepare) on a worker while GL
+  // renders frame n. The other views read the pipeline between frames: there frames are worked on in the loop.
+  ahead = ahead && composite;
   join();
   FrameAhead next;
   if (pending_) {
@@ -115,11 +115,11 @@ bool LiveSession::advance(bool composite, bool ahead) {
   if (next.stages) profiler_.adopt(*next.stages);
   if (next.prepared) ++preparedAhead_;
   std::optional<PreparedFrame> prepared = std::move(next.prepared);
-  if (!prepared && !fuse_) prepared = frames_->prepare(*frame_, profiler_);  // before the worker's next
+  if (!prepared) prepared = frames_->prepare(*frame_, profiler_);  // before the worker's next
   if (ahead) ahead_ = readAhead([this] { return live_->next(); }, frames_.get());
   if (prepared) {
-    lightCount_ = prepared->lights.size();
     frames_->render(*frame_, *prepared, *compositor_, profiler_);
+    lightCount_ = prepared->lights.size();
     result_ = std::move(prepared->result);
   } else {
     result_ = frames_->process(*frame_, *compositor_, profiler_);

@@ -132,9 +132,10 @@ int replay(const ReplayOptions& o) {
   // Frame n + 1 is read, decoded and prepared (marker, depth filter, normals, albedo, real mesh and the techniques' own
   // inputs: the CPU half of the frame pipeline) on a worker thread while GL works on frame n; only a frame the loop
   // will take (a damaged frame past --frames is never touched). Its error surfaces when the loop takes it.
-  // --debug's views and --fuse-room's refreshes read the pipeline's state between frames: there, and with
-  // --sequential, the worker only reads and the frame is worked on in the loop, one stage after another.
-  const bool overlap = !o.sequential && !o.debug && !fuse;
+  // With the room fused as the frames come, the worker fuses frame n + 1 and hands a refreshed surface to its
+  // render. --debug's views read the pipeline's state between frames: there, and with --sequential, the worker
+  // only reads and the frame is worked on in the loop, one stage after another.
+  const bool overlap = !o.sequential && !o.debug;
   using Clock = std::chrono::steady_clock;
   const auto readNext = [&source, &frames, overlap] {
     return runtime::readAhead([&source] { return source->next(); }, overlap ? &frames : nullptr);

@@ -36,8 +36,7 @@ void label(cv::Mat& img, const std::string& text, cv::Point at, double scale = 0
 /// The values seen from a camera as RGB8: scaled so that the 99th percentile of what was hit reads 0.8
 /// (`scale` 0: found here), dark blue where nothing was.
 cv::Mat view(const reconstruction::MeshRays& rays, const reconstruction::RoomMesh& room,
-             const std::vector<cv::Vec3f>& values, const capture::Intrinsics& k, const capture::Pose& T,
-             double scale) {
+             const std::vector<cv::Vec3f>& values, const capture::Intrinsics& k, const capture::Pose& T, double scale) {
   cv::Mat hit;
   cv::Mat linear = roomSeenFrom(rays, room, values, k, T, &hit);
   if (scale <= 0) {
@@ -125,8 +124,8 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
     cv::circle(env, {u, v}, static_cast<int>(6 * sx), cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
     label(env, std::to_string(i + 1), {u + static_cast<int>(7 * sx), v - 4});
   }
-  std::snprintf(line, sizeof line, "the room at (%.2f, %.2f, %.2f): covers %.0f %% of the directions", o.at[0],
-                o.at[1], o.at[2], 100 * lights.coverage);
+  std::snprintf(line, sizeof line, "the room at (%.2f, %.2f, %.2f): covers %.0f %% of the directions", o.at[0], o.at[1],
+                o.at[2], 100 * lights.coverage);
   label(env, line, {6, 18});
   cv::Mat legend(22 * static_cast<int>(lights.lights.size() + 1), env.cols, CV_8UC3, cv::Scalar(20, 20, 20));
   for (size_t i = 0; i < lights.lights.size(); ++i) {
@@ -140,7 +139,8 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
                     l.direction[0], l.direction[1], l.direction[2], capture::luminance(l.irradiance));
     label(legend, line, {6, 16 + 22 * static_cast<int>(i)});
   }
-  std::snprintf(line, sizeof line, "and an SH remainder of mean radiance %.3g", capture::luminance(lights.ambientRadiance));
+  std::snprintf(line, sizeof line, "and an SH remainder of mean radiance %.3g",
+                capture::luminance(lights.ambientRadiance));
   label(legend, line, {6, 16 + 22 * static_cast<int>(lights.lights.size())});
   rows.push_back(env);
   rows.push_back(legend);

@@ -4,8 +4,8 @@
 /// its fused radiance beside its albedo under the room's own lights (parts never scanned dark blue); below,
 /// the room's environment at the object's place with its lights circled, numbered and listed (kind,
 /// irradiance, direction).
-#include <optional>
 #include <opencv2/core.hpp>
+#include <optional>
 
 #include "capture/types.h"
 #include "reconstruction/room_model.h"

@@ -24,11 +24,12 @@ lighting::SceneDescription loadChosenScene(const SceneChoice& choice);
 
 /// The room as the real scene of the lighting (--room, --fuse-room, --fuse-refresh, --track-room, --save-room).
 struct RoomOptions {
-  std::string room;      ///< a saved room (mrgi room --out)
-  bool fuse = false;     ///< fuse a room from the frames as they come
-  int fuseRefresh = 30;  ///< frames between refreshes of the fused room's surface
-  bool track = false;    ///< odometry aligns each frame with the room being fused
-  std::string save;      ///< the fused room at the end, as mrgi room writes it
+  std::string room;           ///< a saved room (mrgi room --out)
+  bool fuse = false;          ///< fuse a room from the frames as they come (replay's and live's default with a scene)
+  bool perFrameMesh = false;  ///< light each frame from its own depth mesh instead (no room)
+  int fuseRefresh = 30;       ///< frames between refreshes of the fused room's surface
+  bool track = false;         ///< odometry aligns each frame with the room being fused
+  std::string save;           ///< the fused room at the end, as mrgi room writes it
   bool any() const { return !room.empty() || fuse; }
 };
 

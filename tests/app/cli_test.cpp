@@ -514,7 +514,7 @@ TEST(Cli, ABareRecordingIsLitFromItsRoomByDefault) {
   const Result rep = runMrgi("replay " + session + " --scene " + (dir / "scene.json").string() +
                              " --frames 3 --dump-delta --out " + (dir / "out").string());
   ASSERT_EQ(rep.exitCode, 0) << rep.err;
-  EXPECT_NE(rep.err.find("lit from the room fused from its frames"), std::string::npos) << rep.err;
+  EXPECT_NE(rep.err.find("the scene is lit from the room"), std::string::npos) << rep.err;
   // Every frame draws the object, lit: its pixels neither black nor clipped.
   for (int f = 0; f < 3; ++f) {
     char name[32];
@@ -538,8 +538,10 @@ TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
     const fs::path out = fs::temp_directory_path() / ("mrgi_cli_dlpv_" + technique + std::to_string(::getpid()));
     const bool lpv = technique != "kinect-val", val = technique.find("kinect-val") != std::string::npos;
     fs::remove_all(out);
+    // Each frame's own depth mesh: the techniques' per-frame work (with the default fused room their world-space
+    // passes run on the first frame only).
     const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
-                             " --frames 2 --dump-delta --pose ground-truth --technique " + technique);
+                             " --frames 2 --dump-delta --pose ground-truth --per-frame-mesh --technique " + technique);
     ASSERT_EQ(r.exitCode, 0) << r.err;
     EXPECT_NE(r.out.find("frame 2/2:"), std::string::npos) << r.out;  // per-stage timings per frame
     EXPECT_EQ(r.out.find("lpv.propagate") != std::string::npos, lpv) << r.out;
@@ -662,10 +664,14 @@ TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
       "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128}, "val": {"sparse_points": 64}})");
   const fs::path movingScene = writeScene("overlap_moving.json", sphere + R"("lights": "manifest",
       "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128}, "val": {"sparse_points": 64}})");
-  for (const auto& [source, scene, frames] :
-       {std::tuple{session(), fisheyeScene, 3}, std::tuple{moving, movingScene, 4}}) {
+  // Both real scenes: each frame's depth mesh, and the room fused as the frames come (the default; the worker
+  // fuses frame n + 1 and hands its render a refreshed surface).
+  for (const auto& [source, scene, frames, fused] :
+       {std::tuple{session(), fisheyeScene, 3, false}, std::tuple{moving, movingScene, 4, false},
+        std::tuple{session(), fisheyeScene, 3, true}, std::tuple{moving, movingScene, 4, true}}) {
     std::vector<fs::path> outs;
-    for (const std::string mode : {"", " --sequential"}) {
+    for (const std::string mode :
+         {fused ? "" : " --per-frame-mesh", fused ? " --sequential" : " --per-frame-mesh --sequential"}) {
       const fs::path out = fs::temp_directory_path() /
                            ("mrgi_cli_overlap_" + std::to_string(outs.size()) + "_" + std::to_string(::getpid()));
       fs::remove_all(out);
@@ -674,9 +680,10 @@ TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
       ASSERT_EQ(r.exitCode, 0) << r.err;
       const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
       EXPECT_EQ(s["frames"], frames);
-      EXPECT_EQ(s["overlapped"], mode.empty()) << mode;
+      EXPECT_EQ(s["overlapped"], mode.find("--sequential") == std::string::npos) << mode;
       // The worker's stages are reported as their frame's.
-      for (const char* stage : {"depth_filter", "albedo", "mesh", "technique_inputs"})
+      for (const char* stage : fused ? std::vector<const char*>{"depth_filter", "room_fusion", "room_mesh"}
+                                     : std::vector<const char*>{"depth_filter", "albedo", "mesh", "technique_inputs"})
         EXPECT_GT(s["stages_ms"][stage]["cpu_ms"].get<double>(), 0.0) << stage << mode;
       if (source == moving)
         for (int i = 0; i < frames; ++i) EXPECT_EQ(s["per_frame"][i]["lights_from_frame"], 1) << i;
@@ -1007,7 +1014,7 @@ TEST(Cli, ReplaySkipsStagesWhoseInputsDidNotChange) {
       "lights": "manifest", "lpv": {"resolution": 8, "steps": 4, "rsm_size": 64}})");
   auto replay = [&](const std::string& out, const std::string& extra) {
     return runMrgi("replay " + (dir / "s").string() + " --scene " + scene.string() +
-                   " --pose ground-truth --dump-delta --out " + (dir / out).string() + extra);
+                   " --per-frame-mesh --pose ground-truth --dump-delta --out " + (dir / out).string() + extra);
   };
   auto exr = [&](const std::string& out, int i) {
     return cv::imread((dir / out / ("delta_000" + std::to_string(i) + ".exr")).string(), cv::IMREAD_UNCHANGED);
@@ -1654,8 +1661,8 @@ TEST(Cli, ReplayBuildsTheRoomAsTheFramesComeAndLightsFromIt) {
   expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --fuse-room --room " + saved.string() +
                              " --out " + (base / "x").string()),
                      "--fuse-room");
-  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --save-room " + (base / "y").string() +
-                             " --out " + (base / "x").string()),
+  expectOneLineError(runMrgi("replay " + session + " --scene " + scene + " --per-frame-mesh --save-room " +
+                             (base / "y").string() + " --out " + (base / "x").string()),
                      "--save-room");
   EXPECT_FALSE(fs::exists(base / "x"));
   fs::remove_all(base);
@@ -1806,7 +1813,7 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
     const Result fused = runMrgi("replay " + bare.string() + " --scene " + noLights.string() + " --out " +
                                  (bare / "out2").string() + " --frames 1 --pose ground-truth --mp4 \"\"");
     ASSERT_EQ(fused.exitCode, 0) << fused.err;
-    EXPECT_NE(fused.err.find("lit from the room fused from its frames"), std::string::npos) << fused.err;
+    EXPECT_NE(fused.err.find("the scene is lit from the room"), std::string::npos) << fused.err;
     const auto fs2 = nlohmann::json::parse(slurp(bare / "out2" / "summary.json"));
     EXPECT_TRUE(fs2["per_frame"][0].contains("room")) << fs2["per_frame"][0].dump();
     fs::remove_all(bare);

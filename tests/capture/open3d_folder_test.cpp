@@ -72,7 +72,8 @@ TEST(Open3dFolder, WithoutCalibrationItFallsBackAndSaysSoOrTakesTheGivenOne) {
   EXPECT_DOUBLE_EQ(given->info().colourIntrinsics.fy, 501.0);
   EXPECT_TRUE(given->info().calibrationNote.empty());
   const cv::Mat raw = cv::imread((kIcl / "depth/00000.png").string(), cv::IMREAD_UNCHANGED);
-  EXPECT_FLOAT_EQ(given->next()->rgbd->depth.at<float>(240, 320), static_cast<float>(raw.at<uint16_t>(240, 320) / 2000.0));
+  EXPECT_FLOAT_EQ(given->next()->rgbd->depth.at<float>(240, 320),
+                  static_cast<float>(raw.at<uint16_t>(240, 320) / 2000.0));
   o.intrinsics = std::array<double, 4>{500, 500, 900, 240};  // principal point outside the image
   EXPECT_THROW(open(d.string(), o), CaptureError);
   fs::remove_all(d);
@@ -90,7 +91,8 @@ TEST(Open3dFolder, BrokenFilesAreOneLineNamingThem) {
   std::ofstream(d / "trajectory.log") << "7 7 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
   EXPECT_THROW(open(d.string()), CaptureError);  // a pose for frame 7 of 5
   fs::remove(d / "trajectory.log");
-  std::ofstream(d / "camera_intrinsic.json") << R"({"width": 320, "height": 240, "intrinsic_matrix": [1,0,0,0,1,0,0,0,1]})";
+  std::ofstream(d / "camera_intrinsic.json")
+      << R"({"width": 320, "height": 240, "intrinsic_matrix": [1,0,0,0,1,0,0,0,1]})";
   try {
     open(d.string());
     FAIL();
