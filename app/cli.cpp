@@ -81,12 +81,30 @@ int run(int argc, char** argv) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help / --version
     if (argc > 1 && argv[1][0] != '-') {
       bool known = false;
-      for (const auto* sub : app.get_subcommands({})) known |= sub->get_name() == argv[1];
+      std::vector<std::string> names;
+      for (const auto* sub : app.get_subcommands({}))
+        known |= sub->get_name() == argv[1], names.push_back(sub->get_name());
       if (!known) {
-        std::fprintf(stderr, "mrgi: unknown subcommand '%s' (see mrgi --help)\n", oneLine(argv[1]).c_str());
+        std::fprintf(stderr, "mrgi: unknown subcommand '%s'%s (see mrgi --help)\n", oneLine(argv[1]).c_str(),
+                     capture::didYouMean(argv[1], names).c_str());
         return 2;
       }
     }
+    // A flag the subcommand does not have: the one it most likely meant.
+    if (dynamic_cast<const CLI::ExtrasError*>(&e))
+      for (const auto* sub : app.get_subcommands({}))
+        if (sub->parsed())
+          for (const std::string& extra : sub->remaining()) {
+            if (extra.rfind("--", 0) != 0) continue;
+            std::vector<std::string> flags;
+            for (const CLI::Option* opt : sub->get_options())
+              for (const std::string& n : opt->get_lnames()) flags.push_back("--" + n);
+            const std::string hint = capture::didYouMean(extra.substr(0, extra.find('=')), flags);
+            if (hint.empty()) continue;
+            std::fprintf(stderr, "mrgi: %s: unknown flag%s (see mrgi %s --help)\n", oneLine(extra).c_str(),
+                         hint.c_str(), sub->get_name().c_str());
+            return 2;
+          }
     // One line on stderr naming the problem.
     std::fprintf(stderr, "mrgi: %s (see mrgi --help)\n", oneLine(e.what()).c_str());
     return 2;

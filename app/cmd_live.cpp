@@ -14,6 +14,7 @@
 #include "app/cli_checks.h"
 #include "app/commands.h"
 #include "app/window_ui.h"
+#include "capture/checks.h"
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/live_source.h"
@@ -226,8 +227,11 @@ int runLive(const LiveOptions& o) {
     if (o.view == debugViewName(views[i])) viewIndex = static_cast<int>(i);
   if (viewIndex < 0) {  // a misspelt view is an error, not the composite shown instead
     std::string names;
-    for (const auto& v : views) names += (names.empty() ? "" : ", ") + std::string(debugViewName(v));
-    throw FlagError("--view", "no view '" + o.view + "' here (this scene and technique have: " + names + ")");
+    std::vector<std::string> list;
+    for (const auto& v : views)
+      names += (names.empty() ? "" : ", ") + std::string(debugViewName(v)), list.push_back(debugViewName(v));
+    throw FlagError("--view", "no view '" + o.view + "' here" + capture::didYouMean(o.view, list) +
+                                  " (this scene and technique have: " + names + ")");
   }
   bool axes = true, paused = false, step = false, needRebuild = false;
   int presetIndex = 0;  // 0 = the scene file's knobs

@@ -246,4 +246,41 @@ std::string excerpt(const std::string& text, std::size_t maxChars) {
   return out;
 }
 
+namespace {
+/// Optimal string alignment distance (Damerau-Levenshtein without repeated edits of a substring), case ignored.
+size_t editDistance(const std::string& a, const std::string& b) {
+  const auto lower = [](char c) { return static_cast<char>(std::tolower(static_cast<unsigned char>(c))); };
+  std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1, 0));
+  for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (size_t i = 1; i <= a.size(); ++i)
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t cost = lower(a[i - 1]) == lower(b[j - 1]) ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && lower(a[i - 1]) == lower(b[j - 2]) && lower(a[i - 2]) == lower(b[j - 1]))
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+}  // namespace
+
+std::string nearestSpelling(const std::string& word, const std::vector<std::string>& candidates) {
+  if (word.empty() || word.size() > 200) return {};
+  const size_t limit = std::clamp<size_t>(word.size() / 3, 1, 3);
+  std::string best;
+  size_t bestDistance = limit + 1;
+  for (const std::string& c : candidates) {
+    if (c == word) return {};
+    if (c.size() > word.size() + limit || word.size() > c.size() + limit) continue;
+    const size_t d = editDistance(word, c);
+    if (d < bestDistance) bestDistance = d, best = c;
+  }
+  return best;
+}
+
+std::string didYouMean(const std::string& word, const std::vector<std::string>& candidates) {
+  const std::string n = nearestSpelling(word, candidates);
+  return n.empty() ? std::string() : " (did you mean '" + n + "'?)";
+}
+
 }  // namespace mrgi::capture

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "capture/types.h"
 
@@ -91,5 +92,12 @@ std::string calibrationYamlShapeError(const std::string& text);
 /// A message from a library (assimp, OpenCV, Open3D) or a user's value cut to one printable line of about
 /// maxChars (control characters become spaces; UTF-8 is kept whole) for quoting.
 std::string excerpt(const std::string& text, std::size_t maxChars = 160);
+
+/// The candidate a misspelt word most likely meant: the nearest by edit distance (insertions, deletions,
+/// substitutions and swaps of neighbours, case ignored) within a third of its length (at least 1, at most 3),
+/// the first such on a tie; empty when none is that near (or the word is one of them).
+std::string nearestSpelling(const std::string& word, const std::vector<std::string>& candidates);
+/// " (did you mean 'X'?)" for nearestSpelling, else "".
+std::string didYouMean(const std::string& word, const std::vector<std::string>& candidates);
 
 }  // namespace mrgi::capture

@@ -173,7 +173,8 @@ class Reader {
       if (!allowed.count(k)) {
         std::string list;
         for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-        fail(join(key, k), "unknown key (expected one of: " + list + ")");
+        fail(join(key, k), "unknown key" + capture::didYouMean(k, {allowed.begin(), allowed.end()}) +
+                               " (expected one of: " + list + ")");
       }
   }
 

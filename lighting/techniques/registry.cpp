@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "capture/checks.h"
 #include "lighting/frame/frame.h"
 #include "lighting/techniques/technique.h"
 
@@ -75,7 +76,8 @@ const TechniqueInfo* resolve(const std::string& name, KnobSet* knobs) {
         return &t;
       }
   }
-  throw std::invalid_argument("unknown technique '" + name + "' (expected " + spellingList() + ")");
+  throw std::invalid_argument("unknown technique '" + name + "'" + capture::didYouMean(name, techniqueSpellings()) +
+                              " (expected " + spellingList() + ")");
 }
 
 }  // namespace

@@ -494,6 +494,20 @@ fs::path scratchSession(const std::string& name, const fs::path& source, int fra
 }
 }  // namespace
 
+TEST(Cli, AMisspeltSubcommandFlagTechniqueOrKeySaysWhatItMeant) {
+  const std::string session = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
+  const std::string out = (fs::temp_directory_path() / ("mrgi_cli_misspelt_" + std::to_string(::getpid()))).string();
+  fs::remove_all(out);
+  expectOneLineError(runMrgi("replya " + session), "did you mean 'replay'?");
+  expectOneLineError(runMrgi("replay " + session + " --out " + out + " --per-frame-mes"),
+                     "did you mean '--per-frame-mesh'?");
+  expectOneLineError(runMrgi("replay " + session + " --out " + out + " --technique dlvp"), "did you mean 'dlpv'?");
+  const fs::path scene = writeScene("misspelt_key.json", R"({"objects": [], "ligths": "auto"})");
+  expectOneLineError(runMrgi("replay " + session + " --scene " + scene.string() + " --out " + out),
+                     "ligths: unknown key (did you mean 'lights'?)");
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(Cli, ABareRecordingIsLitFromItsRoomByDefault) {
   // The ViSP desk recording lists no lights and has no fisheye: insert places an object without a scene file
   // (its preview lit from the room fused from every frame), saves "lights": "auto", and replay lights it from

@@ -144,11 +144,15 @@ void KinectValTechnique::update(const FrameResources& frame, gl::Profiler* profi
   stats_ = {realVals.size(), 0, 0, 0, knobs_.bruteForce};
   transforms_.clear();
   for (const FrameObject& o : frame.objects()) transforms_.push_back(o.T_world_object);
-  {
-    // The real VALs up, then on the GPU: dimmed where the objects shadow them, the virtual ones of the light
-    // stage after them, weighed (nothing read back; the counts are read when stats are asked for).
+  // The real VALs up, then on the GPU: dimmed where the objects shadow them, the virtual ones of the light
+  // stage after them, weighed (nothing read back; the counts are read when stats are asked for). Only when
+  // something they depend on changed: the world-space half of the technique, not the camera's.
+  const FrameVersions& v = frame.versions();
+  const std::array<uint64_t, 4> key{v.geometry, v.lights, v.ambient, v.own};
+  if (!assembled_ || *assembled_ != key || assembledInput_ != input) {
     auto s = timed(profiler, "val.upload");
     gpu_.assemble(realVals, frame);
+    assembled_ = key, assembledInput_ = input;
   }
   const float zero[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(fb_.id(), GL_COLOR, 0, zero);

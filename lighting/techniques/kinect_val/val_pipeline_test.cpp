@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <set>
 
 #include "lighting/object_shadow.h"
 #include "lighting/pipeline.h"
@@ -421,4 +422,29 @@ TEST(GL, KinectValPixelPassMatchesTheCppInterpolationAndEvaluation) {
     ++checked;
   }
   EXPECT_GT(checked, 300);
+}
+
+TEST(GL, KinectValAssemblesItsValsOnceWhileOnlyTheCameraMoves) {
+  // The VAL set (real VALs up, dimmed by the objects' shadows, the RSM's virtual VALs, weights) depends on the
+  // world, not the view: with the room, the objects and the lights still, a moving camera only gathers and
+  // shades again. A new light assembles it anew.
+  auto ctx = makeContext();
+  const TestScene s = sphereScene({-0.3, 0.0, 0.12}, 0.1, 0.3f, 0.3f);
+  LightingPipeline pipe = makePipeline(valConfig("kinect-val", 256, false), s);
+  setRealVals(pipe, roomVals());
+  auto stages = [&](const CameraView& cam, const std::vector<SceneLight>& lights) {
+    gl::Profiler profiler;
+    pipe.run(cam, lights, {0, 0, 0}, &profiler);
+    std::set<std::string> names;
+    for (const auto& [name, t] : profiler.resolve()) names.insert(name);
+    return names;
+  };
+  CameraView cam = sideCamera();
+  const std::vector<SceneLight> lamp = {pointAbove()};
+  EXPECT_TRUE(stages(cam, lamp).count("val.upload"));
+  cam.T_world_camera = capture::lookAtPose({0.2, -0.9, 0.7}, {0, 0, 0.1});
+  const auto moved = stages(cam, lamp);
+  EXPECT_TRUE(moved.count("val.gather"));
+  EXPECT_FALSE(moved.count("val.upload"));
+  EXPECT_TRUE(stages(cam, {sunDown(8.0)}).count("val.upload"));
 }
