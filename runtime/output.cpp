@@ -4,6 +4,7 @@
 #include <zlib.h>
 
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -171,20 +172,50 @@ void checkInsideOutput(const std::string& name, const std::string& flag) {
                                 ": must be a file name inside --out (nothing is written outside it)");
 }
 
-ProgressBar::ProgressBar(std::string label) : label_(std::move(label)), tty_(isatty(fileno(stderr))) {}
+ProgressBar::ProgressBar(std::string label)
+    : label_(std::move(label)), tty_(isatty(fileno(stderr))), start_(std::chrono::steady_clock::now()) {}
 
 ProgressBar::~ProgressBar() {
   if (tty_ && shown_ >= 0) std::fprintf(stderr, "\n");
 }
 
+std::string progressText(const std::string& label, double fraction, double elapsedS, double leftS, bool tty) {
+  fraction = std::isfinite(fraction) ? std::clamp(fraction, 0.0, 1.0) : 0.0;
+  const int percent = static_cast<int>(fraction * 100.0);
+  char time[64] = "";
+  if (fraction < 1.0 && std::isfinite(leftS) && leftS >= 0)
+    std::snprintf(time, sizeof time, "%.0f s, about %.0f s left", elapsedS, leftS);
+  else
+    std::snprintf(time, sizeof time, "%.0f s", elapsedS);
+  char out[256];
+  if (tty) {
+    char bar[41];
+    for (int i = 0; i < 40; ++i) bar[i] = i < percent * 40 / 100 ? '#' : '.';
+    bar[40] = 0;
+    std::snprintf(out, sizeof out, "%s [%s] %3d%%  %s", label.c_str(), bar, percent, time);
+  } else {
+    std::snprintf(out, sizeof out, "%s: %d %% (%s)", label.c_str(), percent, time);
+  }
+  return out;
+}
+
 void ProgressBar::operator()(double fraction) {
-  const int percent = static_cast<int>(std::clamp(fraction, 0.0, 1.0) * 100.0);
-  if (!tty_ || percent == shown_) return;
-  shown_ = percent;
-  char bar[41];
-  for (int i = 0; i < 40; ++i) bar[i] = i < percent * 40 / 100 ? '#' : '.';
-  bar[40] = 0;
-  std::fprintf(stderr, "\r%s [%s] %3d%%", label_.c_str(), bar, percent);
+  const int percent = static_cast<int>((std::isfinite(fraction) ? std::clamp(fraction, 0.0, 1.0) : 0.0) * 100.0);
+  const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  // What is left, at the rate since the first report (work before it, a first pass, is not this rate).
+  if (!first_) first_ = std::pair{elapsed, std::isfinite(fraction) ? fraction : 0.0};
+  const double done = fraction - first_->second, spent = elapsed - first_->first;
+  const double left = done > 0 && spent > 0 ? spent * (1.0 - fraction) / done : -1.0;
+  if (tty_) {
+    if (percent == shown_) return;
+    shown_ = percent;
+    std::fprintf(stderr, "\r%s\033[K", progressText(label_, fraction, elapsed, left, true).c_str());
+  } else {
+    // A line per 10 % crossed, once the command has run long enough to need one.
+    if (percent / 10 <= shown_ / 10 || percent < 10 || elapsed < 2.0) return;
+    shown_ = percent;
+    std::fprintf(stderr, "%s\n", progressText(label_, fraction, elapsed, left, false).c_str());
+  }
   std::fflush(stderr);
 }
 

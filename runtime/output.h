@@ -1,11 +1,13 @@
 #pragma once
 // What the subcommands write: atomic PNG/EXR files, output folders that never swallow a user's files,
 // and a progress bar on the terminal.
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/videoio.hpp>
+#include <optional>
 #include <string>
 
 namespace mrgi::runtime {
@@ -38,7 +40,9 @@ void checkReplaceable(const std::string& path, const std::string& flag, const st
 /// A file name for inside an output folder: relative, no ".." (nothing written outside the folder).
 void checkInsideOutput(const std::string& name, const std::string& flag);
 
-/// "label [#####.....]  45%" on stderr, redrawn in place when stderr is a terminal (silent otherwise).
+/// Progress of a long command on stderr: on a terminal "label [#####.....]  45%  12 s, about 15 s left",
+/// redrawn in place; on a pipe or file one line per 10 % ("label: 40 % (12 s, about 18 s left)"), once the
+/// command has run 2 s (a quick one says nothing).
 class ProgressBar {
  public:
   explicit ProgressBar(std::string label);
@@ -49,7 +53,12 @@ class ProgressBar {
   std::string label_;
   bool tty_;
   int shown_ = -1;
+  std::chrono::steady_clock::time_point start_;
+  std::optional<std::pair<double, double>> first_;  ///< the first report: seconds since start_, fraction
 };
+/// The text ProgressBar shows at `fraction` after `elapsedS` seconds, `leftS` (< 0: unknown) to go (`tty`: the
+/// bar, else the line).
+std::string progressText(const std::string& label, double fraction, double elapsedS, double leftS, bool tty);
 
 /// A progress reporter for long precomputes (lighting::PipelineConfig::progress): one ProgressBar per label,
 /// shown while that precompute runs.

@@ -12,8 +12,8 @@ TEST(Spelling, TheNearestCandidateWithinAThirdOfTheWordIsSuggested) {
   EXPECT_EQ(nearestSpelling("Replay", subcommands), "replay");  // subcommands are case-sensitive
   EXPECT_EQ(nearestSpelling("rooom", subcommands), "room");
   EXPECT_EQ(nearestSpelling("room-light", subcommands), "room-lights");
-  EXPECT_EQ(nearestSpelling("xyzzy", subcommands), "");  // nothing near
-  EXPECT_EQ(nearestSpelling("rm", subcommands), "");     // 2 edits from "room" is most of the word
+  EXPECT_EQ(nearestSpelling("xyzzy", subcommands), "");   // nothing near
+  EXPECT_EQ(nearestSpelling("rm", subcommands), "");      // 2 edits from "room" is most of the word
   EXPECT_EQ(nearestSpelling("replay", subcommands), "");  // not misspelt
   const std::vector<std::string> flags{"--per-frame-mesh", "--fuse-room", "--fuse-refresh", "--frames"};
   EXPECT_EQ(nearestSpelling("--per-frame-mes", flags), "--per-frame-mesh");
