@@ -90,6 +90,28 @@ Intrinsics readOpen3dIntrinsics(const std::string& path) {
   return k;
 }
 
+Intrinsics readFolderIntrinsics(const std::string& path, int width, int height) {
+  const Intrinsics k = readOpen3dIntrinsics(path);
+  if (k.width != width || k.height != height)
+    throw CaptureError(path, "is for " + std::to_string(k.width) + "x" + std::to_string(k.height) +
+                                 " images, the frames are " + std::to_string(width) + "x" + std::to_string(height));
+  return k;
+}
+
+RgbdFrame readFolderFrame(const std::string& colour, const std::string& depth, double unitsPerMetre,
+                          const Intrinsics& k, const std::string& first) {
+  RgbdFrame r;
+  r.colour = readColour(colour);
+  r.depth = readDepth(depth, 1.0 / unitsPerMetre);
+  if (r.colour.cols != k.width || r.colour.rows != k.height)
+    throw CaptureError(colour, "image size differs from " + first);
+  if (r.depth.cols != k.width || r.depth.rows != k.height)
+    throw CaptureError(depth, "depth size differs from the colour image");
+  r.colourIntrinsics = r.depthIntrinsics = k;
+  r.depthRegistered = true;  // TUM's Kinect driver and Open3D's RGBDImage pair depth with colour pixel for pixel
+  return r;
+}
+
 std::vector<std::pair<int64_t, Pose>> readOpen3dTrajectory(const std::string& path) {
   std::istringstream in(readFileBounded(path, kMaxTextFileBytes, "trajectory"));
   std::vector<std::pair<int64_t, Pose>> out;
@@ -158,11 +180,7 @@ Open3dFolderSource::Open3dFolderSource(const std::string& directory, const OpenO
   std::vector<std::pair<std::string, Intrinsics>> candidates;
   for (const char* name : {"camera_intrinsic.json", "camera.json", "camera_primesense.json"})
     if (fs::exists(dir / name, ec)) {
-      const Intrinsics k = readOpen3dIntrinsics((dir / name).string());
-      if (k.width != first.cols || k.height != first.rows)
-        throw CaptureError((dir / name).string(), "is for " + std::to_string(k.width) + "x" + std::to_string(k.height) +
-                                                      " images, the frames are " + std::to_string(first.cols) + "x" +
-                                                      std::to_string(first.rows));
+      const Intrinsics k = readFolderIntrinsics((dir / name).string(), first.cols, first.rows);
       if (std::none_of(candidates.begin(), candidates.end(), [&](const auto& c) { return c.second == k; }))
         candidates.emplace_back(name, k);
     }
@@ -218,17 +236,7 @@ std::optional<Frame> Open3dFolderSource::next() {
   f.index = static_cast<int64_t>(cursor_++);
   f.timestamp = static_cast<double>(f.index) / kOpen3dFrameRate;
   f.groundTruthT_world_camera = it.pose;
-  RgbdFrame r;
-  r.colour = readColour(it.colour);
-  r.depth = readDepth(it.depth, 1.0 / unitsPerMetre_);
-  const Intrinsics& k = info_.colourIntrinsics;
-  if (r.colour.cols != k.width || r.colour.rows != k.height)
-    throw CaptureError(it.colour, "image size differs from the folder's first frame");
-  if (r.depth.cols != k.width || r.depth.rows != k.height)
-    throw CaptureError(it.depth, "depth size differs from the colour image");
-  r.colourIntrinsics = r.depthIntrinsics = k;
-  r.depthRegistered = true;  // the folder's depth is registered to its colour (Open3D's RGBDImage pairs them so)
-  f.rgbd = std::move(r);
+  f.rgbd = readFolderFrame(it.colour, it.depth, unitsPerMetre_, info_.colourIntrinsics, "the folder's first frame");
   return f;
 }
 

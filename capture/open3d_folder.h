@@ -21,6 +21,14 @@ bool isOpen3dFolder(const std::string& directory);
 /// Reads an Open3D camera intrinsic JSON file (throws CaptureError naming the file and the key).
 Intrinsics readOpen3dIntrinsics(const std::string& path);
 
+/// The same for a calibration beside frames of `width` x `height`: throws CaptureError when it is for another size.
+Intrinsics readFolderIntrinsics(const std::string& path, int width, int height);
+
+/// One frame of a folder of colour and depth images (TUM, Open3D), registered, with intrinsics `k`: throws
+/// CaptureError naming the image whose size differs from `k`'s (`first`: what the colour is compared with).
+RgbdFrame readFolderFrame(const std::string& colour, const std::string& depth, double unitsPerMetre,
+                          const Intrinsics& k, const std::string& first);
+
 /// Reads trajectory.log: one camera-to-world pose per block, keyed by the block's first id. Throws
 /// CaptureError("<file>:<line>: ...") for a malformed block.
 std::vector<std::pair<int64_t, Pose>> readOpen3dTrajectory(const std::string& path);

@@ -137,11 +137,7 @@ TumSource::TumSource(const std::string& directory, const OpenOptions& options) :
   std::error_code ec;
   for (const char* file : {"camera_intrinsic.json", "camera.json"})
     if (fs::exists(dir / file, ec)) {
-      known = readOpen3dIntrinsics((dir / file).string());
-      if (known->width != first.cols || known->height != first.rows)
-        throw CaptureError((dir / file).string(), "is for " + std::to_string(known->width) + "x" +
-                                                      std::to_string(known->height) + " images, the frames are " +
-                                                      std::to_string(first.cols) + "x" + std::to_string(first.rows));
+      known = readFolderIntrinsics((dir / file).string(), first.cols, first.rows);
       break;
     }
   if (!known && name.find("freiburg") != std::string::npos) known = tumIntrinsics(name, first.cols, first.rows);
@@ -163,17 +159,7 @@ std::optional<Frame> TumSource::next() {
   f.index = static_cast<int64_t>(cursor_++);
   f.timestamp = it.t;
   f.groundTruthT_world_camera = it.pose;
-  RgbdFrame r;
-  r.colour = readColour(it.colour);
-  r.depth = readDepth(it.depth, 1.0 / unitsPerMetre_);
-  const Intrinsics& k = info_.colourIntrinsics;
-  if (r.colour.cols != k.width || r.colour.rows != k.height)
-    throw CaptureError(it.colour, "image size differs from the sequence's first frame");
-  if (r.depth.cols != k.width || r.depth.rows != k.height)
-    throw CaptureError(it.depth, "depth size differs from the colour image");
-  r.colourIntrinsics = r.depthIntrinsics = k;
-  r.depthRegistered = true;  // TUM depth is registered to colour by the Kinect driver
-  f.rgbd = std::move(r);
+  f.rgbd = readFolderFrame(it.colour, it.depth, unitsPerMetre_, info_.colourIntrinsics, "the sequence's first frame");
   return f;
 }
 
