@@ -189,26 +189,21 @@ Open3dFolderSource::Open3dFolderSource(const std::string& directory, const OpenO
   if (candidates.size() > 1 && !options.intrinsics) {
     // Several that disagree: the one under which the first two posed frames' depths agree through their
     // poses (the trajectory's), else the first.
-    const Item *a = nullptr, *b = nullptr;
-    for (const Item& it : items_) {
-      if (!it.pose || b) continue;
-      (a ? b : a) = &it;
-    }
-    if (a && b) {
-      const cv::Mat da = readDepth(a->depth, 1.0 / unitsPerMetre_), db = readDepth(b->depth, 1.0 / unitsPerMetre_);
+    std::vector<const Item*> posed;
+    for (const Item& it : items_)
+      if (it.pose && posed.size() < 2) posed.push_back(&it);
+    std::string chosen = candidates.front().first, why;
+    if (posed.size() == 2) {
+      const Item &a = *posed[0], &b = *posed[1];
+      const cv::Mat da = readDepth(a.depth, 1.0 / unitsPerMetre_), db = readDepth(b.depth, 1.0 / unitsPerMetre_);
       double best = 1e300;
-      for (const auto& [name, k] : candidates) {
-        const double e = posedDepthDisagreement(da, *a->pose, db, *b->pose, k);
-        if (e < best) best = e, fromFile = k, info_.calibrationNote = name;
-      }
-      info_.calibrationNote = directory + ": " + std::to_string(candidates.size()) + " calibration files disagree; " +
-                              info_.calibrationNote +
-                              " takes, its depths agreeing best through trajectory.log's poses (give --intrinsics "
-                              "fx,fy,cx,cy to choose)";
-    } else {
-      info_.calibrationNote = directory + ": " + std::to_string(candidates.size()) + " calibration files disagree; " +
-                              candidates.front().first + " takes (give --intrinsics fx,fy,cx,cy to choose)";
+      for (const auto& [name, k] : candidates)
+        if (const double e = posedDepthDisagreement(da, *a.pose, db, *b.pose, k); e < best)
+          best = e, fromFile = k, chosen = name;
+      why = ", its depths agreeing best through trajectory.log's poses";
     }
+    info_.calibrationNote = directory + ": " + std::to_string(candidates.size()) + " calibration files disagree; " +
+                            chosen + " takes" + why + " (give --intrinsics fx,fy,cx,cy to choose)";
   }
   // Open3D's own default camera (PrimeSense), scaled to the frames' size.
   const Intrinsics primeSense{first.cols,

@@ -40,11 +40,13 @@ inline Pose inversePose(const Pose& T) {
   return makePose(Rt, -(Rt * translationOf(T)));
 }
 /// T_world_camera of a camera at eye looking at target, OpenCV camera frame (x right, y down, z forward),
-/// image x along forward x world-y (world x when looking nearly straight along world y).
-inline Pose lookAtPose(const cv::Vec3d& eye, const cv::Vec3d& target) {
+/// image x along forward x `up` (so that image down is away from `up`; another axis when looking nearly
+/// straight along it).
+inline Pose lookAtPose(const cv::Vec3d& eye, const cv::Vec3d& target, const cv::Vec3d& up = {0, 1, 0}) {
   const cv::Vec3d z = cv::normalize(target - eye);
-  const cv::Vec3d up = std::abs(z[1]) < 0.9 ? cv::Vec3d(0, 1, 0) : cv::Vec3d(1, 0, 0);
-  const cv::Vec3d x = cv::normalize(z.cross(up));
+  const cv::Vec3d other = std::abs(up[0]) < 0.9 ? cv::Vec3d(1, 0, 0) : cv::Vec3d(0, 1, 0);
+  const cv::Vec3d ref = std::abs(z.dot(up)) < 0.9 ? up : other;
+  const cv::Vec3d x = cv::normalize(z.cross(ref));
   const cv::Vec3d y = z.cross(x);
   return makePose(cv::Matx33d(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]), eye);
 }

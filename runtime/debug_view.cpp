@@ -51,6 +51,12 @@ cv::Mat roomSeenFrom(const reconstruction::MeshRays& rays, const reconstruction:
   return out;
 }
 
+cv::Point latLongPixel(const cv::Vec3d& d, cv::Size size) {
+  const double theta = std::acos(std::clamp(d[2], -1.0, 1.0)), phi = std::atan2(d[1], d[0]);
+  return {static_cast<int>(std::fmod(phi + 2 * CV_PI, 2 * CV_PI) / (2 * CV_PI) * size.width),
+          static_cast<int>(theta / CV_PI * size.height)};
+}
+
 cv::Mat roomLightsImage(const reconstruction::RoomLights& l) {
   cv::Mat view = l.environment.clone();
   std::vector<double> lum;
@@ -60,12 +66,8 @@ cv::Mat roomLightsImage(const reconstruction::RoomLights& l) {
   if (p99 > 0) view *= 0.8 / p99;
   cv::Mat out = capture::encodeSrgb(view);
   for (const auto& light : l.lights) {
-    const cv::Vec3d d = light.direction;
-    const double theta = std::acos(std::clamp(d[2], -1.0, 1.0)), phi = std::atan2(d[1], d[0]);
-    const int u = static_cast<int>(std::fmod(phi + 2 * CV_PI, 2 * CV_PI) / (2 * CV_PI) * out.cols);
-    const int v = static_cast<int>(theta / CV_PI * out.rows);
-    cv::circle(out, {u, v}, 6, light.saturatedFraction > 0.5 ? cv::Scalar(255, 128, 0) : cv::Scalar(0, 200, 255), 2,
-               cv::LINE_AA);
+    cv::circle(out, latLongPixel(light.direction, out.size()), 6,
+               light.saturatedFraction > 0.5 ? cv::Scalar(255, 128, 0) : cv::Scalar(0, 200, 255), 2, cv::LINE_AA);
   }
   return out;
 }

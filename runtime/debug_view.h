@@ -45,6 +45,8 @@ cv::Mat renderDebugView(const DebugView& v, FramePipeline& frames, const FrameRe
 /// The room's environment at the object (lat-long, row 0 = +z of the marker frame, column 0 = +x), tone-mapped
 /// so that the 99th percentile reads 0.8, its lights circled (orange: mostly saturated surfaces).
 cv::Mat roomLightsImage(const reconstruction::RoomLights& lights);
+/// Where unit direction `d` (marker frame) falls on a lat-long image of `size` laid out as roomLightsImage's.
+cv::Point latLongPixel(const cv::Vec3d& d, cv::Size size);
 
 /// The room seen from a camera: per pixel the first room triangle its ray meets (rays: the room's), `values`
 /// (one per room vertex) interpolated with the hit's barycentrics; CV_32FC3, (0, 0, 0) where the ray meets

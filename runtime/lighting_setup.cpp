@@ -31,14 +31,28 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
   return out;
 }
 
+LightingSetup markerSetup(const capture::FrameSource& source) {
+  LightingSetup setup;
+  const capture::SessionManifest* manifest = source.sessionManifest();
+  if (manifest && manifest->marker) {
+    setup.tagFamily = manifest->marker->family;
+    setup.tagSize = manifest->marker->sizeMetres;
+    setup.tagId = manifest->marker->id;
+    setup.markerGiven = true;
+  }
+  setup.T_world_marker = groundTruthT_world_marker(source);
+  return setup;
+}
+
 LightingSetup prepareLighting(lighting::SceneDescription scene, const std::string& sceneFile,
                               const capture::FrameSource& source, const std::string& sourcePath, PoseMode poseMode,
                               bool roomGiven) {
-  LightingSetup setup;
+  LightingSetup setup = markerSetup(source);
   setup.scene = std::move(scene);
   const capture::SessionManifest* manifest = source.sessionManifest();
   const capture::GroundTruth* truth = manifest ? &manifest->truth : nullptr;
-  // Neither listed lights nor a fisheye, and a room: the lights come from the room.
+  // A scene that leaves its lights to the source, which lists none and has no fisheye: the lights come from
+  // the room (a saved one, else the one fused from the frames).
   if (!setup.scene.lightsGiven && !(truth && truth->listsLights) && !(manifest && manifest->fisheye)) {
     setup.scene.lightSource = lighting::LightSource::Room;
     setup.lightsFromFusedRoom = !roomGiven;
@@ -47,13 +61,6 @@ LightingSetup prepareLighting(lighting::SceneDescription scene, const std::strin
                  "\"auto\"; list lights in the scene file to choose)\n",
                  sourcePath.c_str());
   }
-  if (manifest && manifest->marker) {
-    setup.tagFamily = manifest->marker->family;
-    setup.tagSize = manifest->marker->sizeMetres;
-    setup.tagId = manifest->marker->id;
-    setup.markerGiven = true;
-  }
-  setup.T_world_marker = groundTruthT_world_marker(source);
   if (setup.scene.lightSource == lighting::LightSource::Scene) {
     setup.lights = setup.scene.lights;
   } else if (setup.scene.lightSource == lighting::LightSource::Fisheye) {

@@ -37,6 +37,11 @@ struct LightingSetup {
   bool lightsFromFusedRoom = false;
 };
 
+/// The marker of a source (family, size, id from its manifest) and its ground-truth T_world_marker: what
+/// the measuring half of a FramePipeline needs for camera poses, without a scene; prepareLighting starts
+/// from it.
+LightingSetup markerSetup(const capture::FrameSource& source);
+
 /// A session's ground-truth lights (world frame, every type) in the marker frame.
 std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
                                                       const capture::Pose& T_world_marker);

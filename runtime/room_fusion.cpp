@@ -11,19 +11,6 @@
 
 namespace mrgi::runtime {
 
-LightingSetup markerSetup(const capture::FrameSource& source) {
-  LightingSetup setup;
-  const capture::SessionManifest* manifest = source.sessionManifest();
-  if (manifest && manifest->marker) {
-    setup.tagFamily = manifest->marker->family;
-    setup.tagSize = manifest->marker->sizeMetres;
-    setup.tagId = manifest->marker->id;
-    setup.markerGiven = true;
-  }
-  setup.T_world_marker = groundTruthT_world_marker(source);
-  return setup;
-}
-
 namespace {
 double median(std::vector<double> sorted) {
   if (sorted.empty()) return 0.0;

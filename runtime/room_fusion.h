@@ -14,10 +14,6 @@
 
 namespace mrgi::runtime {
 
-/// The marker of a source (family, size, id from its manifest) and its ground-truth T_world_marker: what
-/// the measuring half of a FramePipeline needs for camera poses, without a scene.
-LightingSetup markerSetup(const capture::FrameSource& source);
-
 struct RoomFusion {
   reconstruction::RoomModel model;
   int64_t frames = 0, posed = 0;

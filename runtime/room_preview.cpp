@@ -17,17 +17,6 @@ namespace mrgi::runtime {
 
 namespace {
 
-/// A camera at `eye` looking at `target` (OpenCV axes: x right, y down, z forward), world z up.
-capture::Pose lookAt(const cv::Vec3d& eye, const cv::Vec3d& target) {
-  const cv::Vec3d z = cv::normalize(target - eye);
-  cv::Vec3d x = z.cross(cv::Vec3d(0, 0, 1));
-  if (cv::norm(x) < 1e-6) x = cv::Vec3d(1, 0, 0);
-  x = cv::normalize(x);
-  const cv::Vec3d y = z.cross(x);
-  const cv::Matx33d R(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]);
-  return capture::makePose(R, eye);
-}
-
 void label(cv::Mat& img, const std::string& text, cv::Point at, double scale = 0.45) {
   cv::putText(img, text, at, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 3, cv::LINE_AA);
   cv::putText(img, text, at, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
@@ -98,7 +87,8 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
     cameras.push_back({"first frame's camera", {{W, H, k.fx * s, k.fy * s, k.cx * s, k.cy * s}, *T_world_camera}});
   }
   const double f = 0.5 * W / std::tan(35 * CV_PI / 180);  // 70 degrees across
-  cameras.push_back({"from above", {{W, H, f, f, (W - 1) / 2.0, (H - 1) / 2.0}, lookAt(eye, o.at)}});
+  cameras.push_back(
+      {"from above", {{W, H, f, f, (W - 1) / 2.0, (H - 1) / 2.0}, capture::lookAtPose(eye, o.at, {0, 0, 1})}});
 
   std::vector<cv::Mat> rows;
   for (const auto& [name, cam] : cameras) {
@@ -116,13 +106,9 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
   const double sx = static_cast<double>(env.cols) / lights.environment.cols;
   char line[200];
   for (size_t i = 0; i < lights.lights.size(); ++i) {
-    const auto& l = lights.lights[i];
-    const cv::Vec3d d = l.direction;
-    const double theta = std::acos(std::clamp(d[2], -1.0, 1.0)), phi = std::atan2(d[1], d[0]);
-    const int u = static_cast<int>(std::fmod(phi + 2 * CV_PI, 2 * CV_PI) / (2 * CV_PI) * env.cols);
-    const int v = static_cast<int>(theta / CV_PI * env.rows);
-    cv::circle(env, {u, v}, static_cast<int>(6 * sx), cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
-    label(env, std::to_string(i + 1), {u + static_cast<int>(7 * sx), v - 4});
+    const cv::Point p = latLongPixel(lights.lights[i].direction, env.size());
+    cv::circle(env, p, static_cast<int>(6 * sx), cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+    label(env, std::to_string(i + 1), {p.x + static_cast<int>(7 * sx), p.y - 4});
   }
   std::snprintf(line, sizeof line, "the room at (%.2f, %.2f, %.2f): covers %.0f %% of the directions", o.at[0], o.at[1],
                 o.at[2], 100 * lights.coverage);

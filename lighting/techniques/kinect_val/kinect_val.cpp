@@ -149,10 +149,10 @@ void KinectValTechnique::update(const FrameResources& frame, gl::Profiler* profi
   // something they depend on changed: the world-space half of the technique, not the camera's.
   const FrameVersions& v = frame.versions();
   const std::array<uint64_t, 4> key{v.geometry, v.lights, v.ambient, v.own};
-  if (!assembled_ || *assembled_ != key || assembledInput_ != input) {
+  if (assembled_ != key) {  // a new input of its own bumps `own`
     auto s = timed(profiler, "val.upload");
     gpu_.assemble(realVals, frame);
-    assembled_ = key, assembledInput_ = input;
+    assembled_ = key;
   }
   const float zero[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(fb_.id(), GL_COLOR, 0, zero);

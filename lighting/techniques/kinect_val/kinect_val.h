@@ -78,7 +78,6 @@ class KinectValTechnique final : public Technique {
   /// The frame's versions (geometry, lights, ambient, own inputs) the assembled VAL set was built from: the
   /// camera alone moving (a static room, static objects and lights) leaves the set as it is.
   std::optional<std::array<uint64_t, 4>> assembled_;
-  const void* assembledInput_ = nullptr;
   gl::Program meshProgram_;
   gl::Texture radiance_, irradiance_;
   gl::Framebuffer fb_;
