@@ -676,6 +676,7 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
   if (frames == 0) return std::nullopt;
   json out = {{"frames", frames},
               {"rel_error_delta", whole.relDelta()},
+              {"rel_error_delta_interval", whole.relDeltaInterval()},
               {"rel_error_virtual", whole.relVirtual()},
               {"ssim", ssim / frames},
               {"virtual_brightness", brightness.ratio()},
@@ -802,6 +803,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   if (wholeFrames > 0)
     r["whole_pipeline"] = {{"frames", wholeFrames},
                            {"rel_error_delta", whole.relDelta()},
+                           {"rel_error_delta_interval", whole.relDeltaInterval()},
                            {"rel_error_virtual", whole.relVirtual()},
                            {"ssim", wholeSsim / wholeFrames},
                            {"virtual_brightness", brightness.ratio()},
@@ -883,21 +885,28 @@ int runSweep(const BenchOptions& o) {
         }
       for (const auto& p : perSession)
         if (p.contains("whole_pipeline")) {
-          char buf[160];
-          std::snprintf(buf, sizeof buf, ", whole pipeline (%s): delta %.3f virtual %.3f SSIM %.4f",
+          char buf[200];
+          const auto interval = [](const json& w) {
+            const auto i = w.value("rel_error_delta_interval", std::array<double, 2>{0, 0});
+            return std::make_pair(i[0], i[1]);
+          };
+          const auto [lo, hi] = interval(p["whole_pipeline"]);
+          std::snprintf(buf, sizeof buf, ", whole pipeline (%s): delta %.3f [%.3f, %.3f] virtual %.3f SSIM %.4f",
                         fs::path(p["session"].get<std::string>()).filename().c_str(),
-                        p["whole_pipeline"]["rel_error_delta"].get<double>(),
+                        p["whole_pipeline"]["rel_error_delta"].get<double>(), lo, hi,
                         p["whole_pipeline"]["rel_error_virtual"].get<double>(),
                         p["whole_pipeline"]["ssim"].get<double>());
           wholeText += buf;
-          if (p.contains("whole_pipeline_room")) {
-            std::snprintf(buf, sizeof buf, "; from the room: delta %.3f virtual %.3f SSIM %.4f (%.0f ms)",
-                          p["whole_pipeline_room"]["rel_error_delta"].get<double>(),
-                          p["whole_pipeline_room"]["rel_error_virtual"].get<double>(),
-                          p["whole_pipeline_room"]["ssim"].get<double>(),
-                          p["whole_pipeline_room"]["ms_total"].get<double>());
-            wholeText += buf;
-          }
+          for (const char* mode : {"whole_pipeline_room", "whole_pipeline_room_lights"})
+            if (p.contains(mode)) {
+              const json& w = p[mode];
+              const auto [rlo, rhi] = interval(w);
+              std::snprintf(
+                  buf, sizeof buf, "; from the room%s: delta %.3f [%.3f, %.3f] virtual %.3f SSIM %.4f (%.0f ms)",
+                  std::string(mode) == "whole_pipeline_room" ? "" : ", its lights", w["rel_error_delta"].get<double>(),
+                  rlo, rhi, w["rel_error_virtual"].get<double>(), w["ssim"].get<double>(), w["ms_total"].get<double>());
+              wholeText += buf;
+            }
         }
       // The sweep counts its own configurations; the combined moves that follow it, theirs.
       const std::string counter = (from > 0 ? "[combined " : "[") + std::to_string(ci - from + 1) + "/" +

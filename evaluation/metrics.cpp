@@ -80,8 +80,22 @@ std::pair<double, double> flickerSums(const FrameState& prev, const FrameState& 
   return {num, den};
 }
 
+std::array<double, 2> ErrorSums::relDeltaInterval() const {
+  const double R = relDelta();
+  const size_t B = blocks.size();
+  if (B < 2 || !(absRef > 0)) return {R, R};
+  double ss = 0;
+  for (const auto& b : blocks) ss += (b[0] - R * b[1]) * (b[0] - R * b[1]);
+  const double se = std::sqrt(ss * static_cast<double>(B) / static_cast<double>(B - 1)) / absRef;
+  return {std::max(0.0, R - 1.96 * se), R + 1.96 * se};
+}
+
 ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects* near) {
   ErrorSums e;
+  constexpr int kTile = 16;
+  const int tilesX = (shade.cols + kTile - 1) / kTile, tilesY = (shade.rows + kTile - 1) / kTile;
+  std::vector<std::array<double, 2>> tiles(static_cast<size_t>(tilesX * tilesY), {0.0, 0.0});
+  std::vector<char> hasReal(tiles.size(), 0);
   for (int y = 0; y < shade.rows; ++y)
     for (int x = 0; x < shade.cols; ++x) {
       const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
@@ -102,10 +116,14 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects*
           e.sq += d * d;
           e.abs += std::abs(d);
           e.absRef += std::abs(r[c]);
+          auto& t = tiles[static_cast<size_t>((y / kTile) * tilesX + x / kTile)];
+          t[0] += std::abs(d), t[1] += std::abs(r[c]);
         }
       }
-      if (!virtRt) ++e.real;
+      if (!virtRt) ++e.real, hasReal[static_cast<size_t>((y / kTile) * tilesX + x / kTile)] = 1;
     }
+  for (size_t i = 0; i < tiles.size(); ++i)
+    if (hasReal[i]) e.blocks.push_back(tiles[i]);
   return e;
 }
 

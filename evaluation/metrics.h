@@ -2,11 +2,13 @@
 // Measures of the bench: a lighting result against the path-traced truth of the same frame (relative errors
 // of the real-pixel delta and the virtual radiance, SSIM of the composites, error images), the frame-to-frame
 // flicker of the real-pixel delta, and stage timings of full pipeline runs.
+#include <array>
 #include <map>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "capture/types.h"
 #include "gl/profiler.h"
@@ -54,15 +56,22 @@ struct ErrorSums {
   double virtAbs = 0, virtRef = 0;
   size_t mismatched = 0;            ///< pixels virtual in one image only (silhouette), left out
   double nearAbs = 0, nearRef = 0;  ///< the delta's sums over real pixels near the objects (NearObjects)
+  /// Per 16 x 16-pixel block with real pixels (over every frame added): the real-pixel delta's sums
+  /// {|delta - reference|, |reference|}, for the relative L1's interval.
+  std::vector<std::array<double, 2>> blocks;
   void add(const ErrorSums& e) {
     sq += e.sq, abs += e.abs, absRef += e.absRef, real += e.real;
     virtAbs += e.virtAbs, virtRef += e.virtRef, mismatched += e.mismatched;
     nearAbs += e.nearAbs, nearRef += e.nearRef;
+    blocks.insert(blocks.end(), e.blocks.begin(), e.blocks.end());
   }
   double rmse() const { return real ? std::sqrt(sq / (3.0 * static_cast<double>(real))) : 0.0; }
   double relDelta() const { return absRef > 0 ? abs / absRef : 0.0; }
   double relVirtual() const { return virtRef > 0 ? virtAbs / virtRef : 0.0; }
   double relDeltaNear() const { return nearRef > 0 ? nearAbs / nearRef : 0.0; }
+  /// The 95 % interval of relDelta() over the blocks (a ratio estimator's standard error: the blocks'
+  /// residuals |e|_b - R |r|_b), clamped at 0; {relDelta, relDelta} with fewer than two blocks.
+  std::array<double, 2> relDeltaInterval() const;
 };
 /// Real pixels near the objects: their surface point (G-buffer positions, CV_32FC4, w = valid) within
 /// `radii` x the objects' bounding radius of its centre (the contact shadow and the bounce next to them).

@@ -7,6 +7,8 @@
 //                             objects alone in a view fitted to their bounding sphere (many times finer than
 //                             the region's RSM: the object's shadow edges are what the delta is made of);
 //                             test(RSM^rho) where a light sits too close to the objects for that view
+#include "lighting/view_factor.glsl"
+
 #ifndef MAX_LIGHTS
 #define MAX_LIGHTS 16
 #endif
@@ -21,6 +23,7 @@ uniform vec3 uLightPosition[MAX_LIGHTS];
 uniform vec3 uLightDirection[MAX_LIGHTS];
 uniform vec3 uLightPower[MAX_LIGHTS];
 uniform float uSpotCos[MAX_LIGHTS];
+uniform float uLightExtent[MAX_LIGHTS];  // directional: sin of its half-angle; point/spot: radius, metres
 uniform mat4 uLightViewProj[MAX_LIGHTS];
 uniform float uShadowBias[MAX_LIGHTS];  // metres, distance tolerance of the shadow test; < -1e29: no map
 uniform mat4 uObjectViewProj[MAX_LIGHTS];
@@ -56,14 +59,16 @@ float visibility(bool withObjects, int i, vec3 x, vec3 n) {
          shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
 }
 
-// Light i's irradiance at a point before any shadow test (lighting::unshadowedIrradiance).
+// Light i's irradiance at a point before any shadow test (lighting::unshadowedIrradiance); a light with
+// extent keeps what of it is still above the surface's horizon (capCosine).
 vec3 unshadowedIrradiance(int i, vec3 x, vec3 n) {
-  if (uLightType[i] == 2) return uLightPower[i] * max(dot(n, -uLightDirection[i]), 0.0);
+  if (uLightType[i] == 2) return uLightPower[i] * capCosine(dot(n, -uLightDirection[i]), uLightExtent[i]);
   vec3 l = uLightPosition[i] - x;
   float d2 = max(dot(l, l), 1e-8);
   vec3 ln = l * inversesqrt(d2);
   if (uLightType[i] == 1 && dot(-ln, uLightDirection[i]) < uSpotCos[i]) return vec3(0.0);
-  return uLightPower[i] * max(dot(n, ln), 0.0) / d2;
+  float sinA = uLightExtent[i] > 0.0 ? min(uLightExtent[i] * inversesqrt(d2), 1.0) : 0.0;
+  return uLightPower[i] * capCosine(dot(n, ln), sinA) / d2;
 }
 
 vec3 directIrradiance(bool withObjects, vec3 x, vec3 n) {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "capture/view_factor.h"
+
 namespace mrgi::lighting {
 
 OccluderSphere occluderSphere(const Mesh& mesh) {
@@ -40,17 +42,7 @@ double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSp
   const double dist = cv::norm(d), r = s.radius;
   if (!(r > 0) || !std::isfinite(dist)) return 0.0;
   if (dist <= r) return 1.0;
-  const double H = dist / r, cosT = std::clamp(n.dot(d) / dist, -1.0, 1.0);
-  if (H * cosT >= 1.0) return cosT / (H * H);  // the whole sphere above the element's plane
-  if (H * cosT <= -1.0) return 0.0;            // the whole sphere below it
-  // Partly below the horizon: the closed form of the view factor from a tilted planar element to a sphere
-  // (Howell's catalogue of configuration factors), continuous with the two cases above at their boundaries.
-  const double sinT = std::sqrt(std::max(0.0, 1.0 - cosT * cosT)), g = std::sqrt(H * H - 1.0);
-  const double a = std::asin(std::clamp(g / (H * sinT), -1.0, 1.0));
-  const double b = std::acos(std::clamp(-g * cosT / sinT, -1.0, 1.0));
-  const double f =
-      0.5 - a / CV_PI + (cosT * b - g * std::sqrt(std::max(0.0, 1.0 - H * H * cosT * cosT))) / (CV_PI * H * H);
-  return std::clamp(f, 0.0, 1.0);
+  return capture::sphereViewFactor(dist / r, n.dot(d) / dist);
 }
 
 cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,

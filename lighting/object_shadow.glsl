@@ -8,20 +8,14 @@ uniform int uOccluderCount;
 uniform vec4 uOccluders[MAX_OCCLUDERS];  // xyz centre (lighting world), w radius; object_shadow.h occluderSphere
 uniform vec3 uOccluderAlbedo[MAX_OCCLUDERS];  // diffuse albedo of what each reflects of the ambient
 
+#include "lighting/view_factor.glsl"
+
 float sphereViewFactor(vec3 x, vec3 n, vec4 s) {
-  const float pi = 3.14159265358979;
   vec3 d = s.xyz - x;
   float dist = length(d), r = s.w;
   if (!(r > 0.0)) return 0.0;
   if (dist <= r) return 1.0;
-  float H = dist / r, cosT = clamp(dot(n, d) / dist, -1.0, 1.0);
-  if (H * cosT >= 1.0) return cosT / (H * H);
-  if (H * cosT <= -1.0) return 0.0;
-  float sinT = sqrt(max(0.0, 1.0 - cosT * cosT)), g = sqrt(H * H - 1.0);
-  float a = asin(clamp(g / (H * sinT), -1.0, 1.0));
-  float b = acos(clamp(-g * cosT / sinT, -1.0, 1.0));
-  float f = 0.5 - a / pi + (cosT * b - g * sqrt(max(0.0, 1.0 - H * H * cosT * cosT))) / (pi * H * H);
-  return clamp(f, 0.0, 1.0);
+  return sphereViewFactorH(dist / r, dot(n, d) / dist);
 }
 
 // The irradiance the objects take from (x, n) under the ambient, net of what they reflect of it (> 0: subtract it).

@@ -5,6 +5,7 @@
 ///
 /// Frames: "marker" = the tag frame (origin at the tag centre, z out of the tag, x along its first edge,
 /// metres). The lighting world of `mrgi replay` is the marker frame.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <opencv2/core.hpp>
@@ -58,6 +59,16 @@ struct SceneLight {
   cv::Vec3d intensity{0, 0, 0};   ///< point/spot: radiant intensity, W/sr per channel
   cv::Vec3d irradiance{0, 0, 0};  ///< directional: irradiance at normal incidence, W/m^2 per channel
   double spotHalfAngleDeg = 45;   ///< spot: cone half angle
+  /// Extent, for the irradiance near and below a surface's horizon (lighting/direct_light.glsl): directional,
+  /// the half-angle of the disc of sky it stands for (radians); point/spot, the radius of the sphere it stands
+  /// for (metres). 0: a point (direction). `irradiance`/`intensity` keep their meaning (normal incidence).
+  double extent = 0;
+  /// sin of the half-angle the light is seen under from distance `d` (directional: any d).
+  double sinAngularRadius(double d) const {
+    if (!(extent > 0)) return 0;
+    if (type == LightType::Directional) return std::sin(std::min(extent, 1.5));
+    return d > extent ? extent / d : 1.0;
+  }
   double spotCos() const { return std::cos(spotHalfAngleDeg * CV_PI / 180.0); }
   bool operator==(const SceneLight&) const = default;
 };

@@ -324,7 +324,9 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
       for (size_t i = 0; i < l.size(); ++i) {
         const std::string key = "lights[" + std::to_string(i) + "]";
         const json& j = l[i];
-        r.allowOnly(j, key, {"type", "position", "direction", "intensity", "irradiance", "spot_half_angle_deg"});
+        r.allowOnly(j, key,
+                    {"type", "position", "direction", "intensity", "irradiance", "spot_half_angle_deg", "radius_m",
+                     "angular_radius_deg"});
         if (!j.contains("type")) r.fail(key + ".type", "missing (point, spot or directional)");
         const std::string type = r.string(j["type"], key + ".type");
         SceneLight light;
@@ -337,6 +339,9 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
           light.position =
               r.vec3(need("position"), key + ".position", -capture::kMaxLightPositionM, capture::kMaxLightPositionM);
           light.intensity = r.vec3(need("intensity"), key + ".intensity", 0, capture::kMaxLightPower);
+          if (j.contains("angular_radius_deg"))
+            r.fail(key + ".angular_radius_deg", "is for directional lights (a point or spot light takes radius_m)");
+          if (j.contains("radius_m")) light.extent = r.number(j["radius_m"], key + ".radius_m", 0, 10);
           if (light.type == LightType::Spot) {
             light.direction = unit(r.vec3(need("direction"), key + ".direction", -1e3, 1e3), r, key + ".direction");
             if (j.contains("spot_half_angle_deg"))
@@ -347,6 +352,10 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
           light.type = LightType::Directional;
           light.direction = unit(r.vec3(need("direction"), key + ".direction", -1e3, 1e3), r, key + ".direction");
           light.irradiance = r.vec3(need("irradiance"), key + ".irradiance", 0, capture::kMaxLightPower);
+          if (j.contains("radius_m"))
+            r.fail(key + ".radius_m", "is for point and spot lights (a directional light takes angular_radius_deg)");
+          if (j.contains("angular_radius_deg"))
+            light.extent = r.number(j["angular_radius_deg"], key + ".angular_radius_deg", 0, 80) * CV_PI / 180;
         } else {
           r.fail(key + ".type", "unknown light type '" + type + "' (expected point, spot or directional)");
         }

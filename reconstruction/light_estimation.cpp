@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
+#include "capture/view_factor.h"
 
 namespace mrgi::reconstruction {
 namespace {
@@ -304,7 +305,8 @@ std::vector<EstimatedLight> lightsToWorld(std::vector<EstimatedLight> lights, co
 
 cv::Vec3d irradianceFromLights(const std::vector<EstimatedLight>& lights, const cv::Vec3d& n) {
   cv::Vec3d e(0, 0, 0);
-  for (const auto& l : lights) e += l.power * std::max(0.0, n.dot(l.direction));
+  for (const auto& l : lights)
+    e += normalIrradiance(l) * capture::capCosine(n.dot(l.direction), std::sin(l.angularRadius));
   return e;
 }
 
@@ -401,14 +403,30 @@ std::vector<FluxBin> fluxBins(const cv::Mat& radiance, const FisheyeRays& rays) 
   return out;
 }
 
-/// LightSplitOptions::fitIrradiance: bands 1-2 of the remainder fitted, relative error weighed, to the
-/// image's irradiance minus the lights' at `count` normals; band 0 kept. Ten rounds of Lawson's reweighting
-/// bring the largest error down (courtyard 15.7 -> 8.9 %), the best round kept.
-void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, int count, LightSplit& split) {
+/// LightSplitOptions::fitIrradiance: bands 1-2 of the remainder and one common scale s of the lights' powers
+/// fitted, relative error weighed, to the image's irradiance at `count` normals; band 0 takes what the scaled
+/// lights leave of the image's total, so lights and remainder still hold it. Ten rounds of Lawson's
+/// reweighting bring the largest error down, the best round kept.
+void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, int count, bool scaleLights,
+                              LightSplit& split) {
   const std::vector<FluxBin> bins = fluxBins(radiance, rays);
-  // Unknowns: bands 1-2 (8 coefficients); band 0 is kept, so lights and remainder hold the image's total.
-  cv::Mat M(count, 8, CV_64F), rhs(count, 3, CV_64F);
-  int rows = 0;
+  const double c0Unit = 2 * std::sqrt(CV_PI);  // the power of a unit band-0 coefficient
+  cv::Vec3d lightsPower(0, 0, 0);
+  for (const auto& l : split.lights) lightsPower += l.power;
+  const cv::Vec3d total = lightsPower + split.ambientSh[0] * c0Unit;
+  // The scale keeps band 0 non-negative and the lights within a factor 2 of their regions' power.
+  double sMax = 2.0;
+  for (int c = 0; c < 3; ++c)
+    if (lightsPower[c] > 0) sMax = std::min(sMax, total[c] / lightsPower[c]);
+  const double sMin = std::min(0.5, sMax);
+  // Per normal (rows), per channel: E_image = s (E_lights - A0 y0 P_L / c0Unit) + A0 y0 P_total / c0Unit +
+  // sum_{k >= 1} A_k y_k c_k, each row scaled by its weight / the image's irradiance there.
+  struct Row {
+    double w;
+    cv::Vec3d lightsPart, rhs;
+    std::array<double, 8> basis;
+  };
+  std::vector<Row> rowsData;
   for (int i = 0; i < count; ++i) {
     const double z = 1 - (2 * i + 1) / static_cast<double>(count), r = std::sqrt(std::max(0.0, 1 - z * z));
     const double a = i * CV_PI * (3 - std::sqrt(5.0));
@@ -423,49 +441,93 @@ void fitRemainderToIrradiance(const cv::Mat& radiance, const FisheyeRays& rays, 
     const double lum = capture::luminance(E);
     if (!(lum > 0) || !std::isfinite(lum) || !(seen > 0))
       continue;  // a normal the image sends nothing: no relative error
-    const cv::Vec3d want = E - irradianceFromLights(split.lights, n);
     const auto y = shBasis2(n);
-    // Rows scaled by 1 / E: squared relative error, where the image sees the normal's hemisphere (a
-    // fisheye's normals facing away from its field see only its rim: their irradiance is not the room's).
-    const double w = std::min(seen, 1.0) / lum;
-    for (int k = 1; k < 9; ++k) M.at<double>(rows, k - 1) = w * kClampedCosine[k] * y[static_cast<size_t>(k)];
-    for (int c = 0; c < 3; ++c)
-      rhs.at<double>(rows, c) = w * (want[c] - kClampedCosine[0] * y[0] * split.ambientSh[0][c]);
-    ++rows;
+    // Scaled by 1 / E: squared relative error, where the image sees the normal's hemisphere (a fisheye's
+    // normals facing away from its field see only its rim: their irradiance is not the room's).
+    Row row;
+    row.w = std::min(seen, 1.0) / lum;
+    const double a0 = kClampedCosine[0] * y[0] / c0Unit;
+    row.lightsPart = irradianceFromLights(split.lights, n) - lightsPower * a0;
+    row.rhs = E - total * a0;
+    for (int k = 1; k < 9; ++k) row.basis[static_cast<size_t>(k - 1)] = kClampedCosine[k] * y[static_cast<size_t>(k)];
+    rowsData.push_back(row);
   }
+  const int rows = static_cast<int>(rowsData.size());
   if (rows < 16) return;
+  // One weighted solve: unknowns s (shared by the channels) and bands 1-2 per channel; s fixed when given.
+  const auto solve = [&](const std::vector<double>& weight, double fixedS, double& s, cv::Mat& bands) {
+    const bool free = !(fixedS > 0);
+    const int o = free ? 1 : 0;
+    cv::Mat M(3 * rows, o + 24, CV_64F, cv::Scalar(0)), rhs(3 * rows, 1, CV_64F);
+    for (int c = 0; c < 3; ++c)
+      for (int j = 0; j < rows; ++j) {
+        const Row& row = rowsData[static_cast<size_t>(j)];
+        const double sw = std::sqrt(weight[static_cast<size_t>(j)]) * row.w;
+        const int at = c * rows + j;
+        if (free) M.at<double>(at, 0) = sw * row.lightsPart[c];
+        for (int k = 0; k < 8; ++k) M.at<double>(at, o + c * 8 + k) = sw * row.basis[static_cast<size_t>(k)];
+        rhs.at<double>(at) = sw * (row.rhs[c] - (free ? 0.0 : fixedS * row.lightsPart[c]));
+      }
+    cv::Mat x;
+    if (!cv::solve(M, rhs, x, cv::DECOMP_SVD) || !cv::checkRange(x)) return false;
+    s = free ? x.at<double>(0) : fixedS;
+    bands = x.rowRange(o, o + 24).clone();
+    return true;
+  };
   // Least squares, then Lawson's reweighting towards the smallest largest error: each normal's weight grows
   // with its relative error (luminance) at the last solution.
-  const cv::Mat Mr = M.rowRange(0, rows), Rr = rhs.rowRange(0, rows);
   std::vector<double> weight(static_cast<size_t>(rows), 1.0);
   cv::Mat best;
-  double bestWorst = 1e300;
+  double bestS = 1, bestWorst = 1e300;
   constexpr int kRounds = 10;
   for (int round = 0; round <= kRounds; ++round) {
-    cv::Mat Mw = Mr.clone(), Rw = Rr.clone();
-    for (int j = 0; j < rows; ++j) {
-      const double sw = std::sqrt(weight[static_cast<size_t>(j)]);
-      Mw.row(j) *= sw;
-      Rw.row(j) *= sw;
-    }
-    cv::Mat x;
-    if (!cv::solve(Mw, Rw, x, cv::DECOMP_SVD) || !cv::checkRange(x)) break;
-    const cv::Mat r = Mr * x - Rr;  // relative errors per channel (rows are scaled by 1 / E)
+    double s = 1;
+    cv::Mat bands;
+    if (!solve(weight, scaleLights ? 0.0 : 1.0, s, bands)) break;
+    if (!(s >= sMin && s <= sMax) && !solve(weight, std::clamp(s, sMin, sMax), s, bands)) break;
     double worst = 0, sum = 0;
     std::vector<double> e(static_cast<size_t>(rows));
     for (int j = 0; j < rows; ++j) {
-      e[static_cast<size_t>(j)] =
-          std::abs(capture::luminance(cv::Vec3d(r.at<double>(j, 0), r.at<double>(j, 1), r.at<double>(j, 2))));
+      const Row& row = rowsData[static_cast<size_t>(j)];
+      cv::Vec3d r = s * row.lightsPart - row.rhs;
+      for (int c = 0; c < 3; ++c)
+        for (int k = 0; k < 8; ++k) r[c] += row.basis[static_cast<size_t>(k)] * bands.at<double>(c * 8 + k);
+      e[static_cast<size_t>(j)] = std::abs(capture::luminance(r)) * row.w;
       worst = std::max(worst, e[static_cast<size_t>(j)]);
     }
-    if (worst < bestWorst) bestWorst = worst, best = x;
+    if (worst < bestWorst) bestWorst = worst, best = bands, bestS = s;
     for (int j = 0; j < rows; ++j) sum += weight[static_cast<size_t>(j)] * e[static_cast<size_t>(j)];
     if (!(sum > 0)) break;
     for (int j = 0; j < rows; ++j) weight[static_cast<size_t>(j)] *= e[static_cast<size_t>(j)] / sum * rows;
   }
   if (best.empty()) return;
+  for (auto& l : split.lights) l.power *= bestS;
+  split.ambientSh[0] = (total - lightsPower * bestS) * (1 / c0Unit);
   for (int k = 1; k < 9; ++k)
-    for (int c = 0; c < 3; ++c) split.ambientSh[static_cast<size_t>(k)][c] = best.at<double>(k - 1, c);
+    for (int c = 0; c < 3; ++c) split.ambientSh[static_cast<size_t>(k)][c] = best.at<double>(c * 8 + k - 1);
+}
+
+/// LightSplitOptions::lightExtent: each light's half-angle from its region's bright energy.
+void giveLightsExtent(const cv::Mat& bright, const FisheyeRays& rays, double scale,
+                      std::vector<EstimatedLight>& lights) {
+  for (auto& l : lights) {
+    cv::Vec3d sum(0, 0, 0);
+    double energy = 0;
+    const cv::Rect r = l.region & cv::Rect(0, 0, bright.cols, bright.rows);
+    for (int y = r.y; y < r.y + r.height; ++y)
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        const double w = rays.solidAngle.at<double>(y, x);
+        if (!(w > 0)) continue;
+        const double e = capture::luminance(cv::Vec3d(bright.at<cv::Vec3f>(y, x))) * w;
+        if (!(e > 0)) continue;
+        sum += e * cv::Vec3d(rays.directions.at<cv::Vec3f>(y, x));
+        energy += e;
+      }
+    if (!(energy > 0)) continue;
+    // A disc of uniform radiance of half-angle a has mean resultant length (1 + cos a) / 2.
+    const double meanLength = std::clamp(cv::norm(sum) / energy, 0.0, 1.0);
+    l.angularRadius = std::min(scale * std::acos(2 * meanLength - 1), kMaxLightAngularRadius);
+  }
 }
 
 }  // namespace
@@ -503,7 +565,9 @@ LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const L
       for (int k = 0; k < 9; ++k) out.ambientSh[k] += rest * (b[k] * w);
     }
   out.lights = medianCut(bright, rays, o.medianCut);
-  if (o.fitIrradiance && o.fitNormals >= 16) fitRemainderToIrradiance(radiance, rays, o.fitNormals, out);
+  if (o.lightExtent > 0) giveLightsExtent(bright, rays, o.lightExtent, out.lights);
+  if (o.fitIrradiance && o.fitNormals >= 16)
+    fitRemainderToIrradiance(radiance, rays, o.fitNormals, o.fitLightScale, out);
   return out;
 }
 

@@ -227,7 +227,8 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   for (const EstimatedLight& e : out.split.lights) {
     RoomLight l;
     l.direction = e.direction;
-    l.irradiance = e.power;
+    l.irradiance = normalIrradiance(e);
+    l.angularRadius = e.angularRadius;
     cv::Vec3d pos(0, 0, 0);
     double w = 0, wHit = 0, wSat = 0;
     for (int v = e.region.y; v < e.region.y + e.region.height; ++v)
@@ -247,7 +248,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
       if (d >= o.minPointDistance) {
         l.point = true;
         l.position = p;
-        l.intensity = e.power * (d * d);
+        l.intensity = l.irradiance * (d * d);
         l.direction = (p - centre) / d;
       }
     }

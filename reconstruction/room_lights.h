@@ -29,6 +29,9 @@ struct RoomLightOptions {
     // Threshold 1, not a whole sphere's 2: with four lights, 2 leaves the lamp alone above it and the median
     // cut splits it into all four, the dominant one a third of its intensity (RoomLights.OneLamp…).
     s.threshold = 1.0;
+    // A room's lamps keep their power: they cast the shadows (a common scale fitted to the irradiance put
+    // tabletop-scan's lamp 17 % over its true irradiance).
+    s.fitLightScale = false;
     return s;
   }();
   double saturatedGain = 0;     ///< > 0: the gain on saturated radiance; 0: estimated (white patch)
@@ -50,7 +53,8 @@ struct RoomLight {
   cv::Vec3d position{0, 0, 0};    ///< lighting world (point)
   cv::Vec3d direction{0, 0, 0};   ///< unit, from the centre towards the light
   cv::Vec3d intensity{0, 0, 0};   ///< W/sr (point): power x distance^2
-  cv::Vec3d irradiance{0, 0, 0};  ///< at the centre, normal incidence (the split's power)
+  cv::Vec3d irradiance{0, 0, 0};  ///< at the centre, normal incidence (normalIrradiance of the split's light)
+  double angularRadius = 0;       ///< half-angle it is seen under from the centre (EstimatedLight::angularRadius)
   double saturatedFraction = 0;   ///< of its energy, from saturated surfaces
 };
 

@@ -104,7 +104,8 @@ void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, 
     lighting::SceneLight sl;
     sl.type = lighting::LightType::Directional;
     sl.direction = -l.direction;  // from the light into the scene
-    sl.irradiance = l.power;
+    sl.irradiance = reconstruction::normalIrradiance(l);
+    sl.extent = l.angularRadius;
     setup_->lights.push_back(sl);
   }
   useAmbientSh(split.ambientSh);
@@ -156,10 +157,12 @@ void FramePipeline::estimateRoomLights() {
       sl.type = lighting::LightType::Point;
       sl.position = l.position;
       sl.intensity = l.intensity;
+      sl.extent = cv::norm(l.position - centre) * std::sin(l.angularRadius);  // the sphere seen under it
     } else {
       sl.type = lighting::LightType::Directional;
       sl.direction = -l.direction;
       sl.irradiance = l.irradiance;
+      sl.extent = l.angularRadius;
     }
     setup_->lights.push_back(sl);
   }

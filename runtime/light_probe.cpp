@@ -95,6 +95,7 @@ int estimateLights(const LightsOptions& o) {
   for (const auto& l : lights)
     arr.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
                    {"power", {l.power[0], l.power[1], l.power[2]}},
+                   {"angular_radius_deg", l.angularRadius * 180 / CV_PI},
                    {"solid_angle_sr", l.solidAngle}});
   json sh = json::array();
   for (const auto& c : split.ambientSh) sh.push_back({c[0], c[1], c[2]});
@@ -118,8 +119,8 @@ int estimateLights(const LightsOptions& o) {
     const cv::Vec3d dc = split.ambientSh[0] * (2 * std::sqrt(CV_PI));
     std::printf("  remainder as SH bands 0-2: power (%.4g, %.4g, %.4g)\n", dc[0], dc[1], dc[2]);
     for (const auto& l : lights)
-      std::printf("  dir (%+.3f %+.3f %+.3f)  power (%.4g, %.4g, %.4g)\n", l.direction[0], l.direction[1],
-                  l.direction[2], l.power[0], l.power[1], l.power[2]);
+      std::printf("  dir (%+.3f %+.3f %+.3f)  power (%.4g, %.4g, %.4g)  half-angle %.1f deg\n", l.direction[0],
+                  l.direction[1], l.direction[2], l.power[0], l.power[1], l.power[2], l.angularRadius * 180 / CV_PI);
   }
   if (satFraction > 0.01)
     std::fprintf(stderr, "warning: %.1f%% of %s is saturated; its light power is underestimated\n", 100 * satFraction,

@@ -101,6 +101,8 @@ void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& light
     setVec3(p, "uLightDirection" + k, l.direction);
     setVec3(p, "uLightPower" + k, l.type == LightType::Directional ? l.irradiance : l.intensity);
     p.set("uSpotCos" + k, static_cast<float>(l.spotCos()));
+    p.set("uLightExtent" + k,
+          static_cast<float>(l.type == LightType::Directional ? l.sinAngularRadius(1) : std::max(l.extent, 0.0)));
     if (i < views.size()) {
       const auto m = toGl(views[i].viewProj);
       p.setMat4("uLightViewProj" + k, m.data());

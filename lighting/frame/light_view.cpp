@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "capture/view_factor.h"
 #include "gl/error.h"
 #include "lighting/frame/mesh.h"
 
@@ -150,12 +151,13 @@ float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const L
 }
 
 cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& n) {
-  if (light.type == LightType::Directional) return light.irradiance * std::max(-n.dot(light.direction), 0.0);
+  if (light.type == LightType::Directional)
+    return light.irradiance * capture::capCosine(-n.dot(light.direction), light.sinAngularRadius(1));
   const cv::Vec3d l = light.position - x;
   const double d2 = std::max(l.dot(l), 1e-8);
   const cv::Vec3d ln = l / std::sqrt(d2);
   if (light.type == LightType::Spot && (-ln).dot(light.direction) < light.spotCos()) return {0, 0, 0};
-  return light.intensity * (std::max(n.dot(ln), 0.0) / d2);
+  return light.intensity * (capture::capCosine(n.dot(ln), light.sinAngularRadius(std::sqrt(d2))) / d2);
 }
 
 }  // namespace mrgi::lighting

@@ -63,6 +63,52 @@ TEST(Metrics, ErrorSumsAgainstAKnownTruth) {
   EXPECT_EQ(errorSums(off, t).relDeltaNear(), 0.0);  // none asked for
 }
 
+TEST(Metrics, TheRelativeErrorsIntervalHoldsItsExpectation) {
+  // A delta of -0.2 everywhere and a result off it by |e| with e ~ N(0, 0.05): the relative L1 error's
+  // expectation is E|e| / 0.2 = 0.05 sqrt(2 / pi) / 0.2. Over 40 seeds its 95 % interval holds it in most;
+  // two frames narrow it by about sqrt 2; one block gives no width.
+  const int W = 160, H = 128;
+  const Truth t = truthOf(W, H, -0.2f, 0.5f);
+  const double expected = 0.05 * std::sqrt(2 / CV_PI) / 0.2;
+  int held = 0;
+  double width1 = 0, width2 = 0;
+  for (int seed = 0; seed < 40; ++seed) {
+    cv::RNG rng(static_cast<uint64_t>(seed + 1));
+    cv::Mat noise(H, W, CV_32FC3), noise2(H, W, CV_32FC3);
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, 0.05);
+    rng.fill(noise2, cv::RNG::NORMAL, 0.0, 0.05);
+    cv::Mat a = shadeOf(W, H, -0.2f, 0.5f), b = a.clone();
+    for (int y = 0; y < H; ++y)
+      for (int x = 1; x < W; ++x)
+        for (int c = 0; c < 3; ++c) {
+          a.at<cv::Vec4f>(y, x)[c] += noise.at<cv::Vec3f>(y, x)[c];
+          b.at<cv::Vec4f>(y, x)[c] += noise2.at<cv::Vec3f>(y, x)[c];
+        }
+    ErrorSums one = errorSums(a, t);
+    EXPECT_EQ(one.blocks.size(), static_cast<size_t>(10 * 8));
+    const auto i1 = one.relDeltaInterval();
+    EXPECT_LE(i1[0], one.relDelta());
+    EXPECT_GE(i1[1], one.relDelta());
+    held += i1[0] <= expected && expected <= i1[1];
+    width1 += i1[1] - i1[0];
+    one.add(errorSums(b, t));
+    const auto i2 = one.relDeltaInterval();
+    width2 += i2[1] - i2[0];
+  }
+  EXPECT_GE(held, 34);  // 95 % of 40 is 38; a binomial's low tail
+  EXPECT_GT(width1, 0);
+  EXPECT_NEAR(width2 / width1, 1 / std::sqrt(2.0), 0.1);
+  // The interval is about the block-to-block spread: per block |e|'s mean has sd 0.05 sqrt(1 - 2 / pi) /
+  // sqrt(16 16 3), over 80 blocks; relative to 0.2, width 2 x 1.96 x that / sqrt(80).
+  const double sd = 0.05 * std::sqrt(1 - 2 / CV_PI) / std::sqrt(16.0 * 16 * 3) / 0.2;
+  EXPECT_NEAR(width1 / 40, 2 * 1.96 * sd / std::sqrt(80.0), 0.3 * 2 * 1.96 * sd / std::sqrt(80.0));
+  // No blocks of real pixels beyond one: the interval is the value.
+  const Truth small = truthOf(8, 4, -0.2f, 0.5f);
+  const ErrorSums e = errorSums(shadeOf(8, 4, -0.25f, 0.55f), small);
+  EXPECT_EQ(e.relDeltaInterval()[0], e.relDelta());
+  EXPECT_EQ(e.relDeltaInterval()[1], e.relDelta());
+}
+
 TEST(Metrics, TwoNoisyReferencesGiveTheSquaredErrorWithoutTheirNoise) {
   // A known truth t (a smooth delta-like image), a result x = t + e with a known error pattern, and two
   // references r1, r2 = t + independent Gaussian noise far larger than e (as a few samples per pixel are).

@@ -27,6 +27,20 @@ SceneLight obliqueSun() {
   return l;
 }
 
+// Lights with extent (lighting::SceneLight::extent): a wide sun low over the cube and a sphere lamp.
+SceneLight wideLowSun() {
+  SceneLight l = sunDown(6.0);
+  l.direction = cv::normalize(cv::Vec3d(-0.9, 0.3, -0.25));  // 15 degrees over the floor
+  l.extent = 0.5;                                            // radians: the floor straddles its horizon
+  return l;
+}
+SceneLight sphereLamp() {
+  SceneLight l = pointAbove();
+  l.position = {-0.4, -0.3, 0.5};
+  l.extent = 0.25;  // metres
+  return l;
+}
+
 // Technique "none": real pixels get exactly the object's direct shadow, sum_i E_i (V_i(rho) - V_i(mu)); the
 // object gets sum_i E_i V_i(rho) + pi ambient. Both are recomputed per pixel on the CPU from the downloaded
 // maps through the twin.
@@ -37,7 +51,7 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   PipelineConfig cfg = testConfig(W, H, 16, 128, "none");
   cfg.set("frame", "shadow_size", 256);
   LightingPipeline pipe = makePipeline(cfg, s);
-  const std::vector<SceneLight> lights = {obliqueSun(), pointAbove(), spotAbove()};
+  const std::vector<SceneLight> lights = {obliqueSun(), pointAbove(), spotAbove(), wideLowSun(), sphereLamp()};
   const cv::Vec3d ambient(0.03, 0.03, 0.03);
   pipe.run(topCamera(W, H), lights, ambient, nullptr);
   const auto& frame = pipe.frame();
@@ -51,7 +65,7 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   lighting::Ambient sky;
   sky.uniform = cv::Vec3f(ambient);
   const std::vector<lighting::OccluderSphere> spheres{lighting::occluderSphere(s.objects[0])};
-  int real = 0, shadowed = 0, virt = 0, differ = 0;
+  int real = 0, shadowed = 0, virt = 0, differ = 0, extentMatters = 0;
   for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
     const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i), a = alb.at<cv::Vec4f>(i);
     if (p[3] < 0.5f) continue;
@@ -59,6 +73,9 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
     cv::Vec3d with(0, 0, 0), without(0, 0, 0);
     for (size_t l = 0; l < lights.size(); ++l) {
       const cv::Vec3d e = lighting::unshadowedIrradiance(lights[l], x, nn);
+      SceneLight point = lights[l];
+      point.extent = 0;
+      if (cv::norm(e - lighting::unshadowedIrradiance(point, x, nn)) > 1e-2 * (1 + cv::norm(e))) ++extentMatters;
       with += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], true, x, nn);
       without += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], false, x, nn);
     }
@@ -80,6 +97,7 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   EXPECT_GT(real, 5000);
   EXPECT_GT(virt, 250);
   EXPECT_GT(shadowed, 250);
+  EXPECT_GT(extentMatters, 250);  // the cube's sides near the wide lights' horizons
   EXPECT_LE(differ, (real + virt) / 500) << differ << " of " << real + virt << " pixels differ";
 }
 

@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
+#include "capture/view_factor.h"
 #include "test_scene.h"
 
 namespace mrgi::lighting {
@@ -58,6 +60,48 @@ TEST(ObjectShadow, SphereViewFactorMatchesTheHemisphereIntegral) {
   // Inside the sphere: everything covered; a sphere of no size: nothing.
   EXPECT_EQ(sphereViewFactor({0, 0, 0.3}, {0, 0, 1}, s), 1.0);
   EXPECT_EQ(sphereViewFactor({0, 0, 0}, {0, 0, 1}, OccluderSphere{{0, 0, 0.3f}, 0.f}), 0.0);
+}
+
+// A light with extent (a disc of sky of half-angle a, a sphere lamp): its irradiance over its irradiance at
+// normal incidence, against a midpoint rule over the disc's directions (uniform in solid angle), above,
+// straddling and below the horizon. A point light's cosine is 0 at and below the horizon; the disc keeps the
+// part still above it.
+TEST(ObjectShadow, ALightWithExtentKeepsThePartOfItsDiscAboveTheHorizon) {
+  const auto numerical = [](double cosT, double a) {
+    const int steps = 600;
+    const double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+    double sum = 0, normal = 0;
+    for (int i = 0; i < steps; ++i) {
+      const double mu = 1 - (1 - std::cos(a)) * (i + 0.5) / steps;  // cos of the angle to the disc's axis
+      const double s = std::sqrt(std::max(0.0, 1 - mu * mu));
+      for (int j = 0; j < steps; ++j) {
+        const double phi = 2 * CV_PI * (j + 0.5) / steps;
+        // The normal tilted by theta from the axis (z) in the x-z plane.
+        sum += std::max(0.0, mu * cosT + s * std::cos(phi) * sinT);
+        normal += mu;
+      }
+    }
+    return sum / normal;
+  };
+  int straddling = 0;
+  for (const double deg : {1.0, 10.0, 30.0, 60.0})
+    for (const double thetaDeg : {0.0, 45.0, 80.0, 88.0, 90.0, 95.0, 110.0, 150.0}) {
+      const double a = deg * CV_PI / 180, c = std::cos(thetaDeg * CV_PI / 180);
+      const double got = capture::capCosine(c, std::sin(a)), want = numerical(c, a);
+      straddling += std::abs(thetaDeg - 90) < deg && want > 1e-3;
+      EXPECT_NEAR(got, want, 2e-3 * std::max(want, 0.05)) << deg << " deg disc at " << thetaDeg << " deg";
+      EXPECT_TRUE(std::isfinite(got) && got >= 0 && got <= 1);
+    }
+  EXPECT_GE(straddling, 6);
+  // No extent: the point light's cosine; the extremes stay finite and bounded.
+  EXPECT_EQ(capture::capCosine(0.5, 0), 0.5);
+  EXPECT_EQ(capture::capCosine(-0.5, 0), 0.0);
+  for (const double s : {1e-9, 1e-5, 0.999999, 1.0, 2.0, std::numeric_limits<double>::infinity()})
+    for (const double c : {-1.0, -1e-12, 0.0, 1e-12, 1.0}) {
+      const double v = capture::capCosine(c, s);
+      EXPECT_TRUE(std::isfinite(v) && v >= 0 && v <= 1) << s << " " << c << ": " << v;
+    }
+  EXPECT_EQ(capture::capCosine(std::numeric_limits<double>::quiet_NaN(), 0.3), 0.0);
 }
 
 TEST(ObjectShadow, AnObjectStandsAsTheSphereOfItsMeanSolidAngle) {

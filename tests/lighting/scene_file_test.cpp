@@ -250,7 +250,9 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
     "objects": [{"model": "../models/cube.obj", "translate": [0, 0, 0.05], "rotate_deg": [0, 0, 90], "scale": 0.1,
                  "material": {"albedo": [0.9, 0.2, 0.1], "roughness": 0.5, "specular": 0.1}}],
     "lights": [{"type": "point", "position": [0, 0, 1], "intensity": [5, 5, 5]},
-               {"type": "directional", "direction": [0, 0, -2], "irradiance": [1, 2, 3]}],
+               {"type": "directional", "direction": [0, 0, -2], "irradiance": [1, 2, 3]},
+               {"type": "point", "position": [0, 0, 2], "intensity": [5, 5, 5], "radius_m": 0.04},
+               {"type": "directional", "direction": [0, 0, -1], "irradiance": [1, 1, 1], "angular_radius_deg": 10}],
     "ambient_radiance": [0.1, 0.1, 0.1],
     "technique": "lpv-diff",
     "lpv": {"resolution": 16, "steps": 8, "rsm_size": 128, "size_factor": 3, "damping": 0.25}
@@ -274,9 +276,15 @@ TEST(SceneFile, ParsesObjectsLightsAndKnobs) {
         << e.what();
   }
   EXPECT_EQ(s.lightSource, LightSource::Scene);
-  ASSERT_EQ(s.lights.size(), 2u);
+  ASSERT_EQ(s.lights.size(), 4u);
   EXPECT_EQ(s.lights[1].type, LightType::Directional);
   EXPECT_NEAR(s.lights[1].direction[2], -1.0, 1e-12);  // normalised
+  // Extents: none unless given; a sphere lamp's radius in metres, a disc of sky's half-angle in radians.
+  EXPECT_EQ(s.lights[0].extent, 0.0);
+  EXPECT_EQ(s.lights[2].extent, 0.04);
+  EXPECT_NEAR(s.lights[2].sinAngularRadius(2.0), 0.02, 1e-12);
+  EXPECT_NEAR(s.lights[3].extent, 10 * CV_PI / 180, 1e-12);
+  EXPECT_NEAR(s.lights[3].sinAngularRadius(1.0), std::sin(10 * CV_PI / 180), 1e-12);
   // "lpv-diff" is DLPV in both roles with its naive_difference variant knob; frame knobs read inside "lpv"
   // (where older files have them) land in the frame group.
   EXPECT_EQ(s.technique.real, "dlpv");
@@ -370,6 +378,15 @@ TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
        "objects[0].material.albedo[1]: must be a finite number in [0, 1], not 2"},
       {R"({"lights": [{"type": "area"}]})", "lights[0].type: unknown light type 'area'"},
       {R"({"lights": [{"type": "point", "position": [0, 0, 1]}]})", "lights[0].intensity: missing"},
+      {R"({"lights": [{"type": "point", "position": [0, 0, 1], "intensity": [1, 1, 1], "radius_m": -1}]})",
+       "lights[0].radius_m: must be a finite number in [0, 10], not -1"},
+      {R"({"lights": [{"type": "point", "position": [0, 0, 1], "intensity": [1, 1, 1], "angular_radius_deg": 5}]})",
+       "lights[0].angular_radius_deg: is for directional lights"},
+      {R"({"lights": [{"type": "directional", "direction": [0, 0, -1], "irradiance": [1, 1, 1], "radius_m": 1}]})",
+       "lights[0].radius_m: is for point and spot lights"},
+      {R"({"lights": [{"type": "directional", "direction": [0, 0, -1], "irradiance": [1, 1, 1],
+                       "angular_radius_deg": 90}]})",
+       "lights[0].angular_radius_deg: must be a finite number in [0, 80], not 90"},
       {R"({"lights": [{"type": "directional", "direction": [0, 0, 0], "irradiance": [1, 1, 1]}]})",
        "lights[0].direction: must not be the zero vector"},
       {R"({"lights": "sun"})", "lights: must be \"auto\", \"manifest\""},

@@ -113,7 +113,7 @@ TEST(RoomLights, OneLampGivesADominantLightWithin5DegreesAndItsIntensityFromTheW
   const auto rays = reconstruction::latLongRays(lights.environment.cols);
   total = reconstruction::totalPower(lights.environment, rays);
   cv::Vec3d split = lights.split.ambientSh[0] * (4 * CV_PI * 0.28209479177387814);
-  for (const auto& l : lights.lights) split += l.irradiance;
+  for (const auto& l : lights.split.lights) split += l.power;
   EXPECT_NEAR(split[1], total[1], 1e-3 * total[1]);
 }
 
