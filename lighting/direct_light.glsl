@@ -23,11 +23,13 @@ uniform vec3 uLightPosition[MAX_LIGHTS];
 uniform vec3 uLightDirection[MAX_LIGHTS];
 uniform vec3 uLightPower[MAX_LIGHTS];
 uniform float uSpotCos[MAX_LIGHTS];
+uniform int uLightSoft[MAX_LIGHTS];      // 1: the objects' shadow of light i is soft (frame knob soft_shadow_lights)
 uniform float uLightExtent[MAX_LIGHTS];  // directional: sin of its half-angle; point/spot: radius, metres
 uniform mat4 uLightViewProj[MAX_LIGHTS];
 uniform float uShadowBias[MAX_LIGHTS];  // metres, distance tolerance of the shadow test; < -1e29: no map
 uniform mat4 uObjectViewProj[MAX_LIGHTS];
 uniform float uObjectShadowBias[MAX_LIGHTS];  // < -1e29: no objects' map for this light (RSM^rho instead)
+uniform float uObjectNear[MAX_LIGHTS];        // where the objects' sphere begins, in the test's distance
 
 // Shadow-map test with a normal offset: the lookup point moves off the surface by the bias (about two map
 // texels) along its normal, so surfaces near the terminator (depth slope ~ tan θ per texel) do not shadow
@@ -52,11 +54,77 @@ float shadowTest(sampler2DArray map, int i, mat4 viewProj, float bias, vec3 x, v
   return dOcc < dSelf - bias ? 0.0 : 1.0;
 }
 
+// The shadow test's distance of a point: along a directional light's direction, else from the light.
+float lightDistance(int i, vec3 p) {
+  return uLightType[i] == 2 ? dot(p, uLightDirection[i]) : distance(p, uLightPosition[i]);
+}
+
+// The distance of what the objects' map holds where p projects (1e30 where nothing or outside the map).
+float objectsOccluderDistance(int i, vec3 p) {
+  vec4 c = uObjectViewProj[i] * vec4(p, 1.0);
+  if (c.w <= 0.0) return 1e30;
+  vec2 ndc = c.xy / c.w;
+  if (any(greaterThan(abs(ndc), vec2(1.0)))) return 1e30;
+  vec4 s = texture(uShadowObjects, vec3(ndc * 0.5 + 0.5, float(i)));
+  return s.w < 0.5 ? 1e30 : lightDistance(i, s.xyz);
+}
+
+// Only where the including program defines SOFT_OBJECT_SHADOWS (the shading pass); techniques' own passes
+// take the hard test of the light's centre.
+#define SOFT_SHADOW_TAPS 16
+#define SOFT_SHADOW_SEARCH_TAPS 8
+// The objects' soft shadow of a light with extent (lighting::softObjectsShadow is the C++ twin): the blockers'
+// mean distance over the widest penumbra, then the fraction of taps over the penumbra's disc left lit.
+float softObjectsShadow(int i, vec3 x, vec3 n) {
+  float bias = uObjectShadowBias[i];
+  x += n * bias;
+  float self = lightDistance(i, x);
+  if (!(self - bias > uObjectNear[i])) return 1.0;
+  bool directional = uLightType[i] == 2;
+  vec3 L = directional ? uLightDirection[i] : normalize(x - uLightPosition[i]);
+  vec3 t = normalize(cross(L, abs(L.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
+  vec3 b = cross(L, t);
+  float ext = uLightExtent[i];  // directional: sin a; point/spot: radius
+  float tanA = ext / sqrt(max(1e-12, 1.0 - ext * ext));
+  float near = uObjectNear[i];
+  float widest = directional ? (self - near) * tanA : (self - near) * ext / max(near, 1e-4);
+  if (widest < 0.5 * bias) return shadowTest(uShadowObjects, i, uObjectViewProj[i], bias, x - n * bias, n);
+  // Each tap compares with the receiver's tangent plane where the light's ray through the tap meets it.
+  float facing = min(dot(n, L), -0.1);
+  float sum = 0.0;
+  int blockers = 0;
+  for (int k = 0; k < SOFT_SHADOW_SEARCH_TAPS; ++k) {
+    float r = widest * sqrt((float(k) + 0.5) / float(SOFT_SHADOW_SEARCH_TAPS)), a = float(k) * 2.399963229728653;
+    vec3 o = r * cos(a) * t + r * sin(a) * b;
+    float d = objectsOccluderDistance(i, x + o);
+    if (d < self - dot(n, o) / facing - bias) {
+      sum += d;
+      ++blockers;
+    }
+  }
+  if (blockers == 0) return 1.0;
+  if (blockers == SOFT_SHADOW_SEARCH_TAPS) return 0.0;  // the widest penumbra's disc all covered: the umbra
+  float dB = sum / float(blockers);
+  float w = directional ? (self - dB) * tanA : (self - dB) * ext / max(dB, 1e-4);
+  int lit = 0;
+  for (int k = 0; k < SOFT_SHADOW_TAPS; ++k) {
+    float r = w * sqrt((float(k) + 0.5) / float(SOFT_SHADOW_TAPS)), a = float(k) * 2.399963229728653;
+    vec3 o = r * cos(a) * t + r * sin(a) * b;
+    if (!(objectsOccluderDistance(i, x + o) < self - dot(n, o) / facing - bias)) ++lit;
+  }
+  return float(lit) / float(SOFT_SHADOW_TAPS);
+}
+
 float visibility(bool withObjects, int i, vec3 x, vec3 n) {
   if (!withObjects) return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n);
   if (uObjectShadowBias[i] < -1e29) return shadowTest(uShadowRho, i, uLightViewProj[i], uShadowBias[i], x, n);
-  return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) *
-         shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#ifdef SOFT_OBJECT_SHADOWS
+  float objects = uLightSoft[i] == 1 && uLightExtent[i] > 0.0 ? softObjectsShadow(i, x, n)
+                                        : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#else
+  float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#endif
+  return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * objects;
 }
 
 // Light i's irradiance at a point before any shadow test (lighting::unshadowedIrradiance); a light with

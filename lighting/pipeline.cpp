@@ -207,7 +207,13 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   shadeFb_.bind();
   glViewport(0, 0, config_.width, config_.height);
   glDisable(GL_DEPTH_TEST);
-  const gl::Program& p = shadeProgram_;
+  // The soft-shadow variant only when a light casts one: its code costs llvmpipe even where no light takes it.
+  bool soft = false;
+  for (const LightView& v : frame_->lightViews()) soft = soft || v.soft;
+  if (soft && !softShadeProgram_.id())
+    softShadeProgram_ =
+        gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", {{"SOFT_OBJECT_SHADOWS", "1"}});
+  const gl::Program& p = soft ? softShadeProgram_ : shadeProgram_;
   p.use();
   p.set("uLighting", lit ? 1 : 0);
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);

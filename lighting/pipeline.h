@@ -155,7 +155,7 @@ class LightingPipeline {
   std::vector<std::unique_ptr<Technique>> techniques_;
   Technique* real_ = nullptr;
   Technique* virtual_ = nullptr;
-  gl::Program shadeProgram_;
+  gl::Program shadeProgram_, softShadeProgram_;  ///< the shading pass, without and with soft shadows
   gl::Texture shade_, irradiance_;
   gl::Framebuffer shadeFb_;
   gl::VertexArray emptyVao_;

@@ -23,6 +23,7 @@ layout(binding = 2) uniform sampler2D uGAlbedo;
 layout(binding = 3) uniform sampler2D uRealDelta;         // rgb: E_delta of the real-role technique (W/m^2)
 layout(binding = 4) uniform sampler2D uVirtualIrradiance; // rgb: indirect irradiance on the object (W/m^2)
 layout(binding = 5) uniform sampler2D uVirtualRadiance;   // rgb: indirect radiance of the object (W/m^2/sr)
+// With SOFT_OBJECT_SHADOWS defined (a program variant): the objects' soft shadows of lights with extent.
 #include "lighting/direct_light.glsl"
 
 uniform int uLighting;          // 0: no virtual object in this frame (everything zero)

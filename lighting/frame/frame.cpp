@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "capture/colour.h"
 #include "gl/error.h"
 #include "lighting/material.h"
 
@@ -59,6 +60,19 @@ const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable() {
         {},
         false},  // not swept: the bundled sessions have no light to leave out (README, real time)
        &FrameKnobs::lightCutoff},
+      {{"soft_shadow_lights",
+        KnobType::Int,
+        0,
+        16,
+        0,
+        "how many lights with extent (a fisheye's or a room's discs, listed lights with radius_m or "
+        "angular_radius_deg), the brightest at the region, cast the objects' soft shadows (24 shadow-map "
+        "taps per pixel each; the shading pass's soft variant costs llvmpipe 20 ms a frame at 320 x 240 from the "
+        "first); the others the hard shadow of their centre",
+        {0, 16},
+        {},
+        true},
+       &FrameKnobs::softShadowLights},
   };
   return table;
 }
@@ -101,6 +115,7 @@ void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& light
     setVec3(p, "uLightDirection" + k, l.direction);
     setVec3(p, "uLightPower" + k, l.type == LightType::Directional ? l.irradiance : l.intensity);
     p.set("uSpotCos" + k, static_cast<float>(l.spotCos()));
+    p.set("uLightSoft" + k, i < views.size() && views[i].soft ? 1 : 0);
     p.set("uLightExtent" + k,
           static_cast<float>(l.type == LightType::Directional ? l.sinAngularRadius(1) : std::max(l.extent, 0.0)));
     if (i < views.size()) {
@@ -111,6 +126,7 @@ void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& light
       p.setMat4("uObjectViewProj" + k, o.data());
       p.set("uObjectShadowBias" + k,
             views[i].objectShadowBias >= 0 ? static_cast<float>(views[i].objectShadowBias) : -1e30f);
+      p.set("uObjectNear" + k, static_cast<float>(views[i].objectNear));
     } else {
       p.set("uShadowBias" + k, -1e30f);  // no map: nothing occludes
       p.set("uObjectShadowBias" + k, -1e30f);
@@ -179,6 +195,7 @@ const FrameVersions& FrameResources::update(const CameraView& camera, const std:
     in.lights.insert(in.lights.end(), {static_cast<double>(l.type), l.spotHalfAngleDeg});
     for (const cv::Vec3d* v : {&l.position, &l.direction, &l.intensity, &l.irradiance})
       in.lights.insert(in.lights.end(), v->val, v->val + 3);
+    in.lights.push_back(l.extent);
   }
   in.ambient = {ambient[0], ambient[1], ambient[2]};
   for (const cv::Vec3d& c : ambientSh_) in.ambient.insert(in.ambient.end(), c.val, c.val + 3);
@@ -207,7 +224,17 @@ void FrameResources::renderGBuffer() { gbuffer_.render(geometry_, camera_); }
 
 void FrameResources::renderLight(size_t i) {
   if (!region_) throw std::logic_error("FrameResources::renderLight(): no region (no virtual object placed)");
-  lightPass_.render(i, lights_.size(), lights_.at(i), *region_, geometry_);
+  if (i == 0) {
+    // The brightest lights with extent at the region cast soft shadows (frame knob soft_shadow_lights).
+    std::vector<std::pair<double, size_t>> extended;
+    for (size_t k = 0; k < lights_.size(); ++k)
+      if (lights_[k].extent > 0) extended.push_back({-capture::luminance(irradianceBound(lights_[k], *region_)), k});
+    std::sort(extended.begin(), extended.end());
+    soft_.assign(lights_.size(), false);
+    for (size_t k = 0; k < extended.size() && static_cast<int>(k) < config_.knobs.softShadowLights; ++k)
+      soft_[extended[k].second] = true;
+  }
+  lightPass_.render(i, lights_.size(), lights_.at(i), *region_, geometry_, i < soft_.size() && soft_[i]);
 }
 
 const gl::Texture& FrameResources::zero() {

@@ -39,6 +39,7 @@ struct FrameKnobs {
   double sizeFactor = 0;  ///< region side / the objects' largest bounding-box edge
   double lightCutoff =
       0;  ///< share of the irradiance bound at the region the skipped lights may carry (lightsThatMatter)
+  int softShadowLights = 0;  ///< how many lights with extent (the brightest at the region) cast soft shadows
 };
 /// The knob table of FrameKnobs (declared once: lighting/frame/frame.cpp).
 const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable();
@@ -164,6 +165,7 @@ class FrameResources {
   FrameGeometry geometry_;
   GBufferPass gbuffer_;
   LightPass lightPass_;
+  std::vector<bool> soft_;  ///< per light: its objects' shadow is soft (renderLight)
   bool viewDirty_ = false;
   std::map<std::string, std::shared_ptr<const TechniqueInput>> techniqueInputs_;
   std::optional<Region> region_;

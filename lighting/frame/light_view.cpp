@@ -103,6 +103,7 @@ void fitObjectView(LightView& v, const SceneLight& light, const cv::Vec3d& centr
     v.objectViewProj =
         orthographicProjection(radius, 0.0, 3.0 * radius) * capture::inversePose(capture::lookAtPose(eye, centre));
     v.objectShadowBias = 2.0 * (2.0 * radius / size);
+    v.objectNear = centre.dot(light.direction) - radius;
     return;
   }
   const double dist = cv::norm(centre - light.position);
@@ -116,6 +117,7 @@ void fitObjectView(LightView& v, const SceneLight& light, const cv::Vec3d& centr
   v.objectViewProj = projectionFromIntrinsics(k, std::max(1e-4, dist - radius), dist + radius) *
                      capture::inversePose(capture::lookAtPose(light.position, centre));
   v.objectShadowBias = 2.0 * (dist + radius) / focal;
+  v.objectNear = dist - radius;
 }
 
 float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
@@ -142,12 +144,84 @@ float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Ma
   return other < self - bias ? 0.f : 1.f;
 }
 
+namespace {
+
+/// The shadow test's distance of a point: along a directional light's direction, else from the light.
+double lightDistance(const SceneLight& light, const cv::Vec3d& p) {
+  return light.type == LightType::Directional ? p.dot(light.direction) : cv::norm(p - light.position);
+}
+
+/// The distance of what the map holds where p projects (+inf where nothing or outside the map).
+double occluderDistance(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj,
+                        const cv::Vec3d& p) {
+  const cv::Vec4d c = viewProj * cv::Vec4d(p[0], p[1], p[2], 1.0);
+  if (c[3] <= 0) return std::numeric_limits<double>::infinity();
+  const double u = c[0] / c[3], v = c[1] / c[3];
+  if (std::abs(u) > 1 || std::abs(v) > 1) return std::numeric_limits<double>::infinity();
+  const int col = std::clamp(static_cast<int>(std::floor((u * 0.5 + 0.5) * positions.cols)), 0, positions.cols - 1);
+  const int row = std::clamp(static_cast<int>(std::floor((v * 0.5 + 0.5) * positions.rows)), 0, positions.rows - 1);
+  const cv::Vec4f s = positions.at<cv::Vec4f>(row, col);
+  if (s[3] < 0.5f) return std::numeric_limits<double>::infinity();
+  return lightDistance(light, cv::Vec3d(s[0], s[1], s[2]));
+}
+
+}  // namespace
+
+float softObjectsShadow(const cv::Mat& objects, const SceneLight& light, const LightView& view, cv::Vec3d x,
+                        const cv::Vec3d& n) {
+  const double bias = view.objectShadowBias;
+  if (bias < 0 || objects.empty()) return 1.f;
+  x += n * bias;
+  const double self = lightDistance(light, x);
+  if (!(self - bias > view.objectNear)) return 1.f;  // in front of the objects' sphere
+  const bool directional = light.type == LightType::Directional;
+  const cv::Vec3d L = directional ? light.direction : cv::normalize(x - light.position);
+  const cv::Vec3d t = cv::normalize(L.cross(std::abs(L[2]) < 0.9 ? cv::Vec3d(0, 0, 1) : cv::Vec3d(1, 0, 0)));
+  const cv::Vec3d b = L.cross(t);
+  // Penumbra width per metre between the receiver and a blocker at distance d from the light.
+  const double sinA = light.sinAngularRadius(1);
+  const double tanA = sinA / std::sqrt(std::max(1e-12, 1 - sinA * sinA));
+  const auto width = [&](double d) {
+    return directional ? (self - d) * tanA : (self - d) * light.extent / std::max(d, 1e-4);
+  };
+  // Each tap compares with the receiver's tangent plane where the light's ray through the tap meets it (a
+  // receiver-plane bias): a curved or tilted receiver does not shadow itself at its taps.
+  const double facing = std::min(n.dot(L), -0.1);  // < 0 where the surface faces the light
+  const auto tap = [&](int k, int taps, double radius, double& receiver) {
+    const double r = radius * std::sqrt((k + 0.5) / taps), a = k * 2.399963229728653;
+    const cv::Vec3d o = r * std::cos(a) * t + r * std::sin(a) * b;
+    receiver = self - n.dot(o) / facing;
+    return x + o;
+  };
+  const double widest = width(view.objectNear);
+  // A penumbra narrower than the map's texel (the bias is two): the hard test.
+  if (widest < 0.5 * bias) return shadowTest(objects, light, view.objectViewProj, bias, x - n * bias, n);
+  double sum = 0, receiver = 0;
+  int blockers = 0;
+  for (int k = 0; k < kSoftShadowSearchTaps; ++k) {
+    const cv::Vec3d p = tap(k, kSoftShadowSearchTaps, widest, receiver);
+    const double d = occluderDistance(objects, light, view.objectViewProj, p);
+    if (d < receiver - bias) sum += d, ++blockers;
+  }
+  if (blockers == 0) return 1.f;
+  if (blockers == kSoftShadowSearchTaps) return 0.f;  // the widest penumbra's disc all covered: the umbra
+  const double w = width(sum / blockers);
+  int lit = 0;
+  for (int k = 0; k < kSoftShadowTaps; ++k) {
+    const cv::Vec3d p = tap(k, kSoftShadowTaps, w, receiver);
+    lit += !(occluderDistance(objects, light, view.objectViewProj, p) < receiver - bias);
+  }
+  return static_cast<float>(lit) / kSoftShadowTaps;
+}
+
 float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,
-                      const cv::Vec3d& x, const cv::Vec3d& n) {
+                      const cv::Vec3d& x, const cv::Vec3d& n, bool soft) {
   if (!withObjects) return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n);
   if (view.objectShadowBias < 0) return shadowTest(maps.rho, light, view.viewProj, view.shadowBias, x, n);
-  return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) *
-         shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
+  const float objects = soft && view.soft && light.extent > 0
+                            ? softObjectsShadow(maps.objects, light, view, x, n)
+                            : shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
+  return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) * objects;
 }
 
 cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& n) {

@@ -47,6 +47,11 @@ struct LightView {
   /// objectShadowBias < 0: none (a point light too close to the objects for one view; RSM^rho tests them).
   cv::Matx44d objectViewProj = cv::Matx44d::eye();
   double objectShadowBias = -1;  ///< metres
+  /// Where the objects' bounding sphere begins seen from the light, in the shadow test's distance (along the
+  /// direction for a directional light, from the light otherwise): a light with extent searches its soft
+  /// shadow's blockers from there.
+  double objectNear = 0;
+  bool soft = false;  ///< the objects' shadow is soft (a light with extent among frame knob soft_shadow_lights)
 };
 LightView fitLightView(const SceneLight& light, const Region& region, int rsmSize);
 /// Adds the objects' view to `view`: orthographic over the sphere (centre, radius) for a directional light,
@@ -76,8 +81,21 @@ struct Rsm {
 /// a light's visibility with or without the objects, and a light's irradiance before shadowing.
 float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
                  cv::Vec3d x, const cv::Vec3d& n);
+/// soft: the objects' soft shadow of a light with extent (the shading pass's; techniques' own passes take the
+/// hard test of its centre).
 float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,
-                      const cv::Vec3d& x, const cv::Vec3d& n);
+                      const cv::Vec3d& x, const cv::Vec3d& n, bool soft = true);
+/// The objects' soft shadow of a light with extent (SceneLight::extent > 0): the fraction of the light's disc
+/// the objects leave visible from x. Percentage-closer soft shadows on the objects' map: the blockers' mean
+/// distance from kSoftShadowSearchTaps taps over the widest penumbra the objects' sphere allows (none blocked:
+/// lit; all: the umbra), then the penumbra's
+/// width w = (d_self - d_blocker) tan a (a sphere lamp of radius r: (d_self - d_blocker) r / d_blocker) and the
+/// fraction of kSoftShadowTaps taps over a disc of radius w, perpendicular to the light, that nothing nearer the
+/// light covers. For a directional disc light and an occluder at one distance this is the disc's visible
+/// fraction exactly (up to the taps); the taps lie on a Vogel spiral.
+float softObjectsShadow(const cv::Mat& objects, const SceneLight& light, const LightView& view, cv::Vec3d x,
+                        const cv::Vec3d& n);
+constexpr int kSoftShadowTaps = 16, kSoftShadowSearchTaps = 8;
 cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& n);
 
 }  // namespace mrgi::lighting

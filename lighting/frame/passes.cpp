@@ -204,9 +204,10 @@ void LightPass::renderRsm(Rsm& rsm, const SceneLight& light, const LightView& vi
 }
 
 void LightPass::render(size_t i, size_t lightCount, const SceneLight& light, const Region& region,
-                       const FrameGeometry& geometry) {
+                       const FrameGeometry& geometry, bool soft) {
   if (views_.size() != i) throw std::logic_error("LightPass::render(): lights must be rendered in order");
   LightView view = fitLightView(light, region, rsmSize_);
+  view.soft = soft && light.extent > 0;
   const auto bounds = geometry.objectBounds();
   if (bounds)
     fitObjectView(view, light, 0.5 * (bounds->first + bounds->second), 0.5 * cv::norm(bounds->second - bounds->first),

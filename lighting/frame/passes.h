@@ -93,8 +93,8 @@ class LightPass {
   void clear() { views_.clear(); }
   /// Light i of `lightCount` (in order): its view fitted to the region (and to the objects for their own map),
   /// its RSMs and the objects' shadow map, copied into layer i of the shadow arrays.
-  void render(size_t i, size_t lightCount, const SceneLight& light, const Region& region,
-              const FrameGeometry& geometry);
+  void render(size_t i, size_t lightCount, const SceneLight& light, const Region& region, const FrameGeometry& geometry,
+              bool soft = false);
 
   const std::vector<LightView>& views() const { return views_; }
   const Rsm& rsmRho() const { return rsmRho_; }

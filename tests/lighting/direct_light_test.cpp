@@ -50,6 +50,7 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   TestScene s = makeScene(true, 0.15, {0.05, 0.0, 0.075});
   PipelineConfig cfg = testConfig(W, H, 16, 128, "none");
   cfg.set("frame", "shadow_size", 256);
+  cfg.set("frame", "soft_shadow_lights", 16);  // the wide lights' soft shadows
   LightingPipeline pipe = makePipeline(cfg, s);
   const std::vector<SceneLight> lights = {obliqueSun(), pointAbove(), spotAbove(), wideLowSun(), sphereLamp()};
   const cv::Vec3d ambient(0.03, 0.03, 0.03);
@@ -65,7 +66,7 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   lighting::Ambient sky;
   sky.uniform = cv::Vec3f(ambient);
   const std::vector<lighting::OccluderSphere> spheres{lighting::occluderSphere(s.objects[0])};
-  int real = 0, shadowed = 0, virt = 0, differ = 0, extentMatters = 0;
+  int real = 0, shadowed = 0, virt = 0, differ = 0, extentMatters = 0, penumbra = 0;
   for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
     const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i), a = alb.at<cv::Vec4f>(i);
     if (p[3] < 0.5f) continue;
@@ -76,7 +77,9 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
       SceneLight point = lights[l];
       point.extent = 0;
       if (cv::norm(e - lighting::unshadowedIrradiance(point, x, nn)) > 1e-2 * (1 + cv::norm(e))) ++extentMatters;
-      with += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], true, x, nn);
+      const float v = lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], true, x, nn);
+      with += e * v;
+      penumbra += v > 0.f && v < 1.f && cv::norm(e) > 0;
       without += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], false, x, nn);
     }
     double got, want;
@@ -98,6 +101,7 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   EXPECT_GT(virt, 250);
   EXPECT_GT(shadowed, 250);
   EXPECT_GT(extentMatters, 250);  // the cube's sides near the wide lights' horizons
+  EXPECT_GT(penumbra, 250);       // the soft edges of the wide lights' shadows
   EXPECT_LE(differ, (real + virt) / 500) << differ << " of " << real + virt << " pixels differ";
 }
 
@@ -163,6 +167,74 @@ TEST(DirectLight, ObjectViewFallsBackToTheRegionsMapWhenALightSitsAmongTheObject
   const auto maps = pipe.frame().downloadShadowTexels(0);
   EXPECT_TRUE(maps.objects.empty());
   EXPECT_FALSE(maps.rho.empty());  // RSM^rho stands in for the objects' map
+}
+
+// A sphere of radius 6 cm, 30 cm over the floor, under a sun of 6 degrees half-angle 30 degrees off the
+// vertical (so the camera above sees the shadow beside the sphere): each
+// floor point sees the sun's disc partly covered by the sphere's (half-angle b = asin(R / distance), at angle
+// g from the sun's centre); the visible fraction is 1 - the two discs' overlap / the sun's disc. The shading
+// pass's real pixels hold E (V - 1) (no ambient). Its soft shadow against that, and the hard shadow of the
+// same sun without extent.
+TEST(DirectLight, ASunWithExtentCastsThePenumbraOfItsDisc) {
+  auto ctx = makeContext();
+  const int W = 400, H = 300;
+  const double R = 0.06, h = 0.3, a = 6 * CV_PI / 180;
+  TestScene s = makeScene(false, 0, {0, 0, 0});
+  VirtualObject ball;
+  ball.mesh = lighting::loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
+  for (auto& p : ball.mesh.positions) p *= static_cast<float>(R);
+  ball.mesh.computeBounds();
+  ball.material.albedo = {0.9f, 0.9f, 0.9f};
+  const cv::Vec3d c(0.02, -0.01, h);
+  ball.T_marker_object = capture::makePose(cv::Matx33d::eye(), c);
+  s.objects.push_back(ball);
+  const auto overlap = [](double r1, double r2, double d) {  // area of two circles' intersection
+    if (d >= r1 + r2) return 0.0;
+    if (d <= std::abs(r1 - r2)) return CV_PI * std::min(r1, r2) * std::min(r1, r2);
+    const double a1 = std::acos(std::clamp((d * d + r1 * r1 - r2 * r2) / (2 * d * r1), -1.0, 1.0));
+    const double a2 = std::acos(std::clamp((d * d + r2 * r2 - r1 * r1) / (2 * d * r2), -1.0, 1.0));
+    return r1 * r1 * (a1 - std::sin(2 * a1) / 2) + r2 * r2 * (a2 - std::sin(2 * a2) / 2);
+  };
+  const cv::Vec3d toSun(0.5, 0.0, std::sqrt(0.75));
+  double errSoft = 0, errHard = 0, errOff = 0;
+  int judged = 0, partial = 0;
+  // The sun with extent, without, and with extent but no soft shadows (frame knob soft_shadow_lights 0).
+  for (const double extent : {a, 0.0, -a}) {
+    PipelineConfig cfg = testConfig(W, H, 16, 32, "none");
+    cfg.set("frame", "shadow_size", 512);
+    cfg.set("frame", "soft_shadow_lights", extent < 0 ? 0 : 1);
+    LightingPipeline pipe = makePipeline(cfg, s);
+    SceneLight sun = sunDown(10.0);
+    sun.direction = toSun * -1.0;
+    sun.extent = std::abs(extent);
+    pipe.run(topCamera(W, H), {sun}, cv::Vec3d::all(0.0), nullptr);
+    const cv::Mat irr = pipe.downloadIrradiance(), pos = pipe.downloadGBuffer(0), alb = pipe.downloadGBuffer(2);
+    for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
+      const cv::Vec4f p = pos.at<cv::Vec4f>(i);
+      if (p[3] < 0.5f || alb.at<cv::Vec4f>(i)[3] > 0.5f || p[2] > 1e-3f) continue;
+      const cv::Vec3d x(p[0], p[1], p[2]), d = c - x;
+      const double b = std::asin(R / cv::norm(d)), g = std::acos(std::clamp(d.dot(toSun) / cv::norm(d), -1.0, 1.0));
+      if (g > a + b + 0.02) continue;  // far from the shadow: both exact
+      const double want = 1 - overlap(a, b, g) / (CV_PI * a * a);
+      const double got = 1 + irr.at<cv::Vec4f>(i)[0] / (10.0 * toSun[2]);
+      if (extent > 0) {
+        errSoft += std::abs(got - want), ++judged;
+        partial += want > 0.05 && want < 0.95;
+      } else if (extent == 0) {
+        errHard += std::abs(got - want);
+      } else {
+        errOff += std::abs(got - want);
+      }
+    }
+  }
+  ASSERT_GT(judged, 1500);
+  EXPECT_GT(partial, 1000);  // the penumbra, about 6 cm wide
+  errSoft /= judged, errHard /= judged, errOff /= judged;
+  std::printf("sun of 6 degrees over a sphere: visible fraction off by %.3f on average (a hard shadow: %.3f)\n",
+              errSoft, errHard);
+  EXPECT_LT(errSoft, 0.04);
+  EXPECT_GT(errHard, 3 * errSoft);
+  EXPECT_NEAR(errOff, errHard, 1e-6);
 }
 
 }  // namespace

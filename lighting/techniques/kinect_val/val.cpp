@@ -291,8 +291,8 @@ size_t dimShadowedVals(std::vector<Val>& vals, const std::vector<LightShadowMaps
       const cv::Vec3d x(v.position), n(v.normal);
       const cv::Vec3d e = unshadowedIrradiance(m.light, x, n);
       if (e == cv::Vec3d(0, 0, 0)) continue;
-      without += e * lightVisibility(m.maps, m.light, m.view, false, x, n);
-      with += e * lightVisibility(m.maps, m.light, m.view, true, x, n);
+      without += e * lightVisibility(m.maps, m.light, m.view, false, x, n, false);
+      with += e * lightVisibility(m.maps, m.light, m.view, true, x, n, false);
     }
     if (with == without) continue;
     for (int c = 0; c < 3; ++c)
