@@ -44,6 +44,8 @@ Action addReplay(CLI::App& app) {
                "work on each frame in the loop, one stage after another (default: the next frame's CPU "
                "half, marker to real mesh, runs on a worker while GL works on this one; the same composites)");
   app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(numberIn(1, 16));
+  app.add_flag("-v,--verbose", o->verbose,
+               "one line per frame with each stage's time in the pipeline's order (summary.json holds them too)");
   return [o] {
     // A bad room stops before anything is written.
     o->room = openRoom(o->rooms, !o->scene.scene.empty());

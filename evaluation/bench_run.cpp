@@ -964,12 +964,6 @@ int runSweep(const BenchOptions& o) {
               {"preset_differences", doc["preset_differences"]}};
     capture::writeFileAtomically(o.presets, p.dump(2) + "\n");
   });
-  // Where everything went, one line each.
-  for (const auto& [what, path] : {std::pair<const char*, const std::string*>{"json", &o.json},
-                                   {"csv", &o.csv},
-                                   {"html report", &o.html},
-                                   {"presets", &o.presets}})
-    if (!path->empty()) std::printf("%s: %s\n", what, fs::absolute(*path).string().c_str());
   for (const char* name : {"fast", "balanced", "accurate"})
     if (doc["presets"].contains(name))
       std::printf("preset %-8s: %s %s\n", name, doc["presets"][name]["technique"].get<std::string>().c_str(),
@@ -991,6 +985,12 @@ int runSweep(const BenchOptions& o) {
                 d["resolved"].get<bool>() ? "told apart" : "within each other's 95 % intervals, not told apart",
                 text.c_str());
   }
+  // Where everything went, one line each, last.
+  for (const auto& [what, path] : {std::pair<const char*, const std::string*>{"json", &o.json},
+                                   {"csv", &o.csv},
+                                   {"html report", &o.html},
+                                   {"presets", &o.presets}})
+    if (!path->empty()) std::printf("%s: %s\n", what, fs::absolute(*path).string().c_str());
   return 0;
 }
 

@@ -3,7 +3,9 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -80,6 +82,44 @@ std::vector<unsigned char> withPngSoftware(std::vector<unsigned char> png, const
 std::string jsonText(const nlohmann::json& j, const std::string& input, int indent) {
   capture::requireFiniteJson(j, input, "the computation");
   return j.dump(indent);
+}
+
+std::vector<std::string> inPipelineOrder(const std::vector<std::string>& recorded) {
+  // Before the technique's stages, then after them; a name not listed sits with the technique's.
+  static const std::vector<std::string> before = {
+      "read",        "register",         "depth_filter", "normals",     "marker",    "odometry",
+      "relocalise",  "track_model",      "world",        "room_fusion", "room_mesh", "room_albedo",
+      "room_bounce", "room_hidden",      "view_mesh",    "mesh",        "albedo",    "lights",
+      "prepare",     "technique_inputs", "gbuffer",      "rsm"};
+  static const std::vector<std::string> after = {"shade", "render", "composite", "readback", "debug", "dump", "write"};
+  const auto rank = [&](const std::string& name) -> size_t {
+    if (const auto it = std::find(before.begin(), before.end(), name); it != before.end())
+      return static_cast<size_t>(it - before.begin());
+    if (const auto it = std::find(after.begin(), after.end(), name); it != after.end())
+      return before.size() + 1 + static_cast<size_t>(it - after.begin());
+    return before.size();
+  };
+  std::vector<std::string> out = recorded;
+  std::stable_sort(out.begin(), out.end(), [&](const auto& a, const auto& b) { return rank(a) < rank(b); });
+  return out;
+}
+
+std::string describeFolder(const std::string& folder) {
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) return {};
+  std::map<std::string, std::vector<std::string>> groups;  // the name with its digit runs as N -> the names
+  for (const auto& e : fs::directory_iterator(folder, ec)) {
+    std::string name = e.path().filename().string(), pattern;
+    for (const char c : name) pattern += std::isdigit(static_cast<unsigned char>(c)) ? 'N' : c;
+    if (e.is_directory(ec)) name += '/', pattern += '/';
+    groups[pattern].push_back(name);
+  }
+  std::string out;
+  for (const auto& [pattern, names] : groups) {
+    if (!out.empty()) out += ", ";
+    out += names.size() > 1 ? pattern + " x " + std::to_string(names.size()) : names.front();
+  }
+  return out;
 }
 
 void writePng(const std::string& path, const cv::Mat& rgb, const std::string& generator) {

@@ -16,6 +16,16 @@ namespace mrgi::runtime {
 /// written as null) is an error naming `input`, the file or flag its numbers came from.
 std::string jsonText(const nlohmann::json& j, const std::string& input, int indent = -1);
 
+/// Stage names in the pipeline's order: reading and preparing the frame (registration, depth filter, normals,
+/// the camera's pose), the room, the meshes and the lighting's inputs, the G-buffer and the lights' maps, then
+/// the technique's own stages ("name.stage", in `recorded` order: the order they ran), shading, compositing and
+/// writing. Names the list does not know sit with the technique's. `recorded`: every name once.
+std::vector<std::string> inPipelineOrder(const std::vector<std::string>& recorded);
+
+/// What a folder holds, runs of digits in file names grouped: "frame_NNNN.png x 3, replay.mp4, summary.json"
+/// (sorted; sub-folders end in '/'). Empty for a folder that does not exist.
+std::string describeFolder(const std::string& folder);
+
 /// Linear RGB float image -> EXR (atomically; errors name the file).
 /// `half`: 16-bit floats (a path-traced reference's precision, half the bytes).
 void writeExr(const std::string& path, const cv::Mat& rgb, bool half = false);

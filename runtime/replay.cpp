@@ -173,7 +173,7 @@ int replay(const ReplayOptions& o) {
     for (const cv::Mat& c : compositor.takeComposites(true)) write(c);
   }};
   const auto timesArrived = [&](std::vector<gl::Profiler::FrameTimes> frames) {
-    for (const auto& [index, times] : frames) {
+    for (const auto& [index, times, order] : frames) {
       json stages;
       std::string line;
       const bool frameOfItsOwn = index < perFrame.size();  // else the writes after the last frame
@@ -181,13 +181,17 @@ int replay(const ReplayOptions& o) {
         stages[name] = {{"cpu_ms", t.cpuMs}, {"gpu_ms", t.gpuMs}};
         sums[name].first += t.cpuMs;
         sums[name].second += t.gpuMs;
+      }
+      if (!frameOfItsOwn) continue;
+      perFrame[index]["stages"] = stages;
+      if (!o.verbose) continue;
+      // Per-stage timings of every frame (ms; the larger of CPU wall and GPU time), when they are known.
+      for (const std::string& name : inPipelineOrder(order)) {
+        const gl::StageTime& t = times.at(name);
         char buf[64];
         std::snprintf(buf, sizeof buf, " %s %.1f", name.c_str(), std::max(t.cpuMs, t.gpuMs));
         line += buf;
       }
-      if (!frameOfItsOwn) continue;
-      perFrame[index]["stages"] = stages;
-      // Per-stage timings of every frame (ms; the larger of CPU wall and GPU time), when they are known.
       std::printf("frame %lld/%lld:%s ms\n", static_cast<long long>(index + 1), static_cast<long long>(limit),
                   line.c_str());
     }
@@ -353,8 +357,8 @@ int replay(const ReplayOptions& o) {
   if (const int64_t lost = posedBy.count("lost") ? posedBy["lost"] : 0; lost > 0 && !interrupted)
     std::fprintf(stderr, "warning: %s: %lld of %lld frames lost (no trusted camera pose): drawn without the objects\n",
                  o.source.c_str(), static_cast<long long>(lost), static_cast<long long>(done));
-  std::printf("%s %lld frames into %s (%.1f ms/frame)\n", interrupted ? "interrupted: replayed" : "replayed",
-              static_cast<long long>(done), o.out.c_str(), done ? wallMs / done : 0.0);
+  std::printf("%s %lld frames (%.1f ms/frame); wrote %s: %s\n", interrupted ? "interrupted: replayed" : "replayed",
+              static_cast<long long>(done), done ? wallMs / done : 0.0, o.out.c_str(), describeFolder(o.out).c_str());
   return interrupted ? 130 : 0;
 }
 

@@ -112,13 +112,12 @@ int buildRoom(const BuildRoomOptions& o) {
         t["odometry_edges"].get<int>(), t["loop_edges"].get<int>(), t["marker_edges"].get<int>(),
         t["pruned_edges"].get<int>(), 1e3 * t["mean_shift_m"].get<double>(), 1e3 * t["max_shift_m"].get<double>());
   std::printf(
-      "wrote %s: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms "
+      "room: %zu vertices, %zu triangles, %zu blocks (%.0f MiB of voxels) from %d of %lld frames; fusion %.1f ms "
       "median, %.1f ms with the depth filter\n",
-      o.out.c_str(), mesh.positions.size(), mesh.triangleCount(), room.blocks(),
-      static_cast<double>(room.bytes()) / (1 << 20), room.framesIntegrated(), static_cast<long long>(seen),
-      fusion.medianFuseMs(), fusion.medianSurfaceMs());
-  std::printf("wrote %s: the room from its first camera and from above, and its lights at the object\n",
-              preview.c_str());
+      mesh.positions.size(), mesh.triangleCount(), room.blocks(), static_cast<double>(room.bytes()) / (1 << 20),
+      room.framesIntegrated(), static_cast<long long>(seen), fusion.medianFuseMs(), fusion.medianSurfaceMs());
+  std::printf("%s: the room from its first camera and from above, and its lights at the object\n", preview.c_str());
+  std::printf("wrote %s: %s\n", o.out.c_str(), describeFolder(o.out).c_str());
   return 0;
 }
 

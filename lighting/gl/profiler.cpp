@@ -77,7 +77,10 @@ std::vector<Profiler::FrameTimes> Profiler::collect(bool wait) {
     const bool ready = std::all_of(stages.begin(), stages.end(), arrived);
     if (!ready && !wait) break;  // timestamps arrive in order: later frames are not ready either
     if (!ready) countSynchronousReadback();
-    out.push_back({frame, times(stages)});
+    std::vector<std::string> order;
+    for (const Pending& p : stages)
+      if (std::find(order.begin(), order.end(), p.name) == order.end()) order.push_back(p.name);
+    out.push_back({frame, times(stages), std::move(order)});
   }
   ended_.erase(ended_.begin(), ended_.begin() + static_cast<std::ptrdiff_t>(done));
   return out;

@@ -51,6 +51,7 @@ class Profiler {
   struct FrameTimes {
     uint64_t frame = 0;
     std::map<std::string, StageTime> stages;
+    std::vector<std::string> order;  ///< the stages' names in the order they first began (adopted ones last)
   };
   uint64_t endFrame();
   /// Moves the stages another profiler timed into this frame: the CPU stages of work done for it on another

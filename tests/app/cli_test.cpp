@@ -554,12 +554,31 @@ TEST(Cli, ReplayWithSceneWritesCompositesDeltaAndMask) {
     fs::remove_all(out);
     // Each frame's own depth mesh: the techniques' per-frame work (with the default fused room their world-space
     // passes run on the first frame only).
+    // Per-stage timings per frame with --verbose only (lpv-diff runs without it), in the pipeline's order.
+    const bool verbose = technique != "lpv-diff";
     const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
-                             " --frames 2 --dump-delta --pose ground-truth --per-frame-mesh --technique " + technique);
+                             " --frames 2 --dump-delta --pose ground-truth --per-frame-mesh --technique " + technique +
+                             (verbose ? " --verbose" : ""));
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    EXPECT_NE(r.out.find("frame 2/2:"), std::string::npos) << r.out;  // per-stage timings per frame
-    EXPECT_EQ(r.out.find("lpv.propagate") != std::string::npos, lpv) << r.out;
-    EXPECT_EQ(r.out.find("val.gather") != std::string::npos, val) << r.out;
+    EXPECT_EQ(r.out.find("frame 2/2:") != std::string::npos, verbose) << r.out;
+    if (verbose) {
+      EXPECT_EQ(r.out.find("lpv.propagate") != std::string::npos, lpv) << r.out;
+      EXPECT_EQ(r.out.find("val.gather") != std::string::npos, val) << r.out;
+      const std::string first = r.out.substr(r.out.find("frame 1/2:"));
+      const size_t read = first.find(" read "), gbuffer = first.find(" gbuffer "),
+                   own = first.find(lpv ? " lpv.inject " : " val.upload "), shade = first.find(" shade "),
+                   composite = first.find(" composite ");
+      EXPECT_LT(read, gbuffer) << first;
+      EXPECT_LT(gbuffer, own) << first;
+      EXPECT_LT(own, shade) << first;
+      EXPECT_LT(shade, composite) << first;
+      EXPECT_NE(composite, std::string::npos) << first;
+    }
+    // The last line names the folder and what it holds.
+    EXPECT_NE(r.out.find("wrote " + out.string() + ": delta_NNNN.exr x 2, frame_NNNN.png x 2, mask_NNNN.png x 2"),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("summary.json"), std::string::npos) << r.out;
     const cv::Mat delta = cv::imread((out / "delta_0001.exr").string(), cv::IMREAD_UNCHANGED);
     const cv::Mat mask = cv::imread((out / "mask_0001.png").string(), cv::IMREAD_UNCHANGED);
     ASSERT_EQ(delta.type(), CV_32FC3);
