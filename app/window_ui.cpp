@@ -18,8 +18,10 @@
 namespace mrgi::app {
 
 cv::Size WindowUi::windowSize(int width, int height) {
-  const int zoom = std::max(1, static_cast<int>(std::lround(640.0 / std::max(width, 1))));
-  return {width * zoom + kPanelWidth, std::max(height * zoom, 600)};
+  width = std::max(width, 1), height = std::max(height, 1);
+  int zoom = std::max(1, static_cast<int>(std::lround(640.0 / width)));
+  while (height * zoom < 480 && zoom < 16) ++zoom;
+  return {width * zoom + kPanelWidth, height * zoom + kCaptionHeight};
 }
 
 WindowUi::WindowUi(gl::Context& context) : context_(context) {
@@ -84,7 +86,8 @@ void WindowUi::showTexture(unsigned texture, int width, int height, const std::s
                    ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoBackground);
   if (texture && width > 0 && height > 0) {
     // Largest integer zoom that fits (fractional when the image is larger than the view).
-    float zoom = std::min(viewW / static_cast<float>(width), (viewH - 24.f) / static_cast<float>(height));
+    float zoom = std::min(viewW / static_cast<float>(width),
+                          (viewH - static_cast<float>(kCaptionHeight)) / static_cast<float>(height));
     if (zoom >= 1.f) zoom = std::floor(zoom);
     const ImVec2 size(width * zoom, height * zoom);
     ImGui::SetCursorPos(ImVec2(0, 0));

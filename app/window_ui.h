@@ -11,8 +11,10 @@ namespace mrgi::app {
 class WindowUi {
  public:
   static constexpr int kPanelWidth = 360;
-  /// Window size for showing a width x height image at an integer zoom (at least ~640 px wide) next to
-  /// the panel.
+  static constexpr int kCaptionHeight = 24;  ///< the caption line under the image
+  /// Window size for showing a width x height image at an integer zoom (the nearest to 640 px wide, raised
+  /// until the image is at least 480 px tall) next to the panel: as tall as the image and its caption, so the
+  /// window keeps the source's aspect with no band under the image (the panel scrolls when it is longer).
   static cv::Size windowSize(int width, int height);
 
   /// Needs a Backend::Window context (throws a one-line error otherwise).
