@@ -282,16 +282,57 @@ std::string base64(const std::vector<uchar>& bytes) {
   return out;
 }
 
-/// A colour per series (technique spelling), stable for a name.
-const char* colourOf(const std::string& series) {
-  static const char* palette[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
-                                  "#9467bd", "#8c564b", "#e377c2", "#17becf"};
-  size_t h = 0;
-  for (const lighting::TechniqueInfo& t : lighting::techniques()) {  // registry order first: stable colours
-    if (t.name == series) return palette[h % 8];
-    ++h;
+/// A colour and a marker per series (technique spelling), stable for a name: a technique alone takes its
+/// registry index, a pair "real+virtual" 6 + its ordered pair's index; index i draws colour i mod 10 with
+/// marker i / 10 mod 4 (circle, square, triangle, diamond): 40 series before two look alike.
+struct SeriesStyle {
+  const char* colour;
+  int marker;
+};
+SeriesStyle styleOf(const std::string& series) {
+  static const char* palette[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
+                                  "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"};
+  const auto& all = lighting::techniques();
+  const auto indexOf = [&](const std::string& name) -> int {
+    for (size_t i = 0; i < all.size(); ++i)
+      if (all[i].name == name) return static_cast<int>(i);
+    return -1;
+  };
+  const int n = static_cast<int>(all.size());
+  int index = indexOf(series);
+  if (index < 0) {
+    const auto plus = series.find('+');
+    const int a = plus == std::string::npos ? -1 : indexOf(series.substr(0, plus)),
+              b = plus == std::string::npos ? -1 : indexOf(series.substr(plus + 1));
+    index = a >= 0 && b >= 0 && a != b ? n + a * (n - 1) + (b < a ? b : b - 1)
+                                       : n * n + static_cast<int>(std::hash<std::string>()(series) % 40);
   }
-  return palette[(std::hash<std::string>()(series) + h) % 8];
+  return {palette[index % 10], (index / 10) % 4};
+}
+const char* colourOf(const std::string& series) { return styleOf(series).colour; }
+
+/// An SVG marker of `series`'s style at (x, y), `inner` inside its element (a tooltip).
+std::string markerSvg(double x, double y, const std::string& series, const std::string& inner = {},
+                      double opacity = 0.8) {
+  const SeriesStyle st = styleOf(series);
+  std::ostringstream s;
+  const std::string fill = std::string("fill='") + st.colour + "' fill-opacity='" + std::to_string(opacity) + "'";
+  switch (st.marker) {
+    case 0:
+      s << "<circle cx='" << x << "' cy='" << y << "' r='4' " << fill << ">";
+      return s.str() + inner + "</circle>";
+    case 1:
+      s << "<rect x='" << x - 3.5 << "' y='" << y - 3.5 << "' width='7' height='7' " << fill << ">";
+      return s.str() + inner + "</rect>";
+    case 2:
+      s << "<polygon points='" << x << "," << y - 5 << " " << x - 4.5 << "," << y + 3.5 << " " << x + 4.5 << ","
+        << y + 3.5 << "' " << fill << ">";
+      return s.str() + inner + "</polygon>";
+    default:
+      s << "<polygon points='" << x << "," << y - 5 << " " << x + 5 << "," << y << " " << x << "," << y + 5 << " "
+        << x - 5 << "," << y << "' " << fill << ">";
+      return s.str() + inner + "</polygon>";
+  }
 }
 
 std::string fmt(double v, int digits = 3) {
@@ -305,6 +346,55 @@ std::string esc(const std::string& s) {
   for (char c : s)
     o += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : c == '"' ? "&quot;" : std::string(1, c);
   return o;
+}
+
+/// Round tick values over [lo, hi] (log10 of the values when `log`): 1-2-5 steps, or 1-2-5 within each decade
+/// on a log axis (decades alone when there are many), at least two; with the digits that tell them apart.
+std::vector<std::pair<double, std::string>> niceTicks(double lo, double hi, bool log) {
+  std::vector<double> values;
+  const auto linear = [&](double a, double b) {
+    const double range = b - a;
+    if (!(range > 0) || !std::isfinite(range)) return;
+    double step = std::pow(10.0, std::floor(std::log10(range / 4)));
+    for (const double m : {1.0, 2.0, 5.0, 10.0})
+      if (range / (step * m) <= 6) {
+        step *= m;
+        break;
+      }
+    for (double v = std::ceil(a / step) * step; v <= b + 1e-9 * step; v += step)
+      values.push_back(std::abs(v) < 1e-12 * step ? 0.0 : v);
+  };
+  if (log) {
+    for (const std::vector<double>& mantissas : {std::vector<double>{1, 2, 5}, std::vector<double>{1}}) {
+      values.clear();
+      for (int k = static_cast<int>(std::floor(lo)); k <= static_cast<int>(std::ceil(hi)); ++k)
+        for (const double m : mantissas) {
+          const double v = m * std::pow(10.0, k), l = std::log10(v);
+          if (l >= lo && l <= hi) values.push_back(v);
+        }
+      if (values.size() <= 7) break;
+    }
+    if (values.size() < 2) {
+      values.clear();
+      linear(std::pow(10.0, lo), std::pow(10.0, hi));
+    }
+  } else {
+    linear(lo, hi);
+  }
+  // Digits enough to tell neighbours apart.
+  int digits = 3;
+  for (size_t i = 1; i < values.size(); ++i) {
+    const double gap = values[i] - values[i - 1], mag = std::max(std::abs(values[i]), std::abs(values[i - 1]));
+    if (gap > 0) digits = std::max(digits, static_cast<int>(std::ceil(std::log10(mag / gap))) + 1);
+  }
+  digits = std::min(digits, 8);
+  std::vector<std::pair<double, std::string>> out;
+  for (const double v : values) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*g", digits, v);
+    out.push_back({v, b});
+  }
+  return out;
 }
 
 /// A scatter plot with log-scaled axes; each point has a tooltip; `lines` connects points per series.
@@ -321,7 +411,12 @@ struct Plot {
   std::vector<std::string> notes;
 
   std::string svg() const {
-    const double W = 560, H = 340, L = 70, R = 150, T = 30, B = 50;
+    // The legend as wide as its longest name (about 6.2 px a character at 11 px), so no name is cut.
+    size_t longest = 0;
+    for (const auto& p : points) longest = std::max(longest, p.series.size());
+    for (const auto& n : notes) longest = std::max(longest, n.size());
+    const double R = std::max(150.0, 32 + 6.2 * static_cast<double>(longest)), W = 410 + R, H = 340, L = 70, T = 30,
+                 B = 50;
     double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
     auto tx = [&](double v) { return logX ? std::log10(std::max(v, 1e-9)) : v; };
     auto ty = [&](double v) { return logY ? std::log10(std::max(v, 1e-9)) : v; };
@@ -339,13 +434,15 @@ struct Plot {
     s << "<text x='" << W / 2 << "' y='16' text-anchor='middle' font-weight='bold'>" << esc(title) << "</text>";
     s << "<rect x='" << L << "' y='" << T << "' width='" << W - L - R << "' height='" << H - T - B
       << "' fill='none' stroke='#888'/>";
-    for (int i = 0; i <= 4; ++i) {  // axis ticks
-      const double vx = x0 + (x1 - x0) * i / 4, vy = y0 + (y1 - y0) * i / 4;
-      const double sx = L + (W - L - R) * i / 4, sy = H - B - (H - T - B) * i / 4;
-      s << "<text x='" << sx << "' y='" << H - B + 14 << "' text-anchor='middle'>" << fmt(logX ? std::pow(10, vx) : vx)
-        << "</text>";
-      s << "<text x='" << L - 4 << "' y='" << sy + 4 << "' text-anchor='end'>" << fmt(logY ? std::pow(10, vy) : vy)
-        << "</text>";
+    for (const auto& [v, text] : niceTicks(x0, x1, logX)) {  // axis ticks at round values
+      const double sx = X(v);
+      s << "<line x1='" << sx << "' y1='" << H - B << "' x2='" << sx << "' y2='" << H - B + 4 << "' stroke='#888'/>";
+      s << "<text class='xtick' x='" << sx << "' y='" << H - B + 15 << "' text-anchor='middle'>" << text << "</text>";
+    }
+    for (const auto& [v, text] : niceTicks(y0, y1, logY)) {
+      const double sy = Y(v);
+      s << "<line x1='" << L - 4 << "' y1='" << sy << "' x2='" << L << "' y2='" << sy << "' stroke='#888'/>";
+      s << "<text class='ytick' x='" << L - 6 << "' y='" << sy + 4 << "' text-anchor='end'>" << text << "</text>";
     }
     s << "<text x='" << (L + W - R) / 2 << "' y='" << H - 12 << "' text-anchor='middle'>" << esc(xLabel) << "</text>";
     s << "<text transform='translate(14," << (T + H - B) / 2 << ") rotate(-90)' text-anchor='middle'>" << esc(yLabel)
@@ -357,13 +454,12 @@ struct Plot {
     }
     std::set<std::string> seen;
     for (const auto& p : points) {
-      s << "<circle cx='" << X(p.x) << "' cy='" << Y(p.y) << "' r='4' fill='" << colourOf(p.series)
-        << "' fill-opacity='0.75'><title>" << esc(p.tip) << "</title></circle>";
+      s << markerSvg(X(p.x), Y(p.y), p.series, "<title>" + esc(p.tip) + "</title>", 0.75);
       seen.insert(p.series);
     }
     double ly = T + 10;
     for (const auto& series : seen) {
-      s << "<circle cx='" << W - R + 14 << "' cy='" << ly - 4 << "' r='4' fill='" << colourOf(series) << "'/><text x='"
+      s << markerSvg(W - R + 14, ly - 4, series, "<title>legend</title>", 1.0) << "<text class='legend' x='"
         << W - R + 22 << "' y='" << ly << "'>" << esc(series) << "</text>";
       ly += 16;
     }
@@ -420,9 +516,12 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   std::ostringstream h;
   h << "<!DOCTYPE html><html><head><meta charset='utf-8'><meta name=\"generator\" content=\"mrgi bench\"><title>mrgi "
        "bench</title><style>"
-       "body{font-family:sans-serif;max-width:1200px;margin:20px auto}table{border-collapse:collapse;font-size:12px}"
+       "body{font-family:sans-serif;max-width:1200px;margin:20px auto;padding:0 "
+       "16px}table{border-collapse:collapse;font-size:12px}"
        "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td.l{text-align:left}"
-       "figure{display:inline-block;margin:6px}figcaption{font-size:12px}</style></head><body>";
+       "figure{display:inline-block;margin:6px;vertical-align:top}figcaption{font-size:12px;white-space:normal}"
+       "div.wide{overflow-x:auto;max-width:100%}details summary{cursor:pointer}details pre{text-align:left;margin:2px}"
+       "</style></head><body>";
   std::string sessionText;
   if (doc.contains("session"))
     for (const auto& sname : doc["session"].is_array() ? doc["session"] : json::array({doc["session"]}))
@@ -557,30 +656,33 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
 
   // Presets and the table.
   if (doc.contains("presets") && !doc["presets"].empty()) {
-    h << "<h2>Presets</h2><table><tr><th>preset</th><th>technique</th><th class='l'>knobs</th><th>lighting "
+    h << "<h2>Presets</h2><div class='wide'><table><tr><th>preset</th><th>technique</th><th "
+         "class='l'>knobs</th><th>lighting "
          "ms</th><th>error</th></tr>";
     for (const char* name : {"fast", "balanced", "accurate"}) {
       const json& p = doc["presets"][name];
       h << "<tr><td class='l'>" << name << "</td><td class='l'>" << esc(p["technique"].get<std::string>())
-        << "</td><td class='l'>" << esc(p["knobs"].dump()) << "</td><td>" << fmt(msOf(p)) << "</td><td>"
-        << fmt(errorOf(p)) << "</td></tr>";
+        << "</td><td class='l'><details><summary>knobs</summary><pre>" << esc(p["knobs"].dump(1))
+        << "</pre></details></td><td>" << fmt(msOf(p)) << "</td><td>" << fmt(errorOf(p)) << "</td></tr>";
     }
-    h << "</table>";
+    h << "</table></div>";
   }
-  h << "<h2>All configurations</h2><table><tr><th>technique</th><th>varied</th><th class='l'>knobs</th><th>ms "
+  // Tables scroll within the page at narrow widths; each row's knobs fold away.
+  h << "<h2>All configurations</h2><div class='wide'><table><tr><th>technique</th><th>varied</th><th "
+       "class='l'>knobs</th><th>ms "
        "total</th>"
        "<th>ms lighting</th><th>GPU MB</th><th>RMSE delta</th><th>rel. err. delta</th><th>rel. err. "
        "virtual</th><th>SSIM</th>"
        "<th>flicker</th></tr>";
   for (const auto& r : records)
     h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>"
-      << esc(r.value("varied", "")) << "</td><td class='l'>" << esc(r["knobs"].dump()) << "</td><td>"
-      << fmt(r["ms_total"].get<double>()) << "</td><td>" << fmt(msOf(r)) << "</td><td>"
-      << fmt(r["gpu_mb"].get<double>()) << "</td><td>" << fmt(r["rmse_delta"].get<double>()) << "</td><td>"
-      << fmt(r["rel_error_delta"].get<double>()) << "</td><td>" << fmt(r["rel_error_virtual"].get<double>())
-      << "</td><td>" << fmt(r["ssim"].get<double>(), 4) << "</td><td>" << fmt(r["flicker"].get<double>())
-      << "</td></tr>";
-  h << "</table>";
+      << esc(r.value("varied", "")) << "</td><td class='l'><details><summary>knobs</summary><pre>"
+      << esc(r["knobs"].dump(1)) << "</pre></details></td><td>" << fmt(r["ms_total"].get<double>()) << "</td><td>"
+      << fmt(msOf(r)) << "</td><td>" << fmt(r["gpu_mb"].get<double>()) << "</td><td>"
+      << fmt(r["rmse_delta"].get<double>()) << "</td><td>" << fmt(r["rel_error_delta"].get<double>()) << "</td><td>"
+      << fmt(r["rel_error_virtual"].get<double>()) << "</td><td>" << fmt(r["ssim"].get<double>(), 4) << "</td><td>"
+      << fmt(r["flicker"].get<double>()) << "</td></tr>";
+  h << "</table></div>";
 
   // Per session, with the whole pipeline against a synthetic session's own true reference where it has one.
   h << "<h2>Per session</h2><p>Technique error: against the path-traced reference of the inputs the pipeline sees "
@@ -590,7 +692,8 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
        "delta's relative RMS error without the reference's noise (two renders), with its 95 % interval. Shadow: within "
        "three "
        "object radii, the darkening's energy over the reference's / the near L1 of the blurred delta.</p>"
-       "<table><tr><th>technique</th><th>varied</th><th class='l'>session</th><th>ms lighting</th><th>rel. err. "
+       "<div class='wide'><table><tr><th>technique</th><th>varied</th><th class='l'>session</th><th>ms "
+       "lighting</th><th>rel. err. "
        "delta</th>"
        "<th>delta RMS [95 %]</th><th>shadow</th>"
        "<th>rel. err. virtual</th><th>SSIM</th><th>flicker</th><th>whole: delta</th><th>whole: shadow</th><th>whole: "
@@ -623,17 +726,28 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
       }
       h << "</tr>";
     }
-  h << "</table>";
+  h << "</table></div>";
 
   if (!images.empty()) {
     h << "<h2>Images</h2>";
-    for (const auto& im : images) {
+    const auto figure = [&](const ReportImage& im) {
       cv::Mat bgr;
       cv::cvtColor(im.rgb, bgr, cv::COLOR_RGB2BGR);
       std::vector<uchar> png;
       cv::imencode(".png", bgr, png);
-      h << "<figure><img src='data:image/png;base64," << base64(png) << "'/><figcaption>" << esc(im.caption)
-        << "</figcaption></figure>";
+      // As wide as its image, so a long caption wraps under it.
+      h << "<figure style='width:" << im.rgb.cols << "px'><img src='data:image/png;base64," << base64(png)
+        << "'/><figcaption>" << esc(im.caption) << "</figcaption></figure>";
+    };
+    // A composite and its error image ("NAME (defaults), ..." then "NAME: ...") stay side by side.
+    for (size_t i = 0; i < images.size(); ++i) {
+      const std::string& c = images[i].caption;
+      const std::string name = c.substr(0, c.find(" ("));
+      const bool pair = i + 1 < images.size() && images[i + 1].caption.rfind(name + ":", 0) == 0;
+      h << "<div style='display:inline-block;white-space:nowrap;vertical-align:top;margin-right:12px'>";
+      figure(images[i]);
+      if (pair) figure(images[++i]);
+      h << "</div>";
     }
   }
   h << "</body></html>\n";

@@ -12,6 +12,7 @@ PACKAGES=(
   libembree-dev libassimp-dev libimgui-dev libnanoflann-dev libopen3d-dev
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
   xvfb xauth clang-format
+  chromium fonts-dejavu-core  # the bench report rendered headless (Cli.TheBenchReportReads…)
 )
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
