@@ -29,9 +29,10 @@ Action addBench(CLI::App& app) {
       "write DIR/SESSION.png per session: the crop around the objects, composite and real-pixel delta, of every "
       "technique's defaults beside the reference's");
   app.add_option("--presets", o->presets, "write the fast/balanced/accurate presets chosen from the front (JSON)");
-  app.add_option(
+  CLI::Option* sessions = app.add_option(
       "--session", o->sessions,
-      "sessions to measure on, their first frames (repeat the flag; default: the three bundled synthetic sessions)");
+      "sessions to measure on, their first frames (repeat the flag; default: the bundled recordings/tabletop-synth, "
+      "tabletop-pt and tabletop-hdr, found from the current folder or the checkout holding this executable)");
   app.add_option("--scene", o->scene,
                  "scene file for every session: objects, lights, the knobs the sweep starts from (default: each "
                  "session's reference scene, else recordings/scenes/tabletop.json)");
@@ -67,7 +68,9 @@ Action addBench(CLI::App& app) {
       ->check(numberIn(1, 1 << 20));
   app.add_option("--repeats", o->repeats, "timing repeats (best is kept)")->check(numberIn(1, 1000));
   app.add_option("--gl", o->gl, "GL backend: osmesa (default), egl")->check(CLI::IsMember({"osmesa", "egl"}));
-  return [o] {
+  return [o, sessions] {
+    if (sessions->count() == 0)
+      for (std::string& s : o->sessions) s = bundledPath(s);
     // Nothing the user has is replaced: each file named here is new or an earlier output of mrgi bench.
     checkReplaceable(o->json, "--json", "mrgi bench");
     checkReplaceable(o->csv, "--csv", "mrgi bench", evaluation::kCsvHeader);

@@ -347,7 +347,9 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   const capture::SessionManifest* manifest = source->sessionManifest();
   const std::optional<capture::GroundTruthReference> reference = manifest ? manifest->truth.reference : std::nullopt;
   const std::string referenceScene = reference ? (fs::path(path) / reference->scene).lexically_normal().string() : "";
-  bs.scene = !o.scene.empty() ? o.scene : !referenceScene.empty() ? referenceScene : "recordings/scenes/tabletop.json";
+  bs.scene = !o.scene.empty()          ? o.scene
+             : !referenceScene.empty() ? referenceScene
+                                       : runtime::bundledPath("recordings/scenes/tabletop.json");
   bs.setup = prepareLighting(lighting::loadScene(bs.scene), bs.scene, *source, path, o.pose);
   if (bs.setup.scene.objects.empty()) throw capture::CaptureError(bs.scene, "has no virtual object to measure");
   while (static_cast<int>(bs.frames.size()) < o.frames) {

@@ -104,6 +104,18 @@ std::vector<std::string> inPipelineOrder(const std::vector<std::string>& recorde
   return out;
 }
 
+std::string bundledPath(const std::string& relative) {
+  std::error_code ec;
+  if (fs::exists(relative, ec)) return relative;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) return relative;
+  for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
+    if (fs::exists(dir / relative, ec)) return (dir / relative).string();
+    if (dir == dir.root_path()) break;
+  }
+  return relative;
+}
+
 std::string describeFolder(const std::string& folder) {
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) return {};

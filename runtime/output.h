@@ -26,6 +26,11 @@ std::vector<std::string> inPipelineOrder(const std::vector<std::string>& recorde
 /// (sorted; sub-folders end in '/'). Empty for a folder that does not exist.
 std::string describeFolder(const std::string& folder);
 
+/// A path into the repository's bundled data (`recordings/...`) for a default the user did not give: as is
+/// where it exists from the current folder, else found beside the running executable or in a folder above it
+/// (build/app/mrgi of a checkout finds the checkout's recordings/ from anywhere); as is when neither holds it.
+std::string bundledPath(const std::string& relative);
+
 /// Linear RGB float image -> EXR (atomically; errors name the file).
 /// `half`: 16-bit floats (a path-traced reference's precision, half the bytes).
 void writeExr(const std::string& path, const cv::Mat& rgb, bool half = false);
