@@ -354,6 +354,17 @@ int replay(const ReplayOptions& o) {
                                               toString(o.pose) + ": marker " + setup->tagFamily +
                                               (setup->tagId >= 0 ? " id " + std::to_string(setup->tagId) : "") +
                                               " never seen)");
+  // Lights from the room see what it covers around the objects; said once, from the last estimate.
+  for (auto it = perFrame.rbegin(); it != perFrame.rend(); ++it)
+    if (it->contains("room") && (*it)["room"].contains("lights")) {
+      const double coverage = (*it)["room"]["lights"].value("coverage", 1.0);
+      if (coverage < 0.5)
+        std::fprintf(stderr,
+                     "warning: %s: the room covers %.0f %% of the directions around the objects: lights from it miss "
+                     "the rest (scan around, the ceiling included)\n",
+                     o.source.c_str(), 100 * coverage);
+      break;
+    }
   if (const int64_t lost = posedBy.count("lost") ? posedBy["lost"] : 0; lost > 0 && !interrupted)
     std::fprintf(stderr, "warning: %s: %lld of %lld frames lost (no trusted camera pose): drawn without the objects\n",
                  o.source.c_str(), static_cast<long long>(lost), static_cast<long long>(done));

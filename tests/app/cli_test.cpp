@@ -1760,6 +1760,13 @@ TEST(Cli, ReplayBuildsTheRoomAsTheFramesComeAndLightsFromIt) {
   EXPECT_LT(frames[0]["room_fusion"]["refreshed"].get<size_t>(), frames[8]["room_fusion"]["refreshed"].get<size_t>())
       << "the room grows";
   EXPECT_EQ(frames[0]["room"]["lights"]["count"], 4) << frames[0].dump();
+  // Nine orbit frames see under half the directions around the object: said once, with the last estimate's share.
+  const double coverage = frames[8]["room"]["lights"]["coverage"].get<double>();
+  EXPECT_LT(coverage, 0.5);
+  const size_t said = r.err.find("the room covers ");
+  ASSERT_NE(said, std::string::npos) << r.err;
+  EXPECT_NEAR(std::stod(r.err.substr(said + 16)), 100 * coverage, 0.51) << r.err;
+  EXPECT_EQ(r.err.find("the room covers ", said + 1), std::string::npos) << r.err;  // once
   EXPECT_TRUE(frames[0].contains("view_mesh_detailed")) << "lit from the room on the first frame: " << frames[0].dump();
   const auto saved9 = mrgi::reconstruction::loadRoom(saved.string());
   EXPECT_GT(saved9.positions.size(), frames[8]["room_fusion"]["refreshed"].get<size_t>() / 2);
