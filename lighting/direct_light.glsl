@@ -31,42 +31,29 @@ uniform mat4 uObjectViewProj[MAX_LIGHTS];
 uniform float uObjectShadowBias[MAX_LIGHTS];  // < -1e29: no objects' map for this light (RSM^rho instead)
 uniform float uObjectNear[MAX_LIGHTS];        // where the objects' sphere begins, in the test's distance
 
+// The shadow test's distance of a point: along a directional light's direction, else from the light.
+float lightDistance(int i, vec3 p) {
+  return uLightType[i] == 2 ? dot(p, uLightDirection[i]) : distance(p, uLightPosition[i]);
+}
+
+// The distance of what light i's map holds where p projects (1e30 where nothing, or outside the map: not
+// occluded by what it holds).
+float occluderDistance(sampler2DArray map, int i, mat4 viewProj, vec3 p) {
+  vec4 c = viewProj * vec4(p, 1.0);
+  if (c.w <= 0.0) return 1e30;
+  vec2 ndc = c.xy / c.w;
+  if (any(greaterThan(abs(ndc), vec2(1.0)))) return 1e30;
+  vec4 s = texture(map, vec3(ndc * 0.5 + 0.5, float(i)));
+  return s.w < 0.5 ? 1e30 : lightDistance(i, s.xyz);
+}
+
 // Shadow-map test with a normal offset: the lookup point moves off the surface by the bias (about two map
 // texels) along its normal, so surfaces near the terminator (depth slope ~ tan θ per texel) do not shadow
 // themselves; the depth comparison keeps the same tolerance for the remaining slope.
 float shadowTest(sampler2DArray map, int i, mat4 viewProj, float bias, vec3 x, vec3 n) {
   if (bias < -1e29) return 1.0;
   x += n * bias;
-  vec4 c = viewProj * vec4(x, 1.0);
-  if (c.w <= 0.0) return 1.0;
-  vec3 ndc = c.xyz / c.w;
-  if (any(greaterThan(abs(ndc.xy), vec2(1.0)))) return 1.0;  // outside the map: not occluded by what it holds
-  vec4 s = texture(map, vec3(ndc.xy * 0.5 + 0.5, float(i)));
-  if (s.w < 0.5) return 1.0;
-  float dSelf, dOcc;
-  if (uLightType[i] == 2) {
-    dSelf = dot(x, uLightDirection[i]);
-    dOcc = dot(s.xyz, uLightDirection[i]);
-  } else {
-    dSelf = distance(x, uLightPosition[i]);
-    dOcc = distance(s.xyz, uLightPosition[i]);
-  }
-  return dOcc < dSelf - bias ? 0.0 : 1.0;
-}
-
-// The shadow test's distance of a point: along a directional light's direction, else from the light.
-float lightDistance(int i, vec3 p) {
-  return uLightType[i] == 2 ? dot(p, uLightDirection[i]) : distance(p, uLightPosition[i]);
-}
-
-// The distance of what the objects' map holds where p projects (1e30 where nothing or outside the map).
-float objectsOccluderDistance(int i, vec3 p) {
-  vec4 c = uObjectViewProj[i] * vec4(p, 1.0);
-  if (c.w <= 0.0) return 1e30;
-  vec2 ndc = c.xy / c.w;
-  if (any(greaterThan(abs(ndc), vec2(1.0)))) return 1e30;
-  vec4 s = texture(uShadowObjects, vec3(ndc * 0.5 + 0.5, float(i)));
-  return s.w < 0.5 ? 1e30 : lightDistance(i, s.xyz);
+  return occluderDistance(map, i, viewProj, x) < lightDistance(i, x) - bias ? 0.0 : 1.0;
 }
 
 // Only where the including program defines SOFT_OBJECT_SHADOWS (the shading pass); techniques' own passes
@@ -75,9 +62,15 @@ float objectsOccluderDistance(int i, vec3 p) {
 #define SOFT_SHADOW_SEARCH_TAPS 8
 // The objects' soft shadow of a light with extent (lighting::softObjectsShadow is the C++ twin): the blockers'
 // mean distance over the widest penumbra, then the fraction of taps over the penumbra's disc left lit.
-float softObjectsShadow(int i, vec3 x, vec3 n) {
+// Tap k of `taps` on a Vogel spiral over the disc of `radius` spanned by t and b.
+vec3 softShadowTap(int k, int taps, float radius, vec3 t, vec3 b) {
+  float r = radius * sqrt((float(k) + 0.5) / float(taps)), a = float(k) * 2.399963229728653;
+  return r * cos(a) * t + r * sin(a) * b;
+}
+
+float softObjectsShadow(int i, vec3 at, vec3 n) {
   float bias = uObjectShadowBias[i];
-  x += n * bias;
+  vec3 x = at + n * bias;  // the receiver with the normal offset the tests take
   float self = lightDistance(i, x);
   if (!(self - bias > uObjectNear[i])) return 1.0;
   bool directional = uLightType[i] == 2;
@@ -88,15 +81,14 @@ float softObjectsShadow(int i, vec3 x, vec3 n) {
   float tanA = ext / sqrt(max(1e-12, 1.0 - ext * ext));
   float near = uObjectNear[i];
   float widest = directional ? (self - near) * tanA : (self - near) * ext / max(near, 1e-4);
-  if (widest < 0.5 * bias) return shadowTest(uShadowObjects, i, uObjectViewProj[i], bias, x - n * bias, n);
+  if (widest < 0.5 * bias) return shadowTest(uShadowObjects, i, uObjectViewProj[i], bias, at, n);
   // Each tap compares with the receiver's tangent plane where the light's ray through the tap meets it.
   float facing = min(dot(n, L), -0.1);
   float sum = 0.0;
   int blockers = 0;
   for (int k = 0; k < SOFT_SHADOW_SEARCH_TAPS; ++k) {
-    float r = widest * sqrt((float(k) + 0.5) / float(SOFT_SHADOW_SEARCH_TAPS)), a = float(k) * 2.399963229728653;
-    vec3 o = r * cos(a) * t + r * sin(a) * b;
-    float d = objectsOccluderDistance(i, x + o);
+    vec3 o = softShadowTap(k, SOFT_SHADOW_SEARCH_TAPS, widest, t, b);
+    float d = occluderDistance(uShadowObjects, i, uObjectViewProj[i], x + o);
     if (d < self - dot(n, o) / facing - bias) {
       sum += d;
       ++blockers;
@@ -108,9 +100,8 @@ float softObjectsShadow(int i, vec3 x, vec3 n) {
   float w = directional ? (self - dB) * tanA : (self - dB) * ext / max(dB, 1e-4);
   int lit = 0;
   for (int k = 0; k < SOFT_SHADOW_TAPS; ++k) {
-    float r = w * sqrt((float(k) + 0.5) / float(SOFT_SHADOW_TAPS)), a = float(k) * 2.399963229728653;
-    vec3 o = r * cos(a) * t + r * sin(a) * b;
-    if (!(objectsOccluderDistance(i, x + o) < self - dot(n, o) / facing - bias)) ++lit;
+    vec3 o = softShadowTap(k, SOFT_SHADOW_TAPS, w, t, b);
+    if (!(occluderDistance(uShadowObjects, i, uObjectViewProj[i], x + o) < self - dot(n, o) / facing - bias)) ++lit;
   }
   return float(lit) / float(SOFT_SHADOW_TAPS);
 }
@@ -119,7 +110,7 @@ float visibility(bool withObjects, int i, vec3 x, vec3 n) {
   if (!withObjects) return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n);
   if (uObjectShadowBias[i] < -1e29) return shadowTest(uShadowRho, i, uLightViewProj[i], uShadowBias[i], x, n);
 #ifdef SOFT_OBJECT_SHADOWS
-  float objects = uLightSoft[i] == 1 && uLightExtent[i] > 0.0 ? softObjectsShadow(i, x, n)
+  float objects = uLightSoft[i] == 1 ? softObjectsShadow(i, x, n)  // set for lights with extent only
                                         : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
 #else
   float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);

@@ -120,30 +120,6 @@ void fitObjectView(LightView& v, const SceneLight& light, const cv::Vec3d& centr
   v.objectNear = dist - radius;
 }
 
-float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
-                 cv::Vec3d x, const cv::Vec3d& n) {
-  if (bias < 0 || positions.empty()) return 1.f;
-  x += n * bias;
-  const cv::Vec4d c = viewProj * cv::Vec4d(x[0], x[1], x[2], 1.0);
-  if (c[3] <= 0) return 1.f;
-  const double u = c[0] / c[3], v = c[1] / c[3];
-  if (std::abs(u) > 1 || std::abs(v) > 1) return 1.f;
-  const int col = std::clamp(static_cast<int>(std::floor((u * 0.5 + 0.5) * positions.cols)), 0, positions.cols - 1);
-  const int row = std::clamp(static_cast<int>(std::floor((v * 0.5 + 0.5) * positions.rows)), 0, positions.rows - 1);
-  const cv::Vec4f s = positions.at<cv::Vec4f>(row, col);
-  if (s[3] < 0.5f) return 1.f;
-  const cv::Vec3d occ(s[0], s[1], s[2]);
-  double self, other;
-  if (light.type == LightType::Directional) {
-    self = x.dot(light.direction);
-    other = occ.dot(light.direction);
-  } else {
-    self = cv::norm(x - light.position);
-    other = cv::norm(occ - light.position);
-  }
-  return other < self - bias ? 0.f : 1.f;
-}
-
 namespace {
 
 /// The shadow test's distance of a point: along a directional light's direction, else from the light.
@@ -167,10 +143,18 @@ double occluderDistance(const cv::Mat& positions, const SceneLight& light, const
 
 }  // namespace
 
+float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
+                 cv::Vec3d x, const cv::Vec3d& n) {
+  if (bias < 0 || positions.empty()) return 1.f;
+  x += n * bias;
+  return occluderDistance(positions, light, viewProj, x) < lightDistance(light, x) - bias ? 0.f : 1.f;
+}
+
 float softObjectsShadow(const cv::Mat& objects, const SceneLight& light, const LightView& view, cv::Vec3d x,
                         const cv::Vec3d& n) {
   const double bias = view.objectShadowBias;
   if (bias < 0 || objects.empty()) return 1.f;
+  const cv::Vec3d at = x;  // the receiver, before the normal offset the tests take
   x += n * bias;
   const double self = lightDistance(light, x);
   if (!(self - bias > view.objectNear)) return 1.f;  // in front of the objects' sphere
@@ -195,7 +179,7 @@ float softObjectsShadow(const cv::Mat& objects, const SceneLight& light, const L
   };
   const double widest = width(view.objectNear);
   // A penumbra narrower than the map's texel (the bias is two): the hard test.
-  if (widest < 0.5 * bias) return shadowTest(objects, light, view.objectViewProj, bias, x - n * bias, n);
+  if (widest < 0.5 * bias) return shadowTest(objects, light, view.objectViewProj, bias, at, n);
   double sum = 0, receiver = 0;
   int blockers = 0;
   for (int k = 0; k < kSoftShadowSearchTaps; ++k) {
@@ -218,7 +202,7 @@ float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const L
                       const cv::Vec3d& x, const cv::Vec3d& n, bool soft) {
   if (!withObjects) return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n);
   if (view.objectShadowBias < 0) return shadowTest(maps.rho, light, view.viewProj, view.shadowBias, x, n);
-  const float objects = soft && view.soft && light.extent > 0
+  const float objects = soft && view.soft  // view.soft: a light with extent (LightPass::render)
                             ? softObjectsShadow(maps.objects, light, view, x, n)
                             : shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
   return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) * objects;
