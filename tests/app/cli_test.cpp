@@ -911,10 +911,12 @@ TEST(Cli, TheBenchReportReadsAtAThousandToSixteenHundredPixels) {
   }
   for (const int w : {1000, 1600}) {
     const fs::path shot = dir / ("shot_" + std::to_string(w) + ".png");
+    // Bounded in time, without the sandbox and the /dev/shm a CI container may not give it.
     const std::string cmd =
-        std::string(browser) +
-        " --headless=new --no-sandbox --disable-gpu --hide-scrollbars --window-size=" + std::to_string(w) +
-        ",4000 --screenshot=" + shot.string() + " file://" + (dir / "r.html").string() + " > /dev/null 2>&1";
+        "timeout 120 " + std::string(browser) +
+        " --headless=new --no-sandbox --disable-dev-shm-usage --disable-gpu --hide-scrollbars --window-size=" +
+        std::to_string(w) + ",4000 --screenshot=" + shot.string() + " file://" + (dir / "r.html").string() +
+        " > /dev/null 2>&1";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
     const cv::Mat img = cv::imread(shot.string(), cv::IMREAD_GRAYSCALE);
     ASSERT_EQ(img.cols, w);
