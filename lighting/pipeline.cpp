@@ -244,6 +244,20 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   orZero(realOut.realDelta).bind(3);
   orZero(virtualOut.virtualIrradiance).bind(4);
   orZero(virtualOut.virtualRadiance).bind(5);
+  // Outputs at the reduced view's size (render_scale) are upsampled by the pass; the frame's size are read as they are.
+  const GBufferView& reduced = frame_->techniqueView();
+  const auto factorOf = [&](const gl::Texture* t) {
+    if (!t || t->width() == config_.width) return 1;
+    if (t->width() != reduced.width || t->height() != reduced.height)
+      throw std::logic_error(
+          "LightingPipeline::run(): a technique output is neither the frame's size nor its reduced view's");
+    return reduced.factor;
+  };
+  p.set("uRealDeltaFactor", factorOf(realOut.realDelta));
+  p.set("uVirtualIrradianceFactor", factorOf(virtualOut.virtualIrradiance));
+  p.set("uVirtualRadianceFactor", factorOf(virtualOut.virtualRadiance));
+  reduced.position->bind(6);
+  reduced.normal->bind(7);
   frame_->bindShadowMaps();
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);

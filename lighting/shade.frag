@@ -23,6 +23,12 @@ layout(binding = 2) uniform sampler2D uGAlbedo;
 layout(binding = 3) uniform sampler2D uRealDelta;         // rgb: E_delta of the real-role technique (W/m^2)
 layout(binding = 4) uniform sampler2D uVirtualIrradiance; // rgb: indirect irradiance on the object (W/m^2)
 layout(binding = 5) uniform sampler2D uVirtualRadiance;   // rgb: indirect radiance of the object (W/m^2/sr)
+// The three above may be at 1/factor of the frame's resolution (frame knob render_scale): upsampled here
+// joint-bilaterally with the reduced G-buffer's positions and normals (lighting/upsample.glsl).
+layout(binding = 6) uniform sampler2D uLowPosition;
+layout(binding = 7) uniform sampler2D uLowNormal;
+uniform int uRealDeltaFactor, uVirtualIrradianceFactor, uVirtualRadianceFactor;  // 1: the frame's resolution
+#include "lighting/upsample.glsl"
 // With SOFT_OBJECT_SHADOWS defined (a program variant): the objects' soft shadows of lights with extent.
 #include "lighting/direct_light.glsl"
 
@@ -41,13 +47,18 @@ uniform vec3 uHiddenSh[9];      // ... and its SH bands 1-2
 layout(location = 0) out vec4 outShade;
 layout(location = 1) out vec4 outIrradiance;
 
+vec3 techniqueOutput(sampler2D t, int factor, ivec2 p, vec4 position, vec4 normal) {
+  return factor <= 1 ? texelFetch(t, p, 0).rgb : upsampled(t, uLowPosition, uLowNormal, factor, p, position, normal);
+}
+
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
   vec4 pos = texelFetch(uGPosition, p, 0);
   outShade = vec4(0.0);
   outIrradiance = vec4(0.0);
   if (pos.w < 0.5) return;
-  vec3 n = texelFetch(uGNormal, p, 0).xyz;
+  vec4 normal = texelFetch(uGNormal, p, 0);
+  vec3 n = normal.xyz;
   vec4 albedo = texelFetch(uGAlbedo, p, 0);
   bool isVirtual = albedo.a > 0.5;
   if (uLighting == 0) {
@@ -56,12 +67,14 @@ void main() {
   }
   if (isVirtual) {
     vec3 e = directIrradiance(true, pos.xyz, n) + SHADE_PI * uAmbient + ambientShIrradiance(uAmbientSh, n);
-    vec3 indirect = uEnvironmentHoldsBounce == 1 ? vec3(0.0) : texelFetch(uVirtualIrradiance, p, 0).rgb;
-    vec3 radiance = uEnvironmentHoldsBounce == 1 ? vec3(0.0) : texelFetch(uVirtualRadiance, p, 0).rgb;
+    vec3 indirect = uEnvironmentHoldsBounce == 1 ? vec3(0.0)
+                                                 : techniqueOutput(uVirtualIrradiance, uVirtualIrradianceFactor, p, pos, normal);
+    vec3 radiance = uEnvironmentHoldsBounce == 1 ? vec3(0.0)
+                                                 : techniqueOutput(uVirtualRadiance, uVirtualRadianceFactor, p, pos, normal);
     outShade = vec4((e + indirect) * albedo.rgb / SHADE_PI + radiance, 1.0);
     outIrradiance = vec4(indirect, 1.0);
   } else {
-    vec3 delta = texelFetch(uRealDelta, p, 0).rgb;
+    vec3 delta = techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal);
     if (uAddDirectShadow == 1) delta += directIrradiance(true, pos.xyz, n) - directIrradiance(false, pos.xyz, n);
     // An ambient that is the room seen at the object holds the real surfaces' bounce, whose occlusion the
     // real-role technique's delta already has (from its own VALs, volumes or splats): not taken twice.

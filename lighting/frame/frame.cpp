@@ -10,6 +10,7 @@
 #include "capture/colour.h"
 #include "gl/error.h"
 #include "lighting/material.h"
+#include "lighting/upsample.h"
 
 namespace mrgi::lighting {
 
@@ -73,6 +74,19 @@ const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable() {
         {},
         true},
        &FrameKnobs::softShadowLights},
+      {{"render_scale",
+        KnobType::Real,
+        0.25,
+        1.0,
+        1.0,
+        "resolution of the techniques' per-pixel outputs (real-pixel delta, the objects' indirect light), of the "
+        "frame's: 1, 1/2, 1/3 or 1/4 (the nearest); the shading pass brings them to every pixel by joint bilateral "
+        "upsampling with the G-buffer's depth, normals and objects. Kinect-VAL's object light is per vertex, at full "
+        "resolution either way",
+        {0.5, 0.25},
+        {0.5},
+        false},
+       &FrameKnobs::renderScale},
   };
   return table;
 }
@@ -139,7 +153,7 @@ void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& light
 FrameResources::FrameResources(const FrameConfig& config, const std::vector<VirtualObject>& objects)
     : config_(config),
       geometry_(objects),
-      gbuffer_(config.width, config.height),
+      gbuffer_(config.width, config.height, renderFactor(config.knobs.renderScale)),
       lightPass_(config.knobs.rsmSize, config.knobs.shadowSize) {}
 
 void FrameResources::setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
@@ -246,8 +260,9 @@ const gl::Texture& FrameResources::zero() {
   return zero_;
 }
 
-cv::Mat FrameResources::downloadGBuffer(int channel) const {
-  return download4(channel == 0 ? gbuffer_.position() : channel == 1 ? gbuffer_.normal() : gbuffer_.albedo());
+cv::Mat FrameResources::downloadGBuffer(int channel, bool reduced) const {
+  const GBufferView& v = reduced ? gbuffer_.reducedView() : gbuffer_.view();
+  return download4(channel == 0 ? *v.position : channel == 1 ? *v.normal : *v.albedo);
 }
 
 size_t FrameResources::estimateBytes(const FrameConfig& c, size_t lights) {
@@ -255,10 +270,14 @@ size_t FrameResources::estimateBytes(const FrameConfig& c, size_t lights) {
   const size_t texels = static_cast<size_t>(c.knobs.rsmSize) * static_cast<size_t>(c.knobs.rsmSize);
   const size_t rgba = 16, depth = 4;
   const size_t gbuffer = pixels * (3 * rgba + depth) + pixels * rgba;  // + the zero stand-in
+  const int factor = renderFactor(c.knobs.renderScale);
+  const size_t reduced = factor > 1 ? static_cast<size_t>(reducedSize(c.width, factor)) *
+                                          static_cast<size_t>(reducedSize(c.height, factor)) * (3 * rgba + depth)
+                                    : 0;
   const size_t rsms = 2 * texels * (4 * rgba + depth);
   const size_t objectTexels = static_cast<size_t>(c.knobs.shadowSize) * static_cast<size_t>(c.knobs.shadowSize);
   const size_t shadows = std::max<size_t>(lights, 1) * (2 * texels + objectTexels) * rgba;
-  return gbuffer + rsms + objectTexels * (rgba + depth) + shadows;
+  return gbuffer + reduced + rsms + objectTexels * (rgba + depth) + shadows;
 }
 
 size_t FrameResources::gpuBytes() const { return gbuffer_.gpuBytes() + lightPass_.gpuBytes() + zero_.bytes(); }

@@ -40,6 +40,7 @@ struct FrameKnobs {
   double lightCutoff =
       0;  ///< share of the irradiance bound at the region the skipped lights may carry (lightsThatMatter)
   int softShadowLights = 0;  ///< how many lights with extent (the brightest at the region) cast soft shadows
+  double renderScale = 1;    ///< resolution of per-pixel technique outputs, of the frame's (lighting/upsample.h)
 };
 /// The knob table of FrameKnobs (declared once: lighting/frame/frame.cpp).
 const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable();
@@ -137,6 +138,10 @@ class FrameResources {
   const gl::Texture& gNormal() const { return gbuffer_.normal(); }
   const gl::Texture& gAlbedo() const { return gbuffer_.albedo(); }  ///< rgb albedo, a = 1 on virtual surfaces
   const gl::Texture& gDepth() const { return gbuffer_.depth(); }
+  /// The G-buffer a technique renders its per-pixel outputs at: the frame's own, or at render_scale its copy at
+  /// 1/factor (lighting/upsample.h), whose outputs the shading pass upsamples joint-bilaterally. Current after
+  /// renderGBuffer().
+  const GBufferView& techniqueView() const { return gbuffer_.reducedView(); }
   /// Light views of the lights rendered so far this run (all of them after the RSM stage).
   const std::vector<LightView>& lightViews() const { return lightPass_.views(); }
   /// The RSMs of the light rendered last.
@@ -154,8 +159,8 @@ class FrameResources {
   void bindShadowMaps() const { lightPass_.bindShadowMaps(); }
   /// A zeroed RGBA32F texture of the output size (stands in for an output no technique provides).
   const gl::Texture& zero();
-  /// CV_32FC4 G-buffer channel: 0 position, 1 normal, 2 albedo (a = virtual).
-  cv::Mat downloadGBuffer(int channel) const;
+  /// CV_32FC4 G-buffer channel: 0 position, 1 normal, 2 albedo (a = virtual); `reduced`: techniqueView()'s.
+  cv::Mat downloadGBuffer(int channel, bool reduced = false) const;
   size_t gpuBytes() const;
   /// What these resources will hold on the GPU for `lights` lights, bytes (before allocating any).
   static size_t estimateBytes(const FrameConfig& config, size_t lights);

@@ -1,9 +1,11 @@
 #include "lighting/frame/passes.h"
 
+#include <algorithm>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
 #include "gl/error.h"
+#include "lighting/upsample.h"
 
 namespace mrgi::lighting {
 
@@ -86,9 +88,10 @@ void FrameGeometry::drawObjects(const gl::Program& program) const {
 
 // ---------------------------------------------------------------------------------------------- G-buffer
 
-GBufferPass::GBufferPass(int width, int height)
+GBufferPass::GBufferPass(int width, int height, int factor)
     : width_(width),
       height_(height),
+      factor_(std::max(factor, 1)),
       program_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/gbuffer.frag")),
       position_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
       normal_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
@@ -100,6 +103,22 @@ GBufferPass::GBufferPass(int width, int height)
   fb_.attachColour(2, albedo_);
   fb_.attachDepth(depth_);
   fb_.finalise(3);
+  view_ = {width, height, 1, &position_, &normal_, &albedo_, &depth_};
+  if (factor_ > 1) {
+    const int w = reducedSize(width, factor_), h = reducedSize(height, factor_);
+    reduceProgram_ = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/frame/gbuffer_reduce.frag");
+    lowPosition_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
+    lowNormal_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
+    lowAlbedo_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
+    lowDepth_ = gl::Texture(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, w, h);
+    for (auto* t : {&lowPosition_, &lowNormal_, &lowAlbedo_}) t->setFilter(GL_NEAREST, GL_NEAREST);
+    lowFb_.attachColour(0, lowPosition_);
+    lowFb_.attachColour(1, lowNormal_);
+    lowFb_.attachColour(2, lowAlbedo_);
+    lowFb_.attachDepth(lowDepth_);
+    lowFb_.finalise(3);
+    reducedView_ = {w, h, factor_, &lowPosition_, &lowNormal_, &lowAlbedo_, &lowDepth_};
+  }
 }
 
 bool GBufferPass::setPixelAlbedo(const cv::Mat& albedo) {
@@ -135,12 +154,29 @@ void GBufferPass::render(const FrameGeometry& geometry, const CameraView& camera
   if (hasPixelAlbedo_) pixelAlbedo_.bind(0);
   geometry.drawScene(program_, true,
                      projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * view, true);
+  if (factor_ > 1) {
+    // Every reduced texel is written (depth test always passes), depth included, for passes that test against it.
+    lowFb_.bind();
+    glViewport(0, 0, reducedView_.width, reducedView_.height);
+    glDepthFunc(GL_ALWAYS);
+    reduceProgram_.use();
+    reduceProgram_.set("uFactor", factor_);
+    position_.bind(0);
+    normal_.bind(1);
+    albedo_.bind(2);
+    depth_.bind(3);
+    emptyVao_.bind();
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glDepthFunc(GL_LESS);
+  }
   glDisable(GL_DEPTH_TEST);
 }
 
 size_t GBufferPass::gpuBytes() const {
   size_t sum = 0;
-  for (const gl::Texture* t : {&position_, &normal_, &albedo_, &depth_}) sum += t->bytes();
+  for (const gl::Texture* t :
+       {&position_, &normal_, &albedo_, &depth_, &lowPosition_, &lowNormal_, &lowAlbedo_, &lowDepth_})
+    sum += t->bytes();
   return sum;
 }
 

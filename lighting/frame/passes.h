@@ -4,7 +4,8 @@
 ///   FrameGeometry  — what every pass draws: the real mesh (and the camera's view of the real surface), the
 ///                    virtual objects with their placements.
 ///   GBufferPass    — in: geometry, camera, the real surfaces' per-pixel albedo; out: world position, normal
-///                    (w = object index + 1), albedo (a = virtual), depth, at the output size.
+///                    (w = object index + 1), albedo (a = virtual), depth, at the output size, and the same at
+///                    1/factor (the frame knob render_scale) for technique outputs (lighting/upsample.h).
 ///   LightPass      — in: geometry, one light, the region that matters; out: that light's view, its RSMs
 ///                    (rho: real + virtual, mu: real only), the objects' shadow map, and its layer of the three
 ///                    shadow arrays the shading pass reads.
@@ -63,9 +64,21 @@ class FrameGeometry {
   std::vector<uint32_t> realIndices_;
 };
 
+/// A G-buffer's textures and size: the frame's own, or its reduced copy that per-pixel technique outputs are
+/// rendered at (lighting/upsample.h).
+struct GBufferView {
+  int width = 0, height = 0;
+  int factor = 1;                         ///< frame pixels per texel along each axis (1: the frame's own)
+  const gl::Texture* position = nullptr;  ///< xyz world, w = 1 where a surface was seen
+  const gl::Texture* normal = nullptr;    ///< xyz unit normal, w = object index + 1 (0 real)
+  const gl::Texture* albedo = nullptr;    ///< rgb albedo, a = 1 on virtual surfaces
+  const gl::Texture* depth = nullptr;
+};
+
 class GBufferPass {
  public:
-  GBufferPass(int width, int height);
+  /// `factor` > 1: render() also reduces the G-buffer to 1/factor (each texel one pixel of its block).
+  GBufferPass(int width, int height, int factor = 1);
   /// The real surfaces' albedo per camera pixel (CV_32FC3 linear, the pass's size; negative: none at that pixel)
   /// instead of the vertices'; empty or another size: the vertices'. Returns whether what the pass draws changed.
   bool setPixelAlbedo(const cv::Mat& albedo);
@@ -75,13 +88,21 @@ class GBufferPass {
   const gl::Texture& normal() const { return normal_; }      ///< xyz unit normal, w = object index + 1 (0 real)
   const gl::Texture& albedo() const { return albedo_; }      ///< rgb albedo, a = 1 on virtual surfaces
   const gl::Texture& depth() const { return depth_; }
+  /// The G-buffer at the frame's size.
+  const GBufferView& view() const { return view_; }
+  /// The G-buffer at 1/factor (the frame's own when the factor is 1).
+  const GBufferView& reducedView() const { return factor_ > 1 ? reducedView_ : view_; }
   size_t gpuBytes() const;
 
  private:
-  int width_, height_;
-  gl::Program program_;
+  int width_, height_, factor_;
+  gl::Program program_, reduceProgram_;
   gl::Texture position_, normal_, albedo_, depth_;
   gl::Framebuffer fb_;
+  gl::Texture lowPosition_, lowNormal_, lowAlbedo_, lowDepth_;
+  gl::Framebuffer lowFb_;
+  gl::VertexArray emptyVao_;
+  GBufferView view_, reducedView_;
   gl::Texture pixelAlbedo_;  ///< setPixelAlbedo's, RGBA16F
   bool hasPixelAlbedo_ = false;
 };

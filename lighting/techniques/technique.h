@@ -24,7 +24,9 @@ namespace mrgi::lighting {
 /// What a technique is asked to provide.
 enum class Role { Real, Virtual };
 
-/// Outputs, RGBA32F textures of the output size; nullptr = none (the shading pass reads zero).
+/// Outputs, RGBA32F textures of the output size, or of the frame's reduced view (FrameResources::techniqueView,
+/// the frame knob render_scale: per-pixel work over a quarter or a sixteenth of the pixels), which the shading
+/// pass upsamples joint-bilaterally (lighting/upsample.h); nullptr = none (the shading pass reads zero).
 struct TechniqueOutputs {
   /// Real pixels: rgb = E_delta (W/m^2), the irradiance the virtual objects add (or remove) on real surfaces.
   const gl::Texture* realDelta = nullptr;
@@ -34,7 +36,7 @@ struct TechniqueOutputs {
   const gl::Texture* virtualRadiance = nullptr;
 };
 
-/// The two irradiance outputs a read-out pass writes (RGBA32F, the output size, nearest filtering), as one
+/// The two irradiance outputs a read-out pass writes (RGBA32F, the size it is given, nearest filtering), as one
 /// framebuffer: colour attachment 0 the real-pixel delta, 1 the object's indirect irradiance.
 struct IrradianceTargets {
   gl::Texture realDelta, virtualIrradiance;

@@ -79,7 +79,7 @@ DlpvTechnique::DlpvTechnique(const TechniqueSetup& setup)
       addProgram_(gl::Program::compute("lighting/techniques/dlpv/lpv_add.comp")),
       readoutProgram_(
           gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/dlpv/dlpv_readout.frag")),
-      out_(setup.frame->width(), setup.frame->height()) {}
+      out_(setup.frame->techniqueView().width, setup.frame->techniqueView().height) {}
 
 DlpvTechnique::Volume DlpvTechnique::makeVolume(int res) const {
   Volume v{gl::Texture(GL_TEXTURE_3D, GL_RGBA32F, res, res, res), gl::Texture(GL_TEXTURE_3D, GL_RGBA32F, res, res, res),
@@ -247,7 +247,7 @@ void DlpvTechnique::update(const FrameResources& frame, gl::Profiler* profiler) 
   if (!grid_) return;  // no light stage ran yet
   auto s = timed(profiler, "lpv.readout");
   out_.fb.bind();
-  glViewport(0, 0, frame.width(), frame.height());
+  glViewport(0, 0, frame.techniqueView().width, frame.techniqueView().height);
   glDisable(GL_DEPTH_TEST);
   const gl::Program& p = readoutProgram_;
   p.use();
@@ -257,9 +257,9 @@ void DlpvTechnique::update(const FrameResources& frame, gl::Profiler* profiler) 
   p.set("uReal", real_ ? 1 : 0);
   p.set("uVirtual", virtual_ ? 1 : 0);
   p.set("uDifference", knobs_.naiveDifference ? 1 : 0);
-  frame.gPosition().bind(0);
-  frame.gNormal().bind(1);
-  frame.gAlbedo().bind(2);
+  frame.techniqueView().position->bind(0);
+  frame.techniqueView().normal->bind(1);
+  frame.techniqueView().albedo->bind(2);
   const Volume& d = knobs_.naiveDifference ? rhoFull_ : delta_;
   const Volume& mu = knobs_.naiveDifference ? muFull_ : delta_;
   d.r.bind(3), d.g.bind(4), d.b.bind(5);

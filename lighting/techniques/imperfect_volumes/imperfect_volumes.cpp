@@ -214,7 +214,7 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
       readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert",
                                             "lighting/techniques/imperfect_volumes/iv_readout.frag",
                                             {{"SH_BANDS", std::to_string(knobs_.bands)}})),
-      out_(setup.frame->width(), setup.frame->height()) {}
+      out_(setup.frame->techniqueView().width, setup.frame->techniqueView().height) {}
 
 void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler* profiler) {
   const Region& region = *frame.region();
@@ -414,7 +414,7 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   }
   auto s = timed(profiler, "iv.readout");
   out_.fb.bind();
-  glViewport(0, 0, frame.width(), frame.height());
+  glViewport(0, 0, frame.techniqueView().width, frame.techniqueView().height);
   glDisable(GL_DEPTH_TEST);
   const gl::Program& p = readoutProgram_;
   p.use();
@@ -425,9 +425,9 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   p.set("uReal", real_ ? 1 : 0);
   p.set("uVirtual", virtual_ ? 1 : 0);
   setAmbientUniforms(p, frame);
-  frame.gPosition().bind(0);
-  frame.gNormal().bind(1);
-  frame.gAlbedo().bind(2);
+  frame.techniqueView().position->bind(0);
+  frame.techniqueView().normal->bind(1);
+  frame.techniqueView().albedo->bind(2);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, (real_ ? incidentRho_ : incidentMu_).id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 9, incidentMu_.id());

@@ -160,8 +160,8 @@ PicTechnique::PicTechnique(const TechniqueSetup& setup)
       gatherProgram_(gl::Program::compute("lighting/techniques/pic/pic_gather.comp", definesOf(knobs_))),
       readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/techniques/pic/pic_readout.frag",
                                             definesOf(knobs_))),
-      irradiance_(GL_TEXTURE_2D, GL_RGBA32F, setup.frame->width(), setup.frame->height()),
-      radiance_(GL_TEXTURE_2D, GL_RGBA32F, setup.frame->width(), setup.frame->height()) {
+      irradiance_(GL_TEXTURE_2D, GL_RGBA32F, setup.frame->techniqueView().width, setup.frame->techniqueView().height),
+      radiance_(GL_TEXTURE_2D, GL_RGBA32F, setup.frame->techniqueView().width, setup.frame->techniqueView().height) {
   irradiance_.setFilter(GL_NEAREST, GL_NEAREST);
   radiance_.setFilter(GL_NEAREST, GL_NEAREST);
   fb_.attachColour(0, irradiance_);
@@ -382,7 +382,7 @@ void PicTechnique::gather(const FrameResources& frame, bool receivers) {
 
 void PicTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   fb_.bind();
-  glViewport(0, 0, frame.width(), frame.height());
+  glViewport(0, 0, frame.techniqueView().width, frame.techniqueView().height);
   const float zero[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(fb_.id(), GL_COLOR, 0, zero);
   glClearNamedFramebufferfv(fb_.id(), GL_COLOR, 1, zero);
@@ -451,14 +451,14 @@ void PicTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   }
   auto s = timed(profiler, "pic.readout");
   fb_.bind();
-  glViewport(0, 0, frame.width(), frame.height());
+  glViewport(0, 0, frame.techniqueView().width, frame.techniqueView().height);
   glDisable(GL_DEPTH_TEST);
   glDisable(GL_BLEND);
   const gl::Program& p = readoutProgram_;
   p.use();
-  frame.gPosition().bind(0);
-  frame.gNormal().bind(1);
-  frame.gAlbedo().bind(2);
+  frame.techniqueView().position->bind(0);
+  frame.techniqueView().normal->bind(1);
+  frame.techniqueView().albedo->bind(2);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 10, cacheSh_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 11, cacheBack_.id());
   setVec3(p, "uGridCentre", cv::Vec3d(gridCentre_));

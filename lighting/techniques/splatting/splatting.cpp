@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
 #include "gl/error.h"
@@ -148,7 +149,7 @@ SplattingTechnique::SplattingTechnique(const TechniqueSetup& setup)
       splatProgram_(gl::Program::graphics("lighting/techniques/splatting/splat.vert",
                                           "lighting/techniques/splatting/splat.frag")),
       surfaceProgram_(gl::Program::compute("lighting/techniques/splatting/splat_surface.comp")),
-      out_(setup.frame->width(), setup.frame->height()) {
+      out_(setup.frame->techniqueView().width, setup.frame->techniqueView().height) {
   // Pyramid layout for the frame's RSM size: level 0 padded to a power of two, then halves down to 1 x 1.
   padded_ = paddedSide(setup.frame->rsmSize());
   int offset = 0;
@@ -292,7 +293,7 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
   }
   auto s = timed(profiler, "splat.splat");
   out_.fb.bind();
-  glViewport(0, 0, frame.width(), frame.height());
+  glViewport(0, 0, frame.techniqueView().width, frame.techniqueView().height);
   const float zero[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(out_.fb.id(), GL_COLOR, 0, zero);
   glClearNamedFramebufferfv(out_.fb.id(), GL_COLOR, 1, zero);
@@ -307,9 +308,9 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
   const auto vp = toGl(projectionFromIntrinsics(cam.intrinsics, cam.nearPlane, cam.farPlane) *
                        capture::inversePose(cam.T_world_camera));
   p.setMat4("uViewProj", vp.data());
-  frame.gPosition().bind(0);
-  frame.gNormal().bind(1);
-  frame.gAlbedo().bind(2);
+  frame.techniqueView().position->bind(0);
+  frame.techniqueView().normal->bind(1);
+  frame.techniqueView().albedo->bind(2);
   emptyVao_.bind();
   // Level 0: every record over its own box, in one draw; far level k (splat.h splatFar): per light the
   // records of its first farSamples(n, k) samples over the shell out to I_low / 16^k, weighted.
@@ -362,7 +363,8 @@ cv::Mat SplattingTechnique::downloadImportance(bool delta) const {
   return m;
 }
 
-cv::Mat SplattingTechnique::debugImage(const std::string& view, const DebugContext&, nlohmann::json& info) const {
+cv::Mat SplattingTechnique::debugImage(const std::string& view, const DebugContext& context,
+                                       nlohmann::json& info) const {
   if (view == "splat_overdraw") {
     // Splats that reached each pixel (the outputs' alpha), black = 0, white = the largest count.
     cv::Mat a = download4(out_.realDelta), b = download4(out_.virtualIrradiance);
@@ -378,6 +380,9 @@ cv::Mat SplattingTechnique::debugImage(const std::string& view, const DebugConte
     }
     info["max_splats_per_pixel"] = peak;
     info["mean_splats_per_pixel"] = sum / std::max<double>(1.0, static_cast<double>(a.total()));
+    // At render_scale < 1 the splats land on the reduced grid: shown at the frame's size, a texel per block.
+    if (!context.composite.empty() && img.size() != context.composite.size())
+      cv::resize(img, img, context.composite.size(), 0, 0, cv::INTER_NEAREST);
     return img;
   }
   if (view == "splat_vpls") {
