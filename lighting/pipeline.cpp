@@ -82,7 +82,6 @@ constexpr unsigned kAllInputs = kInputCamera | kInputGeometry | kInputLights | k
 
 LightingPipeline::LightingPipeline(const PipelineConfig& config, const std::vector<VirtualObject>& objects)
     : config_(config),
-      shadeProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag")),
       shade_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height),
       irradiance_(GL_TEXTURE_2D, GL_RGBA32F, config.width, config.height) {
   completeKnobs(config_.knobs);
@@ -207,13 +206,30 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   shadeFb_.bind();
   glViewport(0, 0, config_.width, config_.height);
   glDisable(GL_DEPTH_TEST);
-  // The soft-shadow variant only when a light casts one: its code costs llvmpipe even where no light takes it.
+  // The soft-shadow variant only when a light casts one, the upsampling one only when a technique's output is
+  // reduced (render_scale): their code costs llvmpipe even where no pixel takes it.
   bool soft = false;
   for (const LightView& v : frame_->lightViews()) soft = soft || v.soft;
-  if (soft && !softShadeProgram_.id())
-    softShadeProgram_ =
-        gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", {{"SOFT_OBJECT_SHADOWS", "1"}});
-  const gl::Program& p = soft ? softShadeProgram_ : shadeProgram_;
+  const TechniqueOutputs realOut = real_ ? real_->outputs() : TechniqueOutputs{};
+  const TechniqueOutputs virtualOut = virtual_ ? virtual_->outputs() : TechniqueOutputs{};
+  const GBufferView& reduced = frame_->techniqueView();
+  const auto factorOf = [&](const gl::Texture* t) {
+    if (!t || t->width() == config_.width) return 1;
+    if (t->width() != reduced.width || t->height() != reduced.height)
+      throw std::logic_error(
+          "LightingPipeline::run(): a technique output is neither the frame's size nor its reduced view's");
+    return reduced.factor;
+  };
+  const std::array<int, 3> factors{factorOf(realOut.realDelta), factorOf(virtualOut.virtualIrradiance),
+                                   factorOf(virtualOut.virtualRadiance)};
+  const bool upsample = *std::max_element(factors.begin(), factors.end()) > 1;
+  gl::Program& p = shadePrograms_[(soft ? 1 : 0) | (upsample ? 2 : 0)];
+  if (!p.id()) {
+    std::vector<std::pair<std::string, std::string>> defines;
+    if (soft) defines.push_back({"SOFT_OBJECT_SHADOWS", "1"});
+    if (upsample) defines.push_back({"UPSAMPLE_OUTPUTS", "1"});
+    p = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", defines);
+  }
   p.use();
   p.set("uLighting", lit ? 1 : 0);
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
@@ -238,26 +254,17 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   frame_->gPosition().bind(0);
   frame_->gNormal().bind(1);
   frame_->gAlbedo().bind(2);
-  const TechniqueOutputs realOut = real_ ? real_->outputs() : TechniqueOutputs{};
-  const TechniqueOutputs virtualOut = virtual_ ? virtual_->outputs() : TechniqueOutputs{};
   auto orZero = [&](const gl::Texture* t) -> const gl::Texture& { return t ? *t : frame_->zero(); };
   orZero(realOut.realDelta).bind(3);
   orZero(virtualOut.virtualIrradiance).bind(4);
   orZero(virtualOut.virtualRadiance).bind(5);
-  // Outputs at the reduced view's size (render_scale) are upsampled by the pass; the frame's size are read as they are.
-  const GBufferView& reduced = frame_->techniqueView();
-  const auto factorOf = [&](const gl::Texture* t) {
-    if (!t || t->width() == config_.width) return 1;
-    if (t->width() != reduced.width || t->height() != reduced.height)
-      throw std::logic_error(
-          "LightingPipeline::run(): a technique output is neither the frame's size nor its reduced view's");
-    return reduced.factor;
-  };
-  p.set("uRealDeltaFactor", factorOf(realOut.realDelta));
-  p.set("uVirtualIrradianceFactor", factorOf(virtualOut.virtualIrradiance));
-  p.set("uVirtualRadianceFactor", factorOf(virtualOut.virtualRadiance));
-  reduced.position->bind(6);
-  reduced.normal->bind(7);
+  if (upsample) {  // outputs at the reduced view's size are upsampled by the pass
+    p.set("uRealDeltaFactor", factors[0]);
+    p.set("uVirtualIrradianceFactor", factors[1]);
+    p.set("uVirtualRadianceFactor", factors[2]);
+    reduced.position->bind(6);
+    reduced.normal->bind(7);
+  }
   frame_->bindShadowMaps();
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);

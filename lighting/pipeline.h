@@ -155,7 +155,9 @@ class LightingPipeline {
   std::vector<std::unique_ptr<Technique>> techniques_;
   Technique* real_ = nullptr;
   Technique* virtual_ = nullptr;
-  gl::Program shadeProgram_, softShadeProgram_;  ///< the shading pass, without and with soft shadows
+  /// The shading pass's variants, compiled when first used: bit 0 soft shadows, bit 1 upsampling of reduced
+  /// technique outputs (code a pass does not run still costs llvmpipe: each only where it is needed).
+  std::array<gl::Program, 4> shadePrograms_;
   gl::Texture shade_, irradiance_;
   gl::Framebuffer shadeFb_;
   gl::VertexArray emptyVao_;

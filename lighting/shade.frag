@@ -23,12 +23,18 @@ layout(binding = 2) uniform sampler2D uGAlbedo;
 layout(binding = 3) uniform sampler2D uRealDelta;         // rgb: E_delta of the real-role technique (W/m^2)
 layout(binding = 4) uniform sampler2D uVirtualIrradiance; // rgb: indirect irradiance on the object (W/m^2)
 layout(binding = 5) uniform sampler2D uVirtualRadiance;   // rgb: indirect radiance of the object (W/m^2/sr)
-// The three above may be at 1/factor of the frame's resolution (frame knob render_scale): upsampled here
-// joint-bilaterally with the reduced G-buffer's positions and normals (lighting/upsample.glsl).
+// UPSAMPLE_OUTPUTS: the three above may be at 1/factor of the frame's resolution (frame knob render_scale),
+// upsampled here joint-bilaterally with the reduced G-buffer's positions and normals (lighting/upsample.glsl).
+#ifdef UPSAMPLE_OUTPUTS
 layout(binding = 6) uniform sampler2D uLowPosition;
 layout(binding = 7) uniform sampler2D uLowNormal;
 uniform int uRealDeltaFactor, uVirtualIrradianceFactor, uVirtualRadianceFactor;  // 1: the frame's resolution
 #include "lighting/upsample.glsl"
+#else
+#define uRealDeltaFactor 1
+#define uVirtualIrradianceFactor 1
+#define uVirtualRadianceFactor 1
+#endif
 // With SOFT_OBJECT_SHADOWS defined (a program variant): the objects' soft shadows of lights with extent.
 #include "lighting/direct_light.glsl"
 
@@ -48,7 +54,10 @@ layout(location = 0) out vec4 outShade;
 layout(location = 1) out vec4 outIrradiance;
 
 vec3 techniqueOutput(sampler2D t, int factor, ivec2 p, vec4 position, vec4 normal) {
-  return factor <= 1 ? texelFetch(t, p, 0).rgb : upsampled(t, uLowPosition, uLowNormal, factor, p, position, normal);
+#ifdef UPSAMPLE_OUTPUTS
+  if (factor > 1) return upsampled(t, uLowPosition, uLowNormal, factor, p, position, normal);
+#endif
+  return texelFetch(t, p, 0).rgb;
 }
 
 void main() {

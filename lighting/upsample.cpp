@@ -55,7 +55,8 @@ cv::Vec3f upsampleAt(const cv::Mat& value, const cv::Mat& lowPosition, const cv:
     for (int di = 0; di < 2; ++di) {
       const int i = clampX(i0 + di), j = clampY(j0 + dj);
       const float b = (di ? tu : 1.f - tu) * (dj ? tv : 1.f - tv);
-      const float w = b * upsampleWeight(position, normal, lowPosition.at<cv::Vec4f>(j, i), lowNormal.at<cv::Vec4f>(j, i));
+      const float w =
+          b * upsampleWeight(position, normal, lowPosition.at<cv::Vec4f>(j, i), lowNormal.at<cv::Vec4f>(j, i));
       const cv::Vec4f q = value.at<cv::Vec4f>(j, i);
       sum += w * cv::Vec3f(q[0], q[1], q[2]);
       total += w;
