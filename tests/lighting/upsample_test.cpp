@@ -56,13 +56,14 @@ TEST(Upsample, ASmoothFieldComesBackWithinItsInterpolationError) {
   const int w = 96, h = 72;
   const cv::Vec3f n = cv::normalize(cv::Vec3f(0.f, -0.6f, -1.f));
   const auto field = [](const cv::Vec3f& p) { return 1.f + 0.5f * std::sin(3.f * p[0]) * std::cos(2.f * p[1]); };
-  const Synthetic s = makeGBuffer(w, h, [&](const cv::Vec3f& ray, int, int, float& t, cv::Vec3f& nn, float& cls, float& v) {
-    t = planeHit(ray, {0, 0, 2}, n);
-    nn = n;
-    cls = 0;
-    v = field(t * ray);
-    return true;
-  });
+  const Synthetic s =
+      makeGBuffer(w, h, [&](const cv::Vec3f& ray, int, int, float& t, cv::Vec3f& nn, float& cls, float& v) {
+        t = planeHit(ray, {0, 0, 2}, n);
+        nn = n;
+        cls = 0;
+        v = field(t * ray);
+        return true;
+      });
   // The field's second differences in pixel space, measured.
   double gxx = 0, gyy = 0;
   for (int y = 1; y + 1 < h; ++y)
@@ -74,13 +75,16 @@ TEST(Upsample, ASmoothFieldComesBackWithinItsInterpolationError) {
   for (int factor : {2, 3, 4}) {
     const cv::Mat up = upsample(reduceGBuffer(s.value, factor), reduceGBuffer(s.position, factor),
                                 reduceGBuffer(s.normal, factor), s.position, s.normal, factor);
-    const double bound = factor * factor / 8.0 * (gxx + gyy) * 1.1 + 1e-6;  // 10 %: the measured derivatives are discrete
+    const double bound =
+        factor * factor / 8.0 * (gxx + gyy) * 1.1 + 1e-6;  // 10 %: the measured derivatives are discrete
     double worst = 0, sum = 0;
     int count = 0;
     for (int y = factor; y < h - 2 * factor; ++y)  // the border extrapolates (clamped texels)
       for (int x = factor; x < w - 2 * factor; ++x)
         for (int c = 0; c < 3; ++c) {
-          const double e = std::abs(up.at<cv::Vec4f>(y, x)[c] - s.value.at<cv::Vec4f>(y, x)[c]) / (c == 1 ? 0.5 : c == 2 ? 2.0 : 1.0);
+          const double e = std::abs(up.at<cv::Vec4f>(y, x)[c] - s.value.at<cv::Vec4f>(y, x)[c]) / (c == 1   ? 0.5
+                                                                                                   : c == 2 ? 2.0
+                                                                                                            : 1.0);
           worst = std::max(worst, e);
           sum += e;
           ++count;
@@ -96,28 +100,29 @@ TEST(Upsample, AStepEdgeInDepthKeepsItsIrradianceEdge) {
   // strip two pixels wide (class 2), 3, narrower than a block at 1/4. Each pixel keeps its own side's value;
   // plain bilinear upsampling blurs the edges.
   const int w = 64, h = 48;
-  const Synthetic s = makeGBuffer(w, h, [&](const cv::Vec3f& ray, int x, int y, float& t, cv::Vec3f& n, float& cls, float& v) {
-    n = {0, 0, -1};
-    if (x >= 42 && x < 44) {
-      t = 1.9f;
-      cls = 2;
-      v = 3.f;
-    } else if (x < 29) {
-      t = 1.f;
-      cls = 0;
-      v = 1.f;
-    } else if (y > 30 && x > 45 && x < 57) {
-      t = 2.f;
-      cls = 1;
-      v = 5.f;
-    } else {
-      t = 2.f;
-      cls = 0;
-      v = 0.2f;
-    }
-    t /= ray[2];
-    return true;
-  });
+  const Synthetic s =
+      makeGBuffer(w, h, [&](const cv::Vec3f& ray, int x, int y, float& t, cv::Vec3f& n, float& cls, float& v) {
+        n = {0, 0, -1};
+        if (x >= 42 && x < 44) {
+          t = 1.9f;
+          cls = 2;
+          v = 3.f;
+        } else if (x < 29) {
+          t = 1.f;
+          cls = 0;
+          v = 1.f;
+        } else if (y > 30 && x > 45 && x < 57) {
+          t = 2.f;
+          cls = 1;
+          v = 5.f;
+        } else {
+          t = 2.f;
+          cls = 0;
+          v = 0.2f;
+        }
+        t /= ray[2];
+        return true;
+      });
   for (int factor : {2, 3, 4}) {
     const cv::Mat lowValue = reduceGBuffer(s.value, factor), lowPosition = reduceGBuffer(s.position, factor),
                   lowNormal = reduceGBuffer(s.normal, factor);
@@ -153,7 +158,7 @@ TEST(Upsample, EveryWeightIsFiniteAndBoundedAtTheExtremes) {
       const float w = upsampleWeight(p, n, q, m);
       EXPECT_TRUE(std::isfinite(w) && w >= 0.f && w <= 1.f) << q << m << " " << w;
     }
-  EXPECT_FLOAT_EQ(upsampleWeight(p, n, p, n), 1.f);           // the pixel's own sample
+  EXPECT_FLOAT_EQ(upsampleWeight(p, n, p, n), 1.f);                 // the pixel's own sample
   EXPECT_EQ(upsampleWeight(p, n, p, cv::Vec4f(0, 0, -1, 1)), 0.f);  // another class
   EXPECT_EQ(renderFactor(1.0), 1);
   EXPECT_EQ(renderFactor(0.5), 2);
@@ -167,23 +172,24 @@ TEST(Upsample, GlslTwinMatchesTheCppPerPixel) {
   const int w = 61, h = 47;  // odd sizes: the last block is partial
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(0.f, 1.f);
-  Synthetic s = makeGBuffer(w, h, [&](const cv::Vec3f& ray, int x, int y, float& t, cv::Vec3f& n, float& cls, float& v) {
-    // A sphere (object 1) in front of a tilted floor, a hole in the floor (no surface).
-    const cv::Vec3f c(0.1f, 0.05f, 1.5f);
-    const float b = ray.dot(c) / ray.dot(ray), disc = b * b - (c.dot(c) - 0.09f) / ray.dot(ray);
-    if (disc > 0) {
-      t = b - std::sqrt(disc);
-      n = cv::normalize(t * ray - c);
-      cls = 1;
-    } else {
-      if (x > 50 && y < 8) return false;
-      n = cv::normalize(cv::Vec3f(0.1f, -0.7f, -1.f));
-      t = planeHit(ray, {0, 0, 2.2f}, n);
-      cls = 0;
-    }
-    v = u(rng);
-    return true;
-  });
+  Synthetic s =
+      makeGBuffer(w, h, [&](const cv::Vec3f& ray, int x, int y, float& t, cv::Vec3f& n, float& cls, float& v) {
+        // A sphere (object 1) in front of a tilted floor, a hole in the floor (no surface).
+        const cv::Vec3f c(0.1f, 0.05f, 1.5f);
+        const float b = ray.dot(c) / ray.dot(ray), disc = b * b - (c.dot(c) - 0.09f) / ray.dot(ray);
+        if (disc > 0) {
+          t = b - std::sqrt(disc);
+          n = cv::normalize(t * ray - c);
+          cls = 1;
+        } else {
+          if (x > 50 && y < 8) return false;
+          n = cv::normalize(cv::Vec3f(0.1f, -0.7f, -1.f));
+          t = planeHit(ray, {0, 0, 2.2f}, n);
+          cls = 0;
+        }
+        v = u(rng);
+        return true;
+      });
   for (int factor : {2, 3, 4}) {
     const cv::Mat lowValue = reduceGBuffer(s.value, factor), lowPosition = reduceGBuffer(s.position, factor),
                   lowNormal = reduceGBuffer(s.normal, factor);
@@ -268,11 +274,14 @@ TEST(Upsample, TheShadingPassUpsamplesATechniquesReducedOutputAsTheCppDoes) {
       if (gbufferPos[1].at<cv::Vec4f>(y, x)[3] < 0.5f) continue;
       for (int c = 0; c < 3; ++c) {
         if (n[3] > 0.5f) {
-          worstVirtual = std::max(worstVirtual, double(std::abs(irradiance[1].at<cv::Vec4f>(y, x)[c] - upVirtual.at<cv::Vec4f>(y, x)[c])));
+          worstVirtual = std::max(
+              worstVirtual, double(std::abs(irradiance[1].at<cv::Vec4f>(y, x)[c] - upVirtual.at<cv::Vec4f>(y, x)[c])));
         } else {
-          const double expected = irradiance[0].at<cv::Vec4f>(y, x)[c] - delta[0].at<cv::Vec4f>(y, x)[c] + upDelta.at<cv::Vec4f>(y, x)[c];
+          const double expected =
+              irradiance[0].at<cv::Vec4f>(y, x)[c] - delta[0].at<cv::Vec4f>(y, x)[c] + upDelta.at<cv::Vec4f>(y, x)[c];
           worstReal = std::max(worstReal, std::abs(irradiance[1].at<cv::Vec4f>(y, x)[c] - expected));
-          moved = std::max(moved, double(std::abs(irradiance[1].at<cv::Vec4f>(y, x)[c] - irradiance[0].at<cv::Vec4f>(y, x)[c])));
+          moved = std::max(
+              moved, double(std::abs(irradiance[1].at<cv::Vec4f>(y, x)[c] - irradiance[0].at<cv::Vec4f>(y, x)[c])));
         }
       }
       (n[3] > 0.5f ? virt : real)++;
