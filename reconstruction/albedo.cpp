@@ -6,6 +6,7 @@
 #include <opencv2/photo.hpp>
 
 #include "capture/colour.h"
+#include "capture/view_factor.h"
 
 namespace mrgi::reconstruction {
 namespace {
@@ -14,6 +15,9 @@ struct Contribution {
   cv::Vec3d toLight;  ///< unit
   double distance;    ///< to the light (distant: ray length)
   cv::Vec3d normalIrradiance;
+  double sinA = 0;  ///< sine of the half-angle the light is seen under (0: a point)
+  /// Its irradiance on a surface of unit normal n.
+  cv::Vec3d on(const cv::Vec3d& n) const { return normalIrradiance * capture::capCosine(n.dot(toLight), sinA); }
 };
 
 using capture::luminance;
@@ -116,12 +120,13 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
           const double r2 = std::max(d.dot(d), 1e-8);  // d -> 0 stays finite
           const double r = std::sqrt(r2);
           d /= r;
-          c.push_back({d, r, l.intensity / r2});
+          c.push_back({d, r, l.intensity / r2, l.radius > 0 ? std::min(l.radius / r, 1.0) : 0.0});
         }
-        for (const auto& l : lights.distant) c.push_back({l.direction, o.distantRayLength, l.power});
+        for (const auto& l : lights.distant)
+          c.push_back({l.direction, o.distantRayLength, l.power, std::sin(std::clamp(l.angularRadius, 0.0, 1.5))});
         cv::Vec3d direct(0, 0, 0), normalSum(0, 0, 0);
         for (const auto& ci : c) {
-          direct += ci.normalIrradiance * std::max(0.0, n.dot(ci.toLight));
+          direct += ci.on(n);
           normalSum += ci.normalIrradiance;
         }
         if (!c.empty() && luminance(direct) < o.minEffectiveCos * luminance(normalSum)) {
@@ -131,7 +136,7 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
         if (o.shadowTest && luminance(direct) > 0) {
           cv::Vec3d visible = direct;
           for (const auto& ci : c) {
-            const cv::Vec3d e = ci.normalIrradiance * std::max(0.0, n.dot(ci.toLight));
+            const cv::Vec3d e = ci.on(n);
             if (luminance(e) < 0.2 * luminance(direct)) continue;  // only lights that matter are marched
             if (occluded(positions, k, p, ci.toLight, ci.distance, o)) visible -= e;
           }

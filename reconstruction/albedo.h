@@ -15,11 +15,14 @@ namespace mrgi::reconstruction {
 struct AlbedoPointLight {
   cv::Vec3d position;   ///< camera frame, metres
   cv::Vec3d intensity;  ///< RGB radiant intensity (W/sr, or the camera's radiance units x m^2)
+  double radius = 0;    ///< metres: a sphere lamp, lighting a surface by the part of it above the horizon (0: a point)
 };
 
 struct AlbedoLights {
   std::vector<AlbedoPointLight> points;
-  std::vector<EstimatedLight> distant;   ///< directions in the camera frame; power = irradiance at normal incidence
+  /// Directions in the camera frame; power = irradiance at normal incidence; a disc of angularRadius lights a
+  /// surface by the part of it above the horizon (capture::capCosine), as the shading pass has it.
+  std::vector<EstimatedLight> distant;
   cv::Vec3d ambientIrradiance{0, 0, 0};  ///< unoccluded ambient term (pi * ambient radiance)
 };
 

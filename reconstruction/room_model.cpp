@@ -26,6 +26,7 @@
 #include "capture/json_io.h"
 #include "capture/npz.h"
 #include "capture/ply_check.h"
+#include "capture/view_factor.h"
 #include "reconstruction/mesh_rays.h"
 #include "reconstruction/open3d_pose.h"
 
@@ -726,12 +727,13 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
       if (l < lights.points.size()) {
         const cv::Vec3d d = lights.points[l].position - p;
         const double r2 = std::max(d.dot(d), 1e-8);
+        const double r = std::sqrt(r2), radius = lights.points[l].radius;
         e = lights.points[l].intensity * (1.0 / r2);
-        c = nrm.dot(d) / std::sqrt(r2);
+        c = capture::capCosine(nrm.dot(d) / r, radius > 0 ? std::min(radius / r, 1.0) : 0.0);
       } else {
         const auto& dl = lights.distant[l - lights.points.size()];
         e = dl.power;
-        c = nrm.dot(dl.direction);
+        c = capture::capCosine(nrm.dot(dl.direction), std::sin(std::clamp(dl.angularRadius, 0.0, 1.5)));
       }
       normalSum += e;
       if (c <= 0) continue;

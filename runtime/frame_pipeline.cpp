@@ -363,9 +363,10 @@ reconstruction::AlbedoLights FramePipeline::albedoLights(const capture::Pose& T_
       reconstruction::EstimatedLight e;
       e.direction = -(capture::rotationOf(T_frame_marker) * l.direction);
       e.power = l.irradiance;
+      e.angularRadius = l.extent;  // a disc lights by the part of it above a surface's horizon
       al.distant.push_back(e);
     } else {
-      al.points.push_back({capture::transformPoint(T_frame_marker, l.position), l.intensity});
+      al.points.push_back({capture::transformPoint(T_frame_marker, l.position), l.intensity, l.extent});
     }
   }
   al.ambientIrradiance = CV_PI * ambient;

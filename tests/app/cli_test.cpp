@@ -541,7 +541,7 @@ TEST(Cli, ABareRecordingIsLitFromItsRoomByDefault) {
                              " --preview " + (dir / "preview.png").string());
   ASSERT_EQ(ins.exitCode, 0) << ins.err;
   EXPECT_NE(ins.err.find("lists no lights and has no fisheye camera"), std::string::npos) << ins.err;
-  EXPECT_EQ(std::count(ins.err.begin(), ins.err.end(), '\n'), 1) << ins.err;
+  EXPECT_EQ(messageLines(ins.err), 1) << ins.err;
   const auto scene = nlohmann::json::parse(slurp(dir / "scene.json"));
   EXPECT_EQ(scene["lights"], "auto");
   const Result rep = runMrgi("replay " + session + " --scene " + (dir / "scene.json").string() +
@@ -1815,7 +1815,7 @@ TEST(Cli, RoomFusesTheSessionIntoAModelThatLoadsBack) {
   const double coverage = summary["coverage_at_object"].get<double>();
   EXPECT_GT(coverage, 0.05);
   EXPECT_LT(coverage, 0.5);
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_EQ(messageLines(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("the room covers"), std::string::npos) << r.err;
   // preview.png: the room from the first camera (radiance, albedo), from above, and its lights at the object;
   // from the first camera the room holds most of the view (the table and the wall behind it).

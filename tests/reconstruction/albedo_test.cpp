@@ -6,6 +6,7 @@
 
 #include "capture/colour.h"
 #include "capture/session.h"
+#include "capture/view_factor.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
 
@@ -186,6 +187,65 @@ TEST(Albedo, AnalyticPlaneAndRejections) {
   lights.points[0].position = {0, 0, 0};
   r = estimateAlbedo(white, pos, nrm, k, lights, o);
   EXPECT_EQ(r.status.at<uchar>(15, 20), uchar(AlbedoStatus::Saturated));
+}
+
+TEST(Albedo, ALightWithExtentLightsBelowItsCentresHorizonAsTheShadingPassHasIt) {
+  // A plane lit by a disc of sky half of whose width straddles its horizon (cos theta 0.3, half-angle 0.5 rad),
+  // and by a sphere lamp low over it: rendered with the part of each still above the horizon
+  // (capture::capCosine), the estimate takes the same and recovers the albedo; a point's cosine would not.
+  const capture::Intrinsics k{40, 30, 40, 40, 19.5, 14.5};
+  cv::Mat depth(30, 40, CV_32F, cv::Scalar(1.0f));
+  const cv::Mat pos = backProject(depth, k);
+  const cv::Mat nrm(30, 40, CV_32FC3, cv::Scalar(0, 0, -1));
+  const cv::Vec3d truth(0.6, 0.3, 0.1), ambient(0.1, 0.1, 0.1);
+  for (const bool distant : {true, false}) {
+    AlbedoLights lights;
+    lights.ambientIrradiance = ambient;
+    const double cosT = 0.3, sinT = std::sqrt(1 - cosT * cosT);
+    if (distant) {
+      EstimatedLight l;
+      l.direction = {sinT, 0, -cosT};
+      l.power = {2, 2, 2};
+      l.angularRadius = 0.5;
+      lights.distant.push_back(l);
+    } else {
+      lights.points.push_back(AlbedoPointLight{cv::Vec3d(1.2, 0, 0.6), cv::Vec3d(3, 3, 3), 0.6});
+    }
+    cv::Mat colour(30, 40, CV_32FC3);
+    double pointError = 0;
+    for (int y = 0; y < 30; ++y)
+      for (int x = 0; x < 40; ++x) {
+        const cv::Vec3d p(pos.at<cv::Vec3f>(y, x)), n(0, 0, -1);
+        cv::Vec3d e, toLight;
+        double sinA;
+        if (distant) {
+          toLight = lights.distant[0].direction;
+          e = lights.distant[0].power;
+          sinA = std::sin(0.5);
+        } else {
+          const cv::Vec3d d = lights.points[0].position - p;
+          toLight = d / cv::norm(d);
+          e = lights.points[0].intensity / d.dot(d);
+          sinA = 0.6 / cv::norm(d);
+        }
+        const double c = capture::capCosine(n.dot(toLight), sinA);
+        colour.at<cv::Vec3f>(y, x) = cv::Vec3f(truth / CV_PI * (e[0] * c + ambient[0]));
+        pointError = std::max(
+            pointError, std::abs((e[0] * c + ambient[0]) / (e[0] * std::max(n.dot(toLight), 0.0) + ambient[0]) - 1));
+      }
+    EXPECT_GT(pointError, 0.02);  // what a point's cosine would put into the albedo (3-4 %)
+    AlbedoOptions o;
+    o.shadowTest = false;
+    const auto r = estimateAlbedo(colour, pos, nrm, k, lights, o);
+    int measured = 0;
+    for (int y = 0; y < 30; ++y)
+      for (int x = 0; x < 40; ++x) {
+        if (r.status.at<uchar>(y, x) != uchar(AlbedoStatus::Measured)) continue;
+        ++measured;
+        EXPECT_LT(cv::norm(cv::Vec3d(r.albedo.at<cv::Vec3f>(y, x)) - truth), 1e-5) << x << "," << y;
+      }
+    EXPECT_GT(measured, 1000) << (distant ? "disc of sky" : "sphere lamp");
+  }
 }
 
 TEST(Albedo, AClippedPatchTakesAtLeastTheAlbedoItsClippedValueBounds) {
