@@ -212,7 +212,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   for (const LightView& v : frame_->lightViews()) soft = soft || v.soft;
   const TechniqueOutputs realOut = real_ ? real_->outputs() : TechniqueOutputs{};
   const TechniqueOutputs virtualOut = virtual_ ? virtual_->outputs() : TechniqueOutputs{};
-  const GBufferView& reduced = frame_->techniqueView();
+  const GBufferView reduced = frame_->techniqueView();
   const auto factorOf = [&](const gl::Texture* t) {
     if (!t || t->width() == config_.width) return 1;
     if (t->width() != reduced.width || t->height() != reduced.height)
@@ -251,9 +251,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   }
   p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
   setLightUniforms(p, kept, frame_->lightViews());
-  frame_->gPosition().bind(0);
-  frame_->gNormal().bind(1);
-  frame_->gAlbedo().bind(2);
+  frame_->gbufferView().bind();
   auto orZero = [&](const gl::Texture* t) -> const gl::Texture& { return t ? *t : frame_->zero(); };
   orZero(realOut.realDelta).bind(3);
   orZero(virtualOut.virtualIrradiance).bind(4);

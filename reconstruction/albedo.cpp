@@ -120,10 +120,9 @@ AlbedoResult estimateAlbedo(const cv::Mat& colour, const cv::Mat& positions, con
           const double r2 = std::max(d.dot(d), 1e-8);  // d -> 0 stays finite
           const double r = std::sqrt(r2);
           d /= r;
-          c.push_back({d, r, l.intensity / r2, l.radius > 0 ? std::min(l.radius / r, 1.0) : 0.0});
+          c.push_back({d, r, l.intensity / r2, seenSine(l, r)});
         }
-        for (const auto& l : lights.distant)
-          c.push_back({l.direction, o.distantRayLength, l.power, std::sin(std::clamp(l.angularRadius, 0.0, 1.5))});
+        for (const auto& l : lights.distant) c.push_back({l.direction, o.distantRayLength, l.power, seenSine(l)});
         cv::Vec3d direct(0, 0, 0), normalSum(0, 0, 0);
         for (const auto& ci : c) {
           direct += ci.on(n);

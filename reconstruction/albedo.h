@@ -1,9 +1,12 @@
 #pragma once
 /// Real-surface albedo from one linearised camera image, its geometry and the estimated lights
-/// (shared/notes/algorithms.md §3):  k_d = pi * I_p / E_p,  E_p = sum_i E_i <n_p, w_i>+ (+ ambient).
+/// (shared/notes/algorithms.md §3):  k_d = pi * I_p / E_p,  E_p = sum_i E_i <n_p, w_i>+ (+ ambient), a light with
+/// extent counting the part of it above the surface's horizon (capture::capCosine) instead of <n_p, w_i>+.
 /// The factor pi matches the compositor's Lambertian shading (radiance = k_d / pi * E), so re-shading a
 /// real pixel with the same lights reproduces its camera value. Pixels that cannot be trusted (no
 /// geometry, grazing light, saturated, in shadow, unlit) are rejected and filled from their neighbours.
+#include <algorithm>
+#include <cmath>
 #include <opencv2/core.hpp>
 #include <vector>
 
@@ -17,6 +20,13 @@ struct AlbedoPointLight {
   cv::Vec3d intensity;  ///< RGB radiant intensity (W/sr, or the camera's radiance units x m^2)
   double radius = 0;    ///< metres: a sphere lamp, lighting a surface by the part of it above the horizon (0: a point)
 };
+
+/// The sine of the half-angle a lamp is seen under from `distance` metres (0: a point), for capture::capCosine.
+inline double seenSine(const AlbedoPointLight& l, double distance) {
+  return l.radius > 0 ? std::min(l.radius / distance, 1.0) : 0.0;
+}
+/// The sine of a distant light's half-angle (0: a point direction), for capture::capCosine.
+inline double seenSine(const EstimatedLight& l) { return std::sin(std::clamp(l.angularRadius, 0.0, 1.5)); }
 
 struct AlbedoLights {
   std::vector<AlbedoPointLight> points;

@@ -727,13 +727,13 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
       if (l < lights.points.size()) {
         const cv::Vec3d d = lights.points[l].position - p;
         const double r2 = std::max(d.dot(d), 1e-8);
-        const double r = std::sqrt(r2), radius = lights.points[l].radius;
+        const double r = std::sqrt(r2);
         e = lights.points[l].intensity * (1.0 / r2);
-        c = capture::capCosine(nrm.dot(d) / r, radius > 0 ? std::min(radius / r, 1.0) : 0.0);
+        c = capture::capCosine(nrm.dot(d) / r, seenSine(lights.points[l], r));
       } else {
         const auto& dl = lights.distant[l - lights.points.size()];
         e = dl.power;
-        c = capture::capCosine(nrm.dot(dl.direction), std::sin(std::clamp(dl.angularRadius, 0.0, 1.5)));
+        c = capture::capCosine(nrm.dot(dl.direction), seenSine(dl));
       }
       normalSum += e;
       if (c <= 0) continue;

@@ -104,6 +104,14 @@ std::vector<std::string> inPipelineOrder(const std::vector<std::string>& recorde
   return out;
 }
 
+void warnIfRoomCoverageLow(const std::string& file, double coverage, const std::string& around) {
+  if (!(coverage < 0.5)) return;
+  std::fprintf(stderr,
+               "warning: %s: the room covers %.0f %% of the directions around %s: lights from it miss the rest (scan "
+               "around, the ceiling included)\n",
+               file.c_str(), 100 * coverage, around.c_str());
+}
+
 std::string bundledPath(const std::string& relative) {
   std::error_code ec;
   if (fs::exists(relative, ec)) return relative;

@@ -31,6 +31,10 @@ std::string describeFolder(const std::string& folder);
 /// (build/app/mrgi of a checkout finds the checkout's recordings/ from anywhere); as is when neither holds it.
 std::string bundledPath(const std::string& relative);
 
+/// Says in one warning line on stderr, naming `file`, when a room sees under half the directions around
+/// `around` (its coverage, 0..1): lights estimated from it miss the rest. Nothing otherwise.
+void warnIfRoomCoverageLow(const std::string& file, double coverage, const std::string& around);
+
 /// Linear RGB float image -> EXR (atomically; errors name the file).
 /// `half`: 16-bit floats (a path-traced reference's precision, half the bytes).
 void writeExr(const std::string& path, const cv::Mat& rgb, bool half = false);

@@ -357,12 +357,7 @@ int replay(const ReplayOptions& o) {
   // Lights from the room see what it covers around the objects; said once, from the last estimate.
   for (auto it = perFrame.rbegin(); it != perFrame.rend(); ++it)
     if (it->contains("room") && (*it)["room"].contains("lights")) {
-      const double coverage = (*it)["room"]["lights"].value("coverage", 1.0);
-      if (coverage < 0.5)
-        std::fprintf(stderr,
-                     "warning: %s: the room covers %.0f %% of the directions around the objects: lights from it miss "
-                     "the rest (scan around, the ceiling included)\n",
-                     o.source.c_str(), 100 * coverage);
+      warnIfRoomCoverageLow(o.source, (*it)["room"]["lights"].value("coverage", 1.0), "the objects");
       break;
     }
   if (const int64_t lost = posedBy.count("lost") ? posedBy["lost"] : 0; lost > 0 && !interrupted)

@@ -90,11 +90,7 @@ int buildRoom(const BuildRoomOptions& o) {
                         {"per_frame", fusion.perFrame},
                         {"preview", preview},
                         {"coverage_at_object", coverage}};
-  if (coverage < 0.5)
-    std::fprintf(stderr,
-                 "warning: %s: the room covers %.0f %% of the directions around the object's place (0, 0, 0.06): "
-                 "lights from it miss the rest (scan around, the ceiling included)\n",
-                 o.out.c_str(), 100 * coverage);
+  warnIfRoomCoverageLow(o.out, coverage, "the object's place (0, 0, 0.06)");
   if (fusion.lost + fusion.held > 0)
     std::fprintf(stderr,
                  "warning: %s: %lld of %lld frames not fused for their pose (%lld lost, %lld held: --pose %s)\n",

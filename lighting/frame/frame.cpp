@@ -261,7 +261,7 @@ const gl::Texture& FrameResources::zero() {
 }
 
 cv::Mat FrameResources::downloadGBuffer(int channel, bool reduced) const {
-  const GBufferView& v = reduced ? gbuffer_.reducedView() : gbuffer_.view();
+  const GBufferView v = reduced ? gbuffer_.reducedView() : gbuffer_.view();
   return download4(channel == 0 ? *v.position : channel == 1 ? *v.normal : *v.albedo);
 }
 

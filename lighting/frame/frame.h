@@ -141,7 +141,9 @@ class FrameResources {
   /// The G-buffer a technique renders its per-pixel outputs at: the frame's own, or at render_scale its copy at
   /// 1/factor (lighting/upsample.h), whose outputs the shading pass upsamples joint-bilaterally. Current after
   /// renderGBuffer().
-  const GBufferView& techniqueView() const { return gbuffer_.reducedView(); }
+  GBufferView techniqueView() const { return gbuffer_.reducedView(); }
+  /// The G-buffer at the frame's size, as a view.
+  GBufferView gbufferView() const { return gbuffer_.view(); }
   /// Light views of the lights rendered so far this run (all of them after the RSM stage).
   const std::vector<LightView>& lightViews() const { return lightPass_.views(); }
   /// The RSMs of the light rendered last.

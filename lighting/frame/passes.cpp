@@ -88,36 +88,28 @@ void FrameGeometry::drawObjects(const gl::Program& program) const {
 
 // ---------------------------------------------------------------------------------------------- G-buffer
 
+GBufferTargets::GBufferTargets(int width, int height)
+    : position(GL_TEXTURE_2D, GL_RGBA32F, width, height),
+      normal(GL_TEXTURE_2D, GL_RGBA32F, width, height),
+      albedo(GL_TEXTURE_2D, GL_RGBA32F, width, height),
+      depth(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, width, height) {
+  for (gl::Texture* t : {&position, &normal, &albedo}) t->setFilter(GL_NEAREST, GL_NEAREST);
+  fb.attachColour(0, position);
+  fb.attachColour(1, normal);
+  fb.attachColour(2, albedo);
+  fb.attachDepth(depth);
+  fb.finalise(3);
+}
+
 GBufferPass::GBufferPass(int width, int height, int factor)
     : width_(width),
       height_(height),
       factor_(std::max(factor, 1)),
       program_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/gbuffer.frag")),
-      position_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
-      normal_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
-      albedo_(GL_TEXTURE_2D, GL_RGBA32F, width, height),
-      depth_(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, width, height) {
-  for (auto* t : {&position_, &normal_, &albedo_}) t->setFilter(GL_NEAREST, GL_NEAREST);
-  fb_.attachColour(0, position_);
-  fb_.attachColour(1, normal_);
-  fb_.attachColour(2, albedo_);
-  fb_.attachDepth(depth_);
-  fb_.finalise(3);
-  view_ = {width, height, 1, &position_, &normal_, &albedo_, &depth_};
+      full_(width, height) {
   if (factor_ > 1) {
-    const int w = reducedSize(width, factor_), h = reducedSize(height, factor_);
     reduceProgram_ = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/frame/gbuffer_reduce.frag");
-    lowPosition_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
-    lowNormal_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
-    lowAlbedo_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, w, h);
-    lowDepth_ = gl::Texture(GL_TEXTURE_2D, GL_DEPTH_COMPONENT32F, w, h);
-    for (auto* t : {&lowPosition_, &lowNormal_, &lowAlbedo_}) t->setFilter(GL_NEAREST, GL_NEAREST);
-    lowFb_.attachColour(0, lowPosition_);
-    lowFb_.attachColour(1, lowNormal_);
-    lowFb_.attachColour(2, lowAlbedo_);
-    lowFb_.attachDepth(lowDepth_);
-    lowFb_.finalise(3);
-    reducedView_ = {w, h, factor_, &lowPosition_, &lowNormal_, &lowAlbedo_, &lowDepth_};
+    reduced_ = GBufferTargets(reducedSize(width, factor_), reducedSize(height, factor_));
   }
 }
 
@@ -140,44 +132,35 @@ bool GBufferPass::setPixelAlbedo(const cv::Mat& albedo) {
 }
 
 void GBufferPass::render(const FrameGeometry& geometry, const CameraView& camera) {
-  fb_.bind();
+  full_.fb.bind();
   glViewport(0, 0, width_, height_);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   const float zero[4] = {0, 0, 0, 0};
-  for (int i = 0; i < 3; ++i) glClearNamedFramebufferfv(fb_.id(), GL_COLOR, i, zero);
+  for (int i = 0; i < 3; ++i) glClearNamedFramebufferfv(full_.fb.id(), GL_COLOR, i, zero);
   const float one = 1.0f;
-  glClearNamedFramebufferfv(fb_.id(), GL_DEPTH, 0, &one);
-  const cv::Matx44d view = capture::inversePose(camera.T_world_camera);
+  glClearNamedFramebufferfv(full_.fb.id(), GL_DEPTH, 0, &one);
+  const cv::Matx44d cameraFromWorld = capture::inversePose(camera.T_world_camera);
   setVec3(program_, "uEye", capture::translationOf(camera.T_world_camera));
   program_.set("uPixelAlbedo", hasPixelAlbedo_ ? 1 : 0);
   if (hasPixelAlbedo_) pixelAlbedo_.bind(0);
   geometry.drawScene(program_, true,
-                     projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * view, true);
+                     projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * cameraFromWorld,
+                     true);
   if (factor_ > 1) {
     // Every reduced texel is written (depth test always passes), depth included, for passes that test against it.
-    lowFb_.bind();
-    glViewport(0, 0, reducedView_.width, reducedView_.height);
+    reduced_.fb.bind();
+    glViewport(0, 0, reduced_.position.width(), reduced_.position.height());
     glDepthFunc(GL_ALWAYS);
     reduceProgram_.use();
     reduceProgram_.set("uFactor", factor_);
-    position_.bind(0);
-    normal_.bind(1);
-    albedo_.bind(2);
-    depth_.bind(3);
+    view().bind();
+    full_.depth.bind(3);
     emptyVao_.bind();
     glDrawArrays(GL_TRIANGLES, 0, 3);
     glDepthFunc(GL_LESS);
   }
   glDisable(GL_DEPTH_TEST);
-}
-
-size_t GBufferPass::gpuBytes() const {
-  size_t sum = 0;
-  for (const gl::Texture* t :
-       {&position_, &normal_, &albedo_, &depth_, &lowPosition_, &lowNormal_, &lowAlbedo_, &lowDepth_})
-    sum += t->bytes();
-  return sum;
 }
 
 // ---------------------------------------------------------------------------------------------- lights

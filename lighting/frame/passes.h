@@ -73,6 +73,28 @@ struct GBufferView {
   const gl::Texture* normal = nullptr;    ///< xyz unit normal, w = object index + 1 (0 real)
   const gl::Texture* albedo = nullptr;    ///< rgb albedo, a = 1 on virtual surfaces
   const gl::Texture* depth = nullptr;
+  /// Binds position, normal and albedo to texture units 0, 1 and 2, where every pass that reads a G-buffer
+  /// (the techniques' read-outs, the shading pass) declares them.
+  void bind() const {
+    position->bind(0);
+    normal->bind(1);
+    albedo->bind(2);
+  }
+};
+
+/// A G-buffer's render targets: position, normal, albedo (RGBA32F, nearest filtering) and depth, as one
+/// framebuffer (colour attachments 0-2).
+struct GBufferTargets {
+  GBufferTargets() = default;
+  GBufferTargets(int width, int height);
+  /// The targets as a view, each texel standing for `factor` x `factor` frame pixels.
+  GBufferView view(int factor) const {
+    return {position.width(), position.height(), factor, &position, &normal, &albedo, &depth};
+  }
+  size_t bytes() const { return position.bytes() + normal.bytes() + albedo.bytes() + depth.bytes(); }
+
+  gl::Texture position, normal, albedo, depth;
+  gl::Framebuffer fb;
 };
 
 class GBufferPass {
@@ -84,25 +106,21 @@ class GBufferPass {
   bool setPixelAlbedo(const cv::Mat& albedo);
   void render(const FrameGeometry& geometry, const CameraView& camera);
 
-  const gl::Texture& position() const { return position_; }  ///< xyz world, w = 1 where a surface was seen
-  const gl::Texture& normal() const { return normal_; }      ///< xyz unit normal, w = object index + 1 (0 real)
-  const gl::Texture& albedo() const { return albedo_; }      ///< rgb albedo, a = 1 on virtual surfaces
-  const gl::Texture& depth() const { return depth_; }
+  const gl::Texture& position() const { return full_.position; }  ///< xyz world, w = 1 where a surface was seen
+  const gl::Texture& normal() const { return full_.normal; }      ///< xyz unit normal, w = object index + 1 (0 real)
+  const gl::Texture& albedo() const { return full_.albedo; }      ///< rgb albedo, a = 1 on virtual surfaces
+  const gl::Texture& depth() const { return full_.depth; }
   /// The G-buffer at the frame's size.
-  const GBufferView& view() const { return view_; }
+  GBufferView view() const { return full_.view(1); }
   /// The G-buffer at 1/factor (the frame's own when the factor is 1).
-  const GBufferView& reducedView() const { return factor_ > 1 ? reducedView_ : view_; }
-  size_t gpuBytes() const;
+  GBufferView reducedView() const { return factor_ > 1 ? reduced_.view(factor_) : view(); }
+  size_t gpuBytes() const { return full_.bytes() + reduced_.bytes(); }
 
  private:
   int width_, height_, factor_;
   gl::Program program_, reduceProgram_;
-  gl::Texture position_, normal_, albedo_, depth_;
-  gl::Framebuffer fb_;
-  gl::Texture lowPosition_, lowNormal_, lowAlbedo_, lowDepth_;
-  gl::Framebuffer lowFb_;
+  GBufferTargets full_, reduced_;  ///< reduced_: only when the factor is over 1
   gl::VertexArray emptyVao_;
-  GBufferView view_, reducedView_;
   gl::Texture pixelAlbedo_;  ///< setPixelAlbedo's, RGBA16F
   bool hasPixelAlbedo_ = false;
 };

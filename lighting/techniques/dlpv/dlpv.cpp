@@ -257,9 +257,7 @@ void DlpvTechnique::update(const FrameResources& frame, gl::Profiler* profiler) 
   p.set("uReal", real_ ? 1 : 0);
   p.set("uVirtual", virtual_ ? 1 : 0);
   p.set("uDifference", knobs_.naiveDifference ? 1 : 0);
-  frame.techniqueView().position->bind(0);
-  frame.techniqueView().normal->bind(1);
-  frame.techniqueView().albedo->bind(2);
+  frame.techniqueView().bind();
   const Volume& d = knobs_.naiveDifference ? rhoFull_ : delta_;
   const Volume& mu = knobs_.naiveDifference ? muFull_ : delta_;
   d.r.bind(3), d.g.bind(4), d.b.bind(5);

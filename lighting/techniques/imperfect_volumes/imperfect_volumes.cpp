@@ -425,9 +425,7 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   p.set("uReal", real_ ? 1 : 0);
   p.set("uVirtual", virtual_ ? 1 : 0);
   setAmbientUniforms(p, frame);
-  frame.techniqueView().position->bind(0);
-  frame.techniqueView().normal->bind(1);
-  frame.techniqueView().albedo->bind(2);
+  frame.techniqueView().bind();
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, (real_ ? incidentRho_ : incidentMu_).id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 9, incidentMu_.id());

@@ -456,9 +456,7 @@ void PicTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
   glDisable(GL_BLEND);
   const gl::Program& p = readoutProgram_;
   p.use();
-  frame.techniqueView().position->bind(0);
-  frame.techniqueView().normal->bind(1);
-  frame.techniqueView().albedo->bind(2);
+  frame.techniqueView().bind();
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 10, cacheSh_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 11, cacheBack_.id());
   setVec3(p, "uGridCentre", cv::Vec3d(gridCentre_));

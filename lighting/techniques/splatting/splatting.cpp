@@ -308,9 +308,7 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
   const auto vp = toGl(projectionFromIntrinsics(cam.intrinsics, cam.nearPlane, cam.farPlane) *
                        capture::inversePose(cam.T_world_camera));
   p.setMat4("uViewProj", vp.data());
-  frame.techniqueView().position->bind(0);
-  frame.techniqueView().normal->bind(1);
-  frame.techniqueView().albedo->bind(2);
+  frame.techniqueView().bind();
   emptyVao_.bind();
   // Level 0: every record over its own box, in one draw; far level k (splat.h splatFar): per light the
   // records of its first farSamples(n, k) samples over the shell out to I_low / 16^k, weighted.
