@@ -429,8 +429,9 @@ struct Plot {
     auto X = [&](double v) { return L + (tx(v) - x0) / (x1 - x0) * (W - L - R); };
     auto Y = [&](double v) { return H - B - (ty(v) - y0) / (y1 - y0) * (H - T - B); };
     std::ostringstream s;
-    s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H
-      << "' font-family='sans-serif' font-size='11'>";
+    // With its viewBox a plot wider than the page (a very long legend name) scales down instead of running off.
+    s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' viewBox='0 0 " << W << " "
+      << H << "' font-family='sans-serif' font-size='11'>";
     s << "<text x='" << W / 2 << "' y='16' text-anchor='middle' font-weight='bold'>" << esc(title) << "</text>";
     s << "<rect x='" << L << "' y='" << T << "' width='" << W - L - R << "' height='" << H - T - B
       << "' fill='none' stroke='#888'/>";
@@ -520,7 +521,7 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
        "16px}table{border-collapse:collapse;font-size:12px}"
        "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td.l{text-align:left}"
        "figure{display:inline-block;margin:6px;vertical-align:top}figcaption{font-size:12px;white-space:normal}"
-       "div.wide{overflow-x:auto;max-width:100%}details summary{cursor:pointer}details pre{text-align:left;margin:2px}"
+       "div.wide{overflow-x:auto;max-width:100%}svg{max-width:100%;height:auto}details summary{cursor:pointer}details pre{text-align:left;margin:2px}"
        "</style></head><body>";
   std::string sessionText;
   if (doc.contains("session"))
@@ -626,11 +627,14 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
   for (const auto& n : stageNames) stageColour[n] = palette[ci++ % 14];
   double maxTotal = 1e-9;
   for (const auto& r : records) maxTotal = std::max(maxTotal, r.value("ms_total", 0.0));
-  const double rowH = 16, labelW = 230, barW = 700;
+  // 930 px wide: within the page's 968 px of content at a 1,000 px window, with room after the longest bar
+  // for its total in whole milliseconds (a slow machine's 12345 as much as a fast one's 296).
+  const double rowH = 16, labelW = 230, barW = 640, svgW = labelW + barW + 60;
   const int legendRows = static_cast<int>((stageNames.size() + 6) / 7);
+  const double svgH = rowH * static_cast<double>(records.size()) + 30 + 16 * legendRows;
   h << "<h2>Stage times</h2><p>Mean ms per frame and stage (hover for values).</p><svg "
        "xmlns='http://www.w3.org/2000/svg' width='"
-    << labelW + barW + 60 << "' height='" << rowH * records.size() + 30 + 16 * legendRows
+    << svgW << "' height='" << svgH << "' viewBox='0 0 " << svgW << " " << svgH
     << "' font-family='sans-serif' font-size='10'>";
   for (size_t i = 0; i < records.size(); ++i) {
     const json& r = records[i];
@@ -643,11 +647,13 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
         << stageColour[k] << "'><title>" << esc(k) << " " << fmt(v.get<double>()) << " ms</title></rect>";
       x += w;
     }
-    h << "<text x='" << x + 3 << "' y='" << y + 11 << "'>" << fmt(r.value("ms_total", 0.0)) << "</text>";
+    char total[32];
+    std::snprintf(total, sizeof total, "%.0f", std::min(r.value("ms_total", 0.0), 99999.0));
+    h << "<text x='" << x + 3 << "' y='" << y + 11 << "'>" << total << "</text>";
   }
   int li = 0;
   for (const auto& [n, c] : stageColour) {
-    const double lx = 10 + (li % 7) * 130, ly = 20 + rowH * records.size() + 16 * (li / 7);
+    const double lx = 10 + (li % 7) * 125, ly = 20 + rowH * records.size() + 16 * (li / 7);
     h << "<rect x='" << lx << "' y='" << ly << "' width='10' height='10' fill='" << c << "'/><text x='" << lx + 13
       << "' y='" << ly + 9 << "'>" << esc(n) << "</text>";
     ++li;

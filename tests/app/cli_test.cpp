@@ -890,14 +890,21 @@ TEST(Cli, TheBenchReportReadsAtAThousandToSixteenHundredPixels) {
                            " --frames 2 --ref-frames 1 --ref-spp 4 --html " + (dir / "r.html").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const std::string html = slurp(dir / "r.html");
-  const std::regex svgRe("<svg[^>]*width='([0-9.]+)'[^>]*>([\\s\\S]*?)</svg>");
+  const std::regex svgRe("<svg([^>]*width='([0-9.]+)'[^>]*)>([\\s\\S]*?)</svg>");
+  const std::regex plainTextRe("<text x='([0-9.]+)' y='[0-9.]+'>([^<]*)</text>");
   const std::regex tickRe("<text class='([xy]tick)'[^>]*>([^<]*)</text>");
   const std::regex legendRe("<(circle|rect|polygon)[^>]*fill='(#[0-9a-f]+)'[^>]*><title>legend</title>");
   const std::regex nameRe("<text class='legend' x='([0-9.]+)'[^>]*>([^<]*)</text>");
   int plots = 0, legends = 0;
   for (auto it = std::sregex_iterator(html.begin(), html.end(), svgRe); it != std::sregex_iterator(); ++it) {
-    const double width = std::stod((*it)[1].str());
-    const std::string body = (*it)[2].str();
+    const double width = std::stod((*it)[2].str());
+    const std::string body = (*it)[3].str();
+    // Within the page's 968 px of content at 1,000 px, and scalable (a viewBox); every left-aligned text (the
+    // stage bars' totals, in whole ms however slow the machine) inside its picture.
+    EXPECT_LE(width, 968) << (*it)[1].str();
+    EXPECT_NE((*it)[1].str().find("viewBox"), std::string::npos) << (*it)[1].str();
+    for (auto t = std::sregex_iterator(body.begin(), body.end(), plainTextRe); t != std::sregex_iterator(); ++t)
+      EXPECT_LE(std::stod((*t)[1].str()) + 6.2 * static_cast<double>((*t)[2].str().size()), width) << (*t)[2].str();
     std::map<std::string, std::vector<std::string>> ticks;
     for (auto t = std::sregex_iterator(body.begin(), body.end(), tickRe); t != std::sregex_iterator(); ++t)
       ticks[(*t)[1].str()].push_back((*t)[2].str());
