@@ -521,7 +521,8 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
        "16px}table{border-collapse:collapse;font-size:12px}"
        "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td.l{text-align:left}"
        "figure{display:inline-block;margin:6px;vertical-align:top}figcaption{font-size:12px;white-space:normal}"
-       "div.wide{overflow-x:auto;max-width:100%}svg{max-width:100%;height:auto}details summary{cursor:pointer}details pre{text-align:left;margin:2px}"
+       "div.wide{overflow-x:auto;max-width:100%}svg{max-width:100%;height:auto}details summary{cursor:pointer}details "
+       "pre{text-align:left;margin:2px}"
        "</style></head><body>";
   std::string sessionText;
   if (doc.contains("session"))
