@@ -1,9 +1,11 @@
 #include "lighting/object_shadow.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "capture/view_factor.h"
+#include "lighting/frame/light_view.h"
 
 namespace mrgi::lighting {
 
@@ -46,7 +48,7 @@ double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSp
 }
 
 cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
-                        const std::vector<OccluderSphere>& spheres) {
+                        const std::vector<OccluderSphere>& spheres, const cv::Vec3f& lit) {
   cv::Vec3f e(0, 0, 0);
   for (const auto& s : spheres) {
     const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);
@@ -55,12 +57,89 @@ cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Ve
     const float len = static_cast<float>(cv::norm(d));
     const cv::Vec3f w = len > 0 ? d / len : n;
     const cv::Vec3f hidden = ambient.radiance(w),
-                    reflected = s.albedo.mul(ambient.irradiance(-w)) * static_cast<float>(1 / CV_PI);
+                    reflected = lit.mul(s.albedo).mul(ambient.irradiance(-w)) * static_cast<float>(1 / CV_PI);
     e += static_cast<float>(CV_PI * f) * (hidden - reflected);
   }
   const cv::Vec3f full = ambient.irradiance(n);
   for (int c = 0; c < 3; ++c) e[c] = std::isfinite(e[c]) ? std::clamp(e[c], -full[c], full[c]) : 0.0f;
   return e;
+}
+
+cv::Vec3f litFraction(const Ambient& hidden, const cv::Vec3f& x, const cv::Vec3f& n,
+                      const std::vector<OccluderSphere>& spheres, const cv::Vec3f& directWithout,
+                      const cv::Vec3f& directWith) {
+  cv::Vec3f hides(0, 0, 0);
+  for (const auto& s : spheres) {
+    const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);
+    if (f <= 0) continue;
+    const cv::Vec3f d = s.centre - x;
+    const float len = static_cast<float>(cv::norm(d));
+    hides += static_cast<float>(CV_PI * f) * hidden.radiance(len > 0 ? d / len : n);
+  }
+  const cv::Vec3f full = hidden.irradiance(n);
+  cv::Vec3f out;
+  for (int c = 0; c < 3; ++c) {
+    const float kept = directWith[c] + full[c] - std::clamp(hides[c], 0.f, full[c]);
+    const float v = kept / std::max(directWithout[c] + full[c], 1e-6f);
+    out[c] = std::isfinite(v) ? std::clamp(v, 0.f, 1.f) : 1.f;
+  }
+  return out;
+}
+
+cv::Vec3d reflectionSample(int k) {
+  // Fibonacci spiral: z uniform in (0, 1) (equal areas), the azimuth advanced by the golden angle.
+  const double z = 1.0 - (k + 0.5) / kReflectionSamples, rho = std::sqrt(std::max(0.0, 1.0 - z * z));
+  const double phi = 2.399963229728653 * k;
+  return {rho * std::cos(phi), rho * std::sin(phi), z};
+}
+
+cv::Vec3f reflectedLight(const cv::Vec3f& x, const cv::Vec3f& n, const std::vector<OccluderSphere>& spheres,
+                         const std::vector<SceneLight>& lights, const LightReaches& reaches) {
+  cv::Vec3d e(0, 0, 0);
+  const cv::Vec3d xd(x), nd(n);
+  for (const auto& s : spheres) {
+    const double f = sphereViewFactor(xd, nd, s);
+    if (f < kReflectionMinViewFactor || s.albedo == cv::Vec3f(0, 0, 0)) continue;
+    const cv::Vec3d c(s.centre), toX = xd - c;
+    const double dist = cv::norm(toX), r = s.radius;
+    if (!(dist > 0)) continue;
+    // The samples on the half facing x, in a frame about v, the direction from the centre to x, and their
+    // form-factor weights w_k = cos(at p) cos(at x) / R^2 (up to the constant area of a sample).
+    const cv::Vec3d v = toX / dist;
+    const cv::Vec3d t = cv::normalize(v.cross(std::abs(v[2]) < 0.9 ? cv::Vec3d(0, 0, 1) : cv::Vec3d(1, 0, 0)));
+    const cv::Vec3d b = v.cross(t);
+    std::array<cv::Vec3d, kReflectionSamples> normals;
+    std::array<double, kReflectionSamples> w{};
+    double weights = 0;
+    for (int k = 0; k < kReflectionSamples; ++k) {
+      const cv::Vec3d h = reflectionSample(k);
+      normals[k] = h[0] * t + h[1] * b + h[2] * v;
+      const cv::Vec3d d = xd - (c + r * normals[k]);
+      const double r2 = d.dot(d);
+      w[k] = r2 > 0 ? std::max(0.0, normals[k].dot(d)) * std::max(0.0, -nd.dot(d)) / (r2 * r2) : 0.0;
+      weights += w[k];
+    }
+    if (!(weights > 0)) continue;
+    for (size_t i = 0; i < lights.size(); ++i) {
+      const SceneLight& light = lights[i];
+      const bool directional = light.type == LightType::Directional;
+      const cv::Vec3d l = directional ? -light.direction : cv::normalize(light.position - c), facing = c + r * l;
+      if (unshadowedIrradiance(light, facing, l) == cv::Vec3d(0, 0, 0)) continue;  // outside a spot's cone
+      if (reaches && !reaches(i, facing, l)) continue;
+      double lit = 0;
+      for (int k = 0; k < kReflectionSamples; ++k) {
+        const cv::Vec3d p = c + r * normals[k], toLight = directional ? l : light.position - p;
+        const double cosine = directional
+                                  ? normals[k].dot(l)
+                                  : normals[k].dot(toLight) / std::pow(std::max(toLight.dot(toLight), 1e-8), 1.5);
+        if (cosine > 0) lit += cosine * w[k];
+      }
+      e += f * cv::Vec3d(s.albedo).mul(directional ? light.irradiance : light.intensity) * (lit / weights);
+    }
+  }
+  cv::Vec3f out;
+  for (int c = 0; c < 3; ++c) out[c] = std::isfinite(e[c]) ? static_cast<float>(std::max(e[c], 0.0)) : 0.f;
+  return out;
 }
 
 }  // namespace mrgi::lighting

@@ -1,7 +1,7 @@
-// The objects' shadow of the ambient on real surfaces (lighting/object_shadow.h is the C++ twin): each
-// object a sphere, its view factor from the surface element times the ambient's radiance towards its centre
-// less what the sphere reflects of the ambient back along it, the total within +- the ambient's irradiance.
-// Needs lighting/ambient_sh.glsl.
+// The objects' shadow of the ambient on real surfaces and the lights they reflect onto them
+// (lighting/object_shadow.h is the C++ twin): each object a sphere, its view factor from the surface element
+// times the ambient's radiance towards its centre less what the sphere reflects of the ambient back along it,
+// the total within +- the ambient's irradiance. Needs lighting/ambient_sh.glsl.
 #define MAX_OCCLUDERS 16
 
 uniform int uOccluderCount;
@@ -18,20 +18,95 @@ float sphereViewFactor(vec3 x, vec3 n, vec4 s) {
   return sphereViewFactorH(dist / r, dot(n, d) / dist);
 }
 
-// The irradiance the objects take from (x, n) under the ambient, net of what they reflect of it (> 0: subtract it).
-vec3 ambientShadow(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n) {
+// What the spheres hide from (x, n) of a light (uniform part and SH bands 1-2), and what they would reflect of
+// it towards x were their surroundings unshadowed (each: its view factor times the radiance along its centre).
+void ambientShadowParts(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n, out vec3 hides, out vec3 reflects) {
   const float pi = 3.14159265358979;
-  vec3 e = vec3(0.0);
+  hides = vec3(0.0);
+  reflects = vec3(0.0);
   for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
     float f = sphereViewFactor(x, n, uOccluders[i]);
     if (f <= 0.0) continue;
     vec3 d = uOccluders[i].xyz - x;
     float len = length(d);
     vec3 w = len > 0.0 ? d / len : n;
-    vec3 reflected = uOccluderAlbedo[i] * max(pi * uniformPart + ambientShIrradiance(sh, -w), vec3(0.0)) / pi;
-    e += pi * f * (ambientRadiance(uniformPart, sh, w) - reflected);
+    hides += pi * f * ambientRadiance(uniformPart, sh, w);
+    reflects += f * uOccluderAlbedo[i] * max(pi * uniformPart + ambientShIrradiance(sh, -w), vec3(0.0));
   }
-  vec3 full = max(pi * uniformPart + ambientShIrradiance(sh, n), vec3(0.0));
-  e = clamp(e, -full, full);
+}
+
+// The fraction of its light (x, n) keeps beside the objects (lighting::litFraction): the direct light with
+// them over without, the hidden light (irradiance `full` about n) less what the spheres hide of it.
+vec3 litFraction(vec3 full, vec3 hides, vec3 directWithout, vec3 directWith) {
+  vec3 v = (directWith + full - clamp(hides, vec3(0.0), full)) / max(directWithout + full, vec3(1e-6));
+  return (any(isnan(v)) || any(isinf(v))) ? vec3(1.0) : clamp(v, 0.0, 1.0);
+}
+
+// The irradiance the objects take from (x, n) under a light of irradiance `full` about n, net of what they
+// reflect of it (> 0: subtract it; lighting::ambientShadow), what they reflect lit as x's surroundings are.
+vec3 ambientShadow(vec3 full, vec3 hides, vec3 reflects, vec3 lit) {
+  vec3 e = clamp(hides - lit * reflects, -full, full);
+  return (any(isnan(e)) || any(isinf(e))) ? vec3(0.0) : e;
+}
+
+vec3 ambientIrradiance(vec3 uniformPart, vec3 sh[9], vec3 n) {
+  return max(3.14159265358979 * uniformPart + ambientShIrradiance(sh, n), vec3(0.0));
+}
+
+// What the objects reflect of the lights towards (x, n) (lighting::reflectedLight is the C++ twin): each
+// sphere's Lambertian radiance albedo E(p, m) / pi over REFLECTION_SAMPLES equal-area points of its half facing
+// x, averaged with the form factor of those x sees above its horizon, times the sphere's view factor. A light
+// counts where it lights the sphere's point facing it (spot cone) and the real scene's map sees that point.
+// Needs lighting/direct_light.glsl.
+#define REFLECTION_SAMPLES 16  // lighting::kReflectionSamples
+vec3 reflectionSample(int k) {
+  float z = 1.0 - (float(k) + 0.5) / float(REFLECTION_SAMPLES);
+  float rho = sqrt(max(0.0, 1.0 - z * z)), phi = 2.399963229728653 * float(k);
+  return vec3(rho * cos(phi), rho * sin(phi), z);
+}
+
+vec3 reflectedLight(vec3 x, vec3 n) {
+  vec3 e = vec3(0.0);
+  for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
+    vec4 s = uOccluders[i];
+    float f = sphereViewFactor(x, n, s);
+    if (f < 1e-3 || all(equal(uOccluderAlbedo[i], vec3(0.0)))) continue;  // lighting::kReflectionMinViewFactor
+    vec3 toX = x - s.xyz;
+    float dist = length(toX);
+    if (!(dist > 0.0)) continue;
+    vec3 v = toX / dist;
+    vec3 t = normalize(cross(v, abs(v.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
+    vec3 b = cross(v, t);
+    // The form-factor weights of the samples do not depend on the light: their sum first.
+    float weights = 0.0;
+    for (int k = 0; k < REFLECTION_SAMPLES; ++k) {
+      vec3 h = reflectionSample(k), m = h.x * t + h.y * b + h.z * v;
+      vec3 d = x - (s.xyz + s.w * m);
+      float r2 = dot(d, d);
+      weights += r2 > 0.0 ? max(0.0, dot(m, d)) * max(0.0, -dot(n, d)) / (r2 * r2) : 0.0;
+    }
+    if (!(weights > 0.0)) continue;
+    for (int j = 0; j < uLightCount && j < MAX_LIGHTS; ++j) {
+      bool directional = uLightType[j] == 2;
+      vec3 l = directional ? -uLightDirection[j] : normalize(uLightPosition[j] - s.xyz);
+      vec3 facing = s.xyz + s.w * l;
+      // At normal incidence on the point facing the light: its spot cone, and whether the real scene hides it.
+      if (!any(greaterThan(unshadowedIrradiance(j, facing, l), vec3(0.0)))) continue;
+      if (shadowTest(uShadowMu, j, uLightViewProj[j], uShadowBias[j], facing, l) <= 0.0) continue;
+      // sum_k w_k (E_j(p_k, m_k) / the light's power): each sample's own direction and distance to a lamp.
+      float lit = 0.0;
+      for (int k = 0; k < REFLECTION_SAMPLES; ++k) {
+        vec3 h = reflectionSample(k), m = h.x * t + h.y * b + h.z * v, p = s.xyz + s.w * m;
+        vec3 toLight = directional ? l : uLightPosition[j] - p;
+        float c = directional ? dot(m, l) : dot(m, toLight) / pow(max(dot(toLight, toLight), 1e-8), 1.5);
+        if (!(c > 0.0)) continue;
+        vec3 d = x - p;
+        float r2 = dot(d, d);
+        lit += r2 > 0.0 ? c * max(0.0, dot(m, d)) * max(0.0, -dot(n, d)) / (r2 * r2) : 0.0;
+      }
+      e += f * uOccluderAlbedo[i] * uLightPower[j] * (lit / weights);
+    }
+  }
+  e = max(e, vec3(0.0));
   return (any(isnan(e)) || any(isinf(e))) ? vec3(0.0) : e;
 }

@@ -13,10 +13,12 @@
 /// 1.5 radii away covers a cap of 42 degrees), and a sphere's visible face has normals over a cap about -w;
 /// overlapping objects are counted twice, so the total is clamped at the point's ambient irradiance either
 /// way. What the lights send the objects and they reflect is the techniques' bounce, not this.
+#include <functional>
 #include <opencv2/core.hpp>
 #include <vector>
 
 #include "lighting/ambient.h"
+#include "lighting/scene.h"
 #include "lighting/scene_file.h"
 
 namespace mrgi::lighting {
@@ -51,7 +53,39 @@ double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSp
 
 /// The irradiance the spheres take from (x, n) under `ambient`, net of what they reflect of it towards x
 /// (W/m^2; positive: subtract it, negative: the objects brighten x), within +- the ambient's irradiance about n.
+/// `lit` scales what they reflect: the faces they turn towards x see x's surroundings, which their shadows
+/// darken as they darken x (litFraction; 1: unshadowed surroundings).
 cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
-                        const std::vector<OccluderSphere>& spheres);
+                        const std::vector<OccluderSphere>& spheres, const cv::Vec3f& lit = {1, 1, 1});
+
+/// The fraction of its light a real point (x, n) keeps beside the objects, per channel in [0, 1]:
+/// (E_direct with the objects + E_hidden - what the spheres hide of the hidden light) / (E_direct without them
+/// + E_hidden), E_hidden the hidden light's irradiance about n. Near a sphere resting on a table under a lamp,
+/// the table in its shadow is what the sphere's underside sees: it reflects the dark table, not the lit one
+/// the camera saw (without it the shadow's core came out a quarter as dark as the path tracer's).
+cv::Vec3f litFraction(const Ambient& hidden, const cv::Vec3f& x, const cv::Vec3f& n,
+                      const std::vector<OccluderSphere>& spheres, const cv::Vec3f& directWithout,
+                      const cv::Vec3f& directWith);
+
+/// What the spheres reflect of the lights onto a real surface element (x, n): the objects' bounce of the
+/// lights, for a real-role technique that has none of its own (the shading pass adds it). Each sphere is
+/// Lambertian, L(p) = albedo E(p, m) / pi on its point p of normal m, E the lights' irradiance there (a lamp's
+/// intensity x cos / distance^2 from p, a directional light's irradiance x cos); a light counts where it
+/// lights the sphere's point facing it (a spot's cone) and reaches it (`reaches`). The radiance x receives is the mean
+/// of L over kReflectionSamples equal-area points of the half of the sphere facing x, weighed by the form factor cos(at
+/// p) cos(at x) / R^2 of those above x's horizon; the mean times the sphere's exact view factor (pi F) is the
+/// irradiance, so a uniformly bright sphere is exact and the samples only shape the mean. Points whose view factor is
+/// under kReflectionMinViewFactor (beyond about ten radii on the plane a sphere rests on) get nothing. Against a fine
+/// quadrature of the sphere (object_shadow_test: a sphere resting on a plane, lit aslant, from the side and by a lamp):
+/// within 15 % from three radii from its centre, 25 % at two (of the fully lit sphere's irradiance where less is lit).
+constexpr int kReflectionSamples = 16;
+constexpr double kReflectionMinViewFactor = 1e-3;
+/// Point k of the equal-area spiral on the half sphere about +z (k < kReflectionSamples).
+cv::Vec3d reflectionSample(int k);
+/// `reaches(i, p, l)`: whether light i reaches the sphere's point p facing it (direction l); unset: every light
+/// does (the GPU twin: the real scene's shadow map, lighting::lightVisibility without the objects).
+using LightReaches = std::function<bool(size_t light, const cv::Vec3d& p, const cv::Vec3d& l)>;
+cv::Vec3f reflectedLight(const cv::Vec3f& x, const cv::Vec3f& n, const std::vector<OccluderSphere>& spheres,
+                         const std::vector<SceneLight>& lights, const LightReaches& reaches = {});
 
 }  // namespace mrgi::lighting

@@ -7,7 +7,8 @@
 //                  and (likewise) what the objects hide of the light around them net of what they reflect of it,
 //                  -integral_objects (L_hidden - L_object) cos (lighting/object_shadow.glsl); L_hidden is the ambient,
 //                  or the room's surfaces seen from the objects when lights are listed beside a room (uHidden*);
-//                  a technique that blocks the ambient itself gets only the difference between the two
+//                  a technique that blocks the ambient itself gets only the difference between the two;
+//                  and (likewise) the lights the objects reflect onto real surfaces (lighting/object_shadow.glsl)
 //   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
 //                  E_indirect, L_indirect from the virtual-role technique; none when the ambient is an
@@ -48,6 +49,7 @@ uniform int uAddAmbientShadow;  // 1: the real-role technique leaves the ambient
 uniform int uHiddenDiffers;     // 1: what the objects hide is not the ambient (a room's surfaces beside listed lights)
 uniform vec3 uHiddenUniform;    // what the objects hide: radiance, uniform part (the ambient unless a room's surfaces)
 uniform vec3 uHiddenSh[9];      // ... and its SH bands 1-2
+uniform int uAddReflectedLight; // 1: the real-role technique leaves the lights the objects reflect onto real surfaces to this pass
 #include "lighting/object_shadow.glsl"
 
 layout(location = 0) out vec4 outShade;
@@ -84,13 +86,24 @@ void main() {
     outIrradiance = vec4(indirect, 1.0);
   } else {
     vec3 delta = techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal);
-    if (uAddDirectShadow == 1) delta += directIrradiance(true, pos.xyz, n) - directIrradiance(false, pos.xyz, n);
-    // An ambient that is the room seen at the object holds the real surfaces' bounce, whose occlusion the
-    // real-role technique's delta already has (from its own VALs, volumes or splats): not taken twice.
-    if (uAddAmbientShadow == 1) delta -= ambientShadow(uHiddenUniform, uHiddenSh, pos.xyz, n);
-    // A technique that blocks the ambient itself: only what the hidden light has beyond the ambient.
-    if (uAddAmbientShadow == 2 && uHiddenDiffers == 1)
-      delta -= ambientShadow(uHiddenUniform, uHiddenSh, pos.xyz, n) - ambientShadow(uAmbient, uAmbientSh, pos.xyz, n);
+    vec3 directMu = directIrradiance(false, pos.xyz, n), directRho = directIrradiance(true, pos.xyz, n);
+    if (uAddDirectShadow == 1) delta += directRho - directMu;
+    if (uAddAmbientShadow == 1 || (uAddAmbientShadow == 2 && uHiddenDiffers == 1)) {
+      vec3 full = ambientIrradiance(uHiddenUniform, uHiddenSh, n), hides, reflects;
+      ambientShadowParts(uHiddenUniform, uHiddenSh, pos.xyz, n, hides, reflects);
+      // The objects' faces turned towards this point see its surroundings, darkened by their shadows as it is.
+      vec3 lit = litFraction(full, hides, directMu, directRho);
+      // An ambient that is the room seen at the object holds the real surfaces' bounce, whose occlusion the
+      // real-role technique's delta already has (from its own VALs, volumes or splats): not taken twice.
+      delta -= ambientShadow(full, hides, reflects, lit);
+      // A technique that blocks the ambient itself: only what the hidden light has beyond the ambient.
+      if (uAddAmbientShadow == 2) {
+        vec3 fullAmbient = ambientIrradiance(uAmbient, uAmbientSh, n), hidesAmbient, reflectsAmbient;
+        ambientShadowParts(uAmbient, uAmbientSh, pos.xyz, n, hidesAmbient, reflectsAmbient);
+        delta += ambientShadow(fullAmbient, hidesAmbient, reflectsAmbient, lit);
+      }
+    }
+    if (uAddReflectedLight == 1) delta += reflectedLight(pos.xyz, n);
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }

@@ -99,6 +99,9 @@ class Technique {
   /// Whether the real-pixel delta already contains the ambient the objects hide from real surfaces (otherwise
   /// the shading pass subtracts it: lighting/object_shadow.h).
   virtual bool accountsForAmbientShadow() const { return false; }
+  /// Whether the real-pixel delta already contains the lights the objects reflect onto real surfaces
+  /// (otherwise the shading pass adds it: lighting::reflectedLight).
+  virtual bool accountsForReflectedLight() const { return false; }
 
   virtual void beginLights(const FrameResources& frame, gl::Profiler* profiler) {}
   virtual void light(const FrameResources& frame, size_t index, gl::Profiler* profiler) {}

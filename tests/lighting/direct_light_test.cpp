@@ -66,6 +66,13 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   lighting::Ambient sky;
   sky.uniform = cv::Vec3f(ambient);
   const std::vector<lighting::OccluderSphere> spheres{lighting::occluderSphere(s.objects[0])};
+  // A light reaches the cube where the real scene's map sees the cube's point facing it (the wall hides the sun).
+  int hidden = 0;
+  const lighting::LightReaches reaches = [&](size_t l, const cv::Vec3d& p, const cv::Vec3d& towards) {
+    const bool seen = lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], false, p, towards) > 0.f;
+    hidden += !seen;
+    return seen;
+  };
   int real = 0, shadowed = 0, virt = 0, differ = 0, extentMatters = 0, penumbra = 0;
   for (int i = 0; i < static_cast<int>(pos.total()); ++i) {
     const cv::Vec4f p = pos.at<cv::Vec4f>(i), n = nrm.at<cv::Vec4f>(i), a = alb.at<cv::Vec4f>(i);
@@ -89,8 +96,12 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
       got = shade.at<cv::Vec4f>(i)[0];
     } else {
       ++real;
-      // The direct shadow, and the ambient the cube hides (the shading pass's, lighting/object_shadow.h).
-      want = with[0] - without[0] - lighting::ambientShadow(sky, cv::Vec3f(x), cv::Vec3f(nn), spheres)[0];
+      // The direct shadow, the ambient the cube hides and the lights it reflects (lighting/object_shadow.h).
+      // What the cube reflects of the ambient is lit as the floor around it is, and it reflects the lights.
+      const cv::Vec3f lit =
+          lighting::litFraction(sky, cv::Vec3f(x), cv::Vec3f(nn), spheres, cv::Vec3f(without), cv::Vec3f(with));
+      want = with[0] - without[0] - lighting::ambientShadow(sky, cv::Vec3f(x), cv::Vec3f(nn), spheres, lit)[0] +
+             lighting::reflectedLight(cv::Vec3f(x), cv::Vec3f(nn), spheres, lights, reaches)[0];
       got = irr.at<cv::Vec4f>(i)[0];
       if (want < -1e-3) ++shadowed;
     }
@@ -102,6 +113,7 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   EXPECT_GT(shadowed, 250);
   EXPECT_GT(extentMatters, 250);  // the cube's sides near the wide lights' horizons
   EXPECT_GT(penumbra, 250);       // the soft edges of the wide lights' shadows
+  EXPECT_GT(hidden, 0);           // the oblique sun, behind the wall as the cube sees it
   EXPECT_LE(differ, (real + virt) / 500) << differ << " of " << real + virt << " pixels differ";
 }
 
@@ -114,6 +126,7 @@ TEST(DirectLight, ObjectShadowEdgeFollowsTheObjectsMap) {
   const double cube = 0.15;
   const cv::Vec3d centre(0.013, -0.007, 0.075);
   TestScene s = makeScene(false, cube, centre);
+  s.objects[0].material.albedo = {0, 0, 0};  // black: its shadow alone, none of the sun it would reflect
   PipelineConfig cfg = testConfig(W, H, 16, 32, "none");
   cfg.set("frame", "shadow_size", 512);
   LightingPipeline pipe = makePipeline(cfg, s);

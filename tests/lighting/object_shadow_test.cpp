@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "capture/view_factor.h"
@@ -196,8 +197,8 @@ TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
                         n = normals.at<cv::Vec4f>(y, x);
         if (p[3] < 0.5f || v[3] > 0.5f) continue;
         ++real;
-        const cv::Vec3f e =
-            ambientShadow(hidden, {p[0], p[1], p[2]}, cv::normalize(cv::Vec3f(n[0], n[1], n[2])), spheres);
+        const cv::Vec3f at(p[0], p[1], p[2]), nn = cv::normalize(cv::Vec3f(n[0], n[1], n[2]));
+        const cv::Vec3f e = ambientShadow(hidden, at, nn, spheres, litFraction(hidden, at, nn, spheres, {}, {}));
         const cv::Vec3f expected = -e * (test::kFloorAlbedo[0] / CV_PI);
         shadowed += e[0] > 1e-3f;
         for (int c = 0; c < 3; ++c)
@@ -216,6 +217,150 @@ TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
   pipe.setHiddenAmbient(hidden);
   pipe.run(camera, {}, uniform, nullptr);
   compare(pipe.downloadShade(), hidden);
+}
+
+/// The irradiance at (x, n) from a Lambertian sphere lit by `light` (unshadowed), by a midpoint rule over its
+/// surface in (cos theta, phi) (equal areas): L(p) cos(at p) cos(at x) / R^2 dA over the points x sees above
+/// its horizon, L(p) = albedo E(p, m) / pi.
+double quadratureReflection(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSphere& s, const SceneLight& light,
+                            int steps = 500) {
+  const double r = s.radius, dA = 4 * CV_PI * r * r / (double(steps) * 2 * steps);
+  double sum = 0;
+  for (int i = 0; i < steps; ++i) {
+    const double z = -1 + 2 * (i + 0.5) / steps, rho = std::sqrt(1 - z * z);
+    for (int j = 0; j < 2 * steps; ++j) {
+      const double phi = CV_PI * (j + 0.5) / steps;
+      const cv::Vec3d m(rho * std::cos(phi), rho * std::sin(phi), z), p = cv::Vec3d(s.centre) + r * m;
+      const cv::Vec3d d = x - p;
+      const double R = cv::norm(d), cp = m.dot(d) / R, cx = -n.dot(d) / R;
+      if (cp <= 0 || cx <= 0) continue;
+      double e;
+      if (light.type == LightType::Directional) {
+        e = light.irradiance[0] * std::max(0.0, -m.dot(light.direction));
+      } else {
+        const cv::Vec3d toLight = light.position - p;
+        e = light.intensity[0] * std::max(0.0, m.dot(toLight)) / std::pow(toLight.dot(toLight), 1.5);
+      }
+      sum += s.albedo[0] * e / CV_PI * cp * cx / (R * R) * dA;
+    }
+  }
+  return sum;
+}
+
+TEST(ObjectShadow, TheLightASphereReflectsOntoThePlaneItRestsOnMatchesAQuadratureOfItsSurface) {
+  // A white sphere of 6 cm resting on a table, lit from above aslant, from the side and by a lamp; points on
+  // the table 2 to 8 radii from its centre, in every direction.
+  const OccluderSphere s{{0, 0, 0.06f}, 0.06f, {0.85f, 0.85f, 0.85f}};
+  SceneLight aslant, side, lamp;
+  aslant.type = side.type = LightType::Directional;
+  aslant.direction = -cv::normalize(cv::Vec3d(0.5, 0, 0.85));
+  aslant.irradiance = {3, 3, 3};
+  side.direction = -cv::normalize(cv::Vec3d(0, 0.96, 0.29));
+  side.irradiance = {3, 3, 3};
+  lamp.position = {0.3, 0.1, 0.5};
+  lamp.intensity = {1, 1, 1};
+  double worstNear = 0, worstFar = 0;
+  for (const SceneLight& light : {aslant, side, lamp})
+    for (const double radii : {2.0, 3.0, 5.0, 8.0})
+      for (int k = 0; k < 8; ++k) {
+        const double a = CV_PI / 4 * k;
+        const cv::Vec3d x(radii * 0.06 * std::cos(a), radii * 0.06 * std::sin(a), 0), n(0, 0, 1);
+        const double want = quadratureReflection(x, n, s, light);
+        const double got = reflectedLight(cv::Vec3f(x), cv::Vec3f(n), {s}, {light})[0];
+        // Relative to the sphere fully lit from x's side: a backlit point's few photons need no 10 %.
+        const double scale = sphereViewFactor(x, n, s) * s.albedo[0] *
+                             (light.type == LightType::Directional
+                                  ? light.irradiance[0]
+                                  : light.intensity[0] / std::pow(cv::norm(light.position - cv::Vec3d(s.centre)), 2));
+        ASSERT_GT(scale, 0);
+        const double err = std::abs(got - want) / std::max(want, 0.1 * scale);
+        (radii < 3 ? worstNear : worstFar) = std::max(radii < 3 ? worstNear : worstFar, err);
+      }
+  EXPECT_LT(worstNear, 0.27);
+  EXPECT_LT(worstFar, 0.16);
+  std::printf("reflected light against the quadrature: worst %.3f at two radii, %.3f from three\n", worstNear,
+              worstFar);
+  // Extremes: inside the sphere, on its surface, a grazing normal, a huge or zero light, a point far away.
+  SceneLight huge = aslant;
+  huge.irradiance = {1e30, 1e30, 1e30};
+  SceneLight none = aslant;
+  none.irradiance = {0, 0, 0};
+  for (const auto& [x, n] : {std::pair<cv::Vec3f, cv::Vec3f>{{0, 0, 0.06f}, {0, 0, 1}},
+                             {{0.06f, 0, 0.06f}, {1, 0, 0}},
+                             {{0.2f, 0, 0}, {1, 0, 0}},
+                             {{1e6f, 0, 0}, {0, 0, 1}}})
+    for (const SceneLight& light : {aslant, huge, none, lamp}) {
+      const cv::Vec3f e = reflectedLight(x, n, {s}, {light});
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_TRUE(std::isfinite(e[c]));
+        EXPECT_GE(e[c], 0.f);
+      }
+    }
+  // A black sphere reflects nothing; nor does one the light does not reach (a spot aimed away).
+  EXPECT_EQ(reflectedLight({0.2f, 0, 0}, {0, 0, 1}, {OccluderSphere{{0, 0, 0.06f}, 0.06f}}, {aslant})[0], 0.f);
+  SceneLight spot = lamp;
+  spot.type = LightType::Spot;
+  spot.direction = cv::normalize(cv::Vec3d(1, 0, 0));
+  spot.spotHalfAngleDeg = 10;
+  EXPECT_EQ(reflectedLight({0.2f, 0, 0}, {0, 0, 1}, {s}, {spot})[0], 0.f);
+}
+
+TEST(ObjectShadow, WhatASphereReflectsOfTheAmbientIsLitAsItsSurroundings) {
+  // Under a uniform sky a white sphere over a point hides almost nothing (it sends the sky back); when the
+  // point's surroundings lose most of their light to the sphere's shadows, so does what it reflects.
+  Ambient sky;
+  sky.uniform = {0.5f, 0.5f, 0.5f};
+  const std::vector<OccluderSphere> white{{{0, 0, 0.15f}, 0.1f, {1, 1, 1}}};
+  const cv::Vec3f x(0, 0, 0), n(0, 0, 1);
+  const cv::Vec3f unlit = litFraction(sky, x, n, white, {}, {});
+  const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), white[0]);
+  EXPECT_NEAR(unlit[0], 1 - f, 1e-5);  // the sky the sphere hides, and nothing else
+  const cv::Vec3f lamp(4, 4, 4);       // a lamp the sphere hides from x
+  const cv::Vec3f shadowed = litFraction(sky, x, n, white, lamp, {});
+  EXPECT_NEAR(shadowed[0], CV_PI * 0.5 * (1 - f) / (4 + CV_PI * 0.5), 1e-5);
+  EXPECT_NEAR(ambientShadow(sky, x, n, white)[0], 0.f, 1e-5);  // white under a uniform sky: nothing hidden
+  EXPECT_NEAR(ambientShadow(sky, x, n, white, shadowed)[0], CV_PI * f * 0.5 * (1 - shadowed[0]), 1e-5);
+  EXPECT_NEAR(litFraction(sky, x, n, white, lamp, lamp)[0], 1 - f * CV_PI * 0.5 / (4 + CV_PI * 0.5), 1e-5);
+  // Bounded: no light at all, NaN, huge.
+  const Ambient none;
+  for (const cv::Vec3f& d : {cv::Vec3f(0, 0, 0), cv::Vec3f(NAN, 1, 1e30f)}) {
+    const cv::Vec3f v = litFraction(none, x, n, white, d, d);
+    for (int c = 0; c < 3; ++c) EXPECT_TRUE(v[c] >= 0.f && v[c] <= 1.f) << v;
+  }
+}
+
+TEST(ObjectShadow, ShadingPassAddsTheLightTheObjectReflectsAsItsCppTwin) {
+  // A cube floating over the floor under a sun from straight above, no ambient: outside the cube's shadow
+  // each real pixel's delta is what its sphere reflects of the sun, as lighting::reflectedLight has it.
+  auto ctx = test::makeContext();
+  const test::TestScene s = test::makeScene(false, 0.2, {0.0, 0.0, 0.25});
+  LightingPipeline pipe = test::makePipeline(test::testConfig(64, 64, 16, 64, "none"), s);
+  SceneLight sun;
+  sun.type = LightType::Directional;
+  sun.direction = {0, 0, -1};
+  sun.irradiance = {2, 1.5, 1};
+  pipe.run(test::topCamera(64, 64), {sun}, {0, 0, 0}, nullptr);
+  const cv::Mat shade = pipe.downloadShade(), positions = pipe.downloadGBuffer(0), normals = pipe.downloadGBuffer(1);
+  const std::vector<OccluderSphere> spheres{occluderSphere(s.objects[0])};
+  int judged = 0, brightened = 0;
+  double worst = 0;
+  for (int y = 0; y < shade.rows; ++y)
+    for (int x = 0; x < shade.cols; ++x) {
+      const cv::Vec4f v = shade.at<cv::Vec4f>(y, x), p = positions.at<cv::Vec4f>(y, x), n = normals.at<cv::Vec4f>(y, x);
+      if (p[3] < 0.5f || v[3] > 0.5f) continue;
+      if (std::max(std::abs(p[0]), std::abs(p[1])) < 0.13f) continue;  // under the cube: its shadow
+      const cv::Vec3f e =
+          reflectedLight({p[0], p[1], p[2]}, cv::normalize(cv::Vec3f(n[0], n[1], n[2])), spheres, {sun});
+      ++judged;
+      brightened += e[0] > 1e-3f;
+      for (int c = 0; c < 3; ++c) {
+        const double want = e[c] * test::kFloorAlbedo[c] / CV_PI;
+        worst = std::max(worst, std::abs(v[c] - want) / std::max(want, 1e-4));
+      }
+    }
+  EXPECT_GT(judged, 1000);
+  EXPECT_GT(brightened, 500);
+  EXPECT_LT(worst, 2e-3);
 }
 
 }  // namespace

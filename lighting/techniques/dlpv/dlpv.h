@@ -29,6 +29,7 @@ class DlpvTechnique final : public Technique {
   std::string name() const override { return "dlpv"; }
   unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights; }
   bool accountsForDirectShadow() const override { return true; }
+  bool accountsForReflectedLight() const override { return true; }  // the objects' RSMs injected into the volume
   void beginLights(const FrameResources& frame, gl::Profiler* profiler) override;
   void light(const FrameResources& frame, size_t index, gl::Profiler* profiler) override;
   void endLights(const FrameResources& frame, gl::Profiler* profiler) override;

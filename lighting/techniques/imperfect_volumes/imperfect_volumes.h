@@ -53,6 +53,7 @@ class ImperfectVolumesTechnique final : public Technique {
  public:
   /// Its delta holds the ambient the objects hide (their surfels block it as negative lights / in the gather).
   bool accountsForAmbientShadow() const override { return true; }
+  bool accountsForReflectedLight() const override { return true; }  // the objects' bounce, E^rho - E^mu
   explicit ImperfectVolumesTechnique(const TechniqueSetup& setup);
 
   std::string name() const override { return "imperfect-volumes"; }

@@ -31,6 +31,7 @@ class SplattingTechnique final : public Technique {
  public:
   /// Its delta holds the ambient the objects hide (their surfels block it as negative lights / in the gather).
   bool accountsForAmbientShadow() const override { return true; }
+  bool accountsForReflectedLight() const override { return true; }  // the objects' RSM texels as splatted lights
   explicit SplattingTechnique(const TechniqueSetup& setup);
 
   std::string name() const override { return "splatting"; }
