@@ -47,19 +47,32 @@ double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSp
   return capture::sphereViewFactor(dist / r, n.dot(d) / dist);
 }
 
-cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
-                        const std::vector<OccluderSphere>& spheres, const cv::Vec3f& lit) {
-  cv::Vec3f e(0, 0, 0);
+namespace {
+
+/// Over the spheres seen from (x, n): what they hide of `ambient` (pi F times its radiance along each centre)
+/// and what they would reflect of it towards x were their surroundings unshadowed (F albedo E(-w)); the GLSL
+/// twin is ambientShadowParts.
+void ambientShadowParts(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
+                        const std::vector<OccluderSphere>& spheres, cv::Vec3f& hides, cv::Vec3f& reflects) {
+  hides = reflects = cv::Vec3f(0, 0, 0);
   for (const auto& s : spheres) {
     const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);
     if (f <= 0) continue;
     const cv::Vec3f d = s.centre - x;
     const float len = static_cast<float>(cv::norm(d));
     const cv::Vec3f w = len > 0 ? d / len : n;
-    const cv::Vec3f hidden = ambient.radiance(w),
-                    reflected = lit.mul(s.albedo).mul(ambient.irradiance(-w)) * static_cast<float>(1 / CV_PI);
-    e += static_cast<float>(CV_PI * f) * (hidden - reflected);
+    hides += static_cast<float>(CV_PI * f) * ambient.radiance(w);
+    reflects += static_cast<float>(f) * s.albedo.mul(ambient.irradiance(-w));
   }
+}
+
+}  // namespace
+
+cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
+                        const std::vector<OccluderSphere>& spheres, const cv::Vec3f& lit) {
+  cv::Vec3f hides, reflects;
+  ambientShadowParts(ambient, x, n, spheres, hides, reflects);
+  cv::Vec3f e = hides - lit.mul(reflects);
   const cv::Vec3f full = ambient.irradiance(n);
   for (int c = 0; c < 3; ++c) e[c] = std::isfinite(e[c]) ? std::clamp(e[c], -full[c], full[c]) : 0.0f;
   return e;
@@ -68,14 +81,8 @@ cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Ve
 cv::Vec3f litFraction(const Ambient& hidden, const cv::Vec3f& x, const cv::Vec3f& n,
                       const std::vector<OccluderSphere>& spheres, const cv::Vec3f& directWithout,
                       const cv::Vec3f& directWith) {
-  cv::Vec3f hides(0, 0, 0);
-  for (const auto& s : spheres) {
-    const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);
-    if (f <= 0) continue;
-    const cv::Vec3f d = s.centre - x;
-    const float len = static_cast<float>(cv::norm(d));
-    hides += static_cast<float>(CV_PI * f) * hidden.radiance(len > 0 ? d / len : n);
-  }
+  cv::Vec3f hides, reflects;
+  ambientShadowParts(hidden, x, n, spheres, hides, reflects);
   const cv::Vec3f full = hidden.irradiance(n);
   cv::Vec3f out;
   for (int c = 0; c < 3; ++c) {
