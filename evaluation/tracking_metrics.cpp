@@ -4,8 +4,8 @@
 #include <cmath>
 #include <limits>
 
-#include "lighting/point_index.h"
 #include "reconstruction/marker.h"
+#include "reconstruction/point_index.h"
 
 namespace mrgi::evaluation {
 
@@ -40,8 +40,8 @@ SurfaceDistance surfaceDistance(const reconstruction::RoomMesh& from, const reco
     s.meanM = s.p90M = std::numeric_limits<double>::infinity();
     return s;
   }
-  lighting::PointCloudAdaptor adaptor{to.positions};
-  lighting::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  reconstruction::PointCloudAdaptor adaptor{to.positions};
+  reconstruction::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
   tree.buildIndex();
   std::vector<double> d(from.positions.size());
   double sum = 0;

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <thread>
+
+#include "reconstruction/point_index.h"
 
 namespace mrgi::reconstruction {
 
@@ -41,6 +44,38 @@ std::vector<cv::Vec3f> roomBounceIrradiance(const RoomMesh& mesh, const MeshRays
     if (v < mesh.saturated.size() && mesh.saturated[v]) return {0, 0, 0};
     return cv::Vec3d(mesh.radiance[v]);
   };
+  // The room's bounding box and a k-d tree over its vertices (finite ones), for the rays that leave.
+  cv::Vec3d lo(1e30, 1e30, 1e30), hi(-1e30, -1e30, -1e30);
+  std::vector<cv::Vec3f> finite;
+  std::vector<uint32_t> finiteIndex;
+  if (options.holeReachM > 0)
+    for (size_t i = 0; i < n; ++i) {
+      const cv::Vec3f& p = mesh.positions[i];
+      if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]) ||
+          std::abs(p[0]) + std::abs(p[1]) + std::abs(p[2]) > 1e5)
+        continue;
+      for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], double(p[c])), hi[c] = std::max(hi[c], double(p[c]));
+      finite.push_back(p);
+      finiteIndex.push_back(static_cast<uint32_t>(i));
+    }
+  const bool continueHoles = !finite.empty();
+  const PointCloudAdaptor cloud{finite};
+  std::optional<PointKdTree> tree;
+  if (continueHoles) tree.emplace(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  // Where a ray from o along d leaves the box (o inside it), and the radiance of the nearest vertex there.
+  const auto continued = [&](const cv::Vec3d& o, const cv::Vec3d& d, cv::Vec3d& radiance) {
+    double t = 1e30;
+    for (int c = 0; c < 3; ++c)
+      if (std::abs(d[c]) > 1e-12) t = std::min(t, ((d[c] > 0 ? hi[c] : lo[c]) - o[c]) / d[c]);
+    if (!(t >= 0 && t < 1e29)) return false;
+    const cv::Vec3d q = o + t * d;
+    const float query[3] = {static_cast<float>(q[0]), static_cast<float>(q[1]), static_cast<float>(q[2])};
+    uint32_t nearest = 0;
+    float d2 = 0;
+    if (tree->knnSearch(query, 1, &nearest, &d2) != 1 || !(d2 <= options.holeReachM * options.holeReachM)) return false;
+    radiance = sent(finiteIndex[nearest]);
+    return true;
+  };
   const size_t stride = static_cast<size_t>(std::max(1, options.vertexStride));
   std::vector<uint8_t> known(n, 0);
   const auto gather = [&](size_t begin, size_t end) {
@@ -62,10 +97,14 @@ std::vector<cv::Vec3f> roomBounceIrradiance(const RoomMesh& mesh, const MeshRays
         const double x = c * l[0] - s * l[1], y = s * l[0] + c * l[1];
         const cv::Vec3d d = x * t + y * b + l[2] * z;
         const MeshRays::Hit h = rays.intersect(o, d);
-        if (!h.hit) continue;
-        const uint32_t* tri = &mesh.indices[3 * static_cast<size_t>(h.triangle)];
-        sum += (1 - h.u - h.v) * sent(tri[0]) + h.u * sent(tri[1]) + h.v * sent(tri[2]);
-        ++hits;
+        if (h.hit) {
+          const uint32_t* tri = &mesh.indices[3 * static_cast<size_t>(h.triangle)];
+          sum += (1 - h.u - h.v) * sent(tri[0]) + h.u * sent(tri[1]) + h.v * sent(tri[2]);
+          ++hits;
+        } else if (cv::Vec3d beyond; continueHoles && continued(o, d, beyond)) {
+          sum += beyond;
+          ++hits;
+        }
       }
       // What was never seen sends what the seen part of the hemisphere sends, once enough of it was seen.
       const cv::Vec3d missed = hits * 4 >= R ? sum / hits : options.outside;

@@ -21,8 +21,13 @@ struct RoomBounceOptions {
   /// Passes of averaging over a vertex's mesh neighbours (the irradiance from far surfaces is smooth; the
   /// averaging takes the rays' noise out, a pass halving its variance or better).
   int smoothing = 3;
-  /// A ray that leaves the fused room (a hole, what was never seen) finds the mean radiance of the vertex's rays
-  /// that hit it; where fewer than a quarter hit, it finds `outside` (W/m^2/sr, linear RGB).
+  /// A ray that leaves the fused room through a hole (a ceiling the scan never looked up at) meets the room's
+  /// bounding box and finds the radiance of the fused vertex nearest that point, if one lies within `holeReachM`
+  /// (the surface continued into the hole from its seen edge: overhead, where a table looks most, the unseen
+  /// ceiling near a lamp is brighter than the room's mean). A ray that leaves farther from anything seen finds
+  /// the mean radiance of the vertex's rays that found some; where fewer than a quarter did, `outside`
+  /// (W/m^2/sr, linear RGB). holeReachM = 0: no continuation.
+  double holeReachM = 1.0;
   cv::Vec3d outside{0, 0, 0};
   double offsetM =
       0.02;         ///< rays start this far off the surface along the normal (a voxel: past the mesh's own ripple)

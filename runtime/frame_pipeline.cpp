@@ -8,10 +8,10 @@
 #include "capture/error.h"
 #include "capture/registration.h"
 #include "capture/session.h"
-#include "lighting/point_index.h"
 #include "reconstruction/albedo.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
+#include "reconstruction/point_index.h"
 #include "reconstruction/room_bounce.h"
 
 using nlohmann::json;
@@ -504,8 +504,8 @@ const reconstruction::MeshRays& FramePipeline::roomRays() {
 struct FramePipeline::RoomIndex {
   explicit RoomIndex(const std::vector<cv::Vec3f>& positions)
       : cloud{positions}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
-  lighting::PointCloudAdaptor cloud;
-  lighting::PointKdTree tree;
+  reconstruction::PointCloudAdaptor cloud;
+  reconstruction::PointKdTree tree;
 };
 
 void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler) {

@@ -109,6 +109,46 @@ TEST(RoomBounce, SaturatedSurfacesSendNothingAndUnseenDirectionsSendWhatTheSeenO
   EXPECT_GT(bottom, 10);
 }
 
+TEST(RoomBounce, AHoleInTheCeilingSendsWhatTheCeilingAroundItSends) {
+  // The inside of a sphere, its top cap (z > 0.8, a tenth of its area) never seen, the band below it bright
+  // (z > 0.5: radiance 1; the rest 0.1), as a ceiling near a lamp is beside the walls. From the floor (the
+  // bottom pole) a point sees a sphere's inside area-uniformly, so the closed room sends pi (0.25 + 0.075).
+  // Continued from its rim, the hole sends the band's 1: that again. The seen rays' mean instead gives
+  // pi 0.25, 23 % short.
+  RoomMesh full = insideSphere(1.0, 64, 128);
+  RoomMesh kept;
+  std::vector<int> map(full.positions.size(), -1);
+  for (size_t i = 0; i < full.positions.size(); ++i)
+    if (full.positions[i][2] <= 0.8f) {
+      map[i] = static_cast<int>(kept.positions.size());
+      kept.positions.push_back(full.positions[i]);
+      kept.normals.push_back(full.normals[i]);
+      kept.radiance.push_back(full.positions[i][2] > 0.5f ? cv::Vec3f(1, 1, 1) : cv::Vec3f(0.1f, 0.1f, 0.1f));
+      kept.confidence.push_back(1);
+      kept.saturated.push_back(0);
+    }
+  for (size_t t = 0; t + 2 < full.indices.size(); t += 3)
+    if (map[full.indices[t]] >= 0 && map[full.indices[t + 1]] >= 0 && map[full.indices[t + 2]] >= 0)
+      for (int k = 0; k < 3; ++k) kept.indices.push_back(static_cast<uint32_t>(map[full.indices[t + k]]));
+  const reconstruction::MeshRays rays(kept.positions, kept.indices);
+  reconstruction::RoomBounceOptions o;
+  o.rays = 256;
+  o.offsetM = 1e-3;
+  o.smoothing = 0;
+  o.vertexStride = 1;
+  const auto E = reconstruction::roomBounceIrradiance(kept, rays, o);
+  o.holeReachM = 0;
+  const auto seenMean = reconstruction::roomBounceIrradiance(kept, rays, o);
+  int bottom = 0;
+  for (size_t i = 0; i < E.size(); ++i)
+    if (kept.positions[i][2] < -0.99f) {
+      ++bottom;
+      EXPECT_NEAR(E[i][0], CV_PI * 0.325, 0.03 * CV_PI * 0.325) << i;
+      EXPECT_LT(seenMean[i][0], 0.85 * CV_PI * 0.325) << i;
+    }
+  EXPECT_GT(bottom, 10);
+}
+
 TEST(RoomBounce, TheRoomsAlbedoUnderALampAndItsOwnBounceIsTheTrueAlbedo) {
   // A lamp of intensity I at the centre of a closed sphere of albedo rho: every point receives E_d = I / R^2
   // directly and pi <L> from the rest, so L = rho (E_d + pi L) / pi, L = rho E_d / (pi (1 - rho)). Without the

@@ -5,7 +5,7 @@
 #include <numbers>
 
 #include "capture/colour.h"
-#include "lighting/point_index.h"
+#include "reconstruction/point_index.h"
 
 namespace mrgi::lighting {
 namespace {
@@ -135,8 +135,8 @@ VertexWeights vertexWeights(const Mesh& mesh, SparsePoints& points) {
   w.index.assign(nv * K, -1);
   w.weight.assign(nv * K, 0.f);
   if (points.positions.empty()) return w;
-  const PointCloudAdaptor cloud{points.positions};
-  const PointKdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  const reconstruction::PointCloudAdaptor cloud{points.positions};
+  const reconstruction::PointKdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   const int k = static_cast<int>(std::min<size_t>(K, points.positions.size()));
   const float diag = static_cast<float>(cv::norm(mesh.boundsMax - mesh.boundsMin));
   const float coincide = 1e-6f * std::max(diag, 1e-6f);

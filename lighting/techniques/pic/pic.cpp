@@ -12,10 +12,10 @@
 #include <type_traits>
 
 #include "lighting/frame/frame.h"
-#include "lighting/point_index.h"
 #include "lighting/sh.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/mesh_rays.h"
+#include "reconstruction/point_index.h"
 
 namespace mrgi::lighting::pic {
 
@@ -104,8 +104,8 @@ std::vector<Surfel> placeSurfels(const SurfaceMesh& mesh, const SurfelOptions& o
   for (int it = 0; it < options.relaxIterations; ++it) {
     std::vector<cv::Vec3f> pts(n);
     for (size_t i = 0; i < n; ++i) pts[i] = out[i].position;
-    PointCloudAdaptor adaptor{pts};
-    PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    reconstruction::PointCloudAdaptor adaptor{pts};
+    reconstruction::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
     tree.buildIndex();
     std::vector<Surfel> next = out;
     cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
@@ -156,8 +156,8 @@ std::pair<double, double> nearestNeighbourSpread(const std::vector<Surfel>& surf
   if (n < 2) return {0.0, 0.0};
   std::vector<cv::Vec3f> pts(n);
   for (size_t i = 0; i < n; ++i) pts[i] = surfels[i].position;
-  PointCloudAdaptor adaptor{pts};
-  PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  reconstruction::PointCloudAdaptor adaptor{pts};
+  reconstruction::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   tree.buildIndex();
   double sum = 0, sum2 = 0;
   for (size_t i = 0; i < n; ++i) {
@@ -213,8 +213,8 @@ Hierarchy buildHierarchy(const std::vector<Surfel>& surfels, const ClusterOption
     const size_t n = active.size();
     std::vector<cv::Vec3f> pts(n);
     for (size_t i = 0; i < n; ++i) pts[i] = h.nodes[static_cast<size_t>(active[i])].position;
-    PointCloudAdaptor adaptor{pts};
-    PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    reconstruction::PointCloudAdaptor adaptor{pts};
+    reconstruction::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
     tree.buildIndex();
     const size_t k = std::min(n, static_cast<size_t>(std::max(2, options.candidates + 1)));
     std::vector<int32_t> best(n, -1);

@@ -1,12 +1,13 @@
 #pragma once
 /// nanoflann's k-d tree over a vector of 3D points held by reference (the points must outlive the tree):
-/// nearest sparse points of a mesh vertex (Kinect-VAL), nearest room vertex of a depth-mesh vertex.
+/// nearest sparse points of a mesh vertex (Kinect-VAL), nearest room vertex of a depth-mesh vertex or of a
+/// point a room bounce ray leaves through.
 #include <cstdint>
 #include <nanoflann.hpp>
 #include <opencv2/core.hpp>
 #include <vector>
 
-namespace mrgi::lighting {
+namespace mrgi::reconstruction {
 
 struct PointCloudAdaptor {
   const std::vector<cv::Vec3f>& p;
@@ -20,4 +21,4 @@ struct PointCloudAdaptor {
 using PointKdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointCloudAdaptor>,
                                                         PointCloudAdaptor, 3, uint32_t>;
 
-}  // namespace mrgi::lighting
+}  // namespace mrgi::reconstruction
