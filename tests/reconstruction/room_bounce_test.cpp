@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 #include "reconstruction/room_model.h"
 
@@ -34,6 +35,25 @@ RoomMesh insideSphere(double R, int rings = 48, int segments = 96) {
   m.confidence.assign(n, 1.f);
   m.saturated.assign(n, 0);
   return m;
+}
+
+/// The part of `m` whose vertices `keep` (their triangles with all three corners kept): a room scanned in part.
+RoomMesh keptPart(const RoomMesh& m, const std::function<bool(const cv::Vec3f&)>& keep) {
+  RoomMesh kept;
+  std::vector<int> map(m.positions.size(), -1);
+  for (size_t i = 0; i < m.positions.size(); ++i)
+    if (keep(m.positions[i])) {
+      map[i] = static_cast<int>(kept.positions.size());
+      kept.positions.push_back(m.positions[i]);
+      kept.normals.push_back(m.normals[i]);
+      kept.radiance.push_back(m.radiance[i]);
+      kept.confidence.push_back(m.confidence[i]);
+      kept.saturated.push_back(m.saturated[i]);
+    }
+  for (size_t t = 0; t + 2 < m.indices.size(); t += 3)
+    if (map[m.indices[t]] >= 0 && map[m.indices[t + 1]] >= 0 && map[m.indices[t + 2]] >= 0)
+      for (int k = 0; k < 3; ++k) kept.indices.push_back(static_cast<uint32_t>(map[m.indices[t + k]]));
+  return kept;
 }
 
 TEST(RoomBounce, AClosedRoomOfUniformRadianceSendsEachPointPiL) {
@@ -83,20 +103,8 @@ TEST(RoomBounce, SaturatedSurfacesSendNothingAndUnseenDirectionsSendWhatTheSeenO
   // The southern half only (a room scanned from below the equator): its points still see the half of the
   // sphere that is there and nothing else, so unseen directions take the seen mean, pi 0.5.
   RoomMesh half = insideSphere(1.0);
-  RoomMesh kept;
-  std::vector<int> map(half.positions.size(), -1);
-  for (size_t i = 0; i < half.positions.size(); ++i)
-    if (half.positions[i][2] < 0.2f) {
-      map[i] = static_cast<int>(kept.positions.size());
-      kept.positions.push_back(half.positions[i]);
-      kept.normals.push_back(half.normals[i]);
-      kept.radiance.emplace_back(0.5f, 0.5f, 0.5f);
-      kept.confidence.push_back(1);
-      kept.saturated.push_back(0);
-    }
-  for (size_t t = 0; t + 2 < half.indices.size(); t += 3)
-    if (map[half.indices[t]] >= 0 && map[half.indices[t + 1]] >= 0 && map[half.indices[t + 2]] >= 0)
-      for (int k = 0; k < 3; ++k) kept.indices.push_back(static_cast<uint32_t>(map[half.indices[t + k]]));
+  half.radiance.assign(half.positions.size(), cv::Vec3f(0.5f, 0.5f, 0.5f));
+  const RoomMesh kept = keptPart(half, [](const cv::Vec3f& p) { return p[2] < 0.2f; });
   const reconstruction::MeshRays keptRays(kept.positions, kept.indices);
   o.outside = {7, 7, 7};
   const auto Ek = reconstruction::roomBounceIrradiance(kept, keptRays, o);
@@ -116,20 +124,9 @@ TEST(RoomBounce, AHoleInTheCeilingSendsWhatTheCeilingAroundItSends) {
   // Continued from its rim, the hole sends the band's 1: that again. The seen rays' mean instead gives
   // pi 0.25, 23 % short.
   RoomMesh full = insideSphere(1.0, 64, 128);
-  RoomMesh kept;
-  std::vector<int> map(full.positions.size(), -1);
   for (size_t i = 0; i < full.positions.size(); ++i)
-    if (full.positions[i][2] <= 0.8f) {
-      map[i] = static_cast<int>(kept.positions.size());
-      kept.positions.push_back(full.positions[i]);
-      kept.normals.push_back(full.normals[i]);
-      kept.radiance.push_back(full.positions[i][2] > 0.5f ? cv::Vec3f(1, 1, 1) : cv::Vec3f(0.1f, 0.1f, 0.1f));
-      kept.confidence.push_back(1);
-      kept.saturated.push_back(0);
-    }
-  for (size_t t = 0; t + 2 < full.indices.size(); t += 3)
-    if (map[full.indices[t]] >= 0 && map[full.indices[t + 1]] >= 0 && map[full.indices[t + 2]] >= 0)
-      for (int k = 0; k < 3; ++k) kept.indices.push_back(static_cast<uint32_t>(map[full.indices[t + k]]));
+    full.radiance[i] = full.positions[i][2] > 0.5f ? cv::Vec3f(1, 1, 1) : cv::Vec3f(0.1f, 0.1f, 0.1f);
+  const RoomMesh kept = keptPart(full, [](const cv::Vec3f& p) { return p[2] <= 0.8f; });
   const reconstruction::MeshRays rays(kept.positions, kept.indices);
   reconstruction::RoomBounceOptions o;
   o.rays = 256;
