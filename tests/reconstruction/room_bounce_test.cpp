@@ -101,7 +101,7 @@ TEST(RoomBounce, SaturatedSurfacesSendNothingAndUnseenDirectionsSendWhatTheSeenO
   for (size_t i = 0; i < E.size(); ++i)
     ASSERT_LE(E[i][0], CV_PI * 0.5f * 1.0001f) << "a saturated surface sent light, vertex " << i;
   // The southern half only (a room scanned from below the equator): its points still see the half of the
-  // sphere that is there and nothing else, so unseen directions take the seen mean, pi 0.5.
+  // sphere that is there and nothing else, so unseen directions take what the seen part sends, pi 0.5.
   RoomMesh half = insideSphere(1.0);
   half.radiance.assign(half.positions.size(), cv::Vec3f(0.5f, 0.5f, 0.5f));
   const RoomMesh kept = keptPart(half, [](const cv::Vec3f& p) { return p[2] < 0.2f; });
