@@ -29,3 +29,9 @@ vec3 ambientRadiance(vec3 uniformPart, vec3 sh[9], vec3 w) {
   for (int k = 0; k < 9; ++k) L += b[k] * sh[k];
   return max(L, vec3(0.0));
 }
+
+// The ambient's irradiance about unit n: pi x the uniform part plus the SH part's, clamped at 0
+// (lighting::Ambient::irradiance is the C++ twin).
+vec3 ambientIrradiance(vec3 uniformPart, vec3 sh[9], vec3 n) {
+  return max(3.14159265358979 * uniformPart + ambientShIrradiance(sh, n), vec3(0.0));
+}

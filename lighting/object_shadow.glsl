@@ -31,7 +31,7 @@ void ambientShadowParts(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n, out vec3 h
     float len = length(d);
     vec3 w = len > 0.0 ? d / len : n;
     hides += pi * f * ambientRadiance(uniformPart, sh, w);
-    reflects += f * uOccluderAlbedo[i] * max(pi * uniformPart + ambientShIrradiance(sh, -w), vec3(0.0));
+    reflects += f * uOccluderAlbedo[i] * ambientIrradiance(uniformPart, sh, -w);
   }
 }
 
@@ -47,10 +47,6 @@ vec3 litFraction(vec3 full, vec3 hides, vec3 directWithout, vec3 directWith) {
 vec3 ambientShadow(vec3 full, vec3 hides, vec3 reflects, vec3 lit) {
   vec3 e = clamp(hides - lit * reflects, -full, full);
   return (any(isnan(e)) || any(isinf(e))) ? vec3(0.0) : e;
-}
-
-vec3 ambientIrradiance(vec3 uniformPart, vec3 sh[9], vec3 n) {
-  return max(3.14159265358979 * uniformPart + ambientShIrradiance(sh, n), vec3(0.0));
 }
 
 // What the objects reflect of the lights towards (x, n) (lighting::reflectedLight is the C++ twin): each

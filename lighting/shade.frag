@@ -86,9 +86,14 @@ void main() {
     outIrradiance = vec4(indirect, 1.0);
   } else {
     vec3 delta = techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal);
-    vec3 directMu = directIrradiance(false, pos.xyz, n), directRho = directIrradiance(true, pos.xyz, n);
+    bool ambientShadowed = uAddAmbientShadow == 1 || (uAddAmbientShadow == 2 && uHiddenDiffers == 1);
+    vec3 directMu = vec3(0.0), directRho = vec3(0.0);  // the direct light without and with the objects
+    if (uAddDirectShadow == 1 || ambientShadowed) {
+      directMu = directIrradiance(false, pos.xyz, n);
+      directRho = directIrradiance(true, pos.xyz, n);
+    }
     if (uAddDirectShadow == 1) delta += directRho - directMu;
-    if (uAddAmbientShadow == 1 || (uAddAmbientShadow == 2 && uHiddenDiffers == 1)) {
+    if (ambientShadowed) {
       vec3 full = ambientIrradiance(uHiddenUniform, uHiddenSh, n), hides, reflects;
       ambientShadowParts(uHiddenUniform, uHiddenSh, pos.xyz, n, hides, reflects);
       // The objects' faces turned towards this point see its surroundings, darkened by their shadows as it is.

@@ -44,16 +44,18 @@ std::vector<cv::Vec3f> roomBounceIrradiance(const RoomMesh& mesh, const MeshRays
     if (v < mesh.saturated.size() && mesh.saturated[v]) return {0, 0, 0};
     return cv::Vec3d(mesh.radiance[v]);
   };
-  // The room's bounding box and a k-d tree over its vertices (finite ones), for the rays that leave.
+  // A vertex position the gather can use: finite and within 100 km.
+  const auto usable = [](const cv::Vec3d& p) {
+    return std::isfinite(p.dot(p)) && std::abs(p[0]) + std::abs(p[1]) + std::abs(p[2]) <= 1e5;
+  };
+  // The room's bounding box and a k-d tree over its usable vertices, for the rays that leave.
   cv::Vec3d lo(1e30, 1e30, 1e30), hi(-1e30, -1e30, -1e30);
   std::vector<cv::Vec3f> finite;
   std::vector<uint32_t> finiteIndex;
   if (options.holeReachM > 0)
     for (size_t i = 0; i < n; ++i) {
       const cv::Vec3f& p = mesh.positions[i];
-      if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]) ||
-          std::abs(p[0]) + std::abs(p[1]) + std::abs(p[2]) > 1e5)
-        continue;
+      if (!usable(cv::Vec3d(p))) continue;
       for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], double(p[c])), hi[c] = std::max(hi[c], double(p[c]));
       finite.push_back(p);
       finiteIndex.push_back(static_cast<uint32_t>(i));
@@ -83,9 +85,7 @@ std::vector<cv::Vec3f> roomBounceIrradiance(const RoomMesh& mesh, const MeshRays
       if (i % stride != 0) continue;
       const cv::Vec3d nrm(mesh.normals[i]), p(mesh.positions[i]);
       const double len = cv::norm(nrm);
-      if (!(len > 0.5) || !std::isfinite(len) || !std::isfinite(p.dot(p)) ||
-          std::abs(p[0]) + std::abs(p[1]) + std::abs(p[2]) > 1e5)
-        continue;
+      if (!(len > 0.5) || !std::isfinite(len) || !usable(p)) continue;
       const cv::Vec3d z = nrm / len;
       cv::Vec3d t, b;
       tangentFrame(z, t, b);
