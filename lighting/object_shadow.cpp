@@ -93,6 +93,23 @@ cv::Vec3f litFraction(const Ambient& hidden, const cv::Vec3f& x, const cv::Vec3f
   return out;
 }
 
+FacedGround facedGround(const cv::Vec3f& x, const cv::Vec3f& n, const std::vector<OccluderSphere>& spheres) {
+  FacedGround g;
+  g.point = x;
+  double best = 0;
+  for (const auto& s : spheres) {
+    const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);
+    if (!(f > best)) continue;
+    best = f;
+    const cv::Vec3f toX = x - s.centre;
+    const float dist = static_cast<float>(cv::norm(toX));
+    const float sinB = dist > 0 ? std::clamp(-toX.dot(n) / dist, 0.f, 1.f) : 1.f;
+    g.weight = std::isfinite(sinB) ? sinB * sinB : 0.f;
+    g.point = s.centre - (s.centre - x).dot(n) * n;
+  }
+  return g;
+}
+
 cv::Vec3d reflectionSample(int k) {
   // Fibonacci spiral: z uniform in (0, 1) (equal areas), the azimuth advanced by the golden angle.
   const double z = 1.0 - (k + 0.5) / kReflectionSamples, rho = std::sqrt(std::max(0.0, 1.0 - z * z));

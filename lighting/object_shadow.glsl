@@ -42,8 +42,28 @@ vec3 litFraction(vec3 full, vec3 hides, vec3 directWithout, vec3 directWith) {
   return (any(isnan(v)) || any(isinf(v))) ? vec3(1.0) : clamp(v, 0.0, 1.0);
 }
 
+// The ground under the face of the sphere x sees most, turned towards x (lighting::facedGround): the foot of
+// its centre on x's plane; `weight` = sin^2 of the angle under the plane from the centre to x.
+vec3 facedGround(vec3 x, vec3 n, out float weight) {
+  float best = 0.0;
+  vec3 ground = x;
+  weight = 0.0;
+  for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
+    float f = sphereViewFactor(x, n, uOccluders[i]);
+    if (!(f > best)) continue;
+    best = f;
+    vec3 toX = x - uOccluders[i].xyz;
+    float dist = length(toX);
+    float sinB = dist > 0.0 ? clamp(-dot(toX, n) / dist, 0.0, 1.0) : 1.0;
+    weight = isnan(sinB) ? 0.0 : sinB * sinB;
+    ground = uOccluders[i].xyz - dot(uOccluders[i].xyz - x, n) * n;
+  }
+  return ground;
+}
+
 // The irradiance the objects take from (x, n) under a light of irradiance `full` about n, net of what they
-// reflect of it (> 0: subtract it; lighting::ambientShadow), what they reflect lit as x's surroundings are.
+// reflect of it (> 0: subtract it; lighting::ambientShadow), what they reflect lit as x's surroundings and the
+// ground under them are (blendLit).
 vec3 ambientShadow(vec3 full, vec3 hides, vec3 reflects, vec3 lit) {
   vec3 e = clamp(hides - lit * reflects, -full, full);
   return (any(isnan(e)) || any(isinf(e))) ? vec3(0.0) : e;

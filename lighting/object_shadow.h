@@ -53,8 +53,8 @@ double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSp
 
 /// The irradiance the spheres take from (x, n) under `ambient`, net of what they reflect of it towards x
 /// (W/m^2; positive: subtract it, negative: the objects brighten x), within +- the ambient's irradiance about n.
-/// `lit` scales what they reflect: the faces they turn towards x see x's surroundings, which their shadows
-/// darken as they darken x (litFraction; 1: unshadowed surroundings).
+/// `lit` scales what they reflect: the faces they turn towards x see x's surroundings and the ground under
+/// them, which their shadows darken (litFraction, blendLit; 1: unshadowed surroundings).
 cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
                         const std::vector<OccluderSphere>& spheres, const cv::Vec3f& lit = {1, 1, 1});
 
@@ -66,6 +66,25 @@ cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Ve
 cv::Vec3f litFraction(const Ambient& hidden, const cv::Vec3f& x, const cv::Vec3f& n,
                       const std::vector<OccluderSphere>& spheres, const cv::Vec3f& directWithout,
                       const cv::Vec3f& directWith);
+
+/// The ground under the face of a sphere turned towards (x, n), that of the sphere x sees most: the foot of its
+/// centre on x's plane, and how much of what the face sees it is, weight = sin^2 b with b the angle under the
+/// plane of the direction from the centre to x. Near the contact the face looks straight down at the plane
+/// under the sphere (weight 1), which the sphere's own shadows darken whether or not x is lit; from afar it
+/// looks sideways at x's surroundings (weight -> 0). sin^2 b follows the view factor from the face to the disc
+/// of one radius under the sphere (1 at the contact, 0 at the equator); the shading pass blends the lit
+/// fraction at x towards the one at the foot by it (blendLit). Measured on tabletop-scan (Kinect-VAL, the
+/// room, listed lights): whole-pipeline delta 0.426 with x's alone, 0.409 with the weight sin b, 0.398 with sin^2 b.
+struct FacedGround {
+  cv::Vec3f point{0, 0, 0};
+  float weight = 0;  ///< 0: no sphere seen from x (point = x)
+};
+FacedGround facedGround(const cv::Vec3f& x, const cv::Vec3f& n, const std::vector<OccluderSphere>& spheres);
+/// The lit fraction of what the objects' faces turned towards x see: lit at x blended towards lit at the ground
+/// under them (facedGround's weight).
+inline cv::Vec3f blendLit(const cv::Vec3f& atX, const cv::Vec3f& atGround, float weight) {
+  return atX + weight * (atGround - atX);
+}
 
 /// What the spheres reflect of the lights onto a real surface element (x, n): the objects' bounce of the
 /// lights, for a real-role technique that has none of its own (the shading pass adds it). Each sphere is

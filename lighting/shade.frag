@@ -96,8 +96,17 @@ void main() {
     if (ambientShadowed) {
       vec3 full = ambientIrradiance(uHiddenUniform, uHiddenSh, n), hides, reflects;
       ambientShadowParts(uHiddenUniform, uHiddenSh, pos.xyz, n, hides, reflects);
-      // The objects' faces turned towards this point see its surroundings, darkened by their shadows as it is.
+      // The objects' faces turned towards this point see its surroundings and the ground under them, both
+      // darkened by their shadows (lighting::facedGround, blendLit).
       vec3 lit = litFraction(full, hides, directMu, directRho);
+      float groundWeight;
+      vec3 ground = facedGround(pos.xyz, n, groundWeight);
+      if (groundWeight > 0.0) {
+        vec3 hidesGround, reflectsGround;
+        ambientShadowParts(uHiddenUniform, uHiddenSh, ground, n, hidesGround, reflectsGround);
+        vec3 litGround = litFraction(full, hidesGround, directIrradiance(false, ground, n), directIrradiance(true, ground, n));
+        lit += groundWeight * (litGround - lit);
+      }
       // An ambient that is the room seen at the object holds the real surfaces' bounce, whose occlusion the
       // real-role technique's delta already has (from its own VALs, volumes or splats): not taken twice.
       delta -= ambientShadow(full, hides, reflects, lit);

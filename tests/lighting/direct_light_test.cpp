@@ -98,8 +98,19 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
       ++real;
       // The direct shadow, the ambient the cube hides and the lights it reflects (lighting/object_shadow.h).
       // What the cube reflects of the ambient is lit as the floor around it is, and it reflects the lights.
-      const cv::Vec3f lit =
-          lighting::litFraction(sky, cv::Vec3f(x), cv::Vec3f(nn), spheres, cv::Vec3f(without), cv::Vec3f(with));
+      // ... and as the ground under the cube, where the face it turns towards x looks (lighting::facedGround).
+      const lighting::FacedGround g = lighting::facedGround(cv::Vec3f(x), cv::Vec3f(nn), spheres);
+      cv::Vec3d groundWith(0, 0, 0), groundWithout(0, 0, 0);
+      const cv::Vec3d gx(g.point);
+      for (size_t l = 0; l < lights.size(); ++l) {
+        const cv::Vec3d e = lighting::unshadowedIrradiance(lights[l], gx, nn);
+        groundWith += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], true, gx, nn);
+        groundWithout += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], false, gx, nn);
+      }
+      const cv::Vec3f lit = lighting::blendLit(
+          lighting::litFraction(sky, cv::Vec3f(x), cv::Vec3f(nn), spheres, cv::Vec3f(without), cv::Vec3f(with)),
+          lighting::litFraction(sky, g.point, cv::Vec3f(nn), spheres, cv::Vec3f(groundWithout), cv::Vec3f(groundWith)),
+          g.weight);
       want = with[0] - without[0] - lighting::ambientShadow(sky, cv::Vec3f(x), cv::Vec3f(nn), spheres, lit)[0] +
              lighting::reflectedLight(cv::Vec3f(x), cv::Vec3f(nn), spheres, lights, reaches)[0];
       got = irr.at<cv::Vec4f>(i)[0];

@@ -198,7 +198,10 @@ TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
         if (p[3] < 0.5f || v[3] > 0.5f) continue;
         ++real;
         const cv::Vec3f at(p[0], p[1], p[2]), nn = cv::normalize(cv::Vec3f(n[0], n[1], n[2]));
-        const cv::Vec3f e = ambientShadow(hidden, at, nn, spheres, litFraction(hidden, at, nn, spheres, {}, {}));
+        const FacedGround g = facedGround(at, nn, spheres);
+        const cv::Vec3f lit = blendLit(litFraction(hidden, at, nn, spheres, {}, {}),
+                                       litFraction(hidden, g.point, nn, spheres, {}, {}), g.weight);
+        const cv::Vec3f e = ambientShadow(hidden, at, nn, spheres, lit);
         const cv::Vec3f expected = -e * (test::kFloorAlbedo[0] / CV_PI);
         shadowed += e[0] > 1e-3f;
         for (int c = 0; c < 3; ++c)
@@ -327,6 +330,41 @@ TEST(ObjectShadow, WhatASphereReflectsOfTheAmbientIsLitAsItsSurroundings) {
     const cv::Vec3f v = litFraction(none, x, n, white, d, d);
     for (int c = 0; c < 3; ++c) EXPECT_TRUE(v[c] >= 0.f && v[c] <= 1.f) << v;
   }
+}
+
+TEST(ObjectShadow, TheFaceASphereTurnsTowardsItsContactSeesTheGroundUnderIt) {
+  // A sphere resting on a plane: beside its contact its face looks straight down at the plane under it
+  // (weight sin^2 b -> 1), from afar sideways at the point's surroundings (-> (r / d)^2).
+  const float r = 0.1f;
+  const std::vector<OccluderSphere> sphere{{{0.3f, 0, r}, r, {0.8f, 0.8f, 0.8f}}};
+  const cv::Vec3f n(0, 0, 1);
+  const FacedGround near = facedGround({0.32f, 0, 0}, n, sphere);
+  EXPECT_NEAR(cv::norm(near.point - cv::Vec3f(0.3f, 0, 0)), 0.0, 1e-6);
+  EXPECT_NEAR(near.weight, r * r / (0.02 * 0.02 + r * r), 1e-5);
+  const FacedGround far = facedGround({2.3f, 0, 0}, n, sphere);
+  EXPECT_NEAR(far.weight, r * r / (4 + r * r), 1e-6);
+  // Two spheres: the one x sees most.
+  const std::vector<OccluderSphere> two{sphere[0], {{-1, 0, 0.05f}, 0.05f, {1, 1, 1}}};
+  EXPECT_NEAR(cv::norm(facedGround({0.25f, 0, 0}, n, two).point - cv::Vec3f(0.3f, 0, 0)), 0.0, 1e-6);
+  EXPECT_NEAR(cv::norm(facedGround({-0.95f, 0, 0}, n, two).point - cv::Vec3f(-1, 0, 0)), 0.0, 1e-6);
+  // None seen (behind the plane, or none at all): x itself, weight 0; NaN stays in [0, 1].
+  EXPECT_EQ(facedGround({0.32f, 0, 0}, {0, 0, -1}, sphere).weight, 0.f);
+  EXPECT_EQ(facedGround({0.32f, 0, 0}, n, {}).weight, 0.f);
+  const FacedGround bad = facedGround({NAN, 0, 0}, n, sphere);
+  EXPECT_TRUE(bad.weight >= 0.f && bad.weight <= 1.f);
+  // A lamp lights x beside the contact but not the ground under the sphere: what the sphere reflects of the
+  // ambient there is what its underside sees, the shadowed ground, not x's lit surroundings.
+  Ambient sky;
+  sky.uniform = {0.5f, 0.5f, 0.5f};
+  const cv::Vec3f x(0.32f, 0, 0), lamp(6, 6, 6);
+  const cv::Vec3f litX = litFraction(sky, x, n, sphere, lamp, lamp);
+  const cv::Vec3f litGround = litFraction(sky, near.point, n, sphere, lamp, {});
+  EXPECT_GT(litX[0], 0.75f);       // lit by the lamp, less the sky the sphere hides beside its contact
+  EXPECT_LT(litGround[0], 0.05f);  // under the sphere: the lamp shadowed and all the sky hidden
+  const cv::Vec3f lit = blendLit(litX, litGround, near.weight);
+  EXPECT_NEAR(lit[0], litX[0] + near.weight * (litGround[0] - litX[0]), 1e-6);
+  EXPECT_LT(lit[0], 0.1f);
+  EXPECT_GT(ambientShadow(sky, x, n, sphere, lit)[0], ambientShadow(sky, x, n, sphere, litX)[0] + 0.2f);
 }
 
 TEST(ObjectShadow, ShadingPassAddsTheLightTheObjectReflectsAsItsCppTwin) {

@@ -220,8 +220,14 @@ TEST(GL, KinectValAloneDarkensRealPixelsAndRealValsOnlyInTheObjectsShadow) {
     const cv::Vec3f x(p[0], p[1], p[2]), nn(n[0], n[1], n[2]);
     const cv::Vec3f without(unshadowedIrradiance(sun, pw, cv::Vec3d(nn))),
         with = shadowed(0.5 * cube) ? cv::Vec3f(0, 0, 0) : without;
-    const float hidden = (ambientShadow(sky, x, nn, spheres, litFraction(sky, x, nn, spheres, without, with))[0] -
-                          reflectedLight(x, nn, spheres, {sun})[0]) *
+    // The ground under the cube's face turned towards x (lighting::facedGround), lit as x is by the sun's shadow.
+    const FacedGround g = facedGround(x, nn, spheres);
+    const cv::Vec3d gw(g.point);
+    const cv::Vec3f groundWithout(unshadowedIrradiance(sun, gw, cv::Vec3d(nn))),
+        groundWith = inShadow(gw, sun.direction, centre, 0.5 * cube) ? cv::Vec3f(0, 0, 0) : groundWithout;
+    const cv::Vec3f lit = blendLit(litFraction(sky, x, nn, spheres, without, with),
+                                   litFraction(sky, g.point, nn, spheres, groundWithout, groundWith), g.weight);
+    const float hidden = (ambientShadow(sky, x, nn, spheres, lit)[0] - reflectedLight(x, nn, spheres, {sun})[0]) *
                          kFloorAlbedo[0] / static_cast<float>(CV_PI);
     if (shadowed(0.5 * cube - 0.01)) {
       ++inside;
