@@ -130,6 +130,24 @@ vec3 unshadowedIrradiance(int i, vec3 x, vec3 n) {
   return uLightPower[i] * capCosine(dot(n, ln), sinA) / d2;
 }
 
+// Whether the objects may shadow (x, n) from a light that sends it anything: its objects' test leaves some
+// of it out, or it has no objects' map (the test of RSM^rho then differs from RSM^mu's). Where not,
+// directIrradiance(true, x, n) equals directIrradiance(false, x, n) bit for bit.
+bool objectsMayShadow(vec3 x, vec3 n) {
+  for (int i = 0; i < uLightCount; ++i) {
+    if (!any(greaterThan(unshadowedIrradiance(i, x, n), vec3(0.0)))) continue;
+    if (uObjectShadowBias[i] < -1e29) return true;
+#ifdef SOFT_OBJECT_SHADOWS
+    float objects = uLightSoft[i] == 1 ? softObjectsShadow(i, x, n)
+                                        : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#else
+    float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#endif
+    if (objects < 1.0) return true;
+  }
+  return false;
+}
+
 vec3 directIrradiance(bool withObjects, vec3 x, vec3 n) {
   vec3 e = vec3(0.0);
   for (int i = 0; i < uLightCount; ++i) {

@@ -57,7 +57,7 @@ void ambientShadowParts(const Ambient& ambient, const cv::Vec3f& x, const cv::Ve
   hides = reflects = cv::Vec3f(0, 0, 0);
   for (const auto& s : spheres) {
     const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);
-    if (f <= 0) continue;
+    if (!(f >= kObjectsMinViewFactor)) continue;
     const cv::Vec3f d = s.centre - x;
     const float len = static_cast<float>(cv::norm(d));
     const cv::Vec3f w = len > 0 ? d / len : n;
@@ -123,7 +123,7 @@ cv::Vec3f reflectedLight(const cv::Vec3f& x, const cv::Vec3f& n, const std::vect
   const cv::Vec3d xd(x), nd(n);
   for (const auto& s : spheres) {
     const double f = sphereViewFactor(xd, nd, s);
-    if (f < kReflectionMinViewFactor || s.albedo == cv::Vec3f(0, 0, 0)) continue;
+    if (f < kObjectsMinViewFactor || s.albedo == cv::Vec3f(0, 0, 0)) continue;
     const cv::Vec3d c(s.centre), toX = xd - c;
     const double dist = cv::norm(toX), r = s.radius;
     if (!(dist > 0)) continue;

@@ -8,6 +8,8 @@ uniform int uOccluderCount;
 uniform vec4 uOccluders[MAX_OCCLUDERS];  // xyz centre (lighting world), w radius; object_shadow.h occluderSphere
 uniform vec3 uOccluderAlbedo[MAX_OCCLUDERS];  // diffuse albedo of what each reflects of the ambient
 
+#define OBJECTS_MIN_VIEW_FACTOR 1e-3  // lighting::kObjectsMinViewFactor: a sphere seen less adds nothing
+
 #include "lighting/view_factor.glsl"
 
 float sphereViewFactor(vec3 x, vec3 n, vec4 s) {
@@ -18,6 +20,14 @@ float sphereViewFactor(vec3 x, vec3 n, vec4 s) {
   return sphereViewFactorH(dist / r, dot(n, d) / dist);
 }
 
+// Whether any sphere reaches (x, n): seen at a view factor of at least OBJECTS_MIN_VIEW_FACTOR. Where none
+// does, what the spheres hide and reflect is exactly zero.
+bool objectsSeen(vec3 x, vec3 n) {
+  for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i)
+    if (sphereViewFactor(x, n, uOccluders[i]) >= OBJECTS_MIN_VIEW_FACTOR) return true;
+  return false;
+}
+
 // What the spheres hide from (x, n) of a light (uniform part and SH bands 1-2), and what they would reflect of
 // it towards x were their surroundings unshadowed (each: its view factor times the radiance along its centre).
 void ambientShadowParts(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n, out vec3 hides, out vec3 reflects) {
@@ -26,7 +36,7 @@ void ambientShadowParts(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n, out vec3 h
   reflects = vec3(0.0);
   for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
     float f = sphereViewFactor(x, n, uOccluders[i]);
-    if (f <= 0.0) continue;
+    if (!(f >= OBJECTS_MIN_VIEW_FACTOR)) continue;
     vec3 d = uOccluders[i].xyz - x;
     float len = length(d);
     vec3 w = len > 0.0 ? d / len : n;
@@ -86,7 +96,7 @@ vec3 reflectedLight(vec3 x, vec3 n) {
   for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
     vec4 s = uOccluders[i];
     float f = sphereViewFactor(x, n, s);
-    if (f < 1e-3 || all(equal(uOccluderAlbedo[i], vec3(0.0)))) continue;  // lighting::kReflectionMinViewFactor
+    if (!(f >= OBJECTS_MIN_VIEW_FACTOR) || all(equal(uOccluderAlbedo[i], vec3(0.0)))) continue;
     vec3 toX = x - s.xyz;
     float dist = length(toX);
     if (!(dist > 0.0)) continue;

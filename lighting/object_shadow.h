@@ -23,6 +23,13 @@
 
 namespace mrgi::lighting {
 
+/// A sphere whose view factor from a surface element is under this adds nothing there: neither the ambient it
+/// hides and reflects nor the lights it reflects (beyond about ten radii on the plane a sphere rests on; what it
+/// would add is under a thousandth of the element's own ambient irradiance, less than a 1/255 step of the
+/// pixel). The shading pass skips a real pixel's object terms where no sphere reaches it and no objects' map
+/// shadows it (lighting/shade.frag).
+constexpr double kObjectsMinViewFactor = 1e-3;
+
 struct OccluderSphere {
   cv::Vec3f centre{0, 0, 0};
   float radius = 0;
@@ -51,7 +58,8 @@ inline OccluderSphere occluderSphere(const VirtualObject& object) {
 /// element's cosine-weighted hemisphere (pi) the sphere covers. 0 behind the element, 1 when x is inside.
 double sphereViewFactor(const cv::Vec3d& x, const cv::Vec3d& n, const OccluderSphere& s);
 
-/// The irradiance the spheres take from (x, n) under `ambient`, net of what they reflect of it towards x
+/// The irradiance the spheres take from (x, n) under `ambient`, net of what they reflect of it towards x (each
+/// sphere seen at a view factor of at least kObjectsMinViewFactor)
 /// (W/m^2; positive: subtract it, negative: the objects brighten x), within +- the ambient's irradiance about n.
 /// `lit` scales what they reflect: the faces they turn towards x see x's surroundings and the ground under
 /// them, which their shadows darken (litFraction, blendLit; 1: unshadowed surroundings).
@@ -94,11 +102,10 @@ inline cv::Vec3f blendLit(const cv::Vec3f& atX, const cv::Vec3f& atGround, float
 /// of L over kReflectionSamples equal-area points of the half of the sphere facing x, weighed by the form factor cos(at
 /// p) cos(at x) / R^2 of those above x's horizon; the mean times the sphere's exact view factor (pi F) is the
 /// irradiance, so a uniformly bright sphere is exact and the samples only shape the mean. Points whose view factor is
-/// under kReflectionMinViewFactor (beyond about ten radii on the plane a sphere rests on) get nothing. Against a fine
+/// under kObjectsMinViewFactor get nothing. Against a fine
 /// quadrature of the sphere (object_shadow_test: a sphere resting on a plane, lit aslant, from the side and by a lamp):
 /// within 15 % from three radii from its centre, 25 % at two (of the fully lit sphere's irradiance where less is lit).
 constexpr int kReflectionSamples = 16;
-constexpr double kReflectionMinViewFactor = 1e-3;
 /// Point k of the equal-area spiral on the half sphere about +z (k < kReflectionSamples).
 cv::Vec3d reflectionSample(int k);
 /// `reaches(i, p, l)`: whether light i reaches the sphere's point p facing it (direction l); unset: every light

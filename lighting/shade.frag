@@ -86,13 +86,18 @@ void main() {
     outIrradiance = vec4(indirect, 1.0);
   } else {
     vec3 delta = techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal);
-    bool ambientShadowed = uAddAmbientShadow == 1 || (uAddAmbientShadow == 2 && uHiddenDiffers == 1);
+    // Only where the objects reach: a sphere seen at a view factor of at least lighting::kObjectsMinViewFactor, or
+    // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero (most of a
+    // frame's real pixels: the pass cost llvmpipe twice as much computing them).
+    bool seen = objectsSeen(pos.xyz, n);
+    bool directShadowed = uAddDirectShadow == 1 && objectsMayShadow(pos.xyz, n);
+    bool ambientShadowed = (uAddAmbientShadow == 1 || (uAddAmbientShadow == 2 && uHiddenDiffers == 1)) && seen;
     vec3 directMu = vec3(0.0), directRho = vec3(0.0);  // the direct light without and with the objects
-    if (uAddDirectShadow == 1 || ambientShadowed) {
+    if (directShadowed || ambientShadowed) {
       directMu = directIrradiance(false, pos.xyz, n);
       directRho = directIrradiance(true, pos.xyz, n);
     }
-    if (uAddDirectShadow == 1) delta += directRho - directMu;
+    if (directShadowed) delta += directRho - directMu;
     if (ambientShadowed) {
       vec3 full = ambientIrradiance(uHiddenUniform, uHiddenSh, n), hides, reflects;
       ambientShadowParts(uHiddenUniform, uHiddenSh, pos.xyz, n, hides, reflects);
@@ -117,7 +122,7 @@ void main() {
         delta += ambientShadow(fullAmbient, hidesAmbient, reflectsAmbient, lit);
       }
     }
-    if (uAddReflectedLight == 1) delta += reflectedLight(pos.xyz, n);
+    if (uAddReflectedLight == 1 && seen) delta += reflectedLight(pos.xyz, n);
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }

@@ -131,6 +131,14 @@ TEST(ObjectShadow, TheAmbientShadowIsThePiLFOfAUniformSkyAndStaysBounded) {
   grey[0].albedo = {0.85f, 0.5f, 0.0f};
   const cv::Vec3f g = ambientShadow(sky, {0, 0, 0}, {0, 0, 1}, grey);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(g[c], CV_PI * sky.uniform[c] * (1 - grey[0].albedo[c]) / 9.0, 1e-6);
+  // A sphere seen at a view factor under kObjectsMinViewFactor adds nothing (the shading pass skips such
+  // pixels); just above it, pi L F as any other.
+  const double dAt = std::sqrt(1.0 / kObjectsMinViewFactor) * 0.1;  // F = (r / d)^2 straight overhead
+  const cv::Vec3f justOut = ambientShadow(sky, {0, 0, 0}, {0, 0, 1}, {{{0, 0, float(dAt * 1.001)}, 0.1f}});
+  const cv::Vec3f justIn = ambientShadow(sky, {0, 0, 0}, {0, 0, 1}, {{{0, 0, float(dAt * 0.999)}, 0.1f}});
+  EXPECT_EQ(justOut, cv::Vec3f(0, 0, 0));
+  EXPECT_NEAR(justIn[0], CV_PI * sky.uniform[0] * 0.01 / (0.999 * 0.999 * dAt * dAt), 1e-7);
+  EXPECT_LT(justIn[0], 1e-3 * sky.irradiance({0, 0, 1})[0] * 1.01);  // what the cut leaves out: under 1e-3 of E
   // Under a sky bright above and dark below, a white sphere's underside (what a point beneath it sees) is
   // darker than the sky it hides: the point loses; a point above it sees its lit top and gains.
   Ambient above;
