@@ -112,8 +112,8 @@ void main() {
         vec3 litGround = litFraction(full, hidesGround, directIrradiance(false, ground, n), directIrradiance(true, ground, n));
         lit += groundWeight * (litGround - lit);
       }
-      // An ambient that is the room seen at the object holds the real surfaces' bounce, whose occlusion the
-      // real-role technique's delta already has (from its own VALs, volumes or splats): not taken twice.
+      // The hidden light holds the near real surfaces' bounce too; a technique whose own delta blocks some of
+      // it (DLPV's volume blocks the bounce it injected) has that part taken twice (docs/bench-resolution.md).
       delta -= ambientShadow(full, hides, reflects, lit);
       // A technique that blocks the ambient itself: only what the hidden light has beyond the ambient.
       if (uAddAmbientShadow == 2) {
