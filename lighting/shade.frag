@@ -87,8 +87,7 @@ void main() {
   } else {
     vec3 delta = techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal);
     // Only where the objects reach: a sphere seen at a view factor of at least lighting::kObjectsMinViewFactor, or
-    // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero (most of a
-    // frame's real pixels: the pass cost llvmpipe twice as much computing them).
+    // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero and skipped.
     bool seen = objectsSeen(pos.xyz, n);
     bool directShadowed = uAddDirectShadow == 1 && objectsMayShadow(pos.xyz, n);
     bool ambientShadowed = (uAddAmbientShadow == 1 || (uAddAmbientShadow == 2 && uHiddenDiffers == 1)) && seen;
