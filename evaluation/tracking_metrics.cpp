@@ -42,7 +42,6 @@ SurfaceDistance surfaceDistance(const reconstruction::RoomMesh& from, const reco
   }
   reconstruction::PointCloudAdaptor adaptor{to.positions};
   reconstruction::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
-  tree.buildIndex();
   std::vector<double> d(from.positions.size());
   double sum = 0;
   size_t within = 0;

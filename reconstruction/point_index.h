@@ -1,7 +1,7 @@
 #pragma once
 /// nanoflann's k-d tree over a vector of 3D points held by reference (the points must outlive the tree):
 /// nearest sparse points of a mesh vertex (Kinect-VAL), nearest room vertex of a depth-mesh vertex or of a
-/// point a room bounce ray leaves through.
+/// point a room bounce ray leaves through. Constructing the tree builds its index (nanoflann's default flags).
 #include <cstdint>
 #include <nanoflann.hpp>
 #include <opencv2/core.hpp>

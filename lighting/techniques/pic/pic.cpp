@@ -106,7 +106,6 @@ std::vector<Surfel> placeSurfels(const SurfaceMesh& mesh, const SurfelOptions& o
     for (size_t i = 0; i < n; ++i) pts[i] = out[i].position;
     reconstruction::PointCloudAdaptor adaptor{pts};
     reconstruction::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-    tree.buildIndex();
     std::vector<Surfel> next = out;
     cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
       std::vector<uint32_t> idx(k);
@@ -158,7 +157,6 @@ std::pair<double, double> nearestNeighbourSpread(const std::vector<Surfel>& surf
   for (size_t i = 0; i < n; ++i) pts[i] = surfels[i].position;
   reconstruction::PointCloudAdaptor adaptor{pts};
   reconstruction::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-  tree.buildIndex();
   double sum = 0, sum2 = 0;
   for (size_t i = 0; i < n; ++i) {
     uint32_t idx[2];
@@ -215,7 +213,6 @@ Hierarchy buildHierarchy(const std::vector<Surfel>& surfels, const ClusterOption
     for (size_t i = 0; i < n; ++i) pts[i] = h.nodes[static_cast<size_t>(active[i])].position;
     reconstruction::PointCloudAdaptor adaptor{pts};
     reconstruction::PointKdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-    tree.buildIndex();
     const size_t k = std::min(n, static_cast<size_t>(std::max(2, options.candidates + 1)));
     std::vector<int32_t> best(n, -1);
     std::vector<double> bestD(n, 1e300);
