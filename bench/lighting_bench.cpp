@@ -105,14 +105,13 @@ void BM_ImperfectVolumes(benchmark::State& state) {
       gathered * static_cast<double>(state.range(1)) * static_cast<double>(std::max<int64_t>(1, state.range(2))) * 2.0;
 }
 
-/// args: pixel lights (splat.vpls), i_low, far levels, surface lights.
+/// args: pixel lights (splat.vpls), i_low, far levels.
 void BM_Splatting(benchmark::State& state) {
   auto context = benchContext();
   PipelineConfig cfg = benchConfig("splatting");
   cfg.set("splat", "vpls", static_cast<double>(state.range(0)));
   cfg.set("splat", "i_low", static_cast<double>(state.range(1)));
   cfg.set("splat", "far_levels", static_cast<double>(state.range(2)));
-  cfg.set("splat", "surface", static_cast<double>(state.range(3)));
   double meanOverdraw = 0, maxOverdraw = 0, lights = 0;
   int runs = 0;
   const auto ms = runScene(state, cfg, [&](const LightingPipeline& pipe) {
@@ -121,10 +120,10 @@ void BM_Splatting(benchmark::State& state) {
     meanOverdraw += info.value("mean_splats_per_pixel", 0.0);
     maxOverdraw = std::max(maxOverdraw, info.value("max_splats_per_pixel", 0.0));
     const nlohmann::json stats = pipe.stats().value("splatting", nlohmann::json::object());
-    lights = stats.value("delta_lights", 0.0) + stats.value("object_lights", 0.0) + stats.value("surface_lights", 0.0);
+    lights = stats.value("delta_lights", 0.0) + stats.value("object_lights", 0.0);
     ++runs;
   });
-  for (const char* stage : {"splat.importance", "splat.sample", "splat.surface", "splat.splat"})
+  for (const char* stage : {"splat.importance", "splat.sample", "splat.splat"})
     state.counters[std::string(stage).substr(6) + "_ms"] = ms.count(stage) ? ms.at(stage) : 0.0;
   state.counters["lights"] = lights;
   state.counters["overdraw_mean"] = meanOverdraw / std::max(runs, 1);
@@ -176,21 +175,19 @@ void imperfectVolumesRows(benchmark::internal::Benchmark* b) {
   for (int64_t v : {3, 19}) b->Args({r, n, bounces, v});
 }
 BENCHMARK(BM_ImperfectVolumes)->Apply(imperfectVolumesRows)->Unit(benchmark::kMillisecond)->Iterations(3);
-// Light count 64 .. 16384 at the defaults (I_low 16, 2 far levels, 256 surface lights); at 1024 lights the
-// splat size (I_low 4 and 64), far levels 0, 1 and 3, and surface lights 0 and 1024.
+// Light count 64 .. 16384 at the defaults (I_low 16, 2 far levels); at 1024 lights the splat size (I_low 4
+// and 64) and far levels 0, 1 and 3.
 BENCHMARK(BM_Splatting)
-    ->Args({64, 16, 2, 256})
-    ->Args({256, 16, 2, 256})
-    ->Args({1024, 16, 2, 256})
-    ->Args({4096, 16, 2, 256})
-    ->Args({16384, 16, 2, 256})
-    ->Args({1024, 4, 2, 256})
-    ->Args({1024, 64, 2, 256})
-    ->Args({1024, 16, 0, 256})
-    ->Args({1024, 16, 1, 256})
-    ->Args({1024, 16, 3, 256})
-    ->Args({1024, 16, 2, 0})
-    ->Args({1024, 16, 2, 1024})
+    ->Args({64, 16, 2})
+    ->Args({256, 16, 2})
+    ->Args({1024, 16, 2})
+    ->Args({4096, 16, 2})
+    ->Args({16384, 16, 2})
+    ->Args({1024, 4, 2})
+    ->Args({1024, 64, 2})
+    ->Args({1024, 16, 0})
+    ->Args({1024, 16, 1})
+    ->Args({1024, 16, 3})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(3);
 // Surfels and caches (precompute), caches x links (gather), bands with full and compressed chroma, RGBA32F flux.

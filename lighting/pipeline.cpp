@@ -233,8 +233,6 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   p.use();
   p.set("uLighting", lit ? 1 : 0);
   p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
-  p.set("uAddAmbientShadow", real_ && real_->accountsForAmbientShadow() ? 2 : 1);
-  p.set("uHiddenDiffers", hiddenAmbient_ ? 1 : 0);
   p.set("uAddReflectedLight", real_ && real_->accountsForReflectedLight() ? 0 : 1);
   setOccluderUniforms(p, *frame_);
   setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)

@@ -4,10 +4,9 @@
 //   real pixel:    rgb = E_delta * albedo / pi, a = 0   (the compositor adds it to the background)
 //                  E_delta = the real-role technique's delta, plus (when that technique does not already
 //                  account for it) the direct light the object blocks, sum_i E_i (vis_i(rho) - vis_i(mu)) (lighting/direct_light.glsl),
-//                  and (likewise) what the objects hide of the light around them net of what they reflect of it,
+//                  and, for every technique, what the objects hide of the light around them net of what they reflect of it,
 //                  -integral_objects (L_hidden - L_object) cos (lighting/object_shadow.glsl); L_hidden is the ambient,
 //                  or the room's surfaces seen from the objects when lights are listed beside a room (uHidden*);
-//                  a technique that blocks the ambient itself gets only the difference between the two;
 //                  and (likewise) the lights the objects reflect onto real surfaces (lighting/object_shadow.glsl)
 //   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
@@ -45,8 +44,6 @@ uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
 uniform vec3 uAmbientSh[9];     // radiance as SH bands 0-2, lighting world (reconstruction::shBasis2's basis); 0 = none
 #include "lighting/ambient_sh.glsl"
-uniform int uAddAmbientShadow;  // 1: the real-role technique leaves the ambient the objects hide to this pass; 2: it blocks the ambient itself
-uniform int uHiddenDiffers;     // 1: what the objects hide is not the ambient (a room's surfaces beside listed lights)
 uniform vec3 uHiddenUniform;    // what the objects hide: radiance, uniform part (the ambient unless a room's surfaces)
 uniform vec3 uHiddenSh[9];      // ... and its SH bands 1-2
 uniform int uAddReflectedLight; // 1: the real-role technique leaves the lights the objects reflect onto real surfaces to this pass
@@ -90,7 +87,7 @@ void main() {
     // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero and skipped.
     bool seen = objectsSeen(pos.xyz, n);
     bool directShadowed = uAddDirectShadow == 1 && objectsMayShadow(pos.xyz, n);
-    bool ambientShadowed = (uAddAmbientShadow == 1 || (uAddAmbientShadow == 2 && uHiddenDiffers == 1)) && seen;
+    bool ambientShadowed = seen;
     vec3 directMu = vec3(0.0), directRho = vec3(0.0);  // the direct light without and with the objects
     if (directShadowed || ambientShadowed) {
       directMu = directIrradiance(false, pos.xyz, n);
@@ -114,12 +111,6 @@ void main() {
       // The hidden light holds the near real surfaces' bounce too; a technique whose own delta blocks some of
       // it (DLPV's volume blocks the bounce it injected) has that part taken twice (docs/bench-resolution.md).
       delta -= ambientShadow(full, hides, reflects, lit);
-      // A technique that blocks the ambient itself: only what the hidden light has beyond the ambient.
-      if (uAddAmbientShadow == 2) {
-        vec3 fullAmbient = ambientIrradiance(uAmbient, uAmbientSh, n), hidesAmbient, reflectsAmbient;
-        ambientShadowParts(uAmbient, uAmbientSh, pos.xyz, n, hidesAmbient, reflectsAmbient);
-        delta += ambientShadow(fullAmbient, hidesAmbient, reflectsAmbient, lit);
-      }
     }
     if (uAddReflectedLight == 1 && seen) delta += reflectedLight(pos.xyz, n);
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);

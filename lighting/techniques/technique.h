@@ -96,9 +96,6 @@ class Technique {
   /// Whether the real-pixel delta already contains the object's direct shadow on real surfaces (otherwise
   /// the shading pass adds it from the shadow maps).
   virtual bool accountsForDirectShadow() const { return false; }
-  /// Whether the real-pixel delta already contains the ambient the objects hide from real surfaces (otherwise
-  /// the shading pass subtracts it: lighting/object_shadow.h).
-  virtual bool accountsForAmbientShadow() const { return false; }
   /// Whether the real-pixel delta already contains the lights the objects reflect onto real surfaces
   /// (otherwise the shading pass adds it: lighting::reflectedLight).
   virtual bool accountsForReflectedLight() const { return false; }

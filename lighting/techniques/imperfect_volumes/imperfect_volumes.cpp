@@ -76,6 +76,9 @@ const std::vector<KnobBinding<ImperfectVolumesKnobs>>& imperfectVolumesKnobTable
 
 namespace {
 
+/// vec4 records per voxel (iv.glsl IvVoxel).
+constexpr size_t kVoxelRecords = 8;
+
 /// The per-voxel buffers: records, incident SH and occlusion per scene version (mu only for real pixels), the
 /// bounce and reflected scratch (more than one bounce), computed flags and point offsets, for the object's
 /// own rays the ambient hidden per voxel and the sum of the reflected bounces; the ray directions; the
@@ -86,12 +89,12 @@ size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real, bool virtualObject)
   const size_t c = static_cast<size_t>(k.bands) * k.bands;
   const size_t versions = real ? 2 : 1;
   const bool own = virtualObject && k.objectRays > 0;
-  const size_t perVoxel = 7 * 16 + versions * (3 * c * 4 + 4) + (k.bounces > 1 ? 3 * c * 4 + 16 : 0) + 4 + 4 +
-                          (own ? 16 : 0) + (own && k.bounces > 1 ? 16 : 0);
+  const size_t perVoxel = kVoxelRecords * 16 + versions * (3 * c * 4 + 4) + (k.bounces > 1 ? 3 * c * 4 + 16 : 0) + 4 +
+                          4 + (own ? 16 : 0) + (own && k.bounces > 1 ? 16 : 0);
   const size_t directions = 16 * static_cast<size_t>(k.rays + (own ? k.objectRays : 0));
   // The outer volume: records and offsets, its points budgeted as the grid's.
   const size_t ro = own ? static_cast<size_t>(k.outerResolution) : 0, no = ro * ro * ro;
-  const size_t outer = no * (7 * 16 + 4) + ro * ro * 3 * 4 * 48;
+  const size_t outer = no * (kVoxelRecords * 16 + 4) + ro * ro * 3 * 4 * 48;
   return n * perVoxel + directions + 3 * r * r * 4 * 48 + outer;
 }
 
@@ -246,7 +249,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       std::vector<cv::Vec4f> dirs;
       for (const cv::Vec3f& d : iv::rayDirections(knobs_.rays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
       directions_ = gl::Buffer::storage(dirs.size() * sizeof(cv::Vec4f), dirs.data());
-      voxels_ = gl::Buffer::storage(count * 7 * sizeof(cv::Vec4f));
+      voxels_ = gl::Buffer::storage(count * kVoxelRecords * sizeof(cv::Vec4f));
       incidentRho_ = real_ ? gl::Buffer::storage(count * 3 * static_cast<size_t>(C) * sizeof(float)) : gl::Buffer();
       incidentMu_ = gl::Buffer::storage(count * 3 * static_cast<size_t>(C) * sizeof(float));
       bounce_ = gl::Buffer::storage(knobs_.bounces > 1 ? count * 3 * static_cast<size_t>(C) * sizeof(float) : 0);
@@ -264,7 +267,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       outerPoints_ = gl::Buffer::storage(std::max<size_t>(op.data.size(), 1) * sizeof(cv::Vec4f), op.data.data());
       outerOffsets_ = gl::Buffer::storage(op.offsets.size() * sizeof(uint32_t), op.offsets.data());
       if (!outerVoxels_.id())
-        outerVoxels_ = gl::Buffer::storage(o.count() * 7 * sizeof(cv::Vec4f));  // the knob is fixed
+        outerVoxels_ = gl::Buffer::storage(o.count() * kVoxelRecords * sizeof(cv::Vec4f));  // the knob is fixed
       outerGrid_ = o;
     }
     if (!objectDirections_.id() && virtual_ && knobs_.objectRays > 0) {
@@ -366,7 +369,6 @@ void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
     p.set("uVoxel", static_cast<float>(g.voxel));
     p.set("uResolution", g.resolution);
     p.set("uNeededCount", static_cast<int>(neededCount_));
-    p.set("uRho", rho ? 1 : 0);
   };
   const bool accumulate = !rho && knobs_.bounces > 1 && virtual_;  // the object's rays read the mu bounces
   if (accumulate) reflectedSum_.clear();
@@ -460,15 +462,16 @@ namespace {
 iv::Volume downloadRecords(const iv::Grid& grid, const gl::Buffer& voxels) {
   iv::Volume v(grid);
   const size_t n = grid.count();
-  std::vector<cv::Vec4f> rec(n * 7);
+  std::vector<cv::Vec4f> rec(n * kVoxelRecords);
   voxels.download(0, static_cast<GLsizeiptr>(rec.size() * sizeof(cv::Vec4f)), rec.data());
   for (size_t i = 0; i < n; ++i) {
-    const cv::Vec4f* r = &rec[i * 7];
+    const cv::Vec4f* r = &rec[i * kVoxelRecords];
     v.exitantRho[i] = r[0], v.exitantMu[i] = r[1], v.normalRho[i] = r[2], v.normalMu[i] = r[3];
     v.albedoRho[i] = cv::Vec3f(r[4][0], r[4][1], r[4][2]);
     v.albedoMu[i] = cv::Vec3f(r[5][0], r[5][1], r[5][2]);
     v.exitantMuLit[i] = cv::Vec4f(r[6][0], r[6][1], r[6][2], r[1][3]);
-    v.occupancy[i] = static_cast<uint8_t>((r[1][3] > 0 ? iv::kReal : 0) | (r[0][3] > r[1][3] ? iv::kVirtual : 0));
+    v.exitantVirtual[i] = r[7];
+    v.occupancy[i] = static_cast<uint8_t>((r[1][3] > 0 ? iv::kReal : 0) | (r[7][3] > 0 ? iv::kVirtual : 0));
   }
   return v;
 }

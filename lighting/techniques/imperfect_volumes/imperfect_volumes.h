@@ -5,7 +5,9 @@
 /// only), each voxel lit by the scene's lights through the frame's shadow maps and by the unoccluded ambient;
 /// per voxel near a surface, rays march the grid and gather the incident radiance as SH — the ambient where
 /// nothing is hit within range, the surfaces' reflected light where something is, and further bounces.
-/// Outputs: on real pixels the change the objects make (the ambient they hide, their bounce), E^rho - E^mu;
+/// Outputs: on real pixels the change the objects make, E^rho - E^mu: the lights' bounce off them and what
+/// their shadows take from the real surfaces' bounce (in rho the objects hide nothing: the ambient they hide
+/// from real surfaces, and what they reflect of it, are the shading pass's, lighting/object_shadow.h);
 /// on the object, its ambient occlusion by real geometry and the bounce real surfaces send it (E^mu minus the
 /// unoccluded ambient the shading pass adds: the object's own voxels neither occlude nor light it).
 /// Reference math: iv.h.
@@ -51,8 +53,6 @@ IvPoints ivOuterPoints(const FrameResources& frame, const iv::Grid& inner, const
 
 class ImperfectVolumesTechnique final : public Technique {
  public:
-  /// Its delta holds the ambient the objects hide (their surfels block it as negative lights / in the gather).
-  bool accountsForAmbientShadow() const override { return true; }
   bool accountsForReflectedLight() const override { return true; }  // the objects' bounce, E^rho - E^mu
   explicit ImperfectVolumesTechnique(const TechniqueSetup& setup);
 

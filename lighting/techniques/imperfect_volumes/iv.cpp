@@ -76,7 +76,8 @@ Volume::Volume(const Grid& g)
       normalMu(g.count(), cv::Vec4f::all(0)),
       albedoRho(g.count(), cv::Vec3f::all(0)),
       albedoMu(g.count(), cv::Vec3f::all(0)),
-      exitantMuLit(g.count(), cv::Vec4f::all(0)) {}
+      exitantMuLit(g.count(), cv::Vec4f::all(0)),
+      exitantVirtual(g.count(), cv::Vec4f::all(0)) {}
 
 Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
   Volume v(grid);
@@ -92,6 +93,8 @@ Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
       al[i] += p.albedo;
     };
     add(v.exitantRho, v.normalRho, v.albedoRho, p.radianceRho);
+    if (p.isVirtual)
+      v.exitantVirtual[i] += cv::Vec4f(p.radianceLights[0], p.radianceLights[1], p.radianceLights[2], 1.0f);
     if (!p.isVirtual) {
       add(v.exitantMu, v.normalMu, v.albedoMu, p.radianceMu);
       v.exitantMuLit[i] += cv::Vec4f(p.radianceRho[0], p.radianceRho[1], p.radianceRho[2], 1.0f);
@@ -107,9 +110,10 @@ Volume voxelise(const Grid& grid, const std::vector<Point>& points) {
   };
   mean(v.exitantRho, v.albedoRho);
   mean(v.exitantMu, v.albedoMu);
-  for (cv::Vec4f& e : v.exitantMuLit)
-    if (e[3] > 0)
-      for (int k = 0; k < 3; ++k) e[k] /= e[3];
+  for (auto* list : {&v.exitantMuLit, &v.exitantVirtual})
+    for (cv::Vec4f& e : *list)
+      if (e[3] > 0)
+        for (int k = 0; k < 3; ++k) e[k] /= e[3];
   return v;
 }
 
@@ -158,6 +162,28 @@ int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::V
   return -1;
 }
 
+RhoHit marchRho(const Volume& volume, const cv::Vec3i& from, const cv::Vec3f& direction) {
+  const Grid& g = volume.grid;
+  const float s = static_cast<float>(g.voxel);
+  const cv::Vec3f o = cv::Vec3f(g.centre(from[0], from[1], from[2]));
+  const float start = 0.5f * std::sqrt(3.0f) * s;
+  const int maxSteps = static_cast<int>(std::ceil(std::sqrt(3.0f) * g.resolution)) + 1;
+  RhoHit hit;
+  for (int step = 0; step <= maxSteps; ++step) {
+    const float t = start + static_cast<float>(step) * s;
+    cv::Vec3i c;
+    if (!g.voxelOf(cv::Vec3d(o + t * direction), c)) break;
+    const size_t v = g.index(c[0], c[1], c[2]);
+    if ((volume.occupancy[v] & kVirtual) && hit.object < 0)
+      hit.object = static_cast<int64_t>(v), hit.objectDistance = t;
+    if (volume.occupancy[v] & kReal) {
+      hit.real = static_cast<int64_t>(v), hit.realDistance = t;
+      break;
+    }
+  }
+  return hit;
+}
+
 namespace {
 
 /// Radiance the voxel's surface sends towards direction `towards` (unit): its exitant radiance where that
@@ -168,14 +194,43 @@ cv::Vec3f exitantTowards(const cv::Vec4f& exitant, const cv::Vec4f& normalSum, c
   return {exitant[0], exitant[1], exitant[2]};
 }
 
-/// One gather: per needed voxel, L(w) = exitant[hit] towards the origin for hits within range, else the
-/// ambient (when `withAmbient`), projected to SH; adds into `out`.
+/// What one ray from voxel `from` brings: the hit voxel's `exitant` towards the origin within range (nothing
+/// when null: ambient occlusion only), else the ambient (when given). In rho (marchRho) the hit is the first voxel with
+/// real points and `glow` (when given) adds what the first object voxel within range sends towards the origin. `hit`: a
+/// surface within range (either kind) was met.
+cv::Vec3f rayRadiance(const Volume& volume, bool rho, const Options& o, const Ambient* ambient,
+                      const std::vector<cv::Vec4f>* exitant, const std::vector<cv::Vec4f>* glow, const cv::Vec3i& from,
+                      const cv::Vec3f& d, bool& hit) {
+  int64_t h = -1;
+  float t = 0;
+  cv::Vec3f L(0, 0, 0);
+  if (rho) {
+    const RhoHit r = marchRho(volume, from, d);
+    h = r.real, t = r.realDistance;
+    const bool object = r.object >= 0 && r.objectDistance <= o.range;
+    hit = object;
+    if (object && glow) {
+      const auto v = static_cast<size_t>(r.object);
+      L += exitantTowards((*glow)[v], volume.normalRho[v] - volume.normalMu[v], -d);
+    }
+  } else {
+    h = march(volume, false, from, d, &t);
+    hit = false;
+  }
+  if (h >= 0 && t <= o.range) {
+    hit = true;
+    const auto v = static_cast<size_t>(h);
+    return exitant ? L + exitantTowards((*exitant)[v], volume.normalMu[v], -d) : L;
+  }
+  return ambient ? L + ambient->radiance(d) : L;
+}
+
+/// One gather: per needed voxel, rayRadiance over the directions, projected to SH; adds into `out`.
 void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient* ambient,
-                const std::vector<cv::Vec4f>& exitant, const std::vector<cv::Vec3f>& dirs, Incident& out,
-                bool countOcclusion) {
+                const std::vector<cv::Vec4f>* exitant, const std::vector<cv::Vec4f>* glow,
+                const std::vector<cv::Vec3f>& dirs, Incident& out, bool countOcclusion) {
   const Grid& g = volume.grid;
   const int B = out.bands, C = B * B, R = g.resolution;
-  const auto& normals = rho ? volume.normalRho : volume.normalMu;
   std::vector<std::vector<double>> basis(dirs.size());
   for (size_t j = 0; j < dirs.size(); ++j) basis[j] = sh::evaluate(cv::Vec3d(dirs[j]), B);
   const double w = 4.0 * CV_PI / static_cast<double>(dirs.size());
@@ -187,15 +242,9 @@ void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient*
         std::vector<double> acc(static_cast<size_t>(3 * C), 0.0);
         int hits = 0;
         for (size_t j = 0; j < dirs.size(); ++j) {
-          float t = 0;
-          const int64_t h = march(volume, rho, {i, jj, k}, dirs[j], &t);
-          cv::Vec3f L(0, 0, 0);
-          if (h >= 0 && t <= o.range) {
-            ++hits;
-            L = exitantTowards(exitant[static_cast<size_t>(h)], normals[static_cast<size_t>(h)], -dirs[j]);
-          } else if (ambient) {
-            L = ambient->radiance(dirs[j]);
-          }
+          bool hit = false;
+          const cv::Vec3f L = rayRadiance(volume, rho, o, ambient, exitant, glow, {i, jj, k}, dirs[j], hit);
+          hits += hit;
           for (int c = 0; c < 3; ++c)
             if (L[c] != 0.0f)
               for (int q = 0; q < C; ++q)
@@ -207,19 +256,21 @@ void gatherPass(const Volume& volume, bool rho, const Options& o, const Ambient*
       }
 }
 
-/// What one ray of the first gather brings (gatherPass with the ambient): the hit voxel's light towards the
-/// origin within range (none with no bounces), else the ambient of its direction.
+/// The exitant radiance and the objects' light of the first gather (none with no bounces): real surfaces as
+/// the objects leave them lit in rho.
+const std::vector<cv::Vec4f>* firstExitant(const Volume& volume, bool rho, const Options& o) {
+  if (o.bounces <= 0) return nullptr;
+  return rho ? &volume.exitantMuLit : &volume.exitantMu;
+}
+const std::vector<cv::Vec4f>* firstGlow(const Volume& volume, bool rho, const Options& o) {
+  return rho && o.bounces > 0 ? &volume.exitantVirtual : nullptr;
+}
+
+/// What one ray of the first gather brings (gatherPass with the ambient).
 cv::Vec3f firstGatherRadiance(const Volume& volume, bool rho, const Options& o, const Ambient& ambient,
                               const cv::Vec3i& from, const cv::Vec3f& d) {
-  float t = 0;
-  const int64_t h = march(volume, rho, from, d, &t);
-  if (h >= 0 && t <= o.range) {
-    if (o.bounces <= 0) return {0, 0, 0};
-    const size_t hv = static_cast<size_t>(h);
-    return exitantTowards(rho ? volume.exitantRho[hv] : volume.exitantMu[hv],
-                          rho ? volume.normalRho[hv] : volume.normalMu[hv], -d);
-  }
-  return ambient.radiance(d);
+  bool hit = false;
+  return rayRadiance(volume, rho, o, &ambient, firstExitant(volume, rho, o), firstGlow(volume, rho, o), from, d, hit);
 }
 
 /// Irradiance about unit n of incident SH c (3 x B^2): sum_l pi s_l(1) c_lm y_lm(n).
@@ -311,9 +362,7 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
   out.occlusion.assign(g.count(), 0.0f);
   const std::vector<cv::Vec3f> dirs = rayDirections(o.rays);
   // Bounce 0: the ambient where no surface is hit within range (and ambient occlusion).
-  const std::vector<cv::Vec4f> dark(g.count(), cv::Vec4f::all(0));
-  gatherPass(volume, rho, o, &ambient, o.bounces > 0 ? (rho ? volume.exitantRho : volume.exitantMu) : dark, dirs, out,
-             true);
+  gatherPass(volume, rho, o, &ambient, firstExitant(volume, rho, o), firstGlow(volume, rho, o), dirs, out, true);
   out.reflectedSum.assign(g.count(), cv::Vec3f(0, 0, 0));
   // Further bounces: occupied voxels reflect what the previous bounce brought them (no ambient: the
   // ambient stands for light from beyond the volume, already counted).
@@ -324,13 +373,15 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
     bounce.computed = out.computed;
     bounce.sh.assign(out.sh.size(), 0.0f);
     bounce.occlusion.assign(g.count(), 0.0f);
-    gatherPass(volume, rho, o, nullptr, rho ? volume.exitantRho : volume.exitantMu, dirs, bounce, false);
-    const auto& normals = rho ? volume.normalRho : volume.normalMu;
-    const auto& albedo = rho ? volume.albedoRho : volume.albedoMu;
+    gatherPass(volume, rho, o, nullptr, firstExitant(volume, rho, o), firstGlow(volume, rho, o), dirs, bounce, false);
+    // The real surfaces reflect the next bounce (in rho too: the objects' own further bounces are the
+    // shading pass's reflection of the light they hide).
+    const auto& normals = volume.normalMu;
+    const auto& albedo = volume.albedoMu;
     for (int b = 1; b < o.bounces; ++b) {
       std::vector<cv::Vec4f> reflected(g.count(), cv::Vec4f::all(0));
       for (size_t v = 0; v < g.count(); ++v) {
-        if (!volume.occupied(v, rho) || !bounce.computed[v]) continue;
+        if (!volume.occupied(v, false) || !bounce.computed[v]) continue;
         const cv::Vec3f n(normals[v][0], normals[v][1], normals[v][2]);
         const double len = cv::norm(n);
         if (len <= 0) continue;
@@ -344,7 +395,7 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
       next.computed = out.computed;
       next.sh.assign(out.sh.size(), 0.0f);
       next.occlusion.assign(g.count(), 0.0f);
-      gatherPass(volume, rho, o, nullptr, reflected, dirs, next, false);
+      gatherPass(volume, rho, o, nullptr, &reflected, nullptr, dirs, next, false);
       for (size_t q = 0; q < out.sh.size(); ++q) out.sh[q] += next.sh[q];
       bounce = std::move(next);
     }

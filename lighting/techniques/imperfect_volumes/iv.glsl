@@ -12,8 +12,11 @@ struct IvVoxel {
   vec4 normalMu;
   vec4 albedoRho;
   vec4 albedoMu;
-  vec4 exitantMuLit;  // rgb: mean radiance of the real points as the objects leave them lit
+  vec4 exitantMuLit;    // rgb: mean radiance of the real points as the objects leave them lit
+  vec4 exitantVirtual;  // rgb: mean radiance the lights give the virtual points, w = their count
 };
+
+
 
 uniform vec3 uGridOrigin;
 uniform float uVoxel;

@@ -13,10 +13,13 @@
 /// start past the voxel's own bounding sphere ((sqrt 3 / 2) voxel) and march one voxel per step to the first
 /// occupied voxel or the border. A hit within `range` returns that voxel's exitant radiance towards the ray's
 /// origin; everything else returns the ambient radiance of the ray's direction (the room or the sky beyond
-/// what the volume holds). The incident radiance is stored as SH of `bands` bands per colour channel
-/// (convention of lighting/sh.h): c_i = 4 pi / N sum_j L(w_j) y_i(w_j). Further bounces: occupied voxels
-/// reflect the previous bounce's incident light (albedo / pi times its irradiance about their normal) and the
-/// rays are cast again; the bounces add up.
+/// what the volume holds). In rho the objects hide nothing: a ray goes on through their voxels to the first
+/// voxel with real points (its real points' light as the objects leave them lit) and adds the light the first
+/// object voxel on its way reflects of the lights (the ambient the objects hide from real surfaces, and what
+/// they reflect of it, are the shading pass's: lighting/object_shadow.h). The incident radiance is stored as SH of
+/// `bands` bands per colour channel (convention of lighting/sh.h): c_i = 4 pi / N sum_j L(w_j) y_i(w_j). Further
+/// bounces: occupied voxels reflect the previous bounce's incident light (albedo / pi times its irradiance about their
+/// normal) and the rays are cast again; the bounces add up.
 ///
 /// Reconstruction at a surface point x with normal n: p = x + n voxel / 2; of the 27 voxels around p, the
 /// six nearest to p whose centre lies in front of x (cos theta > 0, theta between n and centre - x), other
@@ -24,8 +27,9 @@
 /// under a lid they would see the sky above it), weighted by cos theta; E(n) = sum_l pi s_l(1) c_lm y_lm(n)
 /// (the clamped cosine). Occupied voxels are used only when no free one qualifies.
 ///
-/// The real-pixel delta is E^rho - E^mu (what the object adds: bounce, and the ambient it hides); the virtual
-/// object's is E^mu minus the unoccluded ambient the shading pass already adds.
+/// The real-pixel delta is E^rho - E^mu (what the object adds: the lights' bounce off it, and what its shadow
+/// takes from the real surfaces' bounce); the virtual object's is E^mu minus the unoccluded ambient the shading
+/// pass already adds.
 #include <array>
 #include <cstdint>
 #include <opencv2/core.hpp>
@@ -54,6 +58,9 @@ struct Point {
   cv::Vec3f position, normal;                           ///< lighting world, unit normal
   cv::Vec3f albedo{0.5f, 0.5f, 0.5f};                   ///< linear
   cv::Vec3f radianceRho{0, 0, 0}, radianceMu{0, 0, 0};  ///< W/m^2/sr, Lambertian
+  /// A virtual point's radiance from the lights alone (radianceRho less the ambient): what it sends the real
+  /// surfaces in rho.
+  cv::Vec3f radianceLights{0, 0, 0};
   bool isVirtual = false;
 };
 
@@ -79,6 +86,8 @@ struct Volume {
   /// rgb: mean exitant radiance of the real points as the objects leave them lit (their radianceRho: the
   /// table in the object's shadow is dark), the light the object's own rays see on real surfaces.
   std::vector<cv::Vec4f> exitantMuLit;
+  /// rgb: mean radianceLights of the virtual points, w = their count (their normals' sum: normalRho - normalMu).
+  std::vector<cv::Vec4f> exitantVirtual;
   explicit Volume(const Grid& g = {});
   bool occupied(size_t v, bool rho) const { return rho ? occupancy[v] != kEmpty : (occupancy[v] & kReal) != 0; }
 };
@@ -114,11 +123,19 @@ struct Incident {
 /// `occupied`, one entry per voxel; a Volume's occupancy: either version), where reconstruction reads.
 std::vector<uint8_t> neededVoxels(const Grid& grid, const std::vector<uint8_t>& occupied);
 
-/// Casts the rays of every needed voxel for the rho (all occupied voxels) or mu (real only) scene.
+/// Casts the rays of every needed voxel for the rho (real points as the objects leave them lit, the objects
+/// lending their reflection of the lights and hiding nothing) or mu (real only) scene.
 Incident gather(const Volume& volume, bool rho, const Options& options, const Ambient& ambient);
 
 /// The first occupied voxel along a ray from voxel centre `from` (past its bounding sphere, one voxel per
 /// step); -1 when the ray leaves the grid. `distance` gets the march distance of the hit.
+/// A ray of the rho gather: the first voxel with real points (-1: none) and the first with virtual points up
+/// to it (-1: none), each with its march distance (as march()).
+struct RhoHit {
+  int64_t real = -1, object = -1;
+  float realDistance = 0, objectDistance = 0;
+};
+RhoHit marchRho(const Volume& volume, const cv::Vec3i& from, const cv::Vec3f& direction);
 int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction,
               float* distance = nullptr);
 

@@ -2,7 +2,9 @@
 // Imperfect volumes, gather (iv.h gather): per voxel near a surface, N rays (the same directions for every
 // voxel) march one voxel per step from past the voxel's bounding sphere to the first occupied voxel or the
 // border. A hit within range returns the hit voxel's exitant radiance towards the origin (when it faces it);
-// otherwise the ambient of the ray's direction (uAmbientOn). The incident radiance is projected to SH and
+// otherwise the ambient of the ray's direction (uAmbientOn). In rho the objects hide nothing: the ray goes on
+// to the first voxel with real points, lit as the objects leave it, and the first object voxel on its way adds
+// the lights' light it reflects (iv_march_rho.glsl). The incident radiance is projected to SH and
 // added into the output (3 x SH_COEFFS floats per voxel, channel-major), with the fraction of rays that hit
 // within range (ambient occlusion) when uOcclusionOn.
 #include "lighting/techniques/imperfect_volumes/iv.glsl"
@@ -31,7 +33,8 @@ uniform int uWriteBounce;
 uniform vec3 uAmbient;           // uniform radiance
 uniform vec3 uAmbientSh[9];      // SH bands 0-2 of the ambient radiance
 
-bool occupiedAt(int v) { return (uRho == 1 ? voxels[v].exitantRho.w : voxels[v].exitantMu.w) > 0.0; }
+vec3 ivReflectedAt(int v) { return reflected[v].rgb; }
+#include "lighting/techniques/imperfect_volumes/iv_march_rho.glsl"
 
 
 void main() {
@@ -47,29 +50,35 @@ void main() {
   int hits = 0;
   for (int j = 0; j < uRays; ++j) {
     vec3 d = directions[j].xyz;
-    int hit = -1;
-    float t = 0.0;
-    for (int step = 0; step <= maxSteps; ++step) {
-      t = start + float(step) * uVoxel;
-      ivec3 c;
-      if (!ivVoxelOf(o + t * d, c)) break;
-      int u = ivIndex(c);
-      if (occupiedAt(u)) {
-        hit = u;
-        break;
+    vec3 L = vec3(0.0), surfaces = vec3(0.0);
+    bool hit = false, open = true;
+    if (uRho == 1) {
+      // The objects hide nothing here: the ray goes on to the first real surface (iv.h marchRho).
+      surfaces = ivRhoSurfaces(o, d, uExitantFromBuffer == 1, hit, open);
+    } else {
+      int h = -1;
+      float t = 0.0;
+      for (int step = 0; step <= maxSteps; ++step) {
+        t = start + float(step) * uVoxel;
+        ivec3 c;
+        if (!ivVoxelOf(o + t * d, c)) break;
+        int u = ivIndex(c);
+        if (voxels[u].exitantMu.w > 0.0) {
+          h = u;
+          break;
+        }
+      }
+      if (h >= 0 && t <= uRange) {
+        hit = true;
+        open = false;
+        if (uBounceLight == 1 && dot(voxels[h].normalMu.xyz, -d) > 0.0)
+          surfaces = uExitantFromBuffer == 1 ? reflected[h].rgb : voxels[h].exitantMu.rgb;
       }
     }
-    vec3 L = vec3(0.0);
-    bool fromSurface = false;
-    if (hit >= 0 && t <= uRange) {
-      ++hits;
-      vec3 nSum = uRho == 1 ? voxels[hit].normalRho.xyz : voxels[hit].normalMu.xyz;
-      fromSurface = true;
-      if (uBounceLight == 1 && dot(nSum, -d) > 0.0)
-        L = uExitantFromBuffer == 1 ? reflected[hit].rgb : (uRho == 1 ? voxels[hit].exitantRho.rgb : voxels[hit].exitantMu.rgb);
-    } else if (uAmbientOn == 1) {
-      L = ambientRadiance(uAmbient, uAmbientSh, d);
-    }
+    if (hit) ++hits;
+    L = surfaces;
+    if (open && uAmbientOn == 1) L += ambientRadiance(uAmbient, uAmbientSh, d);
+    bool fromSurface = surfaces != vec3(0.0);
     if (L == vec3(0.0)) continue;
     float y[SH_COEFFS];
     shEvaluate(d, y);
@@ -80,9 +89,9 @@ void main() {
     }
     if (fromSurface)
       for (int q = 0; q < SH_COEFFS; ++q) {
-        accBounce[q] += L.r * y[q];
-        accBounce[SH_COEFFS + q] += L.g * y[q];
-        accBounce[2 * SH_COEFFS + q] += L.b * y[q];
+        accBounce[q] += surfaces.r * y[q];
+        accBounce[SH_COEFFS + q] += surfaces.g * y[q];
+        accBounce[2 * SH_COEFFS + q] += surfaces.b * y[q];
       }
   }
   float w = 4.0 * SH_PI / float(uRays);

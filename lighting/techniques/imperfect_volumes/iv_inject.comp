@@ -2,7 +2,8 @@
 // Imperfect volumes, voxelisation (iv.h voxelise): per voxel, the points that fall in it (sorted on the CPU)
 // are lit by the scene's lights with the shadow maps of both scene versions (rho: the objects cast shadows,
 // mu: they are not there) and by the ambient (unoccluded: a surface's own occlusion of the sky is left out),
-// and their mean reflected radiance, normal sum and albedo are written.
+// and their mean reflected radiance, normal sum and albedo are written; a virtual point's radiance from the
+// lights alone also goes to exitantVirtual (what the objects send real surfaces in the rho gather).
 #define SH_BANDS 1
 #include "lighting/techniques/imperfect_volumes/iv.glsl"
 
@@ -28,12 +29,14 @@ void main() {
   if (v >= uVoxelCount) return;
   IvVoxel r;
   r.exitantRho = r.exitantMu = r.normalRho = r.normalMu = r.albedoRho = r.albedoMu = r.exitantMuLit = vec4(0.0);
+  r.exitantVirtual = vec4(0.0);
   for (uint k = offsets[v]; k < offsets[v + 1]; ++k) {
     IvPoint p = points[k];
     vec3 x = p.position.xyz, n = p.normal.xyz;
     vec3 eAmbient = ivUnoccludedAmbient(uAmbient, uAmbientSh, n);
-    vec3 eRho = directIrradiance(true, x, n) + eAmbient;
+    vec3 eLights = directIrradiance(true, x, n), eRho = eLights + eAmbient;
     r.exitantRho += vec4(p.albedo.rgb / SH_PI * eRho, 1.0);
+    if (p.position.w >= 0.5) r.exitantVirtual += vec4(p.albedo.rgb / SH_PI * eLights, 1.0);
     r.normalRho.xyz += n;
     r.albedoRho.rgb += p.albedo.rgb;
     if (p.position.w < 0.5) {
@@ -53,5 +56,6 @@ void main() {
     r.albedoMu.rgb /= r.exitantMu.w;
     r.exitantMuLit.rgb /= r.exitantMu.w;
   }
+  if (r.exitantVirtual.w > 0.0) r.exitantVirtual.rgb /= r.exitantVirtual.w;
   voxels[v] = r;
 }

@@ -1,5 +1,5 @@
 #version 450 core
-// Imperfect volumes, a further bounce (iv.h gather, bounces > 1): each occupied voxel reflects the light its
+// Imperfect volumes, a further bounce (iv.h gather, bounces > 1): each voxel with real points reflects the light its
 // surfaces received in the previous bounce, albedo / pi times the irradiance of that bounce's SH about the
 // voxel's mean normal (never negative).
 #include "lighting/techniques/imperfect_volumes/iv.glsl"
@@ -15,7 +15,6 @@ layout(std430, binding = 8) readonly buffer Bounce { float bounce[]; };
 layout(std430, binding = 11) buffer ReflectedSum { vec4 reflectedSum[]; };
 
 uniform int uNeededCount;
-uniform int uRho;
 uniform int uAccumulate;
 
 void main() {
@@ -23,9 +22,11 @@ void main() {
   if (slot >= uNeededCount) return;
   int v = int(needed[slot]);
   IvVoxel r = voxels[v];
-  float count = uRho == 1 ? r.exitantRho.w : r.exitantMu.w;
-  vec3 nSum = uRho == 1 ? r.normalRho.xyz : r.normalMu.xyz;
-  vec3 albedo = uRho == 1 ? r.albedoRho.rgb : r.albedoMu.rgb;
+  // The real surfaces only, in rho too: the objects' own further bounces are the shading pass's reflection
+  // of the light they hide.
+  float count = r.exitantMu.w;
+  vec3 nSum = r.normalMu.xyz;
+  vec3 albedo = r.albedoMu.rgb;
   reflected[v] = vec4(0.0);
   if (count <= 0.0 || dot(nSum, nSum) <= 0.0) return;
   vec3 n = normalize(nSum);

@@ -116,41 +116,6 @@ float farWeight(int count, int level);
 cv::Vec3f splatFar(const PixelLight& l, const cv::Vec3f& x, const cv::Vec3f& n, float iLow, int sample, int count,
                    int levels);
 
-/// Surface lights: the object as the real surfaces see it beyond the lights' direct bounce. The RSMs show an
-/// object only where a light reaches it, so its unlit side, lit by the table's bounce, would send nothing
-/// back (the second bounce: table -> the object's underside -> the table under it), and the real bounce
-/// and ambient the object hides from the surfaces around it would still arrive through it. `count` points
-/// spread over all objects' surfaces by area (a Halton sequence in bases 2, 3, 5: the triangle by
-/// cumulative area, the point in it), each of the total area / count, become diffuse lights of flux
-///   Phi = A (albedo E(x, n) - E(x, -n))
-/// with E the irradiance the real surfaces' pixel lights (the object's lights, its own texels excluded) and
-/// the ambient give, about the point's normal and about the opposite one: the light its surface sends,
-/// minus what the receivers in front of it would see through it (the radiance arriving from behind,
-/// E(x, -n) / pi, over the point's solid angle; splat.h occluderFlux with the real surfaces added). The
-/// first points of the sequence cover the surfaces evenly, so far levels take a prefix as for samples.
-struct SurfacePoint {
-  cv::Vec3f position;  ///< lighting world
-  float area = 0;      ///< m²
-  cv::Vec3f normal;    ///< unit
-  float pad0 = 0;
-  cv::Vec3f albedo;
-  float pad1 = 0;
-};
-static_assert(sizeof(SurfacePoint) == 48);
-/// An object's surface as surfacePoints() reads it: its mesh (model space), placement and albedo.
-struct SurfaceSource {
-  const Mesh* mesh = nullptr;
-  cv::Matx44d T_world_object = cv::Matx44d::eye();
-  cv::Vec3f albedo{0, 0, 0};
-};
-/// `count` points over the sources' surfaces (world), the i-th from Halton point i + 1; empty when there is
-/// no area.
-std::vector<SurfacePoint> surfacePoints(const std::vector<SurfaceSource>& sources, int count);
-/// A surface point's diffuse light from the object's lights (unbounded gather) and the ambient's irradiance
-/// about n and about -n.
-PixelLight surfaceLight(const SurfacePoint& s, const std::vector<PixelLight>& objectLights,
-                        const cv::Vec3f& ambientFront, const cv::Vec3f& ambientBack);
-
 /// Sum pyramid of an importance map (square, side a power of two; level 0 = the map).
 struct Pyramid {
   std::vector<cv::Mat> levels;  ///< CV_64F, level k side = side >> k; the last is 1 x 1

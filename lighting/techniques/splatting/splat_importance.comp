@@ -3,9 +3,8 @@
 // (padded to P x P, a power of two):
 //   delta:  texels where RSM^rho and RSM^mu differ (the object, and the real surfaces it hides from the
 //           light): lum(Phi_rho) (+ the glossy lobe's lum(s Phi) (1 + P) on a glossy object) + lum(Phi_mu),
-//           Phi_rho an object texel's diffuse flux with its share of the ambient's bounce and of the ambient
-//           it blocks (splat_texel.glsl), Phi_mu the real texel's direct bounce; each texel's terms times
-//           (1 - AO), AO its occlusion in its RSM (rsmOcclusion)
+//           the texels' direct bounce (the ambient the objects hide and reflect is the shading pass's); each
+//           texel's terms times (1 - AO), AO its occlusion in its RSM (rsmOcclusion)
 //   object: the real surfaces (RSM^rho's real texels; RSM^mu's where RSM^rho shows the object, without
 //           their direct bounce: they lie in its shadow): what they send the object and the ambient they block
 #include "lighting/techniques/splatting/splat.glsl"
@@ -77,7 +76,7 @@ void main() {
     float aoMu = pm.w > 0.5 ? rsmOcclusion(uMuPosition, pm.xyz, nm.xyz, t) : 0.0;
     if (differs) {
       if (pr.w > 0.5) {
-        float r = isObject ? texelFluxLum(pr, nr, fr.rgb, dr, true) : lum(fr.rgb);
+        float r = lum(fr.rgb);
         if (isObject) {
           int obj = clamp(int(nr.w + 0.5) - 1, 0, MAX_OBJECTS - 1);
           if (uSpecular[obj] > 0.0) r += lum(uSpecular[obj] * dr) * (1.0 + uExponent[obj]);

@@ -3,13 +3,14 @@
 // point of index uFirstSample + i, descends the importance pyramid from its top (vertical split, then
 // horizontal within the chosen row) to a texel t, and writes that texel's pixel lights with the weight
 // total / (N p_t) (an unbiased estimate of the sum over all texels):
-//   uMode 0 (real-pixel delta): 3 records: RSM^rho's diffuse light (an object's texel with the ambient it
-//                              reflects and blocks unless surface lights carry those), its glossy light (a glossy object's texel;
-//                              else zero flux) and RSM^mu's diffuse light with negated flux
+//   uMode 0 (real-pixel delta): 3 records: RSM^rho's diffuse light (an object's texel: the light's bounce
+//                              alone; the ambient it hides and reflects is the shading pass's), its glossy
+//                              light (a glossy object's texel; else zero flux) and RSM^mu's diffuse light with
+//                              negated flux
 //   uMode 1 (the object):       1 record, the real surface's diffuse light (RSM^rho's real texel, else
 //                              RSM^mu's in the object's shadow)
-// Diffuse fluxes as splat_texel.glsl makes them (with the ambient's bounce and, for an occluder, the
-// ambient it blocks), as the importance weighs them.
+// The object's diffuse fluxes as splat_texel.glsl makes them (with the ambient's bounce and, for an
+// occluder, the ambient it blocks), as the importance weighs them.
 #include "lighting/techniques/splatting/splat.glsl"
 #include "lighting/techniques/splatting/splat_texel.glsl"
 #define MAX_OBJECTS 16
@@ -35,8 +36,6 @@ uniform int uFirstRecord;  // where its records start
 uniform int uLevels;       // levels of the pyramid (level uLevels - 1 is 1 x 1)
 uniform int uLevelOffset[MAX_LEVELS];
 uniform float uWiden;
-uniform int uObjectAmbient;  // 1: an object's texel also carries its share of the ambient's bounce and occlusion
-                             // (0 where surface lights carry the object's ambient, splat_surface.comp)
 uniform float uSpecular[MAX_OBJECTS];
 uniform float uExponent[MAX_OBJECTS];
 
@@ -114,13 +113,13 @@ void main() {
   }
   int base = uFirstRecord + 3 * i;
   if (pr.w > 0.5) {
-    // An object's texel also reflects the ambient and blocks it (the real surfaces near it lose sky); a real
-    // surface RSM^rho shows is there in both versions: its direct bounce only (the ambient's parts cancel).
+    // The light's bounce off the texel: the ambient an object reflects and hides from the real surfaces
+    // is the shading pass's (lighting/object_shadow.h), and a real surface RSM^rho shows is there in both
+    // versions (the ambient's parts cancel).
     vec3 direct = texelFetch(uRhoDirect, t, 0).rgb, flux = texelFetch(uRhoFlux, t, 0).rgb;
     bool isObject = nr.w > 0.5;
     area = splatTexelArea(pr.xyz, nr.xyz, direct, toLight);
-    bool withAmbient = isObject && uObjectAmbient != 0;
-    lights[base] = diffuseLight(pr, nr, withAmbient ? splatTexelFlux(nr.xyz, flux, direct, area, true) : flux, area, scale);
+    lights[base] = diffuseLight(pr, nr, flux, area, scale);
     if (isObject) {
       int obj = clamp(int(nr.w + 0.5) - 1, 0, MAX_OBJECTS - 1);
       if (uSpecular[obj] > 0.0 && uExponent[obj] > 0.0) {

@@ -54,17 +54,6 @@ const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable() {
         {0},
         true},
        &SplattingKnobs::farLevels},
-      {{"surface",
-        KnobType::Int,
-        0,
-        4096,
-        256,
-        "surface lights on the objects: their second bounce minus the light they hide from the real surfaces in "
-        "front of them (0: the lights' RSMs alone)",
-        {0, 1024},
-        {0},
-        true},
-       &SplattingKnobs::surface},
   };
   return table;
 }
@@ -126,14 +115,11 @@ TechniqueInfo splattingTechniqueInfo() {
                        size_t) {
     const SplattingKnobs k = knobsFrom(splattingKnobTable(), values);
     // Two importance pyramids over the padded RSM (4/3 of its texels), the lights (3 records per sample for
-    // the delta, 1 for the object, plus one sample per light), the surface points and lights, the two outputs.
+    // the delta, 1 for the object, plus one sample per light), the two outputs.
     const auto p = static_cast<size_t>(paddedSide(static_cast<int>(knobsFrom(frameKnobTable(), frame).rsmSize)));
     const size_t pyramid = 2 * (4 * p * p / 3 + 1) * sizeof(float);
     const size_t samples = static_cast<size_t>(k.vpls) + kMaxLights;
-    const size_t surface =
-        real ? static_cast<size_t>(k.surface) * (sizeof(splat::SurfacePoint) + sizeof(splat::PixelLight)) : 0;
-    const bool objectLights = virtualObject || (real && k.surface > 0);
-    return pyramid + ((real ? 3 : 0) + (objectLights ? 1 : 0)) * samples * sizeof(splat::PixelLight) + surface +
+    return pyramid + ((real ? 3 : 0) + (virtualObject ? 1 : 0)) * samples * sizeof(splat::PixelLight) +
            2 * 16 * static_cast<size_t>(w) * static_cast<size_t>(h);
   };
   return t;
@@ -148,7 +134,6 @@ SplattingTechnique::SplattingTechnique(const TechniqueSetup& setup)
       sampleProgram_(gl::Program::compute("lighting/techniques/splatting/splat_sample.comp")),
       splatProgram_(gl::Program::graphics("lighting/techniques/splatting/splat.vert",
                                           "lighting/techniques/splatting/splat.frag")),
-      surfaceProgram_(gl::Program::compute("lighting/techniques/splatting/splat_surface.comp")),
       out_(setup.frame->techniqueView().width, setup.frame->techniqueView().height) {
   // Pyramid layout for the frame's RSM size: level 0 padded to a power of two, then halves down to 1 x 1.
   padded_ = paddedSide(setup.frame->rsmSize());
@@ -163,11 +148,7 @@ SplattingTechnique::SplattingTechnique(const TechniqueSetup& setup)
   objectPyramid_ = gl::Buffer::storage(static_cast<size_t>(offset) * sizeof(float));
   const size_t samples = static_cast<size_t>(knobs_.vpls) + kMaxLights;
   if (real_) deltaLights_ = gl::Buffer::storage(3 * samples * sizeof(splat::PixelLight));
-  if (objectLightsNeeded()) objectLights_ = gl::Buffer::storage(samples * sizeof(splat::PixelLight));
-  if (real_ && knobs_.surface > 0) {
-    pointBuffer_ = gl::Buffer::storage(static_cast<size_t>(knobs_.surface) * sizeof(splat::SurfacePoint));
-    surfaceLights_ = gl::Buffer::storage(static_cast<size_t>(knobs_.surface) * sizeof(splat::PixelLight));
-  }
+  if (virtual_) objectLights_ = gl::Buffer::storage(samples * sizeof(splat::PixelLight));
 }
 
 void SplattingTechnique::beginLights(const FrameResources& frame, gl::Profiler*) {
@@ -208,7 +189,7 @@ void SplattingTechnique::light(const FrameResources& frame, size_t index, gl::Pr
     const gl::Program& r = reduceProgram_;
     r.use();
     for (const gl::Buffer* b : {&deltaPyramid_, &objectPyramid_}) {
-      if ((b == &deltaPyramid_ && !real_) || (b == &objectPyramid_ && !objectLightsNeeded())) continue;
+      if ((b == &deltaPyramid_ && !real_) || (b == &objectPyramid_ && !virtual_)) continue;
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, b->id());
       for (int k = 1; k < levels_; ++k) {
         const int side = padded_ >> k;
@@ -225,7 +206,7 @@ void SplattingTechnique::light(const FrameResources& frame, size_t index, gl::Pr
     sampleLight(frame, index, true, n, samplesSoFar_, deltaRecords_);
     deltaRecords_ += 3 * n;
   }
-  if (objectLightsNeeded()) {
+  if (virtual_) {
     sampleLight(frame, index, false, n, samplesSoFar_, objectRecords_);
     objectRecords_ += n;
   }
@@ -248,7 +229,6 @@ void SplattingTechnique::sampleLight(const FrameResources& frame, size_t index, 
     p.set("uLevelOffset[" + std::to_string(k) + "]", k < levels_ ? levelOffsets_[static_cast<size_t>(k)] : 0);
   setTexelUniforms(p, frame, l, ambientShare_);
   p.set("uWiden", static_cast<float>(knobs_.widen));
-  p.set("uObjectAmbient", real_ && knobs_.surface > 0 ? 0 : 1);
   setObjectLobes(p, frame);
   bindRsms(frame);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, (delta ? deltaPyramid_ : objectPyramid_).id());
@@ -257,40 +237,7 @@ void SplattingTechnique::sampleLight(const FrameResources& frame, size_t index, 
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 }
 
-void SplattingTechnique::surfaceLights(const FrameResources& frame) {
-  std::vector<splat::SurfaceSource> sources;
-  for (const FrameObject& o : frame.objects())
-    sources.push_back({&o.source.mesh, o.T_world_object, o.source.material.albedo});
-  points_ = splat::surfacePoints(sources, knobs_.surface);
-  if (points_.empty()) return;
-  pointBuffer_.upload(0, static_cast<GLsizeiptr>(points_.size() * sizeof(splat::SurfacePoint)), points_.data());
-  const gl::Program& p = surfaceProgram_;
-  p.use();
-  p.set("uCount", static_cast<int>(points_.size()));
-  p.set("uObjectLights", objectRecords_);
-  setVec3(p, "uAmbient", frame.ambient());
-  for (int k = 0; k < 9; ++k)
-    setVec3(p, "uAmbientSh[" + std::to_string(k) + "]", frame.ambientSh()[static_cast<size_t>(k)]);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, objectLights_.id());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, pointBuffer_.id());
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, surfaceLights_.id());
-  glDispatchCompute(static_cast<GLuint>((points_.size() + 63) / 64), 1, 1);
-  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-}
-
-std::vector<splat::PixelLight> SplattingTechnique::downloadSurfaceLights() const {
-  std::vector<splat::PixelLight> out(points_.size());
-  if (!out.empty())
-    surfaceLights_.download(0, static_cast<GLsizeiptr>(out.size() * sizeof(splat::PixelLight)), out.data());
-  return out;
-}
-
 void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profiler) {
-  points_.clear();
-  if (real_ && knobs_.surface > 0 && frame.region()) {
-    auto s = timed(profiler, "splat.surface");
-    surfaceLights(frame);
-  }
   auto s = timed(profiler, "splat.splat");
   out_.fb.bind();
   glViewport(0, 0, frame.techniqueView().width, frame.techniqueView().height);
@@ -339,9 +286,6 @@ void SplattingTechnique::update(const FrameResources& frame, gl::Profiler* profi
   };
   if (real_) draw(0, deltaLights_, 3, deltaRecords_, sampled_);
   if (virtual_) draw(1, objectLights_, 1, objectRecords_, sampled_);
-  // The surface lights are one group: the first points of their sequence cover the objects evenly.
-  const int surface = static_cast<int>(points_.size());
-  if (real_ && surface > 0) draw(0, surfaceLights_, 1, surface, {{0, surface}});
   glDisable(GL_BLEND);
   gl::checkGlError("SplattingTechnique::update()");
 }
@@ -412,16 +356,12 @@ cv::Mat SplattingTechnique::debugImage(const std::string& view, const DebugConte
 }
 
 nlohmann::json SplattingTechnique::stats() const {
-  return {{"samples", samplesSoFar_},
-          {"delta_lights", deltaRecords_},
-          {"object_lights", objectRecords_},
-          {"surface_lights", static_cast<int>(points_.size())}};
+  return {{"samples", samplesSoFar_}, {"delta_lights", deltaRecords_}, {"object_lights", objectRecords_}};
 }
 
 size_t SplattingTechnique::gpuBytes() const {
   size_t sum = out_.bytes();
-  for (const gl::Buffer* b :
-       {&deltaPyramid_, &objectPyramid_, &deltaLights_, &objectLights_, &pointBuffer_, &surfaceLights_})
+  for (const gl::Buffer* b : {&deltaPyramid_, &objectPyramid_, &deltaLights_, &objectLights_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);
   return sum;
 }

@@ -7,7 +7,9 @@
 /// minus RSM^mu's at the same texels with the same weights (sampled where the two differ, so that identical
 /// texels cancel and with no object the delta is exactly 0), glossy objects' lobes included (their focused
 /// reflections: caustics on the table); on the object, the bounce real surfaces send it (RSM^rho's real
-/// texels). Reference math: splat.h.
+/// texels). The ambient the objects hide from real surfaces, and what they reflect of it, are the shading
+/// pass's (lighting/object_shadow.h): an object's texel carries the lights' bounce alone. Reference math:
+/// splat.h.
 #include <utility>
 #include <vector>
 
@@ -23,14 +25,11 @@ struct SplattingKnobs {
   double iLow = 0;    ///< I_low of a light: this x lum|Phi| / (pi s^2), s the region's side
   double widen = 0;   ///< metres: a glossy lobe widens within this distance of its light
   int farLevels = 0;  ///< far-field levels (splat.h splatFar): each reaches 4x further with 1/16 of the samples
-  int surface = 0;    ///< surface lights on the objects (splat.h surfaceLight); 0: none
 };
 const std::vector<KnobBinding<SplattingKnobs>>& splattingKnobTable();
 
 class SplattingTechnique final : public Technique {
  public:
-  /// Its delta holds the ambient the objects hide (their surfels block it as negative lights / in the gather).
-  bool accountsForAmbientShadow() const override { return true; }
   bool accountsForReflectedLight() const override { return true; }  // the objects' RSM texels as splatted lights
   explicit SplattingTechnique(const TechniqueSetup& setup);
 
@@ -54,9 +53,6 @@ class SplattingTechnique final : public Technique {
   /// This run's sampled lights in record order: each one's first sample index and sample count (a delta
   /// light's records start at 3 x its first sample, an object light's at its first sample).
   const std::vector<std::pair<int, int>>& sampledLights() const { return sampled_; }
-  /// The last run's surface lights (GPU download; splat.h surfaceLight) and the points they stand on.
-  std::vector<splat::PixelLight> downloadSurfaceLights() const;
-  const std::vector<splat::SurfacePoint>& surfacePoints() const { return points_; }
   /// I_low of a light of flux luminance 1 (the knob over pi s^2).
   float iLowScale() const { return iLowScale_; }
   /// The last light's level-0 importance (delta or object), padded side x side (GPU download).
@@ -69,10 +65,8 @@ class SplattingTechnique final : public Technique {
 
   SplattingKnobs knobs_;
   bool real_ = false, virtual_ = false;
-  void surfaceLights(const FrameResources& frame);
-  bool objectLightsNeeded() const { return virtual_ || (real_ && knobs_.surface > 0); }
 
-  gl::Program importanceProgram_, reduceProgram_, sampleProgram_, splatProgram_, surfaceProgram_;
+  gl::Program importanceProgram_, reduceProgram_, sampleProgram_, splatProgram_;
   int padded_ = 0, levels_ = 0;
   std::pair<int, int> lastSamples_{0, 0};  ///< the last light's first sample index and sample count
   float ambientShare_ = 0;                 ///< each sampled light's share of the ambient's bounce
@@ -82,8 +76,6 @@ class SplattingTechnique final : public Technique {
   std::vector<int> budget_;                   ///< samples per light this run
   std::vector<std::pair<int, int>> sampled_;  ///< this run's lights with samples: first sample index, count
   int deltaRecords_ = 0, objectRecords_ = 0, samplesSoFar_ = 0;
-  std::vector<splat::SurfacePoint> points_;  ///< this run's surface points
-  gl::Buffer pointBuffer_, surfaceLights_;
   float iLowScale_ = 0;
   IrradianceTargets out_;
   gl::VertexArray emptyVao_;

@@ -118,12 +118,10 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
   EXPECT_NEAR(estimate, exact, 0.05 * std::abs(exact) + 1e-6) << "exact " << exact;
 
   // Splats: per pixel the far-field sum of the downloaded lights (splat.h splatFar: each light's own box, and
-  // the first 32 and 2 of the 512 samples over the far levels' shells) and, on real pixels, of the 256 surface
-  // lights; and level 0's cut of the delta's lights is never more than the sum of their I_low.
+  // the first 32 and 2 of the 512 samples over the far levels' shells); and level 0's cut of the delta's
+  // lights is never more than the sum of their I_low.
   const cv::Mat pos = pipe.frame().downloadGBuffer(0), nrm = pipe.frame().downloadGBuffer(1),
                 alb = pipe.frame().downloadGBuffer(2);
-  const std::vector<splat::PixelLight> surface = t.downloadSurfaceLights();
-  EXPECT_EQ(surface.size(), 256u);
   const cv::Mat dOut = download4(*t.outputs().realDelta), vOut = download4(*t.outputs().virtualIrradiance);
   int checked = 0, good = 0, virt = 0, virtGood = 0;
   double boundSum = 0;
@@ -142,12 +140,6 @@ TEST(GL, SplattingGpuMatchesTheCppReference) {
       if (!(iLow > 0)) continue;
       bounded += splat::splatIrradiance(l, x, nn, iLow);
       splatted += splat::splatFar(l, x, nn, iLow, static_cast<int>(j) / perSample, 512, t.knobs().farLevels);
-    }
-    for (size_t j = 0; !isVirtual && j < surface.size(); ++j) {
-      const float iLow = splat::scaledILow(surface[j], t.iLowScale());
-      if (iLow > 0)
-        splatted += splat::splatFar(surface[j], x, nn, iLow, static_cast<int>(j), static_cast<int>(surface.size()),
-                                    t.knobs().farLevels);
     }
     const cv::Vec4f got = isVirtual ? vOut.at<cv::Vec4f>(i) : dOut.at<cv::Vec4f>(i);
     const bool ok = std::abs(got[0] - splatted[0]) <= 1e-4f + 2e-3f * std::abs(splatted[0]);
@@ -289,49 +281,24 @@ TEST(GL, SplattingTheAmbientsBounceAndOcclusionJoinEachTexelsFlux) {
   EXPECT_NEAR(estimate, exact, 0.05 * magnitude) << "the lamp's bounce alone " << direct;
 }
 
-// Surface lights (splat.h surfaceLight): the GPU's lights are the reference's from the downloaded object lights
-// and the ambient, the points cover the cube's area, and with no lamp a black cube over the floor under a
-// uniform sky takes from each floor pixel near it the sky it hides: L times its projected solid angle,
-// traced against the box: within 10 % on average over the floor 3-15 cm from the cube (measured 0.1 %), each
-// pixel within 35-165 % (measured 46-131 %: 256 points on six faces, 2 cm apart, seen from 3 cm on).
-TEST(GL, SplattingSurfaceLightsMatchTheReferenceAndHideTheSky) {
+// The ambient an object hides from the real surfaces is the shading pass's (lighting/object_shadow.h), not
+// splatting's: with no lamp, a black cube over the floor under a uniform sky leaves splatting's own delta at
+// exactly 0, and the frame's delta (the shading pass's, splatting as its real-role technique) takes from each
+// floor pixel near the cube the sky it hides: L times its projected solid angle, traced against the box.
+// The pass stands the cube as its mean-solid-angle sphere (r = sqrt(A / 4 pi), at the box's centre): within
+// 6 % on average over the floor 3-15 cm from the cube (measured 0.988), each pixel within 75-125 % (measured
+// 84-113 %); counted twice (the technique and the pass) or not at all, the mean would read 2 or 0.
+TEST(GL, SplattingLeavesTheAmbientTheObjectsHideToTheShadingPass) {
   auto ctx = makeContext();
-  {
-    const TestScene s = makeScene(true, 0.12, {-0.2, 0.0, 0.12});
-    LightingPipeline pipe = makePipeline(frameConfig(), s);
-    const cv::Vec3d ambient = kSkyUniform;
-    const std::array<cv::Vec3d, 9> sh = skySh();
-    runWithSky(pipe);
-    const auto t = runSplat(pipe, 512, 16.0);
-    ASSERT_EQ(t->knobs().surface, 256);
-    const std::vector<splat::SurfacePoint>& points = t->surfacePoints();
-    const std::vector<splat::PixelLight> got = t->downloadSurfaceLights(), object = t->downloadLights(false);
-    ASSERT_EQ(points.size(), 256u);
-    ASSERT_EQ(got.size(), 256u);
-    double area = 0;
-    int good = 0, lit = 0;
-    for (size_t i = 0; i < points.size(); ++i) {
-      area += points[i].area;
-      const auto e = [&](const cv::Vec3f& n) {
-        return cv::Vec3f(CV_PI * ambient + reconstruction::ambientShIrradiance(sh, cv::Vec3d(n)));
-      };
-      const splat::PixelLight want = splat::surfaceLight(points[i], object, e(points[i].normal), e(-points[i].normal));
-      lit += want.flux[0] > 0;
-      good +=
-          cv::norm(got[i].flux - want.flux) <= 1e-6 + 2e-3 * cv::norm(want.flux) && got[i].position == want.position;
-    }
-    EXPECT_NEAR(area, 6 * 0.12 * 0.12, 1e-4);
-    EXPECT_GE(good, 254) << "of 256";
-    EXPECT_GT(lit, 10) << "points whose bounce outweighs what they hide";
-  }
   TestScene s = makeScene(false, 0.12, {0.0, 0.0, 0.12});
   s.objects[0].material.albedo = {0, 0, 0};
-  LightingPipeline pipe = makePipeline(frameConfig(), s);
+  LightingPipeline pipe = makePipeline(testConfig(96, 72, 16, 64, "splatting"), s);
   const double L = 0.5;
   pipe.run(topCamera(96, 72), {}, {L, L, L}, nullptr);
-  const auto t = runSplat(pipe, 512, 16.0);
+  const cv::Mat own = download4(*pipe.technique("splatting")->outputs().realDelta);
+  EXPECT_EQ(cv::countNonZero(own.reshape(1)), 0) << "splatting's own delta";
   const cv::Mat pos = pipe.frame().downloadGBuffer(0), alb = pipe.frame().downloadGBuffer(2);
-  const cv::Mat d = download4(*t->outputs().realDelta);
+  const cv::Mat d = pipe.downloadIrradiance();
   // Projected solid angle of the box [-0.06, 0.06]^2 x [0.06, 0.18] from a floor point: cosine-weighted
   // directions on a 64 x 64 stratified grid, the fraction hitting the box, times pi.
   const auto blocked = [](const cv::Vec3d& y) {
@@ -358,7 +325,7 @@ TEST(GL, SplattingSurfaceLightsMatchTheReferenceAndHideTheSky) {
       }
     return CV_PI * hit / (n * n);
   };
-  double ratio = 0;
+  double ratio = 0, lo = 1e9, hi = 0;
   int count = 0;
   for (int i = 0; i < static_cast<int>(pos.total()); i += 3) {
     const cv::Vec4f p = pos.at<cv::Vec4f>(i);
@@ -368,12 +335,12 @@ TEST(GL, SplattingSurfaceLightsMatchTheReferenceAndHideTheSky) {
     const double want = -L * blocked({p[0], p[1], p[2]});
     ASSERT_LT(want, 0);
     const double r = d.at<cv::Vec4f>(i)[0] / want;
-    EXPECT_GT(r, 0.35) << "at " << p;
-    EXPECT_LT(r, 1.65) << "at " << p;
-    ratio += r, ++count;
+    EXPECT_GT(r, 0.75) << "at " << p;
+    EXPECT_LT(r, 1.25) << "at " << p;
+    ratio += r, ++count, lo = std::min(lo, r), hi = std::max(hi, r);
   }
   ASSERT_GT(count, 30);
-  EXPECT_NEAR(ratio / count, 1.0, 0.1);
+  EXPECT_NEAR(ratio / count, 1.0, 0.06) << "per pixel " << lo << " - " << hi;
 }
 
 // A mirror-like sphere (specular 0.9, Phong exponent ~800) 15 cm over a white floor under a spot from the
