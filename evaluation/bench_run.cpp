@@ -240,14 +240,23 @@ bool sameObjects(const lighting::SceneDescription& a, const lighting::SceneDescr
 
 /// The true reference composites a synthetic session carries (manifest ground_truth.reference, whose
 /// scene file is `referenceScene`) when `scene` places the same objects, for `frames` (keyed by position):
-/// composite, delta (rho - mu on real pixels, rho on virtual) and mask.
+/// composite, delta (rho - mu on real pixels, rho on virtual) and mask; with the marker's world pose and a
+/// frame's true camera pose, the pixels its objects cover in part (Truth::partial; the objects alone, seen
+/// through the true camera).
 std::map<int, Truth> loadTrueReferences(const std::string& session, const capture::GroundTruthReference& reference,
                                         const std::string& referenceScene, const lighting::SceneDescription& scene,
+                                        const std::optional<capture::Pose>& T_world_marker,
                                         const std::vector<capture::Frame>& frames) {
   std::map<int, Truth> out;
   // The truth depends on the objects alone (the room and its lights are the session's): any scene placing
   // the same objects the same way can use it.
   if (referenceScene.empty() || !sameObjects(lighting::loadScene(referenceScene), scene)) return out;
+  groundtruth::Scene objectScene;  // the objects alone, for the pixels they cover in part
+  std::optional<groundtruth::RayCaster> objects;
+  if (T_world_marker) {
+    addVirtualObjects(scene.objects, *T_world_marker, objectScene);
+    objects.emplace(objectScene);
+  }
   auto path = [&](const std::string& key, int64_t f) {
     const std::string& pattern = key == "composite" ? reference.composite
                                  : key == "delta"   ? reference.delta
@@ -264,6 +273,13 @@ std::map<int, Truth> loadTrueReferences(const std::string& session, const captur
     if (t.images.mask.empty() || t.delta.depth() != CV_32F)
       throw capture::CaptureError(path("mask", index),
                                   "true reference of frame " + std::to_string(index) + " is missing or unreadable");
+    if (objects && frames[f].groundTruthT_world_camera && frames[f].rgbd &&
+        frames[f].rgbd->colourIntrinsics.width == t.delta.cols &&
+        frames[f].rgbd->colourIntrinsics.height == t.delta.rows) {
+      const groundtruth::PinholeCamera camera{frames[f].rgbd->colourIntrinsics, *frames[f].groundTruthT_world_camera};
+      t.partial =
+          groundtruth::partlyVirtualMask(*objects, camera, 4, groundtruth::virtualFocus(objects->scene(), camera, 0.1));
+    }
     out[f] = std::move(t);
   }
   return out;
@@ -447,6 +463,8 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     t.images = groundtruth::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
     ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     t.delta = t.images.delta();
+    t.partial = groundtruth::partlyVirtualMask(groundtruth::RayCaster(scenes.withObjects), scenes.camera, 4,
+                                               groundtruth::virtualFocus(scenes.withObjects, scenes.camera, 0.1));
     t.composite = compositor::compositeReference(frame.rgbd->colour, t.delta, t.images.mask);
     if (bs.truths.empty()) {
       // The reference's own noise: a second render with another seed. Each has error ≈ this / √2 against
@@ -484,7 +502,9 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
               o.refBounces, ms / refs / 1000);
   bs.refInfo["marker_pose_error"] = markerPoseError(bs, o);
   bs.refInfo["tracking"] = trackingError(bs);
-  if (reference) bs.trueRefs = loadTrueReferences(path, *reference, referenceScene, bs.setup.scene, bs.frames);
+  if (reference)
+    bs.trueRefs =
+        loadTrueReferences(path, *reference, referenceScene, bs.setup.scene, bs.setup.T_world_marker, bs.frames);
   if (!bs.trueRefs.empty()) {
     bs.refInfo["true_reference_frames"] = bs.trueRefs.size();
     std::printf("%s: %zu true reference composites (whole-pipeline error)\n", path.c_str(), bs.trueRefs.size());
@@ -682,6 +702,7 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
               {"rel_error_virtual", whole.relVirtual()},
               {"ssim", ssim / frames},
               {"virtual_brightness", brightness.ratio()},
+              {"partly_virtual_pixels", whole.partial},
               {"shadow", shadowJson(shadow)},
               {"ms_total", ms / std::max(timed, 1)}};
   if (truth && rp.setup()) out["lights_vs_truth"] = lightsAgainstTruth(*rp.setup(), rp.roomLights(), *truth, bs);
@@ -796,6 +817,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
             {"ssim", bs.truths.empty() ? 0.0 : ssimSum / static_cast<double>(bs.truths.size())},
             {"flicker", flickDen > 0 ? flickNum / flickDen : 0.0},
             {"silhouette_mismatch_pixels", err.mismatched},
+            {"partly_virtual_pixels", err.partial},
             {"technique_stats", techniqueStats}};
   if (shadow.pixels > 0) r["shadow"] = shadowJson(shadow);
   // The real-pixel delta's relative RMS error without the reference's noise, with its 95 % interval.
@@ -810,6 +832,7 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
                            {"ssim", wholeSsim / wholeFrames},
                            {"virtual_brightness", brightness.ratio()},
                            {"silhouette_mismatch_pixels", whole.mismatched},
+                           {"partly_virtual_pixels", whole.partial},
                            {"shadow", shadowJson(wholeShadow)}};
   if (roomRecord) r["whole_pipeline_room"] = *roomRecord;
   if (roomLightsRecord) r["whole_pipeline_room_lights"] = *roomLightsRecord;

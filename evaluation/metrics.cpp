@@ -105,6 +105,10 @@ ErrorSums errorSums(const cv::Mat& shade, const Truth& truth, const NearObjects*
         ++e.mismatched;
         continue;
       }
+      if (truth.partlyVirtual(y, x)) {
+        ++e.partial;
+        continue;
+      }
       const bool isNear = near && !virtRt && near->contains(near->positions.at<cv::Vec4f>(y, x));
       for (int c = 0; c < 3; ++c) {
         const double d = s[c] - r[c];
@@ -136,7 +140,7 @@ ShadowSums shadowSums(const cv::Mat& shade, const Truth& truth, const NearObject
   for (int y = 0; y < shade.rows; ++y)
     for (int x = 0; x < shade.cols; ++x) {
       const cv::Vec4f s = shade.at<cv::Vec4f>(y, x);
-      const bool real = s[3] <= 0.5f && !truth.images.mask.at<uchar>(y, x);
+      const bool real = s[3] <= 0.5f && !truth.images.mask.at<uchar>(y, x) && !truth.partlyVirtual(y, x);
       if (!real || !near.contains(near.positions.at<cv::Vec4f>(y, x))) continue;
       const double a = capture::luminance(cv::Vec3d(s[0], s[1], s[2]));
       const double b = capture::luminance(cv::Vec3d(truth.delta.at<cv::Vec3f>(y, x)));
@@ -223,7 +227,9 @@ std::optional<UnbiasedError> unbiasedDeltaError(const cv::Mat& shade, const Trut
   cv::Mat real(shade.size(), CV_8UC1);
   for (int y = 0; y < shade.rows; ++y)
     for (int x = 0; x < shade.cols; ++x)
-      real.at<uchar>(y, x) = shade.at<cv::Vec4f>(y, x)[3] <= 0.5f && !truth.images.mask.at<uchar>(y, x) ? 255 : 0;
+      real.at<uchar>(y, x) =
+          shade.at<cv::Vec4f>(y, x)[3] <= 0.5f && !truth.images.mask.at<uchar>(y, x) && !truth.partlyVirtual(y, x) ? 255
+                                                                                                                   : 0;
   return unbiasedSquaredError(shade, truth.delta, truth.second, real);
 }
 

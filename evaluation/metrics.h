@@ -32,6 +32,11 @@ struct Truth {
   groundtruth::DifferentialImages images;
   cv::Mat delta, composite;  ///< the compositor's delta input; the reference composite (RGB8)
   cv::Mat second;            ///< where rendered: the delta of a second, independent render (another seed)
+  /// CV_8UC1, 255 where the objects cover part of the pixel (groundtruth::partlyVirtualMask): the jittered
+  /// reference mixes the object with what lies beside it there, which no binary mask can; left out of the
+  /// per-pixel errors. Empty: none known.
+  cv::Mat partial;
+  bool partlyVirtual(int y, int x) const { return !partial.empty() && partial.at<uchar>(y, x) != 0; }
 };
 
 /// What one frame of a configuration left behind for the flicker of the next.
@@ -55,13 +60,14 @@ struct ErrorSums {
   size_t real = 0;
   double virtAbs = 0, virtRef = 0;
   size_t mismatched = 0;            ///< pixels virtual in one image only (silhouette), left out
+  size_t partial = 0;               ///< pixels the objects cover in part (Truth::partial), left out
   double nearAbs = 0, nearRef = 0;  ///< the delta's sums over real pixels near the objects (NearObjects)
   /// Per 16 x 16-pixel block with real pixels (over every frame added): the real-pixel delta's sums
   /// {|delta - reference|, |reference|}, for the relative L1's interval.
   std::vector<std::array<double, 2>> blocks;
   void add(const ErrorSums& e) {
     sq += e.sq, abs += e.abs, absRef += e.absRef, real += e.real;
-    virtAbs += e.virtAbs, virtRef += e.virtRef, mismatched += e.mismatched;
+    virtAbs += e.virtAbs, virtRef += e.virtRef, mismatched += e.mismatched, partial += e.partial;
     nearAbs += e.nearAbs, nearRef += e.nearRef;
     blocks.insert(blocks.end(), e.blocks.begin(), e.blocks.end());
   }

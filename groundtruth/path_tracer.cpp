@@ -191,6 +191,26 @@ cv::Mat virtualMask(const RayCaster& caster, const PinholeCamera& camera) {
   return mask;
 }
 
+cv::Mat partlyVirtualMask(const RayCaster& caster, const PinholeCamera& camera, int n, cv::Rect region) {
+  const int W = camera.intrinsics.width, H = camera.intrinsics.height;
+  cv::Mat mask(H, W, CV_8UC1, cv::Scalar(0));
+  n = std::clamp(n, 1, 16);
+  region = (region.empty() ? cv::Rect(0, 0, W, H) : region) & cv::Rect(0, 0, W, H);
+  for (int y = region.y; y < region.y + region.height; ++y)
+    for (int x = region.x; x < region.x + region.width; ++x) {
+      int hits = 0;
+      for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+          cv::Vec3f o, d;
+          cameraRay(camera, x - 0.5 + (i + 0.5) / n, y - 0.5 + (j + 0.5) / n, o, d);
+          const auto hit = caster.intersect(o, d, 1e-4f, 1e30f, false);
+          hits += hit && caster.scene().materials[hit->material].isVirtual;
+        }
+      if (hits > 0 && hits < n * n) mask.at<uchar>(y, x) = 255;
+    }
+  return mask;
+}
+
 cv::Rect virtualFocus(const Scene& scene, const PinholeCamera& camera, double grow) {
   cv::Vec3d lo(1e30, 1e30, 1e30), hi(-1e30, -1e30, -1e30);
   bool any = false;

@@ -68,6 +68,12 @@ struct DifferentialImages {
 /// 255 where the pixel's centre ray first meets a material marked virtual, else 0 (CV_8UC1).
 cv::Mat virtualMask(const RayCaster& caster, const PinholeCamera& camera);
 
+/// 255 where a virtual object covers part of the pixel but not all of it, 0 elsewhere (CV_8UC1): of n x n rays
+/// through the centres of the pixel's n x n cells (the square a jittered render samples), some first meet a
+/// virtual object's material and some do not — a render's value there mixes the object with what lies
+/// beside it. Tested within `region` only (the whole image when empty; virtualFocus bounds the objects).
+cv::Mat partlyVirtualMask(const RayCaster& caster, const PinholeCamera& camera, int n = 4, cv::Rect region = {});
+
 /// The image box around the virtual objects (materials marked virtual) grown by `grow` times their bounding
 /// sphere's radius on every side in the world, clipped to the image; empty when none is in front of the camera.
 cv::Rect virtualFocus(const Scene& scene, const PinholeCamera& camera, double grow = 3.0);

@@ -26,6 +26,7 @@ std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture:
     s.intensity = l.intensity;
     s.irradiance = l.irradiance;
     s.spotHalfAngleDeg = l.spotHalfAngleDeg;
+    if (s.type != lighting::LightType::Directional) s.extent = l.radius;  // the emitter's sphere
     out.push_back(s);
   }
   return out;

@@ -42,7 +42,7 @@ struct LightingSetup {
 /// from it.
 LightingSetup markerSetup(const capture::FrameSource& source);
 
-/// A session's ground-truth lights (world frame, every type) in the marker frame.
+/// A session's ground-truth lights (world frame, every type) in the marker frame, a lamp with its radius.
 std::vector<lighting::SceneLight> lightsInMarkerFrame(const std::vector<capture::GroundTruthLight>& lights,
                                                       const capture::Pose& T_world_marker);
 

@@ -48,6 +48,18 @@ TEST(Metrics, ErrorSumsAgainstAKnownTruth) {
   cv::Mat s = shadeOf(8, 4, -0.2f, 0.5f);
   s.at<cv::Vec4f>(0, 3)[3] = 1;
   EXPECT_EQ(errorSums(s, t).mismatched, 1u);
+  // Pixels the objects cover in part (the reference mixes them with what lies beside): left out of the real
+  // and the virtual errors alike, whatever they hold, and counted.
+  Truth mixed = t;
+  mixed.delta = t.delta.clone();
+  mixed.partial = cv::Mat(4, 8, CV_8UC1, cv::Scalar(0));
+  mixed.partial.at<uchar>(1, 0) = mixed.partial.at<uchar>(1, 1) = 255;
+  mixed.delta.at<cv::Vec3f>(1, 0) = mixed.delta.at<cv::Vec3f>(1, 1) = cv::Vec3f::all(9.f);
+  const ErrorSums m = errorSums(shadeOf(8, 4, -0.2f, 0.5f), mixed);
+  EXPECT_EQ(m.relDelta(), 0.0);
+  EXPECT_EQ(m.relVirtual(), 0.0);
+  EXPECT_EQ(m.partial, 2u);
+  EXPECT_EQ(m.real, 27u);
   // Near the objects: only the real pixels whose surface point lies within 2 radii of their centre. Pixels
   // x < 2 sit 1 cm from it and carry the error; the others are 1 m away and exact.
   cv::Mat positions(4, 8, CV_32FC4), off = shadeOf(8, 4, -0.2f, 0.5f);

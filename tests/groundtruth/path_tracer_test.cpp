@@ -316,6 +316,37 @@ TEST(PathTracer, DifferentialImagesShadowAndMaskTheVirtualObject) {
   EXPECT_GT(shadowed, 5);
 }
 
+TEST(PathTracer, PartlyVirtualPixelsAreTheObjectsSilhouetteAndOnlyIt) {
+  // A sphere of radius 0.1 seen from 0.7 m straight above over a plane: the pixels it covers in part form a
+  // ring along its silhouette, as long as its perimeter (2 pi r, r in pixels: one pixel wide), every one of
+  // them on the edge of the centre rays' mask (within one pixel of a pixel on the other side); nothing else.
+  Scene with;
+  const int floor = with.addMaterial({"floor", {0.5f, 0.5f, 0.5f}});
+  with.addQuad({-5, -5, 0}, {10, 0, 0}, {0, 10, 0}, floor);
+  Material v{"object", {0.8f, 0.8f, 0.8f}};
+  v.isVirtual = true;
+  const int obj = with.addMaterial(v);
+  const lighting::Mesh sphere = unitSphere();
+  with.addMesh(sphere.positions, sphere.normals, sphere.indices, obj,
+               capture::makePose(cv::Matx33d::eye() * 0.1, {0.0, 0.0, 0.3}));
+  const PinholeCamera cam = downCamera(1.0, 120, 90);
+  const RayCaster rc(with);
+  const cv::Mat centre = virtualMask(rc, cam), partly = partlyVirtualMask(rc, cam, 4);
+  const double rPixels = cam.intrinsics.fx * 0.1 / 0.7;
+  const int n = cv::countNonZero(partly);
+  EXPECT_GT(n, 0.8 * 2 * kPi * rPixels);
+  EXPECT_LT(n, 1.5 * 2 * kPi * rPixels);
+  cv::Mat inside, outside;
+  cv::dilate(centre, inside, cv::Mat::ones(3, 3, CV_8U));
+  cv::erode(centre, outside, cv::Mat::ones(3, 3, CV_8U));
+  const cv::Mat edge = inside - outside;  // pixels within one pixel of the mask's boundary
+  EXPECT_EQ(cv::countNonZero(partly & ~edge), 0);
+  // Limited to a region, nothing outside it; the objects' focus holds the whole ring.
+  const cv::Rect focus = virtualFocus(with, cam, 0.1);
+  EXPECT_EQ(cv::countNonZero(partlyVirtualMask(rc, cam, 4, focus)), n);
+  EXPECT_EQ(cv::countNonZero(partlyVirtualMask(rc, cam, 4, {0, 0, 10, 10})), 0);
+}
+
 TEST(PathTracer, TheFocusAroundTheObjectsTakesItsOwnSamples) {
   // Pixels in the focus box take focusSpp samples: the same values as a render at focusSpp there, and as
   // one at spp elsewhere (each sample draws from its own stream). The focus holds the object's box grown by

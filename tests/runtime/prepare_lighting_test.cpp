@@ -28,7 +28,7 @@ TEST(PrepareLighting, GroundTruthLightsOfEveryTypeComeIntoTheMarkerFrame) {
   // The marker 0.5 m up the world's y axis, its z axis along the world's y (up).
   m.groundTruth = nlohmann::json::parse(R"({
     "T_world_marker": [1,0,0,0, 0,0,1,0.5, 0,-1,0,0, 0,0,0,1],
-    "lights": [{"type": "point", "position": [0, 1.5, 0], "intensity_w_sr": [9, 9, 9]},
+    "lights": [{"type": "point", "position": [0, 1.5, 0], "intensity_w_sr": [9, 9, 9], "radius_m": 0.04},
                {"type": "spot", "position": [0, 0.5, 1], "direction": [0, 0, -1], "intensity_w_sr": [1, 1, 1]},
                {"type": "directional", "direction": [0, -1, 0], "irradiance_w_m2": [5, 5, 5]}],
     "scene": {"ambient_radiance": [0.07, 0.07, 0.07]}})");
@@ -41,6 +41,8 @@ TEST(PrepareLighting, GroundTruthLightsOfEveryTypeComeIntoTheMarkerFrame) {
   // World = (x_m, z_m + 0.5, -y_m), so marker = (x_w, -z_w, y_w - 0.5).
   EXPECT_EQ(s.lights[0].type, lighting::LightType::Point);
   EXPECT_NEAR(cv::norm(s.lights[0].position - cv::Vec3d(0, 0, 1.0)), 0.0, 1e-12);
+  EXPECT_EQ(s.lights[0].extent, 0.04) << "the lamp's radius: its soft shadow, its light near a horizon";
+  EXPECT_EQ(s.lights[1].extent, 0.0);
   EXPECT_EQ(s.lights[1].type, lighting::LightType::Spot);
   EXPECT_NEAR(cv::norm(s.lights[1].position - cv::Vec3d(0, -1, 0)), 0.0, 1e-12);
   EXPECT_NEAR(cv::norm(s.lights[1].direction - cv::Vec3d(0, 1, 0)), 0.0, 1e-12);
