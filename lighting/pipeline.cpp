@@ -203,8 +203,6 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   }
 
   auto s = timed(profiler, "shade");
-  shadeFb_.bind();
-  glViewport(0, 0, config_.width, config_.height);
   glDisable(GL_DEPTH_TEST);
   // The soft-shadow variant only when a light casts one, the upsampling one only when a technique's output is
   // reduced (render_scale): their code costs llvmpipe even where no pixel takes it.
@@ -222,21 +220,14 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   };
   const std::array<int, 3> factors{factorOf(realOut.realDelta), factorOf(virtualOut.virtualIrradiance),
                                    factorOf(virtualOut.virtualRadiance)};
-  const bool upsample = *std::max_element(factors.begin(), factors.end()) > 1;
-  gl::Program& p = shadePrograms_[(soft ? 1 : 0) | (upsample ? 2 : 0)];
-  if (!p.id()) {
-    std::vector<std::pair<std::string, std::string>> defines;
-    if (soft) defines.push_back({"SOFT_OBJECT_SHADOWS", "1"});
-    if (upsample) defines.push_back({"UPSAMPLE_OUTPUTS", "1"});
-    p = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", defines);
-  }
-  p.use();
-  p.set("uLighting", lit ? 1 : 0);
-  p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
-  p.set("uAddReflectedLight", real_ && real_->accountsForReflectedLight() ? 0 : 1);
-  setOccluderUniforms(p, *frame_);
-  setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
-  {
+  // The objects' terms beyond their direct shadow (lighting/object_terms.glsl) at the reduced view's resolution
+  // when the frame knob render_scale reduces it: smooth over a surface, upsampled by the pass.
+  const bool reducedTerms = lit && reduced.factor > 1;
+  const bool upsample = reducedTerms || *std::max_element(factors.begin(), factors.end()) > 1;
+  const std::vector<std::pair<std::string, std::string>> softDefine{{"SOFT_OBJECT_SHADOWS", "1"}};
+  const auto setObjectTermUniforms = [&](const gl::Program& q) {
+    q.set("uAddReflectedLight", real_ && real_->accountsForReflectedLight() ? 0 : 1);
+    setOccluderUniforms(q, *frame_);
     Ambient hidden;
     if (hiddenAmbient_) {
       hidden = *hiddenAmbient_;
@@ -244,12 +235,47 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       hidden.uniform = cv::Vec3f(frame_->ambient());
       for (size_t k = 0; k < 9; ++k) hidden.sh[k] = cv::Vec3f(frame_->ambientSh()[k]);
     }
-    p.set("uHiddenUniform", hidden.uniform[0], hidden.uniform[1], hidden.uniform[2]);
+    q.set("uHiddenUniform", hidden.uniform[0], hidden.uniform[1], hidden.uniform[2]);
     for (size_t k = 0; k < 9; ++k)
-      p.set("uHiddenSh[" + std::to_string(k) + "]", hidden.sh[k][0], hidden.sh[k][1], hidden.sh[k][2]);
+      q.set("uHiddenSh[" + std::to_string(k) + "]", hidden.sh[k][0], hidden.sh[k][1], hidden.sh[k][2]);
+    setLightUniforms(q, kept, frame_->lightViews());
+  };
+  if (reducedTerms) {
+    if (objectTerms_.width() != reduced.width || objectTerms_.height() != reduced.height) {
+      objectTerms_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, reduced.width, reduced.height);
+      objectTerms_.setFilter(GL_NEAREST, GL_NEAREST);
+      objectTermsFb_.attachColour(0, objectTerms_);
+      objectTermsFb_.finalise(1);
+    }
+    gl::Program& t = objectTermsPrograms_[soft ? 1 : 0];
+    if (!t.id())
+      t = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/object_terms.frag",
+                                soft ? softDefine : std::vector<std::pair<std::string, std::string>>{});
+    objectTermsFb_.bind();
+    glViewport(0, 0, reduced.width, reduced.height);
+    t.use();
+    setObjectTermUniforms(t);
+    reduced.bind();
+    frame_->bindShadowMaps();
+    emptyVao_.bind();
+    glDrawArrays(GL_TRIANGLES, 0, 3);
   }
+  shadeFb_.bind();
+  glViewport(0, 0, config_.width, config_.height);
+  gl::Program& p = shadePrograms_[(soft ? 1 : 0) | (upsample ? 2 : 0) | (reducedTerms ? 4 : 0)];
+  if (!p.id()) {
+    std::vector<std::pair<std::string, std::string>> defines;
+    if (soft) defines.push_back({"SOFT_OBJECT_SHADOWS", "1"});
+    if (upsample) defines.push_back({"UPSAMPLE_OUTPUTS", "1"});
+    if (reducedTerms) defines.push_back({"REDUCED_OBJECT_TERMS", "1"});
+    p = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", defines);
+  }
+  p.use();
+  p.set("uLighting", lit ? 1 : 0);
+  p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
+  setObjectTermUniforms(p);
+  setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
   p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
-  setLightUniforms(p, kept, frame_->lightViews());
   frame_->gbufferView().bind();
   auto orZero = [&](const gl::Texture* t) -> const gl::Texture& { return t ? *t : frame_->zero(); };
   orZero(realOut.realDelta).bind(3);
@@ -262,6 +288,10 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     reduced.position->bind(6);
     reduced.normal->bind(7);
   }
+  if (reducedTerms) {
+    p.set("uObjectTermsFactor", reduced.factor);
+    objectTerms_.bind(8);
+  }
   frame_->bindShadowMaps();
   emptyVao_.bind();
   glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -273,7 +303,7 @@ cv::Mat LightingPipeline::downloadShade() const { return download4(shade_); }
 cv::Mat LightingPipeline::downloadIrradiance() const { return download4(irradiance_); }
 
 size_t LightingPipeline::gpuBytes() const {
-  size_t sum = frame_->gpuBytes() + shade_.bytes() + irradiance_.bytes();
+  size_t sum = frame_->gpuBytes() + shade_.bytes() + irradiance_.bytes() + objectTerms_.bytes();
   for (const auto& t : techniques_) sum += t->gpuBytes();
   return sum;
 }

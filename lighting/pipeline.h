@@ -156,8 +156,14 @@ class LightingPipeline {
   Technique* real_ = nullptr;
   Technique* virtual_ = nullptr;
   /// The shading pass's variants, compiled when first used: bit 0 soft shadows, bit 1 upsampling of reduced
-  /// technique outputs (code a pass does not run still costs llvmpipe: each only where it is needed).
-  std::array<gl::Program, 4> shadePrograms_;
+  /// technique outputs, bit 2 the object terms from the reduced pass (code a pass does not run still costs
+  /// llvmpipe: each only where it is needed).
+  std::array<gl::Program, 8> shadePrograms_;
+  /// The object terms at the reduced view (render_scale < 1; lighting/object_terms.frag), soft-shadow variant
+  /// at index 1; its target, allocated at the reduced view's size when first used.
+  std::array<gl::Program, 2> objectTermsPrograms_;
+  gl::Texture objectTerms_;
+  gl::Framebuffer objectTermsFb_;
   gl::Texture shade_, irradiance_;
   gl::Framebuffer shadeFb_;
   gl::VertexArray emptyVao_;

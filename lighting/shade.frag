@@ -44,10 +44,13 @@ uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
 uniform vec3 uAmbientSh[9];     // radiance as SH bands 0-2, lighting world (reconstruction::shBasis2's basis); 0 = none
 #include "lighting/ambient_sh.glsl"
-uniform vec3 uHiddenUniform;    // what the objects hide: radiance, uniform part (the ambient unless a room's surfaces)
-uniform vec3 uHiddenSh[9];      // ... and its SH bands 1-2
-uniform int uAddReflectedLight; // 1: the real-role technique leaves the lights the objects reflect onto real surfaces to this pass
-#include "lighting/object_shadow.glsl"
+#include "lighting/object_terms.glsl"
+// REDUCED_OBJECT_TERMS (with UPSAMPLE_OUTPUTS): the object terms come from lighting/object_terms.frag at the
+// reduced view's resolution, upsampled here; the objects' direct shadow stays at the frame's.
+#ifdef REDUCED_OBJECT_TERMS
+layout(binding = 8) uniform sampler2D uObjectTerms;
+uniform int uObjectTermsFactor;
+#endif
 
 layout(location = 0) out vec4 outShade;
 layout(location = 1) out vec4 outIrradiance;
@@ -87,32 +90,19 @@ void main() {
     // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero and skipped.
     bool seen = objectsSeen(pos.xyz, n);
     bool directShadowed = uAddDirectShadow == 1 && objectsMayShadow(pos.xyz, n);
+#ifdef REDUCED_OBJECT_TERMS
+    bool ambientShadowed = false;
+    if (seen) delta += upsampled(uObjectTerms, uLowPosition, uLowNormal, uObjectTermsFactor, p, pos, normal);
+#else
     bool ambientShadowed = seen;
+#endif
     vec3 directMu = vec3(0.0), directRho = vec3(0.0);  // the direct light without and with the objects
     if (directShadowed || ambientShadowed) {
       directMu = directIrradiance(false, pos.xyz, n);
       directRho = directIrradiance(true, pos.xyz, n);
     }
     if (directShadowed) delta += directRho - directMu;
-    if (ambientShadowed) {
-      vec3 full = ambientIrradiance(uHiddenUniform, uHiddenSh, n), hides, reflects;
-      ambientShadowParts(uHiddenUniform, uHiddenSh, pos.xyz, n, hides, reflects);
-      // The objects' faces turned towards this point see its surroundings and the ground under them, both
-      // darkened by their shadows (lighting::facedGround, blendLit).
-      vec3 lit = litFraction(full, hides, directMu, directRho);
-      float groundWeight;
-      vec3 ground = facedGround(pos.xyz, n, groundWeight);
-      if (groundWeight > 0.0) {
-        vec3 hidesGround, reflectsGround;
-        ambientShadowParts(uHiddenUniform, uHiddenSh, ground, n, hidesGround, reflectsGround);
-        vec3 litGround = litFraction(full, hidesGround, directIrradiance(false, ground, n), directIrradiance(true, ground, n));
-        lit += groundWeight * (litGround - lit);
-      }
-      // The hidden light holds the near real surfaces' bounce too; a technique whose own delta blocks some of
-      // it (DLPV's volume blocks the bounce it injected) has that part taken twice (docs/bench-resolution.md).
-      delta -= ambientShadow(full, hides, reflects, lit);
-    }
-    if (uAddReflectedLight == 1 && seen) delta += reflectedLight(pos.xyz, n);
+    if (ambientShadowed) delta += objectTerms(pos.xyz, n, directMu, directRho);
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }

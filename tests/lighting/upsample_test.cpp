@@ -234,7 +234,9 @@ TEST(Upsample, TheShadingPassUpsamplesATechniquesReducedOutputAsTheCppDoes) {
   // DLPV at render_scale 1 and 1/2 on the floor, wall and cube: the frame's reduced G-buffer is the C++
   // reduction of its G-buffer, the object's indirect irradiance is the C++ upsampling of the technique's
   // reduced output, and a real pixel's delta differs from the full-resolution run's by exactly the difference
-  // between the two technique outputs (the shading pass's own terms run at the frame's pixels in both).
+  // between the two technique outputs (the shading pass's direct shadow runs at the frame's pixels in both;
+  // with no ambient the objects hide nothing, so its reduced object terms, ObjectShadow.AtAReducedRenderScale…,
+  // are zero).
   auto ctx = test::makeContext();
   const test::TestScene s = test::makeScene(true, 0.12, {-0.36, 0.0, 0.06});
   const CameraView camera = test::wallCamera();  // 96 x 72
@@ -244,7 +246,7 @@ TEST(Upsample, TheShadingPassUpsamplesATechniquesReducedOutputAsTheCppDoes) {
     PipelineConfig cfg = test::testConfig(96, 72, 16, 64, "dlpv");
     cfg.set("frame", "render_scale", scale);
     LightingPipeline pipe = test::makePipeline(cfg, s);
-    pipe.run(camera, test::wallLamp(), {0.02, 0.02, 0.02}, nullptr);
+    pipe.run(camera, test::wallLamp(), {0.0, 0.0, 0.0}, nullptr);
     irradiance.push_back(pipe.downloadIrradiance());
     gbufferPos.push_back(pipe.downloadGBuffer(0));
     gbufferNrm.push_back(pipe.downloadGBuffer(1));
