@@ -130,22 +130,29 @@ vec3 unshadowedIrradiance(int i, vec3 x, vec3 n) {
   return uLightPower[i] * capCosine(dot(n, ln), sinA) / d2;
 }
 
-// Whether the objects may shadow (x, n) from a light that sends it anything: its objects' test leaves some
-// of it out, or it has no objects' map (the test of RSM^rho then differs from RSM^mu's). Where not,
-// directIrradiance(true, x, n) equals directIrradiance(false, x, n) bit for bit.
-bool objectsMayShadow(vec3 x, vec3 n) {
+// The objects' direct shadow at (x, n), directIrradiance(true, x, n) - directIrradiance(false, x, n), with each
+// light's maps tested once: a light counts only where its objects' test leaves some of it out, or where it
+// has no objects' map (RSM^rho's test against RSM^mu's); exactly zero where the objects shadow nothing.
+vec3 objectsDirectShadow(vec3 x, vec3 n) {
+  vec3 e = vec3(0.0);
   for (int i = 0; i < uLightCount; ++i) {
-    if (!any(greaterThan(unshadowedIrradiance(i, x, n), vec3(0.0)))) continue;
-    if (uObjectShadowBias[i] < -1e29) return true;
+    vec3 contribution = unshadowedIrradiance(i, x, n);
+    if (!any(greaterThan(contribution, vec3(0.0)))) continue;
+    if (uObjectShadowBias[i] < -1e29) {  // no objects' map: RSM^rho's test against RSM^mu's
+      float rho = shadowTest(uShadowRho, i, uLightViewProj[i], uShadowBias[i], x, n);
+      float mu = shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n);
+      e += contribution * (rho - mu);
+      continue;
+    }
 #ifdef SOFT_OBJECT_SHADOWS
     float objects = uLightSoft[i] == 1 ? softObjectsShadow(i, x, n)
                                         : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
 #else
     float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
 #endif
-    if (objects < 1.0) return true;
+    if (objects < 1.0) e += contribution * shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * (objects - 1.0);
   }
-  return false;
+  return e;
 }
 
 vec3 directIrradiance(bool withObjects, vec3 x, vec3 n) {

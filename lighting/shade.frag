@@ -89,20 +89,19 @@ void main() {
     // Only where the objects reach: a sphere seen at a view factor of at least lighting::kObjectsMinViewFactor, or
     // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero and skipped.
     bool seen = objectsSeen(pos.xyz, n);
-    bool directShadowed = uAddDirectShadow == 1 && objectsMayShadow(pos.xyz, n);
 #ifdef REDUCED_OBJECT_TERMS
-    bool ambientShadowed = false;
     if (seen) delta += upsampled(uObjectTerms, uLowPosition, uLowNormal, uObjectTermsFactor, p, pos, normal);
+    if (uAddDirectShadow == 1) delta += objectsDirectShadow(pos.xyz, n);
 #else
-    bool ambientShadowed = seen;
-#endif
-    vec3 directMu = vec3(0.0), directRho = vec3(0.0);  // the direct light without and with the objects
-    if (directShadowed || ambientShadowed) {
-      directMu = directIrradiance(false, pos.xyz, n);
-      directRho = directIrradiance(true, pos.xyz, n);
+    if (seen) {
+      // The object terms need the direct light with and without the objects: the direct shadow is their difference.
+      vec3 directMu = directIrradiance(false, pos.xyz, n), directRho = directIrradiance(true, pos.xyz, n);
+      if (uAddDirectShadow == 1) delta += directRho - directMu;
+      delta += objectTerms(pos.xyz, n, directMu, directRho);
+    } else if (uAddDirectShadow == 1) {
+      delta += objectsDirectShadow(pos.xyz, n);
     }
-    if (directShadowed) delta += directRho - directMu;
-    if (ambientShadowed) delta += objectTerms(pos.xyz, n, directMu, directRho);
+#endif
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }
