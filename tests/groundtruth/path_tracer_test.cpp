@@ -20,6 +20,16 @@ lighting::Mesh unitSphere() {
   return lighting::loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
 }
 
+/// Adds a sphere of `radius` at `centre` to `scene` with a virtual material of `albedo`.
+void addVirtualSphere(Scene& scene, double radius, const cv::Vec3d& centre, const cv::Vec3f& albedo) {
+  Material v{"object", albedo};
+  v.isVirtual = true;
+  const int obj = scene.addMaterial(v);
+  const lighting::Mesh sphere = unitSphere();
+  scene.addMesh(sphere.positions, sphere.normals, sphere.indices, obj,
+                capture::makePose(cv::Matx33d::eye() * radius, centre));
+}
+
 /// A camera at `eye` looking at `target` (OpenCV frame), w x h pixels, 60° horizontal field of view.
 PinholeCamera camera(cv::Vec3d eye, cv::Vec3d target, int w = 32, int h = 24) {
   PinholeCamera c;
@@ -275,12 +285,7 @@ TEST(PathTracer, DifferentialImagesShadowAndMaskTheVirtualObject) {
   real.addQuad({-5, -5, 0}, {10, 0, 0}, {0, 10, 0}, floor);
   real.lights.push_back({{0.8f, 0, 2}, {4, 4, 4}, 0.0f});
   Scene with = real;
-  Material v{"object", {0.8f, 0.2f, 0.2f}};
-  v.isVirtual = true;
-  const int obj = with.addMaterial(v);
-  const lighting::Mesh sphere = unitSphere();
-  with.addMesh(sphere.positions, sphere.normals, sphere.indices, obj,
-               capture::makePose(cv::Matx33d::eye() * 0.1, {0.0, 0.0, 0.3}));
+  addVirtualSphere(with, 0.1, {0.0, 0.0, 0.3}, {0.8f, 0.2f, 0.2f});
   PathTraceOptions o;
   o.spp = 2;
   o.bounces = 0;
@@ -323,12 +328,7 @@ TEST(PathTracer, PartlyVirtualPixelsAreTheObjectsSilhouetteAndOnlyIt) {
   Scene with;
   const int floor = with.addMaterial({"floor", {0.5f, 0.5f, 0.5f}});
   with.addQuad({-5, -5, 0}, {10, 0, 0}, {0, 10, 0}, floor);
-  Material v{"object", {0.8f, 0.8f, 0.8f}};
-  v.isVirtual = true;
-  const int obj = with.addMaterial(v);
-  const lighting::Mesh sphere = unitSphere();
-  with.addMesh(sphere.positions, sphere.normals, sphere.indices, obj,
-               capture::makePose(cv::Matx33d::eye() * 0.1, {0.0, 0.0, 0.3}));
+  addVirtualSphere(with, 0.1, {0.0, 0.0, 0.3}, {0.8f, 0.8f, 0.8f});
   const PinholeCamera cam = downCamera(1.0, 120, 90);
   const RayCaster rc(with);
   const cv::Mat centre = virtualMask(rc, cam), partly = partlyVirtualMask(rc, cam, 4);
@@ -356,12 +356,7 @@ TEST(PathTracer, TheFocusAroundTheObjectsTakesItsOwnSamples) {
   real.addQuad({-5, -5, 0}, {10, 0, 0}, {0, 10, 0}, floor);
   real.lights.push_back({{0.8f, 0, 2}, {4, 4, 4}, 0.0f});
   Scene with = real;
-  Material v{"object", {0.8f, 0.8f, 0.8f}};
-  v.isVirtual = true;
-  const int obj = with.addMaterial(v);
-  const lighting::Mesh sphere = unitSphere();
-  with.addMesh(sphere.positions, sphere.normals, sphere.indices, obj,
-               capture::makePose(cv::Matx33d::eye() * 0.05, {0.0, 0.0, 0.1}));
+  addVirtualSphere(with, 0.05, {0.0, 0.0, 0.1}, {0.8f, 0.8f, 0.8f});
   const PinholeCamera cam = downCamera(1.5, 60, 40);
   const cv::Rect focus = virtualFocus(with, cam);
   ASSERT_FALSE(focus.empty());
