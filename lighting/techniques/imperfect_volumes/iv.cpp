@@ -162,13 +162,13 @@ int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::V
   return -1;
 }
 
-RhoHit marchRho(const Volume& volume, const cv::Vec3i& from, const cv::Vec3f& direction) {
+SurfaceHits marchSurfaces(const Volume& volume, const cv::Vec3i& from, const cv::Vec3f& direction) {
   const Grid& g = volume.grid;
   const float s = static_cast<float>(g.voxel);
   const cv::Vec3f o = cv::Vec3f(g.centre(from[0], from[1], from[2]));
   const float start = 0.5f * std::sqrt(3.0f) * s;
   const int maxSteps = static_cast<int>(std::ceil(std::sqrt(3.0f) * g.resolution)) + 1;
-  RhoHit hit;
+  SurfaceHits hit;
   for (int step = 0; step <= maxSteps; ++step) {
     const float t = start + static_cast<float>(step) * s;
     cv::Vec3i c;
@@ -195,31 +195,22 @@ cv::Vec3f exitantTowards(const cv::Vec4f& exitant, const cv::Vec4f& normalSum, c
 }
 
 /// What one ray from voxel `from` brings: the hit voxel's `exitant` towards the origin within range (nothing
-/// when null: ambient occlusion only), else the ambient (when given). In rho (marchRho) the hit is the first voxel with
-/// real points and `glow` (when given) adds what the first object voxel within range sends towards the origin. `hit`: a
-/// surface within range (either kind) was met.
+/// when null: ambient occlusion only), else the ambient (when given); the hit is the first voxel with real points
+/// (marchSurfaces). In rho `glow` (when given) adds what the first object voxel within range sends towards the
+/// origin. `hit`: a surface within range (either kind) was met.
 cv::Vec3f rayRadiance(const Volume& volume, bool rho, const Options& o, const Ambient* ambient,
                       const std::vector<cv::Vec4f>* exitant, const std::vector<cv::Vec4f>* glow, const cv::Vec3i& from,
                       const cv::Vec3f& d, bool& hit) {
-  int64_t h = -1;
-  float t = 0;
+  const SurfaceHits r = marchSurfaces(volume, from, d);
   cv::Vec3f L(0, 0, 0);
-  if (rho) {
-    const RhoHit r = marchRho(volume, from, d);
-    h = r.real, t = r.realDistance;
-    const bool object = r.object >= 0 && r.objectDistance <= o.range;
-    hit = object;
-    if (object && glow) {
-      const auto v = static_cast<size_t>(r.object);
-      L += exitantTowards((*glow)[v], volume.normalRho[v] - volume.normalMu[v], -d);
-    }
-  } else {
-    h = march(volume, false, from, d, &t);
-    hit = false;
+  hit = rho && r.object >= 0 && r.objectDistance <= o.range;
+  if (hit && glow) {
+    const auto v = static_cast<size_t>(r.object);
+    L += exitantTowards((*glow)[v], volume.normalRho[v] - volume.normalMu[v], -d);
   }
-  if (h >= 0 && t <= o.range) {
+  if (r.real >= 0 && r.realDistance <= o.range) {
     hit = true;
-    const auto v = static_cast<size_t>(h);
+    const auto v = static_cast<size_t>(r.real);
     return exitant ? L + exitantTowards((*exitant)[v], volume.normalMu[v], -d) : L;
   }
   return ambient ? L + ambient->radiance(d) : L;

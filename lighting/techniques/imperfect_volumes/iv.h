@@ -132,13 +132,14 @@ Incident gather(const Volume& volume, bool rho, const Options& options, const Am
 int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction,
               float* distance = nullptr);
 
-/// A ray of the rho gather (marched as march()): the first voxel with real points (-1: none) and the first with
-/// virtual points up to it (-1: none), each with its march distance.
-struct RhoHit {
+/// A gather ray (marched as march()): the first voxel with real points (-1: none; march()'s hit in mu) and the
+/// first with virtual points up to it (-1: none; in rho the objects hide nothing, they add their light), each
+/// with its march distance.
+struct SurfaceHits {
   int64_t real = -1, object = -1;
   float realDistance = 0, objectDistance = 0;
 };
-RhoHit marchRho(const Volume& volume, const cv::Vec3i& from, const cv::Vec3f& direction);
+SurfaceHits marchSurfaces(const Volume& volume, const cv::Vec3i& from, const cv::Vec3f& direction);
 
 /// The first occupied voxel along a ray from surface point x: samples at (k + 1/2) voxel along the ray,
 /// x's own voxel skipped (its surface is x's own); -1 when the ray leaves the grid. `distance` as march();

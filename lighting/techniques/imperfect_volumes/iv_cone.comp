@@ -23,28 +23,13 @@ uniform vec3 uAmbientSh[9];
 uniform vec4 uBound;  // xyz centre, w radius (lighting world)
 
 vec3 ivReflectedAt(int v) { return vec3(0.0); }  // the cone takes the first bounce only
-#include "lighting/techniques/imperfect_volumes/iv_march_rho.glsl"
+#include "lighting/techniques/imperfect_volumes/iv_march.glsl"
 
 // What one ray of the first gather brings (iv.cpp firstGatherRadiance).
 vec3 firstGather(vec3 o, vec3 d, bool rho) {
-  if (rho) {
-    bool hit, open;
-    vec3 L = ivRhoSurfaces(o, d, false, hit, open);
-    return open ? L + ambientRadiance(uAmbient, uAmbientSh, d) : L;
-  }
-  float start = 0.5 * sqrt(3.0) * uVoxel;
-  int maxSteps = int(ceil(sqrt(3.0) * float(uResolution))) + 1;
-  for (int step = 0; step <= maxSteps; ++step) {
-    float t = start + float(step) * uVoxel;
-    ivec3 c;
-    if (!ivVoxelOf(o + t * d, c)) break;
-    int u = ivIndex(c);
-    if (!(voxels[u].exitantMu.w > 0.0)) continue;
-    if (t > uRange) break;
-    if (uBounceLight == 0 || dot(voxels[u].normalMu.xyz, -d) <= 0.0) return vec3(0.0);
-    return voxels[u].exitantMu.rgb;
-  }
-  return ambientRadiance(uAmbient, uAmbientSh, d);
+  bool hit, open;
+  vec3 L = ivSurfaces(o, d, rho, false, hit, open);
+  return open ? L + ambientRadiance(uAmbient, uAmbientSh, d) : L;
 }
 
 void main() {

@@ -4,7 +4,7 @@
 // border. A hit within range returns the hit voxel's exitant radiance towards the origin (when it faces it);
 // otherwise the ambient of the ray's direction (uAmbientOn). In rho the objects hide nothing: the ray goes on
 // to the first voxel with real points, lit as the objects leave it, and the first object voxel on its way adds
-// the lights' light it reflects (iv_march_rho.glsl). The incident radiance is projected to SH and
+// the lights' light it reflects (iv_march.glsl). The incident radiance is projected to SH and
 // added into the output (3 x SH_COEFFS floats per voxel, channel-major), with the fraction of rays that hit
 // within range (ambient occlusion) when uOcclusionOn.
 #include "lighting/techniques/imperfect_volumes/iv.glsl"
@@ -34,7 +34,7 @@ uniform vec3 uAmbient;           // uniform radiance
 uniform vec3 uAmbientSh[9];      // SH bands 0-2 of the ambient radiance
 
 vec3 ivReflectedAt(int v) { return reflected[v].rgb; }
-#include "lighting/techniques/imperfect_volumes/iv_march_rho.glsl"
+#include "lighting/techniques/imperfect_volumes/iv_march.glsl"
 
 
 void main() {
@@ -43,40 +43,16 @@ void main() {
   int v = int(needed[slot]);
   ivec3 from = ivCoords(v);
   vec3 o = ivCentre(from);
-  float start = 0.5 * sqrt(3.0) * uVoxel;
-  int maxSteps = int(ceil(sqrt(3.0) * float(uResolution))) + 1;
   float acc[3 * SH_COEFFS], accBounce[3 * SH_COEFFS];
   for (int q = 0; q < 3 * SH_COEFFS; ++q) acc[q] = accBounce[q] = 0.0;
   int hits = 0;
   for (int j = 0; j < uRays; ++j) {
     vec3 d = directions[j].xyz;
-    vec3 L = vec3(0.0), surfaces = vec3(0.0);
-    bool hit = false, open = true;
-    if (uRho == 1) {
-      // The objects hide nothing here: the ray goes on to the first real surface (iv.h marchRho).
-      surfaces = ivRhoSurfaces(o, d, uExitantFromBuffer == 1, hit, open);
-    } else {
-      int h = -1;
-      float t = 0.0;
-      for (int step = 0; step <= maxSteps; ++step) {
-        t = start + float(step) * uVoxel;
-        ivec3 c;
-        if (!ivVoxelOf(o + t * d, c)) break;
-        int u = ivIndex(c);
-        if (voxels[u].exitantMu.w > 0.0) {
-          h = u;
-          break;
-        }
-      }
-      if (h >= 0 && t <= uRange) {
-        hit = true;
-        open = false;
-        if (uBounceLight == 1 && dot(voxels[h].normalMu.xyz, -d) > 0.0)
-          surfaces = uExitantFromBuffer == 1 ? reflected[h].rgb : voxels[h].exitantMu.rgb;
-      }
-    }
+    bool hit, open;
+    // In rho the objects hide nothing: the ray goes on to the first real surface (iv.h marchSurfaces).
+    vec3 surfaces = ivSurfaces(o, d, uRho == 1, uExitantFromBuffer == 1, hit, open);
     if (hit) ++hits;
-    L = surfaces;
+    vec3 L = surfaces;
     if (open && uAmbientOn == 1) L += ambientRadiance(uAmbient, uAmbientSh, d);
     bool fromSurface = surfaces != vec3(0.0);
     if (L == vec3(0.0)) continue;

@@ -1,8 +1,8 @@
-// Imperfect volumes: a ray of the rho gather (iv.h marchRho), for shaders that declare `voxels` (IvVoxel[])
+// Imperfect volumes: a gather ray's march (iv.h marchSurfaces), for shaders that declare `voxels` (IvVoxel[])
 // before including it. From o past its voxel's bounding sphere, one voxel per step: the first voxel with real
 // points (real = -1: none) and the first with virtual points up to it (object = -1: none), with their march
 // distances. A voxel holds real points where exitantMu.w > 0 and virtual ones where exitantVirtual.w > 0.
-void ivMarchRho(vec3 o, vec3 d, out int real, out float tReal, out int object, out float tObject) {
+void ivMarch(vec3 o, vec3 d, out int real, out float tReal, out int object, out float tObject) {
   float start = 0.5 * sqrt(3.0) * uVoxel;
   int maxSteps = int(ceil(sqrt(3.0) * float(uResolution))) + 1;
   real = object = -1;
@@ -24,17 +24,18 @@ void ivMarchRho(vec3 o, vec3 d, out int real, out float tReal, out int object, o
   }
 }
 
-// What the surfaces along a ray of the rho gather send (iv.cpp rayRadiance in rho, without the ambient): the
-// first real voxel's radiance as the objects leave it lit, towards the origin, within range (uBounceLight; in
-// a later bounce what it reflects, ivReflectedAt: fromBuffer), plus, in the first bounce, what the first object
-// voxel within range sends towards the origin of the lights' light. hit: a surface within range was met; open:
-// no real one was, so the ambient of the direction arrives.
-vec3 ivRhoSurfaces(vec3 o, vec3 d, bool fromBuffer, out bool hit, out bool open) {
+// What the surfaces along a gather ray send towards its origin (iv.cpp rayRadiance, without the ambient): the
+// first real voxel within range (uBounceLight), as the objects leave it lit in rho (exitantMuLit) or without
+// them in mu (exitantMu), or in a later bounce what it reflects (ivReflectedAt: fromBuffer); in rho and the
+// first bounce, plus what the first object voxel within range sends of the lights' light (the objects hide
+// nothing). hit: a surface within range was met; open: no real one was, so the ambient of the direction
+// arrives.
+vec3 ivSurfaces(vec3 o, vec3 d, bool rho, bool fromBuffer, out bool hit, out bool open) {
   int real, object;
   float tReal, tObject;
-  ivMarchRho(o, d, real, tReal, object, tObject);
+  ivMarch(o, d, real, tReal, object, tObject);
   vec3 L = vec3(0.0);
-  hit = object >= 0 && tObject <= uRange;
+  hit = rho && object >= 0 && tObject <= uRange;
   if (hit && uBounceLight == 1 && !fromBuffer) {
     vec3 n = voxels[object].normalRho.xyz - voxels[object].normalMu.xyz;
     if (dot(n, -d) > 0.0) L += voxels[object].exitantVirtual.rgb;
@@ -43,7 +44,7 @@ vec3 ivRhoSurfaces(vec3 o, vec3 d, bool fromBuffer, out bool hit, out bool open)
   if (!open) {
     hit = true;
     if (uBounceLight == 1 && dot(voxels[real].normalMu.xyz, -d) > 0.0)
-      L += fromBuffer ? ivReflectedAt(real) : voxels[real].exitantMuLit.rgb;
+      L += fromBuffer ? ivReflectedAt(real) : (rho ? voxels[real].exitantMuLit.rgb : voxels[real].exitantMu.rgb);
   }
   return L;
 }
