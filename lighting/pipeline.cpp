@@ -224,7 +224,6 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   // when the frame knob render_scale reduces it: smooth over a surface, upsampled by the pass.
   const bool reducedTerms = lit && reduced.factor > 1;
   const bool upsample = reducedTerms || *std::max_element(factors.begin(), factors.end()) > 1;
-  const std::vector<std::pair<std::string, std::string>> softDefine{{"SOFT_OBJECT_SHADOWS", "1"}};
   const auto setObjectTermUniforms = [&](const gl::Program& q) {
     q.set("uAddReflectedLight", real_ && real_->accountsForReflectedLight() ? 0 : 1);
     setOccluderUniforms(q, *frame_);
@@ -248,9 +247,11 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       objectTermsFb_.finalise(1);
     }
     gl::Program& t = objectTermsPrograms_[soft ? 1 : 0];
-    if (!t.id())
-      t = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/object_terms.frag",
-                                soft ? softDefine : std::vector<std::pair<std::string, std::string>>{});
+    if (!t.id()) {
+      std::vector<std::pair<std::string, std::string>> defines;
+      if (soft) defines.push_back({"SOFT_OBJECT_SHADOWS", "1"});
+      t = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/object_terms.frag", defines);
+    }
     objectTermsFb_.bind();
     glViewport(0, 0, reduced.width, reduced.height);
     t.use();
