@@ -3,7 +3,7 @@
 # files, frame images, .npy arrays, TUM lists, fisheye calibrations, saved rooms, a session's fisheye frames)
 # and every subcommand's flags, built with clang-15, AddressSanitizer
 # and UBSan in build-fuzz/ (apart from the normal build), seeded from the bundled files and ../shared/data.
-#   tools/fuzz.sh                 every target for 30 s (CI runs --seconds 15)
+#   tools/fuzz.sh                 every target for 30 s (CI runs --seconds 10)
 #   tools/fuzz.sh --seconds 600   longer
 #   tools/fuzz.sh --runs 100000 manifest_fuzz scene_fuzz
 # Exits non-zero on the first crash, leak, sanitizer report or time-out (the reproducer is in build-fuzz/).
