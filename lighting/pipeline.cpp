@@ -5,6 +5,7 @@
 
 #include "gl/error.h"
 #include "lighting/object_shadow.h"
+#include "lighting/shadow_footprint.h"
 
 namespace mrgi::lighting {
 
@@ -263,39 +264,68 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   }
   shadeFb_.bind();
   glViewport(0, 0, config_.width, config_.height);
-  gl::Program& p = shadePrograms_[(soft ? 1 : 0) | (upsample ? 2 : 0) | (reducedTerms ? 4 : 0)];
-  if (!p.id()) {
-    std::vector<std::pair<std::string, std::string>> defines;
-    if (soft) defines.push_back({"SOFT_OBJECT_SHADOWS", "1"});
-    if (upsample) defines.push_back({"UPSAMPLE_OUTPUTS", "1"});
-    if (reducedTerms) defines.push_back({"REDUCED_OBJECT_TERMS", "1"});
-    p = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", defines);
+  // The whole program only where the objects lie or their direct shadow may fall (objectsFootprint); the rest
+  // of the image takes the variant without them, which gives the same values there for less of llvmpipe's time.
+  const cv::Rect image(0, 0, config_.width, config_.height);
+  footprint_ = image;
+  const auto bounds = frame_->objectBounds();
+  if (lit && boundedShading_ && bounds) {
+    const cv::Vec3d centre = 0.5 * (bounds->first + bounds->second);
+    const double radius = 0.5 * cv::norm(bounds->second - bounds->first);
+    // The shadow maps' texels blur the shadow's edge: two of the region's map, and the tests' offsets.
+    double bias = 0;
+    for (const LightView& v : frame_->lightViews()) bias = std::max({bias, v.shadowBias, v.objectShadowBias});
+    const double margin = 4.0 * frame_->region()->radius() / std::max(1, frame_->rsmSize()) + 2.0 * bias;
+    footprint_ = objectsFootprint(frame_->camera(), centre, radius, addDirectShadow ? kept : std::vector<SceneLight>{},
+                                  margin, frame_->cameraVertices(), frame_->cameraIndices());
   }
-  p.use();
-  p.set("uLighting", lit ? 1 : 0);
-  p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
-  setObjectTermUniforms(p);
-  setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
-  p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
-  frame_->gbufferView().bind();
-  auto orZero = [&](const gl::Texture* t) -> const gl::Texture& { return t ? *t : frame_->zero(); };
-  orZero(realOut.realDelta).bind(3);
-  orZero(virtualOut.virtualIrradiance).bind(4);
-  orZero(virtualOut.virtualRadiance).bind(5);
-  if (upsample) {  // outputs at the reduced view's size are upsampled by the pass
-    p.set("uRealDeltaFactor", factors[0]);
-    p.set("uVirtualIrradianceFactor", factors[1]);
-    p.set("uVirtualRadianceFactor", factors[2]);
-    reduced.position->bind(6);
-    reduced.normal->bind(7);
+  const auto shadeWith = [&](bool realOnly) {
+    gl::Program& p = shadePrograms_[(soft ? 1 : 0) | (upsample ? 2 : 0) | (reducedTerms ? 4 : 0) | (realOnly ? 8 : 0)];
+    if (!p.id()) {
+      std::vector<std::pair<std::string, std::string>> defines;
+      if (soft) defines.push_back({"SOFT_OBJECT_SHADOWS", "1"});
+      if (upsample) defines.push_back({"UPSAMPLE_OUTPUTS", "1"});
+      if (reducedTerms) defines.push_back({"REDUCED_OBJECT_TERMS", "1"});
+      if (realOnly) defines.push_back({"SHADE_REAL_ONLY", "1"});
+      p = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", defines);
+    }
+    p.use();
+    p.set("uLighting", lit ? 1 : 0);
+    p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
+    setObjectTermUniforms(p);
+    setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
+    p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
+    frame_->gbufferView().bind();
+    auto orZero = [&](const gl::Texture* t) -> const gl::Texture& { return t ? *t : frame_->zero(); };
+    orZero(realOut.realDelta).bind(3);
+    orZero(virtualOut.virtualIrradiance).bind(4);
+    orZero(virtualOut.virtualRadiance).bind(5);
+    if (upsample) {  // outputs at the reduced view's size are upsampled by the pass
+      p.set("uRealDeltaFactor", factors[0]);
+      p.set("uVirtualIrradianceFactor", factors[1]);
+      p.set("uVirtualRadianceFactor", factors[2]);
+      reduced.position->bind(6);
+      reduced.normal->bind(7);
+    }
+    if (reducedTerms) {
+      p.set("uObjectTermsFactor", reduced.factor);
+      objectTerms_.bind(8);
+    }
+    frame_->bindShadowMaps();
+    emptyVao_.bind();
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  };
+  if (footprint_ == image) {
+    shadeWith(false);
+  } else {
+    shadeWith(true);
+    if (!footprint_.empty()) {
+      glEnable(GL_SCISSOR_TEST);
+      glScissor(footprint_.x, footprint_.y, footprint_.width, footprint_.height);  // framebuffer rows = image rows
+      shadeWith(false);
+      glDisable(GL_SCISSOR_TEST);
+    }
   }
-  if (reducedTerms) {
-    p.set("uObjectTermsFactor", reduced.factor);
-    objectTerms_.bind(8);
-  }
-  frame_->bindShadowMaps();
-  emptyVao_.bind();
-  glDrawArrays(GL_TRIANGLES, 0, 3);
   shadeAt_ = now;
   gl::checkGlError("LightingPipeline::run()");
 }

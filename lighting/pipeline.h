@@ -118,6 +118,12 @@ class LightingPipeline {
   /// Stages the last run skipped because their inputs had not changed: of "gbuffer", "rsm", each
   /// technique's name (its update), "shade".
   const std::vector<std::string>& skippedStages() const { return skipped_; }
+  /// Whether the shading pass runs its whole program only over objectsFootprint (default) or over every pixel
+  /// (the same image, for comparison).
+  void setBoundedShading(bool bounded) { boundedShading_ = bounded; }
+  /// The pixels the last run's shading pass ran its whole program over (lighting/shadow_footprint.h): the
+  /// whole image, or the objects and their direct shadow.
+  const cv::Rect& shadedFootprint() const { return footprint_; }
   /// Indices (into the last run's lights) of the lights it rendered: those that matter at the objects'
   /// region (lightsThatMatter, frame knob light_cutoff); every light when no object is placed.
   const std::vector<size_t>& lightsRendered() const { return lightsKept_; }
@@ -158,7 +164,9 @@ class LightingPipeline {
   /// The shading pass's variants, compiled when first used: bit 0 soft shadows, bit 1 upsampling of reduced
   /// technique outputs, bit 2 the object terms from the reduced pass (code a pass does not run still costs
   /// llvmpipe: each only where it is needed).
-  std::array<gl::Program, 8> shadePrograms_;
+  std::array<gl::Program, 16> shadePrograms_;  ///< soft | upsample | reduced terms | real only
+  bool boundedShading_ = true;
+  cv::Rect footprint_;
   /// The object terms at the reduced view (render_scale < 1; lighting/object_terms.frag), soft-shadow variant
   /// at index 1; its target, allocated at the reduced view's size when first used.
   std::array<gl::Program, 2> objectTermsPrograms_;

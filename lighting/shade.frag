@@ -14,6 +14,10 @@
 //                  environment seen at the object (uEnvironmentHoldsBounce: it holds the real surfaces' bounce)
 //   no surface:    rgb = 0, a = 0
 // Output 1 (debug): rgb = E_delta (real) or E_indirect (virtual) in W/m^2, a = 1 where a surface was seen.
+// SHADE_REAL_ONLY (a program variant): the real pixels without the objects' direct shadow, for the pixels
+// outside lighting::objectsFootprint (no object there, no direct shadow of theirs: the same values there as
+// the whole program's), which the whole program then draws alone. llvmpipe runs every branch of a fragment
+// program under masks: the variant's pixels cost what it holds, not what they take of the whole program.
 #define MAX_LIGHTS 16
 #define SHADE_PI 3.14159265358979
 
@@ -76,6 +80,9 @@ void main() {
     outIrradiance = vec4(0.0, 0.0, 0.0, 1.0);
     return;
   }
+#ifdef SHADE_REAL_ONLY
+  if (isVirtual) return;  // drawn by the whole program: the objects lie in the footprint
+#else
   if (isVirtual) {
     vec3 e = directIrradiance(true, pos.xyz, n) + SHADE_PI * uAmbient + ambientShIrradiance(uAmbientSh, n);
     vec3 indirect = uEnvironmentHoldsBounce == 1 ? vec3(0.0)
@@ -84,23 +91,31 @@ void main() {
                                                  : techniqueOutput(uVirtualRadiance, uVirtualRadianceFactor, p, pos, normal);
     outShade = vec4((e + indirect) * albedo.rgb / SHADE_PI + radiance, 1.0);
     outIrradiance = vec4(indirect, 1.0);
-  } else {
+    return;
+  }
+#endif
+  {
     vec3 delta = techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal);
     // Only where the objects reach: a sphere seen at a view factor of at least lighting::kObjectsMinViewFactor, or
     // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero and skipped.
     bool seen = objectsSeen(pos.xyz, n);
 #ifdef REDUCED_OBJECT_TERMS
     if (seen) delta += upsampled(uObjectTerms, uLowPosition, uLowNormal, uObjectTermsFactor, p, pos, normal);
+#ifndef SHADE_REAL_ONLY
     if (uAddDirectShadow == 1) delta += objectsDirectShadow(pos.xyz, n);
+#endif
 #else
     if (seen) {
       // The object terms need the direct light with and without the objects: the direct shadow is their difference.
       vec3 directMu = directIrradiance(false, pos.xyz, n), directRho = directIrradiance(true, pos.xyz, n);
       if (uAddDirectShadow == 1) delta += directRho - directMu;
       delta += objectTerms(pos.xyz, n, directMu, directRho);
-    } else if (uAddDirectShadow == 1) {
+    }
+#ifndef SHADE_REAL_ONLY
+    else if (uAddDirectShadow == 1) {
       delta += objectsDirectShadow(pos.xyz, n);
     }
+#endif
 #endif
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);

@@ -108,6 +108,9 @@ class FrameResources {
   /// The real mesh as last set (CPU copy, lighting world).
   const std::vector<MeshVertex>& realVertices() const { return geometry_.realVertices(); }
   const std::vector<uint32_t>& realIndices() const { return geometry_.realIndices(); }
+  /// The mesh the camera sees (the G-buffer's): the view mesh when set, else the real mesh (CPU copies).
+  const std::vector<MeshVertex>& cameraVertices() const { return geometry_.cameraVertices(); }
+  const std::vector<uint32_t>& cameraIndices() const { return geometry_.cameraIndices(); }
   const std::vector<FrameObject>& objects() const { return geometry_.objects(); }
   /// The technique's own input as last set, nullptr when none.
   const TechniqueInput* techniqueInput(const std::string& technique) const;

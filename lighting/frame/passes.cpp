@@ -34,6 +34,8 @@ void FrameGeometry::setRealMesh(std::vector<MeshVertex> vertices, std::vector<ui
 
 void FrameGeometry::setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
   viewMesh_ = GpuMesh(vertices, indices);
+  viewVertices_ = vertices;
+  viewIndices_ = indices;
 }
 
 std::optional<std::pair<cv::Vec3d, cv::Vec3d>> FrameGeometry::objectBounds() const {

@@ -44,6 +44,9 @@ class FrameGeometry {
 
   const std::vector<MeshVertex>& realVertices() const { return realVertices_; }
   const std::vector<uint32_t>& realIndices() const { return realIndices_; }
+  /// The mesh the camera sees (the G-buffer's): the view mesh when there is one, else the real mesh.
+  const std::vector<MeshVertex>& cameraVertices() const { return viewIndices_.empty() ? realVertices_ : viewVertices_; }
+  const std::vector<uint32_t>& cameraIndices() const { return viewIndices_.empty() ? realIndices_ : viewIndices_; }
   const std::vector<FrameObject>& objects() const { return objects_; }
   /// World bounding box of the placed objects (nullopt without objects).
   std::optional<std::pair<cv::Vec3d, cv::Vec3d>> objectBounds() const;
@@ -62,6 +65,8 @@ class FrameGeometry {
   GpuMesh realMesh_, viewMesh_;
   std::vector<MeshVertex> realVertices_;
   std::vector<uint32_t> realIndices_;
+  std::vector<MeshVertex> viewVertices_;
+  std::vector<uint32_t> viewIndices_;
 };
 
 /// A G-buffer's textures and size: the frame's own, or its reduced copy that per-pixel technique outputs are
