@@ -32,9 +32,14 @@ Action addSynth(CLI::App& app) {
   app.add_option("--spp", o->spp, "path-traced samples per pixel")->check(numberIn(1, 1 << 16));
   app.add_option("--reference-focus-spp", o->referenceFocusSpp,
                  "with --scene: the reference delta from its own two renders, this many samples per pixel around the "
-                 "objects (three radii), --spp elsewhere, written as half floats (0 = the composite's render minus the "
+                 "objects (--reference-focus-radii), --spp elsewhere, written as half floats (0 = the composite's "
+                 "render minus the "
                  "frame's)")
       ->check(numberIn(0, 1 << 20));
+  app.add_option("--reference-focus-radii", o->referenceFocusRadii,
+                 "with --reference-focus-spp: how far around the objects the focus reaches, in radii of their bounding "
+                 "sphere (default 3)")
+      ->check(numberIn(0, 100));
   app.add_option("--bounces", o->bounces, "path-traced bounces")->check(numberIn(0, 64));
   app.add_option("--scene", o->scene,
                  "also write each frame's reference composite with this scene's objects (reference/)");

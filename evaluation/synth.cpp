@@ -263,6 +263,7 @@ struct ReferenceRender {
   const groundtruth::Scene& augmented;
   groundtruth::PathTraceOptions options;
   int focusSpp = 0;
+  double focusRadii = 3.0;  ///< the focus box: the objects' bounding sphere grown by this many radii
   bool pathTrace = true;
 };
 
@@ -276,7 +277,7 @@ void writeReference(const ReferenceRender& ref, const groundtruth::PinholeCamera
     // The delta from its own pair of renders with more samples around the objects (common random
     // numbers in both); the composite is the frame's image plus that delta (the camera's noise kept).
     groundtruth::PathTraceOptions focused = ref.options;
-    focused.focus = groundtruth::virtualFocus(ref.augmented, cam);
+    focused.focus = groundtruth::virtualFocus(ref.augmented, cam, ref.focusRadii);
     focused.focusSpp = ref.focusSpp;
     const cv::Mat rhoN = PathTracer(ref.withObjects, focused).render(cam);
     focused.progress = nullptr;
@@ -322,10 +323,13 @@ bool describeReference(const SynthOptions& o, nlohmann::json& groundTruth) {
   const bool focusedReference = !o.scene.empty() && o.referenceFocusSpp > 0 && pathTrace;
   if (focusedReference) {
     groundTruth["reference"]["delta_focus_spp"] = o.referenceFocusSpp;
+    groundTruth["reference"]["delta_focus_radii"] = o.referenceFocusRadii;
+    char radii[32];
+    std::snprintf(radii, sizeof radii, "%g", o.referenceFocusRadii);
     groundTruth["reference"]["note"] =
         "the camera image of the room with the scene's objects, same noise; the delta from its own two renders, " +
-        std::to_string(o.referenceFocusSpp) + " samples per pixel around the objects (" + std::to_string(o.spp) +
-        " elsewhere)";
+        std::to_string(o.referenceFocusSpp) + " samples per pixel within " + radii + " radii of the objects (" +
+        std::to_string(o.spp) + " elsewhere)";
   }
   return focusedReference;
 }
@@ -441,6 +445,7 @@ int writeSynthSession(const SynthOptions& o) {
                                 litAugmented ? *litAugmented : augmented,
                                 rhoOptions,
                                 focusedReference ? o.referenceFocusSpp : 0,
+                                o.referenceFocusRadii,
                                 pathTrace};
       writeReference(ref, {m.colour, *frame.groundTruthT_world_camera}, r.radiance, exposure, noiseSeed,
                      fs::path(o.out) / "reference", i);

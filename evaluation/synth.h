@@ -24,6 +24,9 @@ struct SynthOptions {
   /// The reference delta's samples per pixel around the objects (groundtruth::virtualFocus); 0: the delta is
   /// the composite's render minus the frame's own (spp, one seed, the camera's noise in both).
   int referenceFocusSpp = 0;
+  /// How far around the objects the focus reaches: the box of their bounding sphere grown by this many radii
+  /// on every side (the objects' shadow and bounce of the room reach about ten).
+  double referenceFocusRadii = 3.0;
   std::string scene;            ///< virtual objects whose path-traced reference composite each frame gets
   std::string environment;      ///< HDR equirect EXR: outdoors under it instead of the room
   double environmentScale = 0;  ///< 0: a white upward surface in the open reads 0.6
