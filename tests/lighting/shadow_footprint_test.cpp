@@ -27,7 +27,8 @@ bool partlyHidden(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& 
   std::normal_distribution<double> g;
   std::uniform_real_distribution<double> u;
   for (int s = 0; s < 400; ++s) {
-    const cv::Vec3d jitter = s == 0 ? cv::Vec3d(0, 0, 0) : cv::normalize(cv::Vec3d(g(rng), g(rng), g(rng))) * std::cbrt(u(rng));
+    const cv::Vec3d jitter =
+        s == 0 ? cv::Vec3d(0, 0, 0) : cv::normalize(cv::Vec3d(g(rng), g(rng), g(rng))) * std::cbrt(u(rng));
     cv::Vec3d w;
     if (light.type == LightType::Directional) {
       w = cv::normalize(-light.direction + std::tan(light.extent) * jitter);
@@ -118,35 +119,36 @@ TEST(GL, TheShadingPassBoundedToTheObjectsFootprintWritesTheWholePassImage) {
   for (const std::string technique : {"none", "kinect-val"})
     for (const double scale : {1.0, 0.5})
       for (const std::vector<SceneLight>& lights : lightSets) {
-      SCOPED_TRACE(technique + " at render_scale " + std::to_string(scale) + ", lights " + std::to_string(lights.size()));
-      PipelineConfig cfg = testConfig(W, H, 16, 128, technique);
-      cfg.set("frame", "render_scale", scale);
-      cfg.set("frame", "soft_shadow_lights", 16);
-      LightingPipeline pipe = makePipeline(cfg, s);
-      const cv::Vec3d ambient(0.05, 0.05, 0.05);
-      pipe.run(cam, lights, ambient, nullptr);
-      const cv::Mat bounded = pipe.downloadShade();
-      const cv::Rect footprint = pipe.shadedFootprint();
-      pipe.setBoundedShading(false);
-      pipe.invalidate();
-      pipe.run(cam, lights, ambient, nullptr);
-      const cv::Mat whole = pipe.downloadShade();
-      EXPECT_EQ(pipe.shadedFootprint(), cv::Rect(0, 0, W, H));
-      EXPECT_GT(footprint.area(), 0);
-      EXPECT_LT(footprint.area(), W * H * 6 / 10);
-      double worst = 0, peak = 0;
-      int outside = 0;
-      for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-          const cv::Vec4f a = bounded.at<cv::Vec4f>(y, x), b = whole.at<cv::Vec4f>(y, x);
-          for (int k = 0; k < 4; ++k) worst = std::max(worst, double(std::abs(a[k] - b[k])));
-          peak = std::max(peak, double(std::abs(b[0])));
-          if (!footprint.contains({x, y}) && std::abs(b[0]) > 1e-4) ++outside;
-        }
-      EXPECT_GT(peak, 0.01);
-      EXPECT_GT(outside, 100);  // the pixels outside still take the objects' other terms
-      EXPECT_LE(worst, 1e-6 * std::max(1.0, peak)) << "footprint " << footprint;
-    }
+        SCOPED_TRACE(technique + " at render_scale " + std::to_string(scale) + ", lights " +
+                     std::to_string(lights.size()));
+        PipelineConfig cfg = testConfig(W, H, 16, 128, technique);
+        cfg.set("frame", "render_scale", scale);
+        cfg.set("frame", "soft_shadow_lights", 16);
+        LightingPipeline pipe = makePipeline(cfg, s);
+        const cv::Vec3d ambient(0.05, 0.05, 0.05);
+        pipe.run(cam, lights, ambient, nullptr);
+        const cv::Mat bounded = pipe.downloadShade();
+        const cv::Rect footprint = pipe.shadedFootprint();
+        pipe.setBoundedShading(false);
+        pipe.invalidate();
+        pipe.run(cam, lights, ambient, nullptr);
+        const cv::Mat whole = pipe.downloadShade();
+        EXPECT_EQ(pipe.shadedFootprint(), cv::Rect(0, 0, W, H));
+        EXPECT_GT(footprint.area(), 0);
+        EXPECT_LT(footprint.area(), W * H * 6 / 10);
+        double worst = 0, peak = 0;
+        int outside = 0;
+        for (int y = 0; y < H; ++y)
+          for (int x = 0; x < W; ++x) {
+            const cv::Vec4f a = bounded.at<cv::Vec4f>(y, x), b = whole.at<cv::Vec4f>(y, x);
+            for (int k = 0; k < 4; ++k) worst = std::max(worst, double(std::abs(a[k] - b[k])));
+            peak = std::max(peak, double(std::abs(b[0])));
+            if (!footprint.contains({x, y}) && std::abs(b[0]) > 1e-4) ++outside;
+          }
+        EXPECT_GT(peak, 0.01);
+        EXPECT_GT(outside, 100);  // the pixels outside still take the objects' other terms
+        EXPECT_LE(worst, 1e-6 * std::max(1.0, peak)) << "footprint " << footprint;
+      }
 }
 
 }  // namespace
