@@ -33,7 +33,8 @@ bool mayShadow(const SceneLight& light, const cv::Vec3d& centre, double radius, 
     // foot passes the centre at its perpendicular distance; the others lie within tan(half-angle) x their run.
     const cv::Vec3d back = -light.direction;
     const double along = (centre - x).dot(back);
-    const double spread = light.extent > 0 ? (std::max(along, 0.0) + radius) * std::tan(std::min(light.extent, 1.5)) : 0;
+    const double spread =
+        light.extent > 0 ? (std::max(along, 0.0) + radius) * std::tan(std::min(light.extent, 1.5)) : 0;
     return segmentDistance(centre, x, x + std::max(along, 0.0) * back) <= radius + margin + spread;
   }
   // A light with extent: its soft shadow's blocker search at x looks over a disc of (|x - P| - near) a / near
@@ -59,7 +60,8 @@ cv::Rect objectsFootprint(const CameraView& camera, const cv::Vec3d& centre, dou
   cv::Vec4d box(1e30, 1e30, -1e30, -1e30);
   // The objects: the corners of the sphere's box; one behind the camera sees them from inside it.
   for (int c = 0; c < 8; ++c) {
-    const cv::Vec3d p = centre + cv::Vec3d(c & 1 ? radius : -radius, c & 2 ? radius : -radius, c & 4 ? radius : -radius);
+    const cv::Vec3d p =
+        centre + cv::Vec3d(c & 1 ? radius : -radius, c & 2 ? radius : -radius, c & 4 ? radius : -radius);
     const cv::Vec4d q = T * cv::Vec4d(p[0], p[1], p[2], 1.0);
     if (q[2] > camera.nearPlane) {
       addPoint(camera, T, p, box);
