@@ -21,23 +21,12 @@ SceneLight spotAbove() {
   return l;
 }
 
-SceneLight obliqueSun() {
-  SceneLight l = sunDown(8.0);
-  l.direction = cv::normalize(cv::Vec3d(0.5, 0.3, -0.8));
-  return l;
-}
-
-// Lights with extent (lighting::SceneLight::extent): a wide sun low over the cube and a sphere lamp.
+// Lights with extent (lighting::SceneLight::extent): a wide sun low over the cube and a sphere lamp
+// (test_scene.h's sphereLamp()).
 SceneLight wideLowSun() {
   SceneLight l = sunDown(6.0);
   l.direction = cv::normalize(cv::Vec3d(-0.9, 0.3, -0.25));  // 15 degrees over the floor
   l.extent = 0.5;                                            // radians: the floor straddles its horizon
-  return l;
-}
-SceneLight sphereLamp() {
-  SceneLight l = pointAbove();
-  l.position = {-0.4, -0.3, 0.5};
-  l.extent = 0.25;  // metres
   return l;
 }
 

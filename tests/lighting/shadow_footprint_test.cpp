@@ -92,18 +92,6 @@ TEST(ShadowFootprint, EmptyMeshHoldsTheObjectsAloneAndBehindTheCameraNothing) {
   EXPECT_EQ(lighting::objectsFootprint(cam, {0, -0.25, 1.6}, 0.1, {}, 0.0, {}, {}), cv::Rect(0, 0, 64, 64));
 }
 
-SceneLight obliqueSun() {
-  SceneLight l = sunDown(8.0);
-  l.direction = cv::normalize(cv::Vec3d(0.5, 0.3, -0.8));
-  return l;
-}
-SceneLight sphereLamp() {
-  SceneLight l = pointAbove();
-  l.position = {-0.3, -0.25, 0.3};
-  l.extent = 0.1;  // metres
-  return l;
-}
-
 TEST(GL, TheShadingPassBoundedToTheObjectsFootprintWritesTheWholePassImage) {
   // A cube on a finely meshed floor under a sphere lamp (soft shadows), then a sharp sun and a point light: at the
   // frame's resolution and at render_scale 1/2, with the shadow left to the pass and with a technique, the
@@ -115,7 +103,8 @@ TEST(GL, TheShadingPassBoundedToTheObjectsFootprintWritesTheWholePassImage) {
   s.objects = makeScene(false, 0.12, {0.05, 0.0, 0.06}).objects;
   CameraView cam = topCamera(W, H);
   cam.T_world_camera = capture::lookAtPose({0.0, -0.9, 1.1}, {0, 0, 0});
-  const std::vector<std::vector<SceneLight>> lightSets = {{sphereLamp()}, {obliqueSun(), pointAbove()}};
+  const std::vector<std::vector<SceneLight>> lightSets = {{sphereLamp({-0.3, -0.25, 0.3}, 0.1)},
+                                                          {obliqueSun(), pointAbove()}};
   for (const std::string technique : {"none", "kinect-val"})
     for (const double scale : {1.0, 0.5})
       for (const std::vector<SceneLight>& lights : lightSets) {

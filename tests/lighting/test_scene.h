@@ -137,6 +137,21 @@ inline SceneLight pointAbove() {
   return l;
 }
 
+/// The sun from above, aslant (8 W/m^2).
+inline SceneLight obliqueSun() {
+  SceneLight l = sunDown(8.0);
+  l.direction = cv::normalize(cv::Vec3d(0.5, 0.3, -0.8));
+  return l;
+}
+
+/// pointAbove() moved to `position` as a sphere lamp of radius `extent` metres (soft shadows).
+inline SceneLight sphereLamp(cv::Vec3d position = {-0.4, -0.3, 0.5}, double extent = 0.25) {
+  SceneLight l = pointAbove();
+  l.position = position;
+  l.extent = extent;
+  return l;
+}
+
 /// A wall of real surface seen head-on, as a technique's input builder takes a frame (technique_input.h): the
 /// plane x = -0.5 facing +x over y in [-1, 1], z in [0, 1.5], of uniform exitance (W/m^2) in red and a tenth of
 /// it in green and blue (radiance exitance / pi), from a 32 x 24 camera at x = 1.
