@@ -324,12 +324,11 @@ bool describeReference(const SynthOptions& o, nlohmann::json& groundTruth) {
   if (focusedReference) {
     groundTruth["reference"]["delta_focus_spp"] = o.referenceFocusSpp;
     groundTruth["reference"]["delta_focus_radii"] = o.referenceFocusRadii;
-    char radii[32];
-    std::snprintf(radii, sizeof radii, "%g", o.referenceFocusRadii);
     groundTruth["reference"]["note"] =
         "the camera image of the room with the scene's objects, same noise; the delta from its own two renders, " +
-        std::to_string(o.referenceFocusSpp) + " samples per pixel within " + radii + " radii of the objects (" +
-        std::to_string(o.spp) + " elsewhere)";
+        std::to_string(o.referenceFocusSpp) + " samples per pixel within " +
+        capture::formatNumber(o.referenceFocusRadii) + " radii of the objects (" + std::to_string(o.spp) +
+        " elsewhere)";
   }
   return focusedReference;
 }

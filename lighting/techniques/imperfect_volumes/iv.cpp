@@ -141,27 +141,6 @@ std::vector<uint8_t> neededVoxels(const Grid& g, const std::vector<uint8_t>& occ
   return need;
 }
 
-int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction, float* distance) {
-  const Grid& g = volume.grid;
-  const float s = static_cast<float>(g.voxel);
-  const cv::Vec3f o = cv::Vec3f(g.centre(from[0], from[1], from[2]));
-  // Start past the voxel's bounding sphere, then one voxel per step.
-  const float start = 0.5f * std::sqrt(3.0f) * s;
-  const int maxSteps = static_cast<int>(std::ceil(std::sqrt(3.0f) * g.resolution)) + 1;
-  for (int step = 0; step <= maxSteps; ++step) {
-    const float t = start + static_cast<float>(step) * s;
-    const cv::Vec3f p = o + t * direction;
-    cv::Vec3i c;
-    if (!g.voxelOf(cv::Vec3d(p), c)) return -1;
-    const size_t v = g.index(c[0], c[1], c[2]);
-    if (volume.occupied(v, rho)) {
-      if (distance) *distance = t;
-      return static_cast<int64_t>(v);
-    }
-  }
-  return -1;
-}
-
 SurfaceHits marchSurfaces(const Volume& volume, const cv::Vec3i& from, const cv::Vec3f& direction) {
   const Grid& g = volume.grid;
   const float s = static_cast<float>(g.voxel);
@@ -460,10 +439,9 @@ std::vector<cv::Vec3f> ambientHiddenByObjects(const Volume& volume, const Option
         for (const cv::Vec3f& d : dirs) {
           const float c = n.dot(d);
           if (!(c > 0)) continue;
-          float t = 0;
-          const int64_t h = march(volume, true, {i, j, k}, d, &t);
-          if (h >= 0 && t <= options.range && (volume.occupancy[static_cast<size_t>(h)] & kVirtual))
-            hidden[v] += ambient.radiance(d) * (c * w);
+          // The first voxel the ray meets holds virtual points: an object voxel up to the first real one.
+          const SurfaceHits r = marchSurfaces(volume, {i, j, k}, d);
+          if (r.object >= 0 && r.objectDistance <= options.range) hidden[v] += ambient.radiance(d) * (c * w);
         }
       }
   return hidden;

@@ -127,14 +127,9 @@ std::vector<uint8_t> neededVoxels(const Grid& grid, const std::vector<uint8_t>& 
 /// lending their reflection of the lights and hiding nothing) or mu (real only) scene.
 Incident gather(const Volume& volume, bool rho, const Options& options, const Ambient& ambient);
 
-/// The first occupied voxel along a ray from voxel centre `from` (past its bounding sphere, one voxel per
-/// step); -1 when the ray leaves the grid. `distance` gets the march distance of the hit.
-int64_t march(const Volume& volume, bool rho, const cv::Vec3i& from, const cv::Vec3f& direction,
-              float* distance = nullptr);
-
-/// A gather ray (marched as march()): the first voxel with real points (-1: none; march()'s hit in mu) and the
-/// first with virtual points up to it (-1: none; in rho the objects hide nothing, they add their light), each
-/// with its march distance.
+/// A ray from voxel centre `from` (past its bounding sphere, one voxel per step, until it leaves the grid): the
+/// first voxel with real points (-1: none) and the first with virtual points up to it (-1: none; in rho the
+/// objects hide nothing, they add their light), each with its march distance (from the voxel's centre).
 struct SurfaceHits {
   int64_t real = -1, object = -1;
   float realDistance = 0, objectDistance = 0;
@@ -142,7 +137,8 @@ struct SurfaceHits {
 SurfaceHits marchSurfaces(const Volume& volume, const cv::Vec3i& from, const cv::Vec3f& direction);
 
 /// The first occupied voxel along a ray from surface point x: samples at (k + 1/2) voxel along the ray,
-/// x's own voxel skipped (its surface is x's own); -1 when the ray leaves the grid. `distance` as march();
+/// x's own voxel skipped (its surface is x's own); -1 when the ray leaves the grid. `distance` gets the march
+/// distance of the hit;
 /// `exit` gets the distance of the first sample outside the grid when it leaves.
 int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const cv::Vec3f& direction,
                        float* distance = nullptr, float* exit = nullptr);
@@ -154,7 +150,7 @@ int64_t marchFromPoint(const Volume& volume, bool rho, const cv::Vec3f& x, const
 Grid outerGrid(const Grid& inner, double range, int resolution);
 /// A ray continued in the outer volume from distance `from` (where it left the inner grid): samples at
 /// from + k outer voxels, x's own outer voxel skipped, the first occupied one (real points); -1 when it
-/// leaves the outer grid. `distance` as march().
+/// leaves the outer grid. `distance` as marchFromPoint().
 int64_t marchOuter(const Volume& outer, const cv::Vec3f& x, const cv::Vec3f& direction, float from,
                    float* distance = nullptr);
 /// Per voxel with real points: the ambient irradiance the virtual objects hide from its surface (W/m^2),
