@@ -10,6 +10,7 @@
 // Precomputed illuminance composition: its precompute's parts (ms, once per configuration: surfels,
 // hierarchy, receivers, caches), the mean ms of its per-run stages (surfel lighting with the bounce and the
 // pull-up, the caches' gather, the read-out), caches x links and its GPU memory.
+// The shading pass's footprint (CPU): its time over a frame's mesh against the mesh's triangles and the lights.
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -22,6 +23,7 @@
 #include "gl/context.h"
 #include "lighting/pipeline.h"
 #include "lighting/scene_file.h"
+#include "lighting/shadow_footprint.h"
 #include "lighting/techniques/registry.h"
 
 using namespace mrgi;
@@ -156,6 +158,51 @@ void BM_Pic(benchmark::State& state) {
   state.counters["precomputes"] = stats.value("precomputes", 0.0);
 }
 
+/// The shading pass's footprint (lighting::objectsFootprint) over a frame's depth mesh: a floor grid of
+/// range(0) x 3/4 range(0) vertices (two triangles a cell; 640: a 640 x 480 frame's own mesh, 612 k triangles)
+/// seen from 1.6 m, a sphere of 6 cm on it, range(1) lights: a sphere lamp, a sun with extent, then point
+/// lights on a ring. Counters: triangles and the box's share of the image.
+void BM_ObjectsFootprint(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = w * 3 / 4;
+  std::vector<MeshVertex> vertices;
+  std::vector<uint32_t> indices;
+  vertices.reserve(static_cast<size_t>(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      vertices.push_back(
+          {cv::Vec3f(2.0f * x / (w - 1) - 1.0f, 1.5f * y / (h - 1) - 0.75f, 0.0f), {0, 0, 1}, {0.5f, 0.5f, 0.5f}});
+  for (int y = 0; y + 1 < h; ++y)
+    for (int x = 0; x + 1 < w; ++x) {
+      const uint32_t a = static_cast<uint32_t>(y * w + x), b = a + 1, c = a + static_cast<uint32_t>(w), d = c + 1;
+      indices.insert(indices.end(), {a, b, c, b, d, c});
+    }
+  CameraView camera;
+  camera.intrinsics = {640, 480, 576, 576, 319.5, 239.5};
+  camera.T_world_camera = capture::lookAtPose({0.0, -0.25, 1.6}, {0, 0, 0});
+  std::vector<SceneLight> lights;
+  for (int64_t i = 0; i < state.range(1); ++i) {
+    SceneLight l;
+    if (i == 1) {
+      l.type = LightType::Directional;
+      l.direction = cv::normalize(cv::Vec3d(0.3, 0.2, -1.0));
+      l.extent = 0.05;
+    } else {
+      const double a = 0.7 * static_cast<double>(i);
+      l.type = LightType::Point;
+      l.position = {1.2 * std::cos(a), 1.2 * std::sin(a), 1.8};
+      l.extent = i == 0 ? 0.1 : 0.0;
+    }
+    lights.push_back(l);
+  }
+  cv::Rect box;
+  for (auto _ : state) {
+    box = objectsFootprint(camera, {0.0, 0.0, 0.06}, 0.06, lights, 0.01, vertices, indices);
+    benchmark::DoNotOptimize(box);
+  }
+  state.counters["triangles"] = static_cast<double>(indices.size() / 3);
+  state.counters["image_share"] = box.area() / (640.0 * 480.0);
+}
+
 }  // namespace
 
 /// Rows around the knob table's defaults (the registry's): first the defaults, then resolution (voxels
@@ -174,6 +221,13 @@ void imperfectVolumesRows(benchmark::internal::Benchmark* b) {
   for (int64_t v : {1, 3}) b->Args({r, n, v, points});
   for (int64_t v : {3, 19}) b->Args({r, n, bounces, v});
 }
+// A frame's view mesh of the fused room (~75 k vertices: 320) and its own depth mesh (640), 1, 2 and 16 lights.
+BENCHMARK(BM_ObjectsFootprint)
+    ->Args({320, 1})
+    ->Args({640, 1})
+    ->Args({640, 2})
+    ->Args({640, 16})
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ImperfectVolumes)->Apply(imperfectVolumesRows)->Unit(benchmark::kMillisecond)->Iterations(3);
 // Light count 64 .. 16384 at the defaults (I_low 16, 2 far levels); at 1024 lights the splat size (I_low 4
 // and 64) and far levels 0, 1 and 3.

@@ -6,6 +6,7 @@
 #include "gl/error.h"
 #include "lighting/object_shadow.h"
 #include "lighting/shadow_footprint.h"
+#include "lighting/upsample.h"
 
 namespace mrgi::lighting {
 
@@ -47,8 +48,12 @@ PipelineConfig pipelineConfig(const SceneDescription& scene, int width, int heig
 size_t estimateGpuBytes(const PipelineConfig& config, size_t lights) {
   PipelineConfig c = config;
   completeKnobs(c.knobs);
-  size_t sum =
-      FrameResources::estimateBytes(frameConfigOf(c), lights) + 2 * 16 * static_cast<size_t>(c.width) * c.height;
+  const FrameConfig fc = frameConfigOf(c);
+  // The shade and irradiance targets, and the object terms' at their reduced resolution.
+  size_t sum = FrameResources::estimateBytes(fc, lights) + 2 * 16 * static_cast<size_t>(c.width) * c.height;
+  const int termsFactor = objectTermsFactor(fc.knobs);
+  if (termsFactor > 1)
+    sum += 16 * static_cast<size_t>(reducedSize(c.width, termsFactor)) * reducedSize(c.height, termsFactor);
   for (const RoleAssignment& a : assignRoles(c.technique))
     if (a.info->estimateBytes)
       sum += a.info->estimateBytes(c.knobs.at(a.info->knobs.key), c.knobs.at("frame"), a.real, a.virtualObject, c.width,
@@ -212,6 +217,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   const TechniqueOutputs realOut = real_ ? real_->outputs() : TechniqueOutputs{};
   const TechniqueOutputs virtualOut = virtual_ ? virtual_->outputs() : TechniqueOutputs{};
   const GBufferView reduced = frame_->techniqueView();
+  const GBufferView termsView = frame_->objectTermsView();
   const auto factorOf = [&](const gl::Texture* t) {
     if (!t || t->width() == config_.width) return 1;
     if (t->width() != reduced.width || t->height() != reduced.height)
@@ -222,8 +228,9 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   const std::array<int, 3> factors{factorOf(realOut.realDelta), factorOf(virtualOut.virtualIrradiance),
                                    factorOf(virtualOut.virtualRadiance)};
   // The objects' terms beyond their direct shadow (lighting/object_terms.glsl) at the reduced view's resolution
-  // when the frame knob render_scale reduces it: smooth over a surface, upsampled by the pass.
-  const bool reducedTerms = lit && reduced.factor > 1;
+  // when the frame knob render_scale reduces it, else at object_terms_scale: smooth over a surface, upsampled by
+  // the pass.
+  const bool reducedTerms = lit && termsView.factor > 1;
   const bool upsample = reducedTerms || *std::max_element(factors.begin(), factors.end()) > 1;
   const auto setObjectTermUniforms = [&](const gl::Program& q) {
     q.set("uAddReflectedLight", real_ && real_->accountsForReflectedLight() ? 0 : 1);
@@ -241,8 +248,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     setLightUniforms(q, kept, frame_->lightViews());
   };
   if (reducedTerms) {
-    if (objectTerms_.width() != reduced.width || objectTerms_.height() != reduced.height) {
-      objectTerms_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, reduced.width, reduced.height);
+    if (objectTerms_.width() != termsView.width || objectTerms_.height() != termsView.height) {
+      objectTerms_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, termsView.width, termsView.height);
       objectTerms_.setFilter(GL_NEAREST, GL_NEAREST);
       objectTermsFb_.attachColour(0, objectTerms_);
       objectTermsFb_.finalise(1);
@@ -254,10 +261,10 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       t = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/object_terms.frag", defines);
     }
     objectTermsFb_.bind();
-    glViewport(0, 0, reduced.width, reduced.height);
+    glViewport(0, 0, termsView.width, termsView.height);
     t.use();
     setObjectTermUniforms(t);
-    reduced.bind();
+    termsView.bind();
     frame_->bindShadowMaps();
     emptyVao_.bind();
     glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -304,11 +311,11 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       p.set("uRealDeltaFactor", factors[0]);
       p.set("uVirtualIrradianceFactor", factors[1]);
       p.set("uVirtualRadianceFactor", factors[2]);
-      reduced.position->bind(6);
-      reduced.normal->bind(7);
+      termsView.position->bind(6);  // the techniques' reduced view when render_scale reduces it
+      termsView.normal->bind(7);
     }
     if (reducedTerms) {
-      p.set("uObjectTermsFactor", reduced.factor);
+      p.set("uObjectTermsFactor", termsView.factor);
       objectTerms_.bind(8);
     }
     frame_->bindShadowMaps();

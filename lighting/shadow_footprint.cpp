@@ -7,14 +7,6 @@ namespace mrgi::lighting {
 
 namespace {
 
-/// Distance from c to the segment a-b.
-double segmentDistance(const cv::Vec3d& c, const cv::Vec3d& a, const cv::Vec3d& b) {
-  const cv::Vec3d ab = b - a;
-  const double len2 = ab.dot(ab);
-  const double t = len2 > 0 ? std::clamp((c - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-  return cv::norm(c - (a + t * ab));
-}
-
 /// Grows `box` (x0, y0, x1, y1) by the image point of world point p; false when p lies at or behind the near plane.
 bool addPoint(const CameraView& camera, const capture::Pose& T_camera_world, const cv::Vec3d& p, cv::Vec4d& box) {
   const cv::Vec4d q = T_camera_world * cv::Vec4d(p[0], p[1], p[2], 1.0);
@@ -25,30 +17,62 @@ bool addPoint(const CameraView& camera, const capture::Pose& T_camera_world, con
   return true;
 }
 
+/// mayShadow for one light and sphere, what does not depend on the receiver worked out once: the footprint
+/// asks it of every triangle of the camera's mesh (hundreds of thousands with a frame's own depth mesh), so
+/// the test compares squared distances and takes a root only for a point light's extent.
+class ShadowReach {
+ public:
+  ShadowReach(const SceneLight& light, const cv::Vec3d& centre, double radius)
+      : directional_(light.type == LightType::Directional), centre_(centre), radius_(radius), extent_(light.extent) {
+    if (directional_) {
+      back_ = -light.direction;
+      tanSpread_ = light.extent > 0 ? std::tan(std::min(light.extent, 1.5)) : 0;
+    } else {
+      position_ = light.position;
+      toC_ = centre - light.position;
+      near_ = cv::norm(toC_) - radius;
+    }
+  }
+
+  bool reaches(const cv::Vec3d& x, double margin) const {
+    if (directional_) {
+      // Rays from x against the travel direction within the disc's half-angle: the one through the centre's
+      // foot passes the centre at its perpendicular distance (the distance to x when the centre lies behind
+      // x); the others lie within tan(half-angle) x their run.
+      const cv::Vec3d toC = centre_ - x;
+      const double along = toC.dot(back_), run = std::max(along, 0.0);
+      const double reach = radius_ + margin + (run + radius_) * tanSpread_;
+      const cv::Vec3d off = toC - run * back_;
+      return off.dot(off) <= reach * reach;
+    }
+    // A light with extent: its soft shadow's blocker search at x looks over a disc of (|x - P| - near) a / near
+    // (near: the sphere's front from the light), which moves the segment's points at the sphere by that times
+    // their share of the segment; the penumbra a point of the light's sphere casts lies within the same.
+    const cv::Vec3d toX = x - position_;
+    const double len2 = toX.dot(toX);
+    if (!(near_ > 1e-4) || !(len2 > 0)) return true;  // the light inside the sphere or at the receiver
+    const double t = toC_.dot(toX) / len2;
+    double reach = radius_ + margin;
+    if (extent_ > 0) {
+      const double len = std::sqrt(len2), share = std::clamp(t + radius_ / len, 0.0, 1.0);
+      reach += 1.05 * extent_ * std::max(0.0, len - near_) / near_ * share;
+    }
+    const cv::Vec3d off = toC_ - std::clamp(t, 0.0, 1.0) * toX;  // the centre from the segment's nearest point
+    return off.dot(off) <= reach * reach;
+  }
+
+ private:
+  bool directional_;
+  cv::Vec3d centre_;
+  double radius_, extent_;
+  cv::Vec3d back_, position_, toC_;
+  double tanSpread_ = 0, near_ = 0;
+};
+
 }  // namespace
 
 bool mayShadow(const SceneLight& light, const cv::Vec3d& centre, double radius, const cv::Vec3d& x, double margin) {
-  if (light.type == LightType::Directional) {
-    // Rays from x against the travel direction within the disc's half-angle: the one through the centre's
-    // foot passes the centre at its perpendicular distance; the others lie within tan(half-angle) x their run.
-    const cv::Vec3d back = -light.direction;
-    const double along = (centre - x).dot(back);
-    const double spread =
-        light.extent > 0 ? (std::max(along, 0.0) + radius) * std::tan(std::min(light.extent, 1.5)) : 0;
-    return segmentDistance(centre, x, x + std::max(along, 0.0) * back) <= radius + margin + spread;
-  }
-  // A light with extent: its soft shadow's blocker search at x looks over a disc of (|x - P| - near) a / near
-  // (near: the sphere's front from the light), which moves the segment's points at the sphere by that times
-  // their share of the segment; the penumbra a point of the light's sphere casts lies within the same.
-  const cv::Vec3d toX = x - light.position, toC = centre - light.position;
-  const double len = cv::norm(toX), d = cv::norm(toC), near = d - radius;
-  if (!(near > 1e-4) || !(len > 0)) return true;  // the light inside the sphere or at the receiver
-  double spread = 0;
-  if (light.extent > 0) {
-    const double share = std::clamp(toC.dot(toX) / (len * len) + radius / len, 0.0, 1.0);
-    spread = 1.05 * light.extent * std::max(0.0, len - near) / near * share;
-  }
-  return segmentDistance(centre, light.position, x) <= radius + margin + spread;
+  return ShadowReach(light, centre, radius).reaches(x, margin);
 }
 
 cv::Rect objectsFootprint(const CameraView& camera, const cv::Vec3d& centre, double radius,
@@ -69,6 +93,9 @@ cv::Rect objectsFootprint(const CameraView& camera, const cv::Vec3d& centre, dou
       return image;
     }
   }
+  std::vector<ShadowReach> reach;
+  reach.reserve(lights.size());
+  for (const SceneLight& l : lights) reach.emplace_back(l, centre, radius);
   for (size_t t = 0; t + 2 < indices.size(); t += 3) {
     cv::Vec3d v[3];
     bool valid = true;
@@ -82,9 +109,10 @@ cv::Rect objectsFootprint(const CameraView& camera, const cv::Vec3d& centre, dou
     }
     if (!valid) continue;
     const cv::Vec3d m = (v[0] + v[1] + v[2]) / 3.0;
-    const double size = std::max({cv::norm(v[0] - m), cv::norm(v[1] - m), cv::norm(v[2] - m)});
+    const cv::Vec3d a = v[0] - m, b = v[1] - m, c = v[2] - m;
+    const double size = std::sqrt(std::max({a.dot(a), b.dot(b), c.dot(c)}));
     bool shadowed = false;
-    for (const SceneLight& l : lights) shadowed = shadowed || mayShadow(l, centre, radius, m, margin + size);
+    for (const ShadowReach& r : reach) shadowed = shadowed || r.reaches(m, margin + size);
     if (!shadowed) continue;
     for (const cv::Vec3d& p : v)
       if (!addPoint(camera, T, p, box)) {

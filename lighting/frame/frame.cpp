@@ -87,8 +87,26 @@ const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable() {
         {0.5},
         false},
        &FrameKnobs::renderScale},
+      {{"object_terms_scale",
+        KnobType::Real,
+        0.25,
+        1.0,
+        0.5,
+        "resolution, of the frame's, of the shading pass's object terms on real surfaces (what the objects hide of "
+        "the ambient and the room's light, what they reflect onto them: smooth over a surface) while render_scale "
+        "is 1, else render_scale's: 1, 1/2, 1/3 or 1/4 (the nearest), upsampled as the techniques' outputs are; "
+        "the objects' direct shadow stays at the frame's resolution",
+        {1.0},
+        {},
+        false},
+       &FrameKnobs::objectTermsScale},
   };
   return table;
+}
+
+int objectTermsFactor(const FrameKnobs& knobs) {
+  const int factor = renderFactor(knobs.renderScale);
+  return factor > 1 ? factor : renderFactor(knobs.objectTermsScale);
 }
 
 const KnobGroup& frameKnobGroup() {
@@ -153,7 +171,7 @@ void setLightUniforms(const gl::Program& p, const std::vector<SceneLight>& light
 FrameResources::FrameResources(const FrameConfig& config, const std::vector<VirtualObject>& objects)
     : config_(config),
       geometry_(objects),
-      gbuffer_(config.width, config.height, renderFactor(config.knobs.renderScale)),
+      gbuffer_(config.width, config.height, renderFactor(config.knobs.renderScale), objectTermsFactor(config.knobs)),
       lightPass_(config.knobs.rsmSize, config.knobs.shadowSize) {}
 
 void FrameResources::setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
@@ -261,7 +279,7 @@ const gl::Texture& FrameResources::zero() {
 }
 
 cv::Mat FrameResources::downloadGBuffer(int channel, bool reduced) const {
-  const GBufferView v = reduced ? gbuffer_.reducedView() : gbuffer_.view();
+  const GBufferView v = reduced ? gbuffer_.termsView() : gbuffer_.view();
   return download4(channel == 0 ? *v.position : channel == 1 ? *v.normal : *v.albedo);
 }
 
@@ -270,7 +288,7 @@ size_t FrameResources::estimateBytes(const FrameConfig& c, size_t lights) {
   const size_t texels = static_cast<size_t>(c.knobs.rsmSize) * static_cast<size_t>(c.knobs.rsmSize);
   const size_t rgba = 16, depth = 4;
   const size_t gbuffer = pixels * (3 * rgba + depth) + pixels * rgba;  // + the zero stand-in
-  const int factor = renderFactor(c.knobs.renderScale);
+  const int factor = objectTermsFactor(c.knobs);  // the reduced copy serves the techniques and the object terms
   const size_t reduced = factor > 1 ? static_cast<size_t>(reducedSize(c.width, factor)) *
                                           static_cast<size_t>(reducedSize(c.height, factor)) * (3 * rgba + depth)
                                     : 0;

@@ -41,7 +41,12 @@ struct FrameKnobs {
       0;  ///< share of the irradiance bound at the region the skipped lights may carry (lightsThatMatter)
   int softShadowLights = 0;  ///< how many lights with extent (the brightest at the region) cast soft shadows
   double renderScale = 1;    ///< resolution of per-pixel technique outputs, of the frame's (lighting/upsample.h)
+  /// resolution of the shading pass's object terms on real surfaces while renderScale is 1 (else renderScale's)
+  double objectTermsScale = 0.5;
 };
+/// The divisor of the frame's resolution the shading pass's object terms are computed at: render_scale's when
+/// it reduces the techniques' outputs, else object_terms_scale's (lighting/upsample.h renderFactor).
+int objectTermsFactor(const FrameKnobs& knobs);
 /// The knob table of FrameKnobs (declared once: lighting/frame/frame.cpp).
 const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable();
 const KnobGroup& frameKnobGroup();
@@ -145,6 +150,10 @@ class FrameResources {
   /// 1/factor (lighting/upsample.h), whose outputs the shading pass upsamples joint-bilaterally. Current after
   /// renderGBuffer().
   GBufferView techniqueView() const { return gbuffer_.reducedView(); }
+  /// The G-buffer the shading pass computes the objects' terms on real surfaces at (lighting/object_terms.frag):
+  /// techniqueView() when render_scale reduces it, else the frame's at object_terms_scale. Current after
+  /// renderGBuffer().
+  GBufferView objectTermsView() const { return gbuffer_.termsView(); }
   /// The G-buffer at the frame's size, as a view.
   GBufferView gbufferView() const { return gbuffer_.view(); }
   /// Light views of the lights rendered so far this run (all of them after the RSM stage).
@@ -164,7 +173,8 @@ class FrameResources {
   void bindShadowMaps() const { lightPass_.bindShadowMaps(); }
   /// A zeroed RGBA32F texture of the output size (stands in for an output no technique provides).
   const gl::Texture& zero();
-  /// CV_32FC4 G-buffer channel: 0 position, 1 normal, 2 albedo (a = virtual); `reduced`: techniqueView()'s.
+  /// CV_32FC4 G-buffer channel: 0 position, 1 normal, 2 albedo (a = virtual); `reduced`: the reduced copy's
+  /// (objectTermsView(), which is techniqueView() when render_scale reduces it).
   cv::Mat downloadGBuffer(int channel, bool reduced = false) const;
   size_t gpuBytes() const;
   /// What these resources will hold on the GPU for `lights` lights, bytes (before allocating any).

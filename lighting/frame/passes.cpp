@@ -103,15 +103,16 @@ GBufferTargets::GBufferTargets(int width, int height)
   fb.finalise(3);
 }
 
-GBufferPass::GBufferPass(int width, int height, int factor)
+GBufferPass::GBufferPass(int width, int height, int factor, int termsFactor)
     : width_(width),
       height_(height),
       factor_(std::max(factor, 1)),
+      reducedFactor_(factor_ > 1 ? factor_ : std::max(termsFactor, 1)),
       program_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/gbuffer.frag")),
       full_(width, height) {
-  if (factor_ > 1) {
+  if (reducedFactor_ > 1) {
     reduceProgram_ = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/frame/gbuffer_reduce.frag");
-    reduced_ = GBufferTargets(reducedSize(width, factor_), reducedSize(height, factor_));
+    reduced_ = GBufferTargets(reducedSize(width, reducedFactor_), reducedSize(height, reducedFactor_));
   }
 }
 
@@ -149,13 +150,13 @@ void GBufferPass::render(const FrameGeometry& geometry, const CameraView& camera
   geometry.drawScene(program_, true,
                      projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * cameraFromWorld,
                      true);
-  if (factor_ > 1) {
+  if (reducedFactor_ > 1) {
     // Every reduced texel is written (depth test always passes), depth included, for passes that test against it.
     reduced_.fb.bind();
     glViewport(0, 0, reduced_.position.width(), reduced_.position.height());
     glDepthFunc(GL_ALWAYS);
     reduceProgram_.use();
-    reduceProgram_.set("uFactor", factor_);
+    reduceProgram_.set("uFactor", reducedFactor_);
     view().bind();
     full_.depth.bind(3);
     emptyVao_.bind();

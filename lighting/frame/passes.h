@@ -104,8 +104,10 @@ struct GBufferTargets {
 
 class GBufferPass {
  public:
-  /// `factor` > 1: render() also reduces the G-buffer to 1/factor (each texel one pixel of its block).
-  GBufferPass(int width, int height, int factor = 1);
+  /// `factor` > 1: render() also reduces the G-buffer to 1/factor (each texel one pixel of its block), the
+  /// techniques' view and the object terms'; `factor` 1 and `termsFactor` > 1: to 1/termsFactor for the object
+  /// terms alone.
+  GBufferPass(int width, int height, int factor = 1, int termsFactor = 1);
   /// The real surfaces' albedo per camera pixel (CV_32FC3 linear, the pass's size; negative: none at that pixel)
   /// instead of the vertices'; empty or another size: the vertices'. Returns whether what the pass draws changed.
   bool setPixelAlbedo(const cv::Mat& albedo);
@@ -119,12 +121,15 @@ class GBufferPass {
   GBufferView view() const { return full_.view(1); }
   /// The G-buffer at 1/factor (the frame's own when the factor is 1).
   GBufferView reducedView() const { return factor_ > 1 ? reduced_.view(factor_) : view(); }
+  /// The G-buffer the shading pass's object terms are computed at: reducedView() when the factor is over 1,
+  /// else the copy at 1/termsFactor (the frame's own when that is 1).
+  GBufferView termsView() const { return reducedFactor_ > 1 ? reduced_.view(reducedFactor_) : view(); }
   size_t gpuBytes() const { return full_.bytes() + reduced_.bytes(); }
 
  private:
-  int width_, height_, factor_;
+  int width_, height_, factor_, reducedFactor_;
   gl::Program program_, reduceProgram_;
-  GBufferTargets full_, reduced_;  ///< reduced_: only when the factor is over 1
+  GBufferTargets full_, reduced_;  ///< reduced_: at reducedFactor_, only when it is over 1
   gl::VertexArray emptyVao_;
   gl::Texture pixelAlbedo_;  ///< setPixelAlbedo's, RGBA16F
   bool hasPixelAlbedo_ = false;

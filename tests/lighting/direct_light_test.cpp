@@ -39,7 +39,8 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   TestScene s = makeScene(true, 0.15, {0.05, 0.0, 0.075});
   PipelineConfig cfg = testConfig(W, H, 16, 128, "none");
   cfg.set("frame", "shadow_size", 256);
-  cfg.set("frame", "soft_shadow_lights", 16);  // the wide lights' soft shadows
+  cfg.set("frame", "soft_shadow_lights", 16);   // the wide lights' soft shadows
+  cfg.set("frame", "object_terms_scale", 1.0);  // every pixel's own object terms
   LightingPipeline pipe = makePipeline(cfg, s);
   const std::vector<SceneLight> lights = {obliqueSun(), pointAbove(), spotAbove(), wideLowSun(), sphereLamp()};
   const cv::Vec3d ambient(0.03, 0.03, 0.03);

@@ -182,7 +182,9 @@ TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
   // delta is minus the ambient the cube hides, as lighting::ambientShadow has it.
   auto ctx = test::makeContext();
   const test::TestScene s = test::makeScene(false, 0.2, {0.0, 0.0, 0.25});
-  LightingPipeline pipe = test::makePipeline(test::testConfig(64, 64, 16, 64, "none"), s);
+  PipelineConfig cfg = test::testConfig(64, 64, 16, 64, "none");
+  cfg.set("frame", "object_terms_scale", 1.0);  // every pixel's own terms (the reduced grid: below)
+  LightingPipeline pipe = test::makePipeline(cfg, s);
   std::array<cv::Vec3d, 9> sh{};
   sh[0] = {0.8, 0.7, 0.6};
   sh[2] = {0.5, 0.4, 0.3};
@@ -231,61 +233,65 @@ TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
   compare(pipe.downloadShade(), hidden);
 }
 
-TEST(ObjectShadow, AtAReducedRenderScaleTheObjectTermsAreTheCppTwinsOnTheReducedGridUpsampled) {
-  // The scene above at render_scale 1/2: the objects' terms beyond their direct shadow (what they hide of the
-  // ambient net of what they reflect, lit as the surroundings and the ground under their faces) come from the
-  // reduced G-buffer's points, upsampled joint-bilaterally as a technique's reduced output is
-  // (lighting/upsample.h); the direct shadow (none here: no light) stays at the frame's pixels. Each real
+TEST(ObjectShadow, AtAReducedScaleTheObjectTermsAreTheCppTwinsOnTheReducedGridUpsampled) {
+  // The scene above at render_scale 1/2, and at render_scale 1 with object_terms_scale 1/2: the objects' terms beyond
+  // their direct shadow (what they hide of the ambient net of what they reflect, lit as the surroundings and the ground
+  // under their faces) come from the reduced G-buffer's points, upsampled joint-bilaterally as a technique's reduced
+  // output is (lighting/upsample.h); the direct shadow (none here: no light) stays at the frame's pixels. Each real
   // pixel's delta is the C++ twins' terms on the reduced grid, upsampled.
   auto ctx = test::makeContext();
   const test::TestScene s = test::makeScene(false, 0.2, {0.0, 0.0, 0.25});
-  PipelineConfig cfg = test::testConfig(64, 64, 16, 64, "none");
-  cfg.set("frame", "render_scale", 0.5);
-  LightingPipeline pipe = test::makePipeline(cfg, s);
-  std::array<cv::Vec3d, 9> sh{};
-  sh[0] = {0.8, 0.7, 0.6};
-  sh[2] = {0.5, 0.4, 0.3};
-  pipe.setAmbientSh(sh);
-  const cv::Vec3d uniform(0.1, 0.1, 0.1);
-  pipe.run(test::topCamera(64, 64), {}, uniform, nullptr);
-  Ambient a;
-  a.uniform = cv::Vec3f(uniform);
-  for (size_t k = 0; k < 9; ++k) a.sh[k] = cv::Vec3f(sh[k]);
-  const std::vector<OccluderSphere> spheres{occluderSphere(s.objects[0])};
-  const cv::Mat lowPos = pipe.frame().downloadGBuffer(0, true), lowNrm = pipe.frame().downloadGBuffer(1, true),
-                lowAlb = pipe.frame().downloadGBuffer(2, true);
-  ASSERT_EQ(lowPos.cols, 32);
-  cv::Mat terms(lowPos.size(), CV_32FC4, cv::Scalar::all(0));
-  for (int y = 0; y < lowPos.rows; ++y)
-    for (int x = 0; x < lowPos.cols; ++x) {
-      const cv::Vec4f p = lowPos.at<cv::Vec4f>(y, x), n = lowNrm.at<cv::Vec4f>(y, x);
-      if (p[3] < 0.5f || lowAlb.at<cv::Vec4f>(y, x)[3] > 0.5f) continue;
-      const cv::Vec3f at(p[0], p[1], p[2]), nn = cv::normalize(cv::Vec3f(n[0], n[1], n[2]));
-      const FacedGround g = facedGround(at, nn, spheres);
-      const cv::Vec3f lit =
-          blendLit(litFraction(a, at, nn, spheres, {}, {}), litFraction(a, g.point, nn, spheres, {}, {}), g.weight);
-      const cv::Vec3f e = -ambientShadow(a, at, nn, spheres, lit);
-      terms.at<cv::Vec4f>(y, x) = {e[0], e[1], e[2], 1.f};
-    }
-  const cv::Mat positions = pipe.downloadGBuffer(0), normals = pipe.downloadGBuffer(1);
-  const cv::Mat expected = upsample(terms, lowPos, lowNrm, positions, normals, 2), shade = pipe.downloadShade();
-  int real = 0, shadowed = 0;
-  double worst = 0;
-  for (int y = 0; y < 64; ++y)
-    for (int x = 0; x < 64; ++x) {
-      const cv::Vec4f v = shade.at<cv::Vec4f>(y, x);
-      if (positions.at<cv::Vec4f>(y, x)[3] < 0.5f || v[3] > 0.5f) continue;
-      ++real;
-      const cv::Vec4f e = expected.at<cv::Vec4f>(y, x);
-      shadowed += e[0] < -1e-3f;
-      for (int c = 0; c < 3; ++c) {
-        const double want = e[c] * test::kFloorAlbedo[0] / CV_PI;
-        worst = std::max(worst, std::abs(v[c] - want) / std::max(std::abs(want), 1e-3));
+  for (const bool viaRenderScale : {true, false}) {
+    SCOPED_TRACE(viaRenderScale ? "render_scale 1/2" : "object_terms_scale 1/2");
+    PipelineConfig cfg = test::testConfig(64, 64, 16, 64, "none");
+    cfg.set("frame", viaRenderScale ? "render_scale" : "object_terms_scale", 0.5);
+    cfg.set("frame", viaRenderScale ? "object_terms_scale" : "render_scale", 1.0);
+    LightingPipeline pipe = test::makePipeline(cfg, s);
+    std::array<cv::Vec3d, 9> sh{};
+    sh[0] = {0.8, 0.7, 0.6};
+    sh[2] = {0.5, 0.4, 0.3};
+    pipe.setAmbientSh(sh);
+    const cv::Vec3d uniform(0.1, 0.1, 0.1);
+    pipe.run(test::topCamera(64, 64), {}, uniform, nullptr);
+    Ambient a;
+    a.uniform = cv::Vec3f(uniform);
+    for (size_t k = 0; k < 9; ++k) a.sh[k] = cv::Vec3f(sh[k]);
+    const std::vector<OccluderSphere> spheres{occluderSphere(s.objects[0])};
+    const cv::Mat lowPos = pipe.frame().downloadGBuffer(0, true), lowNrm = pipe.frame().downloadGBuffer(1, true),
+                  lowAlb = pipe.frame().downloadGBuffer(2, true);
+    ASSERT_EQ(lowPos.cols, 32);
+    cv::Mat terms(lowPos.size(), CV_32FC4, cv::Scalar::all(0));
+    for (int y = 0; y < lowPos.rows; ++y)
+      for (int x = 0; x < lowPos.cols; ++x) {
+        const cv::Vec4f p = lowPos.at<cv::Vec4f>(y, x), n = lowNrm.at<cv::Vec4f>(y, x);
+        if (p[3] < 0.5f || lowAlb.at<cv::Vec4f>(y, x)[3] > 0.5f) continue;
+        const cv::Vec3f at(p[0], p[1], p[2]), nn = cv::normalize(cv::Vec3f(n[0], n[1], n[2]));
+        const FacedGround g = facedGround(at, nn, spheres);
+        const cv::Vec3f lit =
+            blendLit(litFraction(a, at, nn, spheres, {}, {}), litFraction(a, g.point, nn, spheres, {}, {}), g.weight);
+        const cv::Vec3f e = -ambientShadow(a, at, nn, spheres, lit);
+        terms.at<cv::Vec4f>(y, x) = {e[0], e[1], e[2], 1.f};
       }
-    }
-  EXPECT_GT(real, 1000);
-  EXPECT_GT(shadowed, 500);
-  EXPECT_LT(worst, 2e-3);  // as at the frame's resolution (above)
+    const cv::Mat positions = pipe.downloadGBuffer(0), normals = pipe.downloadGBuffer(1);
+    const cv::Mat expected = upsample(terms, lowPos, lowNrm, positions, normals, 2), shade = pipe.downloadShade();
+    int real = 0, shadowed = 0;
+    double worst = 0;
+    for (int y = 0; y < 64; ++y)
+      for (int x = 0; x < 64; ++x) {
+        const cv::Vec4f v = shade.at<cv::Vec4f>(y, x);
+        if (positions.at<cv::Vec4f>(y, x)[3] < 0.5f || v[3] > 0.5f) continue;
+        ++real;
+        const cv::Vec4f e = expected.at<cv::Vec4f>(y, x);
+        shadowed += e[0] < -1e-3f;
+        for (int c = 0; c < 3; ++c) {
+          const double want = e[c] * test::kFloorAlbedo[0] / CV_PI;
+          worst = std::max(worst, std::abs(v[c] - want) / std::max(std::abs(want), 1e-3));
+        }
+      }
+    EXPECT_GT(real, 1000);
+    EXPECT_GT(shadowed, 500);
+    EXPECT_LT(worst, 2e-3);  // as at the frame's resolution (above)
+  }
 }
 
 /// The irradiance at (x, n) from a Lambertian sphere lit by `light` (unshadowed), by a midpoint rule over its
@@ -438,7 +444,9 @@ TEST(ObjectShadow, ShadingPassAddsTheLightTheObjectReflectsAsItsCppTwin) {
   // each real pixel's delta is what its sphere reflects of the sun, as lighting::reflectedLight has it.
   auto ctx = test::makeContext();
   const test::TestScene s = test::makeScene(false, 0.2, {0.0, 0.0, 0.25});
-  LightingPipeline pipe = test::makePipeline(test::testConfig(64, 64, 16, 64, "none"), s);
+  PipelineConfig cfg = test::testConfig(64, 64, 16, 64, "none");
+  cfg.set("frame", "object_terms_scale", 1.0);  // every pixel's own terms
+  LightingPipeline pipe = test::makePipeline(cfg, s);
   SceneLight sun;
   sun.type = LightType::Directional;
   sun.direction = {0, 0, -1};

@@ -292,7 +292,9 @@ TEST(GL, SplattingLeavesTheAmbientTheObjectsHideToTheShadingPass) {
   auto ctx = makeContext();
   TestScene s = makeScene(false, 0.12, {0.0, 0.0, 0.12});
   s.objects[0].material.albedo = {0, 0, 0};
-  LightingPipeline pipe = makePipeline(testConfig(96, 72, 16, 64, "splatting"), s);
+  PipelineConfig cfg = testConfig(96, 72, 16, 64, "splatting");
+  cfg.set("frame", "object_terms_scale", 1.0);  // each pixel's own terms, held per pixel below
+  LightingPipeline pipe = makePipeline(cfg, s);
   const double L = 0.5;
   pipe.run(topCamera(96, 72), {}, {L, L, L}, nullptr);
   const cv::Mat own = download4(*pipe.technique("splatting")->outputs().realDelta);
