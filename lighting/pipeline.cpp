@@ -123,6 +123,7 @@ std::vector<std::pair<std::string, std::unique_ptr<TechniqueInputBuilder>>> Ligh
 
 void LightingPipeline::invalidate() {
   frame_->invalidate();
+  termsCamera_.reset();
   gbufferAt_.reset();
   lightsAt_.reset();
   shadeAt_.reset();
@@ -230,7 +231,9 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   // The objects' terms beyond their direct shadow (lighting/object_terms.glsl) at the reduced view's resolution
   // when the frame knob render_scale reduces it, else at object_terms_scale: smooth over a surface, upsampled by
   // the pass.
-  const bool reducedTerms = lit && termsView.factor > 1;
+  const double historyWeight = frame_->config().knobs.objectTermsHistory;
+  const bool history = lit && historyWeight > 0;
+  const bool reducedTerms = lit && (termsView.factor > 1 || history);
   const bool upsample = reducedTerms || *std::max_element(factors.begin(), factors.end()) > 1;
   const auto setObjectTermUniforms = [&](const gl::Program& q) {
     q.set("uAddReflectedLight", real_ && real_->accountsForReflectedLight() ? 0 : 1);
@@ -248,26 +251,100 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     setLightUniforms(q, kept, frame_->lightViews());
   };
   if (reducedTerms) {
-    if (objectTerms_.width() != termsView.width || objectTerms_.height() != termsView.height) {
-      objectTerms_ = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, termsView.width, termsView.height);
-      objectTerms_.setFilter(GL_NEAREST, GL_NEAREST);
-      objectTermsFb_.attachColour(0, objectTerms_);
-      objectTermsFb_.finalise(1);
+    // With the history the two sets of targets alternate: this run writes the one the last run did not.
+    const int current = history ? 1 - termsCurrent_ : 0;
+    const auto allocate = [&](int i) {
+      const auto make = [&](gl::Texture& t) {
+        t = gl::Texture(GL_TEXTURE_2D, GL_RGBA32F, termsView.width, termsView.height);
+        t.setFilter(GL_NEAREST, GL_NEAREST);
+      };
+      const bool targets = history ? termsNormal_[i].id() != 0 : termsNormal_[i].id() == 0;
+      if (objectTerms_[i].width() == termsView.width && objectTerms_[i].height() == termsView.height && targets)
+        return false;
+      objectTermsFb_[i] = gl::Framebuffer();
+      make(objectTerms_[i]);
+      objectTermsFb_[i].attachColour(0, objectTerms_[i]);
+      termsPosition_[i] = gl::Texture();
+      termsNormal_[i] = gl::Texture();
+      if (history) {
+        make(termsPosition_[i]);
+        make(termsNormal_[i]);
+        objectTermsFb_[i].attachColour(1, termsPosition_[i]);
+        objectTermsFb_[i].attachColour(2, termsNormal_[i]);
+      }
+      objectTermsFb_[i].finalise(history ? 3 : 1);
+      return true;
+    };
+    bool fresh = allocate(current);
+    // What the terms depend on besides the camera: the objects' spheres, the lights, the ambients.
+    std::vector<double> inputs;
+    if (history) {
+      for (const auto& o : frame_->objects()) {
+        const OccluderSphere s = placeSphere(o.sphere, o.T_world_object);
+        inputs.insert(inputs.end(),
+                      {s.centre[0], s.centre[1], s.centre[2], s.radius, s.albedo[0], s.albedo[1], s.albedo[2]});
+      }
+      for (const SceneLight& l : kept) {
+        inputs.insert(inputs.end(), {static_cast<double>(l.type), l.extent, l.spotHalfAngleDeg});
+        for (const cv::Vec3d& v : {l.position, l.direction, l.intensity, l.irradiance})
+          inputs.insert(inputs.end(), {v[0], v[1], v[2]});
+      }
+      const Ambient hidden = hiddenAmbient_.value_or(Ambient{});
+      for (const cv::Vec3f& v : hidden.sh) inputs.insert(inputs.end(), {v[0], v[1], v[2]});
+      for (const cv::Vec3d& v : frame_->ambientSh()) inputs.insert(inputs.end(), {v[0], v[1], v[2]});
+      const cv::Vec3d a = frame_->ambient();
+      inputs.insert(inputs.end(), {a[0], a[1], a[2], hidden.uniform[0], hidden.uniform[1], hidden.uniform[2],
+                                   hiddenAmbient_ ? 1.0 : 0.0, soft ? 1.0 : 0.0});
+      fresh = allocate(1 - current) || fresh;
     }
-    gl::Program& t = objectTermsPrograms_[soft ? 1 : 0];
+    const bool carry =
+        history && !fresh && termsCamera_ && termsCamera_->factor == termsView.factor && inputs == termsInputs_;
+    gl::Program& t = objectTermsPrograms_[(soft ? 1 : 0) | (history ? 2 : 0)];
     if (!t.id()) {
       std::vector<std::pair<std::string, std::string>> defines;
       if (soft) defines.push_back({"SOFT_OBJECT_SHADOWS", "1"});
+      if (history) defines.push_back({"TERMS_HISTORY", "1"});
       t = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/object_terms.frag", defines);
     }
-    objectTermsFb_.bind();
+    objectTermsFb_[current].bind();
     glViewport(0, 0, termsView.width, termsView.height);
     t.use();
     setObjectTermUniforms(t);
     termsView.bind();
     frame_->bindShadowMaps();
+    const HistoryCamera now{cv::Matx44f(capture::inversePose(camera.T_world_camera)),
+                            static_cast<float>(camera.intrinsics.fx),
+                            static_cast<float>(camera.intrinsics.fy),
+                            static_cast<float>(camera.intrinsics.cx),
+                            static_cast<float>(camera.intrinsics.cy),
+                            termsView.factor,
+                            cv::Size(termsView.width, termsView.height)};
+    if (history) {
+      t.set("uHistory", carry ? 1 : 0);
+      t.set("uHistoryWeight", static_cast<float>(historyWeight));
+      if (carry) {
+        const HistoryCamera& before = *termsCamera_;
+        const cv::Matx44f columns = before.cameraFromWorld.t();  // column-major
+        t.setMat4("uPreviousCameraFromWorld", columns.val);
+        t.set("uPreviousIntrinsics", before.fx, before.fy, before.cx, before.cy);
+        t.set("uPreviousFactor", before.factor);
+        setVec3(t, "uEye", capture::translationOf(camera.T_world_camera));
+        objectTerms_[1 - current].bind(3);
+        termsPosition_[1 - current].bind(4);
+        termsNormal_[1 - current].bind(5);
+      }
+    }
     emptyVao_.bind();
     glDrawArrays(GL_TRIANGLES, 0, 3);
+    termsCurrent_ = current;
+    if (history) {
+      termsCamera_ = now;
+      termsInputs_ = std::move(inputs);
+    } else {
+      termsCamera_.reset();
+    }
+  } else {
+    termsCamera_.reset();
   }
   shadeFb_.bind();
   glViewport(0, 0, config_.width, config_.height);
@@ -316,7 +393,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     }
     if (reducedTerms) {
       p.set("uObjectTermsFactor", termsView.factor);
-      objectTerms_.bind(8);
+      objectTerms_[termsCurrent_].bind(8);
     }
     frame_->bindShadowMaps();
     emptyVao_.bind();
@@ -340,8 +417,15 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
 cv::Mat LightingPipeline::downloadShade() const { return download4(shade_); }
 cv::Mat LightingPipeline::downloadIrradiance() const { return download4(irradiance_); }
 
+cv::Mat LightingPipeline::downloadObjectTerms(int channel) const {
+  const size_t i = static_cast<size_t>(termsCurrent_);
+  const gl::Texture& t = channel == 0 ? objectTerms_[i] : channel == 1 ? termsPosition_[i] : termsNormal_[i];
+  return t.id() ? download4(t) : cv::Mat();
+}
+
 size_t LightingPipeline::gpuBytes() const {
-  size_t sum = frame_->gpuBytes() + shade_.bytes() + irradiance_.bytes() + objectTerms_.bytes();
+  size_t sum = frame_->gpuBytes() + shade_.bytes() + irradiance_.bytes();
+  for (size_t i = 0; i < 2; ++i) sum += objectTerms_[i].bytes() + termsPosition_[i].bytes() + termsNormal_[i].bytes();
   for (const auto& t : techniques_) sum += t->gpuBytes();
   return sum;
 }

@@ -26,6 +26,7 @@
 #include "lighting/scene_file.h"
 #include "lighting/techniques/registry.h"
 #include "lighting/techniques/technique.h"
+#include "lighting/terms_history.h"
 
 namespace mrgi::lighting {
 
@@ -137,6 +138,10 @@ class LightingPipeline {
   /// CV_32FC4 downloads of the shading result and of its debug irradiance (E_delta / E_indirect, W/m^2).
   cv::Mat downloadShade() const;
   cv::Mat downloadIrradiance() const;
+  /// The object terms of the last run on the reduced grid (CV_32FC4, rgb W/m^2, a = 1 where computed; empty
+  /// when the shading pass computed them per pixel), and with object_terms_history the points (xyz, w = 1)
+  /// and normals they were computed at.
+  cv::Mat downloadObjectTerms(int channel = 0) const;
   /// G-buffer channels (CV_32FC4): 0 position, 1 normal, 2 albedo (a = virtual).
   cv::Mat downloadGBuffer(int channel) const { return frame_->downloadGBuffer(channel); }
   /// The last light's RSMs (rho = real + virtual, mu = real only).
@@ -167,11 +172,17 @@ class LightingPipeline {
   std::array<gl::Program, 16> shadePrograms_;  ///< soft | upsample | reduced terms | real only
   bool boundedShading_ = true;
   cv::Rect footprint_;
-  /// The object terms at the reduced view (render_scale < 1; lighting/object_terms.frag), soft-shadow variant
-  /// at index 1; its target, allocated at the reduced view's size when first used.
-  std::array<gl::Program, 2> objectTermsPrograms_;
-  gl::Texture objectTerms_;
-  gl::Framebuffer objectTermsFb_;
+  /// The object terms at the reduced view (lighting/object_terms.frag), bit 0 the soft-shadow variant, bit 1
+  /// the one carrying the terms over frames (object_terms_history); their targets (terms, points, normals),
+  /// allocated at the reduced view's size when first used, two of each with the history (this run's and the
+  /// last one's, alternately).
+  std::array<gl::Program, 4> objectTermsPrograms_;
+  std::array<gl::Texture, 2> objectTerms_, termsPosition_, termsNormal_;
+  std::array<gl::Framebuffer, 2> objectTermsFb_;
+  int termsCurrent_ = 0;  ///< which of the two holds the last run's terms
+  /// The last run's camera and what its terms depended on besides the camera, when the history may carry over.
+  std::optional<HistoryCamera> termsCamera_;
+  std::vector<double> termsInputs_;
   gl::Texture shade_, irradiance_;
   gl::Framebuffer shadeFb_;
   gl::VertexArray emptyVao_;

@@ -100,6 +100,19 @@ const std::vector<KnobBinding<FrameKnobs>>& frameKnobTable() {
         {},
         false},
        &FrameKnobs::objectTermsScale},
+      {{"object_terms_history",
+        KnobType::Real,
+        0.0,
+        0.95,
+        0.0,
+        "weight of the previous frame's object terms, reprojected through the camera's pose, where its surface is "
+        "the texel's (a real point within 2 % of the distance, normals within 25 degrees): an exponential average "
+        "over frames that takes the depth map's per-frame noise out of them; dropped whenever the objects, the "
+        "lights or the ambient change (0: each frame's own)",
+        {0.8},
+        {},
+        false},
+       &FrameKnobs::objectTermsHistory},
   };
   return table;
 }

@@ -43,6 +43,8 @@ struct FrameKnobs {
   double renderScale = 1;    ///< resolution of per-pixel technique outputs, of the frame's (lighting/upsample.h)
   /// resolution of the shading pass's object terms on real surfaces while renderScale is 1 (else renderScale's)
   double objectTermsScale = 0.5;
+  /// weight of the previous frame's object terms where its surface is the texel's (lighting/terms_history.h)
+  double objectTermsHistory = 0;
 };
 /// The divisor of the frame's resolution the shading pass's object terms are computed at: render_scale's when
 /// it reduces the techniques' outputs, else object_terms_scale's (lighting/upsample.h renderFactor).
