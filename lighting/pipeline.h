@@ -63,8 +63,8 @@ class LightingPipeline {
     frame_->setRealMesh(std::move(vertices), std::move(indices));
   }
   /// The real surface as the camera sees it now, for the G-buffer only (FrameResources::setViewMesh).
-  void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
-    frame_->setViewMesh(vertices, indices);
+  void setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
+    frame_->setViewMesh(std::move(vertices), std::move(indices));
   }
   /// The real surfaces' albedo per camera pixel for the G-buffer (FrameResources::setRealPixelAlbedo).
   void setRealPixelAlbedo(const cv::Mat& albedo) { frame_->setRealPixelAlbedo(albedo); }

@@ -547,7 +547,7 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
     if (v.albedo != roomAlbedo_[nearest]) ++detailedVertices;
   }
   r.info["view_mesh_detailed"] = detailedVertices;
-  pipeline_->setViewMesh(vertices, indices);
+  pipeline_->setViewMesh(std::move(vertices), std::move(indices));
   pipeline_->setRealPixelAlbedo(pixelAlbedo);
 }
 

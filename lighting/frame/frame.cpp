@@ -192,8 +192,8 @@ void FrameResources::setRealMesh(std::vector<MeshVertex> vertices, std::vector<u
   geometryDirty_ = true;
 }
 
-void FrameResources::setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
-  geometry_.setViewMesh(vertices, indices);
+void FrameResources::setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
+  geometry_.setViewMesh(std::move(vertices), std::move(indices));
   viewDirty_ = true;
 }
 

@@ -89,7 +89,7 @@ class FrameResources {
   /// The real surface as the camera sees it now (the frame's depth), drawn into the G-buffer instead of
   /// the real mesh, which still casts the shadows and fills the RSMs (a fused room model). Sharper where
   /// real surfaces occlude virtual ones. Empty: the real mesh everywhere. A change counts as a camera change.
-  void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
+  void setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
   /// The real surfaces' albedo per camera pixel (CV_32FC3 linear, the G-buffer's size; a negative value:
   /// none at that pixel), which the G-buffer takes instead of the vertices' interpolated albedo: a mesh over
   /// every other depth pixel blurs a texture (a tag's cells) that the camera sees sharp, and a shadow drawn

@@ -32,10 +32,10 @@ void FrameGeometry::setRealMesh(std::vector<MeshVertex> vertices, std::vector<ui
   realIndices_ = std::move(indices);
 }
 
-void FrameGeometry::setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices) {
+void FrameGeometry::setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
   viewMesh_ = GpuMesh(vertices, indices);
-  viewVertices_ = vertices;
-  viewIndices_ = indices;
+  viewVertices_ = std::move(vertices);  // kept for the shading pass's footprint (cameraVertices)
+  viewIndices_ = std::move(indices);
 }
 
 std::optional<std::pair<cv::Vec3d, cv::Vec3d>> FrameGeometry::objectBounds() const {

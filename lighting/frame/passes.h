@@ -37,7 +37,7 @@ class FrameGeometry {
   /// The real mesh (lighting world), kept on the CPU too.
   void setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
   /// The real surface as the camera sees it now, drawn into the G-buffer instead of the real mesh.
-  void setViewMesh(const std::vector<MeshVertex>& vertices, const std::vector<uint32_t>& indices);
+  void setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) {
     objects_.at(i).T_world_object = T_world_object;
   }

@@ -47,8 +47,8 @@ TEST(TermsHistory, EachReducedTexelsSourcePointProjectsBackOntoItself) {
         ASSERT_TRUE(q.has_value()) << factor << " " << i << " " << j;
         EXPECT_EQ(*q, cv::Point(i, j)) << factor;
         // Half a block over lands on the neighbour that is nearer, or stays.
-        const auto r = historyTexel(h, floorPoint(c, reducedSource(i, factor, 64) + 0.45 * factor,
-                                                  reducedSource(j, factor, 48)));
+        const auto r =
+            historyTexel(h, floorPoint(c, reducedSource(i, factor, 64) + 0.45 * factor, reducedSource(j, factor, 48)));
         if (r) EXPECT_LE(std::abs(r->x - i) + std::abs(r->y - j), 1);
       }
   }
@@ -124,8 +124,7 @@ TEST(TermsHistory, ThePassBlendsWhereTheSurfaceAgreesAndADisocclusionTakesFreshV
         history = beforeTerms.at<cv::Vec4f>(*q);
         agrees = historyAgrees(at, nn, eye, beforePos.at<cv::Vec4f>(*q), beforeNrm.at<cv::Vec4f>(*q));
         // The cube stood where this floor point lies in the first frame's view: what it hid.
-        if (beforePos.at<cv::Vec4f>(*q)[3] < 0.5f && at[2] < 0.01f && std::abs(at[0]) < 0.4f &&
-            std::abs(at[1]) < 0.4f)
+        if (beforePos.at<cv::Vec4f>(*q)[3] < 0.5f && at[2] < 0.01f && std::abs(at[0]) < 0.4f && std::abs(at[1]) < 0.4f)
           ++disoccluded;
       }
       const cv::Vec4f want = blendHistory(f, history, 0.5f, agrees);
