@@ -52,8 +52,10 @@ size_t estimateGpuBytes(const PipelineConfig& config, size_t lights) {
   // The shade and irradiance targets, and the object terms' at their reduced resolution.
   size_t sum = FrameResources::estimateBytes(fc, lights) + 2 * 16 * static_cast<size_t>(c.width) * c.height;
   const int termsFactor = objectTermsFactor(fc.knobs);
-  if (termsFactor > 1)
-    sum += 16 * static_cast<size_t>(reducedSize(c.width, termsFactor)) * reducedSize(c.height, termsFactor);
+  const bool history = fc.knobs.objectTermsHistory > 0;  // two sets of terms, points and normals
+  if (termsFactor > 1 || history)
+    sum += (history ? 6 : 1) * 16 * static_cast<size_t>(reducedSize(c.width, termsFactor)) *
+           reducedSize(c.height, termsFactor);
   for (const RoleAssignment& a : assignRoles(c.technique))
     if (a.info->estimateBytes)
       sum += a.info->estimateBytes(c.knobs.at(a.info->knobs.key), c.knobs.at("frame"), a.real, a.virtualObject, c.width,

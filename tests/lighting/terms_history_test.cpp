@@ -145,6 +145,9 @@ TEST(TermsHistory, ThePassBlendsWhereTheSurfaceAgreesAndADisocclusionTakesFreshV
     p->run(a, {}, uniform, nullptr);
   }
   EXPECT_LT(cv::norm(carried.downloadObjectTerms(0), fresh.downloadObjectTerms(0), cv::NORM_INF), 1e-7);
+  // The estimate before allocating counts the history's targets: what they add at least.
+  ASSERT_GT(carried.gpuBytes(), fresh.gpuBytes());
+  EXPECT_GE(estimateGpuBytes(withHistory, 1) - estimateGpuBytes(cfg, 1), carried.gpuBytes() - fresh.gpuBytes());
 }
 
 }  // namespace
