@@ -77,6 +77,30 @@ void setOccluderUniforms(const gl::Program& p, const FrameResources& frame) {
   }
   p.set("uOccluderCount", static_cast<int>(n));
 }
+/// What the object terms depend on besides the camera (the objects' spheres, the lights kept, the ambients, the
+/// soft-shadow variant), value by value: their history carries over only while this stays the same.
+std::vector<double> objectTermsInputs(const FrameResources& frame, const std::vector<SceneLight>& kept,
+                                      const std::optional<Ambient>& hiddenAmbient, bool soft) {
+  std::vector<double> inputs;
+  for (const auto& o : frame.objects()) {
+    const OccluderSphere s = placeSphere(o.sphere, o.T_world_object);
+    inputs.insert(inputs.end(),
+                  {s.centre[0], s.centre[1], s.centre[2], s.radius, s.albedo[0], s.albedo[1], s.albedo[2]});
+  }
+  for (const SceneLight& l : kept) {
+    inputs.insert(inputs.end(), {static_cast<double>(l.type), l.extent, l.spotHalfAngleDeg});
+    for (const cv::Vec3d& v : {l.position, l.direction, l.intensity, l.irradiance})
+      inputs.insert(inputs.end(), {v[0], v[1], v[2]});
+  }
+  const Ambient hidden = hiddenAmbient.value_or(Ambient{});
+  for (const cv::Vec3f& v : hidden.sh) inputs.insert(inputs.end(), {v[0], v[1], v[2]});
+  for (const cv::Vec3d& v : frame.ambientSh()) inputs.insert(inputs.end(), {v[0], v[1], v[2]});
+  const cv::Vec3d a = frame.ambient();
+  inputs.insert(inputs.end(), {a[0], a[1], a[2], hidden.uniform[0], hidden.uniform[1], hidden.uniform[2],
+                               hiddenAmbient ? 1.0 : 0.0, soft ? 1.0 : 0.0});
+  return inputs;
+}
+
 /// The inputs a consumer depends on changed between two version snapshots.
 bool changed(const std::optional<FrameVersions>& at, const FrameVersions& now, unsigned inputs) {
   if (!at) return true;
@@ -278,25 +302,9 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       return true;
     };
     bool fresh = allocate(current);
-    // What the terms depend on besides the camera: the objects' spheres, the lights, the ambients.
     std::vector<double> inputs;
     if (history) {
-      for (const auto& o : frame_->objects()) {
-        const OccluderSphere s = placeSphere(o.sphere, o.T_world_object);
-        inputs.insert(inputs.end(),
-                      {s.centre[0], s.centre[1], s.centre[2], s.radius, s.albedo[0], s.albedo[1], s.albedo[2]});
-      }
-      for (const SceneLight& l : kept) {
-        inputs.insert(inputs.end(), {static_cast<double>(l.type), l.extent, l.spotHalfAngleDeg});
-        for (const cv::Vec3d& v : {l.position, l.direction, l.intensity, l.irradiance})
-          inputs.insert(inputs.end(), {v[0], v[1], v[2]});
-      }
-      const Ambient hidden = hiddenAmbient_.value_or(Ambient{});
-      for (const cv::Vec3f& v : hidden.sh) inputs.insert(inputs.end(), {v[0], v[1], v[2]});
-      for (const cv::Vec3d& v : frame_->ambientSh()) inputs.insert(inputs.end(), {v[0], v[1], v[2]});
-      const cv::Vec3d a = frame_->ambient();
-      inputs.insert(inputs.end(), {a[0], a[1], a[2], hidden.uniform[0], hidden.uniform[1], hidden.uniform[2],
-                                   hiddenAmbient_ ? 1.0 : 0.0, soft ? 1.0 : 0.0});
+      inputs = objectTermsInputs(*frame_, kept, hiddenAmbient_, soft);
       fresh = allocate(1 - current) || fresh;
     }
     const bool carry =
@@ -314,13 +322,6 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     setObjectTermUniforms(t);
     termsView.bind();
     frame_->bindShadowMaps();
-    const HistoryCamera now{cv::Matx44f(capture::inversePose(camera.T_world_camera)),
-                            static_cast<float>(camera.intrinsics.fx),
-                            static_cast<float>(camera.intrinsics.fy),
-                            static_cast<float>(camera.intrinsics.cx),
-                            static_cast<float>(camera.intrinsics.cy),
-                            termsView.factor,
-                            cv::Size(termsView.width, termsView.height)};
     if (history) {
       t.set("uHistory", carry ? 1 : 0);
       t.set("uHistoryWeight", static_cast<float>(historyWeight));
@@ -340,7 +341,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     glDrawArrays(GL_TRIANGLES, 0, 3);
     termsCurrent_ = current;
     if (history) {
-      termsCamera_ = now;
+      termsCamera_ = historyCamera(camera, termsView.factor);
       termsInputs_ = std::move(inputs);
     } else {
       termsCamera_.reset();

@@ -2,7 +2,20 @@
 
 #include <cmath>
 
+#include "lighting/upsample.h"
+
 namespace mrgi::lighting {
+
+HistoryCamera historyCamera(const CameraView& camera, int factor) {
+  const capture::Intrinsics& k = camera.intrinsics;
+  return {cv::Matx44f(capture::inversePose(camera.T_world_camera)),
+          static_cast<float>(k.fx),
+          static_cast<float>(k.fy),
+          static_cast<float>(k.cx),
+          static_cast<float>(k.cy),
+          factor,
+          cv::Size(reducedSize(k.width, factor), reducedSize(k.height, factor))};
+}
 
 std::optional<cv::Point> historyTexel(const HistoryCamera& previous, const cv::Vec3f& x) {
   const cv::Vec4f q = previous.cameraFromWorld * cv::Vec4f(x[0], x[1], x[2], 1.0f);

@@ -13,6 +13,8 @@
 #include <opencv2/core.hpp>
 #include <optional>
 
+#include "lighting/frame/mesh.h"
+
 namespace mrgi::lighting {
 
 /// The previous frame's camera and reduced grid, as the history pass reads them.
@@ -22,6 +24,9 @@ struct HistoryCamera {
   int factor = 1;                                    ///< frame pixels per reduced texel
   cv::Size grid;                                     ///< the reduced grid's size
 };
+
+/// Camera `camera`'s view of its frame reduced to 1/factor (lighting/upsample.h reducedSize).
+HistoryCamera historyCamera(const CameraView& camera, int factor);
 
 /// Relative and absolute distance, and the normals' cosine, within which the history's surface is x's.
 constexpr float kHistoryRelativeDistance = 0.02f;

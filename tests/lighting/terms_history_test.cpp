@@ -16,17 +16,6 @@
 namespace mrgi::lighting {
 namespace {
 
-HistoryCamera historyCamera(const CameraView& c, int factor) {
-  const capture::Intrinsics& k = c.intrinsics;
-  return {cv::Matx44f(capture::inversePose(c.T_world_camera)),
-          static_cast<float>(k.fx),
-          static_cast<float>(k.fy),
-          static_cast<float>(k.cx),
-          static_cast<float>(k.cy),
-          factor,
-          cv::Size(reducedSize(k.width, factor), reducedSize(k.height, factor))};
-}
-
 /// The world point on the plane z = 0 that pixel (u, v) of camera c sees.
 cv::Vec3f floorPoint(const CameraView& c, double u, double v) {
   const capture::Intrinsics& k = c.intrinsics;
