@@ -62,9 +62,13 @@ class LightingPipeline {
   void setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
     frame_->setRealMesh(std::move(vertices), std::move(indices));
   }
-  /// The real surface as the camera sees it now, for the G-buffer only (FrameResources::setViewMesh).
+  /// The real surface as the camera sees it now, as a mesh for the footprint (FrameResources::setViewMesh).
   void setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
     frame_->setViewMesh(std::move(vertices), std::move(indices));
+  }
+  /// The real surface per camera pixel, camera frame, for the G-buffer (FrameResources::setViewSurface).
+  void setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride, float maxRelativeJump = 0.05f) {
+    frame_->setViewSurface(positions, normals, stride, maxRelativeJump);
   }
   /// The real surfaces' albedo per camera pixel for the G-buffer (FrameResources::setRealPixelAlbedo).
   void setRealPixelAlbedo(const cv::Mat& albedo) { frame_->setRealPixelAlbedo(albedo); }

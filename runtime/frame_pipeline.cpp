@@ -511,43 +511,54 @@ struct FramePipeline::RoomIndex {
 void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler) {
   auto s = profiler.cpu("view_mesh");
   if (!roomIndex_) roomIndex_ = std::make_shared<RoomIndex>(options_.room->positions);
+  // The mesh over the depth, for the shading pass's footprint only: the G-buffer draws the pixels themselves.
   std::vector<lighting::MeshVertex> vertices;
   std::vector<uint32_t> indices;
   const auto mesh = reconstruction::buildDepthMesh(r.positions, r.normals, options_.meshStride);
   lighting::buildRealVertices(mesh, cv::Mat(), *r.T_marker_camera, vertices, indices);
   const cv::Mat radiance = capture::radianceOf(rgbd.colour, rgbd.exposure);
-  // Each pixel's albedo: its nearest room vertex's (the room vertex of the mesh vertex whose block of
-  // meshStride x meshStride pixels it lies in) times the texture the voxels blurred (albedoDetail).
+  // Each pixel's albedo: the room vertex nearest its block of meshStride x meshStride pixels (nearest to the
+  // block's first pixel with a depth: the mesh's vertex heading it where there is one) times the texture the
+  // voxels blurred (albedoDetail).
   cv::Mat pixelAlbedo(rgbd.colour.size(), CV_32FC3, cv::Scalar::all(-1));
-  const cv::Rect frameRect(0, 0, radiance.cols, radiance.rows);
   const int stride = std::max(1, options_.meshStride);
-  size_t detailedVertices = 0;
-  const auto detailed = [&](const cv::Point& px, uint32_t nearest) {
-    cv::Vec3f a = roomAlbedo_[nearest];
-    const auto st = roomAlbedoStatus_[nearest];
-    if (st != reconstruction::AlbedoStatus::Measured && st != reconstruction::AlbedoStatus::Saturated) return a;
-    const cv::Vec3f detail = reconstruction::albedoDetail(rgbd.colour.at<cv::Vec3b>(px), radiance.at<cv::Vec3f>(px),
-                                                          options_.room->radiance[nearest]);
-    for (int c = 0; c < 3; ++c) a[c] = std::min(1.0f, a[c] * detail[c]);
-    return a;
-  };
-  for (size_t i = 0; i < vertices.size(); ++i) {
-    auto& v = vertices[i];
-    uint32_t nearest = 0;
-    float d2 = 0;
-    if (roomIndex_->tree.knnSearch(&v.position[0], 1, &nearest, &d2) != 1) continue;
-    v.albedo = roomAlbedo_[nearest];
-    if (i >= mesh.pixels.size()) continue;
-    const cv::Point px(cvRound(mesh.pixels[i][0]), cvRound(mesh.pixels[i][1]));
-    if (!frameRect.contains(px)) continue;
-    for (int y = px.y; y < std::min(px.y + stride, radiance.rows); ++y)
-      for (int x = px.x; x < std::min(px.x + stride, radiance.cols); ++x)
-        pixelAlbedo.at<cv::Vec3f>(y, x) = detailed({x, y}, nearest);
-    v.albedo = pixelAlbedo.at<cv::Vec3f>(px);  // the vertex's own pixel heads its block
-    if (v.albedo != roomAlbedo_[nearest]) ++detailedVertices;
-  }
-  r.info["view_mesh_detailed"] = detailedVertices;
+  const cv::Matx44d& T = *r.T_marker_camera;
+  size_t detailedBlocks = 0;
+  const auto hasDepth = [](const cv::Vec3f& c) { return c[2] > 0.f && std::isfinite(c[2]); };
+  const int rows = std::min(radiance.rows, r.positions.rows), cols = std::min(radiance.cols, r.positions.cols);
+  for (int by = 0; by < rows; by += stride)
+    for (int bx = 0; bx < cols; bx += stride) {
+      const int yEnd = std::min(by + stride, rows), xEnd = std::min(bx + stride, cols);
+      cv::Point head(-1, -1);
+      for (int y = by; y < yEnd && head.x < 0; ++y)
+        for (int x = bx; x < xEnd; ++x)
+          if (hasDepth(r.positions.at<cv::Vec3f>(y, x))) {
+            head = {x, y};
+            break;
+          }
+      if (head.x < 0) continue;
+      const cv::Vec3f world(capture::transformPoint(T, cv::Vec3d(r.positions.at<cv::Vec3f>(head))));
+      uint32_t nearest = 0;
+      float d2 = 0;
+      if (roomIndex_->tree.knnSearch(&world[0], 1, &nearest, &d2) != 1) continue;
+      const cv::Vec3f base = roomAlbedo_[nearest];
+      const auto st = roomAlbedoStatus_[nearest];
+      const bool detail = st == reconstruction::AlbedoStatus::Measured || st == reconstruction::AlbedoStatus::Saturated;
+      detailedBlocks += detail;
+      for (int y = by; y < yEnd; ++y)
+        for (int x = bx; x < xEnd; ++x) {
+          cv::Vec3f a = base;
+          if (detail) {
+            const cv::Vec3f d = reconstruction::albedoDetail(
+                rgbd.colour.at<cv::Vec3b>(y, x), radiance.at<cv::Vec3f>(y, x), options_.room->radiance[nearest]);
+            for (int c = 0; c < 3; ++c) a[c] = std::min(1.0f, a[c] * d[c]);
+          }
+          pixelAlbedo.at<cv::Vec3f>(y, x) = a;
+        }
+    }
+  r.info["view_mesh_detailed"] = detailedBlocks;
   pipeline_->setViewMesh(std::move(vertices), std::move(indices));
+  pipeline_->setViewSurface(r.positions, r.normals, options_.meshStride);
   pipeline_->setRealPixelAlbedo(pixelAlbedo);
 }
 
@@ -582,6 +593,7 @@ void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compos
   } else {
     buildSurface(frame, p, profiler);  // prepared already, unless measured only
     pipeline_->setRealMesh(std::move(p.surface->vertices), std::move(p.surface->indices));
+    pipeline_->setViewSurface(r.positions, r.normals, options_.meshStride);
     pipeline_->setRealPixelAlbedo(p.surface->pixelAlbedo);
     p.surface.reset();
     for (auto& [name, input] : p.inputs) pipeline_->setTechniqueInput(name, std::move(input));

@@ -197,6 +197,12 @@ void FrameResources::setViewMesh(std::vector<MeshVertex> vertices, std::vector<u
   viewDirty_ = true;
 }
 
+void FrameResources::setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride,
+                                    float maxRelativeJump) {
+  geometry_.setViewSurface(positions, normals, stride, maxRelativeJump);
+  viewDirty_ = true;
+}
+
 void FrameResources::setRealPixelAlbedo(const cv::Mat& albedo) {
   if (gbuffer_.setPixelAlbedo(albedo)) viewDirty_ = true;
 }

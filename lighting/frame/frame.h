@@ -86,10 +86,14 @@ class FrameResources {
   // ---- inputs (set by the pipeline before a run)
   /// The real mesh (lighting world); kept on the CPU too (realVertices()): pass temporaries to move them.
   void setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
-  /// The real surface as the camera sees it now (the frame's depth), drawn into the G-buffer instead of
-  /// the real mesh, which still casts the shadows and fills the RSMs (a fused room model). Sharper where
-  /// real surfaces occlude virtual ones. Empty: the real mesh everywhere. A change counts as a camera change.
+  /// The real surface as the camera sees it now (the frame's depth) as a mesh, lighting world: what the shading
+  /// pass's footprint asks of the surface the camera sees (cameraVertices) when the real mesh is another (a
+  /// fused room model, which still casts the shadows and fills the RSMs). Empty: the real mesh.
   void setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
+  /// The same surface per camera pixel (positions and normals in the camera frame, CV_32FC3 at the frame's
+  /// size; FrameGeometry::setViewSurface), which the G-buffer draws, with setRealPixelAlbedo's albedo, instead
+  /// of rasterising the view mesh or the real mesh. Empty: none. A change counts as a camera change.
+  void setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride, float maxRelativeJump = 0.05f);
   /// The real surfaces' albedo per camera pixel (CV_32FC3 linear, the G-buffer's size; a negative value:
   /// none at that pixel), which the G-buffer takes instead of the vertices' interpolated albedo: a mesh over
   /// every other depth pixel blurs a texture (a tag's cells) that the camera sees sharp, and a shadow drawn
@@ -135,9 +139,8 @@ class FrameResources {
 
   /// Draws the real mesh (and the objects when includeVirtual) with `program` (uModel, uNormalModel,
   /// uViewProj, uVirtual, uObject set here).
-  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
-                 bool cameraView = false) const {
-    geometry_.drawScene(program, includeVirtual, viewProj, cameraView);
+  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const {
+    geometry_.drawScene(program, includeVirtual, viewProj);
   }
   /// Draws the objects alone (uModel, uNormalModel, uVirtual = 1, uObject set here; uViewProj by the caller).
   void drawObjects(const gl::Program& program) const { geometry_.drawObjects(program); }

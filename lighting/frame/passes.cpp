@@ -33,9 +33,31 @@ void FrameGeometry::setRealMesh(std::vector<MeshVertex> vertices, std::vector<ui
 }
 
 void FrameGeometry::setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices) {
-  viewMesh_ = GpuMesh(vertices, indices);
-  viewVertices_ = std::move(vertices);  // kept for the shading pass's footprint (cameraVertices)
+  viewVertices_ = std::move(vertices);  // for the shading pass's footprint (cameraVertices); never drawn
   viewIndices_ = std::move(indices);
+}
+
+void FrameGeometry::setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride,
+                                   float maxRelativeJump) {
+  viewStride_ = std::max(1, stride);
+  viewMaxJump_ = maxRelativeJump;
+  if (positions.empty()) {
+    viewPosition_ = gl::Texture();
+    viewNormal_ = gl::Texture();
+    return;
+  }
+  if (positions.type() != CV_32FC3 || normals.type() != CV_32FC3 || positions.size() != normals.size())
+    throw std::invalid_argument("FrameGeometry::setViewSurface: positions and normals must be CV_32FC3 of one size");
+  const auto upload = [&](gl::Texture& t, const cv::Mat& image) {
+    if (t.id() == 0 || t.width() != image.cols || t.height() != image.rows) {
+      t = gl::Texture(GL_TEXTURE_2D, GL_RGB32F, image.cols, image.rows);
+      t.setFilter(GL_NEAREST, GL_NEAREST);
+    }
+    const cv::Mat packed = image.isContinuous() ? image : image.clone();
+    t.upload(GL_RGB, GL_FLOAT, packed.data, 4);
+  };
+  upload(viewPosition_, positions);
+  upload(viewNormal_, normals);
 }
 
 std::optional<std::pair<cv::Vec3d, cv::Vec3d>> FrameGeometry::objectBounds() const {
@@ -56,8 +78,7 @@ std::optional<std::pair<cv::Vec3d, cv::Vec3d>> FrameGeometry::objectBounds() con
   return std::pair{lo, hi};
 }
 
-void FrameGeometry::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
-                              bool cameraView) const {
+void FrameGeometry::drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const {
   program.use();
   const auto vp = toGl(viewProj);
   program.setMat4("uViewProj", vp.data());
@@ -68,10 +89,7 @@ void FrameGeometry::drawScene(const gl::Program& program, bool includeVirtual, c
   const bool tagged = program.declares("uObject"), virtualFlag = program.declares("uVirtual");
   if (virtualFlag) program.set("uVirtual", 0.0f);
   if (tagged) program.set("uObject", 0.0f);
-  if (cameraView && !viewMesh_.empty())
-    viewMesh_.draw();
-  else
-    realMesh_.draw();
+  realMesh_.draw();
   if (includeVirtual) drawObjects(program);
 }
 
@@ -109,6 +127,7 @@ GBufferPass::GBufferPass(int width, int height, int factor, int termsFactor)
       factor_(std::max(factor, 1)),
       reducedFactor_(factor_ > 1 ? factor_ : std::max(termsFactor, 1)),
       program_(gl::Program::graphics("lighting/frame/mesh.vert", "lighting/frame/gbuffer.frag")),
+      surfaceProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/frame/gbuffer_surface.frag")),
       full_(width, height) {
   if (reducedFactor_ > 1) {
     reduceProgram_ = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/frame/gbuffer_reduce.frag");
@@ -144,12 +163,34 @@ void GBufferPass::render(const FrameGeometry& geometry, const CameraView& camera
   const float one = 1.0f;
   glClearNamedFramebufferfv(full_.fb.id(), GL_DEPTH, 0, &one);
   const cv::Matx44d cameraFromWorld = capture::inversePose(camera.T_world_camera);
+  const cv::Matx44d viewProj =
+      projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * cameraFromWorld;
   setVec3(program_, "uEye", capture::translationOf(camera.T_world_camera));
   program_.set("uPixelAlbedo", hasPixelAlbedo_ ? 1 : 0);
   if (hasPixelAlbedo_) pixelAlbedo_.bind(0);
-  geometry.drawScene(program_, true,
-                     projectionFromIntrinsics(camera.intrinsics, camera.nearPlane, camera.farPlane) * cameraFromWorld,
-                     true);
+  if (geometry.hasViewSurface() && hasPixelAlbedo_ && geometry.viewPosition().width() == width_ &&
+      geometry.viewPosition().height() == height_) {
+    // The real surface the camera sees, one fragment per pixel from its own depth (no mesh to rasterise: a
+    // mesh over every other depth pixel is hundreds of thousands of triangles a frame), then the objects
+    // depth-tested against it.
+    surfaceProgram_.use();
+    const auto vp = toGl(viewProj);
+    surfaceProgram_.setMat4("uViewProj", vp.data());
+    const auto worldFromCamera = toGl(camera.T_world_camera);
+    surfaceProgram_.setMat4("uWorldFromCamera", worldFromCamera.data());
+    setVec3(surfaceProgram_, "uEye", capture::translationOf(camera.T_world_camera));
+    surfaceProgram_.set("uStride", geometry.viewStride());
+    surfaceProgram_.set("uMaxRelativeJump", geometry.viewMaxRelativeJump());
+    geometry.viewPosition().bind(1);
+    geometry.viewNormal().bind(2);
+    emptyVao_.bind();
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    program_.use();
+    program_.setMat4("uViewProj", vp.data());
+    geometry.drawObjects(program_);
+  } else {
+    geometry.drawScene(program_, true, viewProj);
+  }
   if (reducedFactor_ > 1) {
     // Every reduced texel is written (depth test always passes), depth included, for passes that test against it.
     reduced_.fb.bind();

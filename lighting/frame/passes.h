@@ -1,8 +1,8 @@
 #pragma once
 /// The frame's render passes, each with its declared inputs and outputs (lighting/frame/frame.h composes them
 /// into the resources the techniques read):
-///   FrameGeometry  — what every pass draws: the real mesh (and the camera's view of the real surface), the
-///                    virtual objects with their placements.
+///   FrameGeometry  — what every pass draws: the real mesh (and the camera's view of the real surface, per
+///                    pixel), the virtual objects with their placements.
 ///   GBufferPass    — in: geometry, camera, the real surfaces' per-pixel albedo; out: world position, normal
 ///                    (w = object index + 1), albedo (a = virtual), depth, at the output size, and the same at
 ///                    1/factor (the frame knob render_scale) for technique outputs (lighting/upsample.h).
@@ -36,8 +36,20 @@ class FrameGeometry {
   explicit FrameGeometry(const std::vector<VirtualObject>& objects);
   /// The real mesh (lighting world), kept on the CPU too.
   void setRealMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
-  /// The real surface as the camera sees it now, drawn into the G-buffer instead of the real mesh.
+  /// The real surface as the camera sees it now, as a mesh (lighting world) for the CPU's questions about it
+  /// (cameraVertices: the shading pass's footprint); the G-buffer draws setViewSurface's pixels.
   void setViewMesh(std::vector<MeshVertex> vertices, std::vector<uint32_t> indices);
+  /// The real surface as the camera sees it now, per camera pixel: positions and normals in the camera frame
+  /// (CV_32FC3, the frame's size; z <= 0 or not finite: no depth there; a zero normal: unknown), which the
+  /// G-buffer draws as reconstruction::buildDepthMesh's mesh over every `stride`-th pixel would be rasterised,
+  /// without the mesh (lighting/frame/gbuffer_surface.frag). Empty: none.
+  void setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride, float maxRelativeJump);
+  /// Whether setViewSurface gave a surface, and its textures (RGB32F, camera frame, row 0 = the image's top).
+  bool hasViewSurface() const { return viewPosition_.id() != 0; }
+  const gl::Texture& viewPosition() const { return viewPosition_; }
+  const gl::Texture& viewNormal() const { return viewNormal_; }
+  int viewStride() const { return viewStride_; }
+  float viewMaxRelativeJump() const { return viewMaxJump_; }
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) {
     objects_.at(i).T_world_object = T_world_object;
   }
@@ -51,18 +63,19 @@ class FrameGeometry {
   /// World bounding box of the placed objects (nullopt without objects).
   std::optional<std::pair<cv::Vec3d, cv::Vec3d>> objectBounds() const;
 
-  /// Draws the real mesh (the view mesh when `cameraView` and there is one) and the objects when
-  /// `includeVirtual`, with `program` (uModel, uNormalModel, uViewProj set here, and uVirtual, uObject where it
-  /// declares them).
-  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj,
-                 bool cameraView = false) const;
+  /// Draws the real mesh and the objects when `includeVirtual`, with `program` (uModel, uNormalModel, uViewProj
+  /// set here, and uVirtual, uObject where it declares them).
+  void drawScene(const gl::Program& program, bool includeVirtual, const cv::Matx44d& viewProj) const;
   /// Draws the objects alone (uModel, uNormalModel, and uVirtual = 1, uObject where declared; uViewProj by the
   /// caller).
   void drawObjects(const gl::Program& program) const;
 
  private:
   std::vector<FrameObject> objects_;
-  GpuMesh realMesh_, viewMesh_;
+  GpuMesh realMesh_;
+  gl::Texture viewPosition_, viewNormal_;
+  int viewStride_ = 1;
+  float viewMaxJump_ = 0.05f;
   std::vector<MeshVertex> realVertices_;
   std::vector<uint32_t> realIndices_;
   std::vector<MeshVertex> viewVertices_;
@@ -128,7 +141,7 @@ class GBufferPass {
 
  private:
   int width_, height_, factor_, reducedFactor_;
-  gl::Program program_, reduceProgram_;
+  gl::Program program_, surfaceProgram_, reduceProgram_;
   GBufferTargets full_, reduced_;  ///< reduced_: at reducedFactor_, only when it is over 1
   gl::VertexArray emptyVao_;
   gl::Texture pixelAlbedo_;  ///< setPixelAlbedo's, RGBA16F
