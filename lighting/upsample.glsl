@@ -32,16 +32,19 @@ vec3 upsampled(sampler2D value, sampler2D lowPosition, sampler2D lowNormal, int 
       total += w;
     }
   if (total > 1e-4) return sum / total;
+  // The search, as one loop whose count is zero where the four gave a weight: a software rasteriser (llvmpipe)
+  // runs a branch's body for a batch of pixels under a mask whether or not any pixel takes it, but leaves a loop
+  // once none of the batch is still in it. The same texels in the same order as two nested loops.
   float best = 1e-4;
   vec3 result = vec3(0.0);
-  for (int dj = -1; dj <= 2; ++dj)
-    for (int di = -1; di <= 2; ++di) {
-      ivec2 q = clamp(base + ivec2(di, dj), ivec2(0), size - 1);
-      float w = upsampleWeight(position, normal, texelFetch(lowPosition, q, 0), texelFetch(lowNormal, q, 0));
-      if (w > best) {
-        best = w;
-        result = texelFetch(value, q, 0).rgb;
-      }
+  int count = total > 1e-4 ? 0 : 16;
+  for (int i = 0; i < count; ++i) {
+    ivec2 q = clamp(base + ivec2(i % 4 - 1, i / 4 - 1), ivec2(0), size - 1);
+    float w = upsampleWeight(position, normal, texelFetch(lowPosition, q, 0), texelFetch(lowNormal, q, 0));
+    if (w > best) {
+      best = w;
+      result = texelFetch(value, q, 0).rgb;
     }
+  }
   return result;
 }

@@ -102,7 +102,7 @@ TEST(ViewSurface, DrawsWhatTheMeshOverTheDepthWouldRasteriseAndHidesTheObjectsBe
     // The two differ where the rasteriser breaks ties (a pixel centre on a triangle's edge or vertex, decided by
     // the rounding of the vertex's projection) and at the image's last row and column.
     EXPECT_LE(coverageDiffers, 16) << "of " << W * H;  // measured 0; without the cut at depth jumps 90-245
-    EXPECT_LE(roleDiffers, 8);                          // measured 0; a depth off by 5 % of its range: 1,000+
+    EXPECT_LE(roleDiffers, 8);                         // measured 0; a depth off by 5 % of its range: 1,000+
     EXPECT_GT(realPixels, W * H / 2);
     EXPECT_GT(virtualPixels, 300);
     EXPECT_EQ(holes, 10 * 7) << "no depth, no surface";
