@@ -11,10 +11,19 @@ namespace {
 // Border handling of every window statistic; the same as OpenCV's guided filter (parity test).
 constexpr int kBorder = cv::BORDER_REFLECT;
 
-cv::Mat boxMean(const cv::Mat& m, int r) {
-  cv::Mat out;
+void boxMean(const cv::Mat& m, int r, cv::Mat& out) {
   cv::boxFilter(m, out, CV_32F, cv::Size(2 * r + 1, 2 * r + 1), cv::Point(-1, -1), true, kBorder);
-  return out;
+}
+
+/// The guided filter's window statistics, kept from call to call by each thread that filters: a frame's filter
+/// fills some fifty megabytes of them, and memory fresh from the system each frame costs a page fault per page
+/// (as much time again as the arithmetic). create() reuses them while the frame's size stays.
+struct GuidedScratch {
+  cv::Mat sums[4], means[4], coef, weight, spread, meanP, meanCoef, meanWeight, median;
+};
+GuidedScratch& guidedScratch() {
+  thread_local GuidedScratch scratch;
+  return scratch;
 }
 
 /// Rows 0..h-1, split over OpenCV's workers; every row is independent and written by one worker only, so
@@ -72,8 +81,9 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
   cv::Mat p = sanitizeDepth(depthIn, o.minDepth, o.maxDepth);
   const int w = p.cols, h = p.rows;
 
+  GuidedScratch& sc = guidedScratch();
   if (o.removeSpikes) {
-    cv::Mat med;
+    cv::Mat& med = sc.median;
     cv::medianBlur(p, med, 5);
     for (int y = 0; y < h; ++y) {
       float* d = p.ptr<float>(y);
@@ -85,7 +95,8 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
   if (r <= 0) return p;
 
   // Weighted window statistics; weight = validity, so invalid samples contribute nothing.
-  cv::Mat s0(h, w, CV_32FC4), s1(h, w, CV_32FC4), s2(h, w, CV_32FC4), s3(h, w, CV_32FC4);
+  for (cv::Mat& m : sc.sums) m.create(h, w, CV_32FC4);
+  cv::Mat &s0 = sc.sums[0], &s1 = sc.sums[1], &s2 = sc.sums[2], &s3 = sc.sums[3];
   forRows(h, [&](int y) {
     const float* d = p.ptr<float>(y);
     const auto* g = guide.ptr<cv::Vec3f>(y);
@@ -99,10 +110,13 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
       a3[x] = {I[1] * g[x][2], I[2] * g[x][2], z * z, 0.f};
     }
   });
-  const cv::Mat m0 = boxMean(s0, r), m1 = boxMean(s1, r), m2 = boxMean(s2, r), m3 = boxMean(s3, r);  // parallel inside
+  for (int i = 0; i < 4; ++i) boxMean(sc.sums[i], r, sc.means[i]);  // parallel inside
+  const cv::Mat &m0 = sc.means[0], &m1 = sc.means[1], &m2 = sc.means[2], &m3 = sc.means[3];
 
   // Per-window linear model q = a . I + b, solved with the regularised guide covariance.
-  cv::Mat coef(h, w, CV_32FC4), weight(h, w, CV_32FC1), spread(h, w, CV_32FC1), meanP(h, w, CV_32FC1);
+  sc.coef.create(h, w, CV_32FC4);
+  for (cv::Mat* m : {&sc.weight, &sc.spread, &sc.meanP}) m->create(h, w, CV_32FC1);
+  cv::Mat &coef = sc.coef, &weight = sc.weight, &spread = sc.spread, &meanP = sc.meanP;
   const double eps = o.eps;
   forRows(h, [&](int y) {
     const auto *b0 = m0.ptr<cv::Vec4f>(y), *b1 = m1.ptr<cv::Vec4f>(y), *b2 = m2.ptr<cv::Vec4f>(y),
@@ -144,7 +158,9 @@ cv::Mat guidedFilterDepth(const cv::Mat& depthIn, const cv::Mat& guideIn, int r,
     }
   });
   // Average the models of every window covering a pixel, each weighted by its share of valid samples.
-  const cv::Mat mc = boxMean(coef, r), mw = boxMean(weight, r);
+  boxMean(coef, r, sc.meanCoef);
+  boxMean(weight, r, sc.meanWeight);
+  const cv::Mat &mc = sc.meanCoef, &mw = sc.meanWeight;
 
   cv::Mat out(h, w, CV_32FC1, cv::Scalar(0));
   forRows(h, [&](int y) {

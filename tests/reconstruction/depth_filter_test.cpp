@@ -9,6 +9,7 @@
 #include <opencv2/photo.hpp>
 #include <opencv2/ximgproc/edge_filter.hpp>
 #include <random>
+#include <thread>
 
 #include "reconstruction/depth.h"
 
@@ -210,4 +211,33 @@ TEST(DepthMesh, GridTrianglesFaceTheCameraAndCutAtDiscontinuities) {
   const auto coarse = reconstruction::buildDepthMesh(reconstruction::backProject(d, k), {}, 2);
   EXPECT_EQ(coarse.positions.size(), 15u);
   EXPECT_EQ(coarse.triangleCount(), 4u * 2u * 2u);
+}
+
+TEST(DepthFilter, EachCallFiltersItsOwnFrameWhateverTheCallsBeforeIt) {
+  // The filter keeps its window statistics from call to call on a thread (they are reused, not reallocated):
+  // a frame filtered after frames of other sizes and contents, or on another thread, comes out the same.
+  const auto frame = [](int w, int h, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    cv::Mat depth(h, w, CV_32F), guide(h, w, CV_32FC3);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        depth.at<float>(y, x) = u(rng) < 0.1f ? 0.f : 1.0f + 0.5f * u(rng) * (x > w / 2);
+        guide.at<cv::Vec3f>(y, x) = {u(rng), u(rng), u(rng)};
+      }
+    return std::pair{depth, guide};
+  };
+  const DepthFilterOptions o;
+  const auto [d1, g1] = frame(96, 64, 1);
+  const auto [d2, g2] = frame(160, 120, 2);
+  const auto [d3, g3] = frame(96, 64, 3);
+  const cv::Mat first = reconstruction::guidedFilterDepth(d1, g1, 4, o);
+  reconstruction::guidedFilterDepth(d2, g2, 6, o);
+  reconstruction::guidedFilterDepth(d3, g3, 4, o);
+  const cv::Mat again = reconstruction::guidedFilterDepth(d1, g1, 4, o);
+  cv::Mat elsewhere;
+  std::thread([&] { elsewhere = reconstruction::guidedFilterDepth(d1, g1, 4, o); }).join();
+  EXPECT_EQ(cv::norm(first, again, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(first, elsewhere, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::countNonZero(first != d1), 1000);  // it filtered
 }
