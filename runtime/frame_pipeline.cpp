@@ -1,7 +1,9 @@
 #include "runtime/frame_pipeline.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "capture/colour.h"
@@ -523,40 +525,46 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
   cv::Mat pixelAlbedo(rgbd.colour.size(), CV_32FC3, cv::Scalar::all(-1));
   const int stride = std::max(1, options_.meshStride);
   const cv::Matx44d& T = *r.T_marker_camera;
-  size_t detailedBlocks = 0;
+  std::atomic<size_t> detailedBlocks{0};
   const auto hasDepth = [](const cv::Vec3f& c) { return c[2] > 0.f && std::isfinite(c[2]); };
   const int rows = std::min(radiance.rows, r.positions.rows), cols = std::min(radiance.cols, r.positions.cols);
-  for (int by = 0; by < rows; by += stride)
-    for (int bx = 0; bx < cols; bx += stride) {
-      const int yEnd = std::min(by + stride, rows), xEnd = std::min(bx + stride, cols);
-      cv::Point head(-1, -1);
-      for (int y = by; y < yEnd && head.x < 0; ++y)
-        for (int x = bx; x < xEnd; ++x)
-          if (hasDepth(r.positions.at<cv::Vec3f>(y, x))) {
-            head = {x, y};
-            break;
+  // Rows of blocks over OpenCV's workers: each block writes its own pixels, and the room's index is only read.
+  cv::parallel_for_(cv::Range(0, (rows + stride - 1) / stride), [&](const cv::Range& blockRows) {
+    size_t detailed = 0;
+    for (int by = blockRows.start * stride; by < blockRows.end * stride && by < rows; by += stride)
+      for (int bx = 0; bx < cols; bx += stride) {
+        const int yEnd = std::min(by + stride, rows), xEnd = std::min(bx + stride, cols);
+        cv::Point head(-1, -1);
+        for (int y = by; y < yEnd && head.x < 0; ++y)
+          for (int x = bx; x < xEnd; ++x)
+            if (hasDepth(r.positions.at<cv::Vec3f>(y, x))) {
+              head = {x, y};
+              break;
+            }
+        if (head.x < 0) continue;
+        const cv::Vec3f world(capture::transformPoint(T, cv::Vec3d(r.positions.at<cv::Vec3f>(head))));
+        uint32_t nearest = 0;
+        float d2 = 0;
+        if (roomIndex_->tree.knnSearch(&world[0], 1, &nearest, &d2) != 1) continue;
+        const cv::Vec3f base = roomAlbedo_[nearest];
+        const auto st = roomAlbedoStatus_[nearest];
+        const bool detail =
+            st == reconstruction::AlbedoStatus::Measured || st == reconstruction::AlbedoStatus::Saturated;
+        detailed += detail;
+        for (int y = by; y < yEnd; ++y)
+          for (int x = bx; x < xEnd; ++x) {
+            cv::Vec3f a = base;
+            if (detail) {
+              const cv::Vec3f d = reconstruction::albedoDetail(
+                  rgbd.colour.at<cv::Vec3b>(y, x), radiance.at<cv::Vec3f>(y, x), options_.room->radiance[nearest]);
+              for (int c = 0; c < 3; ++c) a[c] = std::min(1.0f, a[c] * d[c]);
+            }
+            pixelAlbedo.at<cv::Vec3f>(y, x) = a;
           }
-      if (head.x < 0) continue;
-      const cv::Vec3f world(capture::transformPoint(T, cv::Vec3d(r.positions.at<cv::Vec3f>(head))));
-      uint32_t nearest = 0;
-      float d2 = 0;
-      if (roomIndex_->tree.knnSearch(&world[0], 1, &nearest, &d2) != 1) continue;
-      const cv::Vec3f base = roomAlbedo_[nearest];
-      const auto st = roomAlbedoStatus_[nearest];
-      const bool detail = st == reconstruction::AlbedoStatus::Measured || st == reconstruction::AlbedoStatus::Saturated;
-      detailedBlocks += detail;
-      for (int y = by; y < yEnd; ++y)
-        for (int x = bx; x < xEnd; ++x) {
-          cv::Vec3f a = base;
-          if (detail) {
-            const cv::Vec3f d = reconstruction::albedoDetail(
-                rgbd.colour.at<cv::Vec3b>(y, x), radiance.at<cv::Vec3f>(y, x), options_.room->radiance[nearest]);
-            for (int c = 0; c < 3; ++c) a[c] = std::min(1.0f, a[c] * d[c]);
-          }
-          pixelAlbedo.at<cv::Vec3f>(y, x) = a;
-        }
-    }
-  r.info["view_mesh_detailed"] = detailedBlocks;
+      }
+    detailedBlocks += detailed;
+  });
+  r.info["view_mesh_detailed"] = detailedBlocks.load();
   pipeline_->setViewMesh(std::move(vertices), std::move(indices));
   pipeline_->setViewSurface(r.positions, r.normals, options_.meshStride);
   pipeline_->setRealPixelAlbedo(pixelAlbedo);
