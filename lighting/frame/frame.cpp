@@ -307,6 +307,8 @@ size_t FrameResources::estimateBytes(const FrameConfig& c, size_t lights) {
   const size_t texels = static_cast<size_t>(c.knobs.rsmSize) * static_cast<size_t>(c.knobs.rsmSize);
   const size_t rgba = 16, depth = 4;
   const size_t gbuffer = pixels * (3 * rgba + depth) + pixels * rgba;  // + the zero stand-in
+  // The real surface per pixel (positions, normals: RGB32F) and its albedo (RGBA16F) a frame pipeline sets.
+  const size_t surface = pixels * (2 * 12 + 8);
   const int factor = objectTermsFactor(c.knobs);  // the reduced copy serves the techniques and the object terms
   const size_t reduced = factor > 1 ? static_cast<size_t>(reducedSize(c.width, factor)) *
                                           static_cast<size_t>(reducedSize(c.height, factor)) * (3 * rgba + depth)
@@ -314,9 +316,11 @@ size_t FrameResources::estimateBytes(const FrameConfig& c, size_t lights) {
   const size_t rsms = 2 * texels * (4 * rgba + depth);
   const size_t objectTexels = static_cast<size_t>(c.knobs.shadowSize) * static_cast<size_t>(c.knobs.shadowSize);
   const size_t shadows = std::max<size_t>(lights, 1) * (2 * texels + objectTexels) * rgba;
-  return gbuffer + reduced + rsms + objectTexels * (rgba + depth) + shadows;
+  return gbuffer + surface + reduced + rsms + objectTexels * (rgba + depth) + shadows;
 }
 
-size_t FrameResources::gpuBytes() const { return gbuffer_.gpuBytes() + lightPass_.gpuBytes() + zero_.bytes(); }
+size_t FrameResources::gpuBytes() const {
+  return gbuffer_.gpuBytes() + lightPass_.gpuBytes() + zero_.bytes() + geometry_.viewSurfaceBytes();
+}
 
 }  // namespace mrgi::lighting

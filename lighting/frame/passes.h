@@ -49,6 +49,8 @@ class FrameGeometry {
   const gl::Texture& viewPosition() const { return viewPosition_; }
   const gl::Texture& viewNormal() const { return viewNormal_; }
   int viewStride() const { return viewStride_; }
+  /// The view surface's textures, bytes (0 without one).
+  size_t viewSurfaceBytes() const { return viewPosition_.bytes() + viewNormal_.bytes(); }
   float viewMaxRelativeJump() const { return viewMaxJump_; }
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) {
     objects_.at(i).T_world_object = T_world_object;
@@ -137,7 +139,7 @@ class GBufferPass {
   /// The G-buffer the shading pass's object terms are computed at: reducedView() when the factor is over 1,
   /// else the copy at 1/termsFactor (the frame's own when that is 1).
   GBufferView termsView() const { return reducedFactor_ > 1 ? reduced_.view(reducedFactor_) : view(); }
-  size_t gpuBytes() const { return full_.bytes() + reduced_.bytes(); }
+  size_t gpuBytes() const { return full_.bytes() + reduced_.bytes() + pixelAlbedo_.bytes(); }
 
  private:
   int width_, height_, factor_, reducedFactor_;

@@ -110,6 +110,15 @@ TEST(ViewSurface, DrawsWhatTheMeshOverTheDepthWouldRasteriseAndHidesTheObjectsBe
     EXPECT_LT(worstPosition, 5e-4) << "metres";  // measured 0.15 mm at stride 3
     EXPECT_LT(worstNormal, 1e-5);
   }
+  // What the surface holds on the GPU is counted, and the estimate made before allocating covers it.
+  const PipelineConfig cfg = testConfig(W, H, 16, 64, "none");
+  LightingPipeline pipe(cfg, s.objects);
+  pipe.setRealPixelAlbedo(d.albedo);
+  pipe.run(camera, {sunDown()}, {0.1, 0.1, 0.1}, nullptr);
+  const size_t without = pipe.gpuBytes();
+  pipe.setViewSurface(d.positions, d.normals, 2);
+  EXPECT_EQ(pipe.gpuBytes() - without, size_t(2) * 12 * W * H);
+  EXPECT_GE(lighting::estimateGpuBytes(cfg, 1), pipe.gpuBytes());
 }
 
 }  // namespace
