@@ -228,16 +228,14 @@ TEST(DepthFilter, EachCallFiltersItsOwnFrameWhateverTheCallsBeforeIt) {
     return std::pair{depth, guide};
   };
   const DepthFilterOptions o;
-  const auto [d1, g1] = frame(96, 64, 1);
-  const auto [d2, g2] = frame(160, 120, 2);
-  const auto [d3, g3] = frame(96, 64, 3);
-  const cv::Mat first = reconstruction::guidedFilterDepth(d1, g1, 4, o);
-  reconstruction::guidedFilterDepth(d2, g2, 6, o);
-  reconstruction::guidedFilterDepth(d3, g3, 4, o);
-  const cv::Mat again = reconstruction::guidedFilterDepth(d1, g1, 4, o);
+  const auto one = frame(96, 64, 1), two = frame(160, 120, 2), three = frame(96, 64, 3);
+  const cv::Mat first = reconstruction::guidedFilterDepth(one.first, one.second, 4, o);
+  reconstruction::guidedFilterDepth(two.first, two.second, 6, o);
+  reconstruction::guidedFilterDepth(three.first, three.second, 4, o);
+  const cv::Mat again = reconstruction::guidedFilterDepth(one.first, one.second, 4, o);
   cv::Mat elsewhere;
-  std::thread([&] { elsewhere = reconstruction::guidedFilterDepth(d1, g1, 4, o); }).join();
+  std::thread([&] { elsewhere = reconstruction::guidedFilterDepth(one.first, one.second, 4, o); }).join();
   EXPECT_EQ(cv::norm(first, again, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(first, elsewhere, cv::NORM_INF), 0.0);
-  EXPECT_GT(cv::countNonZero(first != d1), 1000);  // it filtered
+  EXPECT_GT(cv::countNonZero(first != one.first), 1000);  // it filtered
 }
