@@ -67,7 +67,8 @@ class LightingPipeline {
     frame_->setViewMesh(std::move(vertices), std::move(indices));
   }
   /// The real surface per camera pixel, camera frame, for the G-buffer (FrameResources::setViewSurface).
-  void setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride, float maxRelativeJump = 0.05f) {
+  void setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride,
+                      float maxRelativeJump = reconstruction::kDepthMeshMaxRelativeJump) {
     frame_->setViewSurface(positions, normals, stride, maxRelativeJump);
   }
   /// The real surfaces' albedo per camera pixel for the G-buffer (FrameResources::setRealPixelAlbedo).

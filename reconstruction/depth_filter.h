@@ -49,9 +49,12 @@ struct DepthMesh {
   size_t triangleCount() const { return indices.size() / 3; }
 };
 
+/// The depth jump, relative to the nearer depth, across which buildDepthMesh joins no two pixels.
+constexpr float kDepthMeshMaxRelativeJump = 0.05f;
+
 /// Mesh over every stride-th pixel: two triangles per grid cell, a triangle only where its three corners
 /// are valid and no edge spans a depth jump larger than maxRelativeJump * z (discontinuity cut).
 DepthMesh buildDepthMesh(const cv::Mat& positions, const cv::Mat& normals, int stride = 1,
-                         float maxRelativeJump = 0.05f);
+                         float maxRelativeJump = kDepthMeshMaxRelativeJump);
 
 }  // namespace mrgi::reconstruction

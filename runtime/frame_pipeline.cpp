@@ -526,7 +526,6 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
   const int stride = std::max(1, options_.meshStride);
   const cv::Matx44d& T = *r.T_marker_camera;
   std::atomic<size_t> detailedBlocks{0};
-  const auto hasDepth = [](const cv::Vec3f& c) { return c[2] > 0.f && std::isfinite(c[2]); };
   const int rows = std::min(radiance.rows, r.positions.rows), cols = std::min(radiance.cols, r.positions.cols);
   // Rows of blocks over OpenCV's workers: each block writes its own pixels, and the room's index is only read.
   cv::parallel_for_(cv::Range(0, (rows + stride - 1) / stride), [&](const cv::Range& blockRows) {
@@ -537,7 +536,7 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
         cv::Point head(-1, -1);
         for (int y = by; y < yEnd && head.x < 0; ++y)
           for (int x = bx; x < xEnd; ++x)
-            if (hasDepth(r.positions.at<cv::Vec3f>(y, x))) {
+            if (reconstruction::validDepth(r.positions.at<cv::Vec3f>(y, x)[2])) {
               head = {x, y};
               break;
             }

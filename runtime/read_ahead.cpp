@@ -21,11 +21,13 @@ class PrepareThread {
   /// Runs `task` on the thread and returns when it is done (its exception rethrown here).
   template <typename T>
   T run(std::function<T()> task) {
-    std::packaged_task<T()> job(std::move(task));
-    std::future<T> done = job.get_future();
+    // The queued job owns the task: its shared state outlives the moment get() below returns, while the thread
+    // may still be inside the task's call.
+    auto job = std::make_shared<std::packaged_task<T()>>(std::move(task));
+    std::future<T> done = job->get_future();
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      jobs_.emplace_back([&job] { job(); });
+      jobs_.emplace_back([job] { (*job)(); });
     }
     wake_.notify_one();
     return done.get();

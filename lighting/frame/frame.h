@@ -93,7 +93,8 @@ class FrameResources {
   /// The same surface per camera pixel (positions and normals in the camera frame, CV_32FC3 at the frame's
   /// size; FrameGeometry::setViewSurface), which the G-buffer draws, with setRealPixelAlbedo's albedo, instead
   /// of rasterising the view mesh or the real mesh. Empty: none. A change counts as a camera change.
-  void setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride, float maxRelativeJump = 0.05f);
+  void setViewSurface(const cv::Mat& positions, const cv::Mat& normals, int stride,
+                      float maxRelativeJump = reconstruction::kDepthMeshMaxRelativeJump);
   /// The real surfaces' albedo per camera pixel (CV_32FC3 linear, the G-buffer's size; a negative value:
   /// none at that pixel), which the G-buffer takes instead of the vertices' interpolated albedo: a mesh over
   /// every other depth pixel blurs a texture (a tag's cells) that the camera sees sharp, and a shadow drawn

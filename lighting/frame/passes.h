@@ -77,7 +77,7 @@ class FrameGeometry {
   GpuMesh realMesh_;
   gl::Texture viewPosition_, viewNormal_;
   int viewStride_ = 1;
-  float viewMaxJump_ = 0.05f;
+  float viewMaxJump_ = reconstruction::kDepthMeshMaxRelativeJump;
   std::vector<MeshVertex> realVertices_;
   std::vector<uint32_t> realIndices_;
   std::vector<MeshVertex> viewVertices_;

@@ -1,7 +1,7 @@
 // Imperfect volumes: a ray's march (iv.h marchSurfaces), for shaders that declare `voxels` (IvVoxel[])
-// before including it (lighting/techniques/imperfect_volumes/iv_march.glsl adds what a gather ray brings). From o past its voxel's bounding sphere, one voxel per step: the first voxel with real
-// points (real = -1: none) and the first with virtual points up to it (object = -1: none), with their march
-// distances. A voxel holds real points where exitantMu.w > 0 and virtual ones where exitantVirtual.w > 0.
+// before including it (iv_march.glsl adds what a gather ray brings). From o past its voxel's bounding sphere,
+// one voxel per step: the first voxel with real points (real = -1: none) and the first with virtual points up
+// to it (object = -1: none), with their march distances. A voxel holds real points where exitantMu.w > 0 and virtual ones where exitantVirtual.w > 0.
 void ivMarch(vec3 o, vec3 d, out int real, out float tReal, out int object, out float tObject) {
   float start = 0.5 * sqrt(3.0) * uVoxel;
   int maxSteps = int(ceil(sqrt(3.0) * float(uResolution))) + 1;
