@@ -79,23 +79,26 @@ namespace {
 /// vec4 records per voxel (iv.glsl IvVoxel).
 constexpr size_t kVoxelRecords = 8;
 
-/// The per-voxel buffers: records, incident SH and occlusion per scene version (mu only for real pixels), the
-/// bounce and reflected scratch (more than one bounce), computed flags and point offsets, for the object's
+/// The per-voxel buffers: records and occupancy words, incident SH and occlusion per scene version (mu only for real
+/// pixels), the bounce and reflected scratch (more than one bounce), computed flags and point offsets, for the object's
 /// own rays the ambient hidden per voxel and the sum of the reflected bounces; the ray directions; the
 /// points, which depend on the scene: budgeted as three surfaces across the grid at 4 points (48 bytes each)
-/// per voxel; and for the object's rays the outer volume's records, offsets and points.
+/// per voxel; for the object's rays the outer volume's records, offsets and points; the rays' hits.
 size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real, bool virtualObject) {
   const size_t r = static_cast<size_t>(k.resolution), n = r * r * r;
   const size_t c = static_cast<size_t>(k.bands) * k.bands;
   const size_t versions = real ? 2 : 1;
   const bool own = virtualObject && k.objectRays > 0;
-  const size_t perVoxel = kVoxelRecords * 16 + versions * (3 * c * 4 + 4) + (k.bounces > 1 ? 3 * c * 4 + 16 : 0) + 4 +
-                          4 + (own ? 16 : 0) + (own && k.bounces > 1 ? 16 : 0);
+  const size_t perVoxel = kVoxelRecords * 16 + 4 + versions * (3 * c * 4 + 4) + (k.bounces > 1 ? 3 * c * 4 + 16 : 0) +
+                          4 + 4 + (own ? 16 : 0) + (own && k.bounces > 1 ? 16 : 0);
   const size_t directions = 16 * static_cast<size_t>(k.rays + (own ? k.objectRays : 0));
-  // The outer volume: records and offsets, its points budgeted as the grid's.
+  // The outer volume: records, occupancy and offsets, its points budgeted as the grid's.
   const size_t ro = own ? static_cast<size_t>(k.outerResolution) : 0, no = ro * ro * ro;
-  const size_t outer = no * (kVoxelRecords * 16 + 4) + ro * ro * 3 * 4 * 48;
-  return n * perVoxel + directions + 3 * r * r * 4 * 48 + outer;
+  const size_t outer = no * (kVoxelRecords * 16 + 4 + 4) + ro * ro * 3 * 4 * 48;
+  // The rays' hits (iv_hits.comp): the voxels within one of those three surfaces, 8 bytes a ray, at most the
+  // default budget.
+  const size_t hits = std::min(size_t{64} << 20, 9 * r * r * static_cast<size_t>(k.rays) * 8);
+  return n * perVoxel + directions + 3 * r * r * 4 * 48 + outer + hits;
 }
 
 }  // namespace
@@ -217,6 +220,7 @@ ImperfectVolumesTechnique::ImperfectVolumesTechnique(const TechniqueSetup& setup
       readoutProgram_(gl::Program::graphics("lighting/gl/fullscreen.vert",
                                             "lighting/techniques/imperfect_volumes/iv_readout.frag",
                                             {{"SH_BANDS", std::to_string(knobs_.bands)}})),
+      hitsProgram_(gl::Program::compute("lighting/techniques/imperfect_volumes/iv_hits.comp")),
       out_(setup.frame->techniqueView().width, setup.frame->techniqueView().height) {}
 
 void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler* profiler) {
@@ -250,6 +254,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       for (const cv::Vec3f& d : iv::rayDirections(knobs_.rays)) dirs.emplace_back(d[0], d[1], d[2], 0.0f);
       directions_ = gl::Buffer::storage(dirs.size() * sizeof(cv::Vec4f), dirs.data());
       voxels_ = gl::Buffer::storage(count * kVoxelRecords * sizeof(cv::Vec4f));
+      occupancy_ = gl::Buffer::storage(count * sizeof(uint32_t));
       incidentRho_ = real_ ? gl::Buffer::storage(count * 3 * static_cast<size_t>(C) * sizeof(float)) : gl::Buffer();
       incidentMu_ = gl::Buffer::storage(count * 3 * static_cast<size_t>(C) * sizeof(float));
       bounce_ = gl::Buffer::storage(knobs_.bounces > 1 ? count * 3 * static_cast<size_t>(C) * sizeof(float) : 0);
@@ -266,8 +271,10 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
       outerPointCount_ = op.count();
       outerPoints_ = gl::Buffer::storage(std::max<size_t>(op.data.size(), 1) * sizeof(cv::Vec4f), op.data.data());
       outerOffsets_ = gl::Buffer::storage(op.offsets.size() * sizeof(uint32_t), op.offsets.data());
-      if (!outerVoxels_.id())
-        outerVoxels_ = gl::Buffer::storage(o.count() * kVoxelRecords * sizeof(cv::Vec4f));  // the knob is fixed
+      if (!outerVoxels_.id()) {  // the knob is fixed
+        outerVoxels_ = gl::Buffer::storage(o.count() * kVoxelRecords * sizeof(cv::Vec4f));
+        outerOccupancy_ = gl::Buffer::storage(o.count() * sizeof(uint32_t));
+      }
       outerGrid_ = o;
     }
     if (!objectDirections_.id() && virtual_ && knobs_.objectRays > 0) {
@@ -290,14 +297,27 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, points_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, offsets_.id());
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 14, occupancy_.id());
     glDispatchCompute(static_cast<GLuint>((count + 63) / 64), 1, 1);
     if (outerGrid_) {
       p.set("uVoxelCount", static_cast<int>(outerGrid_->count()));
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, outerPoints_.id());
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, outerOffsets_.id());
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, outerVoxels_.id());
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 14, outerOccupancy_.id());
       glDispatchCompute(static_cast<GLuint>((outerGrid_->count() + 63) / 64), 1, 1);
     }
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  const size_t hitBytes = neededCount_ * static_cast<size_t>(knobs_.rays) * 2 * sizeof(int32_t);
+  hitsCached_ = neededCount_ > 0 && hitBytes <= hitsBudget_;
+  if (hitsCached_) {
+    // Each needed voxel's rays marched once, for every pass below that casts them.
+    auto s = timed(profiler, "iv.hits");
+    if (static_cast<size_t>(hits_.size()) < hitBytes) hits_ = gl::Buffer::storage(hitBytes);
+    useVoxelRays(hitsProgram_, frame, false);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, hits_.id());
+    glDispatchCompute(static_cast<GLuint>((neededCount_ + 31) / 32), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   }
   if (virtual_ && knobs_.objectRays > 0) {
@@ -341,7 +361,7 @@ void ImperfectVolumesTechnique::build(const FrameResources& frame, gl::Profiler*
   if (outerGrid_) stats_["outer_points"] = outerPointCount_, stats_["outer_voxel_m"] = outerGrid_->voxel;
 }
 
-void ImperfectVolumesTechnique::useVoxelRays(const gl::Program& p, const FrameResources& frame) const {
+void ImperfectVolumesTechnique::useVoxelRays(const gl::Program& p, const FrameResources& frame, bool readsHits) const {
   const iv::Grid& g = *grid_;
   p.use();
   setVec3(p, "uGridOrigin", g.origin);
@@ -350,10 +370,14 @@ void ImperfectVolumesTechnique::useVoxelRays(const gl::Program& p, const FrameRe
   p.set("uNeededCount", static_cast<int>(neededCount_));
   p.set("uRays", knobs_.rays);
   p.set("uRange", static_cast<float>(knobs_.range));
-  setAmbientUniforms(p, frame);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, voxels_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 14, occupancy_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, needed_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, directions_.id());
+  if (!readsHits) return;
+  setAmbientUniforms(p, frame);
+  p.set("uCachedHits", hitsCached_ ? 1 : 0);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, (hitsCached_ ? hits_ : voxels_).id());  // a stand-in when not kept
 }
 
 void ImperfectVolumesTechnique::gather(const FrameResources& frame, bool rho) {
@@ -444,6 +468,8 @@ void ImperfectVolumesTechnique::update(const FrameResources& frame, gl::Profiler
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 12, (objectRays ? hidden_ : voxels_).id());
   const bool outer = objectRays && outerGrid_;
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 13, (outer ? outerVoxels_ : voxels_).id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 14, occupancy_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 15, (outer ? outerOccupancy_ : occupancy_).id());
   p.set("uOuterResolution", outer ? outerGrid_->resolution : 0);
   if (outer) {
     setVec3(p, "uOuterOrigin", outerGrid_->origin);
@@ -575,9 +601,10 @@ nlohmann::json ImperfectVolumesTechnique::stats() const { return stats_; }
 
 size_t ImperfectVolumesTechnique::gpuBytes() const {
   size_t sum = out_.bytes();
-  for (const gl::Buffer* b : {&points_, &offsets_, &voxels_, &needed_, &directions_, &incidentRho_, &incidentMu_,
-                              &occlusionRho_, &occlusionMu_, &reflected_, &bounce_, &computed_, &objectDirections_,
-                              &reflectedSum_, &hidden_, &outerPoints_, &outerOffsets_, &outerVoxels_})
+  for (const gl::Buffer* b :
+       {&points_,       &offsets_,     &voxels_,       &needed_,      &directions_, &incidentRho_,      &incidentMu_,
+        &occlusionRho_, &occlusionMu_, &reflected_,    &bounce_,      &computed_,   &objectDirections_, &reflectedSum_,
+        &hidden_,       &outerPoints_, &outerOffsets_, &outerVoxels_, &occupancy_,  &outerOccupancy_,   &hits_})
     sum += static_cast<size_t>(b->id() ? b->size() : 0);
   return sum;
 }

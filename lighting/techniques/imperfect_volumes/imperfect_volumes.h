@@ -85,23 +85,34 @@ class ImperfectVolumesTechnique final : public Technique {
   /// the object casts its own rays).
   std::vector<cv::Vec3f> downloadHidden() const;
 
+  /// The most bytes the rays' hits may take (8 per voxel ray, iv_hits.comp): within it each needed voxel's rays
+  /// are marched once for the hidden ambient, both gathers and every bounce; past it each of those passes
+  /// marches them itself (the same hits). Default 64 MiB (a 64³ grid's surfaces at 256 rays fit).
+  void setHitsBudget(size_t bytes) { hitsBudget_ = bytes; }
+  /// Whether the last build kept the rays' hits.
+  bool hitsCached() const { return hitsCached_; }
+
  private:
   void build(const FrameResources& frame, gl::Profiler* profiler);
   void gather(const FrameResources& frame, bool rho);
 
   ImperfectVolumesKnobs knobs_;
   bool real_ = false, virtual_ = false;
-  gl::Program injectProgram_, gatherProgram_, reflectProgram_, hiddenProgram_, coneProgram_, readoutProgram_;
-  /// Uses a pass that casts rays from the needed voxels: the grid, the rays and range, the ambient; binds the
-  /// voxels (2), the needed list (3) and the directions (4).
-  void useVoxelRays(const gl::Program& p, const FrameResources& frame) const;
+  gl::Program injectProgram_, gatherProgram_, reflectProgram_, hiddenProgram_, coneProgram_, readoutProgram_,
+      hitsProgram_;
+  size_t hitsBudget_ = size_t{64} << 20;
+  bool hitsCached_ = false;
+  /// Uses a pass that casts rays from the needed voxels: the grid, the rays and range; binds the voxels (2),
+  /// their occupancy (14), the needed list (3) and the directions (4); for a pass that reads the rays' hits
+  /// (every one but iv_hits.comp itself) also the ambient, whether the hits are kept, and the hits (1).
+  void useVoxelRays(const gl::Program& p, const FrameResources& frame, bool readsHits = true) const;
   std::optional<iv::Bound> coneBound_;
   std::optional<iv::Grid> grid_, outerGrid_;
   /// The frame versions the volume was built from (geometry, lights, ambient).
   std::optional<std::array<uint64_t, 3>> builtFrom_;
   gl::Buffer points_, offsets_, voxels_, needed_, directions_, incidentRho_, incidentMu_, occlusionRho_, occlusionMu_,
       reflected_, bounce_, computed_, objectDirections_, reflectedSum_, hidden_, outerPoints_, outerOffsets_,
-      outerVoxels_;
+      outerVoxels_, occupancy_, outerOccupancy_, hits_;
   size_t neededCount_ = 0, pointCount_ = 0, outerPointCount_ = 0;
   IrradianceTargets out_;
   gl::VertexArray emptyVao_;

@@ -16,6 +16,12 @@ struct IvVoxel {
   vec4 exitantVirtual;  // rgb: mean radiance the lights give the virtual points, w = their count
 };
 
+// A voxel's occupancy word (iv_inject.comp writes it beside the record): real points (exitantMu.w > 0),
+// virtual points (exitantVirtual.w > 0), any points (exitantRho.w > 0).
+const uint IV_REAL = 1u;
+const uint IV_VIRTUAL = 2u;
+const uint IV_ANY = 4u;
+
 
 
 uniform vec3 uGridOrigin;

@@ -9,9 +9,12 @@
 layout(local_size_x = 32) in;
 
 layout(std430, binding = 2) readonly buffer Voxels { IvVoxel voxels[]; };
+layout(std430, binding = 14) readonly buffer Occupancy { uint occupancy[]; };  // iv.glsl IV_REAL ...
 layout(std430, binding = 3) readonly buffer Needed { uint needed[]; };
 layout(std430, binding = 4) readonly buffer Directions { vec4 directions[]; };
 layout(std430, binding = 5) buffer Incident { float incident[]; };
+layout(std430, binding = 1) readonly buffer Hits { ivec2 hits[]; };  // iv_hits.comp (uCachedHits)
+uniform int uCachedHits;  // 1: the rays' hits from iv_hits.comp, 0: marched here
 
 uniform int uNeededCount;
 uniform int uRays;
@@ -25,12 +28,14 @@ uniform vec4 uBound;  // xyz centre, w radius (lighting world)
 vec3 ivReflectedAt(int v) { return vec3(0.0); }  // the cone takes the first bounce only
 #include "lighting/techniques/imperfect_volumes/iv_march.glsl"
 
-// What one ray of the first gather brings (iv.cpp firstGatherRadiance).
-vec3 firstGather(vec3 o, vec3 d, bool rho) {
+// What one ray of the first gather with hits h brings (iv.cpp firstGatherRadiance).
+vec3 firstGather(ivec2 h, vec3 d, bool rho) {
   bool hit, open;
-  vec3 L = ivSurfaces(o, d, rho, false, hit, open);
+  vec3 L = ivSurfaces(h, d, rho, false, hit, open);
   return open ? L + ambientRadiance(uAmbient, uAmbientSh, d) : L;
 }
+// L_rho - L_mu along one ray: one march serves both versions.
+vec3 rhoMinusMu(ivec2 h, vec3 d) { return firstGather(h, d, true) - firstGather(h, d, false); }
 
 void main() {
   int slot = int(gl_GlobalInvocationID.x);
@@ -49,7 +54,7 @@ void main() {
   for (int j = 0; j < uRays; ++j) {
     vec3 d = directions[j].xyz;
     if (dot(d, u) < cosA) continue;
-    vec3 diff = firstGather(o, d, true) - firstGather(o, d, false);
+    vec3 diff = rhoMinusMu(ivRayHits(slot, j, o, d), d);
     if (diff == vec3(0.0)) continue;
     float y[SH_COEFFS];
     shEvaluate(d, y);
@@ -68,7 +73,7 @@ void main() {
     float c = 1.0 - (1.0 - cosA) * (float(k) + 0.5) / float(uConeRays);
     float s = sqrt(max(0.0, 1.0 - c * c)), phi = golden * float(k);
     vec3 d = normalize(s * cos(phi) * x + s * sin(phi) * yAxis + c * u);
-    vec3 diff = firstGather(o, d, true) - firstGather(o, d, false);
+    vec3 diff = rhoMinusMu(ivHitsWithinRange(o, d), d);
     if (diff == vec3(0.0)) continue;
     float y[SH_COEFFS];
     shEvaluate(d, y);

@@ -12,8 +12,11 @@
 layout(local_size_x = 32) in;
 
 layout(std430, binding = 2) readonly buffer Voxels { IvVoxel voxels[]; };
+layout(std430, binding = 14) readonly buffer Occupancy { uint occupancy[]; };  // iv.glsl IV_REAL ...
 layout(std430, binding = 3) readonly buffer Needed { uint needed[]; };
 layout(std430, binding = 4) readonly buffer Directions { vec4 directions[]; };
+layout(std430, binding = 1) readonly buffer Hits { ivec2 hits[]; };  // iv_hits.comp (uCachedHits)
+uniform int uCachedHits;  // 1: the rays' hits from iv_hits.comp, 0: marched here
 layout(std430, binding = 5) buffer Incident { float incident[]; };
 layout(std430, binding = 6) buffer Occlusion { float occlusion[]; };
 // Exitant radiance per voxel of a later bounce (rgb; uExitantFromBuffer): what the voxel reflects.
@@ -50,7 +53,7 @@ void main() {
     vec3 d = directions[j].xyz;
     bool hit, open;
     // In rho the objects hide nothing: the ray goes on to the first real surface (iv.h marchSurfaces).
-    vec3 surfaces = ivSurfaces(o, d, uRho == 1, uExitantFromBuffer == 1, hit, open);
+    vec3 surfaces = ivSurfaces(ivRayHits(slot, j, o, d), d, uRho == 1, uExitantFromBuffer == 1, hit, open);
     if (hit) ++hits;
     vec3 L = surfaces;
     if (open && uAmbientOn == 1) L += ambientRadiance(uAmbient, uAmbientSh, d);

@@ -224,3 +224,46 @@ TEST(GL, ImperfectVolumesLeaveTheAmbientTheObjectHidesToTheShadingPassAndTakeThe
   EXPECT_GT(e[0], 3.0f * e[1]) << e;
   EXPECT_GT(e[0], 0.0f);
 }
+
+TEST(GL, ImperfectVolumesMarchEachRayOnceAndEveryPassReadsTheSameHits) {
+  auto ctx = makeContext();
+  // The rays' hits kept by iv_hits.comp (the default budget) against every pass marching its own rays (no
+  // budget): the ambient the cube hides, both gathers over two bounces, the objects' cone and the read-outs
+  // identical to the bit.
+  const TestScene s = makeScene(true, 0.12, {-0.36, 0.0, 0.06});
+  PipelineConfig cfg = ivConfig("imperfect-volumes", 16, 2);
+  cfg.set("iv", "object_rays", 32);
+  struct Run {
+    iv::Incident rho, mu;
+    std::vector<cv::Vec3f> hidden;
+    cv::Mat delta, virt;
+    bool cached = false;
+  };
+  const auto run = [&](size_t budget) {
+    LightingPipeline pipe = makePipeline(cfg, s);
+    dynamic_cast<ImperfectVolumesTechnique&>(*pipe.technique("imperfect-volumes")).setHitsBudget(budget);
+    pipe.setAmbientSh({cv::Vec3d(0.05, 0.05, 0.05), {}, cv::Vec3d(0.03, 0.02, 0.01)});
+    pipe.run(wallCamera(), wallLamp(), {0.1, 0.1, 0.12}, nullptr);
+    const ImperfectVolumesTechnique& t = ivOf(pipe);
+    return Run{t.downloadIncident(true),
+               t.downloadIncident(false),
+               t.downloadHidden(),
+               download4(*t.outputs().realDelta),
+               download4(*t.outputs().virtualIrradiance),
+               t.hitsCached()};
+  };
+  const Run kept = run(size_t{64} << 20), marched = run(0);
+  EXPECT_TRUE(kept.cached);
+  EXPECT_FALSE(marched.cached);
+  EXPECT_EQ(kept.rho.sh, marched.rho.sh);
+  EXPECT_EQ(kept.rho.occlusion, marched.rho.occlusion);
+  EXPECT_EQ(kept.mu.sh, marched.mu.sh);
+  EXPECT_EQ(kept.mu.occlusion, marched.mu.occlusion);
+  EXPECT_EQ(kept.hidden, marched.hidden);
+  int hiding = 0;
+  for (const cv::Vec3f& h : kept.hidden) hiding += h[0] > 0.f;
+  EXPECT_GT(hiding, 10);
+  EXPECT_EQ(cv::norm(kept.delta, marched.delta, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(kept.virt, marched.virt, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(kept.delta, cv::NORM_INF), 0.0);
+}

@@ -18,6 +18,7 @@ layout(binding = 1) uniform sampler2D uGNormal;
 layout(binding = 2) uniform sampler2D uGAlbedo;
 
 layout(std430, binding = 2) readonly buffer Voxels { IvVoxel voxels[]; };
+layout(std430, binding = 14) readonly buffer Occupancy { uint occupancy[]; };  // iv.glsl IV_REAL ...
 layout(std430, binding = 5) readonly buffer IncidentRho { float incidentRho[]; };
 layout(std430, binding = 9) readonly buffer IncidentMu { float incidentMu[]; };
 layout(std430, binding = 10) readonly buffer Computed { uint computed[]; };  // 1 per voxel whose rays were cast
@@ -28,6 +29,7 @@ layout(std430, binding = 11) readonly buffer ReflectedSumMu { vec4 reflectedSumM
 layout(std430, binding = 12) readonly buffer Hidden { vec4 hidden[]; };  // iv_hidden.comp
 // The coarser outer volume the object's rays continue in past the grid (iv.h outerGrid; uOuterResolution 0: none).
 layout(std430, binding = 13) readonly buffer OuterVoxels { IvVoxel outerVoxels[]; };
+layout(std430, binding = 15) readonly buffer OuterOccupancy { uint outerOccupancy[]; };
 uniform vec3 uOuterOrigin;
 uniform float uOuterVoxel;
 uniform int uOuterResolution;
@@ -69,7 +71,7 @@ int chooseVoxels(vec3 x, vec3 n) {
           float len = length(to);
           float cosT = len > 0.0 ? dot(n, to) / len : 0.0;
           if (!(cosT > 0.0)) continue;
-          bool occupied = voxels[v].exitantRho.w > 0.0;
+          bool occupied = (occupancy[v] & IV_ANY) != 0u;
           if (pass == 0) {
             anyFree = anyFree || !occupied;
             continue;
@@ -143,7 +145,7 @@ int marchFromPoint(vec3 x, vec3 d, out float t, out float tExit) {
     }
     if (c == own) continue;
     int v = ivIndex(c);
-    if (voxels[v].exitantMu.w > 0.0) return v;
+    if ((occupancy[v] & IV_REAL) != 0u) return v;
   }
   return -1;
 }
@@ -161,7 +163,7 @@ int marchOuter(vec3 x, vec3 d, float from, out float t) {
     if (!outerVoxelOf(x + t * d, c)) return -1;
     if (c == own) continue;
     int v = ivIndexIn(uOuterResolution, c);
-    if (outerVoxels[v].exitantMu.w > 0.0) return v;
+    if ((outerOccupancy[v] & IV_REAL) != 0u) return v;
   }
   return -1;
 }
@@ -204,7 +206,7 @@ vec3 pointGather(vec3 x, vec3 n) {
       if (any(lessThan(k, ivec3(0))) || any(greaterThanEqual(k, ivec3(uResolution)))) continue;
       int v = ivIndex(k);
       vec3 Lv;
-      if (!(voxels[v].exitantMu.w > 0.0) || !surfaceSends(v, d, Lv)) continue;
+      if ((occupancy[v] & IV_REAL) == 0u || !surfaceSends(v, d, Lv)) continue;
       float w = ((corner & 1) != 0 ? f.x : 1.0 - f.x) * ((corner & 2) != 0 ? f.y : 1.0 - f.y) * ((corner & 4) != 0 ? f.z : 1.0 - f.z);
       sum += w * Lv;
       wSum += w;
