@@ -9,7 +9,11 @@
 #include <cstdio>
 #include <limits>
 
+#include "capture/colour.h"
 #include "capture/view_factor.h"
+#include "groundtruth/path_tracer.h"
+#include "lighting/scene_file.h"
+#include "lighting/sh.h"
 #include "lighting/upsample.h"
 #include "test_scene.h"
 
@@ -473,6 +477,121 @@ TEST(ObjectShadow, ShadingPassAddsTheLightTheObjectReflectsAsItsCppTwin) {
   EXPECT_GT(judged, 1000);
   EXPECT_GT(brightened, 500);
   EXPECT_LT(worst, 2e-3);
+}
+
+TEST(ObjectShadow, UnderARoomTheShadowIsThePathTracersWithinTheSHBandLimit) {
+  // A closed room, grey, lit by nothing but its emissive ceiling and one warm emissive wall (no delta light, no
+  // compact source: the light of broad surfaces, what a fused room's SH holds beside its lights), and a sphere
+  // 5 cm over the floor. The path tracer renders the floor from above with and without it (the same random
+  // numbers; two seeds for its noise); the shading pass's C++ twin takes what the sphere hides as the room's
+  // radiance arriving at its centre, three SH bands projected from traced rays (as RoomLights::surfacesSh
+  // hands the pass a fused room's), and its lit fractions as the pass has them. Per ring about the sphere's
+  // axis (sphere radii), the floor's radiance change:
+  //  - a black sphere (the occlusion integral alone): within 10 % + 3 noise sigma in every ring (measured
+  //    2.5, 3.7, 7.6, 0.4, -7.6 % from the inner ring out, the noise about 1 %: the three bands' limit across
+  //    the cap and towards the horizon), the sum over the rings within 4 %;
+  //  - a grey one (albedo 0.5, what it reflects of the room as well): the sum within 15 % (measured +11 %: the
+  //    lit fraction of the floor its face sees, blended towards the ground under it (blendLit), is darker than
+  //    the traced one for a sphere that does not touch the floor; with no blend the rings read within 9 %).
+  using namespace groundtruth;
+  const float a = 0.5f, r = 0.1f;
+  const cv::Vec3f centre(0.f, 0.f, 0.15f);
+  Scene real;
+  real.addBox({-1.5f, -1.5f, 0.f}, {1.5f, 1.5f, 2.5f}, real.addMaterial({"room", {a, a, a}}), true);
+  groundtruth::Material ceiling{"ceiling", {0, 0, 0}}, wall{"warm wall", {0, 0, 0}};
+  ceiling.emission = {1.0f, 1.0f, 1.0f};
+  wall.emission = {2.0f, 1.2f, 0.5f};
+  real.addQuad({-1.49f, 1.49f, 2.49f}, {2.98f, 0.f, 0.f}, {0.f, -2.98f, 0.f}, real.addMaterial(ceiling));
+  real.addQuad({-1.49f, -1.49f, 0.01f}, {0.f, 2.98f, 0.f}, {0.f, 0.f, 2.48f}, real.addMaterial(wall));
+  const RayCaster realCaster(real);
+
+  // The room's radiance at the sphere's centre, projected to three SH bands (4096 directions, 8 paths each).
+  Ambient hidden;
+  {
+    PathTraceOptions o;
+    o.bounces = 4;
+    const PathTracer tracer(realCaster, o);
+    cv::RNG rng(7);
+    const int n = 4096, paths = 8;
+    std::array<cv::Vec3d, 9> c{};
+    for (int j = 0; j < n; ++j) {
+      const double z = 1.0 - 2.0 * (j + 0.5) / n, s = std::sqrt(1.0 - z * z), phi = j * CV_PI * (3.0 - std::sqrt(5.0));
+      const cv::Vec3f w(static_cast<float>(s * std::cos(phi)), static_cast<float>(s * std::sin(phi)),
+                        static_cast<float>(z));
+      cv::Vec3d L(0, 0, 0);
+      for (int k = 0; k < paths; ++k) L += cv::Vec3d(tracer.trace(centre, w, rng));
+      double y[9];
+      sh::evaluate(cv::Vec3d(w), 3, y);
+      for (int q = 0; q < 9; ++q) c[static_cast<size_t>(q)] += (4.0 * CV_PI / (n * paths)) * y[q] * L;
+    }
+    for (size_t q = 0; q < 9; ++q) hidden.sh[q] = cv::Vec3f(c[q]);
+  }
+  ASSERT_GT(cv::norm(hidden.sh[1]) + cv::norm(hidden.sh[3]), 0.05 * cv::norm(hidden.sh[0]))
+      << "the room's light has a direction";
+
+  // The floor from 1 m above, 48 x 48 pixels over +-0.58 m.
+  PinholeCamera cam;
+  const int w = 48;
+  const double f = 0.5 * w / std::tan(30 * CV_PI / 180);
+  cam.intrinsics = {w, w, f, f, (w - 1) / 2.0, (w - 1) / 2.0};
+  cam.T_world_camera = capture::Pose(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 1.0, 0, 0, 0, 1);
+  const Mesh ball = loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
+  const cv::Vec3f up(0, 0, 1);
+  const std::array<double, 6> rings{1.2, 1.5, 2.0, 3.0, 4.0, 5.5};
+  for (const float albedo : {0.0f, a}) {
+    Scene with = real;
+    groundtruth::Material object{"object", {albedo, albedo, albedo}};
+    object.isVirtual = true;
+    with.addMesh(ball.positions, ball.normals, ball.indices, with.addMaterial(object),
+                 capture::makePose(cv::Matx33d::eye() * r, cv::Vec3d(centre)));
+    std::array<cv::Mat, 2> traced;
+    cv::Mat mask;
+    for (int seed = 0; seed < 2; ++seed) {
+      PathTraceOptions o;
+      o.spp = 1024;
+      o.bounces = 4;
+      o.seed = static_cast<uint64_t>(seed + 1);
+      const DifferentialImages d = renderDifferential(with, real, cam, o);
+      traced[static_cast<size_t>(seed)] = d.delta();
+      mask = d.mask;
+    }
+    const std::vector<OccluderSphere> spheres{{centre, r, {albedo, albedo, albedo}}};
+    double modelTotal = 0, tracedTotal = 0;
+    for (size_t k = 0; k + 1 < rings.size(); ++k) {
+      double model = 0, sum = 0, spread = 0;
+      int count = 0;
+      for (int y = 0; y < w; ++y)
+        for (int x = 0; x < w; ++x) {
+          if (mask.at<uchar>(y, x)) continue;
+          cv::Vec3f o, d;
+          cameraRay(cam, x, y, o, d);
+          const cv::Vec3f p = o + (-o[2] / d[2]) * d;
+          const double rho = std::hypot(p[0], p[1]) / r;
+          if (rho < rings[k] || rho >= rings[k + 1]) continue;
+          const FacedGround g = facedGround(p, up, spheres);
+          const cv::Vec3f lit = blendLit(litFraction(hidden, p, up, spheres, {}, {}),
+                                         litFraction(hidden, g.point, up, spheres, {}, {}), g.weight);
+          model -= capture::luminance(cv::Vec3d(ambientShadow(hidden, p, up, spheres, lit))) * a / CV_PI;
+          const double t0 = capture::luminance(cv::Vec3d(traced[0].at<cv::Vec3f>(y, x))),
+                       t1 = capture::luminance(cv::Vec3d(traced[1].at<cv::Vec3f>(y, x)));
+          sum += 0.5 * (t0 + t1);
+          spread += (t0 - t1) * (t0 - t1);
+          ++count;
+        }
+      ASSERT_GT(count, 30) << "ring " << k;
+      modelTotal += model, tracedTotal += sum;
+      model /= count;
+      const double mean = sum / count, noise = std::sqrt(spread / count) / (2.0 * std::sqrt(double(count)));
+      ASSERT_LT(mean, -10 * noise) << "the traced shadow stands out of its noise, ring " << k;
+      std::printf("albedo %.1f, %.1f-%.1f radii, %d px: traced %.5f +- %.5f, pass %.5f W/m^2/sr (%+.1f %%)\n", albedo,
+                  rings[k], rings[k + 1], count, mean, noise, model, 100 * (model / mean - 1));
+      if (albedo == 0.0f)
+        EXPECT_LT(std::abs(model - mean), 0.10 * std::abs(mean) + 3 * noise) << "ring " << k;
+      else
+        EXPECT_LT(std::abs(model - mean), 0.25 * std::abs(mean) + 3 * noise) << "ring " << k;
+    }
+    EXPECT_NEAR(modelTotal / tracedTotal, 1.0, albedo == 0.0f ? 0.04 : 0.15) << "albedo " << albedo;
+  }
 }
 
 }  // namespace
