@@ -378,6 +378,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     }
     p.use();
     p.set("uLighting", lit ? 1 : 0);
+    p.set("uRealDeltaOn", realOut.realDelta ? 1 : 0);
     p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
     setObjectTermUniforms(p);
     setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)

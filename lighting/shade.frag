@@ -43,6 +43,7 @@ uniform int uRealDeltaFactor, uVirtualIrradianceFactor, uVirtualRadianceFactor; 
 #include "lighting/direct_light.glsl"
 
 uniform int uLighting;          // 0: no virtual object in this frame (everything zero)
+uniform int uRealDeltaOn;       // 0: the real-role technique hands out no real-pixel delta (uRealDelta unread)
 uniform int uAddDirectShadow;   // 1: the real-role technique leaves the object's direct shadow to this pass
 uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
@@ -95,7 +96,8 @@ void main() {
   }
 #endif
   {
-    vec3 delta = techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal);
+    // A real-role technique without a real-pixel output of its own (Kinect-VAL) hands out none: nothing read.
+    vec3 delta = uRealDeltaOn == 1 ? techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal) : vec3(0.0);
     // Only where the objects reach: a sphere seen at a view factor of at least lighting::kObjectsMinViewFactor, or
     // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero and skipped.
     bool seen = objectsSeen(pos.xyz, n);
