@@ -2,6 +2,7 @@
 // What a frame carries through the frame pipeline (runtime/frame_pipeline.h): its measurement and result,
 // the real surface the lighting sees, and the CPU half prepared ahead of the GL half.
 #include <array>
+#include <future>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -10,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "gl/profiler.h"
 #include "lighting/frame/mesh.h"
 #include "lighting/frame/technique_input.h"
 #include "lighting/scene.h"
@@ -40,6 +42,15 @@ struct RealSurface {
   cv::Mat pixelAlbedo;  ///< CV_32FC3 per colour pixel (the vertices sample it every meshStride pixels)
 };
 
+/// What fusing a frame into the room being built gave (FrameOptions::fuse), from the fusion thread: the
+/// facts for FrameResult::info["room_fusion"], the room's surface when this frame refreshed it, and the stages it
+/// timed (room_fusion, room_mesh).
+struct FusedFrame {
+  nlohmann::json info = nlohmann::json::object();
+  std::shared_ptr<const reconstruction::RoomMesh> refreshedRoom;
+  std::shared_ptr<gl::Profiler> stages;
+};
+
 /// The CPU half of a frame (FramePipeline::prepare): its measurement and, lit from its own depth, its real
 /// surface and the techniques' own inputs, with the lights and ambient it is to be lit under. It touches no GL, so the
 /// next frame's may be made on another thread while the GL half of this one runs.
@@ -48,6 +59,8 @@ struct PreparedFrame {
   std::optional<RealSurface> surface;  ///< the real scene from this frame's depth, when built
   /// The techniques' own inputs from this frame (technique name, input), when built.
   std::vector<std::pair<std::string, std::shared_ptr<const lighting::TechniqueInput>>> inputs;
+  /// FrameOptions::fuse: the frame's fusion, running on the pipeline's fusion thread (render() takes it up).
+  std::shared_future<FusedFrame> fused;
   /// FrameOptions::fuse: the room's surface refreshed after this frame was fused (render() takes it up).
   std::shared_ptr<const reconstruction::RoomMesh> refreshedRoom;
   std::vector<lighting::SceneLight> lights;  ///< marker frame, as they were for this frame

@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <cstdlib>
+#include <deque>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 #include "capture/colour.h"
 #include "capture/error.h"
@@ -200,6 +203,74 @@ double relativeChange(const cv::Mat& a, const cv::Mat& b) {
 }
 }  // namespace
 
+/// Frames fused in the order they were handed over, one at a time, on a thread of its own. Each job's result
+/// (or exception) is its future's; the destructor lets the queued jobs finish, then joins (fusion touches no
+/// device, so it cannot hang there).
+class FramePipeline::Fuser {
+ public:
+  Fuser() : thread_([this] { loop(); }) {}
+  ~Fuser() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+  }
+  std::shared_future<FusedFrame> submit(std::function<FusedFrame()> job) {
+    std::packaged_task<FusedFrame()> task(std::move(job));
+    std::shared_future<FusedFrame> result = task.get_future().share();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      queue_.push_back(std::move(task));
+    }
+    wake_.notify_all();
+    return result;
+  }
+  /// Waits until every job handed over so far has run.
+  void drain() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    idle_.wait(lock, [this] { return queue_.empty() && !busy_; });
+  }
+
+ private:
+  void loop() {
+    for (;;) {
+      std::packaged_task<FusedFrame()> task;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        wake_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+        if (queue_.empty()) return;  // stopped, and nothing left to fuse
+        task = std::move(queue_.front());
+        queue_.pop_front();
+        busy_ = true;
+      }
+      task();
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        busy_ = false;
+      }
+      idle_.notify_all();
+    }
+  }
+  std::mutex mutex_;
+  std::condition_variable wake_, idle_;
+  std::deque<std::packaged_task<FusedFrame()>> queue_;
+  bool busy_ = false, stop_ = false;
+  std::thread thread_;  ///< last: it starts once the rest is constructed
+};
+
+FramePipeline::~FramePipeline() = default;
+
+const reconstruction::RoomModel* FramePipeline::liveRoom() const {
+  finishFusion();
+  return options_.fuse.get();
+}
+
+void FramePipeline::finishFusion() const {
+  if (fuser_) fuser_->drain();
+}
+
 cv::Mat measuredDepth(const FrameResult& r) {
   cv::Mat depth;
   cv::extractChannel(r.positions, depth, 2);
@@ -252,25 +323,51 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, PreparedFrame& p, 
   FrameResult& r = p.result;
   if (!r.T_marker_camera || r.positions.empty() || r.reusedSurface) return;
   if (r.pose.held()) {
+    finishFusion();  // blocks() reads the room
     r.info["room_fusion"] = {{"integrated", false}, {"refused", "held pose"}, {"blocks", options_.fuse->blocks()}};
     return;
   }
+  // The fusion thread takes copies: the frame may be gone before it is fused.
+  if (!fuser_) fuser_ = std::make_unique<Fuser>();
+  p.fused = fuser_->submit([this, depth = measuredDepth(r), colour = rgbd.colour.clone(), k = rgbd.colourIntrinsics,
+                            T = *r.T_marker_camera,
+                            exposure = rgbd.exposure] { return fuse(depth, colour, k, T, exposure); });
+}
+
+FusedFrame FramePipeline::fuse(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& k,
+                               const capture::Pose& T_marker_camera, double exposure) {
+  FusedFrame f;
+  f.stages = std::make_shared<gl::Profiler>();
   reconstruction::RoomIntegration in;
   {
-    auto s = profiler.cpu("room_fusion");
-    in = options_.fuse->integrate(measuredDepth(r), rgbd.colour, rgbd.colourIntrinsics, *r.T_marker_camera,
-                                  rgbd.exposure);
+    auto s = f.stages->cpu("room_fusion");
+    in = options_.fuse->integrate(depth, colour, k, T_marker_camera, exposure);
   }
-  r.info["room_fusion"] = {{"integrated", in.integrated}, {"blocks", options_.fuse->blocks()}};
-  if (!in.integrated) r.info["room_fusion"]["refused"] = in.refused;
+  f.info = {{"integrated", in.integrated}, {"blocks", options_.fuse->blocks()}};
+  if (!in.integrated) f.info["refused"] = in.refused;
   ++framesSinceRefresh_;
-  if (!in.integrated || (fusedSurface_ && framesSinceRefresh_ < std::max(options_.fuseRefresh, 1))) return;
-  auto s = profiler.cpu("room_mesh");
+  if (!in.integrated || (fusedSurface_ && framesSinceRefresh_ < std::max(options_.fuseRefresh, 1))) return f;
+  auto s = f.stages->cpu("room_mesh");
   auto mesh = std::make_shared<const reconstruction::RoomMesh>(options_.fuse->mesh());
-  if (mesh->positions.empty()) return;
+  if (mesh->positions.empty()) return f;
   fusedSurface_ = true;
   framesSinceRefresh_ = 0;
-  p.refreshedRoom = std::move(mesh);
+  f.refreshedRoom = std::move(mesh);
+  return f;
+}
+
+void FramePipeline::takeFused(PreparedFrame& p, gl::Profiler& profiler) {
+  const FusedFrame f = p.fused.get();  // the fusion's exception, if it threw
+  p.fused = {};
+  if (f.stages) profiler.adopt(*f.stages);
+  p.result.info["room_fusion"] = f.info;
+  if (f.refreshedRoom) {
+    p.refreshedRoom = f.refreshedRoom;
+    takenSurface_ = true;
+    takenSinceRefresh_ = 0;
+  } else {
+    ++takenSinceRefresh_;
+  }
 }
 
 void FramePipeline::useRefreshedRoom(std::shared_ptr<const reconstruction::RoomMesh> mesh, FrameResult& r) {
@@ -580,6 +677,20 @@ void FramePipeline::render(const capture::Frame& frame, FrameResult& r, composit
 
 void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor,
                            gl::Profiler& profiler) {
+  // A frame whose fusion may refresh the room's surface is lit by it: it waits for its fusion first. Any other
+  // is fused while it renders (and the next frame is measured), and takes its facts at the end: the same
+  // composites as fusing on the preparing thread.
+  if (p.fused.valid() && (!takenSurface_ || takenSinceRefresh_ + 1 >= std::max(options_.fuseRefresh, 1)))
+    takeFused(p, profiler);
+  renderFrame(frame, p, compositor, profiler);
+  if (p.fused.valid()) {
+    takeFused(p, profiler);
+    if (p.refreshedRoom) throw std::logic_error("FramePipeline::render: a frame refreshed the room after it was lit");
+  }
+}
+
+void FramePipeline::renderFrame(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor,
+                                gl::Profiler& profiler) {
   if (p.refreshedRoom) useRefreshedRoom(std::move(p.refreshedRoom), p.result);
   if (litByRoom()) takeLights(p);  // lights from the room as it now is
   FrameResult& r = p.result;

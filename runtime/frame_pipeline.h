@@ -76,6 +76,7 @@ class FramePipeline {
  public:
   /// Without a setup frames are only decoded and composited as background.
   FramePipeline(std::optional<LightingSetup> setup, int width, int height, const FrameOptions& options);
+  ~FramePipeline();
   /// Processes one frame (registers its depth if needed) inside the current GL context: prepare, then render.
   FrameResult process(capture::Frame& frame, compositor::Compositor& compositor, gl::Profiler& profiler);
   /// The CPU half of process(): measure(), then the real surface and the techniques' own inputs from the frame's depth.
@@ -113,8 +114,11 @@ class FramePipeline {
   const reconstruction::RoomMesh* room() const { return options_.room.get(); }
   const std::vector<cv::Vec3f>& roomAlbedo() const { return roomAlbedo_; }
   const reconstruction::MeshRays& roomRays();
-  /// The room being fused (FrameOptions::fuse), else null.
-  const reconstruction::RoomModel* liveRoom() const { return options_.fuse.get(); }
+  /// The room being fused (FrameOptions::fuse), else null; every frame handed to the fusion thread is fused into it
+  /// first (finishFusion).
+  const reconstruction::RoomModel* liveRoom() const;
+  /// Waits until every frame prepared so far is fused (FrameOptions::fuse): the room is then this thread's to read.
+  void finishFusion() const;
 
  private:
   void estimateLights(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler);
@@ -145,15 +149,28 @@ class FramePipeline {
   struct RoomIndex;                    ///< nearest room vertex of a point (the view mesh's albedo)
   std::shared_ptr<RoomIndex> roomIndex_;
   std::shared_ptr<reconstruction::MeshRays> roomRays_;
+  /// The fusion thread's: frames fused since the room's surface was last refreshed, and whether it has one.
   int framesSinceRefresh_ = 0;
+  bool fusedSurface_ = false;
+  /// render()'s view of the same, from the fused frames it has taken up (frames in order): whether the next one
+  /// may refresh the surface, and so must be fused before it is lit.
+  int takenSinceRefresh_ = 0;
+  bool takenSurface_ = false;
   /// A refreshed fused room for the pose source, from the thread that fuses to the one that measures.
   std::mutex pendingModelMutex_;
   std::shared_ptr<const reconstruction::RoomMesh> pendingModel_;
-  /// FrameOptions::fuse: the measured frame into the live room, and the room's surface refreshed when due.
+  /// FrameOptions::fuse: the measured frame handed to the fusion thread, which fuses it into the live room and
+  /// refreshes the room's surface when due (fuse()).
   void fuseFrame(const capture::RgbdFrame& rgbd, PreparedFrame& p, gl::Profiler& profiler);
+  FusedFrame fuse(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& k,
+                  const capture::Pose& T_marker_camera, double exposure);
+  /// The frame's fusion taken up by render(): its facts, stages and refreshed surface (waits for it).
+  void takeFused(PreparedFrame& p, gl::Profiler& profiler);
+  /// render()'s work on a frame, its fusion taken up before (when it may refresh the room) or after.
+  void renderFrame(const capture::Frame& frame, PreparedFrame& p, compositor::Compositor& compositor,
+                   gl::Profiler& profiler);
   /// A refreshed surface of the room being fused becomes the room the frames are lit by (render's thread).
   void useRefreshedRoom(std::shared_ptr<const reconstruction::RoomMesh> mesh, FrameResult& r);
-  bool fusedSurface_ = false;  ///< the fusion has produced a surface (the preparing thread's)
   void useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Profiler& profiler);
   /// The real surface (and the techniques' own inputs) of a frame lit from its own depth, unless it has one, its last
   /// one holds, or a room lights it; keeps the reuse cache.
@@ -176,6 +193,10 @@ class FramePipeline {
   /// The frame's depth mesh, each vertex with the albedo of the nearest room vertex: the G-buffer's real surface.
   void roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r, gl::Profiler& profiler);
   cv::Mat thumbnail_;  ///< of the frame being processed
+  /// One thread that fuses the prepared frames into the live room in order (FrameOptions::fuse), while the next
+  /// frame is measured and this one rendered. Declared last: it finishes and joins before the rest goes.
+  class Fuser;
+  std::unique_ptr<Fuser> fuser_;
 };
 
 }  // namespace mrgi::runtime
