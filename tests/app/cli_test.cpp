@@ -716,14 +716,15 @@ TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
       "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128}, "val": {"sparse_points": 64}})");
   const fs::path movingScene = writeScene("overlap_moving.json", sphere + R"("lights": "manifest",
       "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128}, "val": {"sparse_points": 64}})");
-  // Both real scenes: each frame's depth mesh, and the room fused as the frames come (the default; the worker
-  // fuses frame n + 1 and hands its render a refreshed surface).
+  // Both real scenes: each frame's depth mesh, and the room fused as the frames come (the default; the fusion
+  // thread fuses frame n while frame n + 1 is measured, and a frame that refreshes the surface, here every
+  // other one, is lit by it).
   for (const auto& [source, scene, frames, fused] :
        {std::tuple{session(), fisheyeScene, 3, false}, std::tuple{moving, movingScene, 4, false},
         std::tuple{session(), fisheyeScene, 3, true}, std::tuple{moving, movingScene, 4, true}}) {
     std::vector<fs::path> outs;
-    for (const std::string mode :
-         {fused ? "" : " --per-frame-mesh", fused ? " --sequential" : " --per-frame-mesh --sequential"}) {
+    for (const std::string mode : {fused ? " --fuse-refresh 2" : " --per-frame-mesh",
+                                   fused ? " --fuse-refresh 2 --sequential" : " --per-frame-mesh --sequential"}) {
       const fs::path out = fs::temp_directory_path() /
                            ("mrgi_cli_overlap_" + std::to_string(outs.size()) + "_" + std::to_string(::getpid()));
       fs::remove_all(out);
@@ -737,6 +738,11 @@ TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
       for (const char* stage : fused ? std::vector<const char*>{"depth_filter", "room_fusion", "room_mesh"}
                                      : std::vector<const char*>{"depth_filter", "albedo", "mesh", "technique_inputs"})
         EXPECT_GT(s["stages_ms"][stage]["cpu_ms"].get<double>(), 0.0) << stage << mode;
+      if (fused) {
+        // The surface refreshed on the first frame, then every other frame fused.
+        for (int i = 0; i < frames; ++i)
+          EXPECT_EQ(s["per_frame"][i]["room_fusion"].contains("refreshed"), i % 2 == 0) << i << mode;
+      }
       if (source == moving)
         for (int i = 0; i < frames; ++i) EXPECT_EQ(s["per_frame"][i]["lights_from_frame"], 1) << i;
       else
