@@ -167,6 +167,7 @@ json LiveSession::finish(const std::string& screenshot) {
   if (!screenshot.empty()) summary["screenshot"] = screenshot;
   if (recorder_) summary["recorded"] = {{"session", recordDir_}, {"frames", recorder_->framesWritten()}};
   if (fo_.fuse) {
+    if (frames_) frames_->finishFusion();  // the frames handed to its fusion thread are in the room
     summary["room"] = {{"integrated", fo_.fuse->framesIntegrated()},
                        {"refused", fo_.fuse->framesRefused()},
                        {"blocks", fo_.fuse->blocks()}};
