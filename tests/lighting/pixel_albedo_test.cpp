@@ -52,7 +52,9 @@ TEST(PixelAlbedo, RealSurfacesTakeTheirPixelsAlbedoAndVirtualOnesKeepTheirMateri
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
       const cv::Vec4f a = g2.at<cv::Vec4f>(y, x);
-      if (pos.at<cv::Vec4f>(y, x)[3] > 0.5f && a[3] < 0.5f) ASSERT_NEAR(a[0], kFloorAlbedo[0], 1e-6);
+      if (pos.at<cv::Vec4f>(y, x)[3] > 0.5f && a[3] < 0.5f) {
+        ASSERT_NEAR(a[0], kFloorAlbedo[0], 1e-6);
+      }
     }
 }
 

@@ -67,7 +67,9 @@ TEST(ShadowFootprint, EveryReceiverAPartOfALightCannotSeeIsHeldAndLittleElse) {
       for (int j = 0; j < 120; ++j) {
         const cv::Vec3d x(-1.2 + 2.4 * (i + 0.5) / 120, -1.2 + 2.4 * (j + 0.5) / 120, 0.0);
         const bool h = partlyHidden(l, x, c, r, rng), m = lighting::mayShadow(l, c, r, x, 0.0);
-        if (h) ASSERT_TRUE(m) << "a receiver in the shadow left out at " << x;
+        if (h) {
+          ASSERT_TRUE(m) << "a receiver in the shadow left out at " << x;
+        }
         hidden += h;
         held += m;
       }

@@ -38,7 +38,9 @@ TEST(TermsHistory, EachReducedTexelsSourcePointProjectsBackOntoItself) {
         // Half a block over lands on the neighbour that is nearer, or stays.
         const auto r =
             historyTexel(h, floorPoint(c, reducedSource(i, factor, 64) + 0.45 * factor, reducedSource(j, factor, 48)));
-        if (r) EXPECT_LE(std::abs(r->x - i) + std::abs(r->y - j), 1);
+        if (r) {
+          EXPECT_LE(std::abs(r->x - i) + std::abs(r->y - j), 1);
+        }
       }
   }
   const HistoryCamera h = historyCamera(c, 2);
@@ -120,7 +122,9 @@ TEST(TermsHistory, ThePassBlendsWhereTheSurfaceAgreesAndADisocclusionTakesFreshV
       blended += agrees;
       moved += agrees && cv::norm(history - f) > 1e-3 * cv::norm(f);
       worst = std::max(worst, cv::norm(got.at<cv::Vec4f>(y, x) - want) / std::max(cv::norm(want), 1e-3));
-      if (!agrees) EXPECT_EQ(got.at<cv::Vec4f>(y, x), f) << "fresh at " << x << ", " << y;
+      if (!agrees) {
+        EXPECT_EQ(got.at<cv::Vec4f>(y, x), f) << "fresh at " << x << ", " << y;
+      }
     }
   EXPECT_GT(computed, 1200);
   EXPECT_GT(blended, computed / 2);

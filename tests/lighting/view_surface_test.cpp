@@ -69,7 +69,7 @@ TEST(ViewSurface, DrawsWhatTheMeshOverTheDepthWouldRasteriseAndHidesTheObjectsBe
       return std::array<cv::Mat, 3>{pipe.downloadGBuffer(0), pipe.downloadGBuffer(1), pipe.downloadGBuffer(2)};
     };
     const auto mesh_ = gbuffer(false), pixels = gbuffer(true);
-    int both = 0, coverageDiffers = 0, roleDiffers = 0, virtualPixels = 0, realPixels = 0, holes = 0;
+    int coverageDiffers = 0, roleDiffers = 0, virtualPixels = 0, realPixels = 0, holes = 0;
     double worstPosition = 0, worstNormal = 0;
     for (int y = 0; y < H; ++y)
       for (int x = 0; x < W; ++x) {
@@ -82,7 +82,6 @@ TEST(ViewSurface, DrawsWhatTheMeshOverTheDepthWouldRasteriseAndHidesTheObjectsBe
           continue;
         }
         if (!ca) continue;
-        ++both;
         const cv::Vec4f aa = mesh_[2].at<cv::Vec4f>(y, x), ab = pixels[2].at<cv::Vec4f>(y, x);
         if ((aa[3] > 0.5f) != (ab[3] > 0.5f)) {
           ++roleDiffers;

@@ -1,7 +1,7 @@
 // Imperfect volumes: a ray's march (iv.h marchSurfaces), for shaders that declare `occupancy` (uint[], the
-// voxels' occupancy words) before including it (iv_march.glsl adds what a gather ray brings). From o past its voxel's bounding sphere,
-// one voxel per step: the first voxel with real points (real = -1: none) and the first with virtual points up
-// to it (object = -1: none), with their march distances.
+// voxels' occupancy words) and uRange before including it (iv_march.glsl adds what a gather ray brings). From
+// o past its voxel's bounding sphere, one voxel per step: the first voxel with real points (real = -1: none)
+// and the first with virtual points up to it (object = -1: none), with their march distances.
 void ivMarch(vec3 o, vec3 d, out int real, out float tReal, out int object, out float tObject) {
   float start = 0.5 * sqrt(3.0) * uVoxel;
   int maxSteps = int(ceil(sqrt(3.0) * float(uResolution))) + 1;
@@ -12,12 +12,12 @@ void ivMarch(vec3 o, vec3 d, out int real, out float tReal, out int object, out 
     ivec3 c;
     if (!ivVoxelOf(o + t * d, c)) return;
     int u = ivIndex(c);
-    uint o = occupancy[u];
-    if (object < 0 && (o & IV_VIRTUAL) != 0u) {
+    uint holds = occupancy[u];
+    if (object < 0 && (holds & IV_VIRTUAL) != 0u) {
       object = u;
       tObject = t;
     }
-    if ((o & IV_REAL) != 0u) {
+    if ((holds & IV_REAL) != 0u) {
       real = u;
       tReal = t;
       return;

@@ -364,7 +364,9 @@ TEST(GL, KinectValExtremesStayFiniteAndBounded) {
           ASSERT_GE(v[c], 0.0f);
           // Bounded by the exitance the VAL can deliver: phi / a (1e10) times (albedo/pi + specular c_k).
           ASSERT_LE(v[c], 1e10f * (0.6f / CV_PI + 0.5f * phongNorm(kMaxPhongExponent)) * 1.01f);
-          if (variant >= 2) ASSERT_EQ(v[c], 0.0f) << "nothing lights the object";
+          if (variant >= 2) {
+            ASSERT_EQ(v[c], 0.0f) << "nothing lights the object";
+          }
         }
       }
     }
