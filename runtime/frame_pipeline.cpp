@@ -345,8 +345,9 @@ FusedFrame FramePipeline::fuse(const cv::Mat& depth, const cv::Mat& colour, cons
   }
   f.info = {{"integrated", in.integrated}, {"blocks", options_.fuse->blocks()}};
   if (!in.integrated) f.info["refused"] = in.refused;
+  const bool refresh = in.integrated && mayRefresh(fusedSurface_, framesSinceRefresh_);
   ++framesSinceRefresh_;
-  if (!in.integrated || (fusedSurface_ && framesSinceRefresh_ < std::max(options_.fuseRefresh, 1))) return f;
+  if (!refresh) return f;
   auto s = f.stages->cpu("room_mesh");
   auto mesh = std::make_shared<const reconstruction::RoomMesh>(options_.fuse->mesh());
   if (mesh->positions.empty()) return f;
@@ -354,6 +355,10 @@ FusedFrame FramePipeline::fuse(const cv::Mat& depth, const cv::Mat& colour, cons
   framesSinceRefresh_ = 0;
   f.refreshedRoom = std::move(mesh);
   return f;
+}
+
+bool FramePipeline::mayRefresh(bool hasSurface, int fusedSinceRefresh) const {
+  return !hasSurface || fusedSinceRefresh + 1 >= std::max(options_.fuseRefresh, 1);
 }
 
 void FramePipeline::takeFused(PreparedFrame& p, gl::Profiler& profiler) {
@@ -680,8 +685,7 @@ void FramePipeline::render(const capture::Frame& frame, PreparedFrame& p, compos
   // A frame whose fusion may refresh the room's surface is lit by it: it waits for its fusion first. Any other
   // is fused while it renders (and the next frame is measured), and takes its facts at the end: the same
   // composites as fusing on the preparing thread.
-  if (p.fused.valid() && (!takenSurface_ || takenSinceRefresh_ + 1 >= std::max(options_.fuseRefresh, 1)))
-    takeFused(p, profiler);
+  if (p.fused.valid() && mayRefresh(takenSurface_, takenSinceRefresh_)) takeFused(p, profiler);
   renderFrame(frame, p, compositor, profiler);
   if (p.fused.valid()) {
     takeFused(p, profiler);

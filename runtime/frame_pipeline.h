@@ -164,6 +164,10 @@ class FramePipeline {
   void fuseFrame(const capture::RgbdFrame& rgbd, PreparedFrame& p, gl::Profiler& profiler);
   FusedFrame fuse(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& k,
                   const capture::Pose& T_marker_camera, double exposure);
+  /// Whether the next frame fused, if it is integrated, refreshes the room's surface: there is none yet, or it
+  /// is the fuseRefresh-th since the last refresh. The fusion thread decides by it, and render() by the same
+  /// rule on its own count whether a frame must be fused before it is lit.
+  bool mayRefresh(bool hasSurface, int fusedSinceRefresh) const;
   /// The frame's fusion taken up by render(): its facts, stages and refreshed surface (waits for it).
   void takeFused(PreparedFrame& p, gl::Profiler& profiler);
   /// render()'s work on a frame, its fusion taken up before (when it may refresh the room) or after.

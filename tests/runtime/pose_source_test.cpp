@@ -187,7 +187,9 @@ TEST(Odometry, PaintedVispFramesFollowTheTagsPoses) {
   EXPECT_EQ(t.poses[0].by, PosedBy::Marker);
   for (size_t i = 1; i < t.poses.size(); ++i) {
     EXPECT_EQ(t.poses[i].marker, "-") << "odometry mode looks for the marker only until it has anchored the world";
-    if (t.poses[i].tracked()) EXPECT_NE(t.poses[i].by, PosedBy::Marker) << i;
+    if (t.poses[i].tracked()) {
+      EXPECT_NE(t.poses[i].by, PosedBy::Marker) << i;
+    }
   }
   const double px = centreReprojectionPx(v, t, 1, 20);
   std::printf("  the tags' centres drawn %.2f px RMS from where they were detected\n", px);
@@ -472,7 +474,9 @@ TEST(Tracking, TheDefaultRoomOfAScanLiesOnTheGroundTruthRoom) {
   EXPECT_LT(accuracy.meanM, 0.005);
   EXPECT_GT(coverage.within2cm, 0.9);
   for (const auto& line : tracked.perFrame)
-    if (line["pose"]["status"] == "lost") EXPECT_FALSE(line["integrated"].get<bool>()) << line.dump();
+    if (line["pose"]["status"] == "lost") {
+      EXPECT_FALSE(line["integrated"].get<bool>()) << line.dump();
+    }
   // Lights from either room: the lamp, whose every observation clipped, within 10 % of its true irradiance at
   // the object (the white-patch gain on its clip bound: the surfaces it lights see the bound's cells past the
   // lamp's own body; without that the tracked room read 44 % bright).

@@ -97,7 +97,8 @@ size_t voxelBytes(const ImperfectVolumesKnobs& k, bool real, bool virtualObject)
   const size_t outer = no * (kVoxelRecords * 16 + 4 + 4) + ro * ro * 3 * 4 * 48;
   // The rays' hits (iv_hits.comp): the voxels within one of those three surfaces, 8 bytes a ray, at most the
   // default budget.
-  const size_t hits = std::min(size_t{64} << 20, 9 * r * r * static_cast<size_t>(k.rays) * 8);
+  const size_t hits =
+      std::min(ImperfectVolumesTechnique::kDefaultHitsBudget, 9 * r * r * static_cast<size_t>(k.rays) * 8);
   return n * perVoxel + directions + 3 * r * r * 4 * 48 + outer + hits;
 }
 

@@ -87,7 +87,8 @@ class ImperfectVolumesTechnique final : public Technique {
 
   /// The most bytes the rays' hits may take (8 per voxel ray, iv_hits.comp): within it each needed voxel's rays
   /// are marched once for the hidden ambient, both gathers and every bounce; past it each of those passes
-  /// marches them itself (the same hits). Default 64 MiB (a 64³ grid's surfaces at 256 rays fit).
+  /// marches them itself (the same hits). Default kDefaultHitsBudget (a 64³ grid's surfaces at 256 rays fit).
+  static constexpr size_t kDefaultHitsBudget = size_t{64} << 20;
   void setHitsBudget(size_t bytes) { hitsBudget_ = bytes; }
   /// Whether the last build kept the rays' hits.
   bool hitsCached() const { return hitsCached_; }
@@ -100,7 +101,7 @@ class ImperfectVolumesTechnique final : public Technique {
   bool real_ = false, virtual_ = false;
   gl::Program injectProgram_, gatherProgram_, reflectProgram_, hiddenProgram_, coneProgram_, readoutProgram_,
       hitsProgram_;
-  size_t hitsBudget_ = size_t{64} << 20;
+  size_t hitsBudget_ = kDefaultHitsBudget;
   bool hitsCached_ = false;
   /// Uses a pass that casts rays from the needed voxels: the grid, the rays and range; binds the voxels (2),
   /// their occupancy (14), the needed list (3) and the directions (4); for a pass that reads the rays' hits

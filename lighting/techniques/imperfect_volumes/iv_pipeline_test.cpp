@@ -252,7 +252,7 @@ TEST(GL, ImperfectVolumesMarchEachRayOnceAndEveryPassReadsTheSameHits) {
                download4(*t.outputs().virtualIrradiance),
                t.hitsCached()};
   };
-  const Run kept = run(size_t{64} << 20), marched = run(0);
+  const Run kept = run(ImperfectVolumesTechnique::kDefaultHitsBudget), marched = run(0);
   EXPECT_TRUE(kept.cached);
   EXPECT_FALSE(marched.cached);
   EXPECT_EQ(kept.rho.sh, marched.rho.sh);
