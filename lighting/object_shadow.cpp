@@ -53,7 +53,8 @@ namespace {
 /// and what they would reflect of it towards x were their surroundings unshadowed (F albedo E(-w)); the GLSL
 /// twin is ambientShadowParts.
 void ambientShadowParts(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
-                        const std::vector<OccluderSphere>& spheres, cv::Vec3f& hides, cv::Vec3f& reflects) {
+                        const std::vector<OccluderSphere>& spheres, cv::Vec3f& hides, cv::Vec3f& reflects,
+                        bool throughMap) {
   hides = reflects = cv::Vec3f(0, 0, 0);
   for (const auto& s : spheres) {
     const double f = sphereViewFactor(cv::Vec3d(x), cv::Vec3d(n), s);
@@ -61,7 +62,11 @@ void ambientShadowParts(const Ambient& ambient, const cv::Vec3f& x, const cv::Ve
     const cv::Vec3f d = s.centre - x;
     const float len = static_cast<float>(cv::norm(d));
     const cv::Vec3f w = len > 0 ? d / len : n;
-    hides += static_cast<float>(CV_PI * f) * ambient.radiance(w);
+    // The cap the sphere covers: half-angle alpha, sin alpha = r / distance (1 - cos alpha without cancellation).
+    const float sinA = len > s.radius ? s.radius / len : 1.0f;
+    const float oneMinusCos = sinA * sinA / (1 + std::sqrt(std::max(0.0f, 1 - sinA * sinA)));
+    hides += static_cast<float>(CV_PI * f) *
+             (throughMap && ambient.map ? ambient.map->capMean(w, oneMinusCos, n) : ambient.radiance(w));
     reflects += static_cast<float>(f) * s.albedo.mul(ambient.irradiance(-w));
   }
 }
@@ -71,7 +76,7 @@ void ambientShadowParts(const Ambient& ambient, const cv::Vec3f& x, const cv::Ve
 cv::Vec3f ambientShadow(const Ambient& ambient, const cv::Vec3f& x, const cv::Vec3f& n,
                         const std::vector<OccluderSphere>& spheres, const cv::Vec3f& lit) {
   cv::Vec3f hides, reflects;
-  ambientShadowParts(ambient, x, n, spheres, hides, reflects);
+  ambientShadowParts(ambient, x, n, spheres, hides, reflects, true);
   cv::Vec3f e = hides - lit.mul(reflects);
   const cv::Vec3f full = ambient.irradiance(n);
   for (int c = 0; c < 3; ++c) e[c] = std::isfinite(e[c]) ? std::clamp(e[c], -full[c], full[c]) : 0.0f;
@@ -82,7 +87,7 @@ cv::Vec3f litFraction(const Ambient& hidden, const cv::Vec3f& x, const cv::Vec3f
                       const std::vector<OccluderSphere>& spheres, const cv::Vec3f& directWithout,
                       const cv::Vec3f& directWith) {
   cv::Vec3f hides, reflects;
-  ambientShadowParts(hidden, x, n, spheres, hides, reflects);
+  ambientShadowParts(hidden, x, n, spheres, hides, reflects, false);
   const cv::Vec3f full = hidden.irradiance(n);
   cv::Vec3f out;
   for (int c = 0; c < 3; ++c) {

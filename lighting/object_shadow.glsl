@@ -45,6 +45,26 @@ void ambientShadowParts(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n, out vec3 h
   }
 }
 
+// What the spheres hide from (x, n) of a light held sharper than its SH bands, a lat-long radiance map (the
+// `hides` of ambientShadowParts read through the map): each sphere's view factor times pi times the map's mean
+// radiance over the cap it covers, cosine-weighted about n. Needs lighting/radiance_map.glsl.
+vec3 hidesThroughMap(sampler2D map, vec3 x, vec3 n) {
+  const float pi = 3.14159265358979;
+  vec3 hides = vec3(0.0);
+  for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
+    float f = sphereViewFactor(x, n, uOccluders[i]);
+    if (!(f >= OBJECTS_MIN_VIEW_FACTOR)) continue;
+    vec3 d = uOccluders[i].xyz - x;
+    float len = length(d), r = uOccluders[i].w;
+    vec3 w = len > 0.0 ? d / len : n;
+    // The cap's half-angle alpha: sin alpha = r / distance, 1 - cos alpha without cancellation.
+    float sinA = len > r ? r / len : 1.0;
+    float oneMinusCos = sinA * sinA / (1.0 + sqrt(max(0.0, 1.0 - sinA * sinA)));
+    hides += pi * f * radianceMapCapMean(map, w, oneMinusCos, n);
+  }
+  return hides;
+}
+
 // The fraction of its light (x, n) keeps beside the objects (lighting::litFraction): the direct light with
 // them over without, the hidden light (irradiance `full` about n) less what the spheres hide of it.
 vec3 litFraction(vec3 full, vec3 hides, vec3 directWithout, vec3 directWith) {

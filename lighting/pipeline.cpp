@@ -80,7 +80,7 @@ void setOccluderUniforms(const gl::Program& p, const FrameResources& frame) {
 /// What the object terms depend on besides the camera (the objects' spheres, the lights kept, the ambients, the
 /// soft-shadow variant), value by value: their history carries over only while this stays the same.
 std::vector<double> objectTermsInputs(const FrameResources& frame, const std::vector<SceneLight>& kept,
-                                      const std::optional<Ambient>& hiddenAmbient, bool soft) {
+                                      const std::optional<Ambient>& hiddenAmbient, unsigned hiddenSerial, bool soft) {
   std::vector<double> inputs;
   for (const auto& o : frame.objects()) {
     const OccluderSphere s = placeSphere(o.sphere, o.T_world_object);
@@ -97,7 +97,7 @@ std::vector<double> objectTermsInputs(const FrameResources& frame, const std::ve
   for (const cv::Vec3d& v : frame.ambientSh()) inputs.insert(inputs.end(), {v[0], v[1], v[2]});
   const cv::Vec3d a = frame.ambient();
   inputs.insert(inputs.end(), {a[0], a[1], a[2], hidden.uniform[0], hidden.uniform[1], hidden.uniform[2],
-                               hiddenAmbient ? 1.0 : 0.0, soft ? 1.0 : 0.0});
+                               hiddenAmbient ? 1.0 : 0.0, static_cast<double>(hiddenSerial), soft ? 1.0 : 0.0});
   return inputs;
 }
 
@@ -271,6 +271,22 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       hidden.uniform = cv::Vec3f(frame_->ambient());
       for (size_t k = 0; k < 9; ++k) hidden.sh[k] = cv::Vec3f(frame_->ambientSh()[k]);
     }
+    // The map on the GPU as the C++ twin reads it: its own levels, linear within and between them, the azimuth
+    // repeating (lighting/radiance_map.h).
+    if (hidden.map && hidden.map != hiddenMapSource_) {
+      const auto& levels = hidden.map->levels();
+      hiddenMap_ = gl::Texture(GL_TEXTURE_2D, GL_RGB32F, hidden.map->width(), hidden.map->height(), 1,
+                               static_cast<int>(levels.size()));
+      for (size_t l = 0; l < levels.size(); ++l) {
+        const cv::Mat level = levels[l].isContinuous() ? levels[l] : levels[l].clone();
+        hiddenMap_.uploadLevel(static_cast<int>(l), GL_RGB, GL_FLOAT, level.ptr<float>());
+      }
+      hiddenMap_.setFilter(GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR);
+      hiddenMap_.setWrap(GL_REPEAT, GL_CLAMP_TO_EDGE);
+      hiddenMapSource_ = hidden.map;
+    }
+    q.set("uHiddenMapOn", hidden.map ? 1 : 0);
+    if (hidden.map) hiddenMap_.bind(11);
     q.set("uHiddenUniform", hidden.uniform[0], hidden.uniform[1], hidden.uniform[2]);
     for (size_t k = 0; k < 9; ++k)
       q.set("uHiddenSh[" + std::to_string(k) + "]", hidden.sh[k][0], hidden.sh[k][1], hidden.sh[k][2]);
@@ -304,7 +320,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     bool fresh = allocate(current);
     std::vector<double> inputs;
     if (history) {
-      inputs = objectTermsInputs(*frame_, kept, hiddenAmbient_, soft);
+      inputs = objectTermsInputs(*frame_, kept, hiddenAmbient_, hiddenSerial_, soft);
       fresh = allocate(1 - current) || fresh;
     }
     const bool carry =

@@ -100,13 +100,15 @@ class LightingPipeline {
   /// What the objects hide from the real surfaces around them, for the shading pass's shadow of the ambient
   /// (lighting/object_shadow.h): radiance, lighting world. nullopt (the default): the ambient itself. A room
   /// lit by listed lights hands its surfaces seen from the objects, whose light the listed ambient only stands
-  /// in for. A change reruns the shading pass.
+  /// in for, with their radiance map (Ambient::map: what each object hides across its cap). A change reruns the
+  /// shading pass.
   void setHiddenAmbient(const std::optional<Ambient>& hidden) {
     const auto same = [](const std::optional<Ambient>& a, const std::optional<Ambient>& b) {
-      return a.has_value() == b.has_value() && (!a || (a->uniform == b->uniform && a->sh == b->sh));
+      return a.has_value() == b.has_value() && (!a || (a->uniform == b->uniform && a->sh == b->sh && a->map == b->map));
     };
     if (same(hidden, hiddenAmbient_)) return;
     hiddenAmbient_ = hidden;
+    ++hiddenSerial_;
     shadeAt_.reset();
   }
   /// The builders of the techniques' own inputs from a frame or a room (lighting/frame/technique_input.h): the
@@ -196,6 +198,10 @@ class LightingPipeline {
   std::array<cv::Vec3d, 9> ambientSh_{};
   bool environment_ = false;
   std::optional<Ambient> hiddenAmbient_;
+  unsigned hiddenSerial_ = 0;  ///< counts the hidden ambients set (the object terms' history carries over within one)
+  /// hiddenAmbient_'s map on the GPU (uHiddenMap) and the map it holds.
+  gl::Texture hiddenMap_;
+  std::shared_ptr<const RadianceMap> hiddenMapSource_;
   /// A technique with nothing to do: it serves only the virtual role and the environment holds its bounce.
   bool idle(const Technique& t) const;
   std::vector<std::optional<FrameVersions>> techniqueAt_;

@@ -150,6 +150,11 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
       for (int k = 0; k < 9; ++k) restSh[k] += Lw * b[k];
     }
   out.surfacesSh = restSh;
+  out.surfaces = L.clone();
+  out.surfaces.setTo(cv::Scalar::all(0), saturated);
+  out.surfaces.forEach<cv::Vec3f>([](cv::Vec3f& v, const int*) {
+    for (int c = 0; c < 3; ++c) v[c] = std::isfinite(v[c]) ? std::max(v[c], 0.0f) : 0.0f;
+  });
   out.saturatedFraction = covered > 0 ? satOmega / covered : 0.0;
   out.overExposed = out.saturatedFraction > o.maxSaturatedFraction;
   out.gain = o.saturatedGain > 0 ? o.saturatedGain : 1.0;

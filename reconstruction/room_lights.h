@@ -65,6 +65,9 @@ struct RoomLights {
   /// directions it does not cover filled as in `environment`: what the surfaces alone send (lights listed
   /// apart from the room leave this).
   std::array<cv::Vec3d, 9> surfacesSh{};
+  /// The same light as a lat-long radiance map (CV_32FC3, mapWidth x mapWidth / 2, saturated directions zero):
+  /// what the objects hide of the surfaces across the caps they cover, sharper than three bands.
+  cv::Mat surfaces;
   cv::Vec3d ambientRadiance{0, 0, 0};  ///< the remainder's mean radiance (SH band 0)
   double gain = 1;                     ///< applied to saturated radiance
   bool gainEstimated = false;

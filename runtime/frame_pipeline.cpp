@@ -546,6 +546,7 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
     lighting::Ambient hidden;
     hidden.uniform = cv::Vec3f(seen.surfacesSh[0] * 0.28209479177387814);  // Y_00
     for (size_t k = 1; k < 9; ++k) hidden.sh[k] = cv::Vec3f(seen.surfacesSh[k]);
+    hidden.map = std::make_shared<lighting::RadianceMap>(seen.surfaces);
     pipeline_->setHiddenAmbient(hidden);
   }
   roomIndices_ = room.indices;

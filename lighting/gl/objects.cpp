@@ -96,6 +96,14 @@ void Texture::upload(GLenum format, GLenum type, const void* data, int rowAlignm
     glTextureSubImage3D(handle_.id(), 0, 0, 0, 0, width_, height_, depth_, format, type, data);
 }
 
+void Texture::uploadLevel(int level, GLenum format, GLenum type, const void* data, int rowAlignment) {
+  if (target_ != GL_TEXTURE_2D || level < 0)
+    throw GlError("Texture::uploadLevel(): level " + std::to_string(level) + " of a texture that is not 2D");
+  glPixelStorei(GL_UNPACK_ALIGNMENT, rowAlignment);
+  glTextureSubImage2D(handle_.id(), level, 0, 0, std::max(1, width_ >> level), std::max(1, height_ >> level), format,
+                      type, data);
+}
+
 void Texture::download(GLenum format, GLenum type, void* out, GLsizei bufSize, int rowAlignment) const {
   countSynchronousReadback();
   glPixelStorei(GL_PACK_ALIGNMENT, rowAlignment);
@@ -114,6 +122,11 @@ void Texture::setWrap(GLenum wrap) {
   glTextureParameteri(handle_.id(), GL_TEXTURE_WRAP_R, w);
   const float zero[4] = {0, 0, 0, 0};
   glTextureParameterfv(handle_.id(), GL_TEXTURE_BORDER_COLOR, zero);
+}
+
+void Texture::setWrap(GLenum wrapS, GLenum wrapT) {
+  glTextureParameteri(handle_.id(), GL_TEXTURE_WRAP_S, static_cast<GLint>(wrapS));
+  glTextureParameteri(handle_.id(), GL_TEXTURE_WRAP_T, static_cast<GLint>(wrapT));
 }
 
 void Texture::clear() {

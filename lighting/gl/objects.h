@@ -114,11 +114,16 @@ class Texture {
   size_t bytes() const;
   /// Uploads a whole level-0 image (all layers/slices). format/type as for glTextureSubImage*.
   void upload(GLenum format, GLenum type, const void* data, int rowAlignment = 1);
+  /// Uploads the whole image of one level of a 2D texture made with that many levels (width and height halved per
+  /// level, at least 1).
+  void uploadLevel(int level, GLenum format, GLenum type, const void* data, int rowAlignment = 1);
   /// Reads the whole level-0 image back into out (caller sizes it).
   void download(GLenum format, GLenum type, void* out, GLsizei bufSize, int rowAlignment = 1) const;
   void setFilter(GLenum minFilter, GLenum magFilter);
   /// Wrap mode for all axes (GL_CLAMP_TO_EDGE by default; GL_CLAMP_TO_BORDER uses a zero border).
   void setWrap(GLenum wrap);
+  /// Wrap modes along s and t apart (a lat-long map: its azimuth repeats, its polar angle clamps).
+  void setWrap(GLenum wrapS, GLenum wrapT);
   /// Sets every texel of level 0 to zero (glClearTexImage).
   void clear();
   void bind(GLuint unit) const { glBindTextureUnit(unit, handle_.id()); }

@@ -155,7 +155,7 @@ TEST(PicLinks, ACacheBehindAnOccluderSeesNothingThroughIt) {
   const Hierarchy h = buildHierarchy(s);
   const auto open = raysOf(senders), blocked = raysOf(all);
   const std::vector<cv::Vec3f> caches{{0, 0, 0}};
-  const Ambient ambient{{0.3f, 0.3f, 0.3f}, {}};
+  const Ambient ambient{{0.3f, 0.3f, 0.3f}, {}, nullptr};
   const auto flux = pullUp(h, std::vector<cv::Vec3f>(64, cv::Vec3f(1, 1, 1)));
   const CacheLinks seen = linkCaches(h, s, open, caches, {3, 16, 1});
   const CacheLinks hidden = linkCaches(h, s, blocked, caches, {3, 16, 1});
@@ -174,7 +174,7 @@ TEST(PicRuntime, AFloorHidesTheAmbientBelowAndSendsBackItsReflection) {
   const auto rays = raysOf(m);
   const auto s = placeSurfels(m, {20000, 0});
   const Hierarchy h = buildHierarchy(s);
-  const Ambient ambient{{0.5f, 0.5f, 0.5f}, {}};
+  const Ambient ambient{{0.5f, 0.5f, 0.5f}, {}, nullptr};
   const CacheLinks links = linkCaches(h, s, rays, {{0, 0, 0.3f}}, {4, 256, 1});
   const auto flux = pullUp(h, surfelFlux(s, {}, {}, ambient));
   const auto sh = gatherCaches(links, flux, ambient);
@@ -252,8 +252,8 @@ TEST(PicExtremes, BandsOneToEightExponentsAndFluxesStayFinite) {
     const CacheLinks links =
         linkCaches(h, s, rays, {s[0].position, {0, 0, 1e-6f}, {0, 0, 0.1f}, {0, 0, 1e4f}}, {bands, 8, 2});
     for (float f : {0.0f, 1.0f, 1e20f}) {
-      const auto sh =
-          gatherCaches(links, pullUp(h, std::vector<cv::Vec3f>(s.size(), cv::Vec3f(f, f, f))), {{1, 1, 1}, {}});
+      const auto sh = gatherCaches(links, pullUp(h, std::vector<cv::Vec3f>(s.size(), cv::Vec3f(f, f, f))),
+                                   {{1, 1, 1}, {}, nullptr});
       for (size_t c = 0; c < links.caches(); ++c)
         for (double p : {0.0, 1.0, 10.0, 1e4})
           for (const cv::Vec3f& n : {cv::Vec3f(0, 0, 1), cv::Vec3f(0, 0, -1), cv::Vec3f(1, 0, 0)}) {
