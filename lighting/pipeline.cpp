@@ -270,6 +270,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     } else {
       hidden.uniform = cv::Vec3f(frame_->ambient());
       for (size_t k = 0; k < 9; ++k) hidden.sh[k] = cv::Vec3f(frame_->ambientSh()[k]);
+      hidden.map = ambientMap_;
     }
     // The map on the GPU as the C++ twin reads it: its own levels, linear within and between them, the azimuth
     // repeating (lighting/radiance_map.h).

@@ -86,6 +86,15 @@ class LightingPipeline {
     frame_->setAmbientSh(sh);
     shadeAt_.reset();
   }
+  /// The ambient (uniform and SH) over every direction as a lat-long map seen from the objects (a room's remainder
+  /// after its lights), for what the objects hide of it (Ambient::map) while no hidden ambient is set; null: the
+  /// SH alone. A change reruns the shading pass.
+  void setAmbientMap(std::shared_ptr<const RadianceMap> map) {
+    if (map == ambientMap_) return;
+    ambientMap_ = std::move(map);
+    ++hiddenSerial_;
+    shadeAt_.reset();
+  }
   /// Whether the ambient (uniform and SH) is an environment seen at the virtual objects — the room's fused
   /// radiance or a fisheye image — which already holds the light real surfaces bounce onto them. Then the
   /// shading pass does not add the virtual-role technique's bounce again, and a technique that serves only
@@ -198,6 +207,7 @@ class LightingPipeline {
   std::array<cv::Vec3d, 9> ambientSh_{};
   bool environment_ = false;
   std::optional<Ambient> hiddenAmbient_;
+  std::shared_ptr<const RadianceMap> ambientMap_;
   unsigned hiddenSerial_ = 0;  ///< counts the hidden ambients set (the object terms' history carries over within one)
   /// hiddenAmbient_'s map on the GPU (uHiddenMap) and the map it holds.
   gl::Texture hiddenMap_;

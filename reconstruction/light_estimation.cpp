@@ -550,6 +550,7 @@ LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const L
     }
   out.thresholdLuminance = sumW > 0 ? splitThreshold(o, rays) * sumL / sumW : 0.0;
   cv::Mat bright(radiance.size(), CV_32FC3, cv::Scalar::all(0));
+  out.remainder = cv::Mat(radiance.size(), CV_32FC3, cv::Scalar::all(0));
   for (int y = 0; y < radiance.rows; ++y)
     for (int x = 0; x < radiance.cols; ++x) {
       const double w = rays.solidAngle.at<double>(y, x);
@@ -560,6 +561,7 @@ LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const L
       const double keep = lum > out.thresholdLuminance && lum > 0 ? out.thresholdLuminance / lum : 1.0;
       const cv::Vec3d rest = L * keep;
       bright.at<cv::Vec3f>(y, x) = cv::Vec3f(L - rest);
+      out.remainder.at<cv::Vec3f>(y, x) = cv::Vec3f(rest);
       const cv::Vec3f dir = rays.directions.at<cv::Vec3f>(y, x);
       const auto b = shBasis2(cv::Vec3d(dir));
       for (int k = 0; k < 9; ++k) out.ambientSh[k] += rest * (b[k] * w);

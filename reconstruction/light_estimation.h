@@ -115,6 +115,9 @@ struct LightSplit {
   /// no Condon-Shortley phase), directions in the fisheye camera frame; its irradiance at a normal is
   /// sum_lm A_l c_lm y_lm(n) with A = (pi, 2 pi / 3, pi / 4). Lights and remainder hold the image's total.
   std::array<cv::Vec3d, 9> ambientSh{};
+  /// The remainder pixel by pixel: the image with every pixel brighter than T scaled down to luminance T (the excess
+  /// is the lights'). CV_32FC3, the image's size.
+  cv::Mat remainder;
   double thresholdLuminance = 0;  ///< T
 };
 LightSplit splitLights(const cv::Mat& radiance, const FisheyeRays& rays, const LightSplitOptions& options = {});

@@ -138,6 +138,10 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   // that looked up at most so far) continue the unsaturated surfaces around them: unknown, not dark, and more
   // like the ceiling beside them than like the room's mean.
   fillUncovered(L, hit, saturated, rays.solidAngle);
+  // Radiance is finite and never negative, whatever the room file held.
+  L.forEach<cv::Vec3f>([](cv::Vec3f& v, const int*) {
+    for (int c = 0; c < 3; ++c) v[c] = std::isfinite(v[c]) ? std::max(v[c], 0.0f) : 0.0f;
+  });
 
   // The unsaturated environment as SH (what the room's surfaces other than lamps and windows send the centre;
   // E_rest at any normal for the gain below).
@@ -152,9 +156,6 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   out.surfacesSh = restSh;
   out.surfaces = L.clone();
   out.surfaces.setTo(cv::Scalar::all(0), saturated);
-  out.surfaces.forEach<cv::Vec3f>([](cv::Vec3f& v, const int*) {
-    for (int c = 0; c < 3; ++c) v[c] = std::isfinite(v[c]) ? std::max(v[c], 0.0f) : 0.0f;
-  });
   out.saturatedFraction = covered > 0 ? satOmega / covered : 0.0;
   out.overExposed = out.saturatedFraction > o.maxSaturatedFraction;
   out.gain = o.saturatedGain > 0 ? o.saturatedGain : 1.0;

@@ -66,6 +66,7 @@ struct PreparedFrame {
   std::vector<lighting::SceneLight> lights;  ///< marker frame, as they were for this frame
   cv::Vec3d ambient{0, 0, 0};
   std::array<cv::Vec3d, 9> ambientSh{};
+  std::shared_ptr<const lighting::RadianceMap> ambientMap;  ///< LightingSetup::ambientMap, as it was for this frame
 };
 
 }  // namespace mrgi::runtime

@@ -113,17 +113,18 @@ void FramePipeline::estimateLights(const capture::Frame& frame, FrameResult& r, 
     sl.extent = l.angularRadius;
     setup_->lights.push_back(sl);
   }
-  useAmbientSh(split.ambientSh);
+  useAmbientSh(split.ambientSh, nullptr);
   r.info["lights_estimated"] = setup_->lights.size();
 }
 
-void FramePipeline::useAmbientSh(const std::array<cv::Vec3d, 9>& sh) {
+void FramePipeline::useAmbientSh(const std::array<cv::Vec3d, 9>& sh, std::shared_ptr<const lighting::RadianceMap> map) {
   // The remainder's uniform part (band 0, as radiance) is the ambient the techniques see too; bands 1-2 go
   // to the shading pass's directional ambient.
   setup_->ambient = sh[0] * 0.28209479177387814;  // Y_00
   std::array<cv::Vec3d, 9> directional = sh;
   directional[0] = {0, 0, 0};
   setup_->ambientSh = directional;  // render() hands it to the lighting with the frame's lights
+  setup_->ambientMap = std::move(map);
 }
 
 bool FramePipeline::litByRoom() const { return setup_ && setup_->scene.lightSource == lighting::LightSource::Room; }
@@ -133,6 +134,7 @@ void FramePipeline::takeLights(PreparedFrame& p) const {
   p.lights = setup_->lights;
   p.ambient = setup_->ambient;
   p.ambientSh = setup_->ambientSh;
+  p.ambientMap = setup_->ambientMap;
 }
 
 cv::Vec3d FramePipeline::objectsCentre() const {
@@ -171,7 +173,9 @@ void FramePipeline::estimateRoomLights() {
     }
     setup_->lights.push_back(sl);
   }
-  useAmbientSh(roomLightEstimate_->ambientSh);
+  // The remainder seen from the objects, texel by texel: what they hide of it across their caps.
+  useAmbientSh(roomLightEstimate_->ambientSh,
+               std::make_shared<lighting::RadianceMap>(roomLightEstimate_->split.remainder));
 }
 
 void FramePipeline::locate(const capture::Frame& frame, FrameResult& r, gl::Profiler& profiler) {
@@ -741,6 +745,7 @@ void FramePipeline::renderFrame(const capture::Frame& frame, PreparedFrame& p, c
   view.intrinsics = rgbd.colourIntrinsics;
   view.T_world_camera = *r.T_marker_camera;
   pipeline_->setAmbientSh(p.ambientSh);
+  pipeline_->setAmbientMap(p.ambientMap);
   pipeline_->run(view, p.lights, p.ambient, &profiler);
   for (const std::string& stage : pipeline_->skippedStages()) r.info["skipped"].push_back(stage);
   if (const auto& rendered = pipeline_->lightsRendered(); rendered.size() < p.lights.size()) {

@@ -181,8 +181,9 @@ class FramePipeline {
   void buildSurface(const capture::Frame& frame, PreparedFrame& p, gl::Profiler& profiler);
   /// "lights": "room": the lights and ambient from the room model, once (the room is static).
   void estimateRoomLights();
-  /// An SH remainder of estimated lights as this pipeline's ambient: band 0 uniform, bands 1-2 directional.
-  void useAmbientSh(const std::array<cv::Vec3d, 9>& sh);
+  /// An SH remainder of estimated lights as this pipeline's ambient: band 0 uniform, bands 1-2 directional; with
+  /// its lat-long map (a room's), what the objects hide of it is read from the map.
+  void useAmbientSh(const std::array<cv::Vec3d, 9>& sh, std::shared_ptr<const lighting::RadianceMap> map);
   /// The setup's lights and ambient as they are now, for a frame to be lit under.
   void takeLights(PreparedFrame& p) const;
   /// The lights come from the room (estimated by the rendering thread, taken in render()).

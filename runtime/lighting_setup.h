@@ -9,6 +9,7 @@
 
 #include "capture/frame_source.h"
 #include "capture/ground_truth.h"
+#include "lighting/radiance_map.h"
 #include "lighting/scene_file.h"
 #include "runtime/pose_source.h"
 
@@ -27,6 +28,10 @@ struct LightingSetup {
   /// The ambient's directional part: radiance as SH bands 1-2 (band 0 is `ambient`; lighting/sh.h
   /// convention, lighting world), from a fisheye's or the room's remainder after its lights; zero otherwise.
   std::array<cv::Vec3d, 9> ambientSh{};
+  /// The same ambient over every direction as a lat-long map (the room's remainder after its lights, seen from the
+  /// objects): what the objects hide of it is read across the caps they cover (lighting/object_shadow.h). Null:
+  /// the SH alone.
+  std::shared_ptr<const lighting::RadianceMap> ambientMap;
   std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
   /// The marker the setup's source carries (family, size, id).
   MarkerSpec marker() const { return {tagFamily, tagSize, tagId}; }

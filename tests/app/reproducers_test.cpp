@@ -167,8 +167,12 @@ TEST_P(Reproducer, IsOneLineNamingTheFileAndChangesNothingOutsideOut) {
   EXPECT_LE(code, 127) << err;
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
   EXPECT_NE(err.find(expand(c["names"])), std::string::npos) << err;
-  if (c.contains("says")) EXPECT_NE(err.find(c["says"].get<std::string>()), std::string::npos) << err;
-  if (c.contains("exit")) EXPECT_EQ(code, c["exit"].get<int>()) << err;  // 2: a bad flag
+  if (c.contains("says")) {
+    EXPECT_NE(err.find(c["says"].get<std::string>()), std::string::npos) << err;
+  }
+  if (c.contains("exit")) {
+    EXPECT_EQ(code, c["exit"].get<int>()) << err;  // 2: a bad flag
+  }
   EXPECT_LE(err.size(), expand(c["names"]).size() + 700) << "a short line";
   const auto after = snapshot(root, outIsInput ? fs::path() : out);
   EXPECT_EQ(after.size(), before.size());

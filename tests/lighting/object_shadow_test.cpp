@@ -253,6 +253,14 @@ TEST(ObjectShadow, ShadingPassMatchesTheCppTwinPerPixel) {
   compare(mapped, hidden);
   // The map changes what the pass hides: its result is not the SH's.
   EXPECT_GT(cv::norm(mapped, shade, cv::NORM_INF), 1e-3);
+  // The ambient's own map (a room's remainder after its lights, no hidden ambient set): the same reading of the
+  // ambient's SH and uniform part with it.
+  pipe.setHiddenAmbient(std::nullopt);
+  pipe.setAmbientMap(hidden.map);
+  pipe.run(camera, {}, uniform, nullptr);
+  Ambient withMap = a;
+  withMap.map = hidden.map;
+  compare(pipe.downloadShade(), withMap);
 }
 
 TEST(ObjectShadow, AtAReducedScaleTheObjectTermsAreTheCppTwinsOnTheReducedGridUpsampled) {

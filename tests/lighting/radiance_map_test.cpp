@@ -20,7 +20,8 @@ cv::Mat latLong(int width, F f) {
       double sum = 0;
       for (int i = 0; i < 8; ++i)
         for (int j = 0; j < 8; ++j) {
-          const double z = z0 + (z1 - z0) * (i + 0.5) / 8, s = std::sqrt(1 - z * z), p = 2 * CV_PI * (u + (j + 0.5) / 8) / m.cols;
+          const double z = z0 + (z1 - z0) * (i + 0.5) / 8, s = std::sqrt(1 - z * z),
+                       p = 2 * CV_PI * (u + (j + 0.5) / 8) / m.cols;
           sum += f(cv::Vec3d(s * std::cos(p), s * std::sin(p), z));
         }
       m.at<cv::Vec3f>(v, u) = cv::Vec3f::all(static_cast<float>(sum / 64));
@@ -37,7 +38,8 @@ double capIntegral(const cv::Vec3d& w, double alpha, const cv::Vec3d& n, F f) {
   double sum = 0;
   for (int i = 0; i < N; ++i)
     for (int j = 0; j < N; ++j) {
-      const double c = 1 - (1 - std::cos(alpha)) * (i + 0.5) / N, s = std::sqrt(1 - c * c), p = 2 * CV_PI * (j + 0.5) / N;
+      const double c = 1 - (1 - std::cos(alpha)) * (i + 0.5) / N, s = std::sqrt(1 - c * c),
+                   p = 2 * CV_PI * (j + 0.5) / N;
       const cv::Vec3d d = s * std::cos(p) * t + s * std::sin(p) * b + c * w;
       sum += std::max(0.0, d.dot(n)) * f(d);
     }
@@ -62,7 +64,8 @@ TEST(RadianceMap, LevelsKeepTheLightAndAUniformMapReadsUniformEverywhere) {
   const cv::Scalar mean = cv::mean(noisy);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(m.levels().back().at<cv::Vec3f>(0, 0)[c], mean[c], 1e-5);
   // The azimuth repeats: either side of the seam at +x reads the same.
-  const cv::Vec3f a = m.sample(cv::normalize(cv::Vec3f(1, 1e-4f, 0.2f)), 0), b = m.sample(cv::normalize(cv::Vec3f(1, -1e-4f, 0.2f)), 0);
+  const cv::Vec3f a = m.sample(cv::normalize(cv::Vec3f(1, 1e-4f, 0.2f)), 0),
+                  b = m.sample(cv::normalize(cv::Vec3f(1, -1e-4f, 0.2f)), 0);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(a[c], b[c], 0.02);  // texels differ by up to 4
 }
 
@@ -72,11 +75,14 @@ TEST(RadianceMap, ACapsCosineWeightedMeanIsTheIntegralOverTheCap) {
   // 3 % for caps of 30 degrees and more, 6 % at 11 degrees (measured 2.0 and 4.9 %: the 64 x 32 map's texels are
   // 5.6 degrees; a smaller cap beside an edge is only as sharp as the map).
   const auto smooth = [](const cv::Vec3d& d) { return 0.2 + 0.8 * std::max(0.0, d[2]) + 0.3 * d[0] * d[0]; };
-  const auto banded = [&](const cv::Vec3d& d) { return smooth(d) + (d[0] < -0.5 && d[2] > 0 && d[2] < 0.6 ? 2.0 : 0.0); };
+  const auto banded = [&](const cv::Vec3d& d) {
+    return smooth(d) + (d[0] < -0.5 && d[2] > 0 && d[2] < 0.6 ? 2.0 : 0.0);
+  };
   const RadianceMap smoothMap(latLong(64, smooth)), bandedMap(latLong(64, banded));
   int caps = 0;
   for (const double alpha : {0.05, 0.2, 0.5, 0.9, 1.3})
-    for (const cv::Vec3d& w0 : {cv::Vec3d(0, 0, 1), cv::Vec3d(-1, 0, 0.3), cv::Vec3d(-1, 0.5, 1), cv::Vec3d(0.3, 0.2, 0.1)}) {
+    for (const cv::Vec3d& w0 :
+         {cv::Vec3d(0, 0, 1), cv::Vec3d(-1, 0, 0.3), cv::Vec3d(-1, 0.5, 1), cv::Vec3d(0.3, 0.2, 0.1)}) {
       const cv::Vec3d w = cv::normalize(w0), n(0, 0, 1);
       const double weights = capIntegral(w, alpha, n, [](const cv::Vec3d&) { return 1.0; });
       if (!(weights > 1e-4)) continue;

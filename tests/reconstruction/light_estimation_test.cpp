@@ -329,6 +329,23 @@ TEST(LightSplit, EveryNormalOfAWholeSphereMapIsHeld) {
     const cv::Vec3d truth = totalPower(map, rays);
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(total[k], truth[k], 1e-6 * truth[k]) << path;
     for (int k = 0; k < 3; ++k) EXPECT_GE(split.ambientSh[0][k], 0) << path;
+    // The remainder pixel by pixel (what the objects hide of it is read from it): the map where it is under the
+    // threshold, scaled down to it where brighter, never more than the map.
+    ASSERT_EQ(split.remainder.size(), map.size());
+    int clipped = 0;
+    for (int v = 0; v < map.rows; ++v)
+      for (int u = 0; u < map.cols; ++u) {
+        const cv::Vec3d L(map.at<cv::Vec3f>(v, u)), rest(split.remainder.at<cv::Vec3f>(v, u));
+        const double lum = capture::luminance(L), T = split.thresholdLuminance;
+        ASSERT_LE(capture::luminance(rest), T * (1 + 1e-5) + 1e-30) << path;
+        if (lum <= T) {
+          ASSERT_LT(cv::norm(rest - L), 1e-6 * (cv::norm(L) + 1e-30)) << path;
+        } else {
+          ASSERT_NEAR(capture::luminance(rest), T, 1e-5 * T) << path;
+          ++clipped;
+        }
+      }
+    EXPECT_GT(clipped, 0) << path;
     std::printf("%-28s worst normal %.1f %% (point lights, fitted: %.1f %%; projected, threshold 1: %.1f %%)\n",
                 path.substr(path.rfind('/') + 1).c_str(), 100 * worst, 100 * pointsWorst, 100 * old);
     EXPECT_LT(worst, 0.05) << path;

@@ -146,7 +146,9 @@ TEST(Marker, DetectionInARegionAroundTheTagMatchesTheWholeImages) {
       const cv::Rect half(cv::Point(static_cast<int>(whole.centre.x), static_cast<int>(whole.centre.y - w)),
                           cv::Point(static_cast<int>(whole.centre.x + 2 * w), static_cast<int>(whole.centre.y + w)));
       for (const TagDetection& d : detector.detect(img, half))
-        if (d.id == whole.id) EXPECT_FALSE(tagWellInside(d, half, 4.0)) << "image " << i << ", tag " << whole.id;
+        if (d.id == whole.id) {
+          EXPECT_FALSE(tagWellInside(d, half, 4.0)) << "image " << i << ", tag " << whole.id;
+        }
       ++cut;
     }
   }
