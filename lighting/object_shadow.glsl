@@ -1,7 +1,7 @@
 // The objects' shadow of the ambient on real surfaces and the lights they reflect onto them
 // (lighting/object_shadow.h is the C++ twin): each object a sphere, its view factor from the surface element
 // times the ambient's radiance towards its centre less what the sphere reflects of the ambient back along it,
-// the total within +- the ambient's irradiance. Needs lighting/ambient_sh.glsl.
+// the total within +- the ambient's irradiance. Needs lighting/ambient_sh.glsl and lighting/radiance_map.glsl.
 #define MAX_OCCLUDERS 16
 
 uniform int uOccluderCount;
@@ -30,39 +30,35 @@ bool objectsSeen(vec3 x, vec3 n) {
 
 // What the spheres hide from (x, n) of a light (uniform part and SH bands 1-2), and what they would reflect of
 // it towards x were their surroundings unshadowed (each: its view factor times the radiance along its centre).
-void ambientShadowParts(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n, out vec3 hides, out vec3 reflects) {
+// With `throughMap`, `mapped` is what they hide of the same light held sharper than its SH bands, a lat-long
+// radiance map (lighting/radiance_map.glsl): each view factor times pi times the map's mean radiance over the cap
+// the sphere covers, cosine-weighted about n (lighting::ambientShadow's; zero without).
+void ambientShadowParts(vec3 uniformPart, vec3 sh[9], vec3 x, vec3 n, bool throughMap, sampler2D map,
+                        out vec3 hides, out vec3 mapped, out vec3 reflects) {
   const float pi = 3.14159265358979;
   hides = vec3(0.0);
+  mapped = vec3(0.0);
   reflects = vec3(0.0);
-  for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
-    float f = sphereViewFactor(x, n, uOccluders[i]);
-    if (!(f >= OBJECTS_MIN_VIEW_FACTOR)) continue;
-    vec3 d = uOccluders[i].xyz - x;
-    float len = length(d);
-    vec3 w = len > 0.0 ? d / len : n;
-    hides += pi * f * ambientRadiance(uniformPart, sh, w);
-    reflects += f * uOccluderAlbedo[i] * ambientIrradiance(uniformPart, sh, -w);
+  float texel = 0.0, maxLevel = 0.0;
+  if (throughMap) {
+    texel = radianceMapTexel(map);
+    maxLevel = float(textureQueryLevels(map) - 1);
   }
-}
-
-// What the spheres hide from (x, n) of a light held sharper than its SH bands, a lat-long radiance map (the
-// `hides` of ambientShadowParts read through the map): each sphere's view factor times pi times the map's mean
-// radiance over the cap it covers, cosine-weighted about n. Needs lighting/radiance_map.glsl.
-vec3 hidesThroughMap(sampler2D map, vec3 x, vec3 n) {
-  const float pi = 3.14159265358979;
-  vec3 hides = vec3(0.0);
   for (int i = 0; i < uOccluderCount && i < MAX_OCCLUDERS; ++i) {
     float f = sphereViewFactor(x, n, uOccluders[i]);
     if (!(f >= OBJECTS_MIN_VIEW_FACTOR)) continue;
     vec3 d = uOccluders[i].xyz - x;
     float len = length(d), r = uOccluders[i].w;
     vec3 w = len > 0.0 ? d / len : n;
-    // The cap's half-angle alpha: sin alpha = r / distance, 1 - cos alpha without cancellation.
-    float sinA = len > r ? r / len : 1.0;
-    float oneMinusCos = sinA * sinA / (1.0 + sqrt(max(0.0, 1.0 - sinA * sinA)));
-    hides += pi * f * radianceMapCapMean(map, w, oneMinusCos, n);
+    hides += pi * f * ambientRadiance(uniformPart, sh, w);
+    reflects += f * uOccluderAlbedo[i] * ambientIrradiance(uniformPart, sh, -w);
+    if (throughMap) {
+      // The cap's half-angle alpha: sin alpha = r / distance, 1 - cos alpha without cancellation.
+      float sinA = len > r ? r / len : 1.0;
+      float oneMinusCos = sinA * sinA / (1.0 + sqrt(max(0.0, 1.0 - sinA * sinA)));
+      mapped += pi * f * radianceMapCapMean(map, texel, maxLevel, w, oneMinusCos, n);
+    }
   }
-  return hides;
 }
 
 // The fraction of its light (x, n) keeps beside the objects (lighting::litFraction): the direct light with

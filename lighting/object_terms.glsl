@@ -14,16 +14,16 @@ uniform int uAddReflectedLight;  // 1: the real-role technique leaves the lights
 // At a real point x with normal n where a sphere is seen (objectsSeen), the direct light there without and
 // with the objects given.
 vec3 objectTerms(vec3 x, vec3 n, vec3 directMu, vec3 directRho) {
-  vec3 full = ambientIrradiance(uHiddenUniform, uHiddenSh, n), hides, reflects;
-  ambientShadowParts(uHiddenUniform, uHiddenSh, x, n, hides, reflects);
+  vec3 full = ambientIrradiance(uHiddenUniform, uHiddenSh, n), hides, mapped, reflects;
+  ambientShadowParts(uHiddenUniform, uHiddenSh, x, n, uHiddenMapOn == 1, uHiddenMap, hides, mapped, reflects);
   // The objects' faces turned towards this point see its surroundings and the ground under them, both
   // darkened by their shadows (lighting::facedGround, blendLit).
   vec3 lit = litFraction(full, hides, directMu, directRho);
   float groundWeight;
   vec3 ground = facedGround(x, n, groundWeight);
   if (groundWeight > 0.0) {
-    vec3 hidesGround, reflectsGround;
-    ambientShadowParts(uHiddenUniform, uHiddenSh, ground, n, hidesGround, reflectsGround);
+    vec3 hidesGround, mappedGround, reflectsGround;
+    ambientShadowParts(uHiddenUniform, uHiddenSh, ground, n, false, uHiddenMap, hidesGround, mappedGround, reflectsGround);
     vec3 litGround = litFraction(full, hidesGround, directIrradiance(false, ground, n), directIrradiance(true, ground, n));
     lit += groundWeight * (litGround - lit);
   }
@@ -31,7 +31,7 @@ vec3 objectTerms(vec3 x, vec3 n, vec3 directMu, vec3 directRho) {
   // it (DLPV's volume blocks the bounce it injected) has that part taken twice (docs/bench-resolution.md).
   // What they hide through the map where there is one: the lit fractions above are ratios, smooth enough for
   // the SH bands; the shadow itself follows the room's bright and dark surfaces across each cap.
-  if (uHiddenMapOn == 1) hides = hidesThroughMap(uHiddenMap, x, n);
+  if (uHiddenMapOn == 1) hides = mapped;
   vec3 terms = -ambientShadow(full, hides, reflects, lit);
   if (uAddReflectedLight == 1) terms += reflectedLight(x, n);
   return terms;

@@ -39,6 +39,9 @@ RadianceMap::RadianceMap(const cv::Mat& latLong) {
 
 namespace {
 
+/// The golden angle's cosine and sine (2.39996... radians).
+constexpr float kGoldenCos = -0.737368878f, kGoldenSin = 0.675490294f;
+
 /// GL's bilinear read of one level at texture coordinates (s, t): s repeats, t clamps to the edge.
 cv::Vec3f bilinear(const cv::Mat& m, float s, float t) {
   const float x = s * static_cast<float>(m.cols) - 0.5f, y = t * static_cast<float>(m.rows) - 0.5f;
@@ -68,11 +71,19 @@ cv::Vec3f RadianceMap::sample(const cv::Vec3f& w, float lod) const {
   return f > 0 ? a + f * (bilinear(levels_[static_cast<size_t>(l1)], s, t) - a) : a;
 }
 
-float RadianceMap::lodFor(float solidAngle) const {
+float RadianceMap::texelSolidAngle() const {
   constexpr float kPi = 3.14159265358979f;
-  const float texel = (2 * kPi / static_cast<float>(width())) * (kPi / static_cast<float>(height()));
-  const float lod = 0.5f * std::log2(solidAngle / texel);
+  return (2 * kPi / static_cast<float>(width())) * (kPi / static_cast<float>(height()));
+}
+
+float RadianceMap::lodFor(float solidAngle) const {
+  const float lod = 0.5f * std::log2(solidAngle / texelSolidAngle());
   return std::isfinite(lod) ? std::clamp(lod, 0.0f, maxLevel()) : 0.0f;
+}
+
+int RadianceMap::capSamples(float oneMinusCosAlpha) const {
+  const float perTexel = std::ceil(2 * 3.14159265358979f * oneMinusCosAlpha / texelSolidAngle());
+  return std::isfinite(perTexel) ? static_cast<int>(std::clamp(perTexel, 1.0f, static_cast<float>(kCapSamples))) : 1;
 }
 
 cv::Vec3f RadianceMap::capMean(const cv::Vec3f& w, float oneMinusCosAlpha, const cv::Vec3f& n) const {
@@ -80,16 +91,21 @@ cv::Vec3f RadianceMap::capMean(const cv::Vec3f& w, float oneMinusCosAlpha, const
   const cv::Vec3f b = w.cross(t);
   // Each direction read at the level of a quarter of its share of the cap (half the spacing between them): a
   // coarser level blurs what lies past the cap's rim into it (a cap of 51 degrees beside a bright band: 5.5 %
-  // over its integral at the share itself, 1.8 % at a quarter).
-  const float lod = lodFor(2 * 3.14159265358979f * oneMinusCosAlpha / (4 * kCapSamples));
+  // over its integral at the share itself, 1.8 % at a quarter). A smaller cap: a direction per texel at level 0.
+  const int count = capSamples(oneMinusCosAlpha);
+  const float lod = lodFor(2 * 3.14159265358979f * oneMinusCosAlpha / static_cast<float>(4 * count));
   cv::Vec3f sum(0, 0, 0);
   float weights = 0;
-  for (int k = 0; k < kCapSamples; ++k) {
-    // Equal solid angles: cos theta uniform over [cos alpha, 1]; the azimuth on the golden angle.
-    const float oneMinusCos = oneMinusCosAlpha * (static_cast<float>(k) + 0.5f) / kCapSamples;
+  // Equal solid angles: cos theta uniform over [cos alpha, 1]; the azimuth steps by the golden angle, its cosine
+  // and sine turned by a rotation each step (no trigonometry per direction).
+  float cosPhi = 1, sinPhi = 0;
+  for (int k = 0; k < count; ++k) {
+    const float oneMinusCos = oneMinusCosAlpha * (static_cast<float>(k) + 0.5f) / static_cast<float>(count);
     const float c = 1 - oneMinusCos, sn = std::sqrt(std::max(0.0f, oneMinusCos * (2 - oneMinusCos)));
-    const float phi = 2.399963229728653f * static_cast<float>(k);
-    const cv::Vec3f d = sn * std::cos(phi) * t + sn * std::sin(phi) * b + c * w;
+    const cv::Vec3f d = sn * cosPhi * t + sn * sinPhi * b + c * w;
+    const float turned = cosPhi * kGoldenCos - sinPhi * kGoldenSin;
+    sinPhi = sinPhi * kGoldenCos + cosPhi * kGoldenSin;
+    cosPhi = turned;
     const float weight = std::max(0.0f, d.dot(n));
     if (!(weight > 0)) continue;
     sum += weight * sample(d, lod);

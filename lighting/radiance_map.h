@@ -26,16 +26,21 @@ class RadianceMap {
   /// The radiance arriving from unit direction w (towards the scene), bilinear within a level and linear
   /// between the two levels about `lod` (clamped to [0, maxLevel()]), as GL's textureLod.
   cv::Vec3f sample(const cv::Vec3f& w, float lod) const;
+  /// The solid angle of a level-0 texel at the equator (sr).
+  float texelSolidAngle() const;
   /// The level whose texels at the equator each cover `solidAngle` (sr); 0 below level 0's texel.
   float lodFor(float solidAngle) const;
+  /// How many directions capMean reads in a cap (1 - cos alpha given): one per level-0 texel it covers, 1 to
+  /// kCapSamples.
+  int capSamples(float oneMinusCosAlpha) const;
   /// The mean radiance over the cap of half-angle alpha about unit w (1 - cos alpha given, without cancellation
-  /// for a tiny cap), each direction weighted by its cosine about n, from
-  /// kCapSamples equal-solid-angle directions of the cap, each read at the level of a quarter of its share of the
-  /// cap. Directions under n's horizon weigh nothing; when all do, the radiance along w.
+  /// for a tiny cap), each direction weighted by its cosine about n, from capSamples() equal-solid-angle
+  /// directions of the cap, each read at the level of a quarter of its share of the cap. Directions under n's
+  /// horizon weigh nothing; when all do, the radiance along w.
   cv::Vec3f capMean(const cv::Vec3f& w, float oneMinusCosAlpha, const cv::Vec3f& n) const;
-  /// Directions capMean reads in a cap: exact for a cap of uniform radiance, within 1 % for a smooth sky and 3 %
-  /// for a cap of 30 degrees or more that a bright edge crosses (RadianceMap tests); 16 directions read 3 % over the
-  /// path tracer's shadow of a sphere beside it, 32 within its noise (ObjectShadow.UnderARoom...).
+  /// The most directions capMean reads in a cap: exact for a cap of uniform radiance, within 1.5 % for a smooth sky
+  /// and 3 % for a cap of 30 degrees or more that a bright edge crosses (RadianceMap tests); 16 directions read 3 %
+  /// over the path tracer's shadow of a sphere beside it, 32 within its noise (ObjectShadow.UnderARoom...).
   static constexpr int kCapSamples = 32;
 
  private:
