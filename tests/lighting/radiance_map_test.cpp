@@ -108,10 +108,10 @@ TEST(RadianceMap, ACapsCosineWeightedMeanIsTheIntegralOverTheCap) {
 }
 
 TEST(RadianceMap, NegativeNonFiniteOrMisshapenMapsAreRefused) {
-  EXPECT_THROW(RadianceMap(cv::Mat()), std::invalid_argument);
-  EXPECT_THROW(RadianceMap(cv::Mat(32, 60, CV_32FC3, cv::Scalar::all(1))), std::invalid_argument);
-  EXPECT_THROW(RadianceMap(cv::Mat(2, 4, CV_32FC3, cv::Scalar::all(1))), std::invalid_argument);
-  EXPECT_THROW(RadianceMap(cv::Mat(32, 64, CV_32FC1, cv::Scalar::all(1))), std::invalid_argument);
+  EXPECT_THROW(RadianceMap{cv::Mat()}, std::invalid_argument);
+  EXPECT_THROW(RadianceMap{cv::Mat(32, 60, CV_32FC3, cv::Scalar::all(1))}, std::invalid_argument);
+  EXPECT_THROW(RadianceMap{cv::Mat(2, 4, CV_32FC3, cv::Scalar::all(1))}, std::invalid_argument);
+  EXPECT_THROW(RadianceMap{cv::Mat(32, 64, CV_32FC1, cv::Scalar::all(1))}, std::invalid_argument);
   cv::Mat bad(32, 64, CV_32FC3, cv::Scalar::all(1));
   bad.at<cv::Vec3f>(3, 4)[1] = -1;
   EXPECT_THROW(RadianceMap{bad}, std::invalid_argument);
