@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace mrgi::lighting {
@@ -12,12 +13,8 @@ RadianceMap::RadianceMap(const cv::Mat& latLong) {
     throw std::invalid_argument("radiance map: a lat-long RGB image twice as wide as high, at least 8 x 4");
   cv::Mat level;
   latLong.convertTo(level, CV_32FC3);
-  for (int v = 0; v < level.rows; ++v)
-    for (int u = 0; u < level.cols; ++u)
-      for (int c = 0; c < 3; ++c) {
-        const float x = level.at<cv::Vec3f>(v, u)[c];
-        if (!std::isfinite(x) || x < 0) throw std::invalid_argument("radiance map: negative or non-finite radiance");
-      }
+  if (!cv::checkRange(level.reshape(1), true, nullptr, 0.0, std::numeric_limits<float>::max()))
+    throw std::invalid_argument("radiance map: negative or non-finite radiance");
   levels_.push_back(level);
   while (levels_.back().cols > 1 || levels_.back().rows > 1) {
     const cv::Mat& a = levels_.back();

@@ -32,7 +32,7 @@ float radianceMapLod(float texel, float maxLevel, float solidAngle) {
 vec3 radianceMapCapMean(sampler2D map, float texel, float maxLevel, vec3 w, float oneMinusCos, vec3 n) {
   vec3 t = normalize(cross(w, abs(w.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
   vec3 b = cross(w, t);
-  // Two directions per level-0 texel the cap covers, 4 to CAP_SAMPLES (RadianceMap::capSamples).
+  // One direction per level-0 texel the cap covers, 1 to CAP_SAMPLES (RadianceMap::capSamples).
   float perTexel = ceil(2.0 * 3.14159265358979 * oneMinusCos / texel);
   int count = (isnan(perTexel) || isinf(perTexel)) ? 1 : int(clamp(perTexel, 1.0, float(CAP_SAMPLES)));
   float lod = radianceMapLod(texel, maxLevel, 2.0 * 3.14159265358979 * oneMinusCos / (4.0 * float(count)));

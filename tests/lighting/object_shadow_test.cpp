@@ -571,11 +571,11 @@ std::vector<RingShadow> floorShadow(const groundtruth::Scene& room, const Occlud
   cam.intrinsics = {w, w, f, f, (w - 1) / 2.0, (w - 1) / 2.0};
   cam.T_world_camera = capture::Pose(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 1.0, 0, 0, 0, 1);
   static const Mesh ball = loadMesh(std::string(MRGI_SOURCE_DIR) + "/recordings/models/sphere.ply");
+  const capture::Pose T_world_ball = capture::makePose(cv::Matx33d::eye() * sphere.radius, cv::Vec3d(sphere.centre));
   Scene with = room;
   groundtruth::Material object{"object", sphere.albedo};
   object.isVirtual = true;
-  with.addMesh(ball.positions, ball.normals, ball.indices, with.addMaterial(object),
-               capture::makePose(cv::Matx33d::eye() * sphere.radius, cv::Vec3d(sphere.centre)));
+  with.addMesh(ball.positions, ball.normals, ball.indices, with.addMaterial(object), T_world_ball);
   std::array<cv::Mat, 2> traced;
   cv::Mat mask;
   for (int seed = 0; seed < 2; ++seed) {
@@ -588,9 +588,7 @@ std::vector<RingShadow> floorShadow(const groundtruth::Scene& room, const Occlud
     mask = d.mask;
   }
   // The pass's sphere is the mesh's own (its mean solid angle), as the pipeline places it.
-  const std::vector<OccluderSphere> spheres{
-      occluderSphere(ball, capture::makePose(cv::Matx33d::eye() * sphere.radius, cv::Vec3d(sphere.centre)))};
-  std::vector<OccluderSphere> passSpheres = spheres;
+  std::vector<OccluderSphere> passSpheres{occluderSphere(ball, T_world_ball)};
   passSpheres[0].albedo = sphere.albedo;
   const cv::Vec3f up(0, 0, 1);
   std::vector<RingShadow> out(rings.size() - 1, RingShadow{0, 0, std::vector<double>(hidden.size(), 0.0), 0});
@@ -667,12 +665,13 @@ TEST(ObjectShadow, UnderARoomTheShadowIsThePathTracersWithinItsNoise) {
             walls, albedo, rings[k], rings[k + 1], s.pixels, s.traced, s.noise, s.pass[0],
             100 * (s.pass[0] / s.traced - 1), (s.pass[0] - s.traced) / s.noise, 100 * (s.pass[1] / s.traced - 1));
         const double err = std::abs(s.pass[0] - s.traced);
-        if (albedo > 0)
+        if (albedo > 0) {
           EXPECT_LT(err, 0.15 * std::abs(s.traced)) << "ring " << k;
-        else if (walls > 0)
+        } else if (walls > 0) {
           EXPECT_LT(err, 0.05 * std::abs(s.traced)) << "ring " << k;
-        else
+        } else {
           EXPECT_LT(err, 3 * s.noise) << "ring " << k;
+        }
         pass += s.pass[0] * s.pixels, traced += s.traced * s.pixels;
       }
       EXPECT_NEAR(pass / traced, 1.0, albedo > 0 ? 0.12 : 0.01);

@@ -496,18 +496,18 @@ TEST(ImperfectVolumes, AnObjectOverATextureFinerThanItsRaysSpacingVariesNoMoreTh
   const iv::Incident in = iv::gather(floor, false, o, amb);
   const std::vector<cv::Vec3f> dirs = iv::rayDirections(o.rays);
   groundtruth::Scene scene;
-  int materials[2];
-  for (int b = 0; b < 2; ++b) {
-    groundtruth::Material m{b ? "bright" : "dark", {0, 0, 0}};
-    m.emission = cv::Vec3f::all(b ? 1.0f : 0.1f);
-    materials[b] = scene.addMaterial(m);
+  int materials[2];  // by the cell's parity, as cell()
+  for (int parity = 0; parity < 2; ++parity) {
+    groundtruth::Material m{parity ? "bright" : "dark", {0, 0, 0}};
+    m.emission = cv::Vec3f::all(cell(parity, 0));
+    materials[parity] = scene.addMaterial(m);
   }
   const float floorZ = static_cast<float>(g.centre(0, 0, 4)[2]);
   for (int j = 0; j < 32; ++j)
     for (int i = 0; i < 32; ++i) {
       const cv::Vec3d corner = g.centre(i, j, 4) - cv::Vec3d(0.025, 0.025, 0);
       scene.addQuad({static_cast<float>(corner[0]), static_cast<float>(corner[1]), floorZ}, {0.05f, 0.f, 0.f},
-                    {0.f, 0.05f, 0.f}, materials[cell(i, j) > 0.5f ? 1 : 0]);
+                    {0.f, 0.05f, 0.f}, materials[(i + j) % 2]);
     }
   const groundtruth::RayCaster caster(scene);
   groundtruth::PathTraceOptions po;
