@@ -73,7 +73,7 @@ Action addBench(CLI::App& app) {
       for (std::string& s : o->sessions) s = bundledPath(s);
     // Nothing the user has is replaced: each file named here is new or an earlier output of mrgi bench.
     checkReplaceable(o->json, "--json", "mrgi bench");
-    checkReplaceable(o->csv, "--csv", "mrgi bench", evaluation::kCsvHeader);
+    checkReplaceable(o->csv, "--csv", "mrgi bench", evaluation::kCsvSignature);
     checkReplaceable(o->html, "--html", "mrgi bench");
     checkReplaceable(o->presets, "--presets", "mrgi bench");
     if (!o->gallery.empty()) {

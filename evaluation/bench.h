@@ -72,8 +72,10 @@ cv::Rect galleryCrop(const cv::Mat& virtualMask, double grow = 1.0);
 cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite, const cv::Mat& referenceDelta,
                      const cv::Mat& virtualMask, const std::vector<GalleryRow>& rows);
 
-/// The first line of the CSV writeCsv writes (its column names).
+/// The first line of the CSV writeCsv writes (its column names), and the columns every version's began with (by
+/// which an earlier version's file is known as the bench's own).
 extern const char* const kCsvHeader;
+extern const char* const kCsvSignature;
 void writeCsv(const std::string& path, const nlohmann::json& records);
 /// doc: the bench's JSON document (records, presets, reference, renderer).
 void writeHtml(const std::string& path, const nlohmann::json& doc, const std::vector<ReportImage>& images);

@@ -375,16 +375,22 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
   }
   if (bs.frames.empty()) throw capture::CaptureError(path, "has no RGB-D frame");
   json roomInfo;
+  // The whole recording fused (a scan of the room), with the poses the pipeline uses: what each configuration's
+  // per-view cost is measured over (measureConfig's ms_view), and with --room what it is also lit from.
+  const auto t0 = std::chrono::steady_clock::now();
+  runtime::RoomFusionOptions fusionOptions;
+  fusionOptions.pose = o.pose;
+  RoomFusion fusion = fuseRoom(path, fusionOptions);
+  const double fuseMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (fusion.model.framesIntegrated() > 0) {
+    auto mesh = std::make_shared<const reconstruction::RoomMesh>(fusion.model.mesh());
+    if (mesh->triangleCount() > 0) bs.room = std::move(mesh);
+  }
+  if (!bs.room && !o.room)
+    std::printf("%s: no room could be fused: the per-view cost is that of every pass\n", path.c_str());
   if (o.room) {
-    // The whole recording fused (a scan of the room), with the poses the pipeline uses.
-    const auto t0 = std::chrono::steady_clock::now();
-    runtime::RoomFusionOptions fo;
-    fo.pose = o.pose;
-    RoomFusion fusion = fuseRoom(path, fo);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    if (fusion.model.framesIntegrated() == 0)
-      throw capture::CaptureError(path, "--room: no frame could be fused into a room");
-    bs.room = std::make_shared<const reconstruction::RoomMesh>(fusion.model.mesh());
+    if (!bs.room) throw capture::CaptureError(path, "--room: no frame could be fused into a room");
+    const double ms = fuseMs;
     roomInfo = {{"frames", fusion.model.framesIntegrated()},
                 {"refused", fusion.model.framesRefused()},
                 {"triangles", bs.room->triangleCount()},
@@ -666,23 +672,26 @@ json shadowJson(const ShadowSums& s) { return {{"energy", s.energy()}, {"near_l1
 
 /// The whole pipeline (a session's true reference composites) with these frame options: errors, SSIM,
 /// the object's brightness, time. `truth` (lights from the room): also the lights against the true ones.
-std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo, BenchSession& bs,
-                                  const LightingSetup* truth = nullptr) {
+json wholePipeline(const LightingSetup& s, const FrameOptions& fo, BenchSession& bs,
+                   const LightingSetup* truth = nullptr) {
   FramePipeline rp(s, bs.W, bs.H, fo);
   ErrorSums whole;
   ShadowSums shadow;  // the object's shadow within three object radii
   BrightnessSums brightness;
-  double ssim = 0, ms = 0;
+  double ssim = 0, ms = 0, lightingMs = 0;
   int frames = 0, timed = 0;
   const int n = static_cast<int>(bs.frames.size());
   for (int f = 0; f < n; ++f) {
     capture::Frame frame = bs.frames[f];
     gl::Profiler profiler;
     const FrameResult r = rp.process(frame, *bs.compositor, profiler);
-    double frameMs = 0;
-    for (const auto& [stage, t] : profiler.resolve())
-      if (stage != "read" && stage != "write") frameMs += std::max(t.cpuMs, t.gpuMs);
-    if (f > 0 || n == 1) ms += frameMs, ++timed;
+    double frameMs = 0, frameLightingMs = 0;
+    for (const auto& [stage, t] : profiler.resolve()) {
+      if (stage == "read" || stage == "write") continue;
+      frameMs += std::max(t.cpuMs, t.gpuMs);
+      if (lighting::isLightingStage(stage)) frameLightingMs += std::max(t.cpuMs, t.gpuMs);
+    }
+    if (f > 0 || n == 1) ms += frameMs, lightingMs += frameLightingMs, ++timed;
     if (!r.lit) continue;
     if (const auto it = bs.trueRefs.find(f); it != bs.trueRefs.end()) {
       const FrameState st =
@@ -695,18 +704,25 @@ std::optional<json> wholePipeline(const LightingSetup& s, const FrameOptions& fo
       ++frames;
     }
   }
-  if (frames == 0) return std::nullopt;
-  json out = {{"frames", frames},
+  json out = {{"ms_total", ms / std::max(timed, 1)}, {"ms_lighting", lightingMs / std::max(timed, 1)}};
+  if (frames == 0) return out;  // no true reference: the times alone
+  out.update({{"frames", frames},
               {"rel_error_delta", whole.relDelta()},
               {"rel_error_delta_interval", whole.relDeltaInterval()},
               {"rel_error_virtual", whole.relVirtual()},
               {"ssim", ssim / frames},
               {"virtual_brightness", brightness.ratio()},
               {"partly_virtual_pixels", whole.partial},
-              {"shadow", shadowJson(shadow)},
-              {"ms_total", ms / std::max(timed, 1)}};
+              {"shadow", shadowJson(shadow)}});
   if (truth && rp.setup()) out["lights_vs_truth"] = lightsAgainstTruth(*rp.setup(), rp.roomLights(), *truth, bs);
   return out;
+}
+
+/// A configuration's lighting ms a frame in replay over the room fused as the frames come: its per-view stages every
+/// frame, and its world-space passes (what a frame with every pass rerun costs beyond them) once per refresh of the
+/// room's surface (FrameOptions::fuseRefresh frames).
+double replayMs(double viewMs, double everyPassMs) {
+  return viewMs + std::max(everyPassMs - viewMs, 0.0) / std::max(FrameOptions{}.fuseRefresh, 1);
 }
 
 /// A configuration's measurements on one session.
@@ -781,19 +797,25 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     }
     prev = std::move(st);
   }
-  // --room: the same configuration lit from the fused room, against the same true references; and once more
-  // with the lights estimated from the room instead of the session's true ones.
+  // What the configuration costs a frame where the world holds still and the camera moves, as in replay over the
+  // room fused as the frames come: the lighting's stages over the session's fused room, whose world-space passes
+  // run on the first (untimed) frame only. With --room that run is also measured against the true references, and
+  // once more with the lights estimated from the room instead of the session's true ones.
   std::optional<json> roomRecord, roomLightsRecord;
-  if (bs.room && !bs.trueRefs.empty()) {
+  std::optional<double> viewMs;
+  if (bs.room) {
     FrameOptions ro = fo;
     ro.room = bs.room;
-    roomRecord = wholePipeline(s, ro, bs);
-    if (s.scene.lightSource != lighting::LightSource::Room) {
+    json room = wholePipeline(s, ro, bs);
+    viewMs = room["ms_lighting"].get<double>();
+    if (o.room && room.contains("frames")) roomRecord = std::move(room);
+    if (o.room && !bs.trueRefs.empty() && s.scene.lightSource != lighting::LightSource::Room) {
       LightingSetup rl = s;
       rl.scene.lightSource = lighting::LightSource::Room;
       rl.lights.clear();
       rl.ambient = {0, 0, 0};
-      roomLightsRecord = wholePipeline(rl, ro, bs, &s);
+      json roomLights = wholePipeline(rl, ro, bs, &s);
+      if (roomLights.contains("frames")) roomLightsRecord = std::move(roomLights);
     }
   }
   json msStages = json::object();
@@ -808,6 +830,8 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
   json r = {{"session", bs.path},
             {"ms_total", total},
             {"ms_lighting", lightingMs},
+            {"ms_view", viewMs.value_or(lightingMs)},
+            {"ms_replay", replayMs(viewMs.value_or(lightingMs), lightingMs)},
             {"ms_stages", msStages},
             {"gpu_mb", static_cast<double>(gpuBytes) / (1024.0 * 1024.0)},
             {"rmse_delta", err.rmse()},
@@ -878,8 +902,8 @@ int runSweep(const BenchOptions& o) {
       // The record: each measure's mean over the sessions (each session weighs the same), per session below.
       json r = {{"technique", c.technique.name}, {"varied", c.varied}, {"knobs", knobsJson(c)}};
       for (const char* key :
-           {"ms_total", "ms_lighting", "gpu_mb", "rmse_delta", "rel_error_delta", "rel_error_delta_near",
-            "rel_error_virtual", "ssim", "flicker", "silhouette_mismatch_pixels"}) {
+           {"ms_total", "ms_lighting", "ms_view", "ms_replay", "gpu_mb", "rmse_delta", "rel_error_delta",
+            "rel_error_delta_near", "rel_error_virtual", "ssim", "flicker", "silhouette_mismatch_pixels"}) {
         double sum = 0;
         for (const auto& p : perSession) sum += p[key].get<double>();
         r[key] = sum / static_cast<double>(perSession.size());
@@ -937,11 +961,12 @@ int runSweep(const BenchOptions& o) {
       const std::string counter = (from > 0 ? "[combined " : "[") + std::to_string(ci - from + 1) + "/" +
                                   std::to_string(configs.size() - from) + "]";
       std::printf(
-          "%s %-16s %-14s %-70s %7.1f ms (lighting %7.1f), delta err %.3f, virtual err %.3f, SSIM %.4f, flicker "
-          "%.3f%s\n",
+          "%s %-16s %-14s %-70s %7.1f ms (lighting %7.1f, per view %7.1f), delta err %.3f, virtual err %.3f, SSIM "
+          "%.4f, flicker %.3f%s\n",
           counter.c_str(), r["technique"].get<std::string>().c_str(), c.varied.c_str(), r["knobs"].dump().c_str(),
-          r["ms_total"].get<double>(), r["ms_lighting"].get<double>(), r["rel_error_delta"].get<double>(),
-          r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(), r["flicker"].get<double>(), wholeText.c_str());
+          r["ms_total"].get<double>(), r["ms_lighting"].get<double>(), r["ms_view"].get<double>(),
+          r["rel_error_delta"].get<double>(), r["rel_error_virtual"].get<double>(), r["ssim"].get<double>(),
+          r["flicker"].get<double>(), wholeText.c_str());
       std::fflush(stdout);
       records.push_back(r);
     }

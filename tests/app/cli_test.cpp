@@ -440,7 +440,11 @@ TEST(Cli, SingleFileOutputsNeverReplaceAFileTheUserHas) {
       {"bench --session /nonexistent/s --csv ",
        users("ours.csv", std::string("technique,varied,knobs,ms_total,ms_lighting,gpu_mb,rmse_delta,rel_error_delta,"
                                      "rel_error_delta_near,rel_error_virtual,ssim,flicker") +
-                             "\n")},
+                             "\n")},  // an earlier version's columns
+      {"bench --session /nonexistent/s --csv ",
+       users("ours_now.csv",
+             "technique,varied,knobs,ms_total,ms_lighting,ms_view,ms_replay,gpu_mb,rmse_delta,rel_error_delta,"
+             "rel_error_delta_near,rel_error_virtual,ssim,flicker\n")},
       {"bench --session /nonexistent/s --html ",
        users("ours.html", "<!DOCTYPE html><html><head><meta name=\"generator\" content=\"mrgi bench\">")},
   };

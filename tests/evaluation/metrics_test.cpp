@@ -302,6 +302,25 @@ TEST(Metrics, PresetsComeFromTheParetoFront) {
   EXPECT_TRUE(choosePresets(nlohmann::json::array()).empty());
 }
 
+// The cost the presets weigh is a frame's in replay over the room fused as the frames come (ms_replay): a
+// configuration whose every-pass frame is dear but whose views are cheap wins where replay pays for views.
+TEST(Metrics, PresetsWeighTheCostOfAFrameInReplay) {
+  auto rec = [](const char* t, double everyPass, double replay, double err) {
+    return nlohmann::json{{"technique", t},           {"knobs", nlohmann::json::object()},
+                          {"ms_lighting", everyPass}, {"ms_replay", replay},
+                          {"rel_error_delta", err},   {"rel_error_virtual", err}};
+  };
+  // "volume": dear to rebuild, cheap per view; "points": the reverse.
+  const nlohmann::json records = {rec("points", 100, 90, 0.2), rec("volume", 400, 40, 0.2), rec("best", 800, 300, 0.1)};
+  const nlohmann::json p = choosePresets(records);
+  EXPECT_EQ(p["fast"]["technique"], "volume");
+  EXPECT_EQ(p["accurate"]["technique"], "best");
+  // Without the replay measure a record's cost is that of every pass: the same records then pick "points".
+  nlohmann::json plain = records;
+  for (auto& r : plain) r.erase("ms_replay");
+  EXPECT_EQ(choosePresets(plain)["fast"]["technique"], "points");
+}
+
 // The moves that cost nothing are made together: from Kinect-VAL's sweep, those 10 % faster or more with the
 // error within 1 % of the defaults', the fastest value per knob; a move that costs accuracy, one that saves
 // too little and another technique's moves are left out; a technique with one free move gets no combination.
