@@ -32,8 +32,10 @@ std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, 
 /// measured as records[i]), its one-knob moves that took at least 10 % off the lighting time (more than the timing
 /// noise) and kept the error (mean of rel_error_delta and rel_error_virtual) within 1 % of the defaults' — the fastest
 /// value per knob — all applied at once, as one configuration with varied = "combined" (none for a technique with fewer
-/// than two such moves). Measured like the others, it joins the front the presets are chosen from: the
-/// one-at-a-time sweep cannot see that savings add up.
+/// than two such moves); and the technique's most accurate one-knob row, when at least 5 % more accurate than its
+/// defaults, with the free moves of its other knobs ("combined accurate"; none without such a row or move). Measured
+/// like the others, they join the front the presets are chosen from: the one-at-a-time sweep cannot see that
+/// savings add up, nor what accuracy costs once they are taken.
 std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs, const nlohmann::json& records);
 
 /// Presets from the measured records: the Pareto front of (ms_lighting, error) where error is the mean of

@@ -350,15 +350,34 @@ TEST(Metrics, FreeKnobMovesAreCombinedIntoOneConfiguration) {
   add("kinect-val", "val.occlusion", 0, 185, 0.25);          // saves 7.5 %: within the timing noise
   add("dlpv", "", 0, 600, 0.4);
   add("dlpv", "frame.rsm_size", 128, 450, 0.4);  // dlpv's only free move
+  {
+    const auto combined = combinedConfigs(configs, records);
+    ASSERT_EQ(combined.size(), 1u);
+    const BenchConfig& c = combined.front();
+    EXPECT_EQ(c.technique.name, "kinect-val");
+    EXPECT_EQ(c.varied, "combined");
+    lighting::KnobSet expected = configs.front().knobs;
+    expected["frame"]["rsm_size"] = 64;
+    expected["val"]["sparse_points"] = 256;
+    EXPECT_EQ(c.knobs, expected);
+  }
+  // A row at least 5 % more accurate than the defaults takes the free moves of the other knobs too (the most
+  // accurate such row; a free move of its own knob is left out). DLPV's accurate row gets its one free move.
+  add("kinect-val", "val.sparse_points", 4096, 400, 0.23);  // 8 % more accurate
+  add("kinect-val", "val.stride", 2, 300, 0.24);            // 4 %: not enough
+  add("dlpv", "lpv.resolution", 48, 900, 0.3);
   const auto combined = combinedConfigs(configs, records);
-  ASSERT_EQ(combined.size(), 1u);
-  const BenchConfig& c = combined.front();
-  EXPECT_EQ(c.technique.name, "kinect-val");
-  EXPECT_EQ(c.varied, "combined");
+  ASSERT_EQ(combined.size(), 3u);
+  EXPECT_EQ(combined[0].varied, "combined");
+  EXPECT_EQ(combined[1].varied, "combined accurate");
   lighting::KnobSet expected = configs.front().knobs;
   expected["frame"]["rsm_size"] = 64;
-  expected["val"]["sparse_points"] = 256;
-  EXPECT_EQ(c.knobs, expected);
+  expected["val"]["sparse_points"] = 4096;
+  EXPECT_EQ(combined[1].knobs, expected);
+  EXPECT_EQ(combined[2].technique.name, "dlpv");
+  EXPECT_EQ(combined[2].varied, "combined accurate");
+  EXPECT_EQ(combined[2].knobs.at("frame").at("rsm_size"), 128);
+  EXPECT_EQ(combined[2].knobs.at("lpv").at("resolution"), 48);
 }
 
 TEST(Metrics, TheSweepComesFromTheKnobTables) {
