@@ -670,8 +670,9 @@ std::optional<NearObjects> nearObjects(lighting::LightingPipeline& pipe, const c
 
 json shadowJson(const ShadowSums& s) { return {{"energy", s.energy()}, {"near_l1", s.nearL1()}, {"pixels", s.pixels}}; }
 
-/// The whole pipeline (a session's true reference composites) with these frame options: errors, SSIM,
-/// the object's brightness, time. `truth` (lights from the room): also the lights against the true ones.
+/// The whole pipeline with these frame options: its times a frame (all stages, the lighting's), and where the
+/// session has true reference composites its errors, SSIM and the object's brightness against them ("frames": how
+/// many). `truth` (lights from the room): also the lights against the true ones.
 json wholePipeline(const LightingSetup& s, const FrameOptions& fo, BenchSession& bs,
                    const LightingSetup* truth = nullptr) {
   FramePipeline rp(s, bs.W, bs.H, fo);
