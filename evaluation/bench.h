@@ -38,10 +38,10 @@ std::vector<BenchConfig> sweepConfigs(const std::string& technique, bool quick, 
 /// savings add up, nor what accuracy costs once they are taken.
 std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs, const nlohmann::json& records);
 
-/// Presets from the measured records: the Pareto front of (ms_lighting, error) where error is the mean of
-/// rel_error_delta and rel_error_virtual; accurate = least error, fast = the fastest front point within
-/// twice the least error, balanced = among the front points at least 5 % more accurate than fast, the one
-/// with the least (ms / ms_min) x (error / error_min) (fast when there is none).
+/// Presets from the measured records: the Pareto front of (ms_replay — ms_lighting in a record without it —, error)
+/// where error is the mean of rel_error_delta and rel_error_virtual; accurate = least error, fast = the fastest
+/// front point within twice the least error, balanced = among the front points at least 5 % more accurate than
+/// fast, the one with the least (ms / ms_min) x (error / error_min) (fast when there is none).
 /// Returns {"fast": record, "balanced": record, "accurate": record} (empty object without records).
 nlohmann::json choosePresets(const nlohmann::json& records);
 

@@ -390,7 +390,6 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     std::printf("%s: no room could be fused: the per-view cost is that of every pass\n", path.c_str());
   if (o.room) {
     if (!bs.room) throw capture::CaptureError(path, "--room: no frame could be fused into a room");
-    const double ms = fuseMs;
     roomInfo = {{"frames", fusion.model.framesIntegrated()},
                 {"refused", fusion.model.framesRefused()},
                 {"triangles", bs.room->triangleCount()},
@@ -398,7 +397,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
                 {"appearance_mib", static_cast<double>(fusion.model.appearanceBytes()) / (1 << 20)},
                 {"fuse_ms_median", fusion.medianFuseMs()},
                 {"surface_ms_median", fusion.medianSurfaceMs()},
-                {"ms", ms}};
+                {"ms", fuseMs}};
     if (o.pose != PoseMode::Tracked) {
       // The same recording fused from tracked poses, next to this one: how far its surface lies from it and
       // how much of it it covers (a scan's frames that tracking loses are refused, never fused at a guess).
@@ -828,11 +827,12 @@ json measureConfig(const BenchConfig& c, BenchSession& bs, const BenchOptions& o
     total += mean;
     if (lighting::isLightingStage(stage)) lightingMs += mean;
   }
+  const double view = viewMs.value_or(lightingMs);  // no room fused: the cost of every pass
   json r = {{"session", bs.path},
             {"ms_total", total},
             {"ms_lighting", lightingMs},
-            {"ms_view", viewMs.value_or(lightingMs)},
-            {"ms_replay", replayMs(viewMs.value_or(lightingMs), lightingMs)},
+            {"ms_view", view},
+            {"ms_replay", replayMs(view, lightingMs)},
             {"ms_stages", msStages},
             {"gpu_mb", static_cast<double>(gpuBytes) / (1024.0 * 1024.0)},
             {"rmse_delta", err.rmse()},

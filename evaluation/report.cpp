@@ -96,12 +96,16 @@ std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs
   for (size_t d = 0; d < configs.size() && d < records.size(); ++d) {
     if (!configs[d].varied.empty()) continue;
     const double ms = msOf(records[d]), err = errorOf(records[d]);
+    // A one-knob row of the sweep for this technique (not its defaults, not a combination).
+    const auto oneKnobRow = [&](size_t i) {
+      const BenchConfig& c = configs[i];
+      return !c.varied.empty() && c.varied.rfind("combined", 0) != 0 && c.technique == configs[d].technique &&
+             c.technique.name == configs[d].technique.name;
+    };
     std::map<std::string, size_t> fastest;  // per knob moved, the fastest free value's config
     for (size_t i = 0; i < configs.size() && i < records.size(); ++i) {
       const BenchConfig& c = configs[i];
-      if (c.varied.empty() || c.varied.rfind("combined", 0) == 0 || !(c.technique == configs[d].technique) ||
-          c.technique.name != configs[d].technique.name)
-        continue;
+      if (!oneKnobRow(i)) continue;
       // Each row is one measurement on a shared machine (the same work varies by 10-20 % between rows), so
       // some picks are noise; the combination is measured and only the front decides.
       if (!(msOf(records[i]) <= 0.9 * ms && errorOf(records[i]) <= 1.01 * err)) continue;
@@ -121,13 +125,11 @@ std::vector<BenchConfig> combinedConfigs(const std::vector<BenchConfig>& configs
     // asks for), with the free moves of the other knobs: what accuracy costs once the free savings are taken too.
     size_t best = configs.size();
     for (size_t i = 0; i < configs.size() && i < records.size(); ++i) {
-      const BenchConfig& c = configs[i];
-      if (c.varied.empty() || c.varied.rfind("combined", 0) == 0 || !(c.technique == configs[d].technique) ||
-          c.technique.name != configs[d].technique.name || !(errorOf(records[i]) <= 0.95 * err))
-        continue;
+      if (!oneKnobRow(i) || !(errorOf(records[i]) <= 0.95 * err)) continue;
       if (best == configs.size() || errorOf(records[i]) < errorOf(records[best])) best = i;
     }
-    if (best == configs.size() || fastest.size() - fastest.count(configs[best].varied) < 1) continue;
+    // None without such a row, or without a free move of another knob.
+    if (best == configs.size() || fastest.size() <= fastest.count(configs[best].varied)) continue;
     out.push_back(
         withFreeMoves({configs[best].technique, configs[best].knobs, "combined accurate"}, configs[best].varied));
   }
@@ -265,9 +267,8 @@ cv::Mat galleryImage(const std::string& title, const cv::Mat& referenceComposite
 }
 
 const char* const kCsvHeader =
-    "technique,varied,knobs,ms_total,ms_lighting,ms_view,ms_replay,gpu_mb,rmse_delta,rel_error_delta,rel_error_delta_"
-    "near,rel_error_"
-    "virtual,ssim,flicker";
+    "technique,varied,knobs,ms_total,ms_lighting,ms_view,ms_replay,gpu_mb,rmse_delta,rel_error_delta,"
+    "rel_error_delta_near,rel_error_virtual,ssim,flicker";
 const char* const kCsvSignature = "technique,varied,knobs,ms_total,ms_lighting,";
 
 void writeCsv(const std::string& path, const json& records) {
@@ -277,10 +278,9 @@ void writeCsv(const std::string& path, const json& records) {
     std::string knobs;
     for (const auto& [k, v] : r["knobs"].items()) knobs += (knobs.empty() ? "" : ";") + k + "=" + v.dump();
     s << r["technique"].get<std::string>() << "," << r.value("varied", "") << "," << knobs << "," << r["ms_total"]
-      << "," << r["ms_lighting"] << "," << r.value("ms_view", r["ms_lighting"].get<double>()) << ","
-      << r.value("ms_replay", r["ms_lighting"].get<double>()) << "," << r["gpu_mb"] << "," << r["rmse_delta"] << ","
-      << r["rel_error_delta"] << "," << r.value("rel_error_delta_near", 0.0) << "," << r["rel_error_virtual"] << ","
-      << r["ssim"] << "," << r["flicker"] << "\n";
+      << "," << r["ms_lighting"] << "," << r["ms_view"] << "," << r["ms_replay"] << "," << r["gpu_mb"] << ","
+      << r["rmse_delta"] << "," << r["rel_error_delta"] << "," << r.value("rel_error_delta_near", 0.0) << ","
+      << r["rel_error_virtual"] << "," << r["ssim"] << "," << r["flicker"] << "\n";
   }
   capture::writeFileAtomically(path, s.str());
 }
@@ -708,8 +708,8 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
     h << "<tr><td class='l'>" << esc(r["technique"].get<std::string>()) << "</td><td class='l'>"
       << esc(r.value("varied", "")) << "</td><td class='l'><details><summary>knobs</summary><pre>"
       << esc(r["knobs"].dump(1)) << "</pre></details></td><td>" << fmt(r["ms_total"].get<double>()) << "</td><td>"
-      << fmt(r["ms_lighting"].get<double>()) << "</td><td>" << fmt(r.value("ms_view", r["ms_lighting"].get<double>()))
-      << "</td><td>" << fmt(msOf(r)) << "</td><td>" << fmt(r["gpu_mb"].get<double>()) << "</td><td>"
+      << fmt(r["ms_lighting"].get<double>()) << "</td><td>" << fmt(r["ms_view"].get<double>()) << "</td><td>"
+      << fmt(msOf(r)) << "</td><td>" << fmt(r["gpu_mb"].get<double>()) << "</td><td>"
       << fmt(r["rmse_delta"].get<double>()) << "</td><td>" << fmt(r["rel_error_delta"].get<double>()) << "</td><td>"
       << fmt(r["rel_error_virtual"].get<double>()) << "</td><td>" << fmt(r["ssim"].get<double>(), 4) << "</td><td>"
       << fmt(r["flicker"].get<double>()) << "</td></tr>";

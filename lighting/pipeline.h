@@ -208,8 +208,8 @@ class LightingPipeline {
   bool environment_ = false;
   std::optional<Ambient> hiddenAmbient_;
   std::shared_ptr<const RadianceMap> ambientMap_;
-  unsigned hiddenSerial_ =
-      0;  ///< counts the hidden ambients and ambient maps set (the object terms' history carries over within one)
+  /// Counts the hidden ambients and ambient maps set (the object terms' history carries over within one).
+  unsigned hiddenSerial_ = 0;
   /// hiddenAmbient_'s map on the GPU (uHiddenMap) and the map it holds.
   gl::Texture hiddenMap_;
   std::shared_ptr<const RadianceMap> hiddenMapSource_;
