@@ -70,7 +70,7 @@ std::string oneLine(const std::string& message) { return capture::excerpt(messag
 }  // namespace
 
 int run(int argc, char** argv) {
-  runtime::shareCoresWithGl(argv);
+  runtime::configureProcess(argv);
   capture::keepFrameMemory();
   CLI::App app{
       "mrgi: a mixed-reality compositor for RGB-D footage (differential rendering with real-time global illumination)"};

@@ -34,6 +34,7 @@
 #include "runtime/presets.h"
 #include "runtime/room_fusion.h"
 #include "runtime/source.h"
+#include "runtime/threads.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -301,6 +302,9 @@ int replay(const ReplayOptions& o) {
                    {"renderer", context->renderer()},
                    {"version", context->version()},
                    {"detail", context->detail()}};
+  // The settings the process took its cores and memory by (runtime/threads.h): the timings below depend on them.
+  for (const auto& [name, value] : processSettingsInEffect())
+    summary["process"][name] = value ? json(*value) : json(nullptr);
   json mean;
   for (const auto& [name, s] : sums)
     mean[name] = {{"cpu_ms", s.first / done}, {"gpu_ms", s.second / done}};  // done > 0 when sums has entries

@@ -3,13 +3,37 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <functional>
 
 namespace mrgi::runtime {
+namespace {
+std::optional<std::string> environmentValue(const char* name) {
+  const char* value = std::getenv(name);
+  return value ? std::optional<std::string>(value) : std::nullopt;
+}
+}  // namespace
 
-void shareCoresWithGl(char** argv) {
-  if (std::getenv("OMP_WAIT_POLICY") || std::getenv("OMP_NUM_THREADS")) return;
-  if (setenv("OMP_WAIT_POLICY", "PASSIVE", 1) != 0) return;
+std::vector<std::pair<std::string, std::string>> processSettings(
+    const std::function<std::optional<std::string>(const char*)>& get) {
+  std::vector<std::pair<std::string, std::string>> set;
+  if (!get("OMP_WAIT_POLICY") && !get("OMP_NUM_THREADS")) set.emplace_back("OMP_WAIT_POLICY", "PASSIVE");
+  if (!get("GLIBC_TUNABLES")) set.emplace_back("GLIBC_TUNABLES", kGlibcTunables);
+  return set;
+}
+
+void configureProcess(char** argv) {
+  const auto settings = processSettings(environmentValue);
+  if (settings.empty()) return;
+  for (const auto& [name, value] : settings)
+    if (setenv(name.c_str(), value.c_str(), 1) != 0) return;
   execv("/proc/self/exe", argv);  // only returns when it failed
+}
+
+std::vector<std::pair<std::string, std::optional<std::string>>> processSettingsInEffect() {
+  std::vector<std::pair<std::string, std::optional<std::string>>> in;
+  for (const char* name : {"OMP_WAIT_POLICY", "OMP_NUM_THREADS", "GLIBC_TUNABLES"})
+    in.emplace_back(name, environmentValue(name));
+  return in;
 }
 
 }  // namespace mrgi::runtime

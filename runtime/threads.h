@@ -1,17 +1,44 @@
 #pragma once
-// How the process shares its cores. OpenMP (Open3D's odometry, fusion, ICP and pose graphs run on it, on the
-// prepare worker) keeps its idle threads spinning after each parallel region by default; with GL on llvmpipe,
-// whose threads need every core, that spinning took the cores the renderer was waiting for (replay of
-// tabletop-scan with DLPV 455 -> 365 ms a frame here, tabletop-pt with Kinect-VAL 163 -> 121 ms).
+// How the process shares its cores and takes its memory: settings the runtime libraries read once, when they load,
+// so the program sets them and starts itself again with them.
+//
+// OpenMP (Open3D's odometry, fusion, ICP and pose graphs run on it, on the prepare worker) keeps its idle threads
+// spinning after each parallel region by default; with GL on llvmpipe, whose threads need every core, that spinning
+// took the cores the renderer was waiting for (replay of tabletop-scan with DLPV 455 -> 365 ms a frame here,
+// tabletop-pt with Kinect-VAL 163 -> 121 ms).
+//
+// glibc's malloc gives each thread that allocates an arena of its own and backs all of them with 4 KiB pages. The
+// first frames fill some 80,000 fresh pages (the room's voxel blocks, the depth filter's window statistics, the
+// views' images and llvmpipe's textures), and a page fault costs about 11 us on this machine (a virtual machine):
+// about 0.9 s of the first two frames of a replay. One arena, whose heap glibc asks the kernel to back with
+// transparent huge pages where it allows them (2 MiB a fault), takes those frames' faults from about 100,000 to
+// 20,000 (docs/real-time.md).
+#include <functional>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace mrgi::runtime {
 
-/// Unless the environment already sets OMP_WAIT_POLICY or OMP_NUM_THREADS, sets OMP_WAIT_POLICY=PASSIVE (idle
-/// OpenMP threads sleep) and starts the program again with it: the OpenMP runtime reads its environment once,
-/// when it loads, before main. Call first thing in main with its argv; returns when nothing was to be done (or
-/// the new start failed, in which case the program carries on as it was). The second start loads the shared
-/// libraries again: 0.17 s here, once per run (`mrgi --version` 0.16 -> 0.33 s), against 60-100 ms saved on every
-/// frame of a replay; set OMP_WAIT_POLICY yourself to skip it.
-void shareCoresWithGl(char** argv);
+/// The GLIBC_TUNABLES the program runs with when the environment sets none: one malloc arena, its heap on
+/// transparent huge pages (glibc 2.35 and later; an older one ignores them).
+inline constexpr const char* kGlibcTunables = "glibc.malloc.hugetlb=1:glibc.malloc.arena_max=1";
+
+/// The variables the program sets before it starts again, given the environment (`get` returns a variable's value,
+/// nullopt where unset): OMP_WAIT_POLICY=PASSIVE unless OMP_WAIT_POLICY or OMP_NUM_THREADS is set (idle OpenMP
+/// threads sleep), and GLIBC_TUNABLES=kGlibcTunables unless GLIBC_TUNABLES is set. Empty: nothing to do.
+std::vector<std::pair<std::string, std::string>> processSettings(
+    const std::function<std::optional<std::string>(const char*)>& get);
+
+/// Sets processSettings() of this process's environment and starts the program again with them. Call first thing in
+/// main with its argv; returns when nothing was to be done (or the new start failed, in which case the program
+/// carries on as it was). The second start loads the shared libraries again: 0.17 s here, once per run, against
+/// 60-100 ms saved on every frame of a replay and 0.3-0.5 s of its first frames; set both variables yourself to
+/// skip it.
+void configureProcess(char** argv);
+
+/// Those variables as this process runs with them (nullopt where unset): what a run's timings were measured under.
+std::vector<std::pair<std::string, std::optional<std::string>>> processSettingsInEffect();
 
 }  // namespace mrgi::runtime

@@ -23,6 +23,7 @@
 #include "capture/v4l2_source.h"
 #include "reconstruction/marker.h"
 #include "reconstruction/room_model.h"
+#include "runtime/threads.h"
 
 namespace fs = std::filesystem;
 
@@ -41,12 +42,13 @@ std::string slurp(const fs::path& p) {
   return ss.str();
 }
 
-Result runMrgi(const std::string& args) {
+/// `environment`: what env(1) changes before mrgi starts ("-u NAME", "NAME=value"); empty: the test's own.
+Result runMrgiWith(const std::string& environment, const std::string& args) {
   static int n = 0;
   const fs::path tmp =
       fs::temp_directory_path() / ("mrgi_cli_" + std::to_string(::getpid()) + "_" + std::to_string(n++));
-  const std::string cmd =
-      std::string(MRGI_BINARY) + " " + args + " >" + tmp.string() + ".out 2>" + tmp.string() + ".err";
+  const std::string cmd = (environment.empty() ? std::string() : "env " + environment + " ") + MRGI_BINARY + " " +
+                          args + " >" + tmp.string() + ".out 2>" + tmp.string() + ".err";
   const int status = std::system(cmd.c_str());
   Result r;
   r.signalled = WIFSIGNALED(status);
@@ -57,6 +59,8 @@ Result runMrgi(const std::string& args) {
   fs::remove(tmp.string() + ".err");
   return r;
 }
+
+Result runMrgi(const std::string& args) { return runMrgiWith("", args); }
 
 int lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 
@@ -135,6 +139,28 @@ TEST(Cli, SynthSessionCarriesGroundTruthAndFisheye) {
   const double validFraction = cv::countNonZero(depth) / static_cast<double>(depth.total());
   EXPECT_GT(validFraction, 0.8);  // a tabletop view is mostly in range...
   EXPECT_LT(validFraction, 1.0);  // ...but holes and edge dropouts exist
+}
+
+// mrgi starts itself again with the settings its runtime libraries read on load (runtime/threads.h), unless the
+// environment sets them, and a replay's summary says which it ran with.
+TEST(Cli, ReplayRunsWithTheProcessSettingsAndRecordsThem) {
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_process_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const std::string args = "replay " + session().string() + " --out " + out.string() + " --frames 1";
+  Result r = runMrgiWith("-u GLIBC_TUNABLES -u OMP_WAIT_POLICY -u OMP_NUM_THREADS", args);
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  auto s = nlohmann::json::parse(slurp(out / "summary.json"));
+  EXPECT_EQ(s["process"]["GLIBC_TUNABLES"], mrgi::runtime::kGlibcTunables);
+  EXPECT_EQ(s["process"]["OMP_WAIT_POLICY"], "PASSIVE");
+  EXPECT_TRUE(s["process"]["OMP_NUM_THREADS"].is_null());
+  // The user's own settings stand.
+  r = runMrgiWith("-u OMP_WAIT_POLICY GLIBC_TUNABLES=glibc.malloc.arena_max=2 OMP_NUM_THREADS=1", args);
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  s = nlohmann::json::parse(slurp(out / "summary.json"));
+  EXPECT_EQ(s["process"]["GLIBC_TUNABLES"], "glibc.malloc.arena_max=2");
+  EXPECT_TRUE(s["process"]["OMP_WAIT_POLICY"].is_null());
+  EXPECT_EQ(s["process"]["OMP_NUM_THREADS"], "1");
+  fs::remove_all(out);
 }
 
 TEST(Cli, ReplayWritesFramesAndSummary) {
