@@ -28,8 +28,10 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # prepare worker's replay and the bench report's layout, 30-60 s each, whose code the other Cli tests drive;
 # odometry's parity with Open3D and the returning marker,
 # 10-20 s each, whose code the smaller Odometry and Tracking tests run; the objects' shadow of a room against
-# the path tracer, whose C++ the other ObjectShadow tests run).
-exclude="^GL[./]|^AllTechniques/|Window|^Lpv\.DirectionalLobe|^Cli\.InsertSnaps|^Cli\.SynthPathTraces|^Cli\.ReferencePathTraces|^MedianCut\.Irradiance|^LightSplit\.Lights|^Cli\.ReplayEstimatesLightsFromTheSessionFisheye|^Cli\.Bench|^BenchRun\.|^Cli\.RoomFuses|^Cli\.ReplayBuildsTheRoom|^Tracking\.TheDefaultRoom|^Tracking\.ALookAround|^Tracking\.ARoomFusedAsTheFramesCome|^Tracking\.AnOptimisedTrajectoryFuses|^Cli\.ABareRecordingIsLitFromItsRoom|^Cli\.AnObjectInsertedIntoARecordingWithoutAMarker|^Cli\.ReplayPreparesTheNextFrame|^Cli\.TheBenchReportReads|^Odometry\.ParityWithOpen3Ds|^Tracking\.TheReturningMarker|^ObjectShadow\.UnderARoom"
+# the path tracer, whose C++ the other ObjectShadow tests run; the sweeps over every receiver of the objects' shadow
+# footprint, every normal of a light split and the power of every median cut, 10-25 s each, whose code every replay
+# with an object, the fisheye Cli tests and the other MedianCut tests run).
+exclude="^GL[./]|^ShadowFootprint\.EveryReceiver|^LightSplit\.EveryNormal|^MedianCut\.TotalPower|^AllTechniques/|Window|^Lpv\.DirectionalLobe|^Cli\.InsertSnaps|^Cli\.SynthPathTraces|^Cli\.ReferencePathTraces|^MedianCut\.Irradiance|^LightSplit\.Lights|^Cli\.ReplayEstimatesLightsFromTheSessionFisheye|^Cli\.Bench|^BenchRun\.|^Cli\.RoomFuses|^Cli\.ReplayBuildsTheRoom|^Tracking\.TheDefaultRoom|^Tracking\.ALookAround|^Tracking\.ARoomFusedAsTheFramesCome|^Tracking\.AnOptimisedTrajectoryFuses|^Cli\.ABareRecordingIsLitFromItsRoom|^Cli\.AnObjectInsertedIntoARecordingWithoutAMarker|^Cli\.ReplayPreparesTheNextFrame|^Cli\.TheBenchReportReads|^Odometry\.ParityWithOpen3Ds|^Tracking\.TheReturningMarker|^ObjectShadow\.UnderARoom"
 if [[ $all -eq 1 ]]; then
   ctest --test-dir build-fuzz -j2 --output-on-failure --timeout 900 -E "Window"
 else
