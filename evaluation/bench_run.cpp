@@ -45,6 +45,12 @@ using nlohmann::json;
 namespace mrgi::evaluation {
 namespace {
 
+/// The pixels the objects `caster` holds cover in part, seen through `camera` (Truth::partial): 4 x 4 rays a pixel,
+/// tested within a box just around the objects.
+cv::Mat partlyVirtual(const groundtruth::RayCaster& caster, const groundtruth::PinholeCamera& camera) {
+  return groundtruth::partlyVirtualMask(caster, camera, 4, groundtruth::virtualFocus(caster.scene(), camera, 0.1));
+}
+
 using namespace mrgi::runtime;
 
 int runBruteForce(const BenchOptions& o) {
@@ -277,8 +283,7 @@ std::map<int, Truth> loadTrueReferences(const std::string& session, const captur
         frames[f].rgbd->colourIntrinsics.width == t.delta.cols &&
         frames[f].rgbd->colourIntrinsics.height == t.delta.rows) {
       const groundtruth::PinholeCamera camera{frames[f].rgbd->colourIntrinsics, *frames[f].groundTruthT_world_camera};
-      t.partial =
-          groundtruth::partlyVirtualMask(*objects, camera, 4, groundtruth::virtualFocus(objects->scene(), camera, 0.1));
+      t.partial = partlyVirtual(*objects, camera);
     }
     out[f] = std::move(t);
   }
@@ -468,8 +473,7 @@ BenchSession loadBenchSession(const std::string& path, const BenchOptions& o) {
     t.images = groundtruth::renderDifferential(scenes.withObjects, scenes.realOnly, scenes.camera, po);
     ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     t.delta = t.images.delta();
-    t.partial = groundtruth::partlyVirtualMask(groundtruth::RayCaster(scenes.withObjects), scenes.camera, 4,
-                                               groundtruth::virtualFocus(scenes.withObjects, scenes.camera, 0.1));
+    t.partial = partlyVirtual(groundtruth::RayCaster(scenes.withObjects), scenes.camera);
     t.composite = compositor::compositeReference(frame.rgbd->colour, t.delta, t.images.mask);
     if (bs.truths.empty()) {
       // The reference's own noise: a second render with another seed. Each has error ≈ this / √2 against
