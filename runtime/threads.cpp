@@ -3,7 +3,6 @@
 #include <unistd.h>
 
 #include <cstdlib>
-#include <functional>
 
 namespace mrgi::runtime {
 namespace {

@@ -11,8 +11,8 @@
 // first frames fill some 80,000 fresh pages (the room's voxel blocks, the depth filter's window statistics, the
 // views' images and llvmpipe's textures), and a page fault costs about 11 us on this machine (a virtual machine):
 // about 0.9 s of the first two frames of a replay. One arena, whose heap glibc asks the kernel to back with
-// transparent huge pages where it allows them (2 MiB a fault), takes those frames' faults from about 100,000 to
-// 20,000 (docs/real-time.md).
+// transparent huge pages where it allows them (2 MiB a fault), leaves those frames next to no faults: a two-frame
+// replay's 100,000 become 20,000, its two starts' own (docs/real-time.md).
 #include <functional>
 #include <optional>
 #include <string>
