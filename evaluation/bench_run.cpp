@@ -38,6 +38,7 @@
 #include "runtime/frame_pipeline.h"
 #include "runtime/output.h"
 #include "runtime/room_fusion.h"
+#include "runtime/threads.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -200,11 +201,9 @@ int runBruteForce(const BenchOptions& o) {
         records.push_back(r);
       }
   }
-  json out = {{"generated_by", "mrgi bench"},
-              {"session", session},
-              {"model", o.model},
-              {"gl", context->renderer()},
-              {"records", records}};
+  json out = {
+      {"generated_by", "mrgi bench"},         {"session", session}, {"model", o.model}, {"gl", context->renderer()},
+      {"process", processSettingsInEffect()}, {"records", records}};
   if (!o.json.empty()) {
     createParentDirectory(o.json);
     capture::writeFileAtomically(o.json, out.dump(2) + "\n");
@@ -983,11 +982,15 @@ int runSweep(const BenchOptions& o) {
   measureFrom(swept);
   json sessionInfo = json::array();
   for (const auto& bs : sessions) sessionInfo.push_back(bs.refInfo);
-  json doc = {
-      {"generated_by", "mrgi bench"}, {"session", o.sessions.size() == 1 ? json(o.sessions.front()) : json(o.sessions)},
-      {"scene", first.scene},         {"frames", first.frames.size()},
-      {"gl", context->renderer()},    {"reference", first.refInfo},
-      {"references", sessionInfo},    {"records", records}};
+  json doc = {{"generated_by", "mrgi bench"},
+              {"session", o.sessions.size() == 1 ? json(o.sessions.front()) : json(o.sessions)},
+              {"scene", first.scene},
+              {"frames", first.frames.size()},
+              {"gl", context->renderer()},
+              {"reference", first.refInfo},
+              {"references", sessionInfo},
+              {"process", processSettingsInEffect()},
+              {"records", records}};
   doc["presets"] = choosePresets(records);
   doc["preset_differences"] = presetDifferences(doc["presets"]);
   auto write = [](const std::string& path, const std::function<void()>& fn) {
@@ -1012,11 +1015,9 @@ int runSweep(const BenchOptions& o) {
     std::printf("gallery: %s\n", file.c_str());
   }
   write(o.presets, [&] {
-    json p = {{"generated_by", "mrgi bench"},
-              {"session", doc["session"]},
-              {"gl", context->renderer()},
-              {"presets", doc["presets"]},
-              {"preset_differences", doc["preset_differences"]}};
+    json p = {{"generated_by", "mrgi bench"}, {"session", doc["session"]},
+              {"gl", context->renderer()},    {"process", doc["process"]},
+              {"presets", doc["presets"]},    {"preset_differences", doc["preset_differences"]}};
     capture::writeFileAtomically(o.presets, p.dump(2) + "\n");
   });
   for (const char* name : {"fast", "balanced", "accurate"})

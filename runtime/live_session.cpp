@@ -5,6 +5,7 @@
 #include "capture/error.h"
 #include "runtime/output.h"
 #include "runtime/room_fusion.h"
+#include "runtime/threads.h"
 
 using nlohmann::json;
 
@@ -154,7 +155,8 @@ json LiveSession::finish(const std::string& screenshot) {
                   {"frames", processed_},
                   {"pose", {{"mode", toString(o_.pose)}, {"frames", posedBy_}}},
                   {"window", {context_->width(), context_->height()}},
-                  {"renderer", context_->renderer()}};
+                  {"renderer", context_->renderer()},
+                  {"process", processSettingsInEffect()}};  // how it took its cores and memory
   // Throughput of the window loop (frame, UI and swap; no writes), from the first frame's start to the last's
   // end, and the mean time of the frame pipeline alone within it.
   if (processed_ > 0) {

@@ -302,9 +302,7 @@ int replay(const ReplayOptions& o) {
                    {"renderer", context->renderer()},
                    {"version", context->version()},
                    {"detail", context->detail()}};
-  // The settings the process took its cores and memory by (runtime/threads.h): the timings below depend on them.
-  for (const auto& [name, value] : processSettingsInEffect())
-    summary["process"][name] = value ? json(*value) : json(nullptr);
+  summary["process"] = processSettingsInEffect();  // how it took its cores and memory: the timings depend on them
   json mean;
   for (const auto& [name, s] : sums)
     mean[name] = {{"cpu_ms", s.first / done}, {"gpu_ms", s.second / done}};  // done > 0 when sums has entries

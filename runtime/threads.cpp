@@ -28,10 +28,12 @@ void configureProcess(char** argv) {
   execv("/proc/self/exe", argv);  // only returns when it failed
 }
 
-std::vector<std::pair<std::string, std::optional<std::string>>> processSettingsInEffect() {
-  std::vector<std::pair<std::string, std::optional<std::string>>> in;
-  for (const char* name : {"OMP_WAIT_POLICY", "OMP_NUM_THREADS", "GLIBC_TUNABLES"})
-    in.emplace_back(name, environmentValue(name));
+nlohmann::json processSettingsInEffect() {
+  nlohmann::json in = nlohmann::json::object();
+  for (const char* name : {"OMP_WAIT_POLICY", "OMP_NUM_THREADS", "GLIBC_TUNABLES"}) {
+    const auto value = environmentValue(name);
+    in[name] = value ? nlohmann::json(*value) : nlohmann::json(nullptr);
+  }
   return in;
 }
 

@@ -14,6 +14,7 @@
 // transparent huge pages where it allows them (2 MiB a fault), leaves those frames next to no faults: a two-frame
 // replay's 100,000 become 20,000, its two starts' own (docs/real-time.md).
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <utility>
@@ -38,7 +39,8 @@ std::vector<std::pair<std::string, std::string>> processSettings(
 /// skip it.
 void configureProcess(char** argv);
 
-/// Those variables as this process runs with them (nullopt where unset): what a run's timings were measured under.
-std::vector<std::pair<std::string, std::optional<std::string>>> processSettingsInEffect();
+/// Those variables as this process runs with them, name -> value (null where unset): what a run's timings were
+/// measured under (replay's, live's and the bench's summaries, "process").
+nlohmann::json processSettingsInEffect();
 
 }  // namespace mrgi::runtime

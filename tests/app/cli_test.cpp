@@ -898,6 +898,10 @@ TEST(Cli, BenchWritesWhatItsFlagsNameAndReplayTakesItsPresets) {
     EXPECT_NE(r.out.find(fs::absolute(dir / file).string()), std::string::npos) << file << ": " << r.out;
   const auto presets = nlohmann::json::parse(slurp(dir / "presets.json"));
   for (const char* name : {"fast", "balanced", "accurate"}) ASSERT_TRUE(presets["presets"].contains(name)) << name;
+  // What its timings were measured under (runtime/threads.h): the settings the process ran with.
+  for (const auto* j : {&doc, &presets})
+    EXPECT_EQ((*j)["process"]["GLIBC_TUNABLES"],
+              std::getenv("GLIBC_TUNABLES") ? std::getenv("GLIBC_TUNABLES") : mrgi::runtime::kGlibcTunables);
   const fs::path out = dir / "replay";
   const Result rp = runMrgi("replay " + session().string() + " --scene " + scene.string() +
                             " --frames 1 --pose ground-truth"
@@ -1622,6 +1626,7 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
   EXPECT_GT(summary["fps"].get<double>(), 0.0);
   EXPECT_GE(summary["wall_ms_per_frame"].get<double>(), summary["pipeline_ms_per_frame"].get<double>());
   EXPECT_NEAR(summary["fps"].get<double>() * summary["wall_ms_per_frame"].get<double>(), 1000.0, 1e-6);
+  EXPECT_TRUE(summary["process"].contains("GLIBC_TUNABLES")) << summary.dump();  // what the times were measured under
   EXPECT_EQ(summary["prepared_ahead"], 2);  // frames 2 and 3 were prepared while GL rendered the one before
   // The record toggle wrote the frames it showed into a session.
   EXPECT_EQ(summary["recorded"]["frames"], 3);

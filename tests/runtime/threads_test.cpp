@@ -1,9 +1,9 @@
 // The settings mrgi starts itself again with (runtime/threads.h): each only where the environment leaves it unset.
+#include "runtime/threads.h"
+
 #include <gtest/gtest.h>
 
 #include <map>
-
-#include "runtime/threads.h"
 
 namespace mrgi::runtime {
 namespace {
@@ -25,7 +25,8 @@ TEST(ProcessSettings, EachIsSetOnlyWhereTheEnvironmentLeavesItUnset) {
   EXPECT_EQ(settingsUnder({{"OMP_WAIT_POLICY", "ACTIVE"}}), Settings({{"GLIBC_TUNABLES", kGlibcTunables}}));
   EXPECT_EQ(settingsUnder({{"OMP_NUM_THREADS", "1"}}), Settings({{"GLIBC_TUNABLES", kGlibcTunables}}));
   // The allocator's: any tunables the user set stand, whatever they tune.
-  EXPECT_EQ(settingsUnder({{"GLIBC_TUNABLES", "glibc.malloc.arena_max=2"}}), Settings({{"OMP_WAIT_POLICY", "PASSIVE"}}));
+  EXPECT_EQ(settingsUnder({{"GLIBC_TUNABLES", "glibc.malloc.arena_max=2"}}),
+            Settings({{"OMP_WAIT_POLICY", "PASSIVE"}}));
   EXPECT_EQ(settingsUnder({{"GLIBC_TUNABLES", ""}}), Settings({{"OMP_WAIT_POLICY", "PASSIVE"}}));
   // Both set: nothing to do, and the program does not start again.
   EXPECT_TRUE(settingsUnder({{"OMP_WAIT_POLICY", "PASSIVE"}, {"GLIBC_TUNABLES", kGlibcTunables}}).empty());
