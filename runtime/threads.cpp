@@ -10,13 +10,18 @@ std::optional<std::string> environmentValue(const char* name) {
   const char* value = std::getenv(name);
   return value ? std::optional<std::string>(value) : std::nullopt;
 }
+
+// The variables processSettings() reads, which processSettingsInEffect() reports.
+constexpr const char* kOmpWaitPolicyName = "OMP_WAIT_POLICY";
+constexpr const char* kOmpNumThreadsName = "OMP_NUM_THREADS";
+constexpr const char* kGlibcTunablesName = "GLIBC_TUNABLES";
 }  // namespace
 
 std::vector<std::pair<std::string, std::string>> processSettings(
     const std::function<std::optional<std::string>(const char*)>& get) {
   std::vector<std::pair<std::string, std::string>> set;
-  if (!get("OMP_WAIT_POLICY") && !get("OMP_NUM_THREADS")) set.emplace_back("OMP_WAIT_POLICY", "PASSIVE");
-  if (!get("GLIBC_TUNABLES")) set.emplace_back("GLIBC_TUNABLES", kGlibcTunables);
+  if (!get(kOmpWaitPolicyName) && !get(kOmpNumThreadsName)) set.emplace_back(kOmpWaitPolicyName, kOmpWaitPolicy);
+  if (!get(kGlibcTunablesName)) set.emplace_back(kGlibcTunablesName, kGlibcTunables);
   return set;
 }
 
@@ -30,7 +35,7 @@ void configureProcess(char** argv) {
 
 nlohmann::json processSettingsInEffect() {
   nlohmann::json in = nlohmann::json::object();
-  for (const char* name : {"OMP_WAIT_POLICY", "OMP_NUM_THREADS", "GLIBC_TUNABLES"}) {
+  for (const char* name : {kOmpWaitPolicyName, kOmpNumThreadsName, kGlibcTunablesName}) {
     const auto value = environmentValue(name);
     in[name] = value ? nlohmann::json(*value) : nlohmann::json(nullptr);
   }

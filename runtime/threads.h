@@ -22,12 +22,15 @@
 
 namespace mrgi::runtime {
 
+/// The OMP_WAIT_POLICY the program runs with when the environment sets neither it nor OMP_NUM_THREADS.
+inline constexpr const char* kOmpWaitPolicy = "PASSIVE";
+
 /// The GLIBC_TUNABLES the program runs with when the environment sets none: one malloc arena, its heap on
 /// transparent huge pages (glibc 2.35 and later; an older one ignores them).
 inline constexpr const char* kGlibcTunables = "glibc.malloc.hugetlb=1:glibc.malloc.arena_max=1";
 
 /// The variables the program sets before it starts again, given the environment (`get` returns a variable's value,
-/// nullopt where unset): OMP_WAIT_POLICY=PASSIVE unless OMP_WAIT_POLICY or OMP_NUM_THREADS is set (idle OpenMP
+/// nullopt where unset): OMP_WAIT_POLICY=kOmpWaitPolicy unless OMP_WAIT_POLICY or OMP_NUM_THREADS is set (idle OpenMP
 /// threads sleep), and GLIBC_TUNABLES=kGlibcTunables unless GLIBC_TUNABLES is set. Empty: nothing to do.
 std::vector<std::pair<std::string, std::string>> processSettings(
     const std::function<std::optional<std::string>(const char*)>& get);
@@ -36,7 +39,7 @@ std::vector<std::pair<std::string, std::string>> processSettings(
 /// main with its argv; returns when nothing was to be done (or the new start failed, in which case the program
 /// carries on as it was). The second start loads the shared libraries again: 0.17 s here, once per run, against
 /// 60-100 ms saved on every frame of a replay and 0.3-0.5 s of its first frames; set both variables yourself to
-/// skip it.
+/// skip it (tools/process-env.sh does, for the tests).
 void configureProcess(char** argv);
 
 /// Those variables as this process runs with them, name -> value (null where unset): what a run's timings were

@@ -16,8 +16,8 @@ fi
 CC=clang-15 CXX=clang++-15 cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMRGI_FUZZ=ON \
   -DMRGI_BUILD_TESTS=ON -DMRGI_BUILD_BENCHMARKS=OFF > /dev/null
 cmake --build build-fuzz
-# The allocator settings mrgi starts itself again with (runtime/threads.h): with them set, it does not.
-export GLIBC_TUNABLES="${GLIBC_TUNABLES:-$(sed -n 's/.*kGlibcTunables = "\(.*\)";/\1/p' runtime/threads.h)}"
+# The process settings mrgi starts itself again with: with them set, it does not.
+source tools/process-env.sh
 export ASAN_OPTIONS="detect_leaks=0:abort_on_error=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 [[ -x /usr/bin/llvm-symbolizer ]] && export ASAN_SYMBOLIZER_PATH=/usr/bin/llvm-symbolizer

@@ -3,7 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/build.sh
-# The allocator settings mrgi starts itself again with (runtime/threads.h), set here once: the tests' own processes
-# run with them, and the mrgi a test starts does not start again.
-export GLIBC_TUNABLES="${GLIBC_TUNABLES:-$(sed -n 's/.*kGlibcTunables = "\(.*\)";/\1/p' runtime/threads.h)}"
+# The process settings mrgi starts itself again with, set here once: the tests' own processes run with them, and the
+# mrgi a test starts does not start again.
+source tools/process-env.sh
 ctest --test-dir build -j2 --output-on-failure --timeout 600
