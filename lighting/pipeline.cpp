@@ -383,14 +383,20 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     footprint_ = objectsFootprint(frame_->camera(), centre, radius, addDirectShadow ? kept : std::vector<SceneLight>{},
                                   margin, frame_->cameraVertices(), frame_->cameraIndices());
   }
+  // The real-role delta at the object terms' own reduced view: one set of upsampling weights for both.
+  const bool sharedUpsample = reducedTerms && realOut.realDelta && factors[0] > 1 && factors[0] == termsView.factor &&
+                              realOut.realDelta->width() == termsView.width &&
+                              realOut.realDelta->height() == termsView.height;
   const auto shadeWith = [&](bool realOnly) {
-    gl::Program& p = shadePrograms_[(soft ? 1 : 0) | (upsample ? 2 : 0) | (reducedTerms ? 4 : 0) | (realOnly ? 8 : 0)];
+    gl::Program& p = shadePrograms_[(soft ? 1 : 0) | (upsample ? 2 : 0) | (reducedTerms ? 4 : 0) | (realOnly ? 8 : 0) |
+                                    (sharedUpsample ? 16 : 0)];
     if (!p.id()) {
       std::vector<std::pair<std::string, std::string>> defines;
       if (soft) defines.push_back({"SOFT_OBJECT_SHADOWS", "1"});
       if (upsample) defines.push_back({"UPSAMPLE_OUTPUTS", "1"});
       if (reducedTerms) defines.push_back({"REDUCED_OBJECT_TERMS", "1"});
       if (realOnly) defines.push_back({"SHADE_REAL_ONLY", "1"});
+      if (sharedUpsample) defines.push_back({"SHARED_UPSAMPLE", "1"});
       p = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", defines);
     }
     p.use();

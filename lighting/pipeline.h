@@ -185,7 +185,7 @@ class LightingPipeline {
   /// The shading pass's variants, compiled when first used: bit 0 soft shadows, bit 1 upsampling of reduced
   /// technique outputs, bit 2 the object terms from the reduced pass (code a pass does not run still costs
   /// llvmpipe: each only where it is needed).
-  std::array<gl::Program, 16> shadePrograms_;  ///< soft | upsample | reduced terms | real only
+  std::array<gl::Program, 32> shadePrograms_;  ///< soft | upsample | reduced terms | real only | shared upsample
   bool boundedShading_ = true;
   cv::Rect footprint_;
   /// The object terms at the reduced view (lighting/object_terms.frag), bit 0 the soft-shadow variant, bit 1

@@ -14,6 +14,8 @@
 //                  environment seen at the object (uEnvironmentHoldsBounce: it holds the real surfaces' bounce)
 //   no surface:    rgb = 0, a = 0
 // Output 1 (debug): rgb = E_delta (real) or E_indirect (virtual) in W/m^2, a = 1 where a surface was seen.
+// SHARED_UPSAMPLE (with REDUCED_OBJECT_TERMS): the real-role delta is at the object terms' reduced view (the same
+// factor and size): the two are upsampled with one set of weights, the values each alone would have.
 // SHADE_REAL_ONLY (a program variant): the real pixels without the objects' direct shadow, for the pixels
 // outside lighting::objectsFootprint (no object there, no direct shadow of theirs: the same values there as
 // the whole program's), which the whole program then draws alone. llvmpipe runs every branch of a fragment
@@ -96,13 +98,23 @@ void main() {
   }
 #endif
   {
+#ifdef SHARED_UPSAMPLE
+    // The real-role delta and the objects' terms at one reduced view: upsampled with weights computed once.
+    vec3 delta, terms;
+    upsampledPair(uRealDelta, uObjectTerms, uLowPosition, uLowNormal, uObjectTermsFactor, p, pos, normal, delta, terms);
+#else
     // A real-role technique without a real-pixel output of its own (Kinect-VAL) hands out none: nothing read.
     vec3 delta = uRealDeltaOn == 1 ? techniqueOutput(uRealDelta, uRealDeltaFactor, p, pos, normal) : vec3(0.0);
+#endif
     // Only where the objects reach: a sphere seen at a view factor of at least lighting::kObjectsMinViewFactor, or
     // a light the objects' map may shadow here. Elsewhere every object term below is exactly zero and skipped.
     bool seen = objectsSeen(pos.xyz, n);
 #ifdef REDUCED_OBJECT_TERMS
+#ifdef SHARED_UPSAMPLE
+    if (seen) delta += terms;
+#else
     if (seen) delta += upsampled(uObjectTerms, uLowPosition, uLowNormal, uObjectTermsFactor, p, pos, normal);
+#endif
 #ifndef SHADE_REAL_ONLY
     if (uAddDirectShadow == 1) delta += objectsDirectShadow(pos.xyz, n);
 #endif

@@ -48,3 +48,43 @@ vec3 upsampled(sampler2D value, sampler2D lowPosition, sampler2D lowNormal, int 
   }
   return result;
 }
+
+// Two outputs of one reduced view (the same lowPosition, lowNormal and factor) upsampled with weights computed once:
+// each the value upsampled() gives it, the same operations in the same order.
+void upsampledPair(sampler2D valueA, sampler2D valueB, sampler2D lowPosition, sampler2D lowNormal, int factor,
+                   ivec2 pixel, vec4 position, vec4 normal, out vec3 a, out vec3 b) {
+  a = vec3(0.0);
+  b = vec3(0.0);
+  if (position.w < 0.5) return;
+  ivec2 size = textureSize(valueA, 0);
+  vec2 uv = vec2(pixel - ivec2(factor / 2)) / float(factor);
+  ivec2 base = ivec2(floor(uv));
+  vec2 t = uv - vec2(base);
+  vec3 sumA = vec3(0.0), sumB = vec3(0.0);
+  float total = 0.0;
+  for (int dj = 0; dj < 2; ++dj)
+    for (int di = 0; di < 2; ++di) {
+      ivec2 q = clamp(base + ivec2(di, dj), ivec2(0), size - 1);
+      float bw = (di == 1 ? t.x : 1.0 - t.x) * (dj == 1 ? t.y : 1.0 - t.y);
+      float w = bw * upsampleWeight(position, normal, texelFetch(lowPosition, q, 0), texelFetch(lowNormal, q, 0));
+      sumA += w * texelFetch(valueA, q, 0).rgb;
+      sumB += w * texelFetch(valueB, q, 0).rgb;
+      total += w;
+    }
+  if (total > 1e-4) {
+    a = sumA / total;
+    b = sumB / total;
+    return;
+  }
+  float best = 1e-4;
+  int count = total > 1e-4 ? 0 : 16;
+  for (int i = 0; i < count; ++i) {
+    ivec2 q = clamp(base + ivec2(i % 4 - 1, i / 4 - 1), ivec2(0), size - 1);
+    float w = upsampleWeight(position, normal, texelFetch(lowPosition, q, 0), texelFetch(lowNormal, q, 0));
+    if (w > best) {
+      best = w;
+      a = texelFetch(valueA, q, 0).rgb;
+      b = texelFetch(valueB, q, 0).rgb;
+    }
+  }
+}

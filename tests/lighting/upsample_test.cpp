@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <random>
@@ -205,9 +206,13 @@ TEST(Upsample, GlslTwinMatchesTheCppPerPixel) {
       t.upload(GL_RGBA, GL_FLOAT, m.ptr(), 4);
       return t;
     };
+    // A second output of the same reduced view for upsampledPair(): the first's values reversed.
+    cv::Mat lowValue2 = cv::Scalar(1, 1, 1, 1) - lowValue;
+    const cv::Mat expected2 = upsample(lowValue2, lowPosition, lowNormal, s.position, s.normal, factor);
     gl::Texture tp = texture(s.position), tn = texture(s.normal), tlp = texture(lowPosition), tln = texture(lowNormal),
-                tv = texture(lowValue);
+                tv = texture(lowValue), tv2 = texture(lowValue2);
     gl::Buffer out(static_cast<GLsizeiptr>(size_t(w) * h * sizeof(cv::Vec4f)), nullptr);
+    gl::Buffer pairsOut(static_cast<GLsizeiptr>(2 * size_t(w) * h * sizeof(cv::Vec4f)), nullptr);
     gl::Program prog = gl::Program::compute("lighting/shaders/upsample_eval.comp");
     prog.use();
     prog.set("uFactor", factor);
@@ -216,19 +221,28 @@ TEST(Upsample, GlslTwinMatchesTheCppPerPixel) {
     tlp.bind(2);
     tln.bind(3);
     tv.bind(4);
+    tv2.bind(5);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, out.id());
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, pairsOut.id());
     glDispatchCompute((w + 7) / 8, (h + 7) / 8, 1);
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-    cv::Mat gpu(h, w, CV_32FC4);
+    cv::Mat gpu(h, w, CV_32FC4), pairs(h, 2 * w, CV_32FC4);
     out.download(0, static_cast<GLsizeiptr>(gpu.total() * gpu.elemSize()), gpu.ptr());
+    pairsOut.download(0, static_cast<GLsizeiptr>(pairs.total() * pairs.elemSize()), pairs.ptr());
     gl::checkGlError("upsample_eval");
-    double worst = 0;
+    double worst = 0, pairWorst = 0, pairWorst2 = 0;
     int fallback = 0;
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) {
         if (s.position.at<cv::Vec4f>(y, x)[3] < 0.5f) continue;
-        for (int c = 0; c < 3; ++c)
+        for (int c = 0; c < 3; ++c) {
           worst = std::max(worst, double(std::abs(gpu.at<cv::Vec4f>(y, x)[c] - expected.at<cv::Vec4f>(y, x)[c])));
+          // The pair: the first output exactly as upsampled() gives it, the second as its C++ twin.
+          pairWorst =
+              std::max(pairWorst, double(std::abs(pairs.at<cv::Vec4f>(y, 2 * x)[c] - gpu.at<cv::Vec4f>(y, x)[c])));
+          pairWorst2 = std::max(
+              pairWorst2, double(std::abs(pairs.at<cv::Vec4f>(y, 2 * x + 1)[c] - expected2.at<cv::Vec4f>(y, x)[c])));
+        }
         // Where the four texels around the pixel give no weight, the search of the 4 x 4 around them.
         const float ux = static_cast<float>(x - factor / 2) / factor, uy = static_cast<float>(y - factor / 2) / factor;
         const int bx = static_cast<int>(std::floor(ux)), by = static_cast<int>(std::floor(uy));
@@ -244,24 +258,30 @@ TEST(Upsample, GlslTwinMatchesTheCppPerPixel) {
         fallback += total <= 1e-4f && expected.at<cv::Vec4f>(y, x)[0] != 0.f;
       }
     EXPECT_LT(worst, 1e-5) << "factor " << factor;  // float exp() on llvmpipe against the C++'s, values O(1)
+    EXPECT_EQ(pairWorst, 0.0) << "factor " << factor;
+    EXPECT_LT(pairWorst2, 1e-5) << "factor " << factor;
     EXPECT_GT(fallback, 0) << "factor " << factor << ": the 4 x 4 search is held to its twin too";
   }
 }
 
-TEST(Upsample, TheShadingPassUpsamplesATechniquesReducedOutputAsTheCppDoes) {
-  // DLPV at render_scale 1 and 1/2 on the floor, wall and cube: the frame's reduced G-buffer is the C++
+class ShadingPassUpsample : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(ShadingPassUpsample, ATechniquesReducedOutputAsTheCppDoes) {
+  // A technique at render_scale 1 and 1/2 on the floor, wall and cube: the frame's reduced G-buffer is the C++
   // reduction of its G-buffer, the object's indirect irradiance is the C++ upsampling of the technique's
   // reduced output, and a real pixel's delta differs from the full-resolution run's by exactly the difference
   // between the two technique outputs (the shading pass's direct shadow runs at the frame's pixels in both;
   // with no ambient the objects hide nothing, so its reduced object terms, ObjectShadow.AtAReducedRenderScale…,
-  // are zero).
+  // are zero). DLPV draws the objects' direct shadow itself; imperfect volumes leave it to the pass, whose real-pixel
+  // delta and object terms then share their upsampling weights (shade.frag SHARED_UPSAMPLE) and the direct shadow
+  // is added at the frame's pixels beside them.
   auto ctx = test::makeContext();
   const test::TestScene s = test::makeScene(true, 0.12, {-0.36, 0.0, 0.06});
   const CameraView camera = test::wallCamera();  // 96 x 72
   std::vector<cv::Mat> irradiance, delta, gbufferPos, gbufferNrm;
   cv::Mat lowDelta, lowVirtual, lowPos, lowNrm;
   for (double scale : {1.0, 0.5}) {
-    PipelineConfig cfg = test::testConfig(96, 72, 16, 64, "dlpv");
+    PipelineConfig cfg = test::testConfig(96, 72, 16, 64, GetParam());
     cfg.set("frame", "render_scale", scale);
     LightingPipeline pipe = test::makePipeline(cfg, s);
     pipe.run(camera, test::wallLamp(), {0.0, 0.0, 0.0}, nullptr);
@@ -312,6 +332,13 @@ TEST(Upsample, TheShadingPassUpsamplesATechniquesReducedOutputAsTheCppDoes) {
   EXPECT_LT(worstReal, 1e-4);     // and the full-resolution run's float sums beside it
   EXPECT_GT(moved, 1e-4);         // the reduced run differs: the comparison is not of one image with itself
 }
+
+INSTANTIATE_TEST_SUITE_P(Upsample, ShadingPassUpsample, ::testing::Values("dlpv", "imperfect-volumes"),
+                         [](const auto& info) {
+                           std::string name = info.param;
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
+                         });
 
 }  // namespace
 }  // namespace mrgi::lighting
