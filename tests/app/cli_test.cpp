@@ -21,6 +21,7 @@
 #include <tuple>
 
 #include "capture/v4l2_source.h"
+#include "made_sessions.h"
 #include "reconstruction/marker.h"
 #include "reconstruction/room_model.h"
 #include "runtime/threads.h"
@@ -82,14 +83,12 @@ int messageLines(const std::string& s) {
   return n;
 }
 
-/// One small synthetic session shared by the tests of this file.
+/// One small synthetic session shared by the tests of this file (and their processes: tests read it, never write it).
 const fs::path& session() {
   static const fs::path dir = [] {
-    const fs::path d = fs::temp_directory_path() / ("mrgi_cli_session_" + std::to_string(::getpid()));
-    fs::remove_all(d);
-    const Result r = runMrgi("synth --out " + d.string() +
-                             " --frames 3 --width 160 --height 120 --fisheye-every 2 --render raycast");
-    EXPECT_EQ(r.exitCode, 0) << r.err;
+    const fs::path d = mrgi::test::madeSession(
+        "cli_session", "--frames 3 --width 160 --height 120 --fisheye-every 2 --render raycast");
+    EXPECT_FALSE(d.empty()) << "mrgi synth failed";
     return d;
   }();
   return dir;
@@ -257,7 +256,7 @@ TEST(Cli, BadInputsAreOneLineErrors) {
   expectOneLineError(runMrgi("nosuchcommand"), "nosuchcommand");
   expectOneLineError(runMrgi("info openni2://"), "openni2://");
   // A corrupt frame in a copy of the session: the error names the file.
-  const fs::path copy = session().string() + "_corrupt";
+  const fs::path copy = fs::temp_directory_path() / ("mrgi_cli_corrupt_" + std::to_string(::getpid()));
   fs::remove_all(copy);
   fs::copy(session(), copy, fs::copy_options::recursive);
   std::ofstream(copy / "colour/000001.png", std::ios::trunc) << "garbage";

@@ -11,6 +11,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "made_sessions.h"
+
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -40,27 +42,15 @@ const json& cases() {
   return all;
 }
 
-/// A directory removed with everything in it when the process ends.
-struct TempDir {
-  fs::path path;
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
-
-/// One small synthetic session (2 frames, 160x120, a fisheye EXR on frame 0), made once per process and
-/// removed at its end.
+/// One small synthetic session (2 frames, 160x120, a fisheye EXR on frame 0) that each case copies.
 const fs::path& baseSession() {
-  static const TempDir dir = [] {
-    const fs::path d = fs::temp_directory_path() / ("mrgi_repro_base_" + std::to_string(::getpid()));
-    fs::remove_all(d);
-    const std::string cmd = std::string(MRGI_BINARY) + " synth --out " + d.string() +
-                            " --frames 2 --width 160 --height 120 --fisheye-every 2 --render raycast > /dev/null 2>&1";
-    EXPECT_EQ(std::system(cmd.c_str()), 0);
-    return TempDir{d};
+  static const fs::path dir = [] {
+    const fs::path d =
+        mrgi::test::madeSession("repro_base", "--frames 2 --width 160 --height 120 --fisheye-every 2 --render raycast");
+    EXPECT_FALSE(d.empty()) << "mrgi synth failed";
+    return d;
   }();
-  return dir.path;
+  return dir;
 }
 
 /// Every regular file under root (except `skip`) with its bytes.
