@@ -17,8 +17,8 @@ inline std::filesystem::path madeSession(const std::string& name, const std::str
   namespace fs = std::filesystem;
   const fs::path binary(MRGI_BINARY);
   const std::string prefix = name + "_";
-  const std::string stamp =
-      std::to_string(fs::file_size(binary)) + "_" + std::to_string(fs::last_write_time(binary).time_since_epoch().count());
+  const std::string stamp = std::to_string(fs::file_size(binary)) + "_" +
+                            std::to_string(fs::last_write_time(binary).time_since_epoch().count());
   const fs::path dir = binary.parent_path() / (prefix + stamp);
   if (fs::exists(dir / "frames.jsonl")) return dir;
   const fs::path made = dir.string() + ".making" + std::to_string(::getpid());
