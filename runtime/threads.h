@@ -26,8 +26,13 @@ namespace mrgi::runtime {
 inline constexpr const char* kOmpWaitPolicy = "PASSIVE";
 
 /// The GLIBC_TUNABLES the program runs with when the environment sets none: one malloc arena, its heap on
-/// transparent huge pages (glibc 2.35 and later; an older one ignores them).
-inline constexpr const char* kGlibcTunables = "glibc.malloc.hugetlb=1:glibc.malloc.arena_max=1";
+/// transparent huge pages (glibc 2.35 and later; an older one ignores them), and a heap that keeps what is freed:
+/// blocks up to 32 MiB come from the heap, and its free top is never handed back to the kernel. By default glibc
+/// trims a free top past twice its largest freed mapping, and a frame's images (a 640x480 float map is 3.5-4.7
+/// MiB) were freed and touched afresh, each 2 MiB page zeroed by the kernel again (docs/real-time.md).
+inline constexpr const char* kGlibcTunables =
+    "glibc.malloc.hugetlb=1:glibc.malloc.arena_max=1:glibc.malloc.trim_threshold=4294967296:"
+    "glibc.malloc.mmap_threshold=33554432";
 
 /// The variables the program sets before it starts again, given the environment (`get` returns a variable's value,
 /// nullopt where unset): OMP_WAIT_POLICY=kOmpWaitPolicy unless OMP_WAIT_POLICY or OMP_NUM_THREADS is set (idle OpenMP
