@@ -39,8 +39,8 @@ TEST(ProcessSettings, EachIsSetOnlyWhereTheEnvironmentLeavesItUnset) {
   EXPECT_TRUE(settingsUnder({{"OMP_WAIT_POLICY", "PASSIVE"}, {"GLIBC_TUNABLES", kGlibcTunables}}).empty());
 }
 
-// The minor page faults of allocating, touching and freeing `blocks` blocks of `mib` MiB, done once to warm the heap and
-// then measured the second time.
+// The minor page faults of allocating, touching and freeing `blocks` blocks of `mib` MiB, done once to warm the heap
+// and then measured the second time.
 long faultsOfAFrameAgain(int blocks, size_t mib) {
   const auto frame = [&] {
     std::vector<char*> held;
