@@ -12,6 +12,7 @@
 #include <jpeglib.h>
 #include <png.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cctype>
@@ -625,15 +626,46 @@ cv::Mat toBgr(const cv::Mat& image) {
 }
 }  // namespace
 
+namespace {
+void pngWrite(png_structp png, png_bytep data, png_size_t n) {
+  auto* out = static_cast<std::vector<unsigned char>*>(png_get_io_ptr(png));
+  out->insert(out->end(), data, data + n);
+}
+void pngFlush(png_structp) {}
+}  // namespace
+
 std::vector<unsigned char> encodePng(const cv::Mat& image, const std::string& nameForErrors) {
-  const cv::Mat bgr = toBgr(image);
-  // Run-length deflate (Z_RLE) after PNG's row filters: on camera frames and composites half the time of the
-  // default strategy at level 3 and 15 % smaller (BM_EncodePng); the writer thread shares the CPU with the
-  // frame loop.
+  const int channels = image.channels();
+  if ((image.depth() != CV_8U && image.depth() != CV_16U) || (channels != 1 && channels != 3 && channels != 4) ||
+      image.empty())
+    throw CaptureError(nameForErrors, "cannot encode PNG (an 8- or 16-bit image of 1, 3 or 4 channels is needed)");
+  // libpng straight from the caller's rows (RGB is PNG's own order: no conversion, no copy), each row filtered by
+  // its difference from the row above and deflated run-length (Z_RLE) at level 1: on camera frames and composites
+  // 2.6 times as fast as OpenCV's encoder with every filter tried, for files 11 % larger (BM_EncodePng). The writer
+  // thread shares the CPU with the frame loop.
   std::vector<unsigned char> bytes;
-  if (!cv::imencode(".png", bgr, bytes,
-                    {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE}))
-    throw CaptureError(nameForErrors, "cannot encode PNG");
+  bytes.reserve(image.total() * image.elemSize() / 2 + 1024);
+  PngErrors errors;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &errors, pngError, pngWarning);
+  if (!png) throw CaptureError(nameForErrors, "cannot encode PNG (out of memory)");
+  png_infop info = png_create_info_struct(png);
+  if (!info || setjmp(errors.jump)) {
+    png_destroy_write_struct(&png, &info);
+    throw CaptureError(nameForErrors, std::string("cannot encode PNG (") + errors.message + ")");
+  }
+  png_set_write_fn(png, &bytes, pngWrite, pngFlush);
+  const int type = channels == 1 ? PNG_COLOR_TYPE_GRAY : channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_RGB_ALPHA;
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.cols), static_cast<png_uint_32>(image.rows),
+               image.depth() == CV_16U ? 16 : 8, type, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+               PNG_FILTER_TYPE_DEFAULT);
+  png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_UP);
+  png_set_compression_level(png, 1);
+  png_set_compression_strategy(png, Z_RLE);
+  png_write_info(png, info);
+  if (image.depth() == CV_16U) png_set_swap(png);  // PNG is big-endian, the host little-endian
+  for (int y = 0; y < image.rows; ++y) png_write_row(png, const_cast<png_bytep>(image.ptr<png_byte>(y)));
+  png_write_end(png, info);
+  png_destroy_write_struct(&png, &info);
   return bytes;
 }
 

@@ -329,3 +329,44 @@ TEST(ImageIo, FloatImagesWithNanOrInfAreRefusedNamingThePixel) {
     }
   }
 }
+
+TEST(ImageIo, EncodedPngsDecodeToThePixelsGivenByLibpngAndOpenCv) {
+  cv::RNG rng(3);
+  cv::Mat grey(37, 53, CV_8UC1), rgb(37, 53, CV_8UC3), rgba(37, 53, CV_8UC4), depth(37, 53, CV_16UC1);
+  for (cv::Mat* m : {&grey, &rgb, &rgba, &depth}) rng.fill(*m, cv::RNG::UNIFORM, 0, m->depth() == CV_16U ? 65536 : 256);
+  const cv::Mat window = rgb(cv::Rect(5, 3, 20, 11));  // rows that are not contiguous
+  const auto decoded = [](const cv::Mat& m) {
+    return cv::imdecode(encodePng(m, "x.png"), cv::IMREAD_UNCHANGED);  // OpenCV: BGR(A) order
+  };
+  EXPECT_EQ(cv::norm(decoded(grey), grey, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(decoded(depth), depth, cv::NORM_INF), 0.0);  // 16-bit, byte order included
+  cv::Mat bgr, bgra;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  cv::cvtColor(rgba, bgra, cv::COLOR_RGBA2BGRA);
+  EXPECT_EQ(cv::norm(decoded(rgb), bgr, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(decoded(rgba), bgra, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(decoded(window), bgr(cv::Rect(5, 3, 20, 11)), cv::NORM_INF), 0.0);
+  // Our own reader, through a file: RGB in memory as written.
+  const fs::path p = scratch("encoded.png");
+  writeBytes(p, encodePng(rgb, p.string()));
+  EXPECT_EQ(cv::norm(readColour(p.string()), rgb, cv::NORM_INF), 0.0);
+  writeBytes(p, encodePng(depth, p.string()));
+  EXPECT_EQ(cv::norm(
+                readDepth(p.string(), 1.0),
+                [&] {
+                  cv::Mat metres;
+                  depth.convertTo(metres, CV_32F);
+                  return metres;
+                }(),
+                cv::NORM_INF),
+            0.0);
+  // What PNG cannot hold is one error naming the file.
+  for (const cv::Mat& bad :
+       {cv::Mat(4, 4, CV_32FC3, cv::Scalar::all(0.5)), cv::Mat(4, 4, CV_8UC2, cv::Scalar(1, 2)), cv::Mat()})
+    try {
+      encodePng(bad, "bad.png");
+      ADD_FAILURE() << "encoded a " << bad.type();
+    } catch (const CaptureError& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.png"), std::string::npos) << e.what();
+    }
+}

@@ -60,7 +60,8 @@ TEST(NearestPoint, TiesGoToTheLowestIndexWhateverTheSeed) {
   for (size_t i = 0; i < n; ++i) points.push_back(points[i]);
   const PointCloudAdaptor cloud{points};
   const PointKdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(4));
-  for (const cv::Vec3f q : {cv::Vec3f(0.5f, 0.75f, 0.1f), cv::Vec3f(0.625f, 0.75f, 0.f), cv::Vec3f(1.125f, 1.125f, 0.f)})
+  for (const cv::Vec3f q :
+       {cv::Vec3f(0.5f, 0.75f, 0.1f), cv::Vec3f(0.625f, 0.75f, 0.f), cv::Vec3f(1.125f, 1.125f, 0.f)})
     for (int64_t seed = -1; seed < static_cast<int64_t>(points.size()); ++seed) {
       uint32_t index = 0;
       float d2 = 0;
