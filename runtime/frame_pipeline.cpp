@@ -635,15 +635,9 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
   std::atomic<size_t> detailedBlocks{0};
   const int rows = std::min(radiance.rows, r.positions.rows), cols = std::min(radiance.cols, r.positions.cols);
   // Rows of blocks over OpenCV's workers: each block writes its own pixels, and the room's index is only read.
-  // Each search starts from the block before's nearest vertex (that of the row above's first block for a row's
-  // first): neighbouring blocks see neighbouring surface, so the tree is mostly pruned at once. The answer is the
-  // nearest vertex, ties to the lowest index, whatever the seed (reconstruction::nearestPoint).
   cv::parallel_for_(cv::Range(0, (rows + stride - 1) / stride), [&](const cv::Range& blockRows) {
     size_t detailed = 0;
-    int64_t rowSeed = -1;
-    for (int by = blockRows.start * stride; by < blockRows.end * stride && by < rows; by += stride) {
-      int64_t seed = rowSeed;
-      bool headOfRow = true;
+    for (int by = blockRows.start * stride; by < blockRows.end * stride && by < rows; by += stride)
       for (int bx = 0; bx < cols; bx += stride) {
         const int yEnd = std::min(by + stride, rows), xEnd = std::min(bx + stride, cols);
         cv::Point head(-1, -1);
@@ -657,9 +651,7 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
         const cv::Vec3f world(capture::transformPoint(T, cv::Vec3d(r.positions.at<cv::Vec3f>(head))));
         uint32_t nearest = 0;
         float d2 = 0;
-        if (!reconstruction::nearestPoint(roomIndex_->tree, roomIndex_->cloud.p, world, seed, nearest, d2)) continue;
-        if (headOfRow) rowSeed = nearest, headOfRow = false;
-        seed = nearest;
+        if (roomIndex_->tree.knnSearch(&world[0], 1, &nearest, &d2) != 1) continue;
         const cv::Vec3f base = roomAlbedo_[nearest];
         const auto st = roomAlbedoStatus_[nearest];
         const bool detail =
@@ -676,7 +668,6 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
             pixelAlbedo.at<cv::Vec3f>(y, x) = a;
           }
       }
-    }
     detailedBlocks += detailed;
   });
   r.info["view_mesh_detailed"] = detailedBlocks.load();
