@@ -429,13 +429,17 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
   if (footprint_ == image) {
     shadeWith(false);
   } else {
-    shadeWith(true);
-    if (!footprint_.empty()) {
-      glEnable(GL_SCISSOR_TEST);
-      glScissor(footprint_.x, footprint_.y, footprint_.width, footprint_.height);  // framebuffer rows = image rows
-      shadeWith(false);
-      glDisable(GL_SCISSOR_TEST);
+    // Each pixel drawn once: the variant over the bands around the footprint, the whole program over it.
+    glEnable(GL_SCISSOR_TEST);
+    for (const cv::Rect& band : bandsAround(image, footprint_)) {
+      glScissor(band.x, band.y, band.width, band.height);  // framebuffer rows = image rows
+      shadeWith(true);
     }
+    if (!footprint_.empty()) {
+      glScissor(footprint_.x, footprint_.y, footprint_.width, footprint_.height);
+      shadeWith(false);
+    }
+    glDisable(GL_SCISSOR_TEST);
   }
   shadeAt_ = now;
   gl::checkGlError("LightingPipeline::run()");

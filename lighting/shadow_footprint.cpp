@@ -127,4 +127,17 @@ cv::Rect objectsFootprint(const CameraView& camera, const cv::Vec3d& centre, dou
   return cv::Rect(cv::Point(x0, y0), cv::Point(x1, y1)) & image;
 }
 
+std::vector<cv::Rect> bandsAround(const cv::Rect& image, const cv::Rect& inner) {
+  const cv::Rect in = inner & image;
+  if (in.empty()) return image.empty() ? std::vector<cv::Rect>{} : std::vector<cv::Rect>{image};
+  const std::vector<cv::Rect> all{{image.x, image.y, image.width, in.y - image.y},                     // above
+                                  {image.x, in.y + in.height, image.width, image.br().y - in.br().y},  // below
+                                  {image.x, in.y, in.x - image.x, in.height},                          // left
+                                  {in.x + in.width, in.y, image.br().x - in.br().x, in.height}};       // right
+  std::vector<cv::Rect> bands;
+  for (const cv::Rect& r : all)
+    if (r.width > 0 && r.height > 0) bands.push_back(r);
+  return bands;
+}
+
 }  // namespace mrgi::lighting

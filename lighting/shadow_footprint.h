@@ -27,4 +27,9 @@ cv::Rect objectsFootprint(const CameraView& camera, const cv::Vec3d& centre, dou
                           const std::vector<SceneLight>& lights, double margin, const std::vector<MeshVertex>& vertices,
                           const std::vector<uint32_t>& indices);
 
+/// The image less `inner` as at most four disjoint rectangles (the rows above and below it, then the columns
+/// left and right of it beside it), none empty: each pixel of `image` outside `inner` lies in exactly one. The
+/// whole image when `inner` misses it.
+std::vector<cv::Rect> bandsAround(const cv::Rect& image, const cv::Rect& inner);
+
 }  // namespace mrgi::lighting

@@ -94,6 +94,29 @@ TEST(ShadowFootprint, EmptyMeshHoldsTheObjectsAloneAndBehindTheCameraNothing) {
   EXPECT_EQ(lighting::objectsFootprint(cam, {0, -0.25, 1.6}, 0.1, {}, 0.0, {}, {}), cv::Rect(0, 0, 64, 64));
 }
 
+TEST(ShadowFootprint, TheBandsAroundTheFootprintCoverTheRestOfTheImageOnce) {
+  const cv::Rect image(0, 0, 64, 48);
+  cv::RNG rng(5);
+  for (int n = 0; n < 500; ++n) {
+    // Footprints inside the image, on its edges, past them, empty, and the whole image.
+    const int x0 = rng.uniform(-10, 70), y0 = rng.uniform(-10, 55);
+    const cv::Rect inner(x0, y0, rng.uniform(0, 80), rng.uniform(0, 60));
+    cv::Mat count(image.size(), CV_8UC1, cv::Scalar(0));
+    const auto bands = lighting::bandsAround(image, inner);
+    EXPECT_LE(bands.size(), 4u);
+    for (const cv::Rect& b : bands) {
+      ASSERT_FALSE(b.empty());
+      ASSERT_EQ(b & image, b);
+      count(b) += 1;
+    }
+    for (int y = 0; y < image.height; ++y)
+      for (int x = 0; x < image.width; ++x)
+        ASSERT_EQ(count.at<uchar>(y, x), inner.contains({x, y}) ? 0 : 1) << inner << " at " << x << "," << y;
+  }
+  EXPECT_TRUE(lighting::bandsAround(image, image).empty());
+  EXPECT_EQ(lighting::bandsAround(image, cv::Rect()), std::vector<cv::Rect>{image});
+}
+
 TEST(GL, TheShadingPassBoundedToTheObjectsFootprintWritesTheWholePassImage) {
   // A cube on a finely meshed floor under a sphere lamp (soft shadows), then a sharp sun and a point light: at the
   // frame's resolution and at render_scale 1/2, with the shadow left to the pass and with a technique, the
