@@ -43,6 +43,9 @@ Action addReplay(CLI::App& app) {
   app.add_flag("--sequential", o->sequential,
                "work on each frame in the loop, one stage after another (default: the next frame's CPU "
                "half, marker to real mesh, runs on a worker while GL works on this one; the same composites)");
+  app.add_flag("--finish-stages", o->finishStages,
+               "wait for the GPU at the end of each stage, so each stage's GPU time is its own (a profiling aid: "
+               "the frames take longer; the same composites)");
   app.add_option("--mesh-stride", o->meshStride, "real-scene mesh over every N-th depth pixel")->check(numberIn(1, 16));
   app.add_flag("-v,--verbose", o->verbose,
                "one line per frame with each stage's time in the pipeline's order (summary.json holds them too)");

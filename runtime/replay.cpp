@@ -92,7 +92,7 @@ int replay(const ReplayOptions& o) {
   cfg.title = "mrgi replay: " + o.source;
   auto context = gl::createContext(cfg);
   compositor::Compositor compositor(width, height);
-  gl::Profiler profiler;
+  gl::Profiler profiler(o.finishStages);  // with finishStages each GL stage is waited for before the next
 
   FrameOptions fo;
   fo.pose = o.pose;
@@ -312,6 +312,7 @@ int replay(const ReplayOptions& o) {
   // Whether each frame's CPU half ran on the worker while GL worked on the frame before (its stages' times
   // then overlap the loop's and do not add up to the frame's).
   summary["overlapped"] = overlap;
+  summary["finish_stages"] = o.finishStages;  // each GL stage waited for: its GPU time its own, the frame slower
   if (const LightingSetup* setup = frames.setup()) {
     summary["scene"] = o.scene.scene;
     summary["technique"] = setup->scene.technique.name;

@@ -24,6 +24,7 @@ struct ReplayOptions {
   int meshStride = 2;
   bool recomputeAll = false;
   bool sequential = false;         ///< no frame prepared on the worker while GL works on the one before
+  bool finishStages = false;       ///< GL finishes each stage before the next starts (exact per-stage GPU times)
   bool verbose = false;            ///< a line per frame on stdout with its stages' times, in pipeline order
   std::string mp4 = "replay.mp4";  ///< inside `out`; empty: none
   double fps = 0;                  ///< 0: from the source's timestamps

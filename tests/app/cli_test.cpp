@@ -726,6 +726,33 @@ TEST(Cli, ReplayEstimatesLightsFromTheSessionFisheye) {
   fs::remove_all(noFisheye);
 }
 
+TEST(Cli, ReplayFinishingEachStageWritesTheSameCompositesAndSaysSo) {
+  const fs::path scene =
+      writeScene("finish_stages.json", R"({"objects": [{"model": ")" + kModels +
+                                           R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+      "lights": "manifest", "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128},
+      "val": {"sparse_points": 64}})");
+  std::vector<fs::path> outs;
+  for (const std::string mode : {"", " --finish-stages"}) {
+    const fs::path out = fs::temp_directory_path() /
+                         ("mrgi_cli_finish_" + std::to_string(outs.size()) + "_" + std::to_string(::getpid()));
+    fs::remove_all(out);
+    const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
+                             " --pose ground-truth --frames 2 --mp4 \"\" --sequential" + mode);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
+    EXPECT_EQ(s["finish_stages"], !mode.empty());
+    EXPECT_GT(s["stages_ms"]["shade"]["gpu_ms"].get<double>(), 0.0);
+    outs.push_back(out);
+  }
+  for (const char* name : {"frame_0000.png", "frame_0001.png"}) {
+    const cv::Mat a = cv::imread((outs[0] / name).string()), b = cv::imread((outs[1] / name).string());
+    ASSERT_FALSE(a.empty() || b.empty()) << name;
+    EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0) << name;
+  }
+  for (const auto& out : outs) fs::remove_all(out);
+}
+
 TEST(Cli, ReplayPreparesTheNextFrameWhileRenderingAndWritesTheSameComposites) {
   // Frame n + 1's CPU half (marker, depth filter, albedo, real mesh and VALs) runs on a worker while GL works
   // on frame n. What it changes (the lights of its frame, estimated from the fisheye or moved by the session,
