@@ -400,7 +400,6 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
       p = gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", defines);
     }
     p.use();
-    p.set("uLighting", lit ? 1 : 0);
     p.set("uRealDeltaOn", realOut.realDelta ? 1 : 0);
     p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
     setObjectTermUniforms(p);
@@ -426,7 +425,16 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     emptyVao_.bind();
     glDrawArrays(GL_TRIANGLES, 0, 3);
   };
-  if (footprint_ == image) {
+  if (!lit) {
+    // No virtual object: nothing to shade, only which pixels saw a surface (SHADE_UNLIT).
+    if (!unlitProgram_.id())
+      unlitProgram_ =
+          gl::Program::graphics("lighting/gl/fullscreen.vert", "lighting/shade.frag", {{"SHADE_UNLIT", "1"}});
+    unlitProgram_.use();
+    frame_->gbufferView().bind();
+    emptyVao_.bind();
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  } else if (footprint_ == image) {
     shadeWith(false);
   } else {
     // Each pixel drawn once: the variant over the bands around the footprint, the whole program over it.

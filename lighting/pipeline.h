@@ -186,6 +186,7 @@ class LightingPipeline {
   /// technique outputs, bit 2 the object terms from the reduced pass (code a pass does not run still costs
   /// llvmpipe: each only where it is needed).
   std::array<gl::Program, 32> shadePrograms_;  ///< soft | upsample | reduced terms | real only | shared upsample
+  gl::Program unlitProgram_;                   ///< the pass with no virtual object (shade.frag SHADE_UNLIT)
   bool boundedShading_ = true;
   cv::Rect footprint_;
   /// The object terms at the reduced view (lighting/object_terms.frag), bit 0 the soft-shadow variant, bit 1

@@ -16,6 +16,8 @@
 // Output 1 (debug): rgb = E_delta (real) or E_indirect (virtual) in W/m^2, a = 1 where a surface was seen.
 // SHARED_UPSAMPLE (with REDUCED_OBJECT_TERMS): the real-role delta is at the object terms' reduced view (the same
 // factor and size): the two are upsampled with one set of weights, the values each alone would have.
+// SHADE_UNLIT (a program variant): no virtual object in the scene: everything zero, a = 1 on output 1 where a surface
+// was seen; the pass draws it alone (llvmpipe would run the whole program's every branch for the same zeros).
 // SHADE_REAL_ONLY (a program variant): the real pixels without the objects' direct shadow, for the pixels
 // outside lighting::objectsFootprint (no object there, no direct shadow of theirs: the same values there as
 // the whole program's), which the whole program then draws alone. llvmpipe runs every branch of a fragment
@@ -44,7 +46,6 @@ uniform int uRealDeltaFactor, uVirtualIrradianceFactor, uVirtualRadianceFactor; 
 // With SOFT_OBJECT_SHADOWS defined (a program variant): the objects' soft shadows of lights with extent.
 #include "lighting/direct_light.glsl"
 
-uniform int uLighting;          // 0: no virtual object in this frame (everything zero)
 uniform int uRealDeltaOn;       // 0: the real-role technique hands out no real-pixel delta (uRealDelta unread)
 uniform int uAddDirectShadow;   // 1: the real-role technique leaves the object's direct shadow to this pass
 uniform vec3 uAmbient;          // radiance, W/m^2/sr
@@ -75,14 +76,14 @@ void main() {
   outShade = vec4(0.0);
   outIrradiance = vec4(0.0);
   if (pos.w < 0.5) return;
+#ifdef SHADE_UNLIT
+  outIrradiance = vec4(0.0, 0.0, 0.0, 1.0);
+  return;
+#else
   vec4 normal = texelFetch(uGNormal, p, 0);
   vec3 n = normal.xyz;
   vec4 albedo = texelFetch(uGAlbedo, p, 0);
   bool isVirtual = albedo.a > 0.5;
-  if (uLighting == 0) {
-    outIrradiance = vec4(0.0, 0.0, 0.0, 1.0);
-    return;
-  }
 #ifdef SHADE_REAL_ONLY
   if (isVirtual) return;  // drawn by the whole program: the objects lie in the footprint
 #else
@@ -134,4 +135,5 @@ void main() {
     outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }
+#endif
 }

@@ -117,6 +117,36 @@ TEST(ShadowFootprint, TheBandsAroundTheFootprintCoverTheRestOfTheImageOnce) {
   EXPECT_EQ(lighting::bandsAround(image, cv::Rect()), std::vector<cv::Rect>{image});
 }
 
+TEST(GL, WithNoObjectTheShadingPassWritesZerosAndMarksTheSurfaceSeen) {
+  // No virtual object: the pass draws its SHADE_UNLIT variant alone. Nothing to add to a real pixel, no virtual
+  // pixel, no irradiance; the debug output's alpha is 1 exactly where the G-buffer saw a surface.
+  auto ctx = makeContext();
+  const int W = 64, H = 48;
+  const TestScene s = makeScene(true, 0.0, {0, 0, 0});
+  ASSERT_TRUE(s.objects.empty());
+  for (const std::string technique : {"none", "kinect-val", "imperfect-volumes"}) {
+    SCOPED_TRACE(technique);
+    LightingPipeline pipe = makePipeline(testConfig(W, H, 16, 64, technique), s);
+    CameraView cam = topCamera(W, H);
+    cam.T_world_camera = capture::lookAtPose({0.0, -1.6, 1.0}, {0, 0, 0.3});  // the floor, the wall and the sky
+    pipe.run(cam, {pointAbove()}, cv::Vec3d::all(0.2), nullptr);
+    const cv::Mat shade = pipe.downloadShade(), irradiance = pipe.downloadIrradiance(),
+                  position = pipe.downloadGBuffer(0);
+    ASSERT_EQ(shade.type(), CV_32FC4);
+    EXPECT_EQ(cv::countNonZero(shade.reshape(1) != 0), 0);
+    size_t seen = 0, sky = 0;
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        const cv::Vec4f e = irradiance.at<cv::Vec4f>(y, x);
+        const bool surface = position.at<cv::Vec4f>(y, x)[3] >= 0.5f;
+        ASSERT_EQ(e, cv::Vec4f(0, 0, 0, surface ? 1.f : 0.f)) << x << "," << y;
+        (surface ? seen : sky) += 1;
+      }
+    EXPECT_GT(seen, 0u);
+    EXPECT_GT(sky, 0u);
+  }
+}
+
 TEST(GL, TheShadingPassBoundedToTheObjectsFootprintWritesTheWholePassImage) {
   // A cube on a finely meshed floor under a sphere lamp (soft shadows), then a sharp sun and a point light: at the
   // frame's resolution and at render_scale 1/2, with the shadow left to the pass and with a technique, the
