@@ -55,13 +55,18 @@ void addRoomFlags(CLI::App& app, RoomFlags& flags, const std::string& saveWhen) 
                  "room model (from mrgi room) as the real scene of the lighting, instead of each frame's depth");
   app.add_flag("--fuse-room", flags.fuse,
                "build the room model from the frames as they come (every frame with a pose fused; its surface lights "
-               "the scene from the first such frame, refreshed every --fuse-refresh frames): the default with a "
+               "the scene from the first such frame, refreshed every --fuse-refresh frames fused): the default with a "
                "scene unless --room or --per-frame-mesh");
   app.add_flag("--per-frame-mesh", flags.perFrameMesh,
                "light each frame from its own depth mesh instead of the room fused as the frames come (every "
                "world-space pass then redone each frame)");
-  app.add_option("--fuse-refresh", flags.fuseRefresh, "frames between refreshes of the fused room's surface")
+  app.add_option("--fuse-refresh", flags.fuseRefresh, "frames fused between refreshes of the fused room's surface")
       ->check(numberIn(1, 100000))
+      ->capture_default_str();
+  app.add_option("--fuse-every", flags.fuseEvery,
+                 "fuse every N-th frame with a pose into the room being built, from the first (fusion's CPU a frame "
+                 "for views left out: docs/real-time.md)")
+      ->check(numberIn(1, 100))
       ->capture_default_str();
   app.add_flag(
       "--track-room", flags.track,

@@ -331,6 +331,10 @@ void FramePipeline::fuseFrame(const capture::RgbdFrame& rgbd, PreparedFrame& p, 
     r.info["room_fusion"] = {{"integrated", false}, {"refused", "held pose"}, {"blocks", options_.fuse->blocks()}};
     return;
   }
+  if (options_.fuseEvery > 1 && fuseOffered_++ % options_.fuseEvery != 0) {
+    r.info["room_fusion"] = {{"integrated", false}, {"skipped", "fuse every " + std::to_string(options_.fuseEvery)}};
+    return;
+  }
   // The fusion thread takes copies: the frame may be gone before it is fused.
   if (!fuser_) fuser_ = std::make_unique<Fuser>();
   p.fused = fuser_->submit([this, depth = measuredDepth(r), colour = rgbd.colour.clone(), k = rgbd.colourIntrinsics,

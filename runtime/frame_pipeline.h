@@ -53,10 +53,13 @@ struct FrameOptions {
   std::shared_ptr<const reconstruction::RoomMesh> room;
   /// Build the room as the frames arrive (live, replay --fuse-room): every frame with a pose is fused into
   /// this model (shared: a pipeline rebuilt with new knobs keeps fusing into it), and its surface becomes
-  /// `room` on the pipeline's first such frame and then every `fuseRefresh` frames (the albedo, the lights
+  /// `room` on the pipeline's first such frame and then every `fuseRefresh` frames fused (the albedo, the lights
   /// from the room and the techniques' inputs from it follow). Null: none.
   std::shared_ptr<reconstruction::RoomModel> fuse;
   int fuseRefresh = 30;
+  /// With `fuse`: every `fuseEvery`-th frame with a pose is fused, from the first (1: every one): fusion's cost
+  /// a frame for views left out. The refreshes come every `fuseRefresh` frames fused.
+  int fuseEvery = 1;
   /// With `fuse` and odometry or tracked poses: each refreshed surface becomes what the next frames are
   /// aligned with first (frame-to-model, PoseSource::useModel), handed to the measuring thread between frames.
   /// Off by default: on the bundled sessions (marker in view) it placed frames worse than the keyframes
@@ -151,6 +154,7 @@ class FramePipeline {
   std::shared_ptr<reconstruction::MeshRays> roomRays_;
   /// The fusion thread's: frames fused since the room's surface was last refreshed, and whether it has one.
   int framesSinceRefresh_ = 0;
+  int64_t fuseOffered_ = 0;  ///< frames fuseFrame() could have fused (FrameOptions::fuseEvery), its thread's
   bool fusedSurface_ = false;
   /// render()'s view of the same, from the fused frames it has taken up (frames in order): whether the next one
   /// may refresh the surface, and so must be fused before it is lit.

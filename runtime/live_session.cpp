@@ -51,6 +51,7 @@ LiveSession::LiveSession(const LiveSessionOptions& o,
   fuse_ = o.rooms.fuse || (base_ && base_->lightsFromFusedRoom);
   if (fuse_) fo_.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds
   fo_.fuseRefresh = o.rooms.fuseRefresh;
+  fo_.fuseEvery = o.rooms.fuseEvery;
   fo_.trackFusedRoom = o.rooms.track;
   fo_.techniqueStats = false;  // the window shows none: nothing of them is read back
   recordDir_ = o.record.empty() ? defaultRecordDir() : o.record;

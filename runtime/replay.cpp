@@ -104,6 +104,7 @@ int replay(const ReplayOptions& o) {
   const bool fuse = o.rooms.fuse || (setup && setup->lightsFromFusedRoom);
   if (fuse) fo.fuse = std::make_shared<reconstruction::RoomModel>();
   fo.fuseRefresh = o.rooms.fuseRefresh;
+  fo.fuseEvery = o.rooms.fuseEvery;
   fo.trackFusedRoom = o.rooms.track;
   FramePipeline frames(std::move(setup), width, height, fo);
   lighting::LightingPipeline* pipeline = frames.lighting();

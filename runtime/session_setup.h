@@ -27,7 +27,8 @@ struct RoomOptions {
   std::string room;           ///< a saved room (mrgi room --out)
   bool fuse = false;          ///< fuse a room from the frames as they come (replay's and live's default with a scene)
   bool perFrameMesh = false;  ///< light each frame from its own depth mesh instead (no room)
-  int fuseRefresh = 30;       ///< frames between refreshes of the fused room's surface
+  int fuseRefresh = 30;       ///< frames fused between refreshes of the fused room's surface
+  int fuseEvery = 1;          ///< every N-th frame with a pose fused (1: every one)
   bool track = false;         ///< odometry aligns each frame with the room being fused
   std::string save;           ///< the fused room at the end, as mrgi room writes it
   bool any() const { return !room.empty() || fuse; }

@@ -726,6 +726,33 @@ TEST(Cli, ReplayEstimatesLightsFromTheSessionFisheye) {
   fs::remove_all(noFisheye);
 }
 
+TEST(Cli, ReplayFusesEveryNthFrameAndRefreshesByTheFramesFused) {
+  const fs::path scene = writeScene("fuse_every.json", R"({"objects": [{"model": ")" + kModels +
+                                                           R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+      "lights": "manifest", "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128},
+      "val": {"sparse_points": 64}})");
+  const fs::path out = fs::temp_directory_path() / ("mrgi_cli_fuse_every_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
+                           " --pose ground-truth --frames 3 --mp4 \"\" --fuse-every 2 --fuse-refresh 1");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto s = nlohmann::json::parse(slurp(out / "summary.json"));
+  ASSERT_EQ(s["frames"], 3);
+  // Frames 0 and 2 fused, each refreshing the surface (every frame fused refreshes it); frame 1 left out.
+  for (int i : {0, 2}) {
+    EXPECT_EQ(s["per_frame"][i]["room_fusion"]["integrated"], true) << i;
+    EXPECT_TRUE(s["per_frame"][i]["room_fusion"].contains("refreshed")) << i;
+  }
+  EXPECT_EQ(s["per_frame"][1]["room_fusion"]["integrated"], false);
+  EXPECT_EQ(s["per_frame"][1]["room_fusion"]["skipped"], "fuse every 2");
+  fs::remove_all(out);
+  const Result bad = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
+                             " --fuse-every 0");
+  EXPECT_NE(bad.exitCode, 0);
+  EXPECT_NE(bad.err.find("--fuse-every"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(Cli, ReplayFinishingEachStageWritesTheSameCompositesAndSaysSo) {
   const fs::path scene =
       writeScene("finish_stages.json", R"({"objects": [{"model": ")" + kModels +
