@@ -540,6 +540,13 @@ fs::path scratchSession(const std::string& name, const fs::path& source, int fra
   EXPECT_EQ(r.exitCode, 0) << r.err;
   return dir;
 }
+// A sphere on the marker under the session's lights, Kinect-VAL at small maps: a quick scene for replay's options.
+fs::path smallSphereScene(const std::string& name) {
+  return writeScene(name, R"({"objects": [{"model": ")" + kModels +
+                              R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
+      "lights": "manifest", "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128},
+      "val": {"sparse_points": 64}})");
+}
 }  // namespace
 
 TEST(Cli, AMisspeltSubcommandFlagTechniqueOrKeySaysWhatItMeant) {
@@ -727,10 +734,7 @@ TEST(Cli, ReplayEstimatesLightsFromTheSessionFisheye) {
 }
 
 TEST(Cli, ReplayFusesEveryNthFrameAndRefreshesByTheFramesFused) {
-  const fs::path scene = writeScene("fuse_every.json", R"({"objects": [{"model": ")" + kModels +
-                                                           R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
-      "lights": "manifest", "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128},
-      "val": {"sparse_points": 64}})");
+  const fs::path scene = smallSphereScene("fuse_every.json");
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_fuse_every_" + std::to_string(::getpid()));
   fs::remove_all(out);
   const Result r = runMrgi("replay " + session().string() + " --scene " + scene.string() + " --out " + out.string() +
@@ -754,11 +758,7 @@ TEST(Cli, ReplayFusesEveryNthFrameAndRefreshesByTheFramesFused) {
 }
 
 TEST(Cli, ReplayFinishingEachStageWritesTheSameCompositesAndSaysSo) {
-  const fs::path scene =
-      writeScene("finish_stages.json", R"({"objects": [{"model": ")" + kModels +
-                                           R"(sphere.ply", "translate": [0, 0, 0.06], "scale": 0.06}],
-      "lights": "manifest", "technique": "kinect-val", "frame": {"rsm_size": 64, "shadow_size": 128},
-      "val": {"sparse_points": 64}})");
+  const fs::path scene = smallSphereScene("finish_stages.json");
   std::vector<fs::path> outs;
   for (const std::string mode : {"", " --finish-stages"}) {
     const fs::path out = fs::temp_directory_path() /
