@@ -179,15 +179,13 @@ void BM_EncodePng(benchmark::State& state) {
   for (auto _ : state) {
     const cv::Mat& f = frames[n++ % frames.size()];
     std::vector<unsigned char> out;
-    if (state.range(0) == 0) {
-      cv::Mat bgr;
-      cv::cvtColor(f, bgr, cv::COLOR_RGB2BGR);
-      cv::imencode(".png", bgr, out, {cv::IMWRITE_PNG_COMPRESSION, 3});
-    } else if (state.range(0) == 2) {
+    if (state.range(0) != 1) {
       cv::Mat bgr;
       cv::cvtColor(f, bgr, cv::COLOR_RGB2BGR);
       cv::imencode(".png", bgr, out,
-                   {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE});
+                   state.range(0) == 0 ? std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 3}
+                                       : std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY,
+                                                          cv::IMWRITE_PNG_STRATEGY_RLE});
     } else {
       out = capture::encodePng(f, "bench");
     }

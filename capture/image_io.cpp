@@ -624,9 +624,7 @@ cv::Mat toBgr(const cv::Mat& image) {
     bgr = image;
   return bgr;
 }
-}  // namespace
 
-namespace {
 void pngWrite(png_structp png, png_bytep data, png_size_t n) {
   auto* out = static_cast<std::vector<unsigned char>*>(png_get_io_ptr(png));
   out->insert(out->end(), data, data + n);
