@@ -125,7 +125,7 @@ void BM_DepthPipeline(benchmark::State& state) {
 // The room model's per-frame real-surface cost at 640x480 (issue target: 40 ms median on the 2-core
 // machine): a frame's guided depth filter and normals as the frame pipeline runs them, then its fusion
 // (TSDF, carving, appearance) into a room that already holds the session's first half. Frames of the
-// bundled tabletop-synth session at their ground-truth poses, the second half in turn.
+// bundled tabletop-synth session at their ground-truth poses, the second half in turn. Arg 1: the fusion alone.
 void BM_RoomSurfaceFrame640(benchmark::State& state) {
   const std::string dir = std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-synth";
   auto source = capture::open(dir);
@@ -152,11 +152,16 @@ void BM_RoomSurfaceFrame640(benchmark::State& state) {
   for (size_t i = 0; i < half; ++i)
     room.integrate(surface(frames[i]), frames[i].rgbd->colour, frames[i].rgbd->colourIntrinsics,
                    T_marker_world * *frames[i].groundTruthT_world_camera, frames[i].rgbd->exposure);
+  // Arg 1: the fusion alone, each frame's filtered depth made before.
+  const bool fusionAlone = state.range(0) != 0;
+  std::vector<cv::Mat> filtered(frames.size());
+  if (fusionAlone)
+    for (size_t i = half; i < frames.size(); ++i) filtered[i] = surface(frames[i]);
   size_t i = half;
   for (auto _ : state) {
     const capture::Frame& f = frames[i];
-    room.integrate(surface(f), f.rgbd->colour, f.rgbd->colourIntrinsics, T_marker_world * *f.groundTruthT_world_camera,
-                   f.rgbd->exposure);
+    room.integrate(fusionAlone ? filtered[i] : surface(f), f.rgbd->colour, f.rgbd->colourIntrinsics,
+                   T_marker_world * *f.groundTruthT_world_camera, f.rgbd->exposure);
     i = i + 1 < frames.size() ? i + 1 : half;
   }
   state.counters["width"] = frames.empty() ? 0 : frames[0].rgbd->colour.cols;
@@ -347,7 +352,7 @@ BENCHMARK(BM_Mesh)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DepthPipeline)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Albedo)->Args({1, 0})->Args({2, 0})->Args({1, 1})->Args({2, 1})->Args({2, 2})->Args({2, 4})->Unit(
     benchmark::kMillisecond);
-BENCHMARK(BM_RoomSurfaceFrame640)->Unit(benchmark::kMillisecond)->MinTime(3.0);
+BENCHMARK(BM_RoomSurfaceFrame640)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(3.0);
 int main(int argc, char** argv) {
   mrgi::capture::keepFrameMemory();  // as mrgi runs its frame loop
   benchmark::Initialize(&argc, argv);

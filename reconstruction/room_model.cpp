@@ -1,12 +1,12 @@
 #include "reconstruction/room_model.h"
 
-#include <open3d/camera/PinholeCameraIntrinsic.h>
-#include <open3d/geometry/Image.h>
-#include <open3d/geometry/RGBDImage.h>
+#include <open3d/core/Tensor.h>
+#include <open3d/core/hashmap/HashMap.h>
 #include <open3d/geometry/TriangleMesh.h>
 #include <open3d/io/TriangleMeshIO.h>
-#include <open3d/pipelines/integration/ScalableTSDFVolume.h>
-#include <open3d/pipelines/integration/UniformTSDFVolume.h>
+#include <open3d/t/geometry/Image.h>
+#include <open3d/t/geometry/TriangleMesh.h>
+#include <open3d/t/geometry/VoxelBlockGrid.h>
 #include <open3d/utility/Logging.h>
 
 #include <algorithm>
@@ -37,7 +37,12 @@ namespace mrgi::reconstruction {
 
 namespace {
 
-constexpr int kBlockResolution = 16;  // voxels per block edge (Open3D's volume unit)
+constexpr int kBlockResolution = 16;  // voxels per block edge (Open3D's voxel block)
+constexpr int kBlockVoxels = kBlockResolution * kBlockResolution * kBlockResolution;
+/// Blocks touched by a frame are found from every kSamplingStride-th pixel in each direction.
+constexpr int kSamplingStride = 4;
+/// The voxel grid's first capacity in blocks; it doubles as the room grows.
+constexpr int64_t kFirstCapacity = 1024;
 
 Eigen::Vector3i floorDiv(const Eigen::Vector3i& a, int b) {
   Eigen::Vector3i q;
@@ -80,10 +85,100 @@ void RoomOptions::validate(const std::string& where) const {
   check(appearanceMemory >= 1 && appearanceMemory <= 65535, "appearance_memory", "in [1, 65535]");
 }
 
+/// The signed distance lives in Open3D's voxel block grid (t::geometry::VoxelBlockGrid on the CPU): blocks of
+/// 16^3 voxels holding a float tsdf (in units of the truncation distance) and a float weight, 8 bytes a voxel.
+/// Its voxel (i, j, k) sits at (i, j, k) * voxel in the grid's frame; the grid's frame is the world shifted by
+/// half a voxel, so voxel centres lie at (i + 1/2) * voxel in the world and block b spans [16 b, 16 b + 16)
+/// voxels. The grid's hash map has a fixed capacity; it is rebuilt twice as large when a frame needs more.
 struct RoomModel::Impl {
-  explicit Impl(const RoomOptions& o)
-      : volume(o.voxelM, o.truncM, o3d::pipelines::integration::TSDFVolumeColorType::NoColor, kBlockResolution, 4) {}
-  o3d::pipelines::integration::ScalableTSDFVolume volume;
+  explicit Impl(const RoomOptions& o) : voxelM(o.voxelM) { allocate(kFirstCapacity); }
+  double voxelM;
+  o3d::t::geometry::VoxelBlockGrid grid;
+  int64_t capacity = 0;
+  /// Each block's buffer index in the grid, kept beside Open3D's hash map for lookups from C++ one voxel at a
+  /// time; the tsdf and weight of block b's voxel v are tsdf[index[b] * 16^3 + v], v = x + 16 (y + 16 z).
+  std::unordered_map<Eigen::Vector3i, int64_t, Hash> index;
+  float* tsdf = nullptr;
+  float* weight = nullptr;
+
+  /// A grid for this many blocks. Its first buffer goes to a block of no weight far from any room: Open3D's
+  /// marching cubes (0.16) asserts that a neighbour voxel's buffer offset is positive, which fails for the first
+  /// voxel of the first buffer.
+  void allocate(int64_t blocks) {
+    grid = o3d::t::geometry::VoxelBlockGrid({"tsdf", "weight"}, {o3d::core::Float32, o3d::core::Float32}, {{1}, {1}},
+                                            static_cast<float>(voxelM), kBlockResolution, blocks + 1);
+    capacity = blocks;
+    tsdf = grid.GetAttribute("tsdf").GetDataPtr<float>();
+    weight = grid.GetAttribute("weight").GetDataPtr<float>();
+    o3d::core::HashMap map = grid.GetHashMap();
+    o3d::core::Tensor buf, masks;
+    map.Activate(keysOf({kSentinel}), buf, masks);
+    const int64_t at = buf.GetDataPtr<int32_t>()[0];
+    if (at != 0) throw std::logic_error("RoomModel: the voxel grid's first buffer went elsewhere");
+    std::fill_n(tsdf, kBlockVoxels, 0.f);
+    std::fill_n(weight, kBlockVoxels, 0.f);
+  }
+  static inline const Eigen::Vector3i kSentinel = Eigen::Vector3i::Constant(-(1 << 24));
+
+  static o3d::core::Tensor keysOf(const std::vector<Eigen::Vector3i>& blocks) {
+    o3d::core::Tensor t({static_cast<int64_t>(blocks.size()), 3}, o3d::core::Int32);
+    int32_t* p = t.GetDataPtr<int32_t>();
+    for (size_t i = 0; i < blocks.size(); ++i)
+      for (int k = 0; k < 3; ++k) p[3 * i + k] = blocks[i][k];
+    return t;
+  }
+
+  /// Adds these blocks (none of them held yet) with zero weight, growing the grid first if it must. Open3D's
+  /// integration of `integrated` blocks next would rehash the grid itself if the blocks held and those it is
+  /// given could outnumber its capacity (moving every buffer): the grid is made large enough first.
+  void add(const std::vector<Eigen::Vector3i>& blocks, size_t integrated) {
+    const int64_t needed = static_cast<int64_t>(index.size() + blocks.size() + integrated);
+    if (needed > capacity) {
+      // A new grid twice as large (or as large as needed), the old blocks copied into it.
+      std::vector<Eigen::Vector3i> old;
+      std::vector<int64_t> from;
+      for (const auto& [b, i] : index) old.push_back(b), from.push_back(i);
+      const float* oldTsdf = tsdf;
+      const float* oldWeight = weight;
+      o3d::t::geometry::VoxelBlockGrid keep = grid;  // holds the old buffers until they are copied
+      allocate(std::max(needed, 2 * capacity));
+      index.clear();
+      const auto to = activate(old);
+      for (size_t i = 0; i < old.size(); ++i) {
+        std::memcpy(tsdf + to[i] * kBlockVoxels, oldTsdf + from[i] * kBlockVoxels, sizeof(float) * kBlockVoxels);
+        std::memcpy(weight + to[i] * kBlockVoxels, oldWeight + from[i] * kBlockVoxels, sizeof(float) * kBlockVoxels);
+      }
+    }
+    if (blocks.empty()) return;
+    const auto at = activate(blocks);
+    // Open3D's hash map leaves a new block's values as the buffer held them.
+    for (const int64_t i : at) {
+      std::fill_n(tsdf + i * kBlockVoxels, kBlockVoxels, 0.f);
+      std::fill_n(weight + i * kBlockVoxels, kBlockVoxels, 0.f);
+    }
+  }
+
+  std::vector<int64_t> activate(const std::vector<Eigen::Vector3i>& blocks) {
+    o3d::core::HashMap map = grid.GetHashMap();
+    o3d::core::Tensor buf, masks;
+    map.Activate(keysOf(blocks), buf, masks);
+    const int32_t* b = buf.GetDataPtr<int32_t>();
+    const bool* m = masks.GetDataPtr<bool>();
+    std::vector<int64_t> out(blocks.size());
+    for (size_t i = 0; i < blocks.size(); ++i) {
+      if (!m[i]) throw std::logic_error("RoomModel: a voxel block was added twice");
+      out[i] = b[i];
+      index.emplace(blocks[i], b[i]);
+    }
+    return out;
+  }
+
+  /// The grid's pose of the camera (camera from grid) for the world's camera pose T_camera_world.
+  Eigen::Matrix4d cameraFromGrid(const capture::Pose& T_camera_world) const {
+    Eigen::Matrix4d e = toEigen(T_camera_world);
+    e.block<3, 1>(0, 3) += e.block<3, 3>(0, 0) * Eigen::Vector3d::Constant(0.5 * voxelM);
+    return e;
+  }
 
   /// Fused appearance per voxel (key: floor(p / voxel), as the TSDF's voxels): confidence-weighted sum of
   /// accepted observations' radiance, and for clipped ones a lower bound.
@@ -99,9 +194,6 @@ struct RoomModel::Impl {
     uint16_t count = 0, clipped = 0;
   };
   std::unordered_map<Eigen::Vector3i, Appearance, Hash> appearance;
-  /// Per pixel, the ray length per unit depth of the intrinsics multiplierK (Open3D's carving integration).
-  std::shared_ptr<o3d::geometry::Image> multiplier;
-  cv::Vec4d multiplierK;
 
   void observe(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K, const capture::Pose& T,
                double exposure, const RoomOptions& o) {
@@ -206,22 +298,23 @@ struct RoomModel::Impl {
     return true;
   }
 
-  const o3d::geometry::TSDFVoxel* voxel(const Eigen::Vector3i& global) const {
+  /// The voxel at global voxel coordinates, or -1 where no block holds it.
+  int64_t voxel(const Eigen::Vector3i& global) const {
     const Eigen::Vector3i block = floorDiv(global, kBlockResolution);
-    const auto it = volume.volume_units_.find(block);
-    if (it == volume.volume_units_.end() || !it->second.volume_) return nullptr;
-    const Eigen::Vector3i local = global - block * kBlockResolution;
-    return &it->second.volume_->voxels_[static_cast<size_t>(it->second.volume_->IndexOf(local))];
+    const auto it = index.find(block);
+    if (it == index.end()) return -1;
+    const Eigen::Vector3i l = global - block * kBlockResolution;
+    return it->second * kBlockVoxels + l[0] + kBlockResolution * (l[1] + kBlockResolution * l[2]);
   }
 
-  /// The blocks Open3D's integration touches for this depth: every block within the truncation distance of
-  /// a sampled point (the same rule and the same sampling stride as ScalableTSDFVolume::Integrate).
+  /// The blocks a frame's surface touches: every block within the truncation distance of a sampled point
+  /// (the rule of Open3D's ScalableTSDFVolume::Integrate, at its sampling stride).
   std::unordered_set<Eigen::Vector3i, Hash> touched(const cv::Mat& depth, const capture::Intrinsics& K,
                                                     const capture::Pose& T, double trunc) const {
     std::unordered_set<Eigen::Vector3i, Hash> out;
-    const double unit = volume.volume_unit_length_;
-    for (int y = 0; y < depth.rows; y += volume.depth_sampling_stride_)
-      for (int x = 0; x < depth.cols; x += volume.depth_sampling_stride_) {
+    const double unit = voxelM * kBlockResolution;
+    for (int y = 0; y < depth.rows; y += kSamplingStride)
+      for (int x = 0; x < depth.cols; x += kSamplingStride) {
         const float d = depth.at<float>(y, x);
         if (!(d > 0)) continue;
         const cv::Vec3d pc((x - K.cx) * d / K.fx, (y - K.cy) * d / K.fy, d);
@@ -258,10 +351,10 @@ double RoomModel::signedDistance(const cv::Vec3d& p) const {
   double sum = 0;
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3i o(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-    const o3d::geometry::TSDFVoxel* vox = impl_->voxel(base + o);
-    if (!vox || vox->weight_ <= 0) return std::numeric_limits<double>::quiet_NaN();
+    const int64_t vox = impl_->voxel(base + o);
+    if (vox < 0 || !(impl_->weight[vox] > 0)) return std::numeric_limits<double>::quiet_NaN();
     const double w = (o[0] ? f[0] : 1 - f[0]) * (o[1] ? f[1] : 1 - f[1]) * (o[2] ? f[2] : 1 - f[2]);
-    sum += w * vox->tsdf_;
+    sum += w * impl_->tsdf[vox];
   }
   return sum * options_.truncM;
 }
@@ -304,7 +397,8 @@ namespace {
 /// the voxel restarts as free space (tsdf 1, weight 1). Within the truncation distance of the surface seen,
 /// the running average decides. Requiring the whole window keeps silhouettes, where a voxel's pixel may see
 /// past an object's edge, from eroding objects that stay.
-void carveFreeSpace(const std::vector<o3d::pipelines::integration::UniformTSDFVolume*>& blocks, const cv::Mat& depth,
+void carveFreeSpace(float* tsdf, float* weight, const std::vector<Eigen::Vector3i>& blocks,
+                    const std::vector<int64_t>& buffers, double voxel, const cv::Mat& depth,
                     const capture::Intrinsics& K, const capture::Pose& T_camera_world, double trunc) {
   // The smallest valid depth of each 5 x 5 window; 0 where fewer than half of it is valid.
   cv::Mat valid = depth > 0, lifted = depth.clone(), nearest, share;
@@ -314,18 +408,19 @@ void carveFreeSpace(const std::vector<o3d::pipelines::integration::UniformTSDFVo
   nearest.setTo(0, share < 0.5 * 255);
   const cv::Matx33d R = capture::rotationOf(T_camera_world);
   const cv::Vec3d t = capture::translationOf(T_camera_world);
+  constexpr int n = kBlockResolution;
   cv::parallel_for_(cv::Range(0, static_cast<int>(blocks.size())), [&](const cv::Range& range) {
     for (int b = range.start; b < range.end; ++b) {
-      auto& v = *blocks[static_cast<size_t>(b)];
-      const int n = v.resolution_;
-      const double voxel = v.length_ / n;
-      for (int x = 0; x < n; ++x)
+      const Eigen::Vector3i origin = blocks[static_cast<size_t>(b)] * n;
+      float* ts = tsdf + buffers[static_cast<size_t>(b)] * kBlockVoxels;
+      float* ws = weight + buffers[static_cast<size_t>(b)] * kBlockVoxels;
+      for (int z = 0; z < n; ++z)
         for (int y = 0; y < n; ++y)
-          for (int z = 0; z < n; ++z) {
-            auto& voxelData = v.voxels_[static_cast<size_t>(v.IndexOf(x, y, z))];
-            if (!(voxelData.weight_ > 0) || !(voxelData.tsdf_ < 0)) continue;
-            const cv::Vec3d p(v.origin_(0) + (x + 0.5) * voxel, v.origin_(1) + (y + 0.5) * voxel,
-                              v.origin_(2) + (z + 0.5) * voxel);
+          for (int x = 0; x < n; ++x) {
+            const int v = x + n * (y + n * z);
+            if (!(ws[v] > 0) || !(ts[v] < 0)) continue;
+            const cv::Vec3d p((origin[0] + x + 0.5) * voxel, (origin[1] + y + 0.5) * voxel,
+                              (origin[2] + z + 0.5) * voxel);
             const cv::Vec3d pc = R * p + t;
             if (pc[2] <= 0) continue;
             const int u = static_cast<int>(std::lround(K.fx * pc[0] / pc[2] + K.cx)),
@@ -333,8 +428,8 @@ void carveFreeSpace(const std::vector<o3d::pipelines::integration::UniformTSDFVo
             if (u < 0 || w < 0 || u >= nearest.cols || w >= nearest.rows) continue;
             const float d = nearest.at<float>(w, u);
             if (d > 0 && pc[2] < d - trunc) {
-              voxelData.tsdf_ = 1;
-              voxelData.weight_ = 1;
+              ts[v] = 1;
+              ws[v] = 1;
             }
           }
     }
@@ -360,35 +455,24 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
   }
   RoomIntegration r = checkPose(depth, K, T_world_camera);
   const auto touched = impl_->touched(depth, K, T_world_camera, options_.truncM);
+  std::vector<Eigen::Vector3i> added;
   for (const auto& b : touched)
-    if (!impl_->volume.volume_units_.count(b)) ++r.newBlocks;
-  if (r.refused.empty() && impl_->volume.volume_units_.size() + r.newBlocks > static_cast<size_t>(options_.maxBlocks))
+    if (!impl_->index.count(b)) added.push_back(b);
+  r.newBlocks = added.size();
+  if (r.refused.empty() && impl_->index.size() + r.newBlocks > static_cast<size_t>(options_.maxBlocks))
     r.refused = "memory budget (" + std::to_string(options_.maxBlocks) + " blocks) reached";
   if (!r.refused.empty()) {
     ++refused_;
     return r;
   }
 
-  o3d::geometry::Image d, c;
-  d.Prepare(depth.cols, depth.rows, 1, 4);
-  c.Prepare(colour.cols, colour.rows, 3, 1);
-  for (int y = 0; y < depth.rows; ++y) {
-    std::memcpy(d.PointerAt<float>(0, y), depth.ptr<float>(y), sizeof(float) * static_cast<size_t>(depth.cols));
-    std::memcpy(c.PointerAt<uint8_t>(0, y, 0), colour.ptr<uint8_t>(y), 3 * static_cast<size_t>(colour.cols));
-  }
-  const o3d::geometry::RGBDImage rgbd(c, d);
-  const o3d::camera::PinholeCameraIntrinsic intrinsic(K.width, K.height, K.fx, K.fy, K.cx, K.cy);
-  const capture::Pose T_camera_world = capture::inversePose(T_world_camera);
-  const Eigen::Matrix4d extrinsic = toEigen(T_camera_world);
-  impl_->volume.Integrate(rgbd, intrinsic, extrinsic);
-
-  // Open3D's colour is not integrated (NoColor): the fused appearance below is the room's colour.
-  // Carving: Open3D updates only the blocks near this frame's points. Blocks farther in front of what the
-  // camera now sees (a box that has moved away, taller than the truncation distance) would keep their old
-  // surface; every other block in view is integrated too, so free space seen through it clears it.
-  // A block wholly behind everything the camera sees there (by more than the truncation) or over no
-  // depth at all would not change (Open3D updates a voxel only where depth is valid and the voxel lies less
+  // The blocks integrated: those near this frame's points and, for carving, every other block in view.
+  // Blocks farther in front of what the camera now sees (a box that has moved away, taller than the
+  // truncation distance) would otherwise keep their old surface; integrated, free space seen through them
+  // clears them. A block wholly behind everything the camera sees there (by more than the truncation) or over
+  // no depth at all would not change (a voxel is updated only where depth is valid and the voxel lies less
   // than the truncation behind it): those are skipped, by the largest depth of 16 x 16 pixel tiles.
+  const capture::Pose T_camera_world = capture::inversePose(T_world_camera);
   constexpr int kTile = 16;
   const int tilesX = (depth.cols + kTile - 1) / kTile, tilesY = (depth.rows + kTile - 1) / kTile;
   cv::Mat tileMax(tilesY, tilesX, CV_32FC1, cv::Scalar(0));
@@ -397,47 +481,116 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
     float* t = tileMax.ptr<float>(y / kTile);
     for (int x = 0; x < depth.cols; ++x) t[x / kTile] = std::max(t[x / kTile], row[x]);
   }
-  const double half = 0.5 * impl_->volume.volume_unit_length_;
-  std::vector<o3d::pipelines::integration::UniformTSDFVolume*> inView;
-  for (auto& [index, unit] : impl_->volume.volume_units_) {
-    if (!unit.volume_) continue;
-    if (touched.count(index)) {
-      inView.push_back(unit.volume_.get());
-      continue;
+  const double half = 0.5 * options_.voxelM * kBlockResolution;
+  std::vector<Eigen::Vector3i> inView;
+  for (const auto& [block, buffer] : impl_->index) {
+    if (!touched.count(block)) {
+      const cv::Vec3d centre((block[0] + 0.5) * 2 * half, (block[1] + 0.5) * 2 * half, (block[2] + 0.5) * 2 * half);
+      const cv::Vec3d pc = capture::transformPoint(T_camera_world, centre);
+      if (pc[2] <= half) continue;
+      const double u = K.fx * pc[0] / pc[2] + K.cx, v = K.fy * pc[1] / pc[2] + K.cy;
+      const double margin = K.fx * 1.8 * half / pc[2];
+      if (u < -margin || v < -margin || u > K.width + margin || v > K.height + margin) continue;
+      const int x0 = std::clamp(static_cast<int>(std::floor((u - margin) / kTile)), 0, tilesX - 1),
+                x1 = std::clamp(static_cast<int>(std::floor((u + margin) / kTile)), 0, tilesX - 1),
+                y0 = std::clamp(static_cast<int>(std::floor((v - margin) / kTile)), 0, tilesY - 1),
+                y1 = std::clamp(static_cast<int>(std::floor((v + margin) / kTile)), 0, tilesY - 1);
+      double seen = 0;
+      for (int ty = y0; ty <= y1; ++ty)
+        for (int tx = x0; tx <= x1; ++tx) seen = std::max(seen, static_cast<double>(tileMax.at<float>(ty, tx)));
+      if (!(seen > 0) || pc[2] - 1.8 * half > seen + options_.truncM) continue;
     }
-    const cv::Vec3d centre((index[0] + 0.5) * 2 * half, (index[1] + 0.5) * 2 * half, (index[2] + 0.5) * 2 * half);
-    const cv::Vec3d pc = capture::transformPoint(T_camera_world, centre);
-    if (pc[2] <= half) continue;
-    const double u = K.fx * pc[0] / pc[2] + K.cx, v = K.fy * pc[1] / pc[2] + K.cy;
-    const double margin = K.fx * 1.8 * half / pc[2];
-    if (u < -margin || v < -margin || u > K.width + margin || v > K.height + margin) continue;
-    const int x0 = std::clamp(static_cast<int>(std::floor((u - margin) / kTile)), 0, tilesX - 1),
-              x1 = std::clamp(static_cast<int>(std::floor((u + margin) / kTile)), 0, tilesX - 1),
-              y0 = std::clamp(static_cast<int>(std::floor((v - margin) / kTile)), 0, tilesY - 1),
-              y1 = std::clamp(static_cast<int>(std::floor((v + margin) / kTile)), 0, tilesY - 1);
-    double seen = 0;
-    for (int ty = y0; ty <= y1; ++ty)
-      for (int tx = x0; tx <= x1; ++tx) seen = std::max(seen, static_cast<double>(tileMax.at<float>(ty, tx)));
-    if (!(seen > 0) || pc[2] - 1.8 * half > seen + options_.truncM) continue;
-    // UniformTSDFVolume::Integrate would rebuild the image of ray-length factors for every block.
-    if (!impl_->multiplier || impl_->multiplier->width_ != K.width || impl_->multiplier->height_ != K.height ||
-        impl_->multiplierK != cv::Vec4d(K.fx, K.fy, K.cx, K.cy))
-      impl_->multiplier = o3d::geometry::Image::CreateDepthToCameraDistanceMultiplierFloatImage(intrinsic),
-      impl_->multiplierK = cv::Vec4d(K.fx, K.fy, K.cx, K.cy);
-    unit.volume_->IntegrateWithDepthToCameraDistanceMultiplier(rgbd, intrinsic, extrinsic, *impl_->multiplier);
-    inView.push_back(unit.volume_.get());
+    inView.push_back(block);
   }
-  carveFreeSpace(inView, depth, K, T_camera_world, options_.truncM);
+  inView.insert(inView.end(), added.begin(), added.end());
+  impl_->add(added, inView.size());
+  std::vector<int64_t> buffers;
+  buffers.reserve(inView.size());
+  for (const auto& b : inView) buffers.push_back(impl_->index.at(b));
+
+  // Open3D integrates no colour here: the fused appearance below is the room's colour.
+  o3d::core::Tensor d({depth.rows, depth.cols, 1}, o3d::core::Float32);
+  for (int y = 0; y < depth.rows; ++y)
+    std::memcpy(d.GetDataPtr<float>() + static_cast<size_t>(y) * depth.cols, depth.ptr<float>(y),
+                sizeof(float) * static_cast<size_t>(depth.cols));
+  // Open3D's integration reads the depth at pixel (int) u, the pixel whose centre (at integer u) is up to a
+  // pixel to the left; the principal point given to it is half a pixel on, so that it reads the nearest pixel.
+  const o3d::core::Tensor intrinsic =
+      o3d::core::Tensor::Init<double>({{K.fx, 0, K.cx + 0.5}, {0, K.fy, K.cy + 0.5}, {0, 0, 1}});
+  const Eigen::Matrix4d e = impl_->cameraFromGrid(T_camera_world);
+  o3d::core::Tensor extrinsic({4, 4}, o3d::core::Float64);
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) extrinsic.GetDataPtr<double>()[4 * i + j] = e(i, j);
+  if (!inView.empty())
+    impl_->grid.Integrate(Impl::keysOf(inView), o3d::t::geometry::Image(d), intrinsic, extrinsic, 1.0f,
+                          static_cast<float>(options_.maxDepthM),
+                          static_cast<float>(options_.truncM / options_.voxelM));
+  if (impl_->grid.GetHashMap().GetCapacity() != impl_->capacity + 1)
+    throw std::logic_error("RoomModel: Open3D's integration rehashed the voxel grid");
+  carveFreeSpace(impl_->tsdf, impl_->weight, inView, buffers, options_.voxelM, depth, K, T_camera_world,
+                 options_.truncM);
   impl_->observe(depth, colour, K, T_world_camera, exposure, options_);
   r.integrated = true;
   ++integrated_;
   return r;
 }
 
+namespace {
+
+/// The same mesh in an order that depends on its geometry alone. Open3D's marching cubes numbers vertices and
+/// triangles in the order its threads reach them, which changes from run to run; the room's lighting must
+/// not. Each triangle is turned (keeping its winding) to start at its least vertex (positions compared x, then
+/// y, then z), triangles are sorted by their vertices' positions, and vertices are numbered as the sorted
+/// triangles first use them.
+o3d::geometry::TriangleMesh canonicalOrder(const o3d::geometry::TriangleMesh& in) {
+  const auto& P = in.vertices_;
+  const auto less = [&](int a, int b) {
+    const Eigen::Vector3d &p = P[static_cast<size_t>(a)], &q = P[static_cast<size_t>(b)];
+    return std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
+  };
+  std::vector<Eigen::Vector3i> tris = in.triangles_;
+  for (auto& t : tris) {
+    const int first = less(t[1], t[0]) ? (less(t[2], t[1]) ? 2 : 1) : (less(t[2], t[0]) ? 2 : 0);
+    t = Eigen::Vector3i(t[first], t[(first + 1) % 3], t[(first + 2) % 3]);
+  }
+  std::sort(tris.begin(), tris.end(), [&](const Eigen::Vector3i& a, const Eigen::Vector3i& b) {
+    for (int k = 0; k < 3; ++k) {
+      if (less(a[k], b[k])) return true;
+      if (less(b[k], a[k])) return false;
+    }
+    return false;
+  });
+  o3d::geometry::TriangleMesh out;
+  std::vector<int> renumber(P.size(), -1);
+  out.vertices_.reserve(P.size());
+  out.triangles_.reserve(tris.size());
+  for (const auto& t : tris) {
+    Eigen::Vector3i u;
+    for (int k = 0; k < 3; ++k) {
+      int& n = renumber[static_cast<size_t>(t[k])];
+      if (n < 0) {
+        n = static_cast<int>(out.vertices_.size());
+        out.vertices_.push_back(P[static_cast<size_t>(t[k])]);
+      }
+      u[k] = n;
+    }
+    out.triangles_.push_back(u);
+  }
+  return out;
+}
+
+}  // namespace
+
 RoomMesh RoomModel::mesh() const {
   RoomMesh out;
-  auto m = const_cast<o3d::pipelines::integration::ScalableTSDFVolume&>(impl_->volume).ExtractTriangleMesh();
-  if (!m || m->vertices_.empty()) return out;
+  if (impl_->index.empty()) return out;
+  // Every voxel with weight takes part (weight > 0).
+  const auto t = impl_->grid.ExtractTriangleMesh(0.0f);
+  if (t.IsEmpty() || !t.HasVertexPositions() || t.GetVertexPositions().GetLength() == 0) return out;
+  auto m = std::make_shared<o3d::geometry::TriangleMesh>(canonicalOrder(t.ToLegacy()));
+  if (m->vertices_.empty()) return out;
+  // Back from the grid's frame to the world's (half a voxel).
+  for (auto& p : m->vertices_) p += Eigen::Vector3d::Constant(0.5 * options_.voxelM);
   m->ComputeVertexNormals();
   out.positions.reserve(m->vertices_.size());
   for (size_t i = 0; i < m->vertices_.size(); ++i) {
@@ -463,17 +616,14 @@ RoomMesh RoomModel::mesh() const {
   return out;
 }
 
-size_t RoomModel::blocks() const { return impl_->volume.volume_units_.size(); }
+size_t RoomModel::blocks() const { return impl_->index.size(); }
 size_t RoomModel::appearanceBytes() const {
   // Entries plus the hash table's node and bucket overhead (libstdc++: a node holds the pair and a next
   // pointer and the cached hash; a bucket is a pointer).
   const size_t node = sizeof(std::pair<const Eigen::Vector3i, Impl::Appearance>) + 2 * sizeof(void*);
   return impl_->appearance.size() * node + impl_->appearance.bucket_count() * sizeof(void*);
 }
-size_t RoomModel::bytes() const {
-  return blocks() * static_cast<size_t>(kBlockResolution * kBlockResolution * kBlockResolution) *
-         sizeof(o3d::geometry::TSDFVoxel);
-}
+size_t RoomModel::bytes() const { return blocks() * static_cast<size_t>(kBlockVoxels) * 2 * sizeof(float); }
 
 // ---- shadow rays kept between meshes ---------------------------------------------------------------------
 

@@ -1,6 +1,6 @@
 #pragma once
 /// The persistent model of the real room: every frame's filtered depth fused with its pose into a truncated
-/// signed distance volume (Open3D's ScalableTSDFVolume: voxel blocks allocated where surfaces are seen), so
+/// signed distance volume (Open3D's VoxelBlockGrid: voxel blocks allocated where surfaces are seen), so
 /// that light from surfaces out of the current view is still there, and real objects that move are carved
 /// away by later observations. The lighting world is the marker frame.
 #include <memory>

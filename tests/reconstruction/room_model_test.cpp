@@ -294,6 +294,57 @@ TEST(RoomModel, TheMemoryBudgetIsNeverExceeded) {
   EXPECT_THROW(RoomModel(RoomOptions{0.02, 0.01}), capture::InputError);  // truncation below 2 voxels
 }
 
+// Open3D's marching cubes numbers vertices in whatever order its threads reach them; the room's mesh (and the
+// lighting built on it) is the same from the same frames, vertex for vertex.
+TEST(RoomModel, TheSameFramesGiveTheSameMesh) {
+  std::vector<RoomMesh> meshes;
+  for (int run = 0; run < 3; ++run) {
+    RoomModel room;
+    int k = 0;
+    for (const auto& T : orbit(4, 1.2, 0.9)) room.integrate(renderDepth(Scene{}, T, 0.002, k++), grey(128), kK, T);
+    meshes.push_back(room.mesh());
+  }
+  ASSERT_GT(meshes[0].triangleCount(), 100u);
+  for (int run = 1; run < 3; ++run) {
+    EXPECT_EQ(meshes[run].positions, meshes[0].positions);
+    EXPECT_EQ(meshes[run].normals, meshes[0].normals);
+    EXPECT_EQ(meshes[run].indices, meshes[0].indices);
+  }
+}
+
+// The voxel grid starts small (1024 blocks) and is rebuilt larger as the room grows: what it held comes through
+// each rebuild unchanged. Views of the floor far apart (none sees another's blocks) add a few hundred 4 mm-voxel
+// blocks each; the signed distance under the first view is the same after every later one.
+TEST(RoomModel, AGrowingRoomKeepsWhatItHeld) {
+  RoomOptions o;
+  o.voxelM = 0.004;
+  o.truncM = 0.016;
+  RoomModel room(o);
+  const auto view = [](double y) { return lookAt({1.5, y, 0.8}, {1.6, y, 0.0}); };
+  ASSERT_TRUE(room.integrate(renderDepth(Scene{}, view(0), 0.001, 1), grey(128), kK, view(0)).integrated);
+  std::vector<cv::Vec3d> points;
+  std::vector<double> before;
+  for (double x = 1.3; x <= 1.9; x += 0.05)
+    for (double y = -0.2; y <= 0.2; y += 0.05)
+      for (const double z : {-0.006, 0.0, 0.008}) {
+        points.emplace_back(x, y, z);
+        before.push_back(room.signedDistance(points.back()));
+        ASSERT_FALSE(std::isnan(before.back())) << x << "," << y << "," << z;
+      }
+  const size_t first = room.blocks();
+  const size_t firstVertices = room.mesh().positions.size();
+  constexpr int kViews = 8;
+  for (int k = 1; k < kViews; ++k) {
+    ASSERT_TRUE(
+        room.integrate(renderDepth(Scene{}, view(4.0 * k), 0.001, 1 + k), grey(128), kK, view(4.0 * k)).integrated);
+    for (size_t i = 0; i < points.size(); ++i) ASSERT_EQ(room.signedDistance(points[i]), before[i]) << k;
+  }
+  EXPECT_GT(room.blocks(), (kViews - 1) * first);
+  EXPECT_GT(room.blocks(), 2048u);  // past the first capacity doubled
+  // Each view's floor is a surface of the same size: the mesh holds kViews of the first.
+  EXPECT_NEAR(static_cast<double>(room.mesh().positions.size()), kViews * firstVertices, 0.05 * firstVertices);
+}
+
 TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
   RoomModel room;
   int k = 0;
