@@ -307,8 +307,8 @@ struct RoomModel::Impl {
     return it->second * kBlockVoxels + l[0] + kBlockResolution * (l[1] + kBlockResolution * l[2]);
   }
 
-  /// The blocks a frame's surface touches: every block within the truncation distance of a sampled point
-  /// (the rule of Open3D's ScalableTSDFVolume::Integrate, at its sampling stride).
+  /// The blocks a frame's surface touches: every block within the truncation distance of the point seen at
+  /// every kSamplingStride-th pixel each way.
   std::unordered_set<Eigen::Vector3i, Hash> touched(const cv::Mat& depth, const capture::Intrinsics& K,
                                                     const capture::Pose& T, double trunc) const {
     std::unordered_set<Eigen::Vector3i, Hash> out;

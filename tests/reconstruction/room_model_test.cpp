@@ -1,4 +1,4 @@
-// The room model: fusion of depth from many poses (Open3D's ScalableTSDFVolume), carving of what moved,
+// The room model: fusion of depth from many poses (Open3D's VoxelBlockGrid), carving of what moved,
 // refusal of poses that disagree with the model, the memory budget, and the saved room's round trip.
 #include "reconstruction/room_model.h"
 
