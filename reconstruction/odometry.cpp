@@ -1,5 +1,7 @@
 #include "reconstruction/odometry.h"
 
+#include <open3d/core/Blob.h>
+#include <open3d/core/ShapeUtil.h>
 #include <open3d/core/Tensor.h>
 #include <open3d/t/pipelines/odometry/RGBDOdometry.h>
 
@@ -7,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <set>
 #include <stdexcept>
 
 #include "capture/colour.h"
@@ -33,11 +36,13 @@ const char* toString(OdometryMethod m) {
 namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
+/// A tensor over the image's own pixels, not a copy: the tensor's memory holds a reference to the image (kept
+/// until the last tensor sharing it goes). Neither is written after: a frame's images are made once.
 o3c::Tensor toTensor(const cv::Mat& m) {
   CV_Assert(m.depth() == CV_32F && m.isContinuous());
-  o3c::Tensor t({m.rows, m.cols, static_cast<int64_t>(m.channels())}, o3c::Float32);
-  std::memcpy(t.GetDataPtr(), m.ptr(), m.total() * m.elemSize());
-  return t;
+  const o3c::SizeVector shape{m.rows, m.cols, static_cast<int64_t>(m.channels())};
+  auto blob = std::make_shared<o3c::Blob>(o3c::Device("CPU:0"), m.data, [keep = m](void*) {});
+  return o3c::Tensor(shape, o3c::shape_util::DefaultStrides(shape), m.data, o3c::Float32, blob);
 }
 
 o3c::Tensor intrinsicsTensor(const capture::Intrinsics& k) {
@@ -185,18 +190,20 @@ OdometryFrame::OdometryFrame(const cv::Mat& depthIn, const cv::Mat& colour, cons
     L.tVertices = toTensor(L.vertices);
     L.tNormals = toTensor(L.normals);
     L.tK = intrinsicsTensor(k);
-    cv::Mat dx, dy;
-    cv::Sobel(depth, dx, CV_32F, 1, 0, 3);  // unscaled: the kernels scale by 1/8; NaN spreads to the 3 x 3
-    cv::Sobel(depth, dy, CV_32F, 0, 1, 3);
-    L.tDepthDx = toTensor(dx);
-    L.tDepthDy = toTensor(dy);
+    // Each gradient in an image of its own: the tensors share their pixels.
+    cv::Mat depthDx, depthDy;
+    cv::Sobel(depth, depthDx, CV_32F, 1, 0, 3);  // unscaled: the kernels scale by 1/8; NaN spreads to the 3 x 3
+    cv::Sobel(depth, depthDy, CV_32F, 0, 1, 3);
+    L.tDepthDx = toTensor(depthDx);
+    L.tDepthDy = toTensor(depthDy);
     if (!grey.empty()) {
       L.intensity = grey;
-      cv::Sobel(grey, dx, CV_32F, 1, 0, 3);
-      cv::Sobel(grey, dy, CV_32F, 0, 1, 3);
+      cv::Mat greyDx, greyDy;
+      cv::Sobel(grey, greyDx, CV_32F, 1, 0, 3);
+      cv::Sobel(grey, greyDy, CV_32F, 0, 1, 3);
       L.tIntensity = toTensor(grey);
-      L.tIntensityDx = toTensor(dx);
-      L.tIntensityDy = toTensor(dy);
+      L.tIntensityDx = toTensor(greyDx);
+      L.tIntensityDy = toTensor(greyDy);
     }
     impl->levels.push_back(std::move(L));
   }
@@ -211,6 +218,20 @@ const cv::Mat& OdometryFrame::vertices(int l) const { return impl_->levels.at(l)
 const cv::Mat& OdometryFrame::normals(int l) const { return impl_->levels.at(l).normals; }
 size_t OdometryFrame::validPixels() const { return impl_->valid; }
 bool OdometryFrame::hasIntensity() const { return impl_->intensity; }
+size_t OdometryFrame::bytes() const {
+  std::set<const void*> seen;
+  size_t sum = 0;
+  const auto add = [&](const void* data, size_t n) {
+    if (data && seen.insert(data).second) sum += n;
+  };
+  for (const auto& L : impl_->levels) {
+    for (const cv::Mat* m : {&L.depth, &L.intensity, &L.vertices, &L.normals}) add(m->data, m->total() * m->elemSize());
+    for (const o3c::Tensor* t : {&L.tDepth, &L.tIntensity, &L.tDepthDx, &L.tDepthDy, &L.tIntensityDx, &L.tIntensityDy,
+                                 &L.tVertices, &L.tNormals})
+      if (t->NumElements() > 0) add(t->GetDataPtr(), static_cast<size_t>(t->NumElements()) * t->GetDtype().ByteSize());
+  }
+  return sum;
+}
 
 struct OdometrySolver {
   static OdometryResult solve(const OdometryFrame& source, const OdometryFrame& target, const capture::Pose& init,

@@ -76,6 +76,8 @@ class OdometryFrame {
   const cv::Mat& normals(int level) const;
   /// Pixels with depth at the finest level.
   size_t validPixels() const;
+  /// The memory the frame's images hold (bytes; each buffer once): a tracker keeps dozens of frames as keyframes.
+  size_t bytes() const;
   bool hasIntensity() const;
 
  private:

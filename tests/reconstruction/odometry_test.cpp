@@ -124,6 +124,23 @@ TEST(Odometry, ExtremesStayFinite) {
   EXPECT_THROW(OdometryFrame(p.a.depth, cv::Mat(3, 3, CV_8UC3), k), std::invalid_argument);
 }
 
+// A frame's pyramid holds each image once: per pixel of a level, depth, intensity, their x and y gradients, and
+// the vertex and normal maps (three floats each): 12 floats. Open3D's steps read tensors over the same pixels,
+// not copies (a tracker keeps 64 keyframes).
+TEST(Odometry, AFrameHoldsEachImageOnce) {
+  const Pair p = synthPairs()[0];
+  OdometryOptions o;  // hybrid, three levels, the finest at most 320 wide
+  const OdometryFrame f(p.a.depth, p.a.colour, p.a.colourIntrinsics, o);
+  ASSERT_EQ(f.levels(), 3);
+  size_t pixels = 0;
+  for (int l = 0; l < f.levels(); ++l) pixels += f.depth(l).total();
+  EXPECT_EQ(f.depth(0).cols, 320);
+  EXPECT_EQ(f.bytes(), pixels * 12 * sizeof(float));
+  // Point to plane without colour: no intensity and no intensity gradients.
+  o.method = OdometryMethod::PointToPlane;
+  EXPECT_EQ(OdometryFrame(p.a.depth, cv::Mat(), p.a.colourIntrinsics, o).bytes(), pixels * 9 * sizeof(float));
+}
+
 /// Frames `from` and `from + 1` of tabletop-scan's look-around (a camera turning 12 degrees a frame in place).
 Pair scanPair(size_t from) {
   auto src = capture::open(std::string(MRGI_SOURCE_DIR) + "/recordings/tabletop-scan");
