@@ -1,7 +1,5 @@
 #include "reconstruction/odometry.h"
 
-#include <open3d/core/Blob.h>
-#include <open3d/core/ShapeUtil.h>
 #include <open3d/core/Tensor.h>
 #include <open3d/t/pipelines/odometry/RGBDOdometry.h>
 
@@ -35,19 +33,6 @@ const char* toString(OdometryMethod m) {
 
 namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-/// A tensor over the image's own pixels, not a copy: the tensor's memory holds a reference to the image (kept
-/// until the last tensor sharing it goes). Neither is written after: a frame's images are made once.
-o3c::Tensor toTensor(const cv::Mat& m) {
-  CV_Assert(m.depth() == CV_32F && m.isContinuous());
-  const o3c::SizeVector shape{m.rows, m.cols, static_cast<int64_t>(m.channels())};
-  auto blob = std::make_shared<o3c::Blob>(o3c::Device("CPU:0"), m.data, [keep = m](void*) {});
-  return o3c::Tensor(shape, o3c::shape_util::DefaultStrides(shape), m.data, o3c::Float32, blob);
-}
-
-o3c::Tensor intrinsicsTensor(const capture::Intrinsics& k) {
-  return o3c::Tensor(std::vector<double>{k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1}, {3, 3}, o3c::Float64);
-}
 
 /// Intrinsics of an image halved by 2 x 2 blocks (pixel centres: u' = (u + 0.5) / 2 - 0.5).
 capture::Intrinsics halved(const capture::Intrinsics& k) {
@@ -186,24 +171,25 @@ OdometryFrame::OdometryFrame(const cv::Mat& depthIn, const cv::Mat& colour, cons
       if (n == cv::Vec3f(0, 0, 0)) n = cv::Vec3f(kNaN, kNaN, kNaN);
     });
     if (l == 0) impl->valid = static_cast<size_t>(cv::countNonZero(depth == depth));
-    L.tDepth = toTensor(depth);
-    L.tVertices = toTensor(L.vertices);
-    L.tNormals = toTensor(L.normals);
+    // The tensors share the images' pixels (imageTensor): nothing writes an image after this.
+    L.tDepth = imageTensor(depth);
+    L.tVertices = imageTensor(L.vertices);
+    L.tNormals = imageTensor(L.normals);
     L.tK = intrinsicsTensor(k);
     // Each gradient in an image of its own: the tensors share their pixels.
     cv::Mat depthDx, depthDy;
     cv::Sobel(depth, depthDx, CV_32F, 1, 0, 3);  // unscaled: the kernels scale by 1/8; NaN spreads to the 3 x 3
     cv::Sobel(depth, depthDy, CV_32F, 0, 1, 3);
-    L.tDepthDx = toTensor(depthDx);
-    L.tDepthDy = toTensor(depthDy);
+    L.tDepthDx = imageTensor(depthDx);
+    L.tDepthDy = imageTensor(depthDy);
     if (!grey.empty()) {
       L.intensity = grey;
       cv::Mat greyDx, greyDy;
       cv::Sobel(grey, greyDx, CV_32F, 1, 0, 3);
       cv::Sobel(grey, greyDy, CV_32F, 0, 1, 3);
-      L.tIntensity = toTensor(grey);
-      L.tIntensityDx = toTensor(greyDx);
-      L.tIntensityDy = toTensor(greyDy);
+      L.tIntensity = imageTensor(grey);
+      L.tIntensityDx = imageTensor(greyDx);
+      L.tIntensityDy = imageTensor(greyDy);
     }
     impl->levels.push_back(std::move(L));
   }

@@ -110,13 +110,9 @@ struct RoomModel::Impl {
     capacity = blocks;
     tsdf = grid.GetAttribute("tsdf").GetDataPtr<float>();
     weight = grid.GetAttribute("weight").GetDataPtr<float>();
-    o3d::core::HashMap map = grid.GetHashMap();
-    o3d::core::Tensor buf, masks;
-    map.Activate(keysOf({kSentinel}), buf, masks);
-    const int64_t at = buf.GetDataPtr<int32_t>()[0];
-    if (at != 0) throw std::logic_error("RoomModel: the voxel grid's first buffer went elsewhere");
-    std::fill_n(tsdf, kBlockVoxels, 0.f);
-    std::fill_n(weight, kBlockVoxels, 0.f);
+    if (buffersFor({kSentinel}) != std::vector<int64_t>{0})
+      throw std::logic_error("RoomModel: the voxel grid's first buffer went elsewhere");
+    clear(0);
   }
   static inline const Eigen::Vector3i kSentinel = Eigen::Vector3i::Constant(-(1 << 24));
 
@@ -150,15 +146,13 @@ struct RoomModel::Impl {
       }
     }
     if (blocks.empty()) return;
-    const auto at = activate(blocks);
     // Open3D's hash map leaves a new block's values as the buffer held them.
-    for (const int64_t i : at) {
-      std::fill_n(tsdf + i * kBlockVoxels, kBlockVoxels, 0.f);
-      std::fill_n(weight + i * kBlockVoxels, kBlockVoxels, 0.f);
-    }
+    for (const int64_t i : activate(blocks)) clear(i);
   }
 
-  std::vector<int64_t> activate(const std::vector<Eigen::Vector3i>& blocks) {
+  /// Buffers for these blocks, none of them in the grid yet (through a copy of the grid's hash map, which
+  /// shares its storage: it never grows here, the grid being large enough).
+  std::vector<int64_t> buffersFor(const std::vector<Eigen::Vector3i>& blocks) {
     o3d::core::HashMap map = grid.GetHashMap();
     o3d::core::Tensor buf, masks;
     map.Activate(keysOf(blocks), buf, masks);
@@ -168,16 +162,28 @@ struct RoomModel::Impl {
     for (size_t i = 0; i < blocks.size(); ++i) {
       if (!m[i]) throw std::logic_error("RoomModel: a voxel block was added twice");
       out[i] = b[i];
-      index.emplace(blocks[i], b[i]);
     }
     return out;
   }
 
-  /// The grid's pose of the camera (camera from grid) for the world's camera pose T_camera_world.
-  Eigen::Matrix4d cameraFromGrid(const capture::Pose& T_camera_world) const {
-    Eigen::Matrix4d e = toEigen(T_camera_world);
-    e.block<3, 1>(0, 3) += e.block<3, 3>(0, 0) * Eigen::Vector3d::Constant(0.5 * voxelM);
-    return e;
+  /// buffersFor, each block entered in `index`.
+  std::vector<int64_t> activate(const std::vector<Eigen::Vector3i>& blocks) {
+    const auto out = buffersFor(blocks);
+    for (size_t i = 0; i < blocks.size(); ++i) index.emplace(blocks[i], out[i]);
+    return out;
+  }
+
+  /// A buffer's voxels unobserved (tsdf and weight 0).
+  void clear(int64_t buffer) {
+    std::fill_n(tsdf + buffer * kBlockVoxels, kBlockVoxels, 0.f);
+    std::fill_n(weight + buffer * kBlockVoxels, kBlockVoxels, 0.f);
+  }
+
+  /// The camera's pose in the grid's frame (camera from grid) for the world's camera pose T_camera_world.
+  capture::Pose cameraFromGrid(const capture::Pose& T_camera_world) const {
+    capture::Pose T_world_grid = capture::identityPose();
+    for (int k = 0; k < 3; ++k) T_world_grid(k, 3) = 0.5 * voxelM;
+    return T_camera_world * T_world_grid;
   }
 
   /// Fused appearance per voxel (key: floor(p / voxel), as the TSDF's voxels): confidence-weighted sum of
@@ -508,21 +514,14 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
   buffers.reserve(inView.size());
   for (const auto& b : inView) buffers.push_back(impl_->index.at(b));
 
-  // Open3D integrates no colour here: the fused appearance below is the room's colour.
-  o3d::core::Tensor d({depth.rows, depth.cols, 1}, o3d::core::Float32);
-  for (int y = 0; y < depth.rows; ++y)
-    std::memcpy(d.GetDataPtr<float>() + static_cast<size_t>(y) * depth.cols, depth.ptr<float>(y),
-                sizeof(float) * static_cast<size_t>(depth.cols));
-  // Open3D's integration reads the depth at pixel (int) u, the pixel whose centre (at integer u) is up to a
-  // pixel to the left; the principal point given to it is half a pixel on, so that it reads the nearest pixel.
-  const o3d::core::Tensor intrinsic =
-      o3d::core::Tensor::Init<double>({{K.fx, 0, K.cx + 0.5}, {0, K.fy, K.cy + 0.5}, {0, 0, 1}});
-  const Eigen::Matrix4d e = impl_->cameraFromGrid(T_camera_world);
-  o3d::core::Tensor extrinsic({4, 4}, o3d::core::Float64);
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) extrinsic.GetDataPtr<double>()[4 * i + j] = e(i, j);
+  // Open3D integrates no colour here: the fused appearance below is the room's colour. It reads the depth at
+  // pixel (int) u, the pixel whose centre (at integer u) is up to a pixel to the left; the principal point given
+  // to it is half a pixel on, so that it reads the nearest pixel.
+  capture::Intrinsics nearest = K;
+  nearest.cx += 0.5, nearest.cy += 0.5;
   if (!inView.empty())
-    impl_->grid.Integrate(Impl::keysOf(inView), o3d::t::geometry::Image(d), intrinsic, extrinsic, 1.0f,
+    impl_->grid.Integrate(Impl::keysOf(inView), o3d::t::geometry::Image(imageTensor(depth)), intrinsicsTensor(nearest),
+                          poseTensor(impl_->cameraFromGrid(T_camera_world)), 1.0f,
                           static_cast<float>(options_.maxDepthM),
                           static_cast<float>(options_.truncM / options_.voxelM));
   if (impl_->grid.GetHashMap().GetCapacity() != impl_->capacity + 1)
