@@ -3,6 +3,7 @@
 
 #include "app/commands.h"
 #include "capture/frame_source.h"
+#include "runtime/source.h"
 
 namespace mrgi::app {
 
@@ -17,7 +18,7 @@ Action addInfo(CLI::App& app) {
   app.add_option("SOURCE", *source, "session directory, TUM directory, Open3D RGB-D folder, .oni file or device URI")
       ->required();
   return [source] {
-    auto src = capture::open(*source);
+    auto src = runtime::openSource(*source);  // says the source's calibration note, as replay does
     const capture::SourceInfo& info = src->info();
     nlohmann::json j;
     j["source"] = info.uri;

@@ -39,9 +39,10 @@ bool usableFov(double h, double v) {
 
 /// Intrinsics from a stream's fields of view (OpenNI2 reports no principal point: the image centre).
 /// A stream that reports no usable field of view (colour streams of OpenNI 1.x recordings report 0) takes
-/// `fallback`'s, with a warning; without one it fails in one line.
+/// `fallback`'s and says so in `note` (the source's calibration note, said once by the command); without one it
+/// fails in one line.
 Intrinsics intrinsicsOf(const openni::VideoStream& s, const std::string& uri, const char* name,
-                        const openni::VideoStream* fallback) {
+                        const openni::VideoStream* fallback, std::string* note) {
   const openni::VideoMode mode = s.getVideoMode();
   Intrinsics k;
   k.width = mode.getResolutionX();
@@ -53,9 +54,11 @@ Intrinsics intrinsicsOf(const openni::VideoStream& s, const std::string& uri, co
                                   " x " + std::to_string(v) + " rad); its intrinsics are unknown");
     h = fallback->getHorizontalFieldOfView();
     v = fallback->getVerticalFieldOfView();
-    std::fprintf(stderr,
-                 "warning: %s: the %s stream reports no field of view; using the depth stream's (%.1f x %.1f deg)\n",
-                 uri.c_str(), name, h * 180 / CV_PI, v * 180 / CV_PI);
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "the %s stream reports no field of view; using the depth stream's (%.1f x %.1f deg)", name,
+                  h * 180 / CV_PI, v * 180 / CV_PI);
+    if (note) *note = uri + ": " + text;
   }
   k.fx = k.width / (2.0 * std::tan(h / 2.0));
   k.fy = k.height / (2.0 * std::tan(v / 2.0));
@@ -96,6 +99,7 @@ struct OpenNI2Source::Impl {
   int64_t fileFrames = -1;
   double lastTimestamp = -1.0;
   int64_t colourFrames = -1, colourRead = 0;   ///< file playback: the colour stream's length, frames read
+  int64_t depthFrames = -1, depthRead = 0;     ///< file playback: the depth stream's length, frames read
   bool flipDepth = false, flipColour = false;  ///< recorded mirrored: un-mirror in software
   std::optional<NearestInTime<openni::VideoFrameRef>> colourPairs;  ///< file playback: colour nearest in time
 };
@@ -139,7 +143,7 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
   } else if (auto* playback = d.device.getPlaybackControl()) {
     playback->setSpeed(-1.0f);  // manual stepping: every readFrame returns the next recorded frame
     playback->setRepeatEnabled(false);
-    d.fileFrames = playback->getNumberOfFrames(d.depth);
+    d.fileFrames = d.depthFrames = playback->getNumberOfFrames(d.depth);
     // Pairs are made by timestamp; a pair needs a frame of each stream.
     if (d.hasColour) {
       d.colourFrames = playback->getNumberOfFrames(d.colour);
@@ -160,8 +164,9 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
   info_.uri = d.uri;
   info_.kind = "openni2";
   if (d.fileFrames >= 0) info_.frameCount = d.fileFrames;
-  info_.depthIntrinsics = intrinsicsOf(d.depth, d.uri, "depth", nullptr);
-  info_.colourIntrinsics = d.hasColour ? intrinsicsOf(d.colour, d.uri, "colour", &d.depth) : info_.depthIntrinsics;
+  info_.depthIntrinsics = intrinsicsOf(d.depth, d.uri, "depth", nullptr, nullptr);
+  info_.colourIntrinsics =
+      d.hasColour ? intrinsicsOf(d.colour, d.uri, "colour", &d.depth, &info_.calibrationNote) : info_.depthIntrinsics;
   if (d.hasColour)
     d.colourPairs.emplace([&d]() -> std::optional<std::pair<openni::VideoFrameRef, double>> {
       if (d.colourFrames >= 0 && d.colourRead >= d.colourFrames) return std::nullopt;  // its end: no need to wait
@@ -179,11 +184,24 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
 
 OpenNI2Source::~OpenNI2Source() {
   if (!impl_) return;
-  impl_->depth.stop();
-  impl_->colour.stop();
-  impl_->depth.destroy();
-  impl_->colour.destroy();
-  impl_->device.close();
+  auto& d = *impl_;
+  d.colourPairs.reset();  // the colour frames held for pairing go back while their stream lives
+  // OpenNI2's file player runs on a thread of its own, stepped by hand: each frame read lets it deliver the
+  // recording's next one, and it then waits for the next step. Tearing it down is safe in only one order per
+  // state (OpenNI2.ClosingARecording… tries both states, and fails with the other order in either):
+  //  - every frame read: the player has run past the end and walks its list of streams without pause or lock,
+  //    so a stream destroyed under it is a use after free. Close the device first: that joins the thread.
+  //  - frames left: the player holds the next one, waiting. Closing the device wakes it and it delivers that
+  //    frame into streams that are being closed (a crash inside OpenNI2). Destroy the streams first: the player
+  //    then has no stream to deliver to, and closing the device joins it.
+  const bool playedToTheEnd = d.isFile && d.depthFrames >= 0 && d.depthRead >= d.depthFrames &&
+                              (!d.hasColour || d.colourRead >= d.colourFrames);
+  d.depth.stop();
+  d.colour.stop();
+  if (playedToTheEnd) d.device.close();
+  d.depth.destroy();
+  d.colour.destroy();
+  d.device.close();
 }
 
 bool OpenNI2Source::depthOnly() const { return !impl_->hasColour; }
@@ -199,6 +217,7 @@ std::optional<Frame> OpenNI2Source::next() {
     if (openni::OpenNI::waitForAnyStream(streams, 1, &ready, kTimeoutMs) != openni::STATUS_OK) return false;
     return s.readFrame(&out) == openni::STATUS_OK && out.isValid();
   };
+  ++d.depthRead;
   if (!readOne(d.depth, depthFrame)) {
     if (d.isFile) return std::nullopt;  // end of the recording
     throw CaptureError(d.uri, "device lost (no depth frame for 2 s)");

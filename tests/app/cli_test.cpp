@@ -1391,14 +1391,26 @@ TEST(Cli, RecordCopiesFramesAndTheFisheyeCalibrationIntoANewSession) {
 TEST(Cli, RealOniRecordingReplaysAndRecordsIntoASessionThatReadsBack) {
   // OpenNI 1.x Kinect recording: colour field of view 0, recorded mirrored (../shared/data/oni-kinect-3dj).
   const std::string oni = std::string(MRGI_SHARED_DATA) + "/oni-kinect-3dj/test.oni";
-  const auto info = nlohmann::json::parse(runMrgi("info " + oni).out);
+  const Result infoRun = runMrgi("info " + oni);
+  const auto info = nlohmann::json::parse(infoRun.out);
   ASSERT_TRUE(info["colour_intrinsics"]["fx"].is_number()) << info.dump();
+  // The colour stream's missing field of view is said once per command, info included, as a note.
+  auto timesSaid = [](const std::string& err) {
+    size_t n = 0;
+    for (size_t at = err.find("using the depth stream's"); at != std::string::npos;
+         at = err.find("using the depth stream's", at + 1))
+      ++n;
+    return n;
+  };
+  EXPECT_EQ(timesSaid(infoRun.err), 1u) << infoRun.err;
+  EXPECT_NE(infoRun.err.find("note: " + oni + ": the colour stream reports no field of view"), std::string::npos)
+      << infoRun.err;
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_oni_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   // Replay with no scene reproduces its colour.
   Result r = runMrgi("replay " + oni + " --frames 2 --mp4 \"\" --out " + (dir / "replay").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  EXPECT_NE(r.err.find("using the depth stream's"), std::string::npos) << r.err;  // the one warning
+  EXPECT_EQ(timesSaid(r.err), 1u) << r.err;
   // record writes a session that info and replay open, frame for frame the same colour.
   r = runMrgi("record --source " + oni + " --frames 3 --out " + (dir / "session").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
@@ -1432,6 +1444,8 @@ TEST(Cli, AnObjectInsertedIntoARecordingWithoutAMarkerStaysOnItsFloorInEveryRepl
       runMrgi("insert --session " + oni + " --model " + sphere + " --scale 0.1 --scene " +
               (dir / "base.json").string() + " --save " + (dir / "scene.json").string() + " --at 320,240 --snap");
   ASSERT_EQ(r.exitCode, 0) << r.err;
+  // insert opens the recording three times (the frame, the room, the world) and says its note once.
+  EXPECT_EQ(r.err.find("using the depth stream's"), r.err.rfind("using the depth stream's")) << r.err;
   const auto report = nlohmann::json::parse(r.out);
   EXPECT_EQ(report["pose"]["by"], "first-frame");
   // Resting on the floor: the support plane is the world's z = 0 and the unit sphere of radius 0.1 sits on it.

@@ -4,9 +4,11 @@
 #include <OpenNI.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 #include "capture/error.h"
 #include "capture/frame_source.h"
@@ -117,11 +119,37 @@ TEST(OpenNI2, RealKinectRecordingPlaysWithFiniteIntrinsicsUnmirrored) {
   EXPECT_EQ(cv::norm(firstColour, flippedColour, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(firstDepth, flippedDepth, cv::NORM_INF), 0.0);
   EXPECT_GT(cv::norm(firstColour, rawColour, cv::NORM_L1), 0.0);  // the scene is not symmetric
+  d.release();
+  c.release();
   depth.stop();
   colour.stop();
+  device.close();  // the player's thread before the streams, as OpenNI2Source closes it (ClosingARecording…)
   depth.destroy();
   colour.destroy();
-  device.close();
+}
+
+TEST(OpenNI2, ClosingARecordingAtItsEndOrPartWayIsSafe) {
+  // OpenNI2's file player runs on a thread of its own and is safe to tear down in only one order per state
+  // (OpenNI2Source's destructor says which). A replay of the fixture crashed at its end about one run in 25
+  // under load. Opened, played to its end or part-way and closed 60 times with a busy thread beside it: with
+  // the streams destroyed first this crashed within a few rounds played to the end (12 of 12 runs); with the
+  // device closed first, within a few rounds closed part-way (9 of 12 runs).
+  std::atomic<bool> stop{false};
+  std::thread load([&] {
+    volatile double x = 0;
+    while (!stop.load(std::memory_order_relaxed)) x = x + 1.0;
+  });
+  for (int round = 0; round < 60; ++round) {
+    auto source = open(kFixture);
+    int frames = 0;
+    const int stopAt = round % 2 ? 12 : round % 12;  // every other round closes it part-way
+    while (frames < stopAt && source->next()) ++frames;
+    ASSERT_EQ(frames, stopAt) << round;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));  // the player reaches the end of the file
+    source.reset();                                              // a crash here ends the test binary
+  }
+  stop = true;
+  load.join();
 }
 
 TEST(TimestampPairing, EachFrameTakesTheNearestOfTheOtherStream) {
