@@ -40,6 +40,9 @@ LiveSession::LiveSession(const LiveSessionOptions& o,
     } else {
       base_ = prepareLighting(scene_, o.scene.scene, *live_, live_->name(), o.pose, o.rooms.any());
     }
+    // The scene as resolved against the source (where its lights come from: "auto" is the room's here as in
+    // replay and insert): the panel edits this one, and each rebuild starts from it.
+    scene_ = base_->scene;
   }
   context_ = contextFor(width, height);
   compositor_ = std::make_unique<compositor::Compositor>(width, height);
@@ -156,6 +159,7 @@ json LiveSession::finish(const std::string& screenshot) {
                   {"frames", processed_},
                   {"pose", {{"mode", toString(o_.pose)}, {"frames", posedBy_}}},
                   {"window", {context_->width(), context_->height()}},
+                  {"lights", lightCount_},  // in force at the last frame shown
                   {"renderer", context_->renderer()},
                   {"process", processSettingsInEffect()}};  // how it took its cores and memory
   // Throughput of the window loop (frame, UI and swap; no writes), from the first frame's start to the last's

@@ -1719,6 +1719,46 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
 }
 
 // Needs a display: run by CTest under Xvfb (Window.LiveShowsCompositeUnderXvfb).
+TEST(LiveWindow, DISABLED_LightsABareRecordingFromItsRoomAsReplayDoes) {
+  // A scene insert saved for a recording without lights ("lights": "auto") drew the object black live, lit by
+  // nothing ("lights: 0"): the window rebuilt its pipeline from the scene as loaded, not as resolved against the
+  // source. It is lit from the room fused as the frames come, as replay lights it: the same composite.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_live_auto_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string icl = std::string(MRGI_SHARED_DATA) + "/rgbd-open3d-iclnuim";
+  const std::string sphere = (fs::path(MRGI_SOURCE_DIR) / "recordings/models/sphere.ply").string();
+  const std::string scene = (dir / "icl.json").string();
+  ASSERT_EQ(
+      runMrgi("insert --session " + icl + " --model " + sphere + " --scale 0.2 --at 320,400 --snap --save " + scene)
+          .exitCode,
+      0);
+  ASSERT_EQ(nlohmann::json::parse(slurp(scene))["lights"], "auto");
+  const Result r = runMrgi("live --source " + icl + " --scene " + scene + " --gl window --frames 2 --no-loop" +
+                           " --screenshot " + (dir / "live.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_GT(summary["lights"].get<int>(), 0) << summary.dump();
+  ASSERT_EQ(runMrgi("replay " + icl + " --scene " + scene + " --frames 2 --mp4 '' --out " + (dir / "replay").string())
+                .exitCode,
+            0);
+  const cv::Mat shot = cv::imread((dir / "live.png").string()),
+                replayed = cv::imread((dir / "replay/frame_0001.png").string());
+  ASSERT_FALSE(shot.empty() || replayed.empty());
+  ASSERT_GE(shot.cols, 640);
+  ASSERT_GE(shot.rows, 480);
+  // The object's pixels (where the replayed frame differs from the recording) match replay's, not black.
+  const cv::Mat shown = shot(cv::Rect(0, 0, 640, 480));
+  cv::Mat diff;
+  cv::absdiff(shown, replayed, diff);
+  cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
+  // The sphere's centre region: bright in replay, and the same live.
+  const cv::Rect centre(290, 320, 40, 40);
+  EXPECT_GT(cv::mean(replayed(centre))[1], 100.0);
+  EXPECT_LT(cv::mean(diff(centre))[0], 3.0);
+  fs::remove_all(dir);
+}
+
 TEST(LiveWindow, DISABLED_BuildsTheRoomAsItGoesAndShowsIt) {
   // live --fuse-room: the demo fuses the room from the frames it shows, lights the object from it, shows
   // the fused room's radiance in the view (--view room_radiance), and saves the room when it ends.
