@@ -137,7 +137,10 @@ int runInsert(InsertFlags& f) {
     cfg.title = "mrgi insert: " + f.o.session;
     return cfg;
   });
-  if (!f.at.empty()) in.placeAtPixel(static_cast<int>(std::lround(f.at[0])), static_cast<int>(std::lround(f.at[1])));
+  if (!f.at.empty())
+    if (const auto note =
+            in.placeAtPixel(static_cast<int>(std::lround(f.at[0])), static_cast<int>(std::lround(f.at[1]))))
+      std::fprintf(stderr, "note: %s\n", note->c_str());
   if (f.snap)
     if (const auto why = in.snap(up)) throw capture::CaptureError(f.o.session, *why);
   if (window) return interactive(f, in, up);

@@ -8,6 +8,8 @@
 #include <fstream>
 #include <mutex>
 #include <opencv2/core.hpp>
+#include <optional>
+#include <set>
 
 #include "capture/error.h"
 #include "capture/timestamp_pairing.h"
@@ -87,9 +89,43 @@ std::string describeOniFile(const std::string& path) {
   return what;
 }
 
+/// OpenNI2 plays a file once per process: a second opening of the same path while the first is open shares its
+/// player and its place in the file (a recording read to its end gave the next reader no frame at all), and two
+/// players of one file open at once crash inside OpenNI2 when closed. An opening holds its file's claim; a
+/// second claim while it is held is refused in one line.
+class FileClaim {
+ public:
+  explicit FileClaim(const std::string& path) {
+    std::error_code ec;
+    const std::filesystem::path p = std::filesystem::weakly_canonical(path, ec);
+    key_ = ec ? path : p.string();
+    const std::lock_guard<std::mutex> lock(mutex());
+    if (!claimed().insert(key_).second)
+      throw CaptureError(path, "is already open in this process (OpenNI2 plays a file once at a time)");
+  }
+  ~FileClaim() {
+    const std::lock_guard<std::mutex> lock(mutex());
+    claimed().erase(key_);
+  }
+  FileClaim(const FileClaim&) = delete;
+  FileClaim& operator=(const FileClaim&) = delete;
+
+ private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static std::set<std::string>& claimed() {
+    static std::set<std::string> s;
+    return s;
+  }
+  std::string key_;
+};
+
 }  // namespace
 
 struct OpenNI2Source::Impl {
+  std::optional<FileClaim> claim;  ///< file playback: this opening's claim on the file (released last)
   std::string uri;
   bool isFile = false;
   openni::Device device;
@@ -110,6 +146,7 @@ OpenNI2Source::OpenNI2Source(const std::string& deviceUri, const OpenOptions& op
   d.isFile = deviceUri.size() > 4 && deviceUri.compare(deviceUri.size() - 4, 4, ".oni") == 0;
   d.uri = d.isFile ? deviceUri : "openni2://" + deviceUri;
   initialiseOnce();
+  if (d.isFile) d.claim.emplace(deviceUri);
   if (d.device.open(deviceUri.empty() ? openni::ANY_DEVICE : deviceUri.c_str()) != openni::STATUS_OK)
     throw CaptureError(d.isFile ? deviceUri : d.uri, d.isFile
                                                          ? "cannot open .oni file (" + describeOniFile(deviceUri) +

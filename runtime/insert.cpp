@@ -75,18 +75,20 @@ Insertion::Insertion(const InsertOptions& o, const std::function<gl::ContextConf
   scene_ = lighting::parseScene(doc_.dump(), savePath_);
 
   // The frame to measure and preview on.
-  const capture::SourceInfo& info = source_->info();
-  const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
+  const int width = source_->info().colourIntrinsics.width, height = source_->info().colourIntrinsics.height;
   LightingSetup setup = prepareLighting(scene_, savePath_, *source_, o.session, o.pose, !o.room.empty());
   frameOptions_.pose = o.pose;
   if (!o.room.empty())
     frameOptions_.room = std::make_shared<const reconstruction::RoomMesh>(reconstruction::loadRoom(o.room));
   if (setup.lightsFromFusedRoom) {
-    // The preview is lit as replay will light it by its end: from the room of every frame.
+    // The preview is lit as replay will light it by its end: from the room of every frame. The fusion reads the
+    // recording itself (a device's recording plays once at a time): the frame is read after it.
     RoomFusionOptions fusion;
     fusion.pose = o.pose;
     fusion.open = o.open;
+    source_.reset();
     RoomFusion fused = fuseRoom(o.session, fusion);
+    source_ = openSource(o.session, o.open);
     auto mesh = std::make_shared<reconstruction::RoomMesh>(fused.model.mesh());
     if (mesh->positions.empty())
       throw capture::CaptureError(o.session, "lists no lights and no room could be fused from its frames (" +
@@ -128,12 +130,13 @@ json Insertion::report() const {
   return r;
 }
 
-void Insertion::placeAtPixel(int u, int v) {
+std::optional<std::string> Insertion::placeAtPixel(int u, int v) {
   const int width = result_.positions.cols, height = result_.positions.rows;
   if (u < 0 || v < 0 || u >= width || v >= height)
     throw std::invalid_argument("--at " + std::to_string(u) + "," + std::to_string(v) + ": outside the " +
                                 std::to_string(width) + "x" + std::to_string(height) + " image");
-  const cv::Vec3f p = result_.positions.at<cv::Vec3f>(v, u);
+  std::optional<std::string> note;
+  cv::Vec3f p = result_.positions.at<cv::Vec3f>(v, u);
   if (!(p[2] > 0)) {
     // Where there is depth instead: the nearest pixel with it, and how much of the frame has it.
     long best = -1, with = 0;
@@ -145,19 +148,29 @@ void Insertion::placeAtPixel(int u, int v) {
         const long d = static_cast<long>(x - u) * (x - u) + static_cast<long>(y - v) * (y - v);
         if (best < 0 || d < best) best = d, bu = x, bv = y;
       }
-    const std::string where =
-        best < 0 ? "the frame has no depth at all"
-                 : "the nearest pixel with depth is " + std::to_string(bu) + "," + std::to_string(bv) + "; " +
-                       std::to_string(static_cast<int>(100.0 * static_cast<double>(with) / (width * height))) +
-                       " % of the frame has depth";
-    throw capture::CaptureError(o_.session, "frame " + std::to_string(o_.frame) + ": no depth at pixel " +
-                                                std::to_string(u) + "," + std::to_string(v) + " (" + where + ")");
+    const std::string at = std::to_string(u) + "," + std::to_string(v);
+    const std::string nearest = std::to_string(bu) + "," + std::to_string(bv);
+    if (best < 0 || best > kNearestDepthPixels * kNearestDepthPixels) {
+      const std::string where =
+          best < 0 ? "the frame has no depth at all"
+                   : "the nearest pixel with depth is " + nearest + "; " +
+                         std::to_string(static_cast<int>(100.0 * static_cast<double>(with) / (width * height))) +
+                         " % of the frame has depth";
+      throw capture::CaptureError(
+          o_.session, "frame " + std::to_string(o_.frame) + ": no depth at pixel " + at + " (" + where + ")");
+    }
+    // A hole in the depth a few pixels wide (an edge, a dark patch): the nearest pixel with depth stands in.
+    p = result_.positions.at<cv::Vec3f>(bv, bu);
+    note = "frame " + std::to_string(o_.frame) + ": no depth at pixel " + at + "; placed at " + nearest +
+           ", the nearest pixel with depth";
+    facts_["at"] = {bu, bv};
   }
   lighting::VirtualObject& obj = scene_.objects[index_];
   const cv::Vec3d t = capture::transformPoint(*result_.T_marker_camera, cv::Vec3d(p));
   obj.T_marker_object = capture::makePose(capture::rotationOf(obj.T_marker_object), t);
   doc_["objects"][index_]["translate"] = vec(t);
   frames_->lighting()->setObjectTransform(index_, obj.T_marker_object);
+  return note;
 }
 
 std::optional<std::string> Insertion::snap(const SnapUp& upChoice) {

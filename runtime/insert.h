@@ -44,7 +44,10 @@ class Insertion {
   /// Throws when the frame has no camera pose.
   Insertion(const InsertOptions& options, const std::function<gl::ContextConfig(int width, int height)>& contextFor);
   /// Puts the object's origin on the surface seen at pixel (u, v). Throws when outside the image or without depth.
-  void placeAtPixel(int u, int v);
+  /// Returns a note when the pixel has no depth and the nearest one with depth, at most kNearestDepthPixels
+  /// away, stands in; throws when none is that near.
+  std::optional<std::string> placeAtPixel(int u, int v);
+  static constexpr int kNearestDepthPixels = 8;
   /// Rests the object (as placed so far in document()) on the plane below it, found in the frame's depth;
   /// returns why not when there is none.
   std::optional<std::string> snap(const SnapUp& up);

@@ -30,15 +30,16 @@ int buildRoom(const BuildRoomOptions& o) {
                                  " m), not " + capture::formatNumber(o.room.truncM));
   o.room.validate("mrgi room");
   auto source = openSource(o.source, o.open);
-  const capture::SourceInfo& info = source->info();
+  const capture::SourceInfo info = source->info();  // a copy: the source is closed before the fusion
   if (!info.hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames to build a room from");
   const LightingSetup setup = markerSetup(*source);
   if (o.pose == PoseMode::GroundTruth && !setup.T_world_marker)
     throw capture::CaptureError(o.source, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
   prepareOutputDirectory(o.out, "room.json", "mrgi room");
+  const int64_t total = info.frameCount ? *info.frameCount : -1;
+  source.reset();  // the fusion reads the recording itself (a device's recording plays once at a time)
 
   ProgressBar bar("room");
-  const int64_t total = info.frameCount ? *info.frameCount : -1;
   const int64_t limit = o.frames > 0 ? (total >= 0 ? std::min<int64_t>(o.frames, total) : o.frames) : total;
   RoomFusionOptions fo;
   fo.pose = o.pose;

@@ -1490,6 +1490,43 @@ TEST(Cli, AnObjectInsertedIntoARecordingWithoutAMarkerStaysOnItsFloorInEveryRepl
   fs::remove_all(dir);
 }
 
+TEST(Cli, ABareOniRecordingIsRoomedAndLitFromItsRoom) {
+  // The marker-less .oni could not be roomed ("no frame has a trusted camera pose (0 lost, 0 held)") nor placed
+  // in with its lights left to the room ("0 of 0 posed"): each read the recording again while an opening of it
+  // was held, and OpenNI2 gave the second reader the first one's player.
+  const std::string oni = std::string(MRGI_SHARED_DATA) + "/oni-kinect-3dj/test.oni";
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_bare_oni_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  Result r = runMrgi("room " + oni + " --out " + (dir / "room").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir / "room" / "room.ply"));
+  const std::string sphere = (fs::path(MRGI_SOURCE_DIR) / "recordings/models/sphere.ply").string();
+  r = runMrgi("insert --session " + oni + " --model " + sphere + " --scale 0.1 --at 260,450 --snap --save " +
+              (dir / "scene.json").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "scene.json"))["lights"], "auto");
+  // A pixel a few pixels from depth takes the nearest one with depth, in one note; one far from any fails.
+  r = runMrgi("insert --session " + oni + " --model " + sphere + " --scale 0.1 --at 320,38 --save " +
+              (dir / "near.json").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("note: frame 0: no depth at pixel 320,38; placed at 320,41, the nearest pixel with depth\n"),
+            std::string::npos)
+      << r.err;
+  r = runMrgi("insert --session " + oni + " --model " + sphere + " --scale 0.1 --at 320,20 --save " +
+              (dir / "far.json").string());
+  EXPECT_FALSE(r.signalled);
+  EXPECT_EQ(r.exitCode, 1) << r.err;
+  // The recording's notes (its calibration, its lights), then the one error line.
+  EXPECT_EQ(lines(r.err), 3) << r.err;
+  EXPECT_EQ(r.err.find("mrgi: "), r.err.rfind("\nmrgi: ") + 1) << r.err;
+  EXPECT_NE(r.err.find(oni + ": frame 0: no depth at pixel 320,20 (the nearest pixel with depth is 320,41"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir / "far.json"));
+  fs::remove_all(dir);
+}
+
 TEST(Cli, TrackPrintsHowEveryFrameWasPosedAndRoomSaysWhatItRefused) {
   const std::string synth = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
   Result r = runMrgi("track " + synth + " --pose odometry --json");

@@ -65,8 +65,8 @@ TEST(Insert, APixelsSurfacePointThenTheTablePlanePlaceTheObjectAndTheSceneParses
   const lighting::SceneDescription back = lighting::loadScene(o.save);
   ASSERT_EQ(back.objects.size(), base + 1);
   EXPECT_NEAR(back.objects.back().T_marker_object(2, 3), rested[2].get<double>(), 1e-9);
-  // A pixel outside the image and one without depth are errors naming what is wrong; the latter says where
-  // the nearest depth is, and placing there works.
+  // A pixel outside the image is an error; one in a small hole of the depth takes the nearest pixel with depth
+  // and says so.
   EXPECT_THROW(in.placeAtPixel(-1, 0), std::invalid_argument);
   const cv::Mat& positions = in.measured().positions;
   int hu = -1, hv = -1;
@@ -74,20 +74,17 @@ TEST(Insert, APixelsSurfacePointThenTheTablePlanePlaceTheObjectAndTheSceneParses
     for (int x = 0; x < positions.cols && hu < 0; ++x)
       if (!(positions.at<cv::Vec3f>(y, x)[2] > 0)) hu = x, hv = y;
   ASSERT_GE(hu, 0) << "the sensor model leaves holes";
-  std::string message;
-  try {
-    in.placeAtPixel(hu, hv);
-  } catch (const capture::CaptureError& e) {
-    message = e.what();
-  }
+  const auto note = in.placeAtPixel(hu, hv);
+  ASSERT_TRUE(note);
   const std::string pixel = std::to_string(hu) + "," + std::to_string(hv);
-  EXPECT_NE(message.find("no depth at pixel " + pixel + " (the nearest pixel with depth is "), std::string::npos)
-      << message;
+  EXPECT_NE(note->find("no depth at pixel " + pixel + "; placed at "), std::string::npos) << *note;
   int nu = -1, nv = -1;
-  ASSERT_EQ(std::sscanf(message.c_str() + message.find("depth is ") + 9, "%d,%d", &nu, &nv), 2) << message;
+  ASSERT_EQ(std::sscanf(note->c_str() + note->find("placed at ") + 10, "%d,%d", &nu, &nv), 2) << *note;
   EXPECT_GT(positions.at<cv::Vec3f>(nv, nu)[2], 0.f);
   EXPECT_LE(std::hypot(nu - hu, nv - hv), 3.0);  // holes are small
-  EXPECT_NO_THROW(in.placeAtPixel(nu, nv));
+  const auto at = in.report()["translate"];
+  EXPECT_FALSE(in.placeAtPixel(nu, nv));  // the same place, without a note
+  EXPECT_EQ(in.report()["translate"], at);
   fs::remove_all(dir);
 }
 
