@@ -36,7 +36,10 @@ std::map<CLI::App*, Action> addCommands(CLI::App& app) {
       "Generate a synthetic tabletop session with ground truth (AprilTag, walls, a box, a light; or outdoors under an "
       "HDR environment)",
       addSynth);
-  add("track", "Track an AprilTag marker: camera-from-tag pose per frame (JSON lines with --json)", addTrack);
+  add("track",
+      "Track the camera through a recording: its pose per frame, by the marker where seen, RGB-D odometry and "
+      "relocalisation between (JSON lines with --json)",
+      addTrack);
   add("lights",
       "Estimate distant lights from a calibrated fisheye image or an equirectangular probe (solid-angle-weighted "
       "median cut)",
@@ -49,7 +52,8 @@ std::map<CLI::App*, Action> addCommands(CLI::App& app) {
       "scene file",
       addInsert);
   add("room",
-      "Build the model of the real room from a recording (depth fused over every frame's marker pose) and save it",
+      "Build the model of the real room from a recording (its depth fused at each frame's tracked camera pose, the "
+      "trajectory optimised) and save it",
       addRoom);
   add("room-lights",
       "Lights from a room model as seen from a point: a few point lights and an SH remainder; the map as PNG",

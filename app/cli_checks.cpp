@@ -115,8 +115,20 @@ void checkEveryValue(CLI::App& app) {
       "", "finite");
   static const CLI::Validator nonEmpty(
       [](std::string& value) -> std::string { return value.empty() ? "must not be empty" : ""; }, "", "non-empty");
+  // A newline or other control character in a value (a path above all: `--out $'a\nb'`) names a file no one
+  // meant, and breaks every one-line message that quotes it.
+  static const CLI::Validator printable(
+      [](std::string& value) -> std::string {
+        for (const char c : value)
+          if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+            return "holds a control character (byte " + std::to_string(static_cast<unsigned char>(c)) +
+                   "); a value must be printable";
+        return {};
+      },
+      "", "printable");
   for (CLI::Option* opt : app.get_options()) {
     if (opt->get_items_expected_max() == 0) continue;  // flags take no value
+    opt->check(printable);
     if (!emptyAllowed(opt)) opt->check(nonEmpty);
     if (opt->get_type_name().find("FLOAT") != std::string::npos) opt->check(finite);
   }

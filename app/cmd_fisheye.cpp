@@ -41,7 +41,9 @@ Action addLights(CLI::App& app) {
       ->check(numberIn(capture::kMinExposure, capture::kMaxExposure));
   app.add_option("--max-theta", o->maxThetaDeg, "ignore pixels further than this from the optical axis (degrees)")
       ->check(numberIn(1.0, 180.0));
-  app.add_flag("--json", o->json, "one JSON object: lights [{direction, power}], total_power");
+  app.add_flag("--json", o->json,
+               "one JSON object: lights [a scene file's directional lights], estimated [{direction towards the light, "
+               "power}], total_power");
   return [o] { return estimateLights(*o); };
 }
 

@@ -104,7 +104,10 @@ std::shared_ptr<const reconstruction::RoomMesh> openRoom(RoomFlags& flags, bool 
                     "needs the room fused as the frames come (a saved --room is tracked against "
                     "already; --per-frame-mesh has none)");
   flags.fuse = fuse;
-  if (!flags.save.empty()) prepareOutputDirectory(flags.save, "room.json", "mrgi room");
+  // Checked (and created) before the run; written when it ends.
+  if (!flags.save.empty()) {
+    const runtime::OutputClaim checked = prepareOutputDirectory(flags.save, "room.json", "mrgi room");
+  }
   return room;
 }
 

@@ -72,6 +72,9 @@ std::unique_ptr<FrameSource> open(const std::string& uri, const OpenOptions& opt
     if (fs::exists(p / "rgb.txt", ec) && fs::exists(p / "depth.txt", ec))
       return std::make_unique<TumSource>(uri, options);
     if (isOpen3dFolder(uri)) return std::make_unique<Open3dFolderSource>(uri, options);
+    if (fs::exists(p / "color_image_0000.png", ec) && fs::exists(p / "depth_image_0000.npz", ec))
+      throw CaptureError(
+          uri, "a ViSP RGB-D sequence: convert it into a session with mrgi import-visp " + uri + " --out SESSION");
     throw CaptureError(uri,
                        "neither an mrgi session (manifest.json), a TUM RGB-D sequence (rgb.txt, depth.txt) nor an "
                        "Open3D RGB-D folder (color/, depth/)");

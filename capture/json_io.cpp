@@ -19,7 +19,18 @@ nlohmann::json parseJson(const std::string& text, const std::string& file) {
   try {
     return nlohmann::json::parse(text, limit);
   } catch (const nlohmann::json::exception& e) {
+    // In our words: the library's "[json.exception.parse_error.101] parse error at ..." without its tag; a
+    // number past a double's range ("number overflow parsing '1e999'") said as such.
     std::string what = e.what();
+    if (what.rfind("[json.exception.", 0) == 0 && what.find("] ") != std::string::npos)
+      what = what.substr(what.find("] ") + 2);
+    if (what.rfind("parse error ", 0) == 0) what = what.substr(12);  // "at line 1, column 5: ..."
+    const size_t overflow = what.find("number overflow parsing '");
+    if (overflow != std::string::npos) {
+      const size_t start = overflow + 25, end = what.find('\'', start);
+      what = "the number " + what.substr(start, end == std::string::npos ? std::string::npos : end - start) +
+             " is too large (a double's range is about 1.8e308)";
+    }
     for (char& c : what)
       if (c == '\n' || c == '\r') c = ' ';
     throw InputError(file, "not valid JSON: " + what);

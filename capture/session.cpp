@@ -62,7 +62,10 @@ Intrinsics intrinsicsFromJson(const json& j, const std::string& file, const std:
   k.fy = number(j, "fy", file, path);
   k.cx = number(j, "cx", file, path);
   k.cy = number(j, "cy", file, path);
-  if (!k.valid()) throw CaptureError(file, "key '" + path + "' holds non-positive size or focal length");
+  // `path` is the key's prefix ("colour."): the object is named without its dot.
+  if (!k.valid())
+    throw CaptureError(file, "key '" + path.substr(0, path.size() - (!path.empty() && path.back() == '.')) +
+                                 "' holds a non-positive size or focal length");
   // Larger than any sensor: its frames could not be allocated, let alone lit.
   if (k.width > kMaxImageSide || k.height > kMaxImageSide)
     throw CaptureError(file, "key '" + path + "' holds an image of " + std::to_string(k.width) + "x" +
@@ -178,6 +181,12 @@ SessionManifest SessionManifest::fromJsonChecked(const json& j, const std::strin
     if (c.model != "equidistant") throw CaptureError(file, "key 'fisheye.model' must be \"equidistant\"");
     const auto K = numbers(need(f, "K", file, "fisheye."), 9, file, "fisheye.K");
     for (int i = 0; i < 9; ++i) c.K(i / 3, i % 3) = K[i];
+    // A camera matrix: positive focal lengths, a principal point inside the image, [0 0 1] below.
+    if (!(K[0] > 0 && K[4] > 0) || K[3] != 0 || K[6] != 0 || K[7] != 0 || K[8] != 1 ||
+        !(K[2] >= 0 && K[2] <= c.width) || !(K[5] >= 0 && K[5] <= c.height))
+      throw CaptureError(file, "key 'fisheye.K' is not a camera matrix (fx, fy > 0, the principal point inside the " +
+                                   std::to_string(c.width) + "x" + std::to_string(c.height) +
+                                   " image, last row 0 0 1)");
     const auto D = numbers(need(f, "D", file, "fisheye."), 4, file, "fisheye.D");
     c.D = {D[0], D[1], D[2], D[3]};
     if (f.contains("T_world_fisheye"))
@@ -293,7 +302,8 @@ SessionSource::SessionSource(const std::string& directory) : dir_(directory) {
   const std::string manifestPath = (dir / kManifest).string();
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw CaptureError(directory, "session directory does not exist");
-  if (!fs::is_regular_file(manifestPath, ec)) throw CaptureError(manifestPath, "missing: not an mrgi session");
+  if (!fs::exists(manifestPath, ec)) throw CaptureError(manifestPath, "missing: not an mrgi session");
+  // A folder, a pipe or a device in its place is said as what it is (readFileBounded).
   json mj;
   mj = parseJson(readFileBounded(manifestPath, kMaxTextFileBytes, "session manifest"), manifestPath);
   manifest_ = SessionManifest::fromJson(mj, manifestPath);

@@ -50,8 +50,8 @@ int renderReferenceFrame(const ReferenceOptions& o) {
   if (!r.T_marker_camera)
     throw capture::CaptureError(o.source, "frame " + std::to_string(o.frame) + ": no camera pose (--pose " +
                                               std::string(toString(o.pose)) + "), nothing to place the objects on");
-  prepareOutputDirectory(o.out, "reference.json",
-                         "mrgi reference");  // after every input check: nothing is created on error
+  // After every input check: nothing is created on error.
+  const OutputClaim claim = prepareOutputDirectory(o.out, "reference.json", "mrgi reference");
   const RealSurface real = frames.realSurface(*frame, r, profiler);
   const ReferenceScenes scenes = reconstructedScenes(*frames.setup(), real, k, *r.T_marker_camera);
 

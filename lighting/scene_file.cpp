@@ -291,6 +291,15 @@ SceneDescription parseScene(const std::string& text, const std::string& path) {
       }
       for (auto& p : obj.mesh.positions) p *= static_cast<float>(scale);
       obj.mesh.computeBounds();
+      // A model reaching kilometres (3e38 in a file's units) is not an object on a table: every pass that looks
+      // from or at it would overflow. Said here, naming the model, before anything is lit.
+      const double reach = std::max(cv::norm(cv::Vec3d(obj.mesh.boundsMin), cv::NORM_INF),
+                                    cv::norm(cv::Vec3d(obj.mesh.boundsMax), cv::NORM_INF));
+      if (!(reach <= capture::kMaxLightPositionM))
+        r.fail(key + ".model", obj.model + ": its vertices reach " + capture::formatNumber(reach) +
+                                   " m from its origin (scaled by " + capture::formatNumber(scale) + "), more than " +
+                                   capture::formatNumber(capture::kMaxLightPositionM) +
+                                   " m: check its units or the scale");
       // Rotation: x, then y, then z (extrinsic, degrees), about the marker axes.
       const double d2r = CV_PI / 180.0;
       cv::Matx33d R = cv::Matx33d::eye();
@@ -446,8 +455,8 @@ void rebaseModelPaths(json& doc, const std::string& from, const std::string& to)
   if (!doc.contains("objects")) return;
   for (auto& obj : doc["objects"]) {
     fs::path m = obj["model"].get<std::string>();
-    if (m.is_relative()) m = fs::absolute(fs::path(from).parent_path() / m);
-    obj["model"] = fs::proximate(m, fs::absolute(fs::path(to).parent_path())).generic_string();
+    if (m.is_relative()) m = fs::absolute(from).parent_path() / m;
+    obj["model"] = fs::proximate(m, fs::absolute(to).parent_path()).generic_string();
   }
 }
 

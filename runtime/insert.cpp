@@ -59,7 +59,7 @@ Insertion::Insertion(const InsertOptions& o, const std::function<gl::ContextConf
                                 std::to_string(doc_["objects"].size()) + " objects");
   if (!fs::exists(o.model)) throw capture::CaptureError(o.model, "model file not found");
   const json object = {
-      {"model", fs::proximate(fs::absolute(o.model), fs::absolute(fs::path(o.save).parent_path())).generic_string()},
+      {"model", fs::proximate(fs::absolute(o.model), fs::absolute(o.save).parent_path()).generic_string()},
       {"translate", toJson(o.translate)},
       {"rotate_deg", toJson(o.rotateDeg)},
       {"scale", o.scale},
@@ -108,10 +108,10 @@ Insertion::Insertion(const InsertOptions& o, const std::function<gl::ContextConf
     result_ = frames_->measure(*frame_, profiler);
   }
   if (!result_.T_marker_camera)
-    throw capture::CaptureError(o.session, "frame " + std::to_string(o.frame) + " has no camera pose (--pose " +
-                                               toString(o.pose) + "; marker " + setup.tagFamily +
-                                               (setup.tagId >= 0 ? " id " + std::to_string(setup.tagId) : "") +
-                                               " not found)");
+    throw capture::CaptureError(
+        o.session, "frame " + std::to_string(o.frame) + " has no camera pose (--pose " + toString(o.pose) +
+                       "; marker " + setup.tagFamily +
+                       (setup.tagId >= 0 ? " id " + std::to_string(setup.tagId) : " of any id") + " not found)");
   // A recording without a marker: its first frame founded the world; the scene records it so that replay
   // places the objects in the same world.
   if (const auto world = frames_->poses() ? frames_->poses()->foundedWorld() : std::nullopt) {

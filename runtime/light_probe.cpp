@@ -91,15 +91,24 @@ int estimateLights(const LightsOptions& o) {
   const bool variance = so.medianCut.varianceSplit;
   const cv::Vec3d total = reconstruction::totalPower(radiance, rays);
   const double satFraction = static_cast<double>(cv::countNonZero(saturated)) / saturated.total();
-  json arr = json::array();
-  for (const auto& l : lights)
-    arr.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
-                   {"power", {l.power[0], l.power[1], l.power[2]}},
-                   {"angular_radius_deg", l.angularRadius * 180 / CV_PI},
-                   {"solid_angle_sr", l.solidAngle}});
+  // The lights as a scene file lists them (lights[] loads as a scene's "lights": a directional light's direction
+  // is the one its light travels, its irradiance the normal irradiance of the estimated cap), and what the
+  // estimate found of each, in the same order (its direction towards the light, its power, its solid angle).
+  json arr = json::array(), estimated = json::array();
+  for (const auto& l : lights) {
+    const cv::Vec3d irradiance = reconstruction::normalIrradiance(l);
+    arr.push_back({{"type", "directional"},
+                   {"direction", {-l.direction[0], -l.direction[1], -l.direction[2]}},
+                   {"irradiance", {irradiance[0], irradiance[1], irradiance[2]}},
+                   {"angular_radius_deg", l.angularRadius * 180 / CV_PI}});
+    estimated.push_back({{"direction", {l.direction[0], l.direction[1], l.direction[2]}},
+                         {"power", {l.power[0], l.power[1], l.power[2]}},
+                         {"solid_angle_sr", l.solidAngle}});
+  }
   json sh = json::array();
   for (const auto& c : split.ambientSh) sh.push_back({c[0], c[1], c[2]});
   const json doc{{"lights", arr},
+                 {"estimated", estimated},
                  {"ambient_sh", sh},
                  {"ambient_threshold", o.ambientThreshold != 0 ? reconstruction::splitThreshold(so, rays) : 0.0},
                  {"total_power", {total[0], total[1], total[2]}},

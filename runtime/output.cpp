@@ -1,5 +1,7 @@
 #include "runtime/output.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 #include <zlib.h>
 
@@ -17,6 +19,7 @@
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <sstream>
 
 #include "capture/checks.h"
@@ -130,6 +133,7 @@ std::string describeFolder(const std::string& folder) {
   std::map<std::string, std::vector<std::string>> groups;  // the name with its digit runs as N -> the names
   for (const auto& e : fs::directory_iterator(folder, ec)) {
     std::string name = e.path().filename().string(), pattern;
+    if (name == kOutputClaimFile) continue;  // the folder's claim, not an output
     for (const char c : name) pattern += std::isdigit(static_cast<unsigned char>(c)) ? 'N' : c;
     if (e.is_directory(ec)) name += '/', pattern += '/';
     groups[pattern].push_back(name);
@@ -195,15 +199,74 @@ void createParentDirectory(const std::string& path) {
   if (!parent.empty()) fs::create_directories(parent);
 }
 
-void prepareOutputDirectory(const std::string& out, const std::string& marker, const std::string& generator) {
+OutputClaim& OutputClaim::operator=(OutputClaim&& o) noexcept {
+  if (this != &o) {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = o.fd_;
+    o.fd_ = -1;
+  }
+  return *this;
+}
+
+OutputClaim::~OutputClaim() {
+  if (fd_ >= 0) ::close(fd_);  // the lock goes with the descriptor; the file stays, the folder's mark
+}
+
+namespace {
+/// Opens and locks `dir`/.mrgi-claim without waiting, and returns the descriptor and what the claim said;
+/// throws naming `dir` when another process holds it.
+std::pair<int, std::string> lockClaim(const fs::path& dir) {
+  const fs::path path = dir / kOutputClaimFile;
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+  if (fd < 0) throw capture::CaptureError(dir.string(), "cannot claim the output folder (" + path.string() + ")");
+  char buf[512];
+  const ssize_t n = ::pread(fd, buf, sizeof buf - 1, 0);
+  const std::string said = n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string();
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    std::string holder;
+    try {
+      const auto j = nlohmann::json::parse(said);
+      if (j.contains("pid") && j["pid"].is_number_integer())
+        holder = " (process " + std::to_string(j["pid"].get<long long>()) + ")";
+    } catch (const std::exception&) {  // half written: no process to name
+    }
+    ::close(fd);
+    throw capture::CaptureError(dir.string(), "is being written by another run of mrgi" + holder +
+                                                  "; wait for it to end or name another folder");
+  }
+  return {fd, said};
+}
+
+/// Writes which command (and process) holds the claim.
+OutputClaim stampClaim(int fd, const fs::path& dir, const std::string& generator) {
+  OutputClaim claim(fd);
+  const std::string text = nlohmann::json{{"generated_by", generator}, {"pid", ::getpid()}}.dump() + "\n";
+  if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, text.data(), text.size(), 0) != static_cast<ssize_t>(text.size()))
+    throw capture::CaptureError(dir.string(),
+                                "cannot claim the output folder (" + (dir / kOutputClaimFile).string() + ")");
+  return claim;
+}
+}  // namespace
+
+OutputClaim prepareOutputDirectory(const std::string& out, const std::string& marker, const std::string& generator) {
   std::error_code ec;
   if (fs::exists(out, ec)) {
     if (!fs::is_directory(out, ec)) throw capture::CaptureError(out, "exists and is not a directory");
-    if (!fs::is_empty(out, ec)) {
-      // Our own earlier output is recognised by what its marker says, not by its name alone.
-      bool ours = false;
+    const fs::path claimPath = fs::path(out) / kOutputClaimFile;
+    std::optional<std::pair<int, std::string>> claim;
+    // A folder some run of mrgi claimed: a live one holds the lock (refused here); a finished or killed one left
+    // the claim saying which command made the folder.
+    if (fs::is_regular_file(fs::symlink_status(claimPath, ec))) claim = lockClaim(out);
+    OutputClaim held(claim ? claim->first : -1);  // released on any error below
+    bool empty = true;
+    for (auto it = fs::directory_iterator(out, ec); !ec && it != fs::directory_iterator(); it.increment(ec))
+      if (it->path().filename() != kOutputClaimFile) empty = false;
+    if (!empty) {
+      // Our own earlier output is recognised by what its marker (or, for a run killed before it wrote one, its
+      // claim) says, not by its name alone.
+      bool ours = claim && jsonGeneratedBy(claim->second, claimPath.string(), generator);
       const fs::path m = fs::path(out) / marker;
-      if (fs::is_regular_file(m, ec) && fs::file_size(m, ec) < (1u << 26)) {
+      if (!ours && fs::is_regular_file(m, ec) && fs::file_size(m, ec) < (1u << 26)) {
         try {
           ours = jsonGeneratedBy(capture::readFileBounded(m.string(), 1u << 26, "marker file"), m.string(), generator);
         } catch (const capture::InputError&) {  // unreadable: not ours
@@ -217,13 +280,16 @@ void prepareOutputDirectory(const std::string& out, const std::string& marker, c
       std::vector<fs::path> own;
       for (auto it = fs::recursive_directory_iterator(out, ec); !ec && it != fs::recursive_directory_iterator();
            it.increment(ec))
-        if (it->is_regular_file(ec) && it->path() != m && writtenBy(it->path().string(), generator, ""))
+        if (it->is_regular_file(ec) && it->path() != m && it->path() != claimPath &&
+            writtenBy(it->path().string(), generator, ""))
           own.push_back(it->path());
       for (const fs::path& f : own) fs::remove(f, ec);  // the marker stays until the new run replaces it
     }
+    if (claim) return stampClaim(held.release(), out, generator);
   }
   fs::create_directories(out, ec);
   if (ec) throw capture::CaptureError(out, "cannot create output directory: " + ec.message());
+  return stampClaim(lockClaim(out).first, out, generator);
 }
 
 void checkInsideOutput(const std::string& name, const std::string& flag) {

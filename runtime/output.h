@@ -47,7 +47,34 @@ void createParentDirectory(const std::string& path);
 /// (e.g. summary.json) is a JSON object whose "generated_by" is `generator` ("mrgi replay"). Refuses any
 /// other folder, so that nothing the user had is overwritten. In an earlier output, the files that say they
 /// were written by `generator` (PNG Software text, JSON generated_by) are removed first, the rest kept.
-void prepareOutputDirectory(const std::string& out, const std::string& marker, const std::string& generator);
+///
+/// The folder is claimed for the run: `.mrgi-claim` in it, locked while the returned claim lives (the lock goes
+/// with the process, however it ends) and saying which command made the folder. A second run into a folder
+/// claimed by a live process is refused at once; a folder whose run was killed before its marker was written
+/// is recognised as this command's by its claim, and replaced.
+class OutputClaim {
+ public:
+  OutputClaim() = default;
+  explicit OutputClaim(int fd) : fd_(fd) {}
+  OutputClaim(OutputClaim&& o) noexcept : fd_(o.fd_) { o.fd_ = -1; }
+  OutputClaim& operator=(OutputClaim&& o) noexcept;
+  OutputClaim(const OutputClaim&) = delete;
+  OutputClaim& operator=(const OutputClaim&) = delete;
+  ~OutputClaim();
+  /// Hands the descriptor (and its lock) over to the caller.
+  int release() {
+    const int fd = fd_;
+    fd_ = -1;
+    return fd;
+  }
+
+ private:
+  int fd_ = -1;
+};
+[[nodiscard]] OutputClaim prepareOutputDirectory(const std::string& out, const std::string& marker,
+                                                 const std::string& generator);
+/// The file in an output folder that holds its claim.
+inline constexpr const char* kOutputClaimFile = ".mrgi-claim";
 /// Before a command writes a single file the user named (`flag` PATH): refuses, in one line naming the file
 /// and the flag, to replace an existing file unless this command wrote it, as recognised by what it holds,
 /// never by its name: a JSON object whose "generated_by" is `generator`, a PNG whose Software text is

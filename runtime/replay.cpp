@@ -83,7 +83,7 @@ int replay(const ReplayOptions& o) {
     setup = prepareLighting(loadChosenScene(o.scene), o.scene.scene, *source, o.source, o.pose, o.rooms.any());
   const std::shared_ptr<const reconstruction::RoomMesh>& room = o.room;
   if (!o.mp4.empty()) checkInsideOutput(o.mp4, "--mp4");
-  prepareOutputDirectory(o.out, "summary.json", "mrgi replay");
+  const OutputClaim claim = prepareOutputDirectory(o.out, "summary.json", "mrgi replay");
 
   gl::ContextConfig cfg;
   cfg.backend = backend;
@@ -354,10 +354,10 @@ int replay(const ReplayOptions& o) {
   capture::writeFileAtomically(fs::path(o.out) / "summary.json", jsonText(summary, o.source, 2) + "\n");
   if (const LightingSetup* setup = frames.setup(); setup && posed == 0 && done > 0 && !interrupted)
     // The frames are written (the camera images), but nothing could be placed: say so and fail.
-    throw capture::CaptureError(o.source, "no frame could be placed in " + std::to_string(done) + " frames (--pose " +
-                                              toString(o.pose) + ": marker " + setup->tagFamily +
-                                              (setup->tagId >= 0 ? " id " + std::to_string(setup->tagId) : "") +
-                                              " never seen)");
+    throw capture::CaptureError(
+        o.source, "no frame could be placed in " + std::to_string(done) + " frames (--pose " + toString(o.pose) +
+                      ": marker " + setup->tagFamily +
+                      (setup->tagId >= 0 ? " id " + std::to_string(setup->tagId) : " of any id") + " never seen)");
   // Lights from the room see what it covers around the objects; said once, from the last estimate.
   for (auto it = perFrame.rbegin(); it != perFrame.rend(); ++it)
     if (it->contains("room") && (*it)["room"].contains("lights")) {

@@ -35,7 +35,7 @@ int buildRoom(const BuildRoomOptions& o) {
   const LightingSetup setup = markerSetup(*source);
   if (o.pose == PoseMode::GroundTruth && !setup.T_world_marker)
     throw capture::CaptureError(o.source, "--pose ground-truth needs ground_truth.T_world_marker in the manifest");
-  prepareOutputDirectory(o.out, "room.json", "mrgi room");
+  const OutputClaim claim = prepareOutputDirectory(o.out, "room.json", "mrgi room");
   const int64_t total = info.frameCount ? *info.frameCount : -1;
   source.reset();  // the fusion reads the recording itself (a device's recording plays once at a time)
 

@@ -1,6 +1,9 @@
 // The command contract, checked from outside: run the mrgi binary and inspect exit codes, stdout, stderr
 // and the files it writes.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -21,6 +24,7 @@
 #include <tuple>
 
 #include "capture/v4l2_source.h"
+#include "lighting/scene_file.h"
 #include "made_sessions.h"
 #include "reconstruction/marker.h"
 #include "reconstruction/room_model.h"
@@ -234,13 +238,29 @@ TEST(Cli, LightsFromARadianceProbe) {
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(j["total_power"][c].get<double>(), total[c], 1e-4 * total[c]) << c;
   // The lights and the SH remainder hold it all, and the brightest light comes from the sky above.
   double lit = 0, best = 0, bestZ = 0;
-  for (const auto& l : j["lights"]) {
+  for (const auto& l : j["estimated"]) {
     const double p = l["power"][1].get<double>();
     lit += p;
     if (p > best) best = p, bestZ = l["direction"][2].get<double>();
   }
   EXPECT_GT(bestZ, 0.5);
   EXPECT_LT(lit, total[1] * 1.0001);
+  // lights[] is a scene's lights, as written: `mrgi lights --json` wrote keys a scene file refused
+  // ("lights[0].power: unknown key"). Each is the estimate's cap as a directional light: travelling away from
+  // where the light is, with the cap's normal irradiance.
+  const std::string sceneText = nlohmann::json{{"lights", j["lights"]}}.dump();
+  const mrgi::lighting::SceneDescription scene = mrgi::lighting::parseScene(sceneText, "probe-lights.json");
+  ASSERT_EQ(scene.lights.size(), 4u);
+  for (size_t i = 0; i < 4; ++i) {
+    const auto& e = j["estimated"][i];
+    const double r = scene.lights[i].extent;
+    EXPECT_NEAR(r * 180 / CV_PI, j["lights"][i]["angular_radius_deg"].get<double>(), 1e-9);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(scene.lights[i].direction[k], -e["direction"][k].get<double>(), 1e-9);
+      EXPECT_NEAR(scene.lights[i].irradiance[k], e["power"][k].get<double>() * 0.5 * (1 + std::cos(r)),
+                  1e-9 * e["power"][k].get<double>());
+    }
+  }
   // Damaged, it is one line naming the file.
   const fs::path cut = fs::temp_directory_path() / ("mrgi_cli_probe_" + std::to_string(::getpid()) + ".hdr");
   const std::string bytes = slurp(probe);
@@ -485,7 +505,7 @@ TEST(Cli, LightsFromAnHdrFisheyeImage) {
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["lights"].size(), 8u);
   double sum[3] = {0, 0, 0};
-  for (const auto& l : j["lights"]) {
+  for (const auto& l : j["estimated"]) {
     double n = 0;
     for (int k = 0; k < 3; ++k)
       sum[k] += l["power"][k].get<double>(), n += std::pow(l["direction"][k].get<double>(), 2);
@@ -502,7 +522,7 @@ TEST(Cli, LightsFromAnHdrFisheyeImage) {
   const auto all = nlohmann::json::parse(
       runMrgi("lights " + rec.string() + " --calib " + calib + " --count 8 --json --ambient-threshold 0").out);
   double allSum[3] = {0, 0, 0};
-  for (const auto& l : all["lights"])
+  for (const auto& l : all["estimated"])
     for (int k = 0; k < 3; ++k) allSum[k] += l["power"][k].get<double>();
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(allSum[k], all["total_power"][k].get<double>(), 1e-9 * allSum[k]);
   EXPECT_EQ(all["ambient_sh"][0][0].get<double>(), 0.0);
@@ -548,6 +568,87 @@ fs::path smallSphereScene(const std::string& name) {
       "val": {"sparse_points": 64}})");
 }
 }  // namespace
+
+TEST(Cli, OutputFoldersAreClaimedForTheirRunAndAKilledRunIsReplaced) {
+  const std::string session = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_claim_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path out = dir / "out";
+  const std::string replay = "replay " + session + " --frames 1 --mp4 '' --out " + out.string();
+  // A run in progress holds the folder's claim (here this process stands in for it): a second run is refused at
+  // once, naming the folder and the process; two replays into one folder both ran and mixed their frames.
+  fs::create_directories(out);
+  {
+    const int fd = ::open((out / ".mrgi-claim").c_str(), O_RDWR | O_CREAT, 0644);
+    ASSERT_GE(fd, 0);
+    const std::string text = R"({"generated_by": "mrgi replay", "pid": )" + std::to_string(::getpid()) + "}\n";
+    ASSERT_EQ(::write(fd, text.data(), text.size()), static_cast<ssize_t>(text.size()));
+    ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+    std::ofstream(out / "frame_0000.png") << "the other run's frame";
+    expectOneLineError(runMrgi(replay), out.string() + ": is being written by another run of mrgi (process " +
+                                            std::to_string(::getpid()) + ")");
+    EXPECT_EQ(slurp(out / "frame_0000.png"), "the other run's frame");  // untouched
+    ::close(fd);  // the run ends (or is killed): its lock goes with it
+  }
+  // Killed before it wrote its summary, its folder is still recognised by its claim: a rerun replaces it.
+  Result r = runMrgi(replay);
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out / "summary.json"));
+  EXPECT_NE(slurp(out / "frame_0000.png"), "the other run's frame");
+  // A folder another command claimed is not this one's.
+  const fs::path room = dir / "room";
+  fs::create_directories(room);
+  std::ofstream(room / ".mrgi-claim") << R"({"generated_by": "mrgi room", "pid": 1})"
+                                      << "\n";
+  std::ofstream(room / "room.ply") << "a room";
+  expectOneLineError(runMrgi("replay " + session + " --frames 1 --mp4 '' --out " + room.string()),
+                     room.string() + ": is not empty and holds no earlier output of mrgi replay");
+  EXPECT_EQ(slurp(room / "room.ply"), "a room");
+  // A control character in a path is refused before anything is made.
+  r = runMrgi("replay " + session + " --frames 1 --out '" + (dir / "a").string() + "\nb'");
+  expectOneLineError(r, "--out");
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_NE(r.err.find("control character"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "a\nb"));
+  fs::remove_all(dir);
+}
+
+TEST(Cli, ASessionManifestThatIsNoFileSaysWhatItIs) {
+  // A folder, a pipe or a device where manifest.json should be: "missing: not an mrgi session" before.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_manifest_kind_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const fs::path synth = fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth";
+  for (const char* kind : {"folder", "fifo", "device"}) {
+    const fs::path s = dir / kind;
+    fs::create_directories(s);
+    fs::copy_file(synth / "frames.jsonl", s / "frames.jsonl");
+    const fs::path m = s / "manifest.json";
+    if (std::string(kind) == "folder") fs::create_directories(m);
+    if (std::string(kind) == "fifo") ASSERT_EQ(::mkfifo(m.c_str(), 0644), 0);
+    if (std::string(kind) == "device") fs::create_symlink("/dev/zero", m);
+    const Result r = runMrgi("info " + s.string());
+    expectOneLineError(r, m.string() + (std::string(kind) == "folder" ? ": is a folder, not a session manifest"
+                                                                      : ": is not a regular file (a device, pipe or "
+                                                                        "socket), not a session manifest"));
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Cli, InsertSavesIntoABareFileName) {
+  // `--save x.json` (no folder): "filesystem error: cannot make absolute path" before; `./x.json` worked.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_bare_save_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string session = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
+  const std::string sphere = (fs::path(MRGI_SOURCE_DIR) / "recordings/models/sphere.ply").string();
+  const std::string cmd = "cd " + dir.string() + " && " + MRGI_BINARY + " insert --session " + session + " --model " +
+                          sphere + " --scale 0.05 --save x.json > out.txt 2> err.txt";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << slurp(dir / "err.txt");
+  const auto scene = mrgi::lighting::loadScene((dir / "x.json").string());
+  ASSERT_EQ(scene.objects.size(), 1u);
+  fs::remove_all(dir);
+}
 
 TEST(Cli, AMisspeltSubcommandFlagTechniqueOrKeySaysWhatItMeant) {
   const std::string session = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
