@@ -218,8 +218,20 @@ SessionManifest SessionManifest::fromJsonChecked(const json& j, const std::strin
 SessionWriter::SessionWriter(std::string directory, SessionManifest manifest)
     : dir_(std::move(directory)), manifest_(std::move(manifest)) {
   std::error_code ec;
-  if (fs::exists(dir_, ec) && !(fs::is_directory(dir_, ec) && fs::is_empty(dir_, ec)))
+  if (fs::exists(dir_, ec) && !(fs::is_directory(dir_, ec) && fs::is_empty(dir_, ec))) {
+    // A recording already there (one that was interrupted, even by kill -9, keeps every complete frame) is said
+    // as such: it plays as it is; recording again means another folder, or removing this one.
+    const fs::path index = fs::path(dir_) / kIndex;
+    if (fs::is_regular_file(fs::path(dir_) / kManifest, ec) && fs::is_regular_file(index, ec)) {
+      std::ifstream in(index);
+      size_t frames = 0;
+      for (std::string line; std::getline(in, line);) frames += !line.empty() && line.back() == '}';
+      throw CaptureError(dir_, "already holds a recording of " + std::to_string(frames) +
+                                   " frames (an interrupted one keeps every complete frame and replays as it is); "
+                                   "record into another folder, or remove this one to record it again");
+    }
     throw CaptureError(dir_, "already exists and is not an empty directory; refusing to overwrite");
+  }
   for (const char* sub : {"", "colour", "depth", "fisheye"}) {
     if (std::string(sub) == "fisheye" && !manifest_.fisheye) continue;
     fs::create_directories(fs::path(dir_) / sub, ec);

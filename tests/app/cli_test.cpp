@@ -1484,8 +1484,9 @@ TEST(Cli, RecordCopiesFramesAndTheFisheyeCalibrationIntoANewSession) {
     ASSERT_FALSE(b.empty()) << name;
     EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0) << name;
   }
+  // Never overwrites: a recording there (a killed one keeps its complete frames) is said as such.
   expectOneLineError(runMrgi("record --source " + rec.string() + " --frames 1 --out " + out.string()),
-                     out.string());  // never overwrites
+                     out.string() + ": already holds a recording of 3 frames");
   fs::remove_all(out);
 }
 
