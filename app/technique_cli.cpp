@@ -94,6 +94,7 @@ std::shared_ptr<const reconstruction::RoomMesh> openRoom(RoomFlags& flags, bool 
                     "lights each frame from its own depth: it takes neither --room nor --fuse-room");
   // The default real scene of a lit replay or live window: the room fused as the frames come. Its world-space
   // lighting (the RSMs, the volumes, the VALs) is then redone at its refreshes only, not every frame.
+  flags.fuseAsked = flags.fuse;
   const bool fuse = flags.fuse || (lit && flags.room.empty() && !flags.perFrameMesh);
   if (!flags.save.empty() && !fuse)
     throw std::invalid_argument(

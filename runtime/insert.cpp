@@ -83,18 +83,9 @@ Insertion::Insertion(const InsertOptions& o, const std::function<gl::ContextConf
   if (setup.lightsFromFusedRoom) {
     // The preview is lit as replay will light it by its end: from the room of every frame. The fusion reads the
     // recording itself (a device's recording plays once at a time): the frame is read after it.
-    RoomFusionOptions fusion;
-    fusion.pose = o.pose;
-    fusion.open = o.open;
     source_.reset();
-    RoomFusion fused = fuseRoom(o.session, fusion);
+    frameOptions_.room = fuseWholeRecording(o.session, o.pose, o.open);
     source_ = openSource(o.session, o.open);
-    auto mesh = std::make_shared<reconstruction::RoomMesh>(fused.model.mesh());
-    if (mesh->positions.empty())
-      throw capture::CaptureError(o.session, "lists no lights and no room could be fused from its frames (" +
-                                                 std::to_string(fused.posed) + " of " + std::to_string(fused.frames) +
-                                                 " posed); list lights in a scene file (--scene)");
-    frameOptions_.room = std::move(mesh);
   }
   context_ = gl::createContext(contextFor(width, height));
   compositor_ = std::make_unique<compositor::Compositor>(width, height);
@@ -199,15 +190,21 @@ std::optional<std::string> Insertion::snap(const SnapUp& upChoice) {
   return std::nullopt;
 }
 
-cv::Mat Insertion::render(const std::optional<json>& scene) {
+cv::Mat Insertion::render(const std::optional<json>& edited) {
   gl::Profiler profiler;
+  // Lights from the room are seen from the objects where they now are (placed after the pipeline was built):
+  // the scene as placed is rendered by a pipeline of its own, as replay will render it.
+  const std::optional<json> scene =
+      edited ? edited
+             : (frames_->setup()->scene.lightSource == lighting::LightSource::Room ? std::optional<json>(doc_)
+                                                                                   : std::nullopt);
   if (!scene) {
     frames_->render(*frame_, result_, *compositor_, profiler);
     return result_.composite;
   }
   // Re-read the edited scene (scale is baked into the mesh) and render the measured frame again.
   LightingSetup setup = *frames_->setup();
-  setup.scene = lighting::parseScene(scene->dump(), savePath_);
+  setup.useEditedScene(lighting::parseScene(scene->dump(), savePath_));
   FramePipeline fp(setup, result_.positions.cols, result_.positions.rows, frameOptions_);
   FrameResult r = result_;
   fp.render(*frame_, r, *compositor_, profiler);

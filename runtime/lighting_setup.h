@@ -33,6 +33,14 @@ struct LightingSetup {
   /// the SH alone.
   std::shared_ptr<const lighting::RadianceMap> ambientMap;
   std::optional<capture::Pose> T_world_marker;  ///< ground truth, for --pose ground-truth
+  /// Takes a scene edited after the setup was resolved (objects placed, knobs moved) with its lights still coming
+  /// from where the setup resolved them ("auto": the room, the fisheye, the manifest).
+  void useEditedScene(lighting::SceneDescription edited) {
+    edited.lightSource = scene.lightSource;
+    edited.ambientFromManifest = scene.ambientFromManifest;
+    if (scene.lightSource != lighting::LightSource::Scene) edited.lights = scene.lights;
+    scene = std::move(edited);
+  }
   /// The marker the setup's source carries (family, size, id).
   MarkerSpec marker() const { return {tagFamily, tagSize, tagId}; }
   std::optional<capture::FisheyeCalibration> fisheye;  ///< lights estimated per fisheye frame

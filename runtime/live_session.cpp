@@ -24,8 +24,7 @@ std::string defaultRecordDir() {
 LiveSession::LiveSession(const LiveSessionOptions& o,
                          const std::function<std::unique_ptr<gl::Context>(int, int)>& contextFor)
     : o_(o), live_(std::make_unique<capture::LiveSource>(o.in)) {
-  const capture::SourceInfo& info = live_->info();
-  const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
+  const int width = live_->info().colourIntrinsics.width, height = live_->info().colourIntrinsics.height;
   if (!o.scene.scene.empty()) {
     scene_ = loadChosenScene(o.scene);
     if (scene_.lightSource == lighting::LightSource::Fisheye && o.in.source.empty()) {
@@ -44,14 +43,26 @@ LiveSession::LiveSession(const LiveSessionOptions& o,
     // replay and insert): the panel edits this one, and each rebuild starts from it.
     scene_ = base_->scene;
   }
+  // A recording played in the window is lit as replay lights it: by the room of all its frames, fused first. A
+  // sensor's room grows as the frames come (and so do its lights).
+  std::shared_ptr<const reconstruction::RoomMesh> room = o.room;
+  bool fusedFirst = false;
+  if (base_ && base_->scene.lightSource == lighting::LightSource::Room && !room && !o.in.source.empty() &&
+      o.rooms.fuse && !o.rooms.fuseAsked && !o.rooms.perFrameMesh) {
+    live_.reset();  // the fusion reads the recording itself (a device's recording plays once at a time)
+    room = fuseWholeRecording(o.in.source, o.pose, {});
+    base_->lightsFromFusedRoom = false;
+    fusedFirst = true;
+    live_ = std::make_unique<capture::LiveSource>(o.in);
+  }
   context_ = contextFor(width, height);
   compositor_ = std::make_unique<compositor::Compositor>(width, height);
   fo_.pose = o.pose;
   fo_.foundWorldAnew = true;  // a scene placed in a recording's first-frame world is placed in this camera's first
-  fo_.room = o.room;
+  fo_.room = room;
   fo_.cacheDir = o.rooms.room;  // techniques keep what they precompute beside the saved room
   fo_.progress = precomputeProgress();
-  fuse_ = o.rooms.fuse || (base_ && base_->lightsFromFusedRoom);
+  fuse_ = !fusedFirst && (o.rooms.fuse || (base_ && base_->lightsFromFusedRoom));
   if (fuse_) fo_.fuse = std::make_shared<reconstruction::RoomModel>();  // kept across rebuilds
   fo_.fuseRefresh = o.rooms.fuseRefresh;
   fo_.fuseEvery = o.rooms.fuseEvery;

@@ -74,16 +74,32 @@ class Latency {
 int replay(const ReplayOptions& o) {
   const gl::Backend backend = gl::parseBackend(o.gl);
   auto source = openSource(o.source, o.open);
-  const capture::SourceInfo& info = source->info();
+  const capture::SourceInfo info = source->info();  // a copy: the source is opened again after a first pass
   if (!info.hasRgbd) throw capture::CaptureError(o.source, "has no RGB-D frames to replay");
   const int width = info.colourIntrinsics.width, height = info.colourIntrinsics.height;
   // A bad scene file stops here, before anything is written.
   std::optional<LightingSetup> setup;
   if (!o.scene.scene.empty())
     setup = prepareLighting(loadChosenScene(o.scene), o.scene.scene, *source, o.source, o.pose, o.rooms.any());
-  const std::shared_ptr<const reconstruction::RoomMesh>& room = o.room;
+  std::shared_ptr<const reconstruction::RoomMesh> room = o.room;
   if (!o.mp4.empty()) checkInsideOutput(o.mp4, "--mp4");
   const OutputClaim claim = prepareOutputDirectory(o.out, "summary.json", "mrgi replay");
+  // Lit from the room this recording shows (its lights left to the room, no saved room given, no --fuse-room
+  // asked for): the whole recording is fused first, as insert's preview is lit, so that every frame, the first
+  // included, is lit by the whole room. --fuse-room lights each frame by the room fused up to it instead.
+  std::optional<RoomFusion> fusedFirst;
+  if (setup && setup->scene.lightSource == lighting::LightSource::Room && !room && o.rooms.fuse && !o.rooms.fuseAsked &&
+      !o.rooms.perFrameMesh) {
+    source.reset();  // the fusion reads the recording itself (a device's recording plays once at a time)
+    ProgressBar fuseBar("room");
+    fusedFirst.emplace();
+    const int64_t total = info.frameCount.value_or(-1);
+    room = fuseWholeRecording(o.source, o.pose, o.open, &*fusedFirst, [&](const json& line, const auto&) {
+      if (total > 0) fuseBar(static_cast<double>(line["frame"].get<int64_t>() + 1) / static_cast<double>(total));
+    });
+    setup->lightsFromFusedRoom = false;
+    source = openSource(o.source, o.open);
+  }
 
   gl::ContextConfig cfg;
   cfg.backend = backend;
@@ -101,7 +117,7 @@ int replay(const ReplayOptions& o) {
   fo.room = room;
   fo.cacheDir = o.rooms.room;  // techniques keep what they precompute beside the saved room
   fo.progress = precomputeProgress();
-  const bool fuse = o.rooms.fuse || (setup && setup->lightsFromFusedRoom);
+  const bool fuse = !fusedFirst && (o.rooms.fuse || (setup && setup->lightsFromFusedRoom));
   if (fuse) fo.fuse = std::make_shared<reconstruction::RoomModel>();
   fo.fuseRefresh = o.rooms.fuseRefresh;
   fo.fuseEvery = o.rooms.fuseEvery;
@@ -344,11 +360,14 @@ int replay(const ReplayOptions& o) {
   summary["per_frame"] = perFrame;
   summary["frames_with_pose"] = posed;
   summary["pose"] = {{"mode", toString(o.pose)}, {"frames", posedBy}};
-  if (const reconstruction::RoomModel* live = frames.liveRoom()) {
-    summary["room"] = {
-        {"integrated", live->framesIntegrated()}, {"refused", live->framesRefused()}, {"blocks", live->blocks()}};
-    if (!o.rooms.save.empty() && live->framesIntegrated() > 0 &&
-        !runtime::saveRoomModel(o.rooms.save, *live, o.source).positions.empty())
+  const reconstruction::RoomModel* fusedRoom = fusedFirst ? &fusedFirst->model : frames.liveRoom();
+  if (fusedRoom) {
+    summary["room"] = {{"integrated", fusedRoom->framesIntegrated()},
+                       {"refused", fusedRoom->framesRefused()},
+                       {"blocks", fusedRoom->blocks()},
+                       {"fused", fusedFirst ? "before the replay, from every frame" : "as the frames came"}};
+    if (!o.rooms.save.empty() && fusedRoom->framesIntegrated() > 0 &&
+        !runtime::saveRoomModel(o.rooms.save, *fusedRoom, o.source).positions.empty())
       summary["room"]["saved"] = o.rooms.save;
   }
   capture::writeFileAtomically(fs::path(o.out) / "summary.json", jsonText(summary, o.source, 2) + "\n");

@@ -20,6 +20,28 @@ double median(std::vector<double> sorted) {
 }  // namespace
 
 double RoomFusion::medianFuseMs() const { return median(fuseMs); }
+
+std::string RoomFusion::clippingNote(const std::string& path) const {
+  if (clippedFrames == 0) return {};
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "%s: %lld of %lld frames have more than %.0f %% of their pixels at the sensor's white (up to %.0f %%): "
+                "what is brighter (a sunlit patch, a lamp, a window) reads as that white, and the lights found from "
+                "it dimmer than they are",
+                path.c_str(), static_cast<long long>(clippedFrames), static_cast<long long>(frames),
+                100 * kClippedShare, 100 * mostClipped);
+  return text;
+}
+
+namespace {
+/// The share of an 8-bit colour image's pixels with a channel at 250 or more.
+double clippedShare(const cv::Mat& colour) {
+  if (colour.empty() || colour.type() != CV_8UC3) return 0;
+  cv::Mat top;
+  cv::reduce(colour.reshape(1, static_cast<int>(colour.total())), top, 1, cv::REDUCE_MAX);
+  return cv::countNonZero(top >= 250) / static_cast<double>(colour.total());
+}
+}  // namespace
 double RoomFusion::medianSurfaceMs() const { return median(surfaceMs); }
 
 namespace {
@@ -91,6 +113,9 @@ RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
     if (!frame) break;
     const int64_t index = out.frames++;
     if (index % o.every != 0 || !frame->rgbd) continue;
+    const double clipped = clippedShare(frame->rgbd->colour);
+    out.clippedFrames += clipped > RoomFusion::kClippedShare;
+    out.mostClipped = std::max(out.mostClipped, clipped);
     const FrameResult r = frames.measure(*frame, profiler);
     // What the frame's depth cost before fusion: the guided filter and the normals.
     double filterMs = 0;
@@ -134,6 +159,23 @@ RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
     out.perFrame.push_back(std::move(line));
   }
   return out;
+}
+
+std::shared_ptr<const reconstruction::RoomMesh> fuseWholeRecording(
+    const std::string& path, PoseMode pose, const capture::OpenOptions& open, RoomFusion* fused,
+    const std::function<void(const nlohmann::json&, const reconstruction::RoomModel&)>& onFrame) {
+  RoomFusionOptions o;
+  o.pose = pose;
+  o.open = open;
+  RoomFusion f = fuseRoom(path, o, onFrame);
+  auto mesh = std::make_shared<const reconstruction::RoomMesh>(f.model.mesh());
+  if (mesh->positions.empty())
+    throw capture::CaptureError(path, "lists no lights and no room could be fused from its frames (" +
+                                          std::to_string(f.posed) + " of " + std::to_string(f.frames) +
+                                          " posed); list lights in a scene file (--scene)");
+  if (const std::string note = f.clippingNote(path); !note.empty()) sayNoteOnce(note);
+  if (fused) *fused = std::move(f);
+  return mesh;
 }
 
 reconstruction::RoomMesh saveRoomModel(const std::string& dir, const reconstruction::RoomModel& room,

@@ -3,6 +3,7 @@
 // camera pose (runtime/pose_source.h) into a RoomModel in the marker frame. Frames without a trusted pose
 // (lost, or the marker's held pose) are refused, never fused at a guess.
 #include <functional>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -29,6 +30,13 @@ struct RoomFusion {
   nlohmann::json trajectory;
   /// When it was optimised: each measured frame's pose as the tracker gave it before (nullopt: lost or held).
   std::vector<std::optional<capture::Pose>> trackerPoses;
+  /// Frames read whose colour has more than kClippedShare of its pixels at the sensor's white (a sunlit patch, a
+  /// lamp, a window), and the largest share of any frame: there the room's radiance reads lower than it is.
+  int64_t clippedFrames = 0;
+  double mostClipped = 0;
+  static constexpr double kClippedShare = 0.02;
+  /// One line for the user when frames clipped ("" when none did).
+  std::string clippingNote(const std::string& path) const;
   /// Median of fuseMs (0 without any).
   double medianFuseMs() const;
   /// Median of surfaceMs: a frame's whole real-surface cost (filter, normals, fusion, appearance).
@@ -55,6 +63,15 @@ struct RoomFusionOptions {
 /// `onFrame` (optional) sees each frame's line as it is decided.
 RoomFusion fuseRoom(
     const std::string& path, const RoomFusionOptions& options,
+    const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
+
+/// The room a recording shows, fused from all its frames before any is lit: what a scene that leaves its lights to
+/// the room ("lights": "auto" without lights listed, or "room") is lit by in replay, in insert's preview and in the
+/// live window playing a recording, so the three light the same frame alike and frame 0 is lit by the whole room,
+/// not by what frame 0 alone saw. `onFrame` as fuseRoom's. Throws naming the recording when no surface could be
+/// fused; `fused` (optional) receives the fusion's facts.
+std::shared_ptr<const reconstruction::RoomMesh> fuseWholeRecording(
+    const std::string& path, PoseMode pose, const capture::OpenOptions& open, RoomFusion* fused = nullptr,
     const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
 
 /// Writes a fused room as mrgi room does (room.ply, room_appearance.npy, room.json naming `session`); the

@@ -26,6 +26,7 @@ lighting::SceneDescription loadChosenScene(const SceneChoice& choice);
 struct RoomOptions {
   std::string room;           ///< a saved room (mrgi room --out)
   bool fuse = false;          ///< fuse a room from the frames as they come (replay's and live's default with a scene)
+  bool fuseAsked = false;     ///< --fuse-room given: as the frames come even where a recording is fused first
   bool perFrameMesh = false;  ///< light each frame from its own depth mesh instead (no room)
   int fuseRefresh = 30;       ///< frames fused between refreshes of the fused room's surface
   int fuseEvery = 1;          ///< every N-th frame with a pose fused (1: every one)

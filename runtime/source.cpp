@@ -10,14 +10,15 @@ namespace mrgi::runtime {
 
 std::unique_ptr<capture::FrameSource> openSource(const std::string& uri, const capture::OpenOptions& options) {
   auto source = capture::open(uri, options);
-  const std::string& note = source->info().calibrationNote;
-  if (!note.empty()) {
-    static std::mutex mutex;
-    static std::set<std::string> said;
-    const std::lock_guard<std::mutex> lock(mutex);
-    if (said.insert(note).second) std::fprintf(stderr, "note: %s\n", note.c_str());
-  }
+  if (!source->info().calibrationNote.empty()) sayNoteOnce(source->info().calibrationNote);
   return source;
+}
+
+void sayNoteOnce(const std::string& note) {
+  static std::mutex mutex;
+  static std::set<std::string> said;
+  const std::lock_guard<std::mutex> lock(mutex);
+  if (said.insert(note).second) std::fprintf(stderr, "note: %s\n", note.c_str());
 }
 
 std::optional<capture::Pose> groundTruthT_world_marker(const capture::FrameSource& source) {

@@ -650,6 +650,23 @@ TEST(Cli, InsertSavesIntoABareFileName) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, InfoSaysWhatReplayWouldSayOfARecording) {
+  // A raw ViSP folder was refused without a hint; a folder whose calibration is a fallback was reported silently
+  // by info while replay printed a note.
+  const std::string visp = std::string(MRGI_SHARED_DATA) + "/rgbd-visp-apriltag";
+  expectOneLineError(runMrgi("info " + visp),
+                     visp + ": a ViSP RGB-D sequence: convert it into a session with mrgi import-visp " + visp);
+  const std::string icl = std::string(MRGI_SHARED_DATA) + "/rgbd-open3d-iclnuim";
+  const Result r = runMrgi("info " + icl);
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("note: " + icl + ": 2 calibration files disagree"), std::string::npos) << r.err;
+  // The commands' help says what they do now: the camera is tracked, not only the marker.
+  const Result help = runMrgi("--help");
+  EXPECT_EQ(help.out.find("Track an AprilTag marker"), std::string::npos) << help.out;
+  EXPECT_EQ(help.out.find("every frame's marker pose"), std::string::npos) << help.out;
+  EXPECT_NE(help.out.find("Track the camera through a recording"), std::string::npos) << help.out;
+}
+
 TEST(Cli, AMisspeltSubcommandFlagTechniqueOrKeySaysWhatItMeant) {
   const std::string session = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
   const std::string out = (fs::temp_directory_path() / ("mrgi_cli_misspelt_" + std::to_string(::getpid()))).string();
@@ -667,7 +684,7 @@ TEST(Cli, AMisspeltSubcommandFlagTechniqueOrKeySaysWhatItMeant) {
 TEST(Cli, ABareRecordingIsLitFromItsRoomByDefault) {
   // The ViSP desk recording lists no lights and has no fisheye: insert places an object without a scene file
   // (its preview lit from the room fused from every frame), saves "lights": "auto", and replay lights it from
-  // the room fused as the frames come. One line on stderr says so each time.
+  // the same room, fused first. One line on stderr says so each time.
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_bare_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   const std::string session = (dir / "visp").string();
@@ -1629,6 +1646,40 @@ TEST(Cli, ABareOniRecordingIsRoomedAndLitFromItsRoom) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, InsertsPreviewAndReplayLightABareRecordingAlike) {
+  // "lights": "auto" on a recording without lights: insert's preview lit frame 0 by the room of every frame,
+  // replay by the room fused up to that frame (frame 0: what frame 0 alone saw): a shaded sphere with a shadow in
+  // the preview, a flat disc in replay. Both now light it by the room of the whole recording, fused first.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_auto_alike_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string icl = std::string(MRGI_SHARED_DATA) + "/rgbd-open3d-iclnuim";
+  const std::string sphere = (fs::path(MRGI_SOURCE_DIR) / "recordings/models/sphere.ply").string();
+  const std::string scene = (dir / "icl.json").string();
+  Result r = runMrgi("insert --session " + icl + " --model " + sphere + " --scale 0.2 --at 320,400 --snap --save " +
+                     scene + " --preview " + (dir / "preview.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  r = runMrgi("replay " + icl + " --scene " + scene + " --frames 1 --mp4 '' --out " + (dir / "replay").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto summary = nlohmann::json::parse(slurp(dir / "replay" / "summary.json"));
+  EXPECT_EQ(summary["room"]["fused"], "before the replay, from every frame") << summary["room"].dump();
+  EXPECT_EQ(summary["room"]["integrated"], 5);  // every frame of the recording, not only the one replayed
+  const cv::Mat preview = cv::imread((dir / "preview.png").string()),
+                replayed = cv::imread((dir / "replay" / "frame_0000.png").string());
+  ASSERT_FALSE(preview.empty() || replayed.empty());
+  cv::Mat diff;
+  cv::absdiff(preview, replayed, diff);
+  cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
+  EXPECT_LT(cv::mean(diff)[0], 0.5);
+  EXPECT_GT(cv::countNonZero(diff <= 2) / static_cast<double>(diff.total()), 0.99);
+  // --fuse-room still lights each frame by the room fused up to it, as asked.
+  r = runMrgi("replay " + icl + " --scene " + scene + " --frames 1 --fuse-room --mp4 '' --out " +
+              (dir / "asitcomes").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "asitcomes" / "summary.json"))["room"]["fused"], "as the frames came");
+  fs::remove_all(dir);
+}
+
 TEST(Cli, TrackPrintsHowEveryFrameWasPosedAndRoomSaysWhatItRefused) {
   const std::string synth = (fs::path(MRGI_SOURCE_DIR) / "recordings/tabletop-synth").string();
   Result r = runMrgi("track " + synth + " --pose odometry --json");
@@ -1861,7 +1912,7 @@ TEST(LiveWindow, DISABLED_ShowsTheCompositeNextToItsPanel) {
 TEST(LiveWindow, DISABLED_LightsABareRecordingFromItsRoomAsReplayDoes) {
   // A scene insert saved for a recording without lights ("lights": "auto") drew the object black live, lit by
   // nothing ("lights: 0"): the window rebuilt its pipeline from the scene as loaded, not as resolved against the
-  // source. It is lit from the room fused as the frames come, as replay lights it: the same composite.
+  // source. It is lit from the room of the whole recording, fused first, as replay lights it: the same composite.
   const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_live_auto_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
