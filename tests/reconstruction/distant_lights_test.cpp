@@ -1,0 +1,127 @@
+// A distant light the camera never saw, found from the light it casts: a closed room (4 x 4 x 2.5 m) with a window
+// in one wall, the sun shining through it onto the floor and the far wall. Each vertex's radiance is made here
+// from the analytic sunlit patch (the ray towards the sun leaves the box through the window), not from the rays the
+// finder casts, so the test holds the finder to the room's geometry, not to itself.
+#include "reconstruction/distant_lights.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "reconstruction/mesh_rays.h"
+
+namespace mrgi::reconstruction {
+namespace {
+
+constexpr double kHalf = 2.0, kHeight = 2.5;
+// The window: in the wall x = +2, y in [-0.5, 0.5], z in [0.8, 1.8].
+bool inWindow(double y, double z) { return y > -0.5 && y < 0.5 && z > 0.8 && z < 1.8; }
+
+struct Room {
+  std::vector<cv::Vec3f> positions, normals, radiance, albedo;
+  std::vector<uint32_t> indices;
+};
+
+/// Whether the ray from x towards w leaves the (convex, empty) box through the window.
+bool sunlit(const cv::Vec3d& x, const cv::Vec3d& w) {
+  double tExit = 1e30;
+  int plane = -1;
+  const double bounds[6] = {kHalf, -kHalf, kHalf, -kHalf, kHeight, 0};
+  for (int p = 0; p < 6; ++p) {
+    const int axis = p / 2;
+    if (std::abs(w[axis]) < 1e-12) continue;
+    const double t = (bounds[p] - x[axis]) / w[axis];
+    if (t > 1e-9 && t < tExit) tExit = t, plane = p;
+  }
+  if (plane != 0) return false;
+  const cv::Vec3d e = x + tExit * w;
+  return inWindow(e[1], e[2]);
+}
+
+/// One face of the box as a grid of `cells` x `cells` quads (origin + a u + b v, a and b in [0, 1]), normal inwards;
+/// quads whose centre lies in the window are left out.
+void addFace(Room& room, const cv::Vec3d& origin, const cv::Vec3d& u, const cv::Vec3d& v, const cv::Vec3d& normal,
+             float albedo, int cells, bool window) {
+  const uint32_t base = static_cast<uint32_t>(room.positions.size());
+  for (int j = 0; j <= cells; ++j)
+    for (int i = 0; i <= cells; ++i) {
+      const cv::Vec3d p = origin + (static_cast<double>(i) / cells) * u + (static_cast<double>(j) / cells) * v;
+      room.positions.emplace_back(p);
+      room.normals.emplace_back(normal);
+      // The face's border vertices lie on the next face too (a ray from them starts in that wall): not sampled.
+      const bool border = i == 0 || j == 0 || i == cells || j == cells;
+      room.albedo.emplace_back(border ? cv::Vec3f(0, 0, 0) : cv::Vec3f(albedo, albedo, albedo));
+    }
+  for (int j = 0; j < cells; ++j)
+    for (int i = 0; i < cells; ++i) {
+      const cv::Vec3d c = origin + ((i + 0.5) / cells) * u + ((j + 0.5) / cells) * v;
+      if (window && inWindow(c[1], c[2])) continue;
+      const uint32_t a = base + static_cast<uint32_t>(j * (cells + 1) + i), b = a + 1,
+                     d = a + static_cast<uint32_t>(cells + 1), e = d + 1;
+      // Wound so that the triangles face into the room, as a fused room's face the cameras that saw them.
+      if (u.cross(v).dot(normal) > 0)
+        room.indices.insert(room.indices.end(), {a, b, e, a, e, d});
+      else
+        room.indices.insert(room.indices.end(), {a, e, b, a, d, e});
+    }
+}
+
+Room makeRoom() {
+  Room room;
+  const int cells = 60;
+  addFace(room, {-kHalf, -kHalf, 0}, {2 * kHalf, 0, 0}, {0, 2 * kHalf, 0}, {0, 0, 1}, 0.5f, cells, false);  // floor
+  addFace(room, {-kHalf, -kHalf, kHeight}, {2 * kHalf, 0, 0}, {0, 2 * kHalf, 0}, {0, 0, -1}, 0.8f, cells, false);
+  addFace(room, {kHalf, -kHalf, 0}, {0, 2 * kHalf, 0}, {0, 0, kHeight}, {-1, 0, 0}, 0.7f, cells, true);  // window
+  addFace(room, {-kHalf, -kHalf, 0}, {0, 2 * kHalf, 0}, {0, 0, kHeight}, {1, 0, 0}, 0.7f, cells, false);
+  addFace(room, {-kHalf, kHalf, 0}, {2 * kHalf, 0, 0}, {0, 0, kHeight}, {0, -1, 0}, 0.6f, cells, false);
+  addFace(room, {-kHalf, -kHalf, 0}, {2 * kHalf, 0, 0}, {0, 0, kHeight}, {0, 1, 0}, 0.6f, cells, false);
+  return room;
+}
+
+/// Radiance L = albedo / pi (rest + sun max(0, n . w) V), with 2 % noise; a window vertex (no wall there) is dark.
+void light(Room& room, const cv::Vec3d& towards, const cv::Vec3d& sun, const cv::Vec3d& rest) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(1.0, 0.02);
+  room.radiance.clear();
+  for (size_t i = 0; i < room.positions.size(); ++i) {
+    const cv::Vec3d x(room.positions[i]), n(room.normals[i]);
+    const double facing = std::max(0.0, n.dot(towards));
+    const double c = facing > 0 && sunlit(x + 1e-6 * n, towards) ? facing : 0.0;
+    cv::Vec3f l;
+    for (int k = 0; k < 3; ++k)
+      l[k] = static_cast<float>(room.albedo[i][k] / CV_PI * (rest[k] + sun[k] * c) * noise(rng));
+    room.radiance.push_back(l);
+  }
+}
+
+TEST(DistantLight, TheSunThroughAWindowIsFoundFromItsPatchAndItsShadows) {
+  Room room = makeRoom();
+  const cv::Vec3d towards =
+      cv::normalize(cv::Vec3d(1.0, 0.2371, 0.7093));  // low sun through the window (its rays off the grid lines)
+  const cv::Vec3d sun(30.0, 27.0, 22.0), rest(1.5, 1.6, 1.8);
+  light(room, towards, sun, rest);
+  const MeshRays rays(room.positions, room.indices);
+  const auto found = findDistantLight(room.positions, room.normals, room.radiance, room.albedo, rays);
+  ASSERT_TRUE(found);
+  const double angleDeg = std::acos(std::clamp(found->towards.dot(towards), -1.0, 1.0)) * 180 / CV_PI;
+  EXPECT_LT(angleDeg, 1.5) << found->towards;
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(found->irradiance[k], sun[k], 0.05 * sun[k]) << k;
+    EXPECT_NEAR(found->rest[k], rest[k], 0.1 * rest[k]) << k;
+  }
+  EXPECT_GT(found->explained, 0.9);
+  EXPECT_GT(found->litShare, 0.01);
+  EXPECT_LT(found->litShare, 0.2);
+}
+
+TEST(DistantLight, ARoomWithoutSunHasNone) {
+  // The same room lit evenly (its lamps and walls): no direction explains the 2 % noise.
+  Room room = makeRoom();
+  light(room, {0, 0, 1}, {0, 0, 0}, {2, 2, 2});
+  const MeshRays rays(room.positions, room.indices);
+  EXPECT_FALSE(findDistantLight(room.positions, room.normals, room.radiance, room.albedo, rays));
+}
+
+}  // namespace
+}  // namespace mrgi::reconstruction
