@@ -49,6 +49,9 @@ Action addSynth(CLI::App& app) {
   app.add_option("--scan-jpeg", o->scanJpegQuality,
                  "store the look-around's colour as JPEG at this quality (1-100; 0 = PNG, lossless as the orbit's)")
       ->check(numberIn(0, 100));
+  app.add_flag("--window-sun", o->windowSun,
+               "a window in the right wall and the sun through it onto the table, beside the lamp (a distant light "
+               "the cameras never see: only its sunlit patches and shadows)");
   app.add_flag("--move-light", o->moveLight,
                "the lamp moves a third of the way round the table over the orbit (each frame records its lights)");
   app.add_flag("--move-box", o->moveBox,

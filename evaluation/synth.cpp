@@ -218,6 +218,8 @@ void checkCombinations(const SynthOptions& o) {
     throw std::invalid_argument("--environment needs --render pathtrace");
   if (o.moveBox && !o.scene.empty())
     throw std::invalid_argument("--move-box cannot be combined with --scene (references of a changing room)");
+  if (o.windowSun && !o.environment.empty())
+    throw std::invalid_argument("--window-sun needs the room (not --environment)");
   if (o.moveLight) {
     if (!o.environment.empty()) throw std::invalid_argument("--move-light needs the room's lamp (not --environment)");
     if (o.moveBox) throw std::invalid_argument("--move-light cannot be combined with --move-box");
@@ -340,6 +342,7 @@ int writeSynthSession(const SynthOptions& o) {
   tc.tagId = o.tagId;
   tc.tagSize = o.tagSize;
   tc.seed = o.seed;
+  tc.windowSun = o.windowSun;
   checkCombinations(o);
   if (!o.environment.empty()) {
     double scale = o.environmentScale;

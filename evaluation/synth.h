@@ -36,6 +36,7 @@ struct SynthOptions {
   std::optional<double> exposure = 1.0;
   bool moveBox = false;    ///< the box moves to the front of the table a third of the way through (carving)
   bool moveLight = false;  ///< the lamp moves a third of the way round the table over the orbit
+  bool windowSun = false;  ///< a window in the right wall and the sun through it onto the table (beside the lamp)
   /// Called with the fraction done (0..1) as frames are rendered.
   std::function<void(double)> progress;
 };

@@ -34,7 +34,16 @@ Tabletop buildTabletop(const TabletopConfig& c) {
     s.addQuad({-W, H, -W}, {2 * W, 0, 0}, {0, 0, 2 * W}, ceilM);
     s.addQuad({-W, 0, -W}, {2 * W, 0, 0}, {0, H, 0}, backM);
     s.addQuad({-W, 0, -W}, {0, H, 0}, {0, 0, 2 * W}, leftM);
-    s.addQuad({W, 0, -W}, {0, 0, 2 * W}, {0, H, 0}, rightM);
+    if (c.windowSun) {
+      // The right wall around its window: below, above, and either side of it.
+      const float y0 = 1.0f, y1 = 2.0f, z0 = -0.5f, z1 = 0.5f;
+      s.addQuad({W, 0, -W}, {0, 0, 2 * W}, {0, y0, 0}, rightM);
+      s.addQuad({W, y1, -W}, {0, 0, 2 * W}, {0, H - y1, 0}, rightM);
+      s.addQuad({W, y0, -W}, {0, 0, z0 + W}, {0, y1 - y0, 0}, rightM);
+      s.addQuad({W, y0, z1}, {0, 0, W - z1}, {0, y1 - y0, 0}, rightM);
+    } else {
+      s.addQuad({W, 0, -W}, {0, 0, 2 * W}, {0, H, 0}, rightM);
+    }
     s.addQuad({-W, 0, W}, {0, H, 0}, {2 * W, 0, 0}, frontM);
   }
   // Table: top slab and four legs.
@@ -65,6 +74,14 @@ Tabletop buildTabletop(const TabletopConfig& c) {
     s.lights.push_back({{0.45f, 1.95f, 0.55f}, {9.0f, 8.4f, 7.6f}, 0.04f});
     s.ambient = {0.05f, 0.05f, 0.05f};
   }
+  if (c.windowSun) {
+    groundtruth::Light sun;
+    sun.type = groundtruth::LightType::Directional;
+    sun.direction = -windowSunTowards();  // the way its light travels
+    sun.irradiance = windowSunIrradiance();
+    sun.radius = 0;
+    s.lights.push_back(sun);
+  }
 
   // Marker frame: x = world x, z = world y (out of the table), y = z x x = world -z.
   t.T_world_marker = capture::Pose(1, 0, 0, 0,     //
@@ -75,10 +92,15 @@ Tabletop buildTabletop(const TabletopConfig& c) {
   gt["T_world_marker"] = capture::poseToJson(t.T_world_marker);
   gt["lights"] = nlohmann::json::array();
   for (const auto& l : s.lights)
-    gt["lights"].push_back({{"type", "point"},
-                            {"position", {l.position[0], l.position[1], l.position[2]}},
-                            {"intensity_w_sr", {l.intensity[0], l.intensity[1], l.intensity[2]}},
-                            {"radius_m", l.radius}});
+    if (l.type == groundtruth::LightType::Directional)
+      gt["lights"].push_back({{"type", "directional"},
+                              {"direction", {l.direction[0], l.direction[1], l.direction[2]}},
+                              {"irradiance_w_m2", {l.irradiance[0], l.irradiance[1], l.irradiance[2]}}});
+    else
+      gt["lights"].push_back({{"type", "point"},
+                              {"position", {l.position[0], l.position[1], l.position[2]}},
+                              {"intensity_w_sr", {l.intensity[0], l.intensity[1], l.intensity[2]}},
+                              {"radius_m", l.radius}});
   gt["scene"]["generator"] = "mrgi synth (direct light + constant ambient, ray cast)";
   gt["scene"]["seed"] = c.seed;
   gt["scene"]["ambient_radiance"] = {s.ambient[0], s.ambient[1], s.ambient[2]};

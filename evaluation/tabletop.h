@@ -20,7 +20,14 @@ struct TabletopConfig {
   std::shared_ptr<const groundtruth::EnvironmentMap> environment;
   nlohmann::json environmentInfo;  ///< what the manifest records about it (file, scale)
   cv::Vec3f boxOffset{0, 0, 0};    ///< the box's displacement on the table (world, metres)
+  /// A window in the right wall (x = +2 m: z in [-0.5, 0.5] m, y in [1.0, 2.0] m) and the sun shining through it
+  /// onto the table: a distant light the cameras never see, only the sunlit patches and shadows it casts.
+  bool windowSun = false;
 };
+
+/// --window-sun: the sun's direction from the room towards it (world: y up) and its irradiance at normal incidence.
+inline cv::Vec3f windowSunTowards() { return cv::normalize(cv::Vec3f(2.0f, 0.78f, 0.12f)); }
+inline cv::Vec3f windowSunIrradiance() { return {14.0f, 12.6f, 10.8f}; }
 
 /// Where the box stands on the table, lower and upper corner (world: y up), before any offset.
 inline std::pair<cv::Vec3f, cv::Vec3f> tabletopBox() { return {{0.22f, 0.75f, -0.26f}, {0.37f, 0.90f, -0.11f}}; }

@@ -1,13 +1,13 @@
 #pragma once
 /// A distant light the camera never saw directly (the sun through a window), found from the light it casts on the
 /// room: the sunlit patches and the shadows the room's own geometry bounds them with. For a candidate direction w
-/// every sampled surface point x is lit by it when its normal faces w and a ray from x towards w leaves the room
-/// (MeshRays: nothing of the room on the way). The surface's irradiance pi L(x) / albedo(x) is then
-///   E(x) = E_rest + E_sun max(0, n(x) . w) V(x, w)
-/// and the direction whose lit/unlit pattern explains the measured irradiance best (least squares over the points,
-/// E_rest and E_sun fitted for each direction) is the light's, refined around the best of a coarse set of
-/// directions. What the fit leaves unexplained stays with the room's other light (its SH remainder).
-#include <opencv2/core.hpp>
+/// a surface point x is lit by it when its normal faces w and a ray from x towards w leaves the room (MeshRays:
+/// nothing of the room on the way). Where that predicts an edge between two neighbouring points of one surface
+/// (one lit, one in the room's shadow), the measured irradiance pi L / albedo should step up by the light's
+/// irradiance times n . w; the direction whose predicted edges the room's light agrees with most is the light's,
+/// refined around the best of a coarse set of directions. Differences across the edges are blind to light that
+/// varies smoothly (a lamp's falloff, the walls' bounce) and to albedo that changes elsewhere. What the light
+/// leaves stays with the room's other light (its SH remainder).
 #include <optional>
 #include <vector>
 
@@ -16,19 +16,26 @@ namespace mrgi::reconstruction {
 class MeshRays;
 
 struct DistantLightOptions {
-  int candidates = 600;       ///< directions over the sphere in the coarse search (a Fibonacci set)
-  int refineSteps = 3;        ///< rounds of refinement, each a finer 7 x 7 grid around the best so far
-  int maxPoints = 4000;       ///< surface points sampled (evenly through the vertices)
-  double rayOffsetM = 0.01;   ///< rays start this far along the normal (off the surface they leave)
-  double minExplained = 0.3;  ///< the share of the irradiance's variance the light must explain to be kept
-  double minLitShare = 0.01;  ///< and the share of the points it must light, and leave unlit
+  cv::Vec3d up{0, 0, 1};           ///< the room's up (the marker's z, the first frame's floor normal)
+  double minElevationSin = -0.05;  ///< the light lies above this (sine of its elevation over the horizon)
+  int candidates = 600;            ///< directions over that hemisphere in the coarse search (a Fibonacci set)
+  int coarseKept = 6;              ///< the coarse directions that explain most, each searched around by its edges
+  int refineSteps = 3;             ///< rounds of refinement, each a finer 7 x 7 grid around the best so far
+  int maxPoints = 12000;           ///< surface points sampled (evenly through the vertices)
+  double edgeRadiusM = 0.08;       ///< neighbours within this distance on the same surface make the edges
+  double rayOffsetM = 0.01;        ///< rays start this far along the normal (off the surface they leave)
+  double minFacing = 0.05;         ///< an edge's points face the light at least this much (n . w)
+  int minEdges = 30;               ///< predicted edges a direction needs to be judged
+  double minConsistency = 0.6;     ///< mean over root mean square of the edges' steps: the light is kept above it
+  double minLitShare = 0.002;      ///< the share of the points it must light, and leave unlit
 };
 
 struct DistantLight {
   cv::Vec3d towards{0, 0, 1};     ///< unit direction from the room towards the light
-  cv::Vec3d irradiance{0, 0, 0};  ///< at normal incidence, unoccluded (per channel)
-  cv::Vec3d rest{0, 0, 0};        ///< the irradiance the fit leaves to the room's other light (its mean)
-  double explained = 0;           ///< share of the irradiance's variance (green) the light explains
+  cv::Vec3d irradiance{0, 0, 0};  ///< at normal incidence, unoccluded (per channel): the edges' median step
+  cv::Vec3d rest{0, 0, 0};        ///< the mean irradiance of the points it faces and the room shadows
+  double consistency = 0;         ///< mean over root mean square of the edges' steps (1: all agree)
+  int edges = 0;                  ///< neighbour pairs across its predicted edges
   double litShare = 0;            ///< share of the sampled points it lights
 };
 

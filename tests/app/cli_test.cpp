@@ -1210,6 +1210,32 @@ TEST(Cli, ReferencePathTracesRhoMuDeltaAndComposite) {
   fs::remove_all(out);
 }
 
+TEST(Cli, SynthLetsTheSunInThroughAWindow) {
+  // --window-sun: a window in the right wall and the sun through it onto the table, beside the lamp; the manifest
+  // lists the sun as the directional light it is, and the table shows its patch: the frame is brighter where the
+  // sun reaches than the same frame without it.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_window_sun_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string common = " --render raycast --frames 1 --fisheye-every 0 --width 160 --height 120 --out ";
+  ASSERT_EQ(runMrgi("synth --window-sun" + common + (dir / "sun").string()).exitCode, 0);
+  ASSERT_EQ(runMrgi("synth" + common + (dir / "lamp").string()).exitCode, 0);
+  const auto manifest = nlohmann::json::parse(slurp(dir / "sun" / "manifest.json"));
+  const auto& lights = manifest["ground_truth"]["lights"];
+  ASSERT_EQ(lights.size(), 2u);
+  EXPECT_EQ(lights[0]["type"], "point");
+  EXPECT_EQ(lights[1]["type"], "directional");
+  EXPECT_NEAR(lights[1]["irradiance_w_m2"][0].get<double>(), 14.0, 1e-6);
+  EXPECT_LT(lights[1]["direction"][0].get<double>(), -0.9);  // travelling from the window (x = +2 m) inwards
+  const cv::Mat sun = cv::imread((dir / "sun" / "colour" / "000000.png").string(), cv::IMREAD_GRAYSCALE),
+                lamp = cv::imread((dir / "lamp" / "colour" / "000000.png").string(), cv::IMREAD_GRAYSCALE);
+  ASSERT_FALSE(sun.empty() || lamp.empty());
+  cv::Mat brighter;
+  cv::subtract(sun, lamp, brighter);
+  EXPECT_GT(cv::countNonZero(brighter > 40), static_cast<int>(sun.total() / 20));  // the sunlit patch
+  expectOneLineError(runMrgi("synth --window-sun --environment x.exr --out " + (dir / "x").string()), "--window-sun");
+  fs::remove_all(dir);
+}
+
 TEST(Cli, SynthMovesTheLightAndReplayRelightsEachFrame) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_synth_light_" + std::to_string(::getpid()));
   fs::remove_all(out);
