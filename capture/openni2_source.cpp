@@ -233,6 +233,17 @@ OpenNI2Source::~OpenNI2Source() {
   //    then has no stream to deliver to, and closing the device joins it.
   const bool playedToTheEnd = d.isFile && d.depthFrames >= 0 && d.depthRead >= d.depthFrames &&
                               (!d.hasColour || d.colourRead >= d.colourFrames);
+  if (playedToTheEnd) {
+    // The last frame read let the player take its next step (to the end of the file, or to frames past those the
+    // streams report): it settles first, any frame it still delivers read and let go, until 50 ms pass without one.
+    openni::VideoStream* streams[] = {&d.depth, &d.colour};
+    for (int step = 0; step < 64; ++step) {
+      int ready = -1;
+      if (openni::OpenNI::waitForAnyStream(streams, d.hasColour ? 2 : 1, &ready, 50) != openni::STATUS_OK) break;
+      openni::VideoFrameRef frame;
+      if (ready < 0 || ready > 1 || streams[ready]->readFrame(&frame) != openni::STATUS_OK) break;
+    }
+  }
   d.depth.stop();
   d.colour.stop();
   if (playedToTheEnd) d.device.close();

@@ -10,6 +10,8 @@
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/session.h"
+#include "reconstruction/distant_lights.h"
+#include "reconstruction/mesh_rays.h"
 #include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
 #include "runtime/debug_view.h"
@@ -143,16 +145,33 @@ int roomLights(const RoomLightsOptions& o) {
   }
   json sh = json::array();
   for (const auto& c : l.ambientSh) sh.push_back({c[0], c[1], c[2]});
-  const json out = {{"at", {at[0], at[1], at[2]}},
-                    {"lights", lights},
-                    {"ambient_radiance", {l.ambientRadiance[0], l.ambientRadiance[1], l.ambientRadiance[2]}},
-                    {"ambient_sh", sh},
-                    {"saturated_gain", l.gain},
-                    {"gain_estimated", l.gainEstimated},
-                    {"gain_samples", l.gainSamples},
-                    {"saturated_fraction", l.saturatedFraction},
-                    {"over_exposed", l.overExposed},
-                    {"coverage", l.coverage}};
+  json out = {{"at", {at[0], at[1], at[2]}},
+              {"lights", lights},
+              {"ambient_radiance", {l.ambientRadiance[0], l.ambientRadiance[1], l.ambientRadiance[2]}},
+              {"ambient_sh", sh},
+              {"saturated_gain", l.gain},
+              {"gain_estimated", l.gainEstimated},
+              {"gain_samples", l.gainSamples},
+              {"saturated_fraction", l.saturatedFraction},
+              {"over_exposed", l.overExposed},
+              {"coverage", l.coverage}};
+  // A distant light the room shows only by its sunlit patches and shadows (the sun through a window): searched
+  // for, and reported with what supports it. Not yet among the lights the scene is lit by: the albedo taken is a
+  // mid grey (0.5) wherever the room is not clipped, so its irradiance holds to that scale.
+  const reconstruction::MeshRays rays(room.positions, room.indices);
+  // Clipped vertices (a sunlit patch often is) stay: their radiance is a lower bound, still brighter than the
+  // shadow beside them.
+  const std::vector<cv::Vec3f> albedo(room.positions.size(), cv::Vec3f(0.5f, 0.5f, 0.5f));
+  reconstruction::DistantLightOptions dlo;
+  const auto distant = reconstruction::findDistantLight(room.positions, room.normals, room.radiance, albedo, rays, dlo);
+  out["distant_light"] = nullptr;
+  if (distant)
+    out["distant_light"] = {
+        {"towards", {distant->towards[0], distant->towards[1], distant->towards[2]}},
+        {"irradiance_at_albedo_0_5", {distant->irradiance[0], distant->irradiance[1], distant->irradiance[2]}},
+        {"consistency", distant->consistency},
+        {"edges", distant->edges},
+        {"lit_share", distant->litShare}};
   if (!o.map.empty()) writePng(o.map, roomLightsImage(l), "mrgi room-lights");
   if (o.json) {
     std::printf("%s\n", jsonText(out, o.room).c_str());
@@ -170,6 +189,13 @@ int roomLights(const RoomLightsOptions& o) {
       else  // no surface in its region: it has a direction, no position
         std::printf("  directional, towards (%.3f, %.3f, %.3f) from the point, irradiance %.4g\n", x.direction[0],
                     x.direction[1], x.direction[2], capture::luminance(x.irradiance));
+    if (distant)
+      std::printf(
+          "  a distant light the room's shadow edges show, towards (%.3f, %.3f, %.3f): %d edges agree %.0f %% "
+          "(not yet lighting the scene)\n",
+          distant->towards[0], distant->towards[1], distant->towards[2], distant->edges, 100 * distant->consistency);
+    else
+      std::printf("  no distant light shows in the room's shadow edges\n");
   }
   return 0;
 }
