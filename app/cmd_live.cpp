@@ -172,6 +172,8 @@ void statusPanel(LiveSession& live, const std::string& status, double fps, PoseM
   if (result.pose.fitness >= 0)
     ImGui::Text("tracking: fitness %.2f, rmse %.1f mm", result.pose.fitness, 1e3 * result.pose.inlierRmse);
   ImGui::Text("lights: %zu", live.lightCount());
+  // Lit from the room: how much of it the objects see (it grows as a sensor's room is fused).
+  if (live.roomCoverage() >= 0) ImGui::Text("room seen: %.0f %% of the directions", 100 * live.roomCoverage());
 }
 
 /// The view: the compositor's texture (with the marker's axes) for the composite, else the debug view read back.

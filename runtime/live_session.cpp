@@ -141,6 +141,10 @@ bool LiveSession::advance(bool composite, bool ahead) {
     result_ = frames_->process(*frame_, *compositor_, profiler_);
     lightCount_ = frames_->setup() ? frames_->setup()->lights.size() : 0;
   }
+  // Lights from the room see what it covers around the objects: the share, as last estimated, for the panel.
+  if (const auto room = result_.info.find("room");
+      room != result_.info.end() && room->contains("lights") && (*room)["lights"].contains("coverage"))
+    roomCoverage_ = (*room)["lights"]["coverage"].get<double>();
   frameMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   pipelineMs_ += frameMs_;
   // Stage times a frame late, when their GPU timestamps have arrived (the loop never waits for them).
@@ -182,6 +186,7 @@ json LiveSession::finish(const std::string& screenshot) {
     summary["pipeline_ms_per_frame"] = pipelineMs_ / static_cast<double>(processed_);
     summary["prepared_ahead"] = preparedAhead_;
   }
+  if (roomCoverage_ >= 0) summary["room_coverage"] = roomCoverage_;
   if (!screenshot.empty()) summary["screenshot"] = screenshot;
   if (recorder_) summary["recorded"] = {{"session", recordDir_}, {"frames", recorder_->framesWritten()}};
   if (fo_.fuse) {

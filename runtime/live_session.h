@@ -62,6 +62,9 @@ class LiveSession {
   int64_t processed() const { return processed_; }
   double frameMs() const { return frameMs_; }
   size_t lightCount() const { return lightCount_; }
+  /// The share of the sphere of directions the room covers around the objects, as its lights were last
+  /// estimated (negative: not lit from a room).
+  double roomCoverage() const { return roomCoverage_; }
   const std::map<std::string, gl::StageTime>& stages() const { return stages_; }
 
   /// Recording: frames as they arrive (before registration) into a session; turning it off closes the session
@@ -100,7 +103,8 @@ class LiveSession {
   double frameMs_ = 0, pipelineMs_ = 0;
   std::chrono::steady_clock::time_point loopStart_, loopEnd_;  ///< the first frame's start, the last frame's end
   int64_t processed_ = 0, preparedAhead_ = 0;
-  size_t lightCount_ = 0;                   ///< of the frame shown (the worker may be changing the setup's)
+  size_t lightCount_ = 0;  ///< of the frame shown (the worker may be changing the setup's)
+  double roomCoverage_ = -1;
   std::map<std::string, int64_t> posedBy_;  ///< frames by how they were posed (marker, odometry, ..., lost)
 };
 

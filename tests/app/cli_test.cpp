@@ -1955,6 +1955,9 @@ TEST(LiveWindow, DISABLED_LightsABareRecordingFromItsRoomAsReplayDoes) {
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto summary = nlohmann::json::parse(r.out);
   EXPECT_GT(summary["lights"].get<int>(), 0) << summary.dump();
+  // And how much of the directions around the object its room covers (the panel says it too).
+  EXPECT_GT(summary["room_coverage"].get<double>(), 0.2) << summary.dump();
+  EXPECT_LE(summary["room_coverage"].get<double>(), 1.0) << summary.dump();
   ASSERT_EQ(runMrgi("replay " + icl + " --scene " + scene + " --frames 2 --mp4 '' --out " + (dir / "replay").string())
                 .exitCode,
             0);
