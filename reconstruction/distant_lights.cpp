@@ -1,7 +1,6 @@
 #include "reconstruction/distant_lights.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 
 #include "reconstruction/mesh_rays.h"
@@ -17,6 +16,19 @@ struct Sample {
   cv::Vec3d irradiance;
   std::vector<uint32_t> neighbours;
 };
+
+/// How much light from w each sample takes: n . w where it faces w and a ray towards w leaves the room, else 0.
+std::vector<double> litBy(const std::vector<Sample>& samples, const cv::Vec3d& w, const MeshRays& rays) {
+  std::vector<double> c(samples.size(), 0.0);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(samples.size())), [&](const cv::Range& r) {
+    for (int i = r.start; i < r.end; ++i) {
+      const Sample& s = samples[static_cast<size_t>(i)];
+      const double facing = s.normal.dot(w);
+      if (facing > 0 && !rays.occluded(s.origin, w, 1e3)) c[static_cast<size_t>(i)] = facing;
+    }
+  });
+  return c;
+}
 
 /// How well a direction explains the room's light at the shadow edges it predicts: for every pair of neighbours
 /// it lights one of (c = n . w > 0, nothing on the way) and leaves the other in shadow, the lit one's irradiance
@@ -35,22 +47,10 @@ struct Fit {
 Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const MeshRays& rays,
                  const DistantLightOptions& o) {
   const size_t n = samples.size();
-  std::vector<double> c(n, 0.0);
-  std::atomic<size_t> lit{0};
-  cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& r) {
-    size_t mine = 0;
-    for (int i = r.start; i < r.end; ++i) {
-      const Sample& s = samples[static_cast<size_t>(i)];
-      const double facing = s.normal.dot(w);
-      if (facing <= 0) continue;
-      if (rays.occluded(s.origin, w, 1e3)) continue;
-      c[static_cast<size_t>(i)] = facing;
-      ++mine;
-    }
-    lit += mine;
-  });
+  const std::vector<double> c = litBy(samples, w, rays);
   Fit f;
-  f.litShare = static_cast<double>(lit.load()) / static_cast<double>(n);
+  f.litShare =
+      static_cast<double>(std::count_if(c.begin(), c.end(), [](double x) { return x > 0; })) / static_cast<double>(n);
   if (f.litShare < o.minLitShare || f.litShare > 1 - o.minLitShare) return f;
   // Edge pairs: lit i, shadowed j facing the light too (shadowed by the room, not turned away from it).
   std::vector<cv::Vec3d> perUnit;  // (y_i - y_j) / c_i
@@ -92,14 +92,7 @@ Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const M
 /// neighbourhood; the edges then find the light.
 double explainedBy(const std::vector<Sample>& samples, const cv::Vec3d& w, const MeshRays& rays) {
   const size_t n = samples.size();
-  std::vector<double> c(n, 0.0);
-  cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& r) {
-    for (int i = r.start; i < r.end; ++i) {
-      const Sample& s = samples[static_cast<size_t>(i)];
-      const double facing = s.normal.dot(w);
-      if (facing > 0 && !rays.occluded(s.origin, w, 1e3)) c[static_cast<size_t>(i)] = facing;
-    }
-  });
+  const std::vector<double> c = litBy(samples, w, rays);
   double mc = 0, my = 0;
   for (size_t i = 0; i < n; ++i) mc += c[i], my += samples[i].irradiance[1];
   mc /= static_cast<double>(n);

@@ -47,8 +47,7 @@ LiveSession::LiveSession(const LiveSessionOptions& o,
   // sensor's room grows as the frames come (and so do its lights).
   std::shared_ptr<const reconstruction::RoomMesh> room = o.room;
   bool fusedFirst = false;
-  if (base_ && base_->scene.lightSource == lighting::LightSource::Room && !room && !o.in.source.empty() &&
-      o.rooms.fuse && !o.rooms.fuseAsked && !o.rooms.perFrameMesh) {
+  if (base_ && !o.in.source.empty() && fusesRecordingFirst(*base_, o.rooms, room != nullptr)) {
     live_.reset();  // the fusion reads the recording itself (a device's recording plays once at a time)
     room = fuseWholeRecording(o.in.source, o.pose, {});
     base_->lightsFromFusedRoom = false;

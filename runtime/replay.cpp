@@ -88,8 +88,7 @@ int replay(const ReplayOptions& o) {
   // asked for): the whole recording is fused first, as insert's preview is lit, so that every frame, the first
   // included, is lit by the whole room. --fuse-room lights each frame by the room fused up to it instead.
   std::optional<RoomFusion> fusedFirst;
-  if (setup && setup->scene.lightSource == lighting::LightSource::Room && !room && o.rooms.fuse && !o.rooms.fuseAsked &&
-      !o.rooms.perFrameMesh) {
+  if (setup && fusesRecordingFirst(*setup, o.rooms, room != nullptr)) {
     source.reset();  // the fusion reads the recording itself (a device's recording plays once at a time)
     ProgressBar fuseBar("room");
     fusedFirst.emplace();

@@ -161,6 +161,11 @@ RoomFusion fuseRoom(const std::string& path, const RoomFusionOptions& o,
   return out;
 }
 
+bool fusesRecordingFirst(const LightingSetup& setup, const RoomOptions& rooms, bool roomGiven) {
+  return setup.scene.lightSource == lighting::LightSource::Room && !roomGiven && rooms.fuse && !rooms.fuseAsked &&
+         !rooms.perFrameMesh;
+}
+
 std::shared_ptr<const reconstruction::RoomMesh> fuseWholeRecording(
     const std::string& path, PoseMode pose, const capture::OpenOptions& open, RoomFusion* fused,
     const std::function<void(const nlohmann::json&, const reconstruction::RoomModel&)>& onFrame) {

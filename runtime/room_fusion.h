@@ -12,6 +12,7 @@
 #include "reconstruction/pose_graph.h"
 #include "reconstruction/room_model.h"
 #include "runtime/frame_pipeline.h"
+#include "runtime/session_setup.h"
 
 namespace mrgi::runtime {
 
@@ -64,6 +65,11 @@ struct RoomFusionOptions {
 RoomFusion fuseRoom(
     const std::string& path, const RoomFusionOptions& options,
     const std::function<void(const nlohmann::json& line, const reconstruction::RoomModel& model)>& onFrame = {});
+
+/// Whether a scene resolved as `setup` is lit by the room of a recording fused whole before its first frame
+/// (fuseWholeRecording): its lights come from the room, no saved room is given (`roomGiven`), and the room is
+/// fused by default, neither asked for as the frames come (--fuse-room) nor left to each frame's own depth.
+bool fusesRecordingFirst(const LightingSetup& setup, const RoomOptions& rooms, bool roomGiven);
 
 /// The room a recording shows, fused from all its frames before any is lit: what a scene that leaves its lights to
 /// the room ("lights": "auto" without lights listed, or "room") is lit by in replay, in insert's preview and in the
