@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "capture/colour.h"
 #include "reconstruction/mesh_rays.h"
 #include "reconstruction/point_index.h"
+#include "reconstruction/room_model.h"
 
 namespace mrgi::reconstruction {
 namespace {
@@ -13,18 +15,21 @@ namespace {
 /// neighbours on the same surface (within DistantLightOptions::edgeRadiusM, normals within 25 degrees).
 struct Sample {
   cv::Vec3d origin, normal;
-  cv::Vec3d irradiance;
+  cv::Vec3d irradiance;        ///< pi L / albedo
+  cv::Vec3d radiance, albedo;  ///< L, and the albedo given
+  cv::Vec3b clipped{0, 0, 0};  ///< per channel: L is a lower bound (at or above the sensor's white)
   std::vector<uint32_t> neighbours;
 };
 
-/// How much light from w each sample takes: n . w where it faces w and a ray towards w leaves the room, else 0.
-std::vector<double> litBy(const std::vector<Sample>& samples, const cv::Vec3d& w, const MeshRays& rays) {
+/// How much light from w each sample takes: n . w where it faces w and a ray towards w leaves the room through
+/// an opening, 0 where it faces away or the room is in the way, -1 (unknown) where the ray leaves through a gap.
+std::vector<double> litBy(const std::vector<Sample>& samples, const cv::Vec3d& w, const DistantLightRays& rays) {
   std::vector<double> c(samples.size(), 0.0);
   cv::parallel_for_(cv::Range(0, static_cast<int>(samples.size())), [&](const cv::Range& r) {
     for (int i = r.start; i < r.end; ++i) {
       const Sample& s = samples[static_cast<size_t>(i)];
       const double facing = s.normal.dot(w);
-      if (facing > 0 && !rays.occluded(s.origin, w, 1e3)) c[static_cast<size_t>(i)] = facing;
+      if (facing > 0) c[static_cast<size_t>(i)] = rays.reaches(s.origin, w) * facing;
     }
   });
   return c;
@@ -42,9 +47,10 @@ struct Fit {
   int edges = 0;           ///< neighbour pairs across a predicted edge
   double litShare = 0;
   cv::Vec3d sun{0, 0, 0}, rest{0, 0, 0};
+  cv::Vec3b lowerBound{0, 0, 0};
 };
 
-Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const MeshRays& rays,
+Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const DistantLightRays& rays,
                  const DistantLightOptions& o) {
   const size_t n = samples.size();
   const std::vector<double> c = litBy(samples, w, rays);
@@ -53,35 +59,61 @@ Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const M
       static_cast<double>(std::count_if(c.begin(), c.end(), [](double x) { return x > 0; })) / static_cast<double>(n);
   if (f.litShare < o.minLitShare || f.litShare > 1 - o.minLitShare) return f;
   // Edge pairs: lit i, shadowed j facing the light too (shadowed by the room, not turned away from it).
-  std::vector<cv::Vec3d> perUnit;  // (y_i - y_j) / c_i
   double sum = 0, sumSq = 0;
   cv::Vec3d shadowed(0, 0, 0);
   int shadowedCount = 0;
   for (size_t i = 0; i < n; ++i) {
-    if (c[i] > 0) continue;
+    if (c[i] != 0) continue;  // lit, or unknown
     if (samples[i].normal.dot(w) > 0) shadowed += samples[i].irradiance, ++shadowedCount;
   }
+  // Each edge's step measures the light: (pi L_i - pi L_j) / (albedo_j c_i), the shadowed side's albedo taken
+  // for both (one surface).
+  std::vector<double> measured[3], bound[3], steps;
   for (size_t i = 0; i < n; ++i) {
     if (!(c[i] > o.minFacing)) continue;
     for (const uint32_t j : samples[i].neighbours) {
-      if (c[j] > 0 || samples[j].normal.dot(w) <= o.minFacing) continue;
-      const cv::Vec3d d = samples[i].irradiance - samples[j].irradiance;
+      if (c[j] != 0 || samples[j].normal.dot(w) <= o.minFacing) continue;
+      const Sample &a = samples[i], &b = samples[j];
+      const cv::Vec3d d = a.irradiance - b.irradiance;
       sum += d[1];
       sumSq += d[1] * d[1];
-      perUnit.push_back(d / c[i]);
+      ++f.edges;
+      // Measured where no channel of either side is clipped (a channel clipped alone would tint the light: the
+      // table's red clips first); a lower bound where the lit side is.
+      if (b.clipped[0] || b.clipped[1] || b.clipped[2]) continue;
+      const bool whole = !a.clipped[0] && !a.clipped[1] && !a.clipped[2];
+      for (int k = 0; k < 3; ++k)
+        (whole ? measured[k] : bound[k]).push_back(CV_PI * (a.radiance[k] - b.radiance[k]) / (b.albedo[k] * c[i]));
     }
   }
-  f.edges = static_cast<int>(perUnit.size());
   if (f.edges < o.minEdges || !(sumSq > 0)) return f;
   f.score = sum / std::sqrt(sumSq);
   f.consistency = sum / std::sqrt(sumSq * f.edges);
-  // The light's irradiance: the median of its edges' estimates, channel by channel.
+  // Not every predicted edge shows the light (the room's geometry, or its fused colour, a little off): the
+  // steps split in two by 1-D k-means, and the light is the median of the larger ones.
+  const auto shown = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    // The outer tenths left out first (a shadowed side whose albedo the fill left near 0 divides by little).
+    const size_t tail = v.size() / 10;
+    v = std::vector<double>(v.begin() + static_cast<long>(tail), v.end() - static_cast<long>(tail));
+    double lo = v.front(), hi = v.back();
+    for (int round = 0; round < 20; ++round) {
+      double sl = 0, sh = 0;
+      int nl = 0, nh = 0;
+      for (double x : v) (std::abs(x - lo) <= std::abs(x - hi) ? (sl += x, ++nl) : (sh += x, ++nh));
+      if (nl) lo = sl / nl;
+      if (nh) hi = sh / nh;
+    }
+    const double cut = 0.5 * (lo + hi);
+    const auto first = std::upper_bound(v.begin(), v.end(), cut);
+    const size_t m = static_cast<size_t>(v.end() - first);
+    return m == 0 ? v[v.size() / 2] : *(first + static_cast<long>(m / 2));
+  };
   for (int k = 0; k < 3; ++k) {
-    std::vector<double> v;
-    v.reserve(perUnit.size());
-    for (const auto& d : perUnit) v.push_back(d[k]);
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    f.sun[k] = v[v.size() / 2];
+    const bool enough = measured[k].size() >= static_cast<size_t>(std::max(3, o.minEdges / 3));
+    f.sun[k] = enough ? shown(measured[k]) : std::max(shown(measured[k]), shown(bound[k]));
+    f.lowerBound[k] = !enough && !bound[k].empty();
   }
   if (shadowedCount > 0) f.rest = shadowed / static_cast<double>(shadowedCount);
   return f;
@@ -90,15 +122,17 @@ Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const M
 /// The coarse search's measure: the share of the irradiance's variance (green) that rest + sun c(w) explains,
 /// fitted by least squares over every sample. Smooth, so a coarse set of directions finds the light's
 /// neighbourhood; the edges then find the light.
-double explainedBy(const std::vector<Sample>& samples, const cv::Vec3d& w, const MeshRays& rays) {
-  const size_t n = samples.size();
+double explainedBy(const std::vector<Sample>& samples, const cv::Vec3d& w, const DistantLightRays& rays) {
   const std::vector<double> c = litBy(samples, w, rays);
-  double mc = 0, my = 0;
-  for (size_t i = 0; i < n; ++i) mc += c[i], my += samples[i].irradiance[1];
-  mc /= static_cast<double>(n);
-  my /= static_cast<double>(n);
+  double mc = 0, my = 0, known = 0;
+  for (size_t i = 0; i < c.size(); ++i)
+    if (c[i] >= 0) mc += c[i], my += samples[i].irradiance[1], ++known;
+  if (!(known > 0)) return 0;
+  mc /= known;
+  my /= known;
   double vc = 0, vy = 0, cov = 0;
-  for (size_t i = 0; i < n; ++i) {
+  for (size_t i = 0; i < c.size(); ++i) {
+    if (c[i] < 0) continue;
     const double dc = c[i] - mc, dy = samples[i].irradiance[1] - my;
     vc += dc * dc, vy += dy * dy, cov += dc * dy;
   }
@@ -113,51 +147,10 @@ void basisAround(const cv::Vec3d& w, cv::Vec3d& u, cv::Vec3d& v) {
   v = w.cross(u);
 }
 
-}  // namespace
-
-std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& positions,
-                                             const std::vector<cv::Vec3f>& normals,
-                                             const std::vector<cv::Vec3f>& radiance,
-                                             const std::vector<cv::Vec3f>& albedo, const MeshRays& rays,
-                                             const DistantLightOptions& o) {
-  const size_t count = std::min({positions.size(), normals.size(), radiance.size(), albedo.size()});
-  std::vector<size_t> usable;
-  for (size_t i = 0; i < count; ++i) {
-    const cv::Vec3f& a = albedo[i];
-    const cv::Vec3f& l = radiance[i];
-    const cv::Vec3f& nn = normals[i];
-    bool ok = cv::norm(nn) > 0.5;
-    for (int k = 0; k < 3 && ok; ++k) ok = a[k] > 0.01f && std::isfinite(l[k]) && l[k] >= 0;
-    if (ok) usable.push_back(i);
-  }
-  if (usable.size() < 100) return std::nullopt;
-  const size_t stride = std::max<size_t>(1, usable.size() / static_cast<size_t>(std::max(1, o.maxPoints)));
-  std::vector<Sample> samples;
-  std::vector<cv::Vec3f> where;
-  for (size_t j = 0; j < usable.size(); j += stride) {
-    const size_t i = usable[j];
-    Sample s;
-    s.normal = cv::normalize(cv::Vec3d(normals[i]));
-    s.origin = cv::Vec3d(positions[i]) + o.rayOffsetM * s.normal;
-    for (int k = 0; k < 3; ++k) s.irradiance[k] = CV_PI * radiance[i][k] / albedo[i][k];
-    samples.push_back(s);
-    where.push_back(positions[i]);
-  }
-  {
-    const PointCloudAdaptor cloud{where};
-    const PointKdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-    constexpr size_t kNeighbours = 8;
-    const float r2 = static_cast<float>(o.edgeRadiusM * o.edgeRadiusM);
-    for (size_t i = 0; i < samples.size(); ++i) {
-      uint32_t idx[kNeighbours];
-      float d2[kNeighbours];
-      const size_t found = tree.knnSearch(&where[i][0], kNeighbours, idx, d2);
-      for (size_t k = 0; k < found; ++k)
-        if (idx[k] != i && d2[k] <= r2 && samples[idx[k]].normal.dot(samples[i].normal) > 0.9)
-          samples[i].neighbours.push_back(idx[k]);
-    }
-  }
-
+/// The search: a coarse set of directions, the best few searched around by their edges, the best refined.
+/// False when no direction predicts enough edges.
+bool search(const std::vector<Sample>& samples, const DistantLightRays& rays, const DistantLightOptions& o, Fit& best,
+            cv::Vec3d& bestW) {
   // The coarse search: a Fibonacci set over the hemisphere above the room (the sun, a sky: light from outside comes
   // from above its horizon), judged by how much of the irradiance each explains.
   const cv::Vec3d up = cv::normalize(o.up);
@@ -178,8 +171,7 @@ std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& posit
   // Around each of the best few, the edges decide: a 9 x 9 grid spanning the coarse spacing, then finer grids
   // around the best so far.
   const double spacing = std::sqrt(2 * CV_PI * (1.0 - o.minElevationSin) / candidates);
-  Fit best;
-  cv::Vec3d bestW = coarse.front().second;
+  bestW = coarse.front().second;
   const auto searchAround = [&](const cv::Vec3d& centre, double step, int half) {
     cv::Vec3d u, v;
     basisAround(centre, u, v);
@@ -191,10 +183,96 @@ std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& posit
       }
   };
   for (size_t k = 0; k < keep; ++k) searchAround(coarse[k].second, spacing / 4, 4);
-  if (best.score < 0) return std::nullopt;
+  if (best.score < 0) return false;
   double step = spacing / 8;
   for (int round = 0; round < o.refineSteps; ++round, step /= 2) searchAround(bestW, step, 3);
-  if (best.consistency < o.minConsistency) return std::nullopt;
+  return true;
+}
+
+}  // namespace
+
+DistantLightRays::DistantLightRays(const std::vector<cv::Vec3f>& positions, const MeshRays& rays,
+                                   const RoomOpenings* openings)
+    : rays_(rays), openings_(openings), lo_(cv::Vec3d::all(1e30)), hi_(cv::Vec3d::all(-1e30)) {
+  for (const cv::Vec3f& p : positions)
+    for (int k = 0; k < 3; ++k) lo_[k] = std::min(lo_[k], p[k] - 0.05), hi_[k] = std::max(hi_[k], p[k] + 0.05);
+}
+
+int DistantLightRays::reaches(const cv::Vec3d& origin, const cv::Vec3d& w) const {
+  if (rays_.occluded(origin, w, 1e3)) return 0;
+  if (!openings_ || !openings_->recorded) return 1;
+  // Where the ray crosses the box, a cell the cameras saw through (from a little inside to a little outside).
+  double tExit = 1e30;
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(w[k]) > 1e-12) tExit = std::min(tExit, ((w[k] > 0 ? hi_[k] : lo_[k]) - origin[k]) / w[k]);
+  tExit = std::max(tExit, 0.0);
+  const double step = 0.5 * openings_->cellM;
+  for (double t = tExit - 3 * step; t <= tExit + 6 * step; t += step)
+    if (t > 0 && openings_->contains(origin + t * w)) return 1;
+  return -1;
+}
+
+std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& positions,
+                                             const std::vector<cv::Vec3f>& normals,
+                                             const std::vector<cv::Vec3f>& radiance,
+                                             const std::vector<cv::Vec3f>& albedo,
+                                             const std::vector<uint8_t>& saturated, const MeshRays& rays,
+                                             const DistantLightOptions& o, const RoomOpenings* openings) {
+  const size_t count = std::min({positions.size(), normals.size(), radiance.size(), albedo.size()});
+  std::vector<size_t> usable;
+  for (size_t i = 0; i < count; ++i) {
+    const cv::Vec3f& a = albedo[i];
+    const cv::Vec3f& l = radiance[i];
+    const cv::Vec3f& nn = normals[i];
+    bool ok = cv::norm(nn) > 0.5;
+    for (int k = 0; k < 3 && ok; ++k) ok = a[k] > 0.01f && std::isfinite(l[k]) && l[k] >= 0;
+    if (ok) usable.push_back(i);
+  }
+  if (usable.size() < 100) return std::nullopt;
+  const DistantLightRays reach(positions, rays, openings);
+  const size_t stride = std::max<size_t>(1, usable.size() / static_cast<size_t>(std::max(1, o.maxPoints)));
+  std::vector<Sample> samples;
+  std::vector<cv::Vec3f> where;
+  for (size_t j = 0; j < usable.size(); j += stride) {
+    const size_t i = usable[j];
+    Sample s;
+    s.normal = cv::normalize(cv::Vec3d(normals[i]));
+    s.origin = cv::Vec3d(positions[i]) + o.rayOffsetM * s.normal;
+    for (int k = 0; k < 3; ++k) {
+      s.radiance[k] = radiance[i][k];
+      s.albedo[k] = albedo[i][k];
+      s.irradiance[k] = CV_PI * radiance[i][k] / albedo[i][k];
+      s.clipped[k] = (i < saturated.size() && saturated[i]) || radiance[i][k] >= o.clipRadiance;
+    }
+    samples.push_back(s);
+    where.push_back(positions[i]);
+  }
+  {
+    const PointCloudAdaptor cloud{where};
+    const PointKdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    constexpr size_t kNeighbours = 8;
+    const float r2 = static_cast<float>(o.edgeRadiusM * o.edgeRadiusM);
+    for (size_t i = 0; i < samples.size(); ++i) {
+      uint32_t idx[kNeighbours];
+      float d2[kNeighbours];
+      const size_t found = tree.knnSearch(&where[i][0], kNeighbours, idx, d2);
+      for (size_t k = 0; k < found; ++k)
+        if (idx[k] != i && d2[k] <= r2 && samples[idx[k]].normal.dot(samples[i].normal) > 0.9)
+          samples[i].neighbours.push_back(idx[k]);
+    }
+  }
+
+  Fit best;
+  cv::Vec3d bestW;
+  if (o.towards) {
+    bestW = cv::normalize(*o.towards);
+    best = fitDirection(samples, bestW, reach, o);
+    if (best.score < 0) return std::nullopt;
+  } else {
+    if (!search(samples, reach, o, best, bestW)) return std::nullopt;
+    if (best.consistency < o.minConsistency || best.score < o.minScore) return std::nullopt;
+    if (!(capture::luminance(best.sun) >= o.minContrast * capture::luminance(best.rest))) return std::nullopt;
+  }
   DistantLight light;
   light.towards = bestW;
   light.irradiance = best.sun;
@@ -202,6 +280,7 @@ std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& posit
   light.consistency = best.consistency;
   light.edges = best.edges;
   light.litShare = best.litShare;
+  for (int k = 0; k < 3; ++k) light.lowerBound[k] = best.lowerBound[k] != 0;
   return light;
 }
 

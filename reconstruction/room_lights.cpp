@@ -9,6 +9,7 @@
 #include "capture/checks.h"
 #include "capture/colour.h"
 #include "reconstruction/mesh_rays.h"
+#include "reconstruction/room_bounce.h"
 
 namespace mrgi::reconstruction {
 
@@ -92,6 +93,16 @@ void fillUncovered(cv::Mat& L, const cv::Mat& hit, const cv::Mat& saturated, con
 
 }  // namespace
 
+namespace {
+/// A distant light already known, its light on each vertex: irradiance at normal incidence, direction, reach.
+struct KnownDistant {
+  cv::Vec3d irradiance, towards;
+  const DistantLightRays* reach;
+};
+RoomLights lightsSeenFrom(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o,
+                          const MeshRays& mesh, const KnownDistant* sun = nullptr);
+}  // namespace
+
 RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o,
                               const MeshRays* given) {
   if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");
@@ -105,10 +116,88 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
       !(o.estimateRadius > 0) || !(o.maxSaturatedFraction >= 0 && o.maxSaturatedFraction <= 1) ||
       !(o.minPointDistance >= 0))
     throw std::invalid_argument("estimateRoomLights: options out of range");
-  const FisheyeRays rays = latLongRays(o.mapWidth);
   std::optional<MeshRays> built;
   if (!given) built.emplace(room.positions, room.indices);
   const MeshRays& mesh = given ? *given : *built;
+  if (!o.findDistant) return lightsSeenFrom(room, centre, o, mesh);
+
+  // A distant light the room shows by its sunlit patches and shadows: its direction from the radiance alone (a
+  // mid-grey albedo everywhere: the edges' signs are what the search needs).
+  const size_t n = room.positions.size();
+  const std::vector<cv::Vec3f> grey(n, cv::Vec3f(0.5f, 0.5f, 0.5f));
+  const std::optional<DistantLight> found = findDistantLight(room.positions, room.normals, room.radiance, grey,
+                                                             room.saturated, mesh, o.distant, &room.openings);
+  if (!found) return lightsSeenFrom(room, centre, o, mesh);
+  // Clipped surfaces it lights are sunlit surfaces, not lamps: their radiance stays a lower bound of what they
+  // send, and they neither become lights nor judge the lamps' gain.
+  RoomMesh lit = room;
+  const DistantLightRays reach(room.positions, mesh, &room.openings);
+  size_t sunlitClipped = 0;
+  for (size_t i = 0; i < n && i < lit.saturated.size(); ++i) {
+    if (!lit.saturated[i]) continue;
+    const cv::Vec3d nrm(room.normals[i]);
+    if (nrm.dot(found->towards) <= 0 || reach.reaches(cv::Vec3d(room.positions[i]) + 0.01 * nrm, found->towards) != 1)
+      continue;
+    lit.saturated[i] = 0;
+    ++sunlitClipped;
+  }
+  // Its power from the same edges, measured against the albedo the room's other light gives the shadowed side:
+  // the lamps at their clipped bound here (their gain, judged by the light on the room's white surfaces, needs the
+  // distant light's share of it first).
+  RoomLightOptions bounded = o;
+  bounded.saturatedGain = 1;
+  const auto measureSun = [&](const RoomLights& others) {
+    AlbedoLights al;
+    for (const RoomLight& l : others.lights) {
+      if (l.point) {
+        al.points.push_back({l.position, l.intensity, cv::norm(l.position - centre) * std::sin(l.angularRadius)});
+      } else {
+        EstimatedLight e;
+        e.direction = l.direction;
+        e.power = l.irradiance;
+        e.angularRadius = l.angularRadius;
+        al.distant.push_back(e);
+      }
+    }
+    RoomBounceOptions bo;
+    bo.outside = others.ambientRadiance;
+    const std::vector<cv::Vec3f> bounce = roomBounceIrradiance(lit, mesh, bo);
+    const RoomAlbedo albedo = estimateRoomAlbedo(lit, al, {}, nullptr, &bounce, &mesh);
+    DistantLightOptions measure = o.distant;
+    measure.towards = found->towards;
+    return findDistantLight(room.positions, room.normals, room.radiance, albedo.albedo, room.saturated, mesh, measure,
+                            &room.openings);
+  };
+  std::optional<DistantLight> sun = measureSun(lightsSeenFrom(lit, centre, bounded, mesh));
+  if (!sun || !(capture::luminance(sun->irradiance) > 0)) return lightsSeenFrom(lit, centre, o, mesh);
+  KnownDistant known{sun->irradiance, sun->towards, &reach};
+  RoomLights out = lightsSeenFrom(lit, centre, o, mesh, &known);
+  // Once more with the lamps' gain that leaves (the shadowed side's albedo under the lamps as they are).
+  if (out.gainEstimated && out.gain > 1) {
+    if (std::optional<DistantLight> again = measureSun(out); again && capture::luminance(again->irradiance) > 0) {
+      sun = again;
+      known.irradiance = sun->irradiance;
+      out = lightsSeenFrom(lit, centre, o, mesh, &known);
+    }
+  }
+  RoomLight l;
+  l.point = false;
+  l.distant = true;
+  l.direction = sun->towards;
+  for (int k = 0; k < 3; ++k) l.irradiance[k] = std::max(0.0, sun->irradiance[k]);
+  l.angularRadius = o.distantAngularRadius;
+  out.lights.push_back(l);
+  out.distant = *sun;
+  out.distant->consistency = found->consistency;
+  out.sunlitClipped = sunlitClipped;
+  return out;
+}
+
+namespace {
+
+RoomLights lightsSeenFrom(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o,
+                          const MeshRays& mesh, const KnownDistant* sun) {
+  const FisheyeRays rays = latLongRays(o.mapWidth);
   const int W = rays.directions.cols, H = rays.directions.rows;
   cv::Mat L(H, W, CV_32FC3, cv::Scalar::all(0)), hitPos(H, W, CV_32FC3, cv::Scalar::all(0));
   cv::Mat saturated(H, W, CV_8UC1, cv::Scalar(0)), hit(H, W, CV_8UC1, cv::Scalar(0));
@@ -193,12 +282,13 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
     for (size_t k = 0; k < near.size(); k += step) {
       const size_t i = near[k];
       const cv::Vec3d p(room.positions[i]), n(room.normals[i]);
-      double Ebound = 0;
+      double Ebound = 0, Ereach = 0;
       for (const Source& s : sources) {
         cv::Vec3d d = s.position - p;
         const double r = cv::norm(d);
         if (r < 1e-6) continue;
         d /= r;
+        Ereach += s.intensity / (r * r);
         const double c = n.dot(d);
         if (c <= 0.2) continue;  // grazing: the estimate would divide by little
         // Shadowed only by what lies between: the saturated cells sit on the lamp's side that faces the centre,
@@ -208,9 +298,14 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
       }
       // Vertices the saturated regions do not light (shadowed, facing away) tell nothing about them, nor do
       // ones darker than the rest of the room alone would make a white surface.
-      const double Erest = capture::luminance(shIrradiance(restSh, n));
+      double Erest = capture::luminance(shIrradiance(restSh, n));
+      // A distant light's share is not the lamps'.
+      if (sun && n.dot(sun->towards) > 0 && sun->reach->reaches(p + 0.01 * n, sun->towards) == 1)
+        Erest += capture::luminance(sun->irradiance) * n.dot(sun->towards);
       const double excess = CV_PI * capture::luminance(cv::Vec3d(room.radiance[i])) / o.whiteAlbedo - Erest;
-      if (Ebound <= 0 || excess <= 0) continue;
+      // Nor do ones the saturated regions light mostly at grazing angles or from behind (a ceiling around the
+      // clipped spot a lamp below it makes): their light comes from elsewhere.
+      if (Ebound <= 0 || excess <= 0 || Ebound < 0.2 * Ereach) continue;
       gains.push_back(excess / Ebound);
     }
     out.gainSamples = static_cast<int>(gains.size());
@@ -262,5 +357,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   }
   return out;
 }
+
+}  // namespace
 
 }  // namespace mrgi::reconstruction

@@ -12,8 +12,10 @@
 /// regions' at the bound. Never below 1: the clip level is a true lower bound.
 #include <array>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
+#include "reconstruction/distant_lights.h"
 #include "reconstruction/light_estimation.h"
 #include "reconstruction/room_model.h"
 
@@ -46,10 +48,18 @@ struct RoomLightOptions {
   /// A light whose region lies nearer than this to the centre (the surface the object stands on, lit) is
   /// kept as a directional light: a point light there would sit inside or against the object.
   double minPointDistance = 0.25;
+  /// Search the room's shadow edges for a distant light the camera never saw (findDistantLight: the sun through a
+  /// window), and light by it: its direction from the edges, its irradiance from the steps across them over the
+  /// albedo the room's other light gives the shadowed side. Clipped surfaces it lights are then sunlit surfaces,
+  /// not lamps.
+  bool findDistant = false;
+  DistantLightOptions distant;
+  double distantAngularRadius = 0.0047;  ///< the light's half-angle (radians; the sun's)
 };
 
 struct RoomLight {
   bool point = true;              ///< false: no surface was hit in its region (directional)
+  bool distant = false;           ///< found from the room's shadow edges (RoomLightOptions::findDistant), not seen
   cv::Vec3d position{0, 0, 0};    ///< lighting world (point)
   cv::Vec3d direction{0, 0, 0};   ///< unit, from the centre towards the light
   cv::Vec3d intensity{0, 0, 0};   ///< W/sr (point): power x distance^2
@@ -71,12 +81,14 @@ struct RoomLights {
   cv::Vec3d ambientRadiance{0, 0, 0};  ///< the remainder's mean radiance (SH band 0)
   double gain = 1;                     ///< applied to saturated radiance
   bool gainEstimated = false;
-  int gainSamples = 0;           ///< vertices the estimate used
-  double saturatedFraction = 0;  ///< of the covered solid angle, saturated
-  bool overExposed = false;      ///< saturatedFraction > maxSaturatedFraction: no estimate
-  double coverage = 0;           ///< solid-angle fraction of the sphere that hit the room
-  cv::Mat environment;           ///< CV_32FC3 lat-long radiance after the gain (row 0: +z)
-  LightSplit split;              ///< the split itself (its lights' directions are world)
+  int gainSamples = 0;                  ///< vertices the estimate used
+  double saturatedFraction = 0;         ///< of the covered solid angle, saturated
+  bool overExposed = false;             ///< saturatedFraction > maxSaturatedFraction: no estimate
+  double coverage = 0;                  ///< solid-angle fraction of the sphere that hit the room
+  cv::Mat environment;                  ///< CV_32FC3 lat-long radiance after the gain (row 0: +z)
+  LightSplit split;                     ///< the split itself (its lights' directions are world)
+  std::optional<DistantLight> distant;  ///< the light found from the shadow edges (also among `lights`)
+  size_t sunlitClipped = 0;             ///< clipped vertices it lights (taken as surfaces, not lamps)
 };
 
 /// The room's lat-long directions and pixel solid angles (row v: polar angle from +z; column u: azimuth

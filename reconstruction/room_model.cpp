@@ -50,6 +50,11 @@ Eigen::Vector3i floorDiv(const Eigen::Vector3i& a, int b) {
   return q;
 }
 
+/// Cells in lexicographic order (x, then y, then z).
+bool cellLess(const cv::Vec3i& a, const cv::Vec3i& b) {
+  return a[0] != b[0] ? a[0] < b[0] : a[1] != b[1] ? a[1] < b[1] : a[2] < b[2];
+}
+
 struct Hash {
   size_t operator()(const Eigen::Vector3i& v) const {
     return (static_cast<size_t>(v[0]) * 73856093u) ^ (static_cast<size_t>(v[1]) * 19349663u) ^
@@ -200,6 +205,46 @@ struct RoomModel::Impl {
     uint16_t count = 0, clipped = 0;
   };
   std::unordered_map<Eigen::Vector3i, Appearance, Hash> appearance;
+
+  /// RoomOpenings: the cells crossed by rays through 8 x 8 pixel tiles (at 640 pixels across; scaled with the
+  /// width) nine tenths of whose pixels hold no depth within range, out to kOpeningReachM past the range. Whole
+  /// tiles, so that the depth lost along objects' edges (a structured-light sensor's shadow) opens nothing.
+  std::unordered_set<Eigen::Vector3i, Hash> openings;
+  static constexpr double kOpeningCellM = 0.1, kOpeningReachM = 4.0;
+  static constexpr size_t kMaxOpeningCells = size_t{1} << 22;
+
+  void recordOpenings(const cv::Mat& raw, const capture::Intrinsics& K, const capture::Pose& T, double maxDepthM) {
+    const int tile = std::max(2, static_cast<int>(std::lround(K.width / 80.0)));
+    const cv::Vec3d origin(T(0, 3), T(1, 3), T(2, 3));
+    const double step = 0.5 * kOpeningCellM;
+    for (int ty = 0; ty + tile <= raw.rows; ty += tile)
+      for (int tx = 0; tx + tile <= raw.cols; tx += tile) {
+        // Pixels with no depth, or depth past the range (free as far as it, at least).
+        int empty = 0;
+        double reach = maxDepthM + kOpeningReachM;
+        for (int y = ty; y < ty + tile; ++y) {
+          const float* row = raw.ptr<float>(y);
+          for (int x = tx; x < tx + tile; ++x) {
+            const bool valid = std::isfinite(row[x]) && row[x] > 0;
+            if (valid && row[x] <= maxDepthM) continue;
+            ++empty;
+            if (valid) reach = std::min(reach, static_cast<double>(row[x]));
+          }
+        }
+        if (10 * empty < 9 * tile * tile) continue;
+        const double u = tx + 0.5 * tile - 0.5, v = ty + 0.5 * tile - 0.5;
+        const cv::Vec3d c((u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0);
+        const cv::Vec3d d = cv::normalize(cv::Vec3d(T(0, 0) * c[0] + T(0, 1) * c[1] + T(0, 2) * c[2],
+                                                    T(1, 0) * c[0] + T(1, 1) * c[1] + T(1, 2) * c[2],
+                                                    T(2, 0) * c[0] + T(2, 1) * c[1] + T(2, 2) * c[2]));
+        for (double t = 0; t <= reach - step && openings.size() < kMaxOpeningCells; t += step) {
+          const cv::Vec3d p = origin + t * d;
+          openings.insert({static_cast<int>(std::floor(p[0] / kOpeningCellM)),
+                           static_cast<int>(std::floor(p[1] / kOpeningCellM)),
+                           static_cast<int>(std::floor(p[2] / kOpeningCellM))});
+        }
+      }
+  }
 
   void observe(const cv::Mat& depth, const cv::Mat& colour, const capture::Intrinsics& K, const capture::Pose& T,
                double exposure, const RoomOptions& o) {
@@ -529,6 +574,7 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
   carveFreeSpace(impl_->tsdf, impl_->weight, inView, buffers, options_.voxelM, depth, K, T_camera_world,
                  options_.truncM);
   impl_->observe(depth, colour, K, T_world_camera, exposure, options_);
+  impl_->recordOpenings(depthIn, K, T_world_camera, options_.maxDepthM);
   r.integrated = true;
   ++integrated_;
   return r;
@@ -612,7 +658,18 @@ RoomMesh RoomModel::mesh() const {
   out.indices.reserve(m->triangles_.size() * 3);
   for (const auto& t : m->triangles_)
     for (int k = 0; k < 3; ++k) out.indices.push_back(static_cast<uint32_t>(t[k]));
+  out.openings.cellM = Impl::kOpeningCellM;
+  out.openings.recorded = true;
+  out.openings.cells.reserve(impl_->openings.size());
+  for (const auto& c : impl_->openings) out.openings.cells.emplace_back(c[0], c[1], c[2]);
+  std::sort(out.openings.cells.begin(), out.openings.cells.end(), cellLess);
   return out;
+}
+
+bool RoomOpenings::contains(const cv::Vec3d& p) const {
+  const cv::Vec3i c(static_cast<int>(std::floor(p[0] / cellM)), static_cast<int>(std::floor(p[1] / cellM)),
+                    static_cast<int>(std::floor(p[2] / cellM)));
+  return std::binary_search(cells.begin(), cells.end(), c, cellLess);
 }
 
 size_t RoomModel::blocks() const { return impl_->index.size(); }
@@ -948,10 +1005,10 @@ namespace {
 constexpr int kAppearanceColumns = 5;  // r, g, b, confidence, saturated
 
 /// ROOM/room_appearance.npy: float32 little-endian, C order, (vertices, 5).
-std::string appearanceNpy(const RoomMesh& mesh) {
-  const size_t n = mesh.positions.size();
-  std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(n) + ", " +
-                       std::to_string(kAppearanceColumns) + "), }";
+/// A .npy preamble (version 1.0) for a (rows, cols) C-order array of type `descr`.
+std::string npyPreamble(const char* descr, size_t rows, int cols) {
+  std::string header = std::string("{'descr': '") + descr + "', 'fortran_order': False, 'shape': (" +
+                       std::to_string(rows) + ", " + std::to_string(cols) + "), }";
   // Magic, version 1.0, header length; the whole preamble padded with spaces to a multiple of 64, ending in '\n'.
   const size_t preamble = 10;
   while ((preamble + header.size() + 1) % 64 != 0) header += ' ';
@@ -959,7 +1016,12 @@ std::string appearanceNpy(const RoomMesh& mesh) {
   std::string out("\x93NUMPY\x01\x00", 8);
   out += static_cast<char>(header.size() & 0xff);
   out += static_cast<char>(header.size() >> 8);
-  out += header;
+  return out + header;
+}
+
+std::string appearanceNpy(const RoomMesh& mesh) {
+  const size_t n = mesh.positions.size();
+  std::string out = npyPreamble("<f4", n, kAppearanceColumns);
   std::vector<float> rows(n * kAppearanceColumns);
   for (size_t i = 0; i < n; ++i) {
     for (int k = 0; k < 3; ++k) rows[i * kAppearanceColumns + k] = mesh.radiance[i][k];
@@ -967,6 +1029,13 @@ std::string appearanceNpy(const RoomMesh& mesh) {
     rows[i * kAppearanceColumns + 4] = i < mesh.saturated.size() && mesh.saturated[i] ? 1.f : 0.f;
   }
   out.append(reinterpret_cast<const char*>(rows.data()), rows.size() * sizeof(float));
+  return out;
+}
+
+/// ROOM/room_openings.npy: int32 little-endian, (cells, 3).
+std::string openingsNpy(const RoomOpenings& o) {
+  std::string out = npyPreamble("<i4", o.cells.size(), 3);
+  out.append(reinterpret_cast<const char*>(o.cells.data()), o.cells.size() * sizeof(cv::Vec3i));
   return out;
 }
 
@@ -1019,6 +1088,13 @@ void saveRoom(const std::string& dir, const RoomMesh& mesh, const RoomInfo& info
                       {"triangles", mesh.triangleCount()},
                       {"session", info.session}};
   if (!mesh.positions.empty()) j["bounds_m"] = {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
+  if (mesh.openings.recorded) {
+    // None seen: no file (NumPy's arrays of no rows are more than our reader takes).
+    if (!mesh.openings.cells.empty())
+      capture::writeFileAtomically(fs::path(dir) / "room_openings.npy", openingsNpy(mesh.openings));
+    j["openings"] = {{"cell_m", mesh.openings.cellM},
+                     {"cells", mesh.openings.cells.empty() ? nlohmann::json(nullptr) : "room_openings.npy"}};
+  }
   capture::writeFileAtomically(fs::path(dir) / "room.json", j.dump(2) + "\n");
 }
 
@@ -1044,6 +1120,33 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
   ri.framesIntegrated = capture::jsonIntOr(j, "frames_integrated", 0, json.string());
   ri.framesRefused = capture::jsonIntOr(j, "frames_refused", 0, json.string());
   ri.session = capture::jsonStringOr(j, "session", std::string(), json.string());
+  RoomOpenings openings;
+  if (j.contains("openings")) {
+    const nlohmann::json& o = j["openings"];
+    if (!o.is_object() || !o.contains("cells") || !(o["cells"].is_null() || o["cells"] == "room_openings.npy"))
+      throw capture::InputError(json.string(),
+                                "\"openings\" must hold \"cell_m\" and \"cells\": \"room_openings.npy\"");
+    openings.cellM = capture::jsonNumber(o, "cell_m", json.string());
+    capture::checkNumber(openings.cellM, 0.01, 10, json.string(), "openings.cell_m");
+    openings.recorded = true;
+  }
+  if (openings.recorded && !j["openings"]["cells"].is_null()) {
+    const fs::path file = fs::path(dir) / "room_openings.npy";
+    if (!fs::is_regular_file(file, ec)) throw capture::InputError(file.string(), "room openings are missing");
+    const cv::Mat rows = capture::parseNpy(
+        capture::readFileBounded(file.string(), capture::kMaxBinaryFileBytes, "room openings array"), file.string());
+    if (rows.type() != CV_32SC1 || rows.cols != 3)
+      throw capture::InputError(file.string(), "expected int32 (cells, 3)");
+    for (int i = 0; i < rows.rows; ++i) {
+      const int* r = rows.ptr<int>(i);
+      for (int k = 0; k < 3; ++k)
+        if (std::abs(r[k]) > (1 << 24))
+          throw capture::InputError(file.string(), "row " + std::to_string(i) + " is out of range");
+      openings.cells.emplace_back(r[0], r[1], r[2]);
+    }
+    std::sort(openings.cells.begin(), openings.cells.end(), cellLess);
+    openings.cells.erase(std::unique(openings.cells.begin(), openings.cells.end()), openings.cells.end());
+  }
   ri.options.validate(json.string());
   if (!fs::is_regular_file(ply, ec)) throw capture::InputError(ply.string(), "room mesh is missing");
   capture::checkPlyFile(ply.string());
@@ -1106,6 +1209,7 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
       out.saturated.push_back(std::max({out.radiance[i][0], out.radiance[i][1], out.radiance[i][2]}) >= clip ? 1 : 0);
     }
   }
+  out.openings = std::move(openings);
   if (info) *info = ri;
   return out;
 }

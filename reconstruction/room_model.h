@@ -54,6 +54,18 @@ struct RoomIntegration {
   size_t newBlocks = 0;     ///< blocks this frame allocated (or would have)
 };
 
+/// Where the cameras saw through the room: cells (edge `cellM`, lighting world, cell (i, j, k) spanning
+/// [i, i + 1) cellM along x and so on) crossed by camera rays that met no surface within the fusion's range
+/// (a window, a door open onto the outside, a hall beyond the range). A surface the cameras never looked at
+/// leaves a gap in the mesh too, but none of these cells beyond it: a ray that leaves the room through an
+/// opening can be told from one that leaves it through a gap.
+struct RoomOpenings {
+  double cellM = 0.1;
+  std::vector<cv::Vec3i> cells;  ///< sorted, each once
+  bool recorded = false;         ///< false: the room holds no record (a room saved before it was kept)
+  bool contains(const cv::Vec3d& p) const;
+};
+
 /// A triangle mesh of the model's surface in the lighting world, with the fused appearance per vertex.
 struct RoomMesh {
   std::vector<cv::Vec3f> positions, normals;
@@ -63,6 +75,7 @@ struct RoomMesh {
   std::vector<float> confidence;   ///< summed observation weight (0: only Open3D's colour average was there)
   std::vector<uint8_t> saturated;  ///< 1: every observation was clipped (a lamp, a window)
   std::vector<uint32_t> indices;
+  RoomOpenings openings;
   size_t triangleCount() const { return indices.size() / 3; }
 };
 

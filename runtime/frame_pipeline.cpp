@@ -155,6 +155,10 @@ void FramePipeline::estimateRoomLights() {
   ro.split.medianCut.count = setup_->scene.roomLightCount;
   ro.saturatedGain = setup_->scene.roomSaturatedGain;
   ro.whiteAlbedo = setup_->scene.roomWhiteAlbedo;
+  // A room fixed for the whole run (a recording fused first, or --room) is searched for a distant light it shows
+  // only by its sunlit patches and shadows (a second or two, once); a room fused as a sensor's frames come is
+  // not yet (it would be searched again at every refresh).
+  ro.findDistant = !options_.fuse;
   roomLightEstimate_ =
       std::make_shared<reconstruction::RoomLights>(reconstruction::estimateRoomLights(*options_.room, centre, ro));
   setup_->lights.clear();

@@ -127,6 +127,7 @@ int roomLights(const RoomLightsOptions& o) {
   ro.split.medianCut.count = o.count;
   ro.saturatedGain = o.gain;
   ro.whiteAlbedo = o.whiteAlbedo;
+  ro.findDistant = true;
   const cv::Vec3d& at = o.at;
   const reconstruction::RoomLights l = reconstruction::estimateRoomLights(room, at, ro);
   json lights = json::array();
@@ -155,23 +156,15 @@ int roomLights(const RoomLightsOptions& o) {
               {"saturated_fraction", l.saturatedFraction},
               {"over_exposed", l.overExposed},
               {"coverage", l.coverage}};
-  // A distant light the room shows only by its sunlit patches and shadows (the sun through a window): searched
-  // for, and reported with what supports it. Not yet among the lights the scene is lit by: the albedo taken is a
-  // mid grey (0.5) wherever the room is not clipped, so its irradiance holds to that scale.
-  const reconstruction::MeshRays rays(room.positions, room.indices);
-  // Clipped vertices (a sunlit patch often is) stay: their radiance is a lower bound, still brighter than the
-  // shadow beside them.
-  const std::vector<cv::Vec3f> albedo(room.positions.size(), cv::Vec3f(0.5f, 0.5f, 0.5f));
-  reconstruction::DistantLightOptions dlo;
-  const auto distant = reconstruction::findDistantLight(room.positions, room.normals, room.radiance, albedo, rays, dlo);
   out["distant_light"] = nullptr;
-  if (distant)
-    out["distant_light"] = {
-        {"towards", {distant->towards[0], distant->towards[1], distant->towards[2]}},
-        {"irradiance_at_albedo_0_5", {distant->irradiance[0], distant->irradiance[1], distant->irradiance[2]}},
-        {"consistency", distant->consistency},
-        {"edges", distant->edges},
-        {"lit_share", distant->litShare}};
+  if (const auto& d = l.distant)
+    out["distant_light"] = {{"towards", {d->towards[0], d->towards[1], d->towards[2]}},
+                            {"irradiance", {d->irradiance[0], d->irradiance[1], d->irradiance[2]}},
+                            {"irradiance_lower_bound", {d->lowerBound[0], d->lowerBound[1], d->lowerBound[2]}},
+                            {"consistency", d->consistency},
+                            {"edges", d->edges},
+                            {"lit_share", d->litShare},
+                            {"sunlit_clipped_vertices", l.sunlitClipped}};
   if (!o.map.empty()) writePng(o.map, roomLightsImage(l), "mrgi room-lights");
   if (o.json) {
     std::printf("%s\n", jsonText(out, o.room).c_str());
@@ -183,19 +176,22 @@ int roomLights(const RoomLightsOptions& o) {
                                 : "given",
                 100 * l.coverage);
     for (const auto& x : l.lights)
-      if (x.point)
+      if (x.distant)
+        std::printf(
+            "  distant, towards (%.3f, %.3f, %.3f), irradiance %.4g%s: not seen, found from the room's shadow "
+            "edges (%d of them, %.0f %% agreeing)\n",
+            x.direction[0], x.direction[1], x.direction[2], capture::luminance(x.irradiance),
+            l.distant->lowerBound[0] || l.distant->lowerBound[1] || l.distant->lowerBound[2]
+                ? " (at least: its sunlit patches are clipped)"
+                : "",
+            l.distant->edges, 100 * l.distant->consistency);
+      else if (x.point)
         std::printf("  point at (%.3f, %.3f, %.3f), irradiance %.4g\n", x.position[0], x.position[1], x.position[2],
                     capture::luminance(x.irradiance));
       else  // no surface in its region: it has a direction, no position
         std::printf("  directional, towards (%.3f, %.3f, %.3f) from the point, irradiance %.4g\n", x.direction[0],
                     x.direction[1], x.direction[2], capture::luminance(x.irradiance));
-    if (distant)
-      std::printf(
-          "  a distant light the room's shadow edges show, towards (%.3f, %.3f, %.3f): %d edges agree %.0f %% "
-          "(not yet lighting the scene)\n",
-          distant->towards[0], distant->towards[1], distant->towards[2], distant->edges, 100 * distant->consistency);
-    else
-      std::printf("  no distant light shows in the room's shadow edges\n");
+    if (!l.distant) std::printf("  no distant light shows in the room's shadow edges\n");
   }
   return 0;
 }

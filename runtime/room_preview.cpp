@@ -49,6 +49,7 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
   const reconstruction::MeshRays rays(room.positions, room.indices);
   reconstruction::RoomLightOptions lo;
   lo.split.medianCut.count = o.lightCount;
+  lo.findDistant = true;
   const reconstruction::RoomLights lights = reconstruction::estimateRoomLights(room, o.at, lo, &rays);
   if (coverage) *coverage = lights.coverage;
 
@@ -61,6 +62,7 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
       reconstruction::EstimatedLight e;
       e.direction = l.direction;
       e.power = l.irradiance;
+      e.angularRadius = l.angularRadius;
       al.distant.push_back(e);
     }
   }
@@ -116,7 +118,12 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
   cv::Mat legend(22 * static_cast<int>(lights.lights.size() + 1), env.cols, CV_8UC3, cv::Scalar(20, 20, 20));
   for (size_t i = 0; i < lights.lights.size(); ++i) {
     const auto& l = lights.lights[i];
-    if (l.point)
+    if (l.distant && lights.distant)
+      std::snprintf(line, sizeof line,
+                    "%zu: distant towards (%.2f, %.2f, %.2f), irradiance %.3g%s: unseen, from %d shadow edges", i + 1,
+                    l.direction[0], l.direction[1], l.direction[2], capture::luminance(l.irradiance),
+                    lights.distant->lowerBound[1] ? " at least" : "", lights.distant->edges);
+    else if (l.point)
       std::snprintf(line, sizeof line, "%zu: point at (%.2f, %.2f, %.2f), irradiance %.3g%s", i + 1, l.position[0],
                     l.position[1], l.position[2], capture::luminance(l.irradiance),
                     l.saturatedFraction > 0.5 ? " (clipped: its gain estimated)" : "");

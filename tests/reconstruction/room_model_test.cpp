@@ -345,6 +345,39 @@ TEST(RoomModel, AGrowingRoomKeepsWhatItHeld) {
   EXPECT_NEAR(static_cast<double>(room.mesh().positions.size()), kViews * firstVertices, 0.05 * firstVertices);
 }
 
+TEST(RoomModel, WhereTheCamerasSawThroughIsRecordedAndNeverBehindASurface) {
+  // A floor and a wall, nothing else: the cameras see past the wall's top and the floor's far end (no depth within
+  // the range). Those rays' cells are the room's openings; none lies behind the wall or under the floor, where no
+  // ray went, and none where every ray met a surface (the floor in front of the cameras).
+  RoomModel room;
+  int k = 0;
+  std::vector<capture::Pose> poses = orbit(4, 1.2, 0.9);
+  poses.push_back(lookAt({0.5, 0, 0.9}, {3, 0.3, 0.9}));  // away from the wall: the floor below, nothing above
+  for (const auto& T : poses)
+    ASSERT_TRUE(room.integrate(renderDepth(Scene{}, T, 0.002, k++), grey(200), kK, T).integrated);
+  const RoomMesh mesh = room.mesh();
+  const reconstruction::RoomOpenings& o = mesh.openings;
+  ASSERT_TRUE(o.recorded);
+  ASSERT_GT(o.cells.size(), 50u);
+  // A ray with no depth met nothing within the sensor's range: under the floor only past it (4 m) from every camera.
+  for (const cv::Vec3i& c : o.cells) {
+    EXPECT_GT((c[0] + 1) * o.cellM, -0.9 - 1e-9) << c;  // the wall at x = -0.9
+    if ((c[2] + 1) * o.cellM > 1e-9) continue;          // the floor at z = 0
+    double nearest = 1e9;
+    for (const auto& T : poses)
+      nearest = std::min(nearest, cv::norm((cv::Vec3d(c) + cv::Vec3d::all(0.5)) * o.cellM - capture::translationOf(T)));
+    EXPECT_GT(nearest, room.options().maxDepthM) << c;
+  }
+  // Ahead of the last camera, above its horizon, where it looked past everything; nowhere near the floor.
+  bool above = false;
+  for (double x = 1.5; x < 4 && !above; x += 0.1) above = o.contains({x, 0.1, 1.5});
+  EXPECT_TRUE(above);
+  EXPECT_FALSE(o.contains({0.05, 0.05, 0.05}));
+  EXPECT_TRUE(std::is_sorted(o.cells.begin(), o.cells.end(), [](const cv::Vec3i& a, const cv::Vec3i& b) {
+    return a[0] != b[0] ? a[0] < b[0] : a[1] != b[1] ? a[1] < b[1] : a[2] < b[2];
+  }));
+}
+
 TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
   RoomModel room;
   int k = 0;
@@ -368,6 +401,9 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
     EXPECT_EQ(l.confidence[i], m.confidence[i]);
     EXPECT_EQ(l.saturated[i], m.saturated[i]);
   }
+  EXPECT_TRUE(l.openings.recorded);
+  EXPECT_EQ(l.openings.cellM, m.openings.cellM);
+  EXPECT_EQ(l.openings.cells, m.openings.cells);
   EXPECT_EQ(back.framesIntegrated, 4);
   EXPECT_EQ(back.session, "synthetic");
 
