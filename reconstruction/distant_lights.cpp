@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include "capture/colour.h"
 #include "reconstruction/mesh_rays.h"
@@ -50,6 +51,85 @@ struct Fit {
   cv::Vec3b lowerBound{0, 0, 0};
 };
 
+/// The weighted median of (value, weight) pairs (0 when empty).
+double weightedMedian(std::vector<std::pair<double, double>> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  double total = 0;
+  for (const auto& [x, wt] : v) total += wt;
+  double run = 0;
+  for (const auto& [x, wt] : v)
+    if ((run += wt) >= 0.5 * total) return x;
+  return v.back().first;
+}
+
+/// Fit::sun and Fit::lowerBound from the lit and shadowed pieces of the room's surfaces (fitDirection).
+void regionSteps(const std::vector<Sample>& samples, const std::vector<double>& c, const cv::Vec3d& w,
+                 const DistantLightOptions& o, Fit& f) {
+  constexpr double kPieceM = 0.3;
+  constexpr size_t kMinSide = 4;
+  std::map<std::array<int, 4>, std::array<std::vector<size_t>, 2>> pieces;  // [0] lit, [1] shadowed
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const Sample& s = samples[i];
+    const bool lit = c[i] > o.minFacing, shadowed = c[i] == 0 && s.normal.dot(w) > o.minFacing;
+    if (!lit && !shadowed) continue;
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+      if (std::abs(s.normal[k]) > std::abs(s.normal[axis])) axis = k;
+    const std::array<int, 4> key{static_cast<int>(std::floor(s.origin[0] / kPieceM)),
+                                 static_cast<int>(std::floor(s.origin[1] / kPieceM)),
+                                 static_cast<int>(std::floor(s.origin[2] / kPieceM)), 2 * axis + (s.normal[axis] > 0)};
+    pieces[key][lit ? 0 : 1].push_back(i);
+  }
+  std::vector<std::pair<double, double>> measured[3], bound[3];
+  const auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  for (const auto& [key, sides] : pieces) {
+    const auto& [lit, shadowed] = sides;
+    if (lit.size() < kMinSide || shadowed.size() < kMinSide) continue;
+    std::vector<double> cs;
+    for (size_t i : lit) cs.push_back(c[i]);
+    const double facing = median(cs);
+    cv::Vec3d Ll, Ls, a;
+    bool litClipped = false, shadowClipped = false;
+    for (int k = 0; k < 3; ++k) {
+      std::vector<double> l, sh, al;
+      size_t lc = 0, sc = 0;
+      for (size_t i : lit) l.push_back(samples[i].radiance[k]), lc += samples[i].clipped[k];
+      for (size_t i : shadowed) sh.push_back(samples[i].radiance[k]), sc += samples[i].clipped[k];
+      for (size_t i : shadowed) al.push_back(samples[i].albedo[k]);
+      Ll[k] = median(l), Ls[k] = median(sh), a[k] = median(al);
+      // Half a side clipped: its median is the sensor's white, a lower bound of its radiance.
+      litClipped = litClipped || 2 * lc >= lit.size();
+      shadowClipped = shadowClipped || 2 * sc >= shadowed.size();
+    }
+    if (shadowClipped) continue;
+    // A piece the light's predicted edge crosses only in the model (the fused geometry a little off, the patch's
+    // true edge outside the piece): its lit side no brighter than its shadowed one. Kept when most of its lit
+    // samples are brighter than three quarters of its shadowed ones.
+    {
+      std::vector<double> sh;
+      for (size_t i : shadowed) sh.push_back(capture::luminance(samples[i].radiance));
+      std::nth_element(sh.begin(), sh.begin() + static_cast<long>(3 * sh.size() / 4), sh.end());
+      const double q3 = sh[3 * sh.size() / 4];
+      size_t brighter = 0;
+      for (size_t i : lit) brighter += capture::luminance(samples[i].radiance) > q3;
+      if (5 * brighter < 3 * lit.size()) continue;
+    }
+    const double weight = static_cast<double>(std::min(lit.size(), shadowed.size()));
+    for (int k = 0; k < 3; ++k)
+      (litClipped ? bound[k] : measured[k]).emplace_back(CV_PI * (Ll[k] - Ls[k]) / (a[k] * facing), weight);
+  }
+  // The clipped pieces bound it from below: the measured ones' median, raised to their median where it is less.
+  for (int k = 0; k < 3; ++k) {
+    const double m = weightedMedian(measured[k]), b = weightedMedian(bound[k]);
+    f.sun[k] = std::max(m, b);
+    f.lowerBound[k] = !bound[k].empty() && (measured[k].empty() || b > m);
+  }
+}
+
 Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const DistantLightRays& rays,
                  const DistantLightOptions& o) {
   const size_t n = samples.size();
@@ -66,55 +146,26 @@ Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const D
     if (c[i] != 0) continue;  // lit, or unknown
     if (samples[i].normal.dot(w) > 0) shadowed += samples[i].irradiance, ++shadowedCount;
   }
-  // Each edge's step measures the light: (pi L_i - pi L_j) / (albedo_j c_i), the shadowed side's albedo taken
-  // for both (one surface).
-  std::vector<double> measured[3], bound[3], steps;
   for (size_t i = 0; i < n; ++i) {
     if (!(c[i] > o.minFacing)) continue;
     for (const uint32_t j : samples[i].neighbours) {
       if (c[j] != 0 || samples[j].normal.dot(w) <= o.minFacing) continue;
-      const Sample &a = samples[i], &b = samples[j];
-      const cv::Vec3d d = a.irradiance - b.irradiance;
-      sum += d[1];
-      sumSq += d[1] * d[1];
+      const double d = samples[i].irradiance[1] - samples[j].irradiance[1];
+      sum += d;
+      sumSq += d * d;
       ++f.edges;
-      // Measured where no channel of either side is clipped (a channel clipped alone would tint the light: the
-      // table's red clips first); a lower bound where the lit side is.
-      if (b.clipped[0] || b.clipped[1] || b.clipped[2]) continue;
-      const bool whole = !a.clipped[0] && !a.clipped[1] && !a.clipped[2];
-      for (int k = 0; k < 3; ++k)
-        (whole ? measured[k] : bound[k]).push_back(CV_PI * (a.radiance[k] - b.radiance[k]) / (b.albedo[k] * c[i]));
     }
   }
   if (f.edges < o.minEdges || !(sumSq > 0)) return f;
   f.score = sum / std::sqrt(sumSq);
   f.consistency = sum / std::sqrt(sumSq * f.edges);
-  // Not every predicted edge shows the light (the room's geometry, or its fused colour, a little off): the
-  // steps split in two by 1-D k-means, and the light is the median of the larger ones.
-  const auto shown = [](std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    // The outer tenths left out first (a shadowed side whose albedo the fill left near 0 divides by little).
-    const size_t tail = v.size() / 10;
-    v = std::vector<double>(v.begin() + static_cast<long>(tail), v.end() - static_cast<long>(tail));
-    double lo = v.front(), hi = v.back();
-    for (int round = 0; round < 20; ++round) {
-      double sl = 0, sh = 0;
-      int nl = 0, nh = 0;
-      for (double x : v) (std::abs(x - lo) <= std::abs(x - hi) ? (sl += x, ++nl) : (sh += x, ++nh));
-      if (nl) lo = sl / nl;
-      if (nh) hi = sh / nh;
-    }
-    const double cut = 0.5 * (lo + hi);
-    const auto first = std::upper_bound(v.begin(), v.end(), cut);
-    const size_t m = static_cast<size_t>(v.end() - first);
-    return m == 0 ? v[v.size() / 2] : *(first + static_cast<long>(m / 2));
-  };
-  for (int k = 0; k < 3; ++k) {
-    const bool enough = measured[k].size() >= static_cast<size_t>(std::max(3, o.minEdges / 3));
-    f.sun[k] = enough ? shown(measured[k]) : std::max(shown(measured[k]), shown(bound[k]));
-    f.lowerBound[k] = !enough && !bound[k].empty();
-  }
+  // The light's irradiance from the patches either side of its edges: on each 30 cm piece of one surface (one
+  // albedo, one light from elsewhere) that it both lights and leaves in the room's shadow, the lit samples' median
+  // radiance over the shadowed ones' is (E + S c) / E, E = pi L_shadowed / albedo (the albedo given, the shadowed
+  // side's): S = pi (L_lit - L_shadowed) / (albedo c). Medians, so that a boundary predicted a few centimetres
+  // off (the fused geometry, its voxels) mixes a few samples in, not the answer. A piece whose lit side is
+  // clipped in any channel bounds S from below; the pieces agree by their weighted median.
+  regionSteps(samples, c, w, o, f);
   if (shadowedCount > 0) f.rest = shadowed / static_cast<double>(shadowedCount);
   return f;
 }

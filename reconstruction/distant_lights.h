@@ -1,13 +1,14 @@
 #pragma once
 /// A distant light the camera never saw directly (the sun through a window), found from the light it casts on the
 /// room: the sunlit patches and the shadows the room's own geometry bounds them with. For a candidate direction w
-/// a surface point x is lit by it when its normal faces w and a ray from x towards w leaves the room (MeshRays:
-/// nothing of the room on the way). Where that predicts an edge between two neighbouring points of one surface
-/// (one lit, one in the room's shadow), the measured irradiance pi L / albedo should step up by the light's
-/// irradiance times n . w; the direction whose predicted edges the room's light agrees with most is the light's,
-/// refined around the best of a coarse set of directions. Differences across the edges are blind to light that
-/// varies smoothly (a lamp's falloff, the walls' bounce) and to albedo that changes elsewhere. What the light
-/// leaves stays with the room's other light (its SH remainder).
+/// a surface point x is lit by it when its normal faces w and a ray from x towards w leaves the room through an
+/// opening the cameras saw through (DistantLightRays). Where that predicts an edge between two neighbouring points
+/// of one surface (one lit, one in the room's shadow), the measured irradiance pi L / albedo should step up by the
+/// light's irradiance times n . w; the direction whose predicted edges the room's light agrees with most is the
+/// light's, refined around the best of a coarse set of directions. Differences across the edges are blind to light
+/// that varies smoothly (a lamp's falloff, the walls' bounce) and to albedo that changes elsewhere. Its irradiance
+/// comes from 30 cm pieces of the surfaces it both lights and leaves in shadow (the medians either side, over the
+/// shadowed side's albedo). What the light leaves stays with the room's other light (its SH remainder).
 #include <array>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -49,7 +50,7 @@ struct DistantLightOptions {
 
 struct DistantLight {
   cv::Vec3d towards{0, 0, 1};     ///< unit direction from the room towards the light
-  cv::Vec3d irradiance{0, 0, 0};  ///< at normal incidence, unoccluded (per channel): the edges' step
+  cv::Vec3d irradiance{0, 0, 0};  ///< at normal incidence, unoccluded (per channel): the pieces' weighted median
   std::array<bool, 3> lowerBound{false, false, false};  ///< per channel: every lit side was clipped
   cv::Vec3d rest{0, 0, 0};  ///< the mean irradiance of the points it faces and the room shadows
   double consistency = 0;   ///< mean over root mean square of the edges' steps (1: all agree)

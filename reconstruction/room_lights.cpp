@@ -360,4 +360,16 @@ RoomLights lightsSeenFrom(const RoomMesh& room, const cv::Vec3d& centre, const R
 
 }  // namespace
 
+nlohmann::json distantLightFacts(const RoomLights& lights) {
+  if (!lights.distant) return nullptr;
+  const DistantLight& d = *lights.distant;
+  return {{"towards", {d.towards[0], d.towards[1], d.towards[2]}},
+          {"irradiance", {d.irradiance[0], d.irradiance[1], d.irradiance[2]}},
+          {"irradiance_lower_bound", {d.lowerBound[0], d.lowerBound[1], d.lowerBound[2]}},
+          {"consistency", d.consistency},
+          {"edges", d.edges},
+          {"lit_share", d.litShare},
+          {"sunlit_clipped_vertices", lights.sunlitClipped}};
+}
+
 }  // namespace mrgi::reconstruction

@@ -11,6 +11,7 @@
 /// E_bound_i(n_i), where E_rest is the unsaturated environment's irradiance and E_bound the saturated
 /// regions' at the bound. Never below 1: the clip level is a true lower bound.
 #include <array>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <vector>
@@ -99,5 +100,10 @@ FisheyeRays latLongRays(int width);
 /// when the caller has them (else they are built here).
 RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& options = {},
                               const MeshRays* rays = nullptr);
+
+/// The distant light found from the room's shadow edges (RoomLights::distant) as summary.json and room-lights
+/// --json give it: towards, irradiance (and which channels only bound it), its edges' agreement and count, the
+/// share of the room it lights, the clipped vertices it lights; null when none was found.
+nlohmann::json distantLightFacts(const RoomLights& lights);
 
 }  // namespace mrgi::reconstruction

@@ -18,6 +18,7 @@
 #include "reconstruction/depth_filter.h"
 #include "reconstruction/point_index.h"
 #include "reconstruction/room_bounce.h"
+#include "runtime/source.h"
 
 using nlohmann::json;
 
@@ -161,6 +162,16 @@ void FramePipeline::estimateRoomLights() {
   ro.findDistant = !options_.fuse;
   roomLightEstimate_ =
       std::make_shared<reconstruction::RoomLights>(reconstruction::estimateRoomLights(*options_.room, centre, ro));
+  if (const auto& d = roomLightEstimate_->distant) {
+    char line[300];
+    std::snprintf(
+        line, sizeof line,
+        "the room shows a light the camera never saw (the sun through a window?), found from %d of "
+        "its shadow edges: towards (%.2f, %.2f, %.2f), irradiance %.3g%s",
+        d->edges, d->towards[0], d->towards[1], d->towards[2], capture::luminance(d->irradiance),
+        d->lowerBound[0] || d->lowerBound[1] || d->lowerBound[2] ? " at least (its sunlit patches are clipped)" : "");
+    sayNoteOnce(line);
+  }
   setup_->lights.clear();
   for (const reconstruction::RoomLight& l : roomLightEstimate_->lights) {
     lighting::SceneLight sl;
@@ -608,7 +619,8 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
                               {"coverage", roomLightEstimate_->coverage},
                               {"ambient_radiance",
                                {roomLightEstimate_->ambientRadiance[0], roomLightEstimate_->ambientRadiance[1],
-                                roomLightEstimate_->ambientRadiance[2]}}};
+                                roomLightEstimate_->ambientRadiance[2]}},
+                              {"distant", reconstruction::distantLightFacts(*roomLightEstimate_)}};
 }
 
 const reconstruction::MeshRays& FramePipeline::roomRays() {

@@ -156,15 +156,7 @@ int roomLights(const RoomLightsOptions& o) {
               {"saturated_fraction", l.saturatedFraction},
               {"over_exposed", l.overExposed},
               {"coverage", l.coverage}};
-  out["distant_light"] = nullptr;
-  if (const auto& d = l.distant)
-    out["distant_light"] = {{"towards", {d->towards[0], d->towards[1], d->towards[2]}},
-                            {"irradiance", {d->irradiance[0], d->irradiance[1], d->irradiance[2]}},
-                            {"irradiance_lower_bound", {d->lowerBound[0], d->lowerBound[1], d->lowerBound[2]}},
-                            {"consistency", d->consistency},
-                            {"edges", d->edges},
-                            {"lit_share", d->litShare},
-                            {"sunlit_clipped_vertices", l.sunlitClipped}};
+  out["distant_light"] = reconstruction::distantLightFacts(l);
   if (!o.map.empty()) writePng(o.map, roomLightsImage(l), "mrgi room-lights");
   if (o.json) {
     std::printf("%s\n", jsonText(out, o.room).c_str());

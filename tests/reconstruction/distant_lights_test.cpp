@@ -87,6 +87,13 @@ Room makeRoom(bool ceilingGap = false) {
   return room;
 }
 
+/// The room's radiance here is unclipped (a high-dynamic-range room): nothing in it reads as the sensor's white.
+DistantLightOptions hdr() {
+  DistantLightOptions o;
+  o.clipRadiance = 1e30;
+  return o;
+}
+
 /// Radiance L = albedo / pi (rest + sun max(0, n . w) V), with 2 % noise; a window vertex (no wall there) is dark.
 void light(Room& room, const cv::Vec3d& towards, const cv::Vec3d& sun, const cv::Vec3d& rest) {
   std::mt19937 rng(7);
@@ -110,7 +117,7 @@ TEST(DistantLight, TheSunThroughAWindowIsFoundFromItsPatchAndItsShadows) {
   const cv::Vec3d sun(30.0, 27.0, 22.0), rest(1.5, 1.6, 1.8);
   light(room, towards, sun, rest);
   const MeshRays rays(room.positions, room.indices);
-  const auto found = findDistantLight(room.positions, room.normals, room.radiance, room.albedo, {}, rays);
+  const auto found = findDistantLight(room.positions, room.normals, room.radiance, room.albedo, {}, rays, hdr());
   ASSERT_TRUE(found);
   const double angleDeg = std::acos(std::clamp(found->towards.dot(towards), -1.0, 1.0)) * 180 / CV_PI;
   EXPECT_LT(angleDeg, 1.5) << found->towards;
@@ -152,13 +159,13 @@ TEST(DistantLight, AGapTheCamerasNeverSawIsNotTakenForTheWindow) {
   const MeshRays rays(room.positions, room.indices);
   const RoomOpenings openings = windowOpenings();
   const auto found =
-      findDistantLight(room.positions, room.normals, room.radiance, room.albedo, {}, rays, {}, &openings);
+      findDistantLight(room.positions, room.normals, room.radiance, room.albedo, {}, rays, hdr(), &openings);
   ASSERT_TRUE(found);
   EXPECT_LT(std::acos(std::clamp(found->towards.dot(towards), -1.0, 1.0)) * 180 / CV_PI, 1.5) << found->towards;
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(found->irradiance[k], sun[k], 0.05 * sun[k]) << k;
   EXPECT_GT(found->consistency, 0.9);
   // Without the record the gap's points count as lit and dark: the light is lost, or found weaker or elsewhere.
-  const auto blind = findDistantLight(room.positions, room.normals, room.radiance, room.albedo, {}, rays);
+  const auto blind = findDistantLight(room.positions, room.normals, room.radiance, room.albedo, {}, rays, hdr());
   if (blind) {
     const double angle = std::acos(std::clamp(blind->towards.dot(towards), -1.0, 1.0)) * 180 / CV_PI;
     EXPECT_TRUE(angle > 1.5 || blind->consistency < 0.9 || std::abs(blind->irradiance[1] - sun[1]) > 0.05 * sun[1])
@@ -204,6 +211,7 @@ TEST(DistantLight, TheRoomsLightsIncludeItAsADirectionalLight) {
   mesh.openings = windowOpenings();
   RoomLightOptions o;
   o.findDistant = true;
+  o.distant = hdr();
   const RoomLights lights = estimateRoomLights(mesh, {0, 0, 1}, o);
   ASSERT_TRUE(lights.distant);
   const auto it =
@@ -229,7 +237,7 @@ TEST(DistantLight, ARoomWithoutSunHasNone) {
   Room room = makeRoom();
   light(room, {0, 0, 1}, {0, 0, 0}, {2, 2, 2});
   const MeshRays rays(room.positions, room.indices);
-  EXPECT_FALSE(findDistantLight(room.positions, room.normals, room.radiance, room.albedo, {}, rays));
+  EXPECT_FALSE(findDistantLight(room.positions, room.normals, room.radiance, room.albedo, {}, rays, hdr()));
 }
 
 }  // namespace

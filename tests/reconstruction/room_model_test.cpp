@@ -443,6 +443,34 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
     return with(ply, json);
   };
   EXPECT_EQ(withAppearance(appearance), "");
+  {
+    // The openings: a room saved before they were kept has no record; a record names its file, which must hold
+    // int32 rows of 3 cells in range.
+    nlohmann::json j = nlohmann::json::parse(json);
+    j.erase("openings");
+    EXPECT_EQ(with(ply, j.dump()), "");
+    EXPECT_FALSE(reconstruction::loadRoom(dir.string()).openings.recorded);
+    j["openings"] = {{"cell_m", 0.1}, {"cells", 5}};
+    EXPECT_NE(with(ply, j.dump()).find("\"openings\""), std::string::npos) << with(ply, j.dump());
+    j["openings"] = {{"cell_m", 0.1}, {"cells", "room_openings.npy"}};
+    const fs::path cells = dir / "room_openings.npy";
+    fs::remove(cells);
+    EXPECT_NE(with(ply, j.dump()).find(cells.string() + ": room openings are missing"), std::string::npos);
+    std::ofstream(cells, std::ios::binary) << appearance;  // float32 rows of 5
+    EXPECT_NE(with(ply, j.dump()).find(cells.string() + ": expected int32 (cells, 3)"), std::string::npos);
+    reconstruction::RoomOpenings far;
+    far.recorded = true;
+    far.cells = {{0, 0, 0}, {1 << 25, 0, 0}};
+    RoomMesh withFar = m;
+    withFar.openings = far;
+    reconstruction::saveRoom(dir.string(), withFar, info);
+    EXPECT_NE(errorOf(dir).find(cells.string() + ": row 1 is out of range"), std::string::npos) << errorOf(dir);
+    far.cells.pop_back();
+    withFar.openings = far;
+    reconstruction::saveRoom(dir.string(), withFar, info);
+    EXPECT_EQ(reconstruction::loadRoom(dir.string()).openings.cells, far.cells);
+    EXPECT_EQ(with(ply, json), "");  // as it was
+  }
   EXPECT_NE(withAppearance(appearance.substr(0, appearance.size() - 4)).find(npy.string() + ": "), std::string::npos);
   {
     std::string fewer = appearance;
