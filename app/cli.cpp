@@ -64,6 +64,10 @@ std::map<CLI::App*, Action> addCommands(CLI::App& app) {
       "Measure speed against accuracy of every technique's knobs against the path-traced reference; JSON, CSV, HTML, "
       "presets",
       addBench);
+  add("compare",
+      "Compare a replay's composites with a synthetic session's reference composites: the object's brightness, "
+      "relative L1 and brightest side, and its shadow's darkening energy, per frame",
+      addCompare);
   checkEveryValue(app);
   return actions;
 }

@@ -58,6 +58,7 @@ Action addReference(CLI::App& app);
 Action addLive(CLI::App& app);
 Action addRecord(CLI::App& app);
 Action addRoom(CLI::App& app);
+Action addCompare(CLI::App& app);
 Action addRoomLights(CLI::App& app);
 
 }  // namespace mrgi::app

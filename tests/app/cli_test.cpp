@@ -1236,6 +1236,65 @@ TEST(Cli, SynthLetsTheSunInThroughAWindow) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, CompareHoldsAReplayAgainstTheReferenceComposites) {
+  // mrgi compare on a session with path-traced references (their shadows; ray-cast ones have none): a "replay" whose
+  // frames are the references themselves measures brightness 1, L1 0, the brightest side where it is and the whole
+  // shadow; one whose frames are the bare frames measures no shadow; a real replay lit by the true lights measures the
+  // technique's own error, finite.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_compare_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string scene = (fs::path(MRGI_SOURCE_DIR) / "recordings/scenes/tabletop.json").string();
+  ASSERT_EQ(runMrgi("synth --spp 8 --frames 2 --fisheye-every 0 --width 160 --height 120 --scene " + scene + " --out " +
+                    (dir / "s").string())
+                .exitCode,
+            0);
+  const auto fake = [&](const std::string& name, const std::string& pattern) {
+    fs::create_directories(dir / name);
+    for (int i = 0; i < 2; ++i) {
+      char from[64], to[64];
+      std::snprintf(from, sizeof from, pattern.c_str(), i);
+      std::snprintf(to, sizeof to, "frame_%04d.png", i);
+      fs::copy_file(dir / "s" / from, dir / name / to);
+    }
+    std::ofstream(dir / name / "summary.json")
+        << R"({"per_frame": [{"index": 0, "frame": 0}, {"index": 1, "frame": 1}]})";
+    return (dir / name).string();
+  };
+  const auto judged = [&](const std::string& replay) {
+    const Result r = runMrgi("compare " + (dir / "s").string() + " " + replay + " --json");
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+    return nlohmann::json::parse(r.out);
+  };
+  const auto same = judged(fake("same", "reference/%06d.png"));
+  ASSERT_EQ(same["frames"].size(), 2u);
+  for (const auto& f : same["frames"]) {
+    EXPECT_GT(f["object_pixels"].get<int>(), 50);
+    EXPECT_DOUBLE_EQ(f["brightness"].get<double>(), 1.0);
+    EXPECT_DOUBLE_EQ(f["relative_l1"].get<double>(), 0.0);
+    EXPECT_DOUBLE_EQ(f["brightest_side_radii"].get<double>(), 0.0);
+    EXPECT_GT(f["reference_shadow"].get<double>(), 1.0);  // the sphere's shadow on the table
+    EXPECT_DOUBLE_EQ(f["shadow_energy"].get<double>(), 1.0);
+  }
+  const auto bare = judged(fake("bare", "colour/%06d.png"));
+  for (const auto& f : bare["frames"]) EXPECT_DOUBLE_EQ(f["shadow_energy"].get<double>(), 0.0);
+  const Result rp = runMrgi("replay " + (dir / "s").string() + " --scene " + scene + " --pose ground-truth --out " +
+                            (dir / "r").string());
+  ASSERT_EQ(rp.exitCode, 0) << rp.err;
+  const auto real = judged((dir / "r").string());
+  ASSERT_EQ(real["frames"].size(), 2u);
+  for (const char* m : {"brightness", "relative_l1", "brightest_side_radii", "shadow_energy"}) {
+    EXPECT_TRUE(std::isfinite(real[m]["mean"].get<double>())) << m;
+    EXPECT_GE(real[m]["interval_95"].get<double>(), 0.0) << m;
+  }
+  EXPECT_GT(real["brightness"]["mean"].get<double>(), 0.5);
+  EXPECT_LT(real["brightness"]["mean"].get<double>(), 1.5);
+  // A table without --json: a row per frame and the means.
+  const Result table = runMrgi("compare " + (dir / "s").string() + " " + (dir / "r").string());
+  EXPECT_NE(table.out.find("| mean, 95 % interval |"), std::string::npos) << table.out;
+  expectOneLineError(runMrgi("compare " + (dir / "s").string() + " " + (dir / "nope").string()), "summary.json");
+  fs::remove_all(dir);
+}
+
 TEST(Cli, SynthMovesTheLightAndReplayRelightsEachFrame) {
   const fs::path out = fs::temp_directory_path() / ("mrgi_cli_synth_light_" + std::to_string(::getpid()));
   fs::remove_all(out);
