@@ -130,7 +130,10 @@ RgbdRender renderRgbd(const RayCaster& rc, const PathTracer* pt, const capture::
         for (int s = 0; s < (pt ? 0 : 4); ++s) {  // 2x2 supersampling for clean tag edges
           const double px = x + (s % 2 ? 0.25 : -0.25), py = y + (s / 2 ? 0.25 : -0.25);
           const cv::Vec3f d = cv::normalize(toFloat(R * cv::Vec3d((px - k.cx) / k.fx, (py - k.cy) / k.fy, 1.0)));
-          if (auto h = rc.intersect(origin, d)) sum += rc.shadeDirect(*h);
+          if (auto h = rc.intersect(origin, d))
+            sum += rc.shadeDirect(*h);
+          else if (const auto& env = rc.scene().environmentMap)
+            sum += env->radiance(d);  // the sky (outdoors, or through a window)
         }
         r.radiance.at<cv::Vec3f>(y, x) = sum * 0.25f;
         // Depth and normal at the pixel centre, as a depth camera measures them.
@@ -173,6 +176,8 @@ cv::Mat renderFisheye(const RayCaster& rc, std::optional<groundtruth::PathTraceO
           img.at<cv::Vec3f>(y, x) = sum * (1.f / static_cast<float>(pt->options().spp));
         } else if (auto h = rc.intersect(origin, d)) {
           img.at<cv::Vec3f>(y, x) = rc.shadeDirect(*h);
+        } else if (const auto& env = rc.scene().environmentMap) {
+          img.at<cv::Vec3f>(y, x) = env->radiance(d);
         }
       }
   });

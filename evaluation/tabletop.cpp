@@ -75,6 +75,15 @@ Tabletop buildTabletop(const TabletopConfig& c) {
     s.ambient = {0.05f, 0.05f, 0.05f};
   }
   if (c.windowSun) {
+    // The sky seen through the window (and lighting the room through it): a clear sky above the horizon, the
+    // ground below it; only the window lets it in.
+    cv::Mat sky(32, 64, CV_32FC3);
+    for (int v = 0; v < sky.rows; ++v)
+      for (int u = 0; u < sky.cols; ++u) {
+        const cv::Vec3f d = groundtruth::EnvironmentMap::directionOf((u + 0.5f) / sky.cols, (v + 0.5f) / sky.rows);
+        sky.at<cv::Vec3f>(v, u) = d[1] > 0 ? windowSkyRadiance() : cv::Vec3f(0.16f, 0.14f, 0.11f);
+      }
+    s.environmentMap = std::make_shared<groundtruth::EnvironmentMap>(sky);
     groundtruth::Light sun;
     sun.type = groundtruth::LightType::Directional;
     sun.direction = -windowSunTowards();  // the way its light travels
@@ -105,6 +114,10 @@ Tabletop buildTabletop(const TabletopConfig& c) {
   gt["scene"]["seed"] = c.seed;
   gt["scene"]["ambient_radiance"] = {s.ambient[0], s.ambient[1], s.ambient[2]};
   if (c.environment) gt["environment"] = c.environmentInfo;
+  if (c.windowSun) {
+    const cv::Vec3f sky = windowSkyRadiance();
+    gt["scene"]["window_sky_radiance"] = {sky[0], sky[1], sky[2]};
+  }
   gt["scene"]["box"] = {{"min", {boxLo[0] + c.boxOffset[0], boxLo[1] + c.boxOffset[1], boxLo[2] + c.boxOffset[2]}},
                         {"max", {boxHi[0] + c.boxOffset[0], boxHi[1] + c.boxOffset[1], boxHi[2] + c.boxOffset[2]}}};
   gt["scene"]["materials"] = nlohmann::json::array();

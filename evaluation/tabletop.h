@@ -28,6 +28,8 @@ struct TabletopConfig {
 /// --window-sun: the sun's direction from the room towards it (world: y up) and its irradiance at normal incidence.
 inline cv::Vec3f windowSunTowards() { return cv::normalize(cv::Vec3f(2.0f, 0.78f, 0.12f)); }
 inline cv::Vec3f windowSunIrradiance() { return {14.0f, 12.6f, 10.8f}; }
+/// --window-sun: the sky's radiance above the horizon, seen and shining through the window (world +y up).
+inline cv::Vec3f windowSkyRadiance() { return {0.42f, 0.58f, 0.9f}; }
 
 /// Where the box stands on the table, lower and upper corner (world: y up), before any offset.
 inline std::pair<cv::Vec3f, cv::Vec3f> tabletopBox() { return {{0.22f, 0.75f, -0.26f}, {0.37f, 0.90f, -0.11f}}; }

@@ -49,6 +49,7 @@ struct Fit {
   double litShare = 0;
   cv::Vec3d sun{0, 0, 0}, rest{0, 0, 0};
   cv::Vec3b lowerBound{0, 0, 0};
+  int pieces = 0, piecesShowing = 0;  ///< surface pieces it both lights and shadows; of them, brighter where lit
 };
 
 /// The weighted median of (value, weight) pairs (0 when empty).
@@ -106,6 +107,7 @@ void regionSteps(const std::vector<Sample>& samples, const std::vector<double>& 
       shadowClipped = shadowClipped || 2 * sc >= shadowed.size();
     }
     if (shadowClipped) continue;
+    ++f.pieces;
     // A piece the light's predicted edge crosses only in the model (the fused geometry a little off, the patch's
     // true edge outside the piece): its lit side no brighter than its shadowed one. Kept when most of its lit
     // samples are brighter than three quarters of its shadowed ones.
@@ -118,6 +120,7 @@ void regionSteps(const std::vector<Sample>& samples, const std::vector<double>& 
       for (size_t i : lit) brighter += capture::luminance(samples[i].radiance) > q3;
       if (5 * brighter < 3 * lit.size()) continue;
     }
+    ++f.piecesShowing;
     const double weight = static_cast<double>(std::min(lit.size(), shadowed.size()));
     for (int k = 0; k < 3; ++k)
       (litClipped ? bound[k] : measured[k]).emplace_back(CV_PI * (Ll[k] - Ls[k]) / (a[k] * facing), weight);
@@ -249,18 +252,25 @@ DistantLightRays::DistantLightRays(const std::vector<cv::Vec3f>& positions, cons
     for (int k = 0; k < 3; ++k) lo_[k] = std::min(lo_[k], p[k] - 0.05), hi_[k] = std::max(hi_[k], p[k] + 0.05);
 }
 
-int DistantLightRays::reaches(const cv::Vec3d& origin, const cv::Vec3d& w) const {
-  if (rays_.occluded(origin, w, 1e3)) return 0;
-  if (!openings_ || !openings_->recorded) return 1;
-  // Where the ray crosses the box, a cell the cameras saw through (from a little inside to a little outside).
+int DistantLightRays::opening(const cv::Vec3d& origin, const cv::Vec3d& w) const {
+  if (!openings_ || !openings_->recorded) return -1;
+  // Where the ray leaves the box, a cell the cameras saw through, outside it: only a ray that met no surface goes
+  // there (a window onto the sky, a surface past the sensor's range), not one that met the room.
   double tExit = 1e30;
   for (int k = 0; k < 3; ++k)
     if (std::abs(w[k]) > 1e-12) tExit = std::min(tExit, ((w[k] > 0 ? hi_[k] : lo_[k]) - origin[k]) / w[k]);
   tExit = std::max(tExit, 0.0);
   const double step = 0.5 * openings_->cellM;
-  for (double t = tExit - 3 * step; t <= tExit + 6 * step; t += step)
-    if (t > 0 && openings_->contains(origin + t * w)) return 1;
+  for (double t = tExit - 0.5 * step; t <= tExit + 6 * step; t += step)
+    if (t > 0)
+      if (const int cell = openings_->find(origin + t * w); cell >= 0) return cell;
   return -1;
+}
+
+int DistantLightRays::reaches(const cv::Vec3d& origin, const cv::Vec3d& w) const {
+  if (rays_.occluded(origin, w, 1e3)) return 0;
+  if (!openings_ || !openings_->recorded) return 1;
+  return opening(origin, w) >= 0 ? 1 : -1;
 }
 
 std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& positions,
@@ -323,6 +333,8 @@ std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& posit
     if (!search(samples, reach, o, best, bestW)) return std::nullopt;
     if (best.consistency < o.minConsistency || best.score < o.minScore) return std::nullopt;
     if (!(capture::luminance(best.sun) >= o.minContrast * capture::luminance(best.rest))) return std::nullopt;
+    if (best.piecesShowing < o.minPiecesShowing || best.piecesShowing < o.minPieceShare * best.pieces)
+      return std::nullopt;
   }
   DistantLight light;
   light.towards = bestW;
@@ -332,6 +344,8 @@ std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& posit
   light.edges = best.edges;
   light.litShare = best.litShare;
   for (int k = 0; k < 3; ++k) light.lowerBound[k] = best.lowerBound[k] != 0;
+  light.pieces = best.pieces;
+  light.piecesShowing = best.piecesShowing;
   return light;
 }
 

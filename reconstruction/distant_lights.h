@@ -32,15 +32,20 @@ struct DistantLightOptions {
   int minEdges = 30;               ///< predicted edges a direction needs to be judged
   /// A light is kept when its edges agree (their steps' mean over root mean square at least minConsistency) and are
   /// many enough to tell from noise (that ratio times the square root of their count, a t-statistic, at least
-  /// minScore). On the bundled rooms: the sun through the synthetic window 0.47-0.54 and 6.8-7.0; the best
-  /// direction of rooms without a sun 0.51 and 3.1 (tabletop-scan), 0.71 and 5.6 but a fiftieth of the room's
-  /// light (tabletop-synth's first 8 frames: its lamp's shadows), 0.35 and 9.6 (the ICL living room, whose sunlit
-  /// floor the search does not yet explain).
+  /// minScore). On the bundled rooms: the sun through the synthetic window (ray cast and path traced) about 0.6 and
+  /// 7; the best direction of rooms without a sun 0.51 and 3.1 (tabletop-scan), 0.71 and 5.6 but a fiftieth of the
+  /// room's light (tabletop-synth's first 8 frames: its lamp's shadows), 0.61 over the ViSP desk's printed tags
+  /// (minPieceShare below), 0.35 and 9.6 in the ICL living room (whose sunlit floor the search does not yet explain).
   double minConsistency = 0.4;
   double minScore = 5.0;
   /// ... and when the patches it lights are brighter than its shadows by at least this share of them (the light's
   /// irradiance over the shadowed points' mean): the edges of a lamp's shadows explain a faint distant light.
   double minContrast = 0.5;
+  /// ... and when the pieces of surface it both lights and shadows mostly show it (their lit side brighter): a
+  /// texture's edges (a board of printed tags) can line up with a direction's predicted edges, but not piece by
+  /// piece. The sun through the synthetic window: 10-12 of 13-14 pieces; the ViSP desk's best direction: 2 of 6.
+  int minPiecesShowing = 3;
+  double minPieceShare = 0.5;
   double minLitShare = 0.002;  ///< the share of the points it must light, and leave unlit
   double clipRadiance = 0.95;  ///< a channel's radiance at or above this is a lower bound (the sensor's white)
   /// Set: no search; the light is measured from this direction (the edges it predicts), kept whatever its
@@ -56,6 +61,8 @@ struct DistantLight {
   double consistency = 0;   ///< mean over root mean square of the edges' steps (1: all agree)
   int edges = 0;            ///< neighbour pairs across its predicted edges
   double litShare = 0;      ///< share of the sampled points it lights
+  int pieces = 0;           ///< 30 cm pieces of surface it both lights and leaves in the room's shadow
+  int piecesShowing = 0;    ///< of them, those whose lit side is brighter than their shadowed side
 };
 
 /// Whether a distant light towards w reaches a point: rays against the room, and where a ray meets none of it,
@@ -68,6 +75,9 @@ class DistantLightRays {
   DistantLightRays(const std::vector<cv::Vec3f>& positions, const MeshRays& rays, const RoomOpenings* openings);
   /// 1: reaches `origin` (off its surface already); 0: the room is in the way; -1: unknown (leaves by a gap).
   int reaches(const cv::Vec3d& origin, const cv::Vec3d& w) const;
+  /// For a ray that meets none of the room: the opening cell (RoomOpenings' index) it leaves through, or -1 (a
+  /// gap, or no record).
+  int opening(const cv::Vec3d& origin, const cv::Vec3d& w) const;
 
  private:
   const MeshRays& rays_;

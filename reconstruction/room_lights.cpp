@@ -202,11 +202,29 @@ RoomLights lightsSeenFrom(const RoomMesh& room, const cv::Vec3d& centre, const R
   cv::Mat L(H, W, CV_32FC3, cv::Scalar::all(0)), hitPos(H, W, CV_32FC3, cv::Scalar::all(0));
   cv::Mat saturated(H, W, CV_8UC1, cv::Scalar(0)), hit(H, W, CV_8UC1, cv::Scalar(0));
   double covered = 0, satOmega = 0;
+  // What the cameras saw through the room's openings (the sky through a window) is light from there too.
+  const DistantLightRays exits(room.positions, mesh, &room.openings);
   for (int v = 0; v < H; ++v)
     for (int u = 0; u < W; ++u) {
       const cv::Vec3d d(rays.directions.at<cv::Vec3f>(v, u));
       const MeshRays::Hit h = mesh.intersect(centre, d);
-      if (!h.hit) continue;
+      if (!h.hit) {
+        const int cell = exits.opening(centre, d);
+        if (cell < 0 || static_cast<size_t>(cell) >= room.openings.radiance.size()) continue;
+        const cv::Vec3d c =
+            (cv::Vec3d(room.openings.cells[static_cast<size_t>(cell)]) + cv::Vec3d::all(0.5)) * room.openings.cellM;
+        L.at<cv::Vec3f>(v, u) = room.openings.radiance[static_cast<size_t>(cell)];
+        hitPos.at<cv::Vec3f>(v, u) = cv::Vec3f(centre + d * std::max(0.0, (c - centre).dot(d)));
+        hit.at<uchar>(v, u) = 255;
+        saturated.at<uchar>(v, u) =
+            static_cast<size_t>(cell) < room.openings.clipped.size() && room.openings.clipped[static_cast<size_t>(cell)]
+                ? 255
+                : 0;
+        const double omega = rays.solidAngle.at<double>(v, u);
+        covered += omega;
+        if (saturated.at<uchar>(v, u)) satOmega += omega;
+        continue;
+      }
       const uint32_t a = room.indices[3 * h.triangle], b = room.indices[3 * h.triangle + 1],
                      c = room.indices[3 * h.triangle + 2];
       const double wa = 1 - h.u - h.v;
@@ -369,6 +387,8 @@ nlohmann::json distantLightFacts(const RoomLights& lights) {
           {"consistency", d.consistency},
           {"edges", d.edges},
           {"lit_share", d.litShare},
+          {"pieces", d.pieces},
+          {"pieces_showing", d.piecesShowing},
           {"sunlit_clipped_vertices", lights.sunlitClipped}};
 }
 

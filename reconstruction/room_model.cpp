@@ -10,6 +10,7 @@
 #include <open3d/utility/Logging.h>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -207,41 +208,85 @@ struct RoomModel::Impl {
   std::unordered_map<Eigen::Vector3i, Appearance, Hash> appearance;
 
   /// RoomOpenings: the cells crossed by rays through 8 x 8 pixel tiles (at 640 pixels across; scaled with the
-  /// width) nine tenths of whose pixels hold no depth within range, out to kOpeningReachM past the range. Whole
-  /// tiles, so that the depth lost along objects' edges (a structured-light sensor's shadow) opens nothing.
-  std::unordered_set<Eigen::Vector3i, Hash> openings;
+  /// width) nine tenths of whose pixels hold no depth, out to kOpeningReachM past the range. Whole
+  /// tiles, so that the depth lost along objects' edges (a structured-light sensor's shadow) opens nothing. Each
+  /// cell keeps the mean radiance its rays saw (what lies beyond: the sky through a window) and how many of them
+  /// were clipped.
+  struct OpeningSeen {
+    float sum[3] = {0, 0, 0};
+    uint32_t rays = 0, clipped = 0;
+  };
+  std::unordered_map<Eigen::Vector3i, OpeningSeen, Hash> openings;
   static constexpr double kOpeningCellM = 0.1, kOpeningReachM = 4.0;
   static constexpr size_t kMaxOpeningCells = size_t{1} << 22;
 
-  void recordOpenings(const cv::Mat& raw, const capture::Intrinsics& K, const capture::Pose& T, double maxDepthM) {
+  void recordOpenings(const cv::Mat& raw, const cv::Mat& colour, const capture::Intrinsics& K, const capture::Pose& T,
+                      double maxDepthM, double exposure, int clipLevel) {
+    float lut[256];
+    for (int i = 0; i < 256; ++i) lut[i] = static_cast<float>(capture::srgbToLinear(i / 255.f) / exposure);
     const int tile = std::max(2, static_cast<int>(std::lround(K.width / 80.0)));
     const cv::Vec3d origin(T(0, 3), T(1, 3), T(2, 3));
     const double step = 0.5 * kOpeningCellM;
-    for (int ty = 0; ty + tile <= raw.rows; ty += tile)
-      for (int tx = 0; tx + tile <= raw.cols; tx += tile) {
-        // Pixels with no depth, or depth past the range (free as far as it, at least).
-        int empty = 0;
-        double reach = maxDepthM + kOpeningReachM;
-        for (int y = ty; y < ty + tile; ++y) {
+    const int tilesX = raw.cols / tile, tilesY = raw.rows / tile;
+    // Per tile: its pixels with no depth at all, and what they saw. (Depth past the range is a surface seen, not
+    // an opening: a far wall is not the sky.)
+    struct Tile {
+      int empty = 0, clipped = 0;
+      float seen[3] = {0, 0, 0};
+    };
+    std::vector<Tile> tiles(static_cast<size_t>(tilesX * tilesY));
+    for (int ty = 0; ty < tilesY; ++ty)
+      for (int tx = 0; tx < tilesX; ++tx) {
+        Tile& here = tiles[static_cast<size_t>(ty * tilesX + tx)];
+        for (int y = ty * tile; y < (ty + 1) * tile; ++y) {
           const float* row = raw.ptr<float>(y);
-          for (int x = tx; x < tx + tile; ++x) {
-            const bool valid = std::isfinite(row[x]) && row[x] > 0;
-            if (valid && row[x] <= maxDepthM) continue;
-            ++empty;
-            if (valid) reach = std::min(reach, static_cast<double>(row[x]));
+          const cv::Vec3b* rgb = colour.ptr<cv::Vec3b>(y);
+          for (int x = tx * tile; x < (tx + 1) * tile; ++x) {
+            if (std::isfinite(row[x]) && row[x] > 0) continue;
+            ++here.empty;
+            for (int k = 0; k < 3; ++k) here.seen[k] += lut[rgb[x][k]];
+            here.clipped += rgb[x][0] >= clipLevel || rgb[x][1] >= clipLevel || rgb[x][2] >= clipLevel;
           }
         }
-        if (10 * empty < 9 * tile * tile) continue;
-        const double u = tx + 0.5 * tile - 0.5, v = ty + 0.5 * tile - 0.5;
+      }
+    const auto open = [&](int tx, int ty) {
+      return tx >= 0 && ty >= 0 && tx < tilesX && ty < tilesY &&
+             10 * tiles[static_cast<size_t>(ty * tilesX + tx)].empty >= 9 * tile * tile;
+    };
+    const double reach = maxDepthM + kOpeningReachM;
+    for (int ty = 0; ty < tilesY; ++ty)
+      for (int tx = 0; tx < tilesX; ++tx) {
+        // An opening is a region: the tile and the 24 around it, 40 pixels across at 640 (a sensor's depth drops
+        // out in blobs a few tiles across on dark or shiny surfaces, and along edges).
+        bool region = true;
+        for (int dy = -2; dy <= 2 && region; ++dy)
+          for (int dx = -2; dx <= 2 && region; ++dx) region = open(tx + dx, ty + dy);
+        if (!region) continue;
+        const Tile& here = tiles[static_cast<size_t>(ty * tilesX + tx)];
+        const int empty = here.empty, clipped = here.clipped;
+        const float* seen = here.seen;
+        const bool tileClipped = 2 * clipped >= empty;
+        const double u = (tx + 0.5) * tile - 0.5, v = (ty + 0.5) * tile - 0.5;
         const cv::Vec3d c((u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0);
         const cv::Vec3d d = cv::normalize(cv::Vec3d(T(0, 0) * c[0] + T(0, 1) * c[1] + T(0, 2) * c[2],
                                                     T(1, 0) * c[0] + T(1, 1) * c[1] + T(1, 2) * c[2],
                                                     T(2, 0) * c[0] + T(2, 1) * c[1] + T(2, 2) * c[2]));
-        for (double t = 0; t <= reach - step && openings.size() < kMaxOpeningCells; t += step) {
+        Eigen::Vector3i last(INT_MIN, INT_MIN, INT_MIN);
+        for (double t = 0; t <= reach - step; t += step) {
           const cv::Vec3d p = origin + t * d;
-          openings.insert({static_cast<int>(std::floor(p[0] / kOpeningCellM)),
-                           static_cast<int>(std::floor(p[1] / kOpeningCellM)),
-                           static_cast<int>(std::floor(p[2] / kOpeningCellM))});
+          const Eigen::Vector3i cell(static_cast<int>(std::floor(p[0] / kOpeningCellM)),
+                                     static_cast<int>(std::floor(p[1] / kOpeningCellM)),
+                                     static_cast<int>(std::floor(p[2] / kOpeningCellM)));
+          if (cell == last) continue;  // a ray counts once in each cell it crosses
+          last = cell;
+          auto it = openings.find(cell);
+          if (it == openings.end()) {
+            if (openings.size() >= kMaxOpeningCells) continue;
+            it = openings.emplace(cell, OpeningSeen{}).first;
+          }
+          for (int k = 0; k < 3; ++k) it->second.sum[k] += seen[k] / static_cast<float>(empty);
+          ++it->second.rays;
+          it->second.clipped += tileClipped;
         }
       }
   }
@@ -574,7 +619,7 @@ RoomIntegration RoomModel::integrate(const cv::Mat& depthIn, const cv::Mat& colo
   carveFreeSpace(impl_->tsdf, impl_->weight, inView, buffers, options_.voxelM, depth, K, T_camera_world,
                  options_.truncM);
   impl_->observe(depth, colour, K, T_world_camera, exposure, options_);
-  impl_->recordOpenings(depthIn, K, T_world_camera, options_.maxDepthM);
+  impl_->recordOpenings(depthIn, colour, K, T_world_camera, options_.maxDepthM, exposure, options_.clipLevel);
   r.integrated = true;
   ++integrated_;
   return r;
@@ -660,16 +705,24 @@ RoomMesh RoomModel::mesh() const {
     for (int k = 0; k < 3; ++k) out.indices.push_back(static_cast<uint32_t>(t[k]));
   out.openings.cellM = Impl::kOpeningCellM;
   out.openings.recorded = true;
-  out.openings.cells.reserve(impl_->openings.size());
-  for (const auto& c : impl_->openings) out.openings.cells.emplace_back(c[0], c[1], c[2]);
-  std::sort(out.openings.cells.begin(), out.openings.cells.end(), cellLess);
+  std::vector<std::pair<cv::Vec3i, const Impl::OpeningSeen*>> cells;
+  cells.reserve(impl_->openings.size());
+  for (const auto& [c, seen] : impl_->openings) cells.emplace_back(cv::Vec3i(c[0], c[1], c[2]), &seen);
+  std::sort(cells.begin(), cells.end(), [](const auto& a, const auto& b) { return cellLess(a.first, b.first); });
+  for (const auto& [c, seen] : cells) {
+    out.openings.cells.push_back(c);
+    const float n = static_cast<float>(std::max<uint32_t>(seen->rays, 1));
+    out.openings.radiance.emplace_back(seen->sum[0] / n, seen->sum[1] / n, seen->sum[2] / n);
+    out.openings.clipped.push_back(2 * seen->clipped >= seen->rays ? 1 : 0);
+  }
   return out;
 }
 
-bool RoomOpenings::contains(const cv::Vec3d& p) const {
+int RoomOpenings::find(const cv::Vec3d& p) const {
   const cv::Vec3i c(static_cast<int>(std::floor(p[0] / cellM)), static_cast<int>(std::floor(p[1] / cellM)),
                     static_cast<int>(std::floor(p[2] / cellM)));
-  return std::binary_search(cells.begin(), cells.end(), c, cellLess);
+  const auto it = std::lower_bound(cells.begin(), cells.end(), c, cellLess);
+  return it != cells.end() && *it == c ? static_cast<int>(it - cells.begin()) : -1;
 }
 
 size_t RoomModel::blocks() const { return impl_->index.size(); }
@@ -1032,10 +1085,19 @@ std::string appearanceNpy(const RoomMesh& mesh) {
   return out;
 }
 
-/// ROOM/room_openings.npy: int32 little-endian, (cells, 3).
+/// ROOM/room_openings.npy: float32 little-endian, (cells, 7): the cell's i, j, k (integers, exact in float32 within
+/// the loader's range), the radiance seen through it (r, g, b), and 1 where it was mostly clipped.
+constexpr int kOpeningColumns = 7;
 std::string openingsNpy(const RoomOpenings& o) {
-  std::string out = npyPreamble("<i4", o.cells.size(), 3);
-  out.append(reinterpret_cast<const char*>(o.cells.data()), o.cells.size() * sizeof(cv::Vec3i));
+  std::string out = npyPreamble("<f4", o.cells.size(), kOpeningColumns);
+  std::vector<float> rows(o.cells.size() * kOpeningColumns);
+  for (size_t i = 0; i < o.cells.size(); ++i) {
+    float* r = &rows[i * kOpeningColumns];
+    for (int k = 0; k < 3; ++k) r[k] = static_cast<float>(o.cells[i][k]);
+    for (int k = 0; k < 3; ++k) r[3 + k] = i < o.radiance.size() ? o.radiance[i][k] : 0.f;
+    r[6] = i < o.clipped.size() && o.clipped[i] ? 1.f : 0.f;
+  }
+  out.append(reinterpret_cast<const char*>(rows.data()), rows.size() * sizeof(float));
   return out;
 }
 
@@ -1135,17 +1197,25 @@ RoomMesh loadRoom(const std::string& dir, RoomInfo* info) {
     if (!fs::is_regular_file(file, ec)) throw capture::InputError(file.string(), "room openings are missing");
     const cv::Mat rows = capture::parseNpy(
         capture::readFileBounded(file.string(), capture::kMaxBinaryFileBytes, "room openings array"), file.string());
-    if (rows.type() != CV_32SC1 || rows.cols != 3)
-      throw capture::InputError(file.string(), "expected int32 (cells, 3)");
+    if (rows.type() != CV_32FC1 || rows.cols != kOpeningColumns)
+      throw capture::InputError(file.string(), "expected float32 (cells, 7)");
+    std::vector<std::pair<cv::Vec3i, int>> order;
     for (int i = 0; i < rows.rows; ++i) {
-      const int* r = rows.ptr<int>(i);
-      for (int k = 0; k < 3; ++k)
-        if (std::abs(r[k]) > (1 << 24))
+      const float* r = rows.ptr<float>(i);
+      for (int k = 0; k < kOpeningColumns; ++k)
+        if (!std::isfinite(r[k]) || (k < 3 && (std::abs(r[k]) > (1 << 24) || r[k] != std::floor(r[k]))) ||
+            (k >= 3 && r[k] < 0))
           throw capture::InputError(file.string(), "row " + std::to_string(i) + " is out of range");
-      openings.cells.emplace_back(r[0], r[1], r[2]);
+      order.emplace_back(cv::Vec3i(static_cast<int>(r[0]), static_cast<int>(r[1]), static_cast<int>(r[2])), i);
     }
-    std::sort(openings.cells.begin(), openings.cells.end(), cellLess);
-    openings.cells.erase(std::unique(openings.cells.begin(), openings.cells.end()), openings.cells.end());
+    std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return cellLess(a.first, b.first); });
+    for (size_t i = 0; i < order.size(); ++i) {
+      if (i > 0 && order[i].first == order[i - 1].first) continue;  // each cell once
+      const float* r = rows.ptr<float>(order[i].second);
+      openings.cells.push_back(order[i].first);
+      openings.radiance.emplace_back(r[3], r[4], r[5]);
+      openings.clipped.push_back(r[6] > 0.5f ? 1 : 0);
+    }
   }
   ri.options.validate(json.string());
   if (!fs::is_regular_file(ply, ec)) throw capture::InputError(ply.string(), "room mesh is missing");

@@ -55,15 +55,19 @@ struct RoomIntegration {
 };
 
 /// Where the cameras saw through the room: cells (edge `cellM`, lighting world, cell (i, j, k) spanning
-/// [i, i + 1) cellM along x and so on) crossed by camera rays that met no surface within the fusion's range
-/// (a window, a door open onto the outside, a hall beyond the range). A surface the cameras never looked at
-/// leaves a gap in the mesh too, but none of these cells beyond it: a ray that leaves the room through an
-/// opening can be told from one that leaves it through a gap.
+/// [i, i + 1) cellM along x and so on) crossed by camera rays that returned no depth (a window onto the sky, a
+/// door open onto the outside; a surface past the fusion's range returns depth and is not one). A surface the cameras
+/// never looked at leaves a gap in the mesh too, but none of these cells beyond it: a ray that leaves the room through
+/// an opening can be told from one that leaves it through a gap.
 struct RoomOpenings {
   double cellM = 0.1;
-  std::vector<cv::Vec3i> cells;  ///< sorted, each once
-  bool recorded = false;         ///< false: the room holds no record (a room saved before it was kept)
-  bool contains(const cv::Vec3d& p) const;
+  std::vector<cv::Vec3i> cells;     ///< sorted, each once
+  std::vector<cv::Vec3f> radiance;  ///< per cell: the mean linear radiance (exposure 1) its rays saw beyond
+  std::vector<uint8_t> clipped;     ///< per cell: 1 where most of them were clipped (a lower bound)
+  bool recorded = false;            ///< false: the room holds no record (a room saved before it was kept)
+  /// The index of the cell holding p, or -1.
+  int find(const cv::Vec3d& p) const;
+  bool contains(const cv::Vec3d& p) const { return find(p) >= 0; }
 };
 
 /// A triangle mesh of the model's surface in the lighting world, with the fused appearance per vertex.
@@ -191,8 +195,10 @@ cv::Vec3f albedoDetail(const cv::Vec3b& rgb8, const cv::Vec3f& pixelRadiance, co
 
 /// A saved room: ROOM/room.ply (binary PLY: positions, normals, 8-bit sRGB colour for viewers),
 /// ROOM/room_appearance.npy (float32, one row per vertex: linear radiance r, g, b, confidence, saturated)
-/// and ROOM/room.json (format, version 2, options, frames, bounds, the session it came from). Version 1
-/// rooms (no appearance file) load with the PLY colour as radiance.
+/// ROOM/room_openings.npy (float32, one row per opening cell: i, j, k, the radiance seen through it r, g, b,
+/// clipped; absent when none was seen) and ROOM/room.json (format, version 2, options, frames, bounds, the
+/// session it came from, "openings": its cell edge and file, or null). Version 1 rooms (no appearance file) load
+/// with the PLY colour as radiance; rooms without "openings" have no record of them (RoomOpenings::recorded).
 struct RoomInfo {
   RoomOptions options;
   int framesIntegrated = 0, framesRefused = 0;

@@ -232,6 +232,64 @@ TEST(DistantLight, TheRoomsLightsIncludeItAsADirectionalLight) {
   EXPECT_TRUE(std::none_of(none.lights.begin(), none.lights.end(), [](const RoomLight& l) { return l.distant; }));
 }
 
+TEST(DistantLight, TheSkySeenThroughTheWindowIsInTheRoomsLight) {
+  // The room seen from its middle: towards the window it is the sky the cameras saw through it (its cells'
+  // radiance), not the walls around it continued into the hole.
+  Room room = makeRoom();
+  light(room, {0, 0, 1}, {0, 0, 0}, {1, 1, 1});
+  RoomMesh mesh;
+  mesh.positions = room.positions, mesh.normals = room.normals, mesh.radiance = room.radiance;
+  mesh.indices = room.indices;
+  mesh.saturated.assign(mesh.positions.size(), 0);
+  mesh.openings = windowOpenings();
+  const cv::Vec3f sky(0.4f, 0.6f, 0.9f);
+  mesh.openings.radiance.assign(mesh.openings.cells.size(), sky);
+  mesh.openings.clipped.assign(mesh.openings.cells.size(), 0);
+  const cv::Vec3d centre(0, 0, 1), window(kHalf, 1.0 / 30, 4.0 / 3);
+  const cv::Vec3d towards = cv::normalize(window - centre);
+  RoomLightOptions o;
+  const auto seenTowards = [&](const RoomLights& l) {
+    const FisheyeRays rays = latLongRays(o.mapWidth);
+    double best = -1;
+    cv::Vec3f at;
+    for (int v = 0; v < rays.directions.rows; ++v)
+      for (int u = 0; u < rays.directions.cols; ++u) {
+        const double c = cv::Vec3d(rays.directions.at<cv::Vec3f>(v, u)).dot(towards);
+        if (c > best) best = c, at = l.environment.at<cv::Vec3f>(v, u);
+      }
+    return at;
+  };
+  const RoomLights lit = estimateRoomLights(mesh, centre, o);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(seenTowards(lit)[k], sky[k], 1e-4) << k;
+  mesh.openings.recorded = false;  // a room without the record: the hole is filled from the wall around it
+  const RoomLights filled = estimateRoomLights(mesh, centre, o);
+  EXPECT_LT(cv::norm(seenTowards(filled) - cv::Vec3f(0.7f / CV_PI, 0.7f / CV_PI, 0.7f / CV_PI)), 0.05)
+      << seenTowards(filled);
+  EXPECT_GT(lit.coverage, filled.coverage);
+}
+
+TEST(DistantLight, PrintedEdgesAreNotASunsShadows) {
+  // A room lit evenly whose floor and walls carry printed squares (black and white, 20 cm: a board of tags, a
+  // chequered rug): their edges step as a shadow's do, and some direction's predicted edges line up with a few
+  // of them, but no direction's lit pieces of surface are brighter than its shadowed ones piece after piece.
+  Room room = makeRoom();
+  for (size_t i = 0; i < room.positions.size(); ++i) {
+    if (room.albedo[i][0] == 0) continue;  // the faces' borders stay unsampled
+    const cv::Vec3f& p = room.positions[i];
+    const int cells = static_cast<int>(std::floor(p[0] / 0.2f)) + static_cast<int>(std::floor(p[1] / 0.2f)) +
+                      static_cast<int>(std::floor(p[2] / 0.2f));
+    const float a = cells % 2 == 0 ? 0.8f : 0.08f;
+    room.albedo[i] = cv::Vec3f(a, a, a);
+  }
+  light(room, {0, 0, 1}, {0, 0, 0}, {2, 2, 2});
+  // The finder is given the mid-grey albedo the room's search takes (it does not know the print).
+  const std::vector<cv::Vec3f> grey(room.positions.size(), cv::Vec3f(0.5f, 0.5f, 0.5f));
+  const MeshRays rays(room.positions, room.indices);
+  const RoomOpenings openings = windowOpenings();
+  const auto found = findDistantLight(room.positions, room.normals, room.radiance, grey, {}, rays, hdr(), &openings);
+  EXPECT_FALSE(found) << found->towards << " " << found->pieces << " " << found->piecesShowing;
+}
+
 TEST(DistantLight, ARoomWithoutSunHasNone) {
   // The same room lit evenly (its lamps and walls): no direction explains the 2 % noise.
   Room room = makeRoom();

@@ -368,6 +368,14 @@ TEST(RoomModel, WhereTheCamerasSawThroughIsRecordedAndNeverBehindASurface) {
       nearest = std::min(nearest, cv::norm((cv::Vec3d(c) + cv::Vec3d::all(0.5)) * o.cellM - capture::translationOf(T)));
     EXPECT_GT(nearest, room.options().maxDepthM) << c;
   }
+  // What the rays saw beyond: the frames' grey, in linear light at exposure 1, unclipped.
+  ASSERT_EQ(o.radiance.size(), o.cells.size());
+  ASSERT_EQ(o.clipped.size(), o.cells.size());
+  const float grey200 = static_cast<float>(capture::srgbToLinear(200 / 255.f));
+  for (size_t i = 0; i < o.cells.size(); ++i) {
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(o.radiance[i][k], grey200, 1e-4) << o.cells[i];  // float sums
+    EXPECT_EQ(o.clipped[i], 0);
+  }
   // Ahead of the last camera, above its horizon, where it looked past everything; nowhere near the floor.
   bool above = false;
   for (double x = 1.5; x < 4 && !above; x += 0.1) above = o.contains({x, 0.1, 1.5});
@@ -404,6 +412,7 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
   EXPECT_TRUE(l.openings.recorded);
   EXPECT_EQ(l.openings.cellM, m.openings.cellM);
   EXPECT_EQ(l.openings.cells, m.openings.cells);
+  EXPECT_EQ(l.openings.radiance, m.openings.radiance);
   EXPECT_EQ(back.framesIntegrated, 4);
   EXPECT_EQ(back.session, "synthetic");
 
@@ -457,18 +466,23 @@ TEST(RoomModel, ASavedRoomLoadsBackAndBadRoomFilesAreOneLineErrors) {
     fs::remove(cells);
     EXPECT_NE(with(ply, j.dump()).find(cells.string() + ": room openings are missing"), std::string::npos);
     std::ofstream(cells, std::ios::binary) << appearance;  // float32 rows of 5
-    EXPECT_NE(with(ply, j.dump()).find(cells.string() + ": expected int32 (cells, 3)"), std::string::npos);
+    EXPECT_NE(with(ply, j.dump()).find(cells.string() + ": expected float32 (cells, 7)"), std::string::npos);
     reconstruction::RoomOpenings far;
     far.recorded = true;
     far.cells = {{0, 0, 0}, {1 << 25, 0, 0}};
+    far.radiance = {{0.5f, 0.6f, 0.9f}, {0, 0, 0}};
+    far.clipped = {0, 1};
     RoomMesh withFar = m;
     withFar.openings = far;
     reconstruction::saveRoom(dir.string(), withFar, info);
     EXPECT_NE(errorOf(dir).find(cells.string() + ": row 1 is out of range"), std::string::npos) << errorOf(dir);
-    far.cells.pop_back();
+    far.cells.pop_back(), far.radiance.pop_back(), far.clipped.pop_back();
     withFar.openings = far;
     reconstruction::saveRoom(dir.string(), withFar, info);
-    EXPECT_EQ(reconstruction::loadRoom(dir.string()).openings.cells, far.cells);
+    const reconstruction::RoomOpenings back = reconstruction::loadRoom(dir.string()).openings;
+    EXPECT_EQ(back.cells, far.cells);
+    EXPECT_EQ(back.radiance, far.radiance);
+    EXPECT_EQ(back.clipped, far.clipped);
     EXPECT_EQ(with(ply, json), "");  // as it was
   }
   EXPECT_NE(withAppearance(appearance.substr(0, appearance.size() - 4)).find(npy.string() + ": "), std::string::npos);
