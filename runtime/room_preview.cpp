@@ -8,6 +8,7 @@
 
 #include "capture/colour.h"
 #include "lighting/debug_views.h"
+#include "reconstruction/distant_lights.h"
 #include "reconstruction/mesh_rays.h"
 #include "reconstruction/room_bounce.h"
 #include "reconstruction/room_lights.h"
@@ -102,6 +103,31 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
     cv::hconcat(r, a, row);
     rows.push_back(row);
   }
+  // A light found from the room's shadow edges: the surfaces it lights (the sunlit patches that justify it) in
+  // yellow over the room's radiance dimmed, from the same cameras.
+  if (lights.distant) {
+    const cv::Vec3d w = lights.distant->towards;
+    const reconstruction::DistantLightRays reach(room.positions, rays, &room.openings);
+    std::vector<double> lum;
+    for (const auto& r : room.radiance) lum.push_back(capture::luminance(cv::Vec3d(r)));
+    const float top = static_cast<float>(lum.empty() ? 1.0 : std::max(lighting::percentile99(lum), 1e-6));
+    std::vector<cv::Vec3f> patches(room.positions.size());
+    for (size_t i = 0; i < patches.size(); ++i) {
+      const cv::Vec3d n(room.normals[i]);
+      const bool lit = n.dot(w) > 0 && reach.reaches(cv::Vec3d(room.positions[i]) + 0.01 * n, w) == 1;
+      patches[i] = lit ? cv::Vec3f(1.0f, 0.85f, 0.2f) * top : room.radiance[i] * 0.35f;
+    }
+    std::vector<cv::Mat> views;
+    for (const auto& [name, cam] : cameras) {
+      cv::Mat v = view(rays, room, patches, cam.first, cam.second, 0.8 / top);
+      label(v, "lit by light " + std::to_string(lights.lights.size()) + ", " + name, {6, 18});
+      views.push_back(v);
+    }
+    if (views.size() == 1) views.push_back(cv::Mat(views[0].size(), views[0].type(), cv::Scalar(20, 20, 20)));
+    cv::Mat row;
+    cv::hconcat(views, row);
+    rows.push_back(row);
+  }
   // The environment at the object: the map at the views' width, then one line per light.
   cv::Mat env = roomLightsImage(lights);
   cv::resize(env, env, cv::Size(2 * W, W), 0, 0, cv::INTER_NEAREST);
@@ -119,10 +145,12 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
   for (size_t i = 0; i < lights.lights.size(); ++i) {
     const auto& l = lights.lights[i];
     if (l.distant && lights.distant)
-      std::snprintf(line, sizeof line,
-                    "%zu: distant towards (%.2f, %.2f, %.2f), irradiance %.3g%s: unseen, from %d shadow edges", i + 1,
-                    l.direction[0], l.direction[1], l.direction[2], capture::luminance(l.irradiance),
-                    lights.distant->lowerBound[1] ? " at least" : "", lights.distant->edges);
+      std::snprintf(
+          line, sizeof line, "%zu: distant towards (%.2f, %.2f, %.2f), irradiance %.3g%s: unseen, from %d shadow edges",
+          i + 1, l.direction[0], l.direction[1], l.direction[2], capture::luminance(l.irradiance),
+          lights.distant->lowerBound[0] || lights.distant->lowerBound[1] || lights.distant->lowerBound[2] ? " at least"
+                                                                                                          : "",
+          lights.distant->edges);
     else if (l.point)
       std::snprintf(line, sizeof line, "%zu: point at (%.2f, %.2f, %.2f), irradiance %.3g%s", i + 1, l.position[0],
                     l.position[1], l.position[2], capture::luminance(l.irradiance),

@@ -98,7 +98,8 @@ open(f"{out}/index_only", 'w').write(index)
 PY
 python3 - "$seeds/room_fuzz" <<'PY'
 # A saved room: room.json, a NUL, room.ply (a binary tetrahedron with normals and colours as mrgi room
-# writes them, and an ASCII one), and for version 2 a NUL and room_appearance.npy (4 rows of 5 float32).
+# writes them, and an ASCII one), and for version 2 a NUL, the appearance's length (4 bytes), room_appearance.npy
+# (4 rows of 5 float32) and room_openings.npy (2 rows of 7 float32: cell, radiance, clipped).
 import sys, json, struct
 out = sys.argv[1]
 meta = json.dumps({"format": "mrgi-room", "version": 1, "generated_by": "mrgi room", "mesh": "room.ply", "voxel_m": 0.02,
@@ -119,7 +120,12 @@ meta2["appearance"] = "room_appearance.npy"
 hdr = "{'descr': '<f4', 'fortran_order': False, 'shape': (4, 5), }"
 hdr += " " * ((64 - (10 + len(hdr) + 1) % 64) % 64) + "\n"
 npy = b"\x93NUMPY\x01\x00" + struct.pack("<H", len(hdr)) + hdr.encode() + struct.pack("<20f", *([0.2, 0.1, 0.05, 3.0, 0.0] * 4))
-open(f"{out}/binary_v2", 'wb').write(json.dumps(meta2).encode() + b"\0" + head + body + b"\0" + npy)
+open(f"{out}/binary_v2", 'wb').write(json.dumps(meta2).encode() + b"\0" + head + body + b"\0" + struct.pack("<I", len(npy)) + npy)
+meta2["openings"] = {"cell_m": 0.1, "cells": "room_openings.npy"}
+ohdr = "{'descr': '<f4', 'fortran_order': False, 'shape': (2, 7), }"
+ohdr += " " * ((64 - (10 + len(ohdr) + 1) % 64) % 64) + "\n"
+onpy = b"\x93NUMPY\x01\x00" + struct.pack("<H", len(ohdr)) + ohdr.encode() + struct.pack("<14f", 20, 3, 12, 0.4, 0.6, 0.9, 0, 21, 3, 12, 1, 1, 1, 1)
+open(f"{out}/binary_v2_openings", 'wb').write(json.dumps(meta2).encode() + b"\0" + head + body + b"\0" + struct.pack("<I", len(npy)) + npy + onpy)
 PY
 printf '# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n1305031102.211214 rgb/1305031102.211214.png\n' > "$seeds/tum_fuzz/rgb.txt"
 printf '# timestamp tx ty tz qx qy qz qw\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n' > "$seeds/tum_fuzz/groundtruth.txt"
