@@ -125,11 +125,19 @@ void regionSteps(const std::vector<Sample>& samples, const std::vector<double>& 
     for (int k = 0; k < 3; ++k)
       (litClipped ? bound[k] : measured[k]).emplace_back(CV_PI * (Ll[k] - Ls[k]) / (a[k] * facing), weight);
   }
-  // The clipped pieces bound it from below: the measured ones' median, raised to their median where it is less.
-  for (int k = 0; k < 3; ++k) {
-    const double m = weightedMedian(measured[k]), b = weightedMedian(bound[k]);
-    f.sun[k] = std::max(m, b);
-    f.lowerBound[k] = !bound[k].empty() && (measured[k].empty() || b > m);
+  // The clipped pieces bound it from below. Its colour is the measured pieces' (a clipped piece's channels clip one
+  // by one, the first ones least bound: its colour is not the light's); where their median is under the bound's in
+  // luminance, it is raised as a whole to it. With no measured piece, the bound alone (every channel a lower bound).
+  cv::Vec3d m, b;
+  for (int k = 0; k < 3; ++k) m[k] = weightedMedian(measured[k]), b[k] = weightedMedian(bound[k]);
+  const double lm = capture::luminance(m), lb = capture::luminance(b);
+  if (!measured[0].empty() && lm > 0) {
+    const bool raised = !bound[0].empty() && lb > lm;
+    f.sun = raised ? m * (lb / lm) : m;
+    for (int k = 0; k < 3; ++k) f.lowerBound[k] = raised;
+  } else {
+    f.sun = b;
+    for (int k = 0; k < 3; ++k) f.lowerBound[k] = !bound[0].empty();
   }
 }
 
