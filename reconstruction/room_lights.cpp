@@ -147,22 +147,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   RoomLightOptions bounded = o;
   bounded.saturatedGain = 1;
   const auto measureSun = [&](const RoomLights& others) {
-    AlbedoLights al;
-    for (const RoomLight& l : others.lights) {
-      if (l.point) {
-        al.points.push_back({l.position, l.intensity, cv::norm(l.position - centre) * std::sin(l.angularRadius)});
-      } else {
-        EstimatedLight e;
-        e.direction = l.direction;
-        e.power = l.irradiance;
-        e.angularRadius = l.angularRadius;
-        al.distant.push_back(e);
-      }
-    }
-    RoomBounceOptions bo;
-    bo.outside = others.ambientRadiance;
-    const std::vector<cv::Vec3f> bounce = roomBounceIrradiance(lit, mesh, bo);
-    const RoomAlbedo albedo = estimateRoomAlbedo(lit, al, {}, nullptr, &bounce, &mesh);
+    const RoomAlbedo albedo = albedoUnderRoomLights(lit, others, centre, mesh);
     DistantLightOptions measure = o.distant;
     measure.towards = found->towards;
     return findDistantLight(room.positions, room.normals, room.radiance, albedo.albedo, room.saturated, mesh, measure,
@@ -377,6 +362,26 @@ RoomLights lightsSeenFrom(const RoomMesh& room, const cv::Vec3d& centre, const R
 }
 
 }  // namespace
+
+RoomAlbedo albedoUnderRoomLights(const RoomMesh& room, const RoomLights& lights, const cv::Vec3d& centre,
+                                 const MeshRays& rays) {
+  AlbedoLights al;
+  for (const RoomLight& l : lights.lights) {
+    if (l.point) {
+      al.points.push_back({l.position, l.intensity, cv::norm(l.position - centre) * std::sin(l.angularRadius)});
+    } else {
+      EstimatedLight e;
+      e.direction = l.direction;
+      e.power = l.irradiance;
+      e.angularRadius = l.angularRadius;
+      al.distant.push_back(e);
+    }
+  }
+  RoomBounceOptions bo;
+  bo.outside = lights.ambientRadiance;
+  const std::vector<cv::Vec3f> bounce = roomBounceIrradiance(room, rays, bo);
+  return estimateRoomAlbedo(room, al, {}, nullptr, &bounce, &rays);
+}
 
 nlohmann::json distantLightFacts(const RoomLights& lights) {
   if (!lights.distant) return nullptr;

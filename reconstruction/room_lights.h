@@ -101,6 +101,12 @@ FisheyeRays latLongRays(int width);
 RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& options = {},
                               const MeshRays* rays = nullptr);
 
+/// The room's albedo under its own lights (`lights`, as seen from `centre`: a lamp's size from its angular radius
+/// there) and the light it sends itself (its bounce; what it does not cover at the lights' mean ambient), as the
+/// room's preview shows it and the distant light is measured against. `rays`: against `room`.
+RoomAlbedo albedoUnderRoomLights(const RoomMesh& room, const RoomLights& lights, const cv::Vec3d& centre,
+                                 const MeshRays& rays);
+
 /// The distant light found from the room's shadow edges (RoomLights::distant) as summary.json and room-lights
 /// --json give it: towards, irradiance (and which channels only bound it), its edges' agreement and count, the
 /// share of the room it lights, the clipped vertices it lights; null when none was found.

@@ -10,7 +10,6 @@
 #include "lighting/debug_views.h"
 #include "reconstruction/distant_lights.h"
 #include "reconstruction/mesh_rays.h"
-#include "reconstruction/room_bounce.h"
 #include "reconstruction/room_lights.h"
 #include "runtime/debug_view.h"
 
@@ -55,22 +54,7 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
   if (coverage) *coverage = lights.coverage;
 
   // The albedo under the room's own lights and the light it sends itself (as the frame pipeline takes it).
-  reconstruction::AlbedoLights al;
-  for (const auto& l : lights.lights) {
-    if (l.point) {
-      al.points.push_back({l.position, l.intensity});
-    } else {
-      reconstruction::EstimatedLight e;
-      e.direction = l.direction;
-      e.power = l.irradiance;
-      e.angularRadius = l.angularRadius;
-      al.distant.push_back(e);
-    }
-  }
-  reconstruction::RoomBounceOptions bo;
-  bo.outside = lights.ambientRadiance;
-  const std::vector<cv::Vec3f> bounce = reconstruction::roomBounceIrradiance(room, rays, bo);
-  const reconstruction::RoomAlbedo albedo = reconstruction::estimateRoomAlbedo(room, al, {}, nullptr, &bounce, &rays);
+  const reconstruction::RoomAlbedo albedo = reconstruction::albedoUnderRoomLights(room, lights, o.at, rays);
 
   // Cameras: the recording's first (scaled to the view's size), and one 1.5 m from the object's place at 55
   // degrees above it, on the first camera's side, brought inside the room where its ceiling or a wall is nearer.
