@@ -170,14 +170,23 @@ Fit fitDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const D
   if (f.edges < o.minEdges || !(sumSq > 0)) return f;
   f.score = sum / std::sqrt(sumSq);
   f.consistency = sum / std::sqrt(sumSq * f.edges);
+  if (shadowedCount > 0) f.rest = shadowed / static_cast<double>(shadowedCount);
+  return f;
+}
+
+/// The direction's fit with the light's irradiance measured (Fit::sun, lowerBound, pieces): once, for the
+/// direction the search chose (or was given), not for every direction it tries.
+Fit measureDirection(const std::vector<Sample>& samples, const cv::Vec3d& w, const DistantLightRays& rays,
+                     const DistantLightOptions& o) {
+  Fit f = fitDirection(samples, w, rays, o);
+  if (f.score < 0) return f;
   // The light's irradiance from the patches either side of its edges: on each 30 cm piece of one surface (one
   // albedo, one light from elsewhere) that it both lights and leaves in the room's shadow, the lit samples' median
   // radiance over the shadowed ones' is (E + S c) / E, E = pi L_shadowed / albedo (the albedo given, the shadowed
   // side's): S = pi (L_lit - L_shadowed) / (albedo c). Medians, so that a boundary predicted a few centimetres
   // off (the fused geometry, its voxels) mixes a few samples in, not the answer. A piece whose lit side is
   // clipped in any channel bounds S from below; the pieces agree by their weighted median.
-  regionSteps(samples, c, w, o, f);
-  if (shadowedCount > 0) f.rest = shadowed / static_cast<double>(shadowedCount);
+  regionSteps(samples, litBy(samples, w, rays), w, o, f);
   return f;
 }
 
@@ -275,6 +284,12 @@ int DistantLightRays::opening(const cv::Vec3d& origin, const cv::Vec3d& w) const
   return -1;
 }
 
+double DistantLightRays::lightOn(const cv::Vec3d& position, const cv::Vec3d& normal, const cv::Vec3d& w,
+                                 double offsetM) const {
+  const double facing = normal.dot(w);
+  return facing > 0 && reaches(position + offsetM * normal, w) == 1 ? facing : 0.0;
+}
+
 int DistantLightRays::reaches(const cv::Vec3d& origin, const cv::Vec3d& w) const {
   if (rays_.occluded(origin, w, 1e3)) return 0;
   if (!openings_ || !openings_->recorded) return 1;
@@ -335,10 +350,11 @@ std::optional<DistantLight> findDistantLight(const std::vector<cv::Vec3f>& posit
   cv::Vec3d bestW;
   if (o.towards) {
     bestW = cv::normalize(*o.towards);
-    best = fitDirection(samples, bestW, reach, o);
+    best = measureDirection(samples, bestW, reach, o);
     if (best.score < 0) return std::nullopt;
   } else {
     if (!search(samples, reach, o, best, bestW)) return std::nullopt;
+    best = measureDirection(samples, bestW, reach, o);
     if (best.consistency < o.minConsistency || best.score < o.minScore) return std::nullopt;
     if (!(capture::luminance(best.sun) >= o.minContrast * capture::luminance(best.rest))) return std::nullopt;
     if (best.piecesShowing < o.minPiecesShowing || best.piecesShowing < o.minPieceShare * best.pieces)

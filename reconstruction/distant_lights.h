@@ -63,6 +63,8 @@ struct DistantLight {
   double litShare = 0;      ///< share of the sampled points it lights
   int pieces = 0;           ///< 30 cm pieces of surface it both lights and leaves in the room's shadow
   int piecesShowing = 0;    ///< of them, those whose lit side is brighter than their shadowed side
+  /// Whether the irradiance only bounds the light from below (its sunlit patches clipped).
+  bool atLeast() const { return lowerBound[0] || lowerBound[1] || lowerBound[2]; }
 };
 
 /// Whether a distant light towards w reaches a point: rays against the room, and where a ray meets none of it,
@@ -75,6 +77,9 @@ class DistantLightRays {
   DistantLightRays(const std::vector<cv::Vec3f>& positions, const MeshRays& rays, const RoomOpenings* openings);
   /// 1: reaches `origin` (off its surface already); 0: the room is in the way; -1: unknown (leaves by a gap).
   int reaches(const cv::Vec3d& origin, const cv::Vec3d& w) const;
+  /// How much of a distant light towards w a surface point (`position`, unit `normal`) takes: n . w where it faces
+  /// w and the light reaches it (reaches(), from `offsetM` along the normal), else 0.
+  double lightOn(const cv::Vec3d& position, const cv::Vec3d& normal, const cv::Vec3d& w, double offsetM = 0.01) const;
   /// For a ray that meets none of the room: the opening cell (RoomOpenings' index) it leaves through, or -1 (a
   /// gap, or no record).
   int opening(const cv::Vec3d& origin, const cv::Vec3d& w) const;

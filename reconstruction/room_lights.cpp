@@ -135,9 +135,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   size_t sunlitClipped = 0;
   for (size_t i = 0; i < n && i < lit.saturated.size(); ++i) {
     if (!lit.saturated[i]) continue;
-    const cv::Vec3d nrm(room.normals[i]);
-    if (nrm.dot(found->towards) <= 0 || reach.reaches(cv::Vec3d(room.positions[i]) + 0.01 * nrm, found->towards) != 1)
-      continue;
+    if (!(reach.lightOn(cv::Vec3d(room.positions[i]), cv::Vec3d(room.normals[i]), found->towards) > 0)) continue;
     lit.saturated[i] = 0;
     ++sunlitClipped;
   }
@@ -303,8 +301,7 @@ RoomLights lightsSeenFrom(const RoomMesh& room, const cv::Vec3d& centre, const R
       // ones darker than the rest of the room alone would make a white surface.
       double Erest = capture::luminance(shIrradiance(restSh, n));
       // A distant light's share is not the lamps'.
-      if (sun && n.dot(sun->towards) > 0 && sun->reach->reaches(p + 0.01 * n, sun->towards) == 1)
-        Erest += capture::luminance(sun->irradiance) * n.dot(sun->towards);
+      if (sun) Erest += capture::luminance(sun->irradiance) * sun->reach->lightOn(p, n, sun->towards);
       const double excess = CV_PI * capture::luminance(cv::Vec3d(room.radiance[i])) / o.whiteAlbedo - Erest;
       // Nor do ones the saturated regions light mostly at grazing angles or from behind (a ceiling around the
       // clipped spot a lamp below it makes): their light comes from elsewhere.

@@ -208,8 +208,9 @@ struct RoomModel::Impl {
   std::unordered_map<Eigen::Vector3i, Appearance, Hash> appearance;
 
   /// RoomOpenings: the cells crossed by rays through 8 x 8 pixel tiles (at 640 pixels across; scaled with the
-  /// width) nine tenths of whose pixels hold no depth, out to kOpeningReachM past the range. Whole
-  /// tiles, so that the depth lost along objects' edges (a structured-light sensor's shadow) opens nothing. Each
+  /// width) nine tenths of whose pixels hold no depth, and so do the 24 tiles around them, out to kOpeningReachM
+  /// past the range. Whole regions, so that the depth lost along objects' edges (a structured-light sensor's
+  /// shadow) and in small blobs opens nothing. Each
   /// cell keeps the mean radiance its rays saw (what lies beyond: the sky through a window) and how many of them
   /// were clipped.
   struct OpeningSeen {
@@ -225,7 +226,8 @@ struct RoomModel::Impl {
     float lut[256];
     for (int i = 0; i < 256; ++i) lut[i] = static_cast<float>(capture::srgbToLinear(i / 255.f) / exposure);
     const int tile = std::max(2, static_cast<int>(std::lround(K.width / 80.0)));
-    const cv::Vec3d origin(T(0, 3), T(1, 3), T(2, 3));
+    const cv::Vec3d origin = capture::translationOf(T);
+    const cv::Matx33d R = capture::rotationOf(T);
     const double step = 0.5 * kOpeningCellM;
     const int tilesX = raw.cols / tile, tilesY = raw.rows / tile;
     // Per tile: its pixels with no depth at all, and what they saw. (Depth past the range is a surface seen, not
@@ -267,10 +269,7 @@ struct RoomModel::Impl {
         const float* seen = here.seen;
         const bool tileClipped = 2 * clipped >= empty;
         const double u = (tx + 0.5) * tile - 0.5, v = (ty + 0.5) * tile - 0.5;
-        const cv::Vec3d c((u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0);
-        const cv::Vec3d d = cv::normalize(cv::Vec3d(T(0, 0) * c[0] + T(0, 1) * c[1] + T(0, 2) * c[2],
-                                                    T(1, 0) * c[0] + T(1, 1) * c[1] + T(1, 2) * c[2],
-                                                    T(2, 0) * c[0] + T(2, 1) * c[1] + T(2, 2) * c[2]));
+        const cv::Vec3d d = cv::normalize(R * cv::Vec3d((u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0));
         Eigen::Vector3i last(INT_MIN, INT_MIN, INT_MIN);
         for (double t = 0; t <= reach - step; t += step) {
           const cv::Vec3d p = origin + t * d;

@@ -164,12 +164,11 @@ void FramePipeline::estimateRoomLights() {
       std::make_shared<reconstruction::RoomLights>(reconstruction::estimateRoomLights(*options_.room, centre, ro));
   if (const auto& d = roomLightEstimate_->distant) {
     char line[300];
-    std::snprintf(
-        line, sizeof line,
-        "the room shows a light the camera never saw (the sun through a window?), found from %d of "
-        "its shadow edges: towards (%.2f, %.2f, %.2f), irradiance %.3g%s",
-        d->edges, d->towards[0], d->towards[1], d->towards[2], capture::luminance(d->irradiance),
-        d->lowerBound[0] || d->lowerBound[1] || d->lowerBound[2] ? " at least (its sunlit patches are clipped)" : "");
+    std::snprintf(line, sizeof line,
+                  "the room shows a light the camera never saw (the sun through a window?), found from %d of "
+                  "its shadow edges: towards (%.2f, %.2f, %.2f), irradiance %.3g%s",
+                  d->edges, d->towards[0], d->towards[1], d->towards[2], capture::luminance(d->irradiance),
+                  d->atLeast() ? " at least (its sunlit patches are clipped)" : "");
     sayNoteOnce(line);
   }
   setup_->lights.clear();

@@ -10,8 +10,6 @@
 #include "capture/error.h"
 #include "capture/frame_source.h"
 #include "capture/session.h"
-#include "reconstruction/distant_lights.h"
-#include "reconstruction/mesh_rays.h"
 #include "reconstruction/room_lights.h"
 #include "reconstruction/room_model.h"
 #include "runtime/debug_view.h"
@@ -173,10 +171,8 @@ int roomLights(const RoomLightsOptions& o) {
             "  distant, towards (%.3f, %.3f, %.3f), irradiance %.4g%s: not seen, found from the room's shadow "
             "edges (%d of them, %.0f %% agreeing)\n",
             x.direction[0], x.direction[1], x.direction[2], capture::luminance(x.irradiance),
-            l.distant->lowerBound[0] || l.distant->lowerBound[1] || l.distant->lowerBound[2]
-                ? " (at least: its sunlit patches are clipped)"
-                : "",
-            l.distant->edges, 100 * l.distant->consistency);
+            l.distant->atLeast() ? " (at least: its sunlit patches are clipped)" : "", l.distant->edges,
+            100 * l.distant->consistency);
       else if (x.point)
         std::printf("  point at (%.3f, %.3f, %.3f), irradiance %.4g\n", x.position[0], x.position[1], x.position[2],
                     capture::luminance(x.irradiance));

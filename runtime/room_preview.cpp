@@ -97,8 +97,7 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
     const float top = static_cast<float>(lum.empty() ? 1.0 : std::max(lighting::percentile99(lum), 1e-6));
     std::vector<cv::Vec3f> patches(room.positions.size());
     for (size_t i = 0; i < patches.size(); ++i) {
-      const cv::Vec3d n(room.normals[i]);
-      const bool lit = n.dot(w) > 0 && reach.reaches(cv::Vec3d(room.positions[i]) + 0.01 * n, w) == 1;
+      const bool lit = reach.lightOn(cv::Vec3d(room.positions[i]), cv::Vec3d(room.normals[i]), w) > 0;
       patches[i] = lit ? cv::Vec3f(1.0f, 0.85f, 0.2f) * top : room.radiance[i] * 0.35f;
     }
     std::vector<cv::Mat> views;
@@ -129,12 +128,10 @@ cv::Mat roomPreview(const reconstruction::RoomMesh& room, const std::optional<ca
   for (size_t i = 0; i < lights.lights.size(); ++i) {
     const auto& l = lights.lights[i];
     if (l.distant && lights.distant)
-      std::snprintf(
-          line, sizeof line, "%zu: distant towards (%.2f, %.2f, %.2f), irradiance %.3g%s: unseen, from %d shadow edges",
-          i + 1, l.direction[0], l.direction[1], l.direction[2], capture::luminance(l.irradiance),
-          lights.distant->lowerBound[0] || lights.distant->lowerBound[1] || lights.distant->lowerBound[2] ? " at least"
-                                                                                                          : "",
-          lights.distant->edges);
+      std::snprintf(line, sizeof line,
+                    "%zu: distant towards (%.2f, %.2f, %.2f), irradiance %.3g%s: unseen, from %d shadow edges", i + 1,
+                    l.direction[0], l.direction[1], l.direction[2], capture::luminance(l.irradiance),
+                    lights.distant->atLeast() ? " at least" : "", lights.distant->edges);
     else if (l.point)
       std::snprintf(line, sizeof line, "%zu: point at (%.2f, %.2f, %.2f), irradiance %.3g%s", i + 1, l.position[0],
                     l.position[1], l.position[2], capture::luminance(l.irradiance),
