@@ -405,6 +405,7 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     setObjectTermUniforms(p);
     setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
     p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);
+    p.set("uCameraWhite", static_cast<float>(cameraWhite_));
     frame_->gbufferView().bind();
     auto orZero = [&](const gl::Texture* t) -> const gl::Texture& { return t ? *t : frame_->zero(); };
     orZero(realOut.realDelta).bind(3);

@@ -10,6 +10,7 @@
 /// inputs it declares changed; the shading when anything did. A skipped stage's results are the last run's,
 /// which equal what it would compute again.
 #include <array>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -71,8 +72,15 @@ class LightingPipeline {
                       float maxRelativeJump = reconstruction::kDepthMeshMaxRelativeJump) {
     frame_->setViewSurface(positions, normals, stride, maxRelativeJump);
   }
-  /// The real surfaces' albedo per camera pixel for the G-buffer (FrameResources::setRealPixelAlbedo).
-  void setRealPixelAlbedo(const cv::Mat& albedo) { frame_->setRealPixelAlbedo(albedo); }
+  /// The real surfaces' albedo per camera pixel for the G-buffer, and which of each pixel's camera channels are
+  /// clipped (FrameResources::setRealPixelAlbedo).
+  void setRealPixelAlbedo(const cv::Mat& albedo, const cv::Mat& clipped = cv::Mat()) {
+    frame_->setRealPixelAlbedo(albedo, clipped);
+  }
+  /// The camera's white in scene radiance (1 / exposure) for the frames that follow: where a real pixel's channel
+  /// is clipped, the objects' delta is taken from the lights' prediction above it (lighting/clipped_real.glsl).
+  /// 0 (the default): none taken.
+  void setCameraWhite(double white) { cameraWhite_ = std::isfinite(white) && white > 0 ? white : 0.0; }
   /// Where object i sits in the lighting world.
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object) {
     frame_->setObjectTransform(i, T_world_object);
@@ -188,6 +196,7 @@ class LightingPipeline {
   std::array<gl::Program, 32> shadePrograms_;  ///< soft | upsample | reduced terms | real only | shared upsample
   gl::Program unlitProgram_;                   ///< the pass with no virtual object (shade.frag SHADE_UNLIT)
   bool boundedShading_ = true;
+  double cameraWhite_ = 0;  ///< setCameraWhite's
   cv::Rect footprint_;
   /// The object terms at the reduced view (lighting/object_terms.frag), bit 0 the soft-shadow variant, bit 1
   /// the one carrying the terms over frames (object_terms_history); their targets (terms, points, normals),

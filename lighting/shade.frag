@@ -12,6 +12,9 @@
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
 //                  E_indirect, L_indirect from the virtual-role technique; none when the ambient is an
 //                  environment seen at the object (uEnvironmentHoldsBounce: it holds the real surfaces' bounce)
+//                  where a camera channel of the pixel is clipped (the G-buffer albedo's a < 0), a delta that darkens
+//                  it is taken from the radiance the lights predict there, albedo E / pi, when that is above the
+//                  camera's white (lighting/clipped_real.glsl)
 //   no surface:    rgb = 0, a = 0
 // Output 1 (debug): rgb = E_delta (real) or E_indirect (virtual) in W/m^2, a = 1 where a surface was seen.
 // SHARED_UPSAMPLE (with REDUCED_OBJECT_TERMS): the real-role delta is at the object terms' reduced view (the same
@@ -50,6 +53,8 @@ uniform int uRealDeltaOn;       // 0: the real-role technique hands out no real-
 uniform int uAddDirectShadow;   // 1: the real-role technique leaves the object's direct shadow to this pass
 uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
+uniform float uCameraWhite;     // the camera's white in scene radiance (1 / exposure); 0: clipped pixels not corrected
+#include "lighting/clipped_real.glsl"
 uniform vec3 uAmbientSh[9];     // radiance as SH bands 0-2, lighting world (reconstruction::shBasis2's basis); 0 = none
 #include "lighting/ambient_sh.glsl"
 #include "lighting/object_terms.glsl"
@@ -132,7 +137,13 @@ void main() {
     }
 #endif
 #endif
-    outShade = vec4(delta * albedo.rgb / SHADE_PI, 0.0);
+    vec3 shaded = delta * albedo.rgb / SHADE_PI;
+    if (albedo.a < -0.5 && uCameraWhite > 0.0 && any(lessThan(shaded, vec3(0.0)))) {
+      // A clipped channel the objects darken: from the radiance the lights predict there, without the objects.
+      vec3 e = directIrradiance(false, pos.xyz, n) + ambientIrradiance(uAmbient, uAmbientSh, n);
+      shaded = clippedRealShade(shaded, e * albedo.rgb / SHADE_PI, uCameraWhite, albedo.a);
+    }
+    outShade = vec4(shaded, 0.0);
     outIrradiance = vec4(delta, 1.0);
   }
 #endif

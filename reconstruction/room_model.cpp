@@ -974,6 +974,9 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   std::vector<cv::Vec3f> bound(n, cv::Vec3f(0, 0, 0));
   // E over what the lights and the ambient give (RoomAlbedo::sent).
   std::vector<cv::Vec3f> gain(n, cv::Vec3f(1, 1, 1));
+  // In the sharp shadow of a distant light (the sun through a window): the albedo there is measured under the
+  // other lights, away from the shadow's edges (below), as a surface the sun never reaches is.
+  std::vector<uint8_t> inSharpShadow(n, 0);
   for (size_t i = 0; i < n; ++i) {
     const cv::Vec3d p(mesh.positions[i]), nrm(mesh.normals[i]);
     const cv::Vec3d Lr(mesh.radiance[i]);
@@ -982,6 +985,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
     for (size_t l = 0; l < L; ++l) {
       cv::Vec3d e;
       double c;
+      bool sharp = false;
       if (l < lights.points.size()) {
         const cv::Vec3d d = lights.points[l].position - p;
         const double r2 = std::max(d.dot(d), 1e-8);
@@ -992,6 +996,11 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
         const auto& dl = lights.distant[l - lights.points.size()];
         e = dl.power;
         c = capture::capCosine(nrm.dot(dl.direction), seenSine(dl));
+        sharp = dl.angularRadius <= kSharpShadowAngularRadius;
+      }
+      if (c > 0 && sharp && occluded[i * L + l]) {
+        inSharpShadow[i] = 1;  // neither light nor blocked light: the vertex is measured without it
+        continue;
       }
       normalSum += e;
       if (c <= 0) continue;
@@ -1023,7 +1032,18 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   }
   const std::vector<std::vector<uint32_t>> neighbours = meshNeighbours(mesh.indices, n);
   // A shadow's edge is blurred in the fused colour (voxels, and averaging over views): the two rings of
-  // vertices around a shadow are rejected with it, or their darker colour would read as a darker albedo.
+  // vertices around a shadow are rejected with it, or their darker colour would read as a darker albedo. The
+  // edge of a distant light's sharp shadow is rejected on both sides (the vertices either side of it), then
+  // its two rings.
+  std::vector<size_t> sharpEdge;
+  for (size_t i = 0; i < n; ++i)
+    if (out.status[i] == AlbedoStatus::Measured)
+      for (uint32_t j : neighbours[i])
+        if (inSharpShadow[j] != inSharpShadow[i]) {
+          sharpEdge.push_back(i);
+          break;
+        }
+  for (size_t i : sharpEdge) out.status[i] = AlbedoStatus::Shadowed;
   for (int ring = 0; ring < 2; ++ring) {
     std::vector<size_t> edge;
     for (size_t i = 0; i < n; ++i)

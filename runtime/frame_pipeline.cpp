@@ -13,6 +13,7 @@
 #include "capture/error.h"
 #include "capture/registration.h"
 #include "capture/session.h"
+#include "lighting/clipped_real.h"
 #include "reconstruction/albedo.h"
 #include "reconstruction/depth.h"
 #include "reconstruction/depth_filter.h"
@@ -692,7 +693,7 @@ void FramePipeline::roomViewMesh(const capture::RgbdFrame& rgbd, FrameResult& r,
   r.info["view_mesh_detailed"] = detailedBlocks.load();
   pipeline_->setViewMesh(std::move(vertices), std::move(indices));
   pipeline_->setViewSurface(r.positions, r.normals, options_.meshStride);
-  pipeline_->setRealPixelAlbedo(pixelAlbedo);
+  pipeline_->setRealPixelAlbedo(pixelAlbedo, lighting::clippedChannels(rgbd.colour));
 }
 
 void FramePipeline::render(const capture::Frame& frame, FrameResult& r, compositor::Compositor& compositor,
@@ -740,7 +741,7 @@ void FramePipeline::renderFrame(const capture::Frame& frame, PreparedFrame& p, c
     buildSurface(frame, p, profiler);  // prepared already, unless measured only
     pipeline_->setRealMesh(std::move(p.surface->vertices), std::move(p.surface->indices));
     pipeline_->setViewSurface(r.positions, r.normals, options_.meshStride);
-    pipeline_->setRealPixelAlbedo(p.surface->pixelAlbedo);
+    pipeline_->setRealPixelAlbedo(p.surface->pixelAlbedo, lighting::clippedChannels(rgbd.colour));
     p.surface.reset();
     for (auto& [name, input] : p.inputs) pipeline_->setTechniqueInput(name, std::move(input));
     p.inputs.clear();
@@ -765,6 +766,7 @@ void FramePipeline::renderFrame(const capture::Frame& frame, PreparedFrame& p, c
   view.T_world_camera = *r.T_marker_camera;
   pipeline_->setAmbientSh(p.ambientSh);
   pipeline_->setAmbientMap(p.ambientMap);
+  pipeline_->setCameraWhite(rgbd.exposure > 0 ? 1.0 / rgbd.exposure : 0.0);  // clipped pixels' shadows
   pipeline_->run(view, p.lights, p.ambient, &profiler);
   for (const std::string& stage : pipeline_->skippedStages()) r.info["skipped"].push_back(stage);
   if (const auto& rendered = pipeline_->lightsRendered(); rendered.size() < p.lights.size()) {

@@ -203,8 +203,8 @@ void FrameResources::setViewSurface(const cv::Mat& positions, const cv::Mat& nor
   viewDirty_ = true;
 }
 
-void FrameResources::setRealPixelAlbedo(const cv::Mat& albedo) {
-  if (gbuffer_.setPixelAlbedo(albedo)) viewDirty_ = true;
+void FrameResources::setRealPixelAlbedo(const cv::Mat& albedo, const cv::Mat& clipped) {
+  if (gbuffer_.setPixelAlbedo(albedo, clipped)) viewDirty_ = true;
 }
 
 void FrameResources::setObjectTransform(size_t i, const cv::Matx44d& T) { geometry_.setObjectTransform(i, T); }

@@ -99,7 +99,8 @@ class FrameResources {
   /// none at that pixel), which the G-buffer takes instead of the vertices' interpolated albedo: a mesh over
   /// every other depth pixel blurs a texture (a tag's cells) that the camera sees sharp, and a shadow drawn
   /// over it with it. Empty (or another size): the vertices'. A change counts as a camera change.
-  void setRealPixelAlbedo(const cv::Mat& albedo);
+  /// `clipped`: each pixel's clipped camera channels (GBufferPass::setPixelAlbedo).
+  void setRealPixelAlbedo(const cv::Mat& albedo, const cv::Mat& clipped = cv::Mat());
   void setObjectTransform(size_t i, const cv::Matx44d& T_world_object);
   /// The ambient's directional part (radiance as SH bands 0-2, lighting world; LightingPipeline::setAmbientSh);
   /// a change counts as an ambient change at the next update().

@@ -12,7 +12,7 @@ layout(binding = 0) uniform sampler2D uAlbedoImage;  // rgb albedo per pixel, ne
 
 layout(location = 0) out vec4 outPosition;  // xyz world, w = 1
 layout(location = 1) out vec4 outNormal;    // xyz unit world normal towards the camera, w = uObject
-layout(location = 2) out vec4 outAlbedo;    // rgb albedo, a = 1 on virtual surfaces
+layout(location = 2) out vec4 outAlbedo;    // rgb albedo, a = 1 on virtual surfaces, <= 0 on real ones
 
 void main() {
   // A degenerate interpolated normal (opposite vertex normals) faces the camera instead of becoming NaN.
@@ -21,9 +21,11 @@ void main() {
   outPosition = vec4(vPosition, 1.0);
   outNormal = vec4(n, uObject);
   vec3 albedo = vAlbedo;
+  float alpha = uVirtual;
   if (uPixelAlbedo == 1 && uVirtual < 0.5) {
-    vec3 a = texelFetch(uAlbedoImage, ivec2(gl_FragCoord.xy), 0).rgb;
-    if (a.r >= 0.0) albedo = a;
+    vec4 a = texelFetch(uAlbedoImage, ivec2(gl_FragCoord.xy), 0);
+    if (a.r >= 0.0) albedo = a.rgb;
+    alpha = min(a.a, 0.0);  // minus the pixel's clipped camera channels' bits (lighting/clipped_real.glsl)
   }
-  outAlbedo = vec4(albedo, uVirtual);
+  outAlbedo = vec4(albedo, alpha);
 }

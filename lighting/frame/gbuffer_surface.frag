@@ -65,6 +65,6 @@ void main() {
   if (dot(n, uEye - world) < 0.0) n = -n;
   outPosition = vec4(world, 1.0);
   outNormal = vec4(n, 0.0);
-  vec3 albedo = texelFetch(uAlbedoImage, p, 0).rgb;
-  outAlbedo = vec4(max(albedo, vec3(0.0)), 0.0);
+  vec4 albedo = texelFetch(uAlbedoImage, p, 0);
+  outAlbedo = vec4(max(albedo.rgb, vec3(0.0)), min(albedo.a, 0.0));  // a: minus the clipped channels' bits
 }

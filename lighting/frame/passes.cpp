@@ -135,7 +135,7 @@ GBufferPass::GBufferPass(int width, int height, int factor, int termsFactor)
   }
 }
 
-bool GBufferPass::setPixelAlbedo(const cv::Mat& albedo) {
+bool GBufferPass::setPixelAlbedo(const cv::Mat& albedo, const cv::Mat& clipped) {
   const bool use = !albedo.empty() && albedo.type() == CV_32FC3 && albedo.cols == width_ && albedo.rows == height_;
   if (!use && !hasPixelAlbedo_) return false;
   hasPixelAlbedo_ = use;
@@ -146,8 +146,17 @@ bool GBufferPass::setPixelAlbedo(const cv::Mat& albedo) {
   }
   // Half floats, four channels: what the texture holds, so the driver converts nothing (an albedo needs no
   // more than half precision: 2^-11 relative).
+  // Alpha: minus the pixel's clipped channels' bits (0 where none are, or none are given).
+  cv::Mat alpha(albedo.size(), CV_32FC1, cv::Scalar(0));
+  if (!clipped.empty()) {
+    CV_Assert(clipped.type() == CV_8UC1 && clipped.size() == albedo.size());
+    clipped.convertTo(alpha, CV_32F, -1.0);
+  }
+  std::vector<cv::Mat> channels;
+  cv::split(albedo, channels);
+  channels.push_back(alpha);
   cv::Mat rgba, half;
-  cv::cvtColor(albedo, rgba, cv::COLOR_RGB2RGBA);
+  cv::merge(channels, rgba);
   rgba.convertTo(half, CV_16F);
   pixelAlbedo_.upload(GL_RGBA, GL_HALF_FLOAT, half.data, 8);
   return true;

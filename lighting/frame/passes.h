@@ -124,8 +124,10 @@ class GBufferPass {
   /// terms alone.
   GBufferPass(int width, int height, int factor = 1, int termsFactor = 1);
   /// The real surfaces' albedo per camera pixel (CV_32FC3 linear, the pass's size; negative: none at that pixel)
-  /// instead of the vertices'; empty or another size: the vertices'. Returns whether what the pass draws changed.
-  bool setPixelAlbedo(const cv::Mat& albedo);
+  /// instead of the vertices'; empty or another size: the vertices'. `clipped` (CV_8UC1, the same size; empty:
+  /// none): each pixel's clipped camera channels (lighting::clippedChannels), which the G-buffer's albedo carries
+  /// as its alpha on real pixels, -bits (lighting/clipped_real.glsl). Returns whether what the pass draws changed.
+  bool setPixelAlbedo(const cv::Mat& albedo, const cv::Mat& clipped = cv::Mat());
   void render(const FrameGeometry& geometry, const CameraView& camera);
 
   const gl::Texture& position() const { return full_.position; }  ///< xyz world, w = 1 where a surface was seen

@@ -681,6 +681,51 @@ TEST(RoomModel, AlbedoIsRecoveredUnderTwoLightsAndShadowsDoNotLowerIt) {
   EXPECT_GT(good, static_cast<int>(0.95 * checked)) << good << " of " << checked;
 }
 
+TEST(RoomModel, AlbedoInASunsSharpShadowIsMeasuredUnderTheOtherLights) {
+  // Floor, wall and a tall box of albedo 0.6 under a lamp and a sun (6 W/m^2 at 36 degrees from the zenith): the
+  // sunlit floor is clipped, so its albedo is only bounded; the floor in the box's shadow of the sun is lit by the
+  // lamp alone and is measured there, away from the shadow's edge (before: every vertex in the sun's shadow was
+  // rejected as shadowed: none of them measured).
+  Scene s;
+  s.box = true;
+  s.boxMin = {0.0, -0.1, 0.0}, s.boxMax = {0.2, 0.1, 0.5};
+  const cv::Vec3d toSun = cv::normalize(cv::Vec3d(0.3, -0.6, 0.74));
+  const double sunE = 6.0, far = 1000.0;
+  const std::vector<std::pair<cv::Vec3d, double>> lights = {{{0.9, 0.0, 1.2}, 3.6}, {far * toSun, sunE * far * far}};
+  RoomModel room;
+  int k = 0;
+  for (const auto& T : orbit(8, 1.3, 1.0))
+    ASSERT_TRUE(room.integrate(renderDepth(s, T, 0.001, k++), renderColour(s, T, 0.6, lights), kK, T).integrated);
+  const RoomMesh m = room.mesh();
+  reconstruction::AlbedoLights al;
+  al.points.push_back({lights[0].first, cv::Vec3d::all(lights[0].second)});
+  reconstruction::EstimatedLight sun;
+  sun.direction = toSun, sun.power = cv::Vec3d::all(sunE), sun.angularRadius = 0.0047;
+  al.distant.push_back(sun);
+  const auto a = reconstruction::estimateRoomAlbedo(m, al);
+  // The floor in the sun's shadow, 8 cm or more inside it (rays towards the sun from 8 cm around all meet the box).
+  const auto inShadow = [&](const cv::Vec3d& p) {
+    for (const cv::Vec3d& o : {cv::Vec3d(0, 0, 0), cv::Vec3d(0.08, 0, 0), cv::Vec3d(-0.08, 0, 0), cv::Vec3d(0, 0.08, 0),
+                               cv::Vec3d(0, -0.08, 0)})
+      if (trace(s, p + o + cv::Vec3d(0, 0, 1e-4), toSun).t > 1e17) return false;
+    return true;
+  };
+  int shadowChecked = 0, shadowMeasured = 0, shadowGood = 0;
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    const cv::Vec3d p(m.positions[i]);
+    if (std::abs(p[2]) > 0.01 || p[0] < -0.6 || p[0] > 0.7 || std::abs(p[1]) > 0.6) continue;
+    if (p[0] > -0.03 && p[0] < 0.23 && std::abs(p[1]) < 0.13) continue;  // under the box
+    if (!inShadow(p)) continue;
+    ++shadowChecked;
+    shadowMeasured += a.status[i] == reconstruction::AlbedoStatus::Measured;
+    shadowGood += std::abs(a.albedo[i][0] - 0.6f) < 0.03f;
+  }
+  EXPECT_GT(shadowChecked, 50);
+  // The rest: the lamp's own shadow of the box, and the edges' rings (blurred in the fused colour).
+  EXPECT_GT(shadowMeasured, static_cast<int>(0.7 * shadowChecked)) << shadowMeasured << " of " << shadowChecked;
+  EXPECT_GT(shadowGood, static_cast<int>(0.9 * shadowChecked)) << shadowGood << " of " << shadowChecked;
+}
+
 TEST(RoomModel, ARefreshedRoomsAlbedoCastsOnlyWhatChangedAndEqualsTheFullEstimate) {
   // A live fusion refreshes its room every few frames. The albedo under unchanged lights must cost what
   // changed, and be what estimating the new room from scratch gives: a box casts a shadow from the lamp,
