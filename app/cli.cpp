@@ -68,6 +68,10 @@ std::map<CLI::App*, Action> addCommands(CLI::App& app) {
       "Compare a replay's composites with a synthetic session's reference composites: the object's brightness, "
       "relative L1 and brightest side, and its shadow's darkening energy, per frame",
       addCompare);
+  add("track-pixels",
+      "Measure tracking in pixels on a ViSP RGB-D AprilTag sequence: the tags placed from frame 0 and drawn with "
+      "each way of tracking, its tags painted out after frame 0, Open3D's odometry beside ours",
+      addTrackPixels);
   checkEveryValue(app);
   return actions;
 }

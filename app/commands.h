@@ -59,6 +59,7 @@ Action addLive(CLI::App& app);
 Action addRecord(CLI::App& app);
 Action addRoom(CLI::App& app);
 Action addCompare(CLI::App& app);
+Action addTrackPixels(CLI::App& app);
 Action addRoomLights(CLI::App& app);
 
 }  // namespace mrgi::app
