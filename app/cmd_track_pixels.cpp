@@ -2,15 +2,15 @@
 // (evaluation/tag_pixels.h): the tags' centres placed from the first frame and drawn with each way of tracking
 // the camera, against where every later frame shows them; with the tags painted out after the first frame, and
 // Open3D's legacy RGB-D odometry through the same harness beside ours.
+#include <chrono>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 
 #include "app/cli_checks.h"
 #include "app/commands.h"
 #include "evaluation/tag_pixels.h"
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 namespace mrgi::app {
 
@@ -25,38 +25,45 @@ struct TrackPixelsOptions {
 
 int trackPixels(const TrackPixelsOptions& o) {
   using evaluation::TagSequence;
+  using Trajectory = std::vector<std::optional<capture::Pose>>;
   const TagSequence inView = evaluation::loadTagSequence(o.input, o.frames);
   TagSequence painted = inView;
   for (capture::Frame& f : painted.frames) f.rgbd->colour = f.rgbd->colour.clone();  // its own pixels to paint
   for (size_t i = 1; i < painted.frames.size(); ++i) evaluation::paintTagsOut(painted, i);
-  if (getenv("DBGPAINT")) {
-    cv::Mat bgr;
-    cv::cvtColor(painted.frames[std::atoi(getenv("DBGPAINT"))].rgbd->colour, bgr, cv::COLOR_RGB2BGR);
-    cv::imwrite("/tmp/painted.png", bgr);
-  }
+  runtime::TrackingOptions fine;
+  fine.odometry.maxWidth = inView.intrinsics.width;
   struct Row {
-    const char* name;
+    std::string name;
     const TagSequence* seq;
-    std::vector<std::optional<capture::Pose>> poses;
+    std::function<Trajectory()> run;
   };
-  std::vector<Row> rows;
-  rows.push_back({"the board's own poses (the harness's floor)", &inView, evaluation::boardTrajectory(inView)});
-  rows.push_back({"ours, --pose odometry, tags painted out", &painted,
-                  evaluation::trackedTrajectory(painted, runtime::PoseMode::Odometry, o.markerId)});
-  rows.push_back({"ours, --pose tracked, tags painted out", &painted,
-                  evaluation::trackedTrajectory(painted, runtime::PoseMode::Tracked, o.markerId)});
-  rows.push_back({"Open3D colour term, tags painted out", &painted, evaluation::open3dTrajectory(painted, false)});
-  rows.push_back({"Open3D hybrid term, tags painted out", &painted, evaluation::open3dTrajectory(painted, true)});
-  rows.push_back({"ours, --pose tracked, tags in view", &inView,
-                  evaluation::trackedTrajectory(inView, runtime::PoseMode::Tracked, o.markerId)});
-  rows.push_back({"Open3D hybrid term, tags in view", &inView, evaluation::open3dTrajectory(inView, true)});
+  const auto ours = [&](const TagSequence& s, runtime::PoseMode mode, const runtime::TrackingOptions& to) {
+    return [&s, mode, to, id = o.markerId] { return evaluation::trackedTrajectory(s, mode, id, to); };
+  };
+  const std::string full = "its finest level at " + std::to_string(inView.intrinsics.width) + " px";
+  const std::vector<Row> rows = {
+      {"the board's own poses (the harness's floor)", &inView, [&] { return evaluation::boardTrajectory(inView); }},
+      {"ours, --pose odometry, tags painted out", &painted, ours(painted, runtime::PoseMode::Odometry, {})},
+      {"ours, --pose odometry, tags painted out, " + full, &painted, ours(painted, runtime::PoseMode::Odometry, fine)},
+      {"ours, --pose tracked, tags painted out", &painted, ours(painted, runtime::PoseMode::Tracked, {})},
+      {"Open3D colour term, tags painted out", &painted, [&] { return evaluation::open3dTrajectory(painted, false); }},
+      {"Open3D hybrid term, tags painted out", &painted, [&] { return evaluation::open3dTrajectory(painted, true); }},
+      {"ours, --pose tracked, tags in view", &inView, ours(inView, runtime::PoseMode::Tracked, {})},
+      {"Open3D hybrid term, tags in view", &inView, [&] { return evaluation::open3dTrajectory(inView, true); }},
+  };
   nlohmann::json j = {{"sequence", o.input}, {"frames", inView.frames.size()}, {"rows", nlohmann::json::array()}};
   if (!o.json)
-    std::printf("%s, frames 0-%zu: the tags' centres placed from frame 0, drawn in frames 1-%zu\n\n"
-                "| poses | RMS (px) | 95th percentile (px) | max (px) | frames tracked |\n|---|---|---|---|---|\n",
-                o.input.c_str(), inView.frames.size() - 1, inView.frames.size() - 1);
+    std::printf(
+        "%s, frames 0-%zu: the tags' centres placed from frame 0, drawn in frames 1-%zu\n\n"
+        "| poses | RMS (px) | 95th percentile (px) | max (px) | frames tracked | ms a frame |\n"
+        "|---|---|---|---|---|---|\n",
+        o.input.c_str(), inView.frames.size() - 1, inView.frames.size() - 1);
   for (const Row& r : rows) {
-    const evaluation::TagPixelError e = evaluation::tagPixelError(*r.seq, r.poses);
+    const auto start = std::chrono::steady_clock::now();
+    const Trajectory poses = r.run();
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count() /
+                      static_cast<double>(r.seq->frames.size());
+    const evaluation::TagPixelError e = evaluation::tagPixelError(*r.seq, poses);
     if (o.json) {
       j["rows"].push_back({{"poses", r.name},
                            {"rms_px", e.rmsPx},
@@ -64,9 +71,11 @@ int trackPixels(const TrackPixelsOptions& o) {
                            {"max_px", e.maxPx},
                            {"frames", e.frames},
                            {"tracked", e.tracked},
+                           {"ms_per_frame", ms},
                            {"frame_rms_px", e.frameRmsPx}});
     } else {
-      std::printf("| %s | %.2f | %.2f | %.2f | %d of %d |\n", r.name, e.rmsPx, e.p95Px, e.maxPx, e.tracked, e.frames);
+      std::printf("| %s | %.2f | %.2f | %.2f | %d of %d | %.0f |\n", r.name.c_str(), e.rmsPx, e.p95Px, e.maxPx,
+                  e.tracked, e.frames, ms);
     }
   }
   if (o.json) std::printf("%s\n", j.dump().c_str());

@@ -45,7 +45,8 @@ capture::Pose poseFromJson(const json& m, const std::string& file, const std::st
 
 /// Where the camera ray through pixel p meets the plane z = 0 of the board (camera frame), or nullopt when it
 /// runs along the plane or meets it behind the camera.
-std::optional<cv::Vec3d> onBoard(const cv::Point2d& p, const capture::Intrinsics& k, const capture::Pose& T_camera_board) {
+std::optional<cv::Vec3d> onBoard(const cv::Point2d& p, const capture::Intrinsics& k,
+                                 const capture::Pose& T_camera_board) {
   const cv::Vec3d d((p.x - k.cx) / k.fx, (p.y - k.cy) / k.fy, 1.0);
   const cv::Vec3d n(T_camera_board(0, 2), T_camera_board(1, 2), T_camera_board(2, 2));
   const cv::Vec3d t = capture::translationOf(T_camera_board);
@@ -125,7 +126,8 @@ TagSequence loadTagSequence(const std::string& dirName, int maxFrames) {
     seq.T_camera_board.push_back(poseFromJson(tags["grid"][i], tagFile, "grid[" + std::to_string(i) + "]"));
     std::map<int, std::array<cv::Point2d, 4>> frameCorners;
     const json& det = tags["detections"][i];
-    if (!det.is_object()) throw capture::CaptureError(tagFile, "detections[" + std::to_string(i) + "] is not an object");
+    if (!det.is_object())
+      throw capture::CaptureError(tagFile, "detections[" + std::to_string(i) + "] is not an object");
     for (const auto& [id, d] : det.items()) {
       const json& c = d.contains("tag_corners") ? d["tag_corners"] : json();
       if (!c.is_array() || c.size() != 4) throw capture::CaptureError(tagFile, "a tag without four corners");
@@ -135,7 +137,15 @@ TagSequence loadTagSequence(const std::string& dirName, int maxFrames) {
           throw capture::CaptureError(tagFile, "a tag corner that is not two numbers");
         q[k] = {c[k][1].get<double>(), c[k][0].get<double>()};  // stored as (row, column)
       }
-      frameCorners[std::stoi(id)] = q;
+      int tagId = -1;
+      try {
+        size_t used = 0;
+        tagId = std::stoi(id, &used);
+        if (used != id.size()) tagId = -1;
+      } catch (const std::exception&) {
+      }
+      if (tagId < 0) throw capture::CaptureError(tagFile, "a tag id that is not a number: '" + id + "'");
+      frameCorners[tagId] = q;
     }
     seq.corners.push_back(std::move(frameCorners));
   }

@@ -46,9 +46,9 @@ cv::Point2d tagCentre(const std::array<cv::Point2d, 4>& corners);
 int paintTagsOut(TagSequence& seq, size_t i);
 
 struct TagPixelError {
-  int frames = 0;            ///< frames after the first with at least one tag detected
-  int tracked = 0;           ///< of those, the frames with a pose
-  int samples = 0;           ///< tag centres compared
+  int frames = 0;   ///< frames after the first with at least one tag detected
+  int tracked = 0;  ///< of those, the frames with a pose
+  int samples = 0;  ///< tag centres compared
   double rmsPx = 0, p95Px = 0, maxPx = 0;
   std::vector<double> frameRmsPx;  ///< per frame after the first (-1: lost or no tag)
 };

@@ -220,6 +220,56 @@ size_t OdometryFrame::bytes() const {
 }
 
 struct OdometrySolver {
+  /// The source level without the pixels whose intensity, at pose T (target from source), differs from the
+  /// target's where they land by more than options.intensityOutlier (the intensities' own scale, before
+  /// intensityWeight): their depth and vertex made NaN, which every step skips. Nullopt when none is, or when more
+  /// than half the associated pixels would be (a change of the whole view's brightness: not outliers), or fewer
+  /// than options.intensityOutlierMinShare of them (the sensor's noise and the edges of an unchanged view: the
+  /// second solve would cost as much as the first for nothing).
+  static std::optional<OdometryFrame::Impl::Level> withoutIntensityOutliers(const OdometryFrame::Impl::Level& s,
+                                                                            const OdometryFrame::Impl::Level& t,
+                                                                            const capture::Pose& T,
+                                                                            const OdometryOptions& o) {
+    if (s.intensity.empty() || t.intensity.empty()) return std::nullopt;
+    const cv::Matx33d R = capture::rotationOf(T);
+    const cv::Vec3d tr = capture::translationOf(T);
+    const float limit = static_cast<float>(o.intensityOutlier * o.intensityWeight);
+    cv::Mat out(s.vertices.size(), CV_8UC1, cv::Scalar(0));
+    size_t associated = 0, outliers = 0;
+    for (int y = 0; y < s.vertices.rows; ++y)
+      for (int x = 0; x < s.vertices.cols; ++x) {
+        const cv::Vec3f v = s.vertices.at<cv::Vec3f>(y, x);
+        if (!std::isfinite(v[0])) continue;
+        const cv::Vec3d p = R * cv::Vec3d(v) + tr;
+        if (!(p[2] > 0)) continue;
+        const double u = t.k.fx * p[0] / p[2] + t.k.cx, w = t.k.fy * p[1] / p[2] + t.k.cy;
+        if (!(u >= 0 && w >= 0 && u <= t.intensity.cols - 1 && w <= t.intensity.rows - 1)) continue;
+        const int u0 = std::min(static_cast<int>(u), t.intensity.cols - 2),
+                  w0 = std::min(static_cast<int>(w), t.intensity.rows - 2);
+        const float a = static_cast<float>(u - u0), b = static_cast<float>(w - w0);
+        const float it =
+            (1 - a) * (1 - b) * t.intensity.at<float>(w0, u0) + a * (1 - b) * t.intensity.at<float>(w0, u0 + 1) +
+            (1 - a) * b * t.intensity.at<float>(w0 + 1, u0) + a * b * t.intensity.at<float>(w0 + 1, u0 + 1);
+        ++associated;
+        if (std::abs(it - s.intensity.at<float>(y, x)) > limit) out.at<uchar>(y, x) = 1, ++outliers;
+      }
+    if (static_cast<double>(outliers) < o.intensityOutlierMinShare * static_cast<double>(associated) || outliers == 0 ||
+        2 * outliers > associated)
+      return std::nullopt;
+    OdometryFrame::Impl::Level m = s;
+    m.depth = s.depth.clone();
+    m.vertices = s.vertices.clone();
+    for (int y = 0; y < out.rows; ++y)
+      for (int x = 0; x < out.cols; ++x)
+        if (out.at<uchar>(y, x)) {
+          m.depth.at<float>(y, x) = kNaN;
+          m.vertices.at<cv::Vec3f>(y, x) = cv::Vec3f(kNaN, kNaN, kNaN);
+        }
+    m.tDepth = imageTensor(m.depth);
+    m.tVertices = imageTensor(m.vertices);
+    return m;
+  }
+
   static OdometryResult solve(const OdometryFrame& source, const OdometryFrame& target, const capture::Pose& init,
                               const OdometryOptions& o) {
     const auto& S = *source.impl_;
@@ -235,44 +285,58 @@ struct OdometrySolver {
     o3c::Tensor pose = poseTensor(init);
     bool solved = true;
     for (int l = levels - 1; l >= 0 && solved; --l) {
-      const auto& s = S.levels[l];
+      const auto* sp = &S.levels[l];
       const auto& t = T.levels[l];
       const int steps = o.iterations[static_cast<size_t>(levels - 1 - l)];
-      for (int i = 0; i < steps; ++i) {
-        o3o::OdometryResult r;
-        try {
-          switch (method) {
-            case OdometryMethod::PointToPlane:
-              r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose,
-                                                         o.depthOutlierM, o.depthHuberM);
-              break;
-            case OdometryMethod::Intensity:
-              r = o3o::ComputeOdometryResultIntensity(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tIntensityDx,
-                                                      t.tIntensityDy, s.tVertices, t.tK, pose, o.depthOutlierM,
-                                                      o.intensityHuber * o.intensityWeight);
-              break;
-            case OdometryMethod::Hybrid:
-              r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx,
-                                                   t.tDepthDy, t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK, pose,
-                                                   o.depthOutlierM, o.depthHuberM,
-                                                   o.intensityHuber * o.intensityWeight);
-              break;
+      // Where the source's appearance has changed since the target (a hand, a screen, a painted-out marker, a
+      // highlight that moved) its intensity residual stays large however the pose moves: once the level has
+      // converged, those pixels are left out and the level solved again (a redescending weight, where the
+      // steps' own Huber weight would keep pulling the pose by them).
+      std::optional<OdometryFrame::Impl::Level> masked;
+      const bool rejects = method != OdometryMethod::PointToPlane && o.intensityOutlier > 0;
+      for (int pass = 0; pass < (rejects ? 2 : 1) && solved; ++pass) {
+        if (pass == 1) {
+          masked = withoutIntensityOutliers(*sp, t, poseOf(pose), o);
+          if (!masked) break;  // nothing (or too much) to leave out: the level stands
+          sp = &*masked;
+        }
+        const auto& s = *sp;
+        for (int i = 0; i < steps; ++i) {
+          o3o::OdometryResult r;
+          try {
+            switch (method) {
+              case OdometryMethod::PointToPlane:
+                r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose,
+                                                           o.depthOutlierM, o.depthHuberM);
+                break;
+              case OdometryMethod::Intensity:
+                r = o3o::ComputeOdometryResultIntensity(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tIntensityDx,
+                                                        t.tIntensityDy, s.tVertices, t.tK, pose, o.depthOutlierM,
+                                                        o.intensityHuber * o.intensityWeight);
+                break;
+              case OdometryMethod::Hybrid:
+                r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx,
+                                                     t.tDepthDy, t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK,
+                                                     pose, o.depthOutlierM, o.depthHuberM,
+                                                     o.intensityHuber * o.intensityWeight);
+                break;
+            }
+          } catch (const std::exception&) {
+            solved = false;  // no inlier at all: the frames do not overlap at this pose
+            break;
           }
-        } catch (const std::exception&) {
-          solved = false;  // no inlier at all: the frames do not overlap at this pose
-          break;
+          const capture::Pose delta = poseOf(r.transformation_);
+          bool finite = true;
+          for (double v : delta.val) finite &= std::isfinite(v);
+          if (!finite) {
+            solved = false;
+            break;
+          }
+          pose = r.transformation_.To(o3c::Float64).Matmul(pose);
+          ++out.steps;
+          const double angle = std::acos(std::clamp((delta(0, 0) + delta(1, 1) + delta(2, 2) - 1) / 2, -1.0, 1.0));
+          if (angle + cv::norm(capture::translationOf(delta)) < o.convergedStep) break;
         }
-        const capture::Pose delta = poseOf(r.transformation_);
-        bool finite = true;
-        for (double v : delta.val) finite &= std::isfinite(v);
-        if (!finite) {
-          solved = false;
-          break;
-        }
-        pose = r.transformation_.To(o3c::Float64).Matmul(pose);
-        ++out.steps;
-        const double angle = std::acos(std::clamp((delta(0, 0) + delta(1, 1) + delta(2, 2) - 1) / 2, -1.0, 1.0));
-        if (angle + cv::norm(capture::translationOf(delta)) < o.convergedStep) break;
       }
     }
     if (!solved) return out;
