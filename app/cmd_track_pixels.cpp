@@ -30,6 +30,12 @@ int trackPixels(const TrackPixelsOptions& o) {
   TagSequence painted = inView;
   for (capture::Frame& f : painted.frames) f.rgbd->colour = f.rgbd->colour.clone();  // its own pixels to paint
   for (size_t i = 1; i < painted.frames.size(); ++i) evaluation::paintTagsOut(painted, i);
+  // Every frame painted, the first included: a recording without a marker (the world founded on its first frame).
+  TagSequence bare = painted;
+  bare.frames[0].rgbd->colour = bare.frames[0].rgbd->colour.clone();
+  evaluation::paintTagsOut(bare, 0);
+  runtime::TrackingOptions founded;
+  founded.worldFromFirstFrame = true;
   runtime::TrackingOptions fine;
   fine.odometry.maxWidth = inView.intrinsics.width;
   struct Row {
@@ -48,6 +54,10 @@ int trackPixels(const TrackPixelsOptions& o) {
       {"ours, --pose tracked, tags painted out", &painted, ours(painted, runtime::PoseMode::Tracked, {})},
       {"Open3D colour term, tags painted out", &painted, [&] { return evaluation::open3dTrajectory(painted, false); }},
       {"Open3D hybrid term, tags painted out", &painted, [&] { return evaluation::open3dTrajectory(painted, true); }},
+      {"ours, --pose odometry, every frame painted (no marker)", &bare,
+       ours(bare, runtime::PoseMode::Odometry, founded)},
+      {"Open3D colour term, every frame painted", &bare, [&] { return evaluation::open3dTrajectory(bare, false); }},
+      {"Open3D hybrid term, every frame painted", &bare, [&] { return evaluation::open3dTrajectory(bare, true); }},
       {"ours, --pose tracked, tags in view", &inView, ours(inView, runtime::PoseMode::Tracked, {})},
       {"Open3D hybrid term, tags in view", &inView, [&] { return evaluation::open3dTrajectory(inView, true); }},
   };
