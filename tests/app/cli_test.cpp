@@ -1236,6 +1236,23 @@ TEST(Cli, SynthLetsTheSunInThroughAWindow) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, TrackPixelsMeasuresOursAndOpen3DsOdometryOnTheRealDeskAndRefusesAFolderWithoutTags) {
+  // The harness on the first frames of the real ViSP desk: every row tracked, the board's own poses at its floor.
+  const std::string visp = std::string(MRGI_SHARED_DATA) + "/rgbd-visp-apriltag";
+  const Result r = runMrgi("track-pixels " + visp + " --frames 4 --json");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["rows"].size(), 11u);
+  for (const auto& row : j["rows"]) {
+    EXPECT_EQ(row["tracked"], 3) << row["poses"];
+    EXPECT_LT(row["rms_px"].get<double>(), 3.0) << row["poses"];
+  }
+  EXPECT_LT(j["rows"][0]["rms_px"].get<double>(), 0.3);
+  // A folder that is not a ViSP tag sequence: one line naming what it lacks.
+  const std::string icl = std::string(MRGI_SHARED_DATA) + "/rgbd-open3d-iclnuim";
+  expectOneLineError(runMrgi("track-pixels " + icl), icl + "/cam.json");
+}
+
 TEST(Cli, CompareHoldsAReplayAgainstTheReferenceComposites) {
   // mrgi compare on a session with path-traced references (their shadows; ray-cast ones have none): a "replay" whose
   // frames are the references themselves measures brightness 1, L1 0, the brightest side where it is and the whole

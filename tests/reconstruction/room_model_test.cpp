@@ -648,17 +648,24 @@ TEST(RoomModel, AppearanceIsRadianceAtExposureOneAndClippedObservationsOnlyBound
   EXPECT_GT(lamp.appearanceBytes(), 0u);
 }
 
+/// The room of `s` (albedo 0.6) fused from eight views on an arc, lit by `lights` (position, intensity).
+RoomMesh fuseOrbit(const Scene& s, const std::vector<std::pair<cv::Vec3d, double>>& lights) {
+  RoomModel room;
+  int k = 0;
+  for (const auto& T : orbit(8, 1.3, 1.0)) {
+    const auto r = room.integrate(renderDepth(s, T, 0.001, k++), renderColour(s, T, 0.6, lights), kK, T);
+    EXPECT_TRUE(r.integrated);
+  }
+  return room.mesh();
+}
+
 TEST(RoomModel, AlbedoIsRecoveredUnderTwoLightsAndShadowsDoNotLowerIt) {
   // Floor, wall and a box of albedo 0.6 under two lamps; the box shadows part of the floor from one of them.
   Scene s;
   s.box = true;
   s.boxMin = {0.0, -0.1, 0.0}, s.boxMax = {0.2, 0.1, 0.3};
   const std::vector<std::pair<cv::Vec3d, double>> lamps = {{{0.9, 0.0, 1.2}, 3.6}, {{-0.3, 0.9, 1.4}, 2.7}};
-  RoomModel room;
-  int k = 0;
-  for (const auto& T : orbit(8, 1.3, 1.0))
-    ASSERT_TRUE(room.integrate(renderDepth(s, T, 0.001, k++), renderColour(s, T, 0.6, lamps), kK, T).integrated);
-  const RoomMesh m = room.mesh();
+  const RoomMesh m = fuseOrbit(s, lamps);
   reconstruction::AlbedoLights lights;
   for (const auto& [pos, intensity] : lamps) lights.points.push_back({pos, cv::Vec3d::all(intensity)});
   const auto a = reconstruction::estimateRoomAlbedo(m, lights);  // (without its shadow test this fails: 89 %)
@@ -692,11 +699,7 @@ TEST(RoomModel, AlbedoInASunsSharpShadowIsMeasuredUnderTheOtherLights) {
   const cv::Vec3d toSun = cv::normalize(cv::Vec3d(0.3, -0.6, 0.74));
   const double sunE = 6.0, far = 1000.0;
   const std::vector<std::pair<cv::Vec3d, double>> lights = {{{0.9, 0.0, 1.2}, 3.6}, {far * toSun, sunE * far * far}};
-  RoomModel room;
-  int k = 0;
-  for (const auto& T : orbit(8, 1.3, 1.0))
-    ASSERT_TRUE(room.integrate(renderDepth(s, T, 0.001, k++), renderColour(s, T, 0.6, lights), kK, T).integrated);
-  const RoomMesh m = room.mesh();
+  const RoomMesh m = fuseOrbit(s, lights);
   reconstruction::AlbedoLights al;
   al.points.push_back({lights[0].first, cv::Vec3d::all(lights[0].second)});
   reconstruction::EstimatedLight sun;
