@@ -52,6 +52,9 @@ Action addBench(CLI::App& app) {
       "--room", o->room,
       "also light each configuration from the session's fused room model (mrgi room over all its frames) and report "
       "its whole-pipeline error beside the per-frame one");
+  app.add_option("--tracking-pixels", o->trackingPixels,
+                 "also measure tracking in pixels on this real ViSP tag sequence, ours beside Open3D's odometry (as "
+                 "mrgi track-pixels; e.g. ../shared/data/rgbd-visp-apriltag)");
   addPoseOption(app, o->pose)
       ->description(
           "camera pose per frame: ground-truth (default here: the bench ranks techniques, not tracking; needs a "

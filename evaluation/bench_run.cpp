@@ -23,6 +23,7 @@
 #include "evaluation/metrics.h"
 #include "evaluation/reference_scene.h"
 #include "evaluation/tabletop.h"
+#include "evaluation/tag_pixels.h"
 #include "evaluation/tracking_metrics.h"
 #include "gl/context.h"
 #include "gl/profiler.h"
@@ -991,6 +992,11 @@ int runSweep(const BenchOptions& o) {
               {"references", sessionInfo},
               {"process", processSettingsInEffect()},
               {"records", records}};
+  if (!o.trackingPixels.empty()) {
+    const auto rows = tagPixelTable(o.trackingPixels);
+    doc["tracking_pixels"] =
+        tagPixelJson(o.trackingPixels, rows.empty() ? 0 : rows.front().error.frameRmsPx.size() + 1, rows);
+  }
   doc["presets"] = choosePresets(records);
   doc["preset_differences"] = presetDifferences(doc["presets"]);
   auto write = [](const std::string& path, const std::function<void()>& fn) {

@@ -23,6 +23,9 @@ struct BenchOptions {
   int refBounces = 3;
   bool quick = false;
   bool room = false;  ///< also light from each session's fused room model, side by side
+  /// A ViSP RGB-D tag sequence: the tracking table in pixels on its real frames, ours beside Open3D's odometry
+  /// (evaluation/tag_pixels.h), in the JSON ("tracking_pixels") and the report. Empty: none.
+  std::string trackingPixels;
   runtime::PoseMode pose = runtime::PoseMode::GroundTruth;
   std::vector<std::string> sessions{"recordings/tabletop-synth", "recordings/tabletop-pt", "recordings/tabletop-hdr"};
   // --against bruteforce: on the first session's first frame

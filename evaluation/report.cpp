@@ -579,6 +579,16 @@ void writeHtml(const std::string& path, const json& doc, const std::vector<Repor
           << " mm / " << fmt(t.value("rpe_rmse_deg", 0.0)) << "&deg;, " << t.value("tracked", 0) << " of "
           << t.value("frames", 0) << "; ";
     }
+  if (doc.contains("tracking_pixels") && doc["tracking_pixels"].is_object()) {
+    const json& tp = doc["tracking_pixels"];
+    h << "</p><p>Tracking in pixels on " << esc(tp.value("sequence", "")) << " (" << tp.value("frames", 0)
+      << " real frames: the tags placed from frame 0 and drawn with each way of tracking; RMS / 95th percentile, "
+         "frames tracked, ms a frame): ";
+    for (const auto& r : tp.value("rows", json::array()))
+      h << esc(r.value("poses", "")) << " " << fmt(r.value("rms_px", 0.0)) << " / " << fmt(r.value("p95_px", 0.0))
+        << " px, " << r.value("tracked", 0) << " of " << r.value("frames", 0) << ", "
+        << fmt(r.value("ms_per_frame", 0.0)) << " ms; ";
+  }
   h << "</p><p>";
   h << "Times are means over the frames after the first (ms, the larger of CPU and GPU time per stage); "
        "error = mean of the relative errors of the real-pixel delta and the virtual radiance.</p>";

@@ -6,10 +6,12 @@
 #include <open3d/pipelines/odometry/Odometry.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -385,6 +387,68 @@ std::vector<std::optional<capture::Pose>> boardTrajectory(const TagSequence& seq
   std::vector<std::optional<capture::Pose>> out;
   for (const capture::Pose& T : seq.T_camera_board) out.push_back(capture::inversePose(T));
   return out;
+}
+
+std::vector<TagPixelRow> tagPixelTable(const std::string& dir, int frames, int markerId) {
+  using Trajectory = std::vector<std::optional<capture::Pose>>;
+  const TagSequence inView = loadTagSequence(dir, frames);
+  TagSequence painted = inView;
+  for (capture::Frame& f : painted.frames) f.rgbd->colour = f.rgbd->colour.clone();  // its own pixels to paint
+  for (size_t i = 1; i < painted.frames.size(); ++i) paintTagsOut(painted, i);
+  // Every frame painted, the first included: a recording without a marker (the world founded on its first frame).
+  TagSequence bare = painted;
+  bare.frames[0].rgbd->colour = bare.frames[0].rgbd->colour.clone();
+  paintTagsOut(bare, 0);
+  runtime::TrackingOptions founded;
+  founded.worldFromFirstFrame = true;
+  runtime::TrackingOptions fine;
+  fine.odometry.maxWidth = inView.intrinsics.width;
+  struct Row {
+    std::string name;
+    const TagSequence* seq;
+    std::function<Trajectory()> run;
+  };
+  const auto ours = [&](const TagSequence& s, runtime::PoseMode mode, const runtime::TrackingOptions& to) {
+    return [&s, mode, to, markerId] { return trackedTrajectory(s, mode, markerId, to); };
+  };
+  const std::string full = "its finest level at " + std::to_string(inView.intrinsics.width) + " px";
+  const std::vector<Row> rows = {
+      {"the board's own poses (the harness's floor)", &inView, [&] { return boardTrajectory(inView); }},
+      {"ours, --pose odometry, tags painted out", &painted, ours(painted, runtime::PoseMode::Odometry, {})},
+      {"ours, --pose odometry, tags painted out, " + full, &painted, ours(painted, runtime::PoseMode::Odometry, fine)},
+      {"ours, --pose tracked, tags painted out", &painted, ours(painted, runtime::PoseMode::Tracked, {})},
+      {"Open3D colour term, tags painted out", &painted, [&] { return open3dTrajectory(painted, false); }},
+      {"Open3D hybrid term, tags painted out", &painted, [&] { return open3dTrajectory(painted, true); }},
+      {"ours, --pose odometry, every frame painted (no marker)", &bare,
+       ours(bare, runtime::PoseMode::Odometry, founded)},
+      {"Open3D colour term, every frame painted", &bare, [&] { return open3dTrajectory(bare, false); }},
+      {"Open3D hybrid term, every frame painted", &bare, [&] { return open3dTrajectory(bare, true); }},
+      {"ours, --pose tracked, tags in view", &inView, ours(inView, runtime::PoseMode::Tracked, {})},
+      {"Open3D hybrid term, tags in view", &inView, [&] { return open3dTrajectory(inView, true); }},
+  };
+  std::vector<TagPixelRow> out;
+  for (const Row& r : rows) {
+    const auto start = std::chrono::steady_clock::now();
+    const Trajectory poses = r.run();
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count() /
+                      static_cast<double>(r.seq->frames.size());
+    out.push_back({r.name, tagPixelError(*r.seq, poses), ms});
+  }
+  return out;
+}
+
+nlohmann::json tagPixelJson(const std::string& dir, size_t frames, const std::vector<TagPixelRow>& rows) {
+  nlohmann::json j = {{"sequence", dir}, {"frames", frames}, {"rows", nlohmann::json::array()}};
+  for (const TagPixelRow& r : rows)
+    j["rows"].push_back({{"poses", r.poses},
+                         {"rms_px", r.error.rmsPx},
+                         {"p95_px", r.error.p95Px},
+                         {"max_px", r.error.maxPx},
+                         {"frames", r.error.frames},
+                         {"tracked", r.error.tracked},
+                         {"ms_per_frame", r.msPerFrame},
+                         {"frame_rms_px", r.error.frameRmsPx}});
+  return j;
 }
 
 }  // namespace mrgi::evaluation

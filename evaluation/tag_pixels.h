@@ -9,6 +9,7 @@
 // peer.
 #include <array>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -71,5 +72,22 @@ std::vector<std::optional<capture::Pose>> trackedTrajectory(const TagSequence& s
 /// The board's own poses (camera to board): what the harness gives when the poses are exact up to the board's
 /// detection (its floor).
 std::vector<std::optional<capture::Pose>> boardTrajectory(const TagSequence& seq);
+
+/// One way of tracking measured by the harness.
+struct TagPixelRow {
+  std::string poses;  ///< what placed the camera, on which frames (tags in view, painted out after frame 0, ...)
+  TagPixelError error;
+  double msPerFrame = 0;  ///< its wall time over the sequence's frames (in memory), per frame
+};
+
+/// The harness's table on a ViSP tag sequence (its first `frames` frames, 0: all; the world anchored by tag
+/// `markerId`): the board's own poses (the floor); ours (--pose odometry, the same at the frame's full width,
+/// --pose tracked) and Open3D's colour and hybrid terms with the tags painted out after frame 0; ours and
+/// Open3D's with every frame painted (no marker: the world founded on frame 0); ours tracked and Open3D's hybrid
+/// with the tags in view.
+std::vector<TagPixelRow> tagPixelTable(const std::string& dir, int frames = 0, int markerId = 3);
+
+/// {"sequence", "frames", "rows": [{poses, rms_px, p95_px, max_px, frames, tracked, ms_per_frame, frame_rms_px}]}
+nlohmann::json tagPixelJson(const std::string& dir, size_t frames, const std::vector<TagPixelRow>& rows);
 
 }  // namespace mrgi::evaluation
