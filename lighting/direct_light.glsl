@@ -106,6 +106,43 @@ float softObjectsShadow(int i, vec3 at, vec3 n) {
   return float(lit) / float(SOFT_SHADOW_TAPS);
 }
 
+// The real surfaces' map tested at the four texels around x's projection, the results weighed bilinearly: the
+// visibility of a virtual surface changes over a texel where a real occluder's edge crosses it, not in a step a
+// texel wide (the table's edge cutting off light from just below an object's horizon drew stair-step bands on
+// its lower half). lighting::smoothShadowTest is the C++ twin.
+float smoothShadowTest(sampler2DArray map, int i, mat4 viewProj, float bias, vec3 x, vec3 n) {
+  if (bias < -1e29) return 1.0;
+  x += n * bias;
+  vec4 c = viewProj * vec4(x, 1.0);
+  if (c.w <= 0.0) return 1.0;
+  vec2 ndc = c.xy / c.w;
+  if (any(greaterThan(abs(ndc), vec2(1.0)))) return 1.0;
+  ivec2 size = textureSize(map, 0).xy;
+  vec2 f = (ndc * 0.5 + 0.5) * vec2(size) - 0.5;
+  vec2 t0 = floor(f), w = f - t0;
+  float self = lightDistance(i, x) - bias;
+  float lit[4];
+  for (int k = 0; k < 4; ++k) {
+    ivec2 t = clamp(ivec2(t0) + ivec2(k & 1, k >> 1), ivec2(0), size - 1);
+    vec4 s = texelFetch(map, ivec3(t, i), 0);
+    lit[k] = s.w < 0.5 || !(lightDistance(i, s.xyz) < self) ? 1.0 : 0.0;
+  }
+  return mix(mix(lit[0], lit[1], w.x), mix(lit[2], lit[3], w.x), w.y);
+}
+
+// A virtual surface's visibility of light i with the objects (the shading pass's virtual pixels): the real
+// surfaces' map tested smoothly (smoothShadowTest), the objects' as for real receivers.
+float virtualVisibility(int i, vec3 x, vec3 n) {
+  if (uObjectShadowBias[i] < -1e29) return smoothShadowTest(uShadowRho, i, uLightViewProj[i], uShadowBias[i], x, n);
+#ifdef SOFT_OBJECT_SHADOWS
+  float objects = uLightSoft[i] == 1 ? softObjectsShadow(i, x, n)
+                                        : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#else
+  float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#endif
+  return smoothShadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * objects;
+}
+
 float visibility(bool withObjects, int i, vec3 x, vec3 n) {
   if (!withObjects) return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n);
   if (uObjectShadowBias[i] < -1e29) return shadowTest(uShadowRho, i, uLightViewProj[i], uShadowBias[i], x, n);
@@ -151,6 +188,16 @@ vec3 objectsDirectShadow(vec3 x, vec3 n) {
     float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
 #endif
     if (objects < 1.0) e += contribution * shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * (objects - 1.0);
+  }
+  return e;
+}
+
+// directIrradiance(true, x, n) for a virtual surface (virtualVisibility).
+vec3 virtualDirectIrradiance(vec3 x, vec3 n) {
+  vec3 e = vec3(0.0);
+  for (int i = 0; i < uLightCount; ++i) {
+    vec3 contribution = unshadowedIrradiance(i, x, n);
+    if (any(greaterThan(contribution, vec3(0.0)))) e += contribution * virtualVisibility(i, x, n);
   }
   return e;
 }

@@ -93,7 +93,7 @@ void main() {
   if (isVirtual) return;  // drawn by the whole program: the objects lie in the footprint
 #else
   if (isVirtual) {
-    vec3 e = directIrradiance(true, pos.xyz, n) + SHADE_PI * uAmbient + ambientShIrradiance(uAmbientSh, n);
+    vec3 e = virtualDirectIrradiance(pos.xyz, n) + SHADE_PI * uAmbient + ambientShIrradiance(uAmbientSh, n);
     vec3 indirect = uEnvironmentHoldsBounce == 1 ? vec3(0.0)
                                                  : techniqueOutput(uVirtualIrradiance, uVirtualIrradianceFactor, p, pos, normal);
     vec3 radiance = uEnvironmentHoldsBounce == 1 ? vec3(0.0)

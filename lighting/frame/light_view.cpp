@@ -198,6 +198,36 @@ float softObjectsShadow(const cv::Mat& objects, const SceneLight& light, const L
   return static_cast<float>(lit) / kSoftShadowTaps;
 }
 
+float smoothShadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
+                       cv::Vec3d x, const cv::Vec3d& n) {
+  if (bias < 0 || positions.empty()) return 1.f;
+  x += n * bias;
+  const cv::Vec4d c = viewProj * cv::Vec4d(x[0], x[1], x[2], 1.0);
+  if (c[3] <= 0) return 1.f;
+  const double u = c[0] / c[3], v = c[1] / c[3];
+  if (std::abs(u) > 1 || std::abs(v) > 1) return 1.f;
+  const double fx = (u * 0.5 + 0.5) * positions.cols - 0.5, fy = (v * 0.5 + 0.5) * positions.rows - 0.5;
+  const double x0 = std::floor(fx), y0 = std::floor(fy), wx = fx - x0, wy = fy - y0;
+  const double self = lightDistance(light, x) - bias;
+  double lit[4];
+  for (int k = 0; k < 4; ++k) {
+    const int col = std::clamp(static_cast<int>(x0) + (k & 1), 0, positions.cols - 1);
+    const int row = std::clamp(static_cast<int>(y0) + (k >> 1), 0, positions.rows - 1);
+    const cv::Vec4f s = positions.at<cv::Vec4f>(row, col);
+    lit[k] = s[3] < 0.5f || !(lightDistance(light, cv::Vec3d(s[0], s[1], s[2])) < self) ? 1.0 : 0.0;
+  }
+  return static_cast<float>((lit[0] * (1 - wx) + lit[1] * wx) * (1 - wy) + (lit[2] * (1 - wx) + lit[3] * wx) * wy);
+}
+
+float virtualLightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view,
+                             const cv::Vec3d& x, const cv::Vec3d& n, bool soft) {
+  if (view.objectShadowBias < 0) return smoothShadowTest(maps.rho, light, view.viewProj, view.shadowBias, x, n);
+  const float objects = soft && view.soft
+                            ? softObjectsShadow(maps.objects, light, view, x, n)
+                            : shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
+  return smoothShadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) * objects;
+}
+
 float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,
                       const cv::Vec3d& x, const cv::Vec3d& n, bool soft) {
   if (!withObjects) return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n);

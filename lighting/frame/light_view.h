@@ -81,6 +81,14 @@ struct Rsm {
 /// a light's visibility with or without the objects, and a light's irradiance before shadowing.
 float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
                  cv::Vec3d x, const cv::Vec3d& n);
+/// direct_light.glsl's smoothShadowTest: the map tested at the four texels around x's projection, weighed
+/// bilinearly (a virtual surface's test of the real surfaces' map).
+float smoothShadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
+                       cv::Vec3d x, const cv::Vec3d& n);
+/// direct_light.glsl's virtualVisibility: lightVisibility with the objects for a virtual surface (the shading
+/// pass's virtual pixels), the real surfaces' map tested smoothly.
+float virtualLightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view,
+                             const cv::Vec3d& x, const cv::Vec3d& n, bool soft = true);
 /// soft: the objects' soft shadow of a light with extent (the shading pass's; techniques' own passes take the
 /// hard test of its centre).
 float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,

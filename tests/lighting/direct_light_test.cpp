@@ -74,7 +74,9 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
       SceneLight point = lights[l];
       point.extent = 0;
       if (cv::norm(e - lighting::unshadowedIrradiance(point, x, nn)) > 1e-2 * (1 + cv::norm(e))) ++extentMatters;
-      const float v = lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], true, x, nn);
+      // A virtual surface tests the real surfaces' map smoothly (lighting::virtualLightVisibility).
+      const float v = a[3] > 0.5f ? lighting::virtualLightVisibility(maps[l], lights[l], frame.lightViews()[l], x, nn)
+                                  : lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], true, x, nn);
       with += e * v;
       penumbra += v > 0.f && v < 1.f && cv::norm(e) > 0;
       without += e * lighting::lightVisibility(maps[l], lights[l], frame.lightViews()[l], false, x, nn);
@@ -116,6 +118,43 @@ TEST(DirectLight, ShadingPassMatchesItsCppTwinForEveryLightType) {
   EXPECT_GT(penumbra, 250);       // the soft edges of the wide lights' shadows
   EXPECT_GT(hidden, 0);           // the oblique sun, behind the wall as the cube sees it
   EXPECT_LE(differ, (real + virt) / 500) << differ << " of " << real + virt << " pixels differ";
+}
+
+// A virtual surface crossed by a real occluder's shadow edge (the wall's, from a low sun) sees it over a texel of
+// the real surfaces' map, not in a step: along a line across the edge, visibility falls monotonically through
+// values between 0 and 1, where the hard test jumps (the stair-step bands a table's edge drew on a sphere).
+TEST(DirectLight, AVirtualSurfaceSeesARealShadowEdgeWithoutSteps) {
+  auto ctx = makeContext();
+  const int W = 64, H = 48;
+  const TestScene s = makeScene(true, 0.15, {0.05, 0.0, 0.075});
+  PipelineConfig cfg = testConfig(W, H, 16, 32, "none");  // a coarse region map: 32 texels
+  LightingPipeline pipe = makePipeline(cfg, s);
+  SceneLight sun = sunDown(5.0);
+  sun.direction = cv::normalize(cv::Vec3d(0.7, 0.0, -1.5));  // over the wall: its shadow ends at x = 0.2
+  pipe.run(topCamera(W, H), {sun}, {0.0, 0.0, 0.0}, nullptr);
+  const lighting::ShadowTexels maps = pipe.frame().downloadShadowTexels(0);
+  const lighting::LightView& view = pipe.frame().lightViews()[0];
+  // Along the floor from under the wall's shadow out into the sun (the floor stands in for any surface: the
+  // test of the real surfaces' map is the same function for a virtual one).
+  int between = 0, hardBetween = 0, rises = 0;
+  float last = -1.f;
+  bool monotonic = true;
+  const cv::Vec3d n(0, 0, 1);
+  for (double x = 0.0; x <= 0.4; x += 0.002) {
+    const cv::Vec3d p(x, 0.3, 0.0);
+    const float v = lighting::smoothShadowTest(maps.mu, sun, view.viewProj, view.shadowBias, p, n);
+    const float hard = lighting::shadowTest(maps.mu, sun, view.viewProj, view.shadowBias, p, n);
+    between += v > 0.02f && v < 0.98f;
+    hardBetween += hard > 0.f && hard < 1.f;
+    if (last >= 0 && v < last - 1e-6f) monotonic = false;
+    rises += last >= 0 && v > last;
+    last = v;
+  }
+  EXPECT_EQ(hardBetween, 0);
+  EXPECT_GE(between, 5) << "a ramp over about a texel (3 cm here), sampled every 2 mm";
+  EXPECT_GT(rises, 0);
+  EXPECT_TRUE(monotonic);
+  EXPECT_NEAR(last, 1.f, 1e-6f);
 }
 
 // An oblique sun: the cube's shadow on the floor is where a ray towards the sun hits the cube. With a region
