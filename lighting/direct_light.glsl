@@ -130,29 +130,28 @@ float smoothShadowTest(sampler2DArray map, int i, mat4 viewProj, float bias, vec
   return mix(mix(lit[0], lit[1], w.x), mix(lit[2], lit[3], w.x), w.y);
 }
 
+// The objects' map's test of light i at (x, n): soft for the lights with extent the frame knob soft_shadow_lights
+// picked (SOFT_OBJECT_SHADOWS), hard otherwise.
+float objectsVisibility(int i, vec3 x, vec3 n) {
+#ifdef SOFT_OBJECT_SHADOWS
+  return uLightSoft[i] == 1 ? softObjectsShadow(i, x, n)  // set for lights with extent only
+                            : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#else
+  return shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
+#endif
+}
+
 // A virtual surface's visibility of light i with the objects (the shading pass's virtual pixels): the real
 // surfaces' map tested smoothly (smoothShadowTest), the objects' as for real receivers.
 float virtualVisibility(int i, vec3 x, vec3 n) {
   if (uObjectShadowBias[i] < -1e29) return smoothShadowTest(uShadowRho, i, uLightViewProj[i], uShadowBias[i], x, n);
-#ifdef SOFT_OBJECT_SHADOWS
-  float objects = uLightSoft[i] == 1 ? softObjectsShadow(i, x, n)
-                                        : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
-#else
-  float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
-#endif
-  return smoothShadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * objects;
+  return smoothShadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * objectsVisibility(i, x, n);
 }
 
 float visibility(bool withObjects, int i, vec3 x, vec3 n) {
   if (!withObjects) return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n);
   if (uObjectShadowBias[i] < -1e29) return shadowTest(uShadowRho, i, uLightViewProj[i], uShadowBias[i], x, n);
-#ifdef SOFT_OBJECT_SHADOWS
-  float objects = uLightSoft[i] == 1 ? softObjectsShadow(i, x, n)  // set for lights with extent only
-                                        : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
-#else
-  float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
-#endif
-  return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * objects;
+  return shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * objectsVisibility(i, x, n);
 }
 
 // Light i's irradiance at a point before any shadow test (lighting::unshadowedIrradiance); a light with
@@ -181,12 +180,7 @@ vec3 objectsDirectShadow(vec3 x, vec3 n) {
       e += contribution * (rho - mu);
       continue;
     }
-#ifdef SOFT_OBJECT_SHADOWS
-    float objects = uLightSoft[i] == 1 ? softObjectsShadow(i, x, n)
-                                        : shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
-#else
-    float objects = shadowTest(uShadowObjects, i, uObjectViewProj[i], uObjectShadowBias[i], x, n);
-#endif
+    float objects = objectsVisibility(i, x, n);
     if (objects < 1.0) e += contribution * shadowTest(uShadowMu, i, uLightViewProj[i], uShadowBias[i], x, n) * (objects - 1.0);
   }
   return e;
