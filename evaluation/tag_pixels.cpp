@@ -59,12 +59,6 @@ std::optional<cv::Vec3d> onBoard(const cv::Point2d& p, const capture::Intrinsics
   return s * d;
 }
 
-cv::Vec3d transform(const capture::Pose& T, const cv::Vec3d& x) {
-  return {T(0, 0) * x[0] + T(0, 1) * x[1] + T(0, 2) * x[2] + T(0, 3),
-          T(1, 0) * x[0] + T(1, 1) * x[1] + T(1, 2) * x[2] + T(1, 3),
-          T(2, 0) * x[0] + T(2, 1) * x[1] + T(2, 2) * x[2] + T(2, 3)};
-}
-
 std::optional<cv::Point2d> project(const cv::Vec3d& x, const capture::Intrinsics& k) {
   if (!(x[2] > 1e-6)) return std::nullopt;
   return cv::Point2d(k.fx * x[0] / x[2] + k.cx, k.fy * x[1] / x[2] + k.cy);
@@ -177,11 +171,11 @@ int paintTagsOut(TagSequence& seq, size_t i) {
       for (int c = 0; c < 4 && ok; ++c) {
         const auto p = onBoard(q[c], k, seq.T_camera_board[f]);
         ok = p.has_value();
-        if (ok) x[c] = transform(T_board_camera, *p);
+        if (ok) x[c] = capture::transformPoint(T_board_camera, *p);
       }
       if (!ok) continue;
-      auto& sum = board[id];
-      if (seen[id]++ == 0) sum = {};
+      auto& sum = board[id];  // zero when new
+      ++seen[id];
       for (int c = 0; c < 4; ++c) sum[c] += x[c];
     }
   }
@@ -244,7 +238,7 @@ int paintTagsOut(TagSequence& seq, size_t i) {
     const auto quad = [&](double grow) {
       std::vector<cv::Point> poly;
       for (int c = 0; c < 4; ++c) {
-        const auto p = project(transform(seq.T_camera_board[i], centre + grow * (x[c] - centre)), k);
+        const auto p = project(capture::transformPoint(seq.T_camera_board[i], centre + grow * (x[c] - centre)), k);
         if (!p) return std::vector<cv::Point>{};
         poly.emplace_back(static_cast<int>(std::lround(p->x)), static_cast<int>(std::lround(p->y)));
       }
@@ -322,7 +316,7 @@ TagPixelError tagPixelError(const TagSequence& seq, const std::vector<std::optio
     for (const auto& [id, q] : seq.corners[f]) {
       const auto it = centres.find(id);
       if (it == centres.end()) continue;
-      const auto p = project(transform(T_f_0, it->second), seq.intrinsics);
+      const auto p = project(capture::transformPoint(T_f_0, it->second), seq.intrinsics);
       const double e = p ? cv::norm(*p - tagCentre(q)) : 1e6;
       errors.push_back(e);
       sum += e * e, ++n;

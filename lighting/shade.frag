@@ -7,14 +7,14 @@
 //                  and, for every technique, what the objects hide of the light around them net of what they reflect of it,
 //                  -integral_objects (L_hidden - L_object) cos (lighting/object_shadow.glsl); L_hidden is the ambient,
 //                  or the room's surfaces seen from the objects when lights are listed beside a room (uHidden*);
-//                  and (likewise) the lights the objects reflect onto real surfaces (lighting/object_shadow.glsl)
+//                  and (likewise) the lights the objects reflect onto real surfaces (lighting/object_shadow.glsl);
+//                  where a camera channel of the pixel is clipped (the G-buffer albedo's a < 0), a delta that darkens
+//                  it is taken from the radiance the lights predict there, albedo E / pi, when that is above the
+//                  camera's white (lighting/clipped_real.glsl)
 //   virtual pixel: rgb = (sum_i E_i * visibility_i + pi * ambient + E_sh(n) + E_indirect) * albedo / pi + L_indirect, a = 1
 //                  E_sh: the ambient's directional part, SH bands 0-2 convolved with the clamped cosine
 //                  E_indirect, L_indirect from the virtual-role technique; none when the ambient is an
 //                  environment seen at the object (uEnvironmentHoldsBounce: it holds the real surfaces' bounce)
-//                  where a camera channel of the pixel is clipped (the G-buffer albedo's a < 0), a delta that darkens
-//                  it is taken from the radiance the lights predict there, albedo E / pi, when that is above the
-//                  camera's white (lighting/clipped_real.glsl)
 //   no surface:    rgb = 0, a = 0
 // Output 1 (debug): rgb = E_delta (real) or E_indirect (virtual) in W/m^2, a = 1 where a surface was seen.
 // SHARED_UPSAMPLE (with REDUCED_OBJECT_TERMS): the real-role delta is at the object terms' reduced view (the same

@@ -198,6 +198,17 @@ float softObjectsShadow(const cv::Mat& objects, const SceneLight& light, const L
   return static_cast<float>(lit) / kSoftShadowTaps;
 }
 
+namespace {
+/// direct_light.glsl's objectsVisibility: the objects' map's test, soft for a light with extent (view.soft) when
+/// `soft`, hard otherwise.
+float objectsVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, const cv::Vec3d& x,
+                        const cv::Vec3d& n, bool soft) {
+  return soft && view.soft  // view.soft: a light with extent (LightPass::render)
+             ? softObjectsShadow(maps.objects, light, view, x, n)
+             : shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
+}
+}  // namespace
+
 float smoothShadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
                        cv::Vec3d x, const cv::Vec3d& n) {
   if (bias < 0 || positions.empty()) return 1.f;
@@ -222,20 +233,16 @@ float smoothShadowTest(const cv::Mat& positions, const SceneLight& light, const 
 float virtualLightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view,
                              const cv::Vec3d& x, const cv::Vec3d& n, bool soft) {
   if (view.objectShadowBias < 0) return smoothShadowTest(maps.rho, light, view.viewProj, view.shadowBias, x, n);
-  const float objects = soft && view.soft
-                            ? softObjectsShadow(maps.objects, light, view, x, n)
-                            : shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
-  return smoothShadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) * objects;
+  return smoothShadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) *
+         objectsVisibility(maps, light, view, x, n, soft);
 }
 
 float lightVisibility(const ShadowTexels& maps, const SceneLight& light, const LightView& view, bool withObjects,
                       const cv::Vec3d& x, const cv::Vec3d& n, bool soft) {
   if (!withObjects) return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n);
   if (view.objectShadowBias < 0) return shadowTest(maps.rho, light, view.viewProj, view.shadowBias, x, n);
-  const float objects = soft && view.soft  // view.soft: a light with extent (LightPass::render)
-                            ? softObjectsShadow(maps.objects, light, view, x, n)
-                            : shadowTest(maps.objects, light, view.objectViewProj, view.objectShadowBias, x, n);
-  return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) * objects;
+  return shadowTest(maps.mu, light, view.viewProj, view.shadowBias, x, n) *
+         objectsVisibility(maps, light, view, x, n, soft);
 }
 
 cv::Vec3d unshadowedIrradiance(const SceneLight& light, const cv::Vec3d& x, const cv::Vec3d& n) {
