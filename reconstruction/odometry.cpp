@@ -3,10 +3,13 @@
 #include <open3d/core/Tensor.h>
 #include <open3d/t/pipelines/odometry/RGBDOdometry.h>
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <set>
 #include <stdexcept>
 
@@ -87,6 +90,10 @@ struct OdometryFrame::Impl {
   struct Level {
     capture::Intrinsics k;
     cv::Mat depth, intensity, vertices, normals;
+    /// What a step samples where a source pixel lands, interleaved so that one bilinear lookup reads it all
+    /// (CV_32FC(6)): intensity, its x and y derivatives per pixel, depth (NaN = none), its x and y derivatives
+    /// (NaN within a pixel of a hole). Only with colour, for the sub-pixel steps (OdometryOptions::subpixel).
+    cv::Mat samples;
     o3c::Tensor tDepth, tIntensity, tDepthDx, tDepthDy, tIntensityDx, tIntensityDy, tVertices, tNormals, tK;
   };
   std::vector<Level> levels;
@@ -176,20 +183,25 @@ OdometryFrame::OdometryFrame(const cv::Mat& depthIn, const cv::Mat& colour, cons
     L.tVertices = imageTensor(L.vertices);
     L.tNormals = imageTensor(L.normals);
     L.tK = intrinsicsTensor(k);
-    // Each gradient in an image of its own: the tensors share their pixels.
-    cv::Mat depthDx, depthDy;
-    cv::Sobel(depth, depthDx, CV_32F, 1, 0, 3);  // unscaled: the kernels scale by 1/8; NaN spreads to the 3 x 3
+    cv::Mat depthDx, depthDy, greyDx, greyDy;
+    cv::Sobel(depth, depthDx, CV_32F, 1, 0, 3);  // unscaled (8 times the derivative); NaN spreads to the 3 x 3
     cv::Sobel(depth, depthDy, CV_32F, 0, 1, 3);
-    L.tDepthDx = imageTensor(depthDx);
-    L.tDepthDy = imageTensor(depthDy);
     if (!grey.empty()) {
       L.intensity = grey;
-      cv::Mat greyDx, greyDy;
+      L.tIntensity = imageTensor(grey);
       cv::Sobel(grey, greyDx, CV_32F, 1, 0, 3);
       cv::Sobel(grey, greyDy, CV_32F, 0, 1, 3);
-      L.tIntensity = imageTensor(grey);
-      L.tIntensityDx = imageTensor(greyDx);
-      L.tIntensityDy = imageTensor(greyDy);
+    }
+    if (!o.subpixel) {
+      // Open3D's steps read each gradient from an image of its own (the tensors share their pixels) and scale it.
+      L.tDepthDx = imageTensor(depthDx);
+      L.tDepthDy = imageTensor(depthDy);
+      if (!grey.empty()) L.tIntensityDx = imageTensor(greyDx), L.tIntensityDy = imageTensor(greyDy);
+    } else if (!grey.empty()) {
+      // The sub-pixel steps read them interleaved, as derivatives per pixel.
+      const auto per = [](const cv::Mat& sobel) { return cv::Mat(sobel * 0.125); };
+      const cv::Mat channels[6] = {grey, per(greyDx), per(greyDy), depth, per(depthDx), per(depthDy)};
+      cv::merge(channels, 6, L.samples);
     }
     impl->levels.push_back(std::move(L));
   }
@@ -211,7 +223,8 @@ size_t OdometryFrame::bytes() const {
     if (data && seen.insert(data).second) sum += n;
   };
   for (const auto& L : impl_->levels) {
-    for (const cv::Mat* m : {&L.depth, &L.intensity, &L.vertices, &L.normals}) add(m->data, m->total() * m->elemSize());
+    for (const cv::Mat* m : {&L.depth, &L.intensity, &L.vertices, &L.normals, &L.samples})
+      add(m->data, m->total() * m->elemSize());
     for (const o3c::Tensor* t : {&L.tDepth, &L.tIntensity, &L.tDepthDx, &L.tDepthDy, &L.tIntensityDx, &L.tIntensityDy,
                                  &L.tVertices, &L.tNormals})
       if (t->NumElements() > 0) add(t->GetDataPtr(), static_cast<size_t>(t->NumElements()) * t->GetDtype().ByteSize());
@@ -270,6 +283,116 @@ struct OdometrySolver {
     return m;
   }
 
+  /// One Gauss-Newton step of the intensity or hybrid term, its target sampled where each source pixel lands
+  /// (bilinear: intensity, depth and their derivatives), not at the nearest pixel as Open3D's kernels do: a
+  /// nearest-pixel residual is flat within a pixel and steps at its edges, so the steps cannot settle closer than
+  /// about half a pixel of the level and wander by that much from one step to the next; sampled between pixels
+  /// they converge. The residuals and their Jacobians are those of Steinbrücker et al. (intensity) and Park et al.
+  /// (depth along the ray) for a motion exp(xi) T applied on the left, xi = (omega, v), each weighed by Huber
+  /// (iteratively reweighted). Returns the step's motion exp(xi), or nullopt when no pixel associates or the normal
+  /// equations are singular.
+  static std::optional<capture::Pose> subpixelStep(const OdometryFrame::Impl::Level& s,
+                                                   const OdometryFrame::Impl::Level& t, const capture::Pose& T,
+                                                   bool hybrid, const OdometryOptions& o) {
+    const cv::Matx33f R = capture::rotationOf(T);
+    const cv::Vec3f tr = capture::translationOf(T);
+    const float fx = static_cast<float>(t.k.fx), fy = static_cast<float>(t.k.fy), cx = static_cast<float>(t.k.cx),
+                cy = static_cast<float>(t.k.cy);
+    const float outlier = o.depthOutlierM, huberD = o.depthHuberM, huberI = o.intensityHuber * o.intensityWeight;
+    const int W = t.samples.cols, H = t.samples.rows;
+    // The normal equations' upper triangle (21) and right-hand side (6), summed per row in float and per stripe in
+    // double.
+    constexpr int kTerms = 27;
+    constexpr int kStripes = 8;
+    std::array<std::array<double, kTerms>, kStripes> stripes{};
+    std::array<size_t, kStripes> counts{};
+    const auto add = [](float* S, const float J[6], float r, float w) {
+      int k = 0;
+      for (int i = 0; i < 6; ++i) {
+        const float wj = w * J[i];
+        for (int j = i; j < 6; ++j) S[k++] += wj * J[j];
+        S[21 + i] += wj * r;
+      }
+    };
+    const auto huber = [](float r, float delta) { return std::abs(r) <= delta ? 1.0f : delta / std::abs(r); };
+    cv::parallel_for_(cv::Range(0, kStripes), [&](const cv::Range& range) {
+      for (int stripe = range.start; stripe < range.end; ++stripe) {
+        std::array<double, kTerms>& S = stripes[static_cast<size_t>(stripe)];
+        size_t& n = counts[static_cast<size_t>(stripe)];
+        const int y0 = s.vertices.rows * stripe / kStripes, y1 = s.vertices.rows * (stripe + 1) / kStripes;
+        for (int y = y0; y < y1; ++y) {
+          float row[kTerms] = {};
+          const cv::Vec3f* vrow = s.vertices.ptr<cv::Vec3f>(y);
+          const float* irow = s.intensity.empty() ? nullptr : s.intensity.ptr<float>(y);
+          for (int x = 0; x < s.vertices.cols; ++x) {
+            const cv::Vec3f v = vrow[x];
+            if (!std::isfinite(v[0])) continue;
+            const cv::Vec3f p = R * v + tr;
+            if (!(p[2] > 0)) continue;
+            const float iz = 1.0f / p[2];
+            const float u = fx * p[0] * iz + cx, w = fy * p[1] * iz + cy;
+            if (!(u >= 0 && w >= 0 && u < W - 1 && w < H - 1)) continue;
+            const int u0 = static_cast<int>(u), w0 = static_cast<int>(w);
+            const float a = u - u0, c = w - w0;
+            const float* q00 = t.samples.ptr<float>(w0) + 6 * u0;
+            const float* q10 = q00 + 6;
+            const float* q01 = t.samples.ptr<float>(w0 + 1) + 6 * u0;
+            const float* q11 = q01 + 6;
+            float m[6];
+            for (int k = 0; k < 6; ++k)
+              m[k] = (1 - c) * ((1 - a) * q00[k] + a * q10[k]) + c * ((1 - a) * q01[k] + a * q11[k]);
+            const float rD = m[3] - p[2];  // NaN where a tap has no depth
+            if (!(std::abs(rD) <= outlier)) continue;
+            // The Jacobian of a quantity sampled at p's projection whose gradient with respect to p is g, under the
+            // motion dp = -[p]x omega + v.
+            const auto jacobian = [&](float gx, float gy, float gz, float J[6]) {
+              J[0] = p[1] * gz - p[2] * gy;
+              J[1] = p[2] * gx - p[0] * gz;
+              J[2] = p[0] * gy - p[1] * gx;
+              J[3] = gx, J[4] = gy, J[5] = gz;
+            };
+            float J[6];
+            if (irow) {
+              const float c0 = m[1] * fx * iz, c1 = m[2] * fy * iz, c2 = -(c0 * p[0] + c1 * p[1]) * iz;
+              const float rI = m[0] - irow[x];
+              jacobian(c0, c1, c2, J);
+              add(row, J, rI, huber(rI, huberI));
+            }
+            if (hybrid && std::isfinite(m[4]) && std::isfinite(m[5])) {
+              const float d0 = m[4] * fx * iz, d1 = m[5] * fy * iz, d2 = -(d0 * p[0] + d1 * p[1]) * iz - 1.0f;
+              jacobian(d0, d1, d2, J);
+              add(row, J, rD, huber(rD, huberD));
+            }
+            ++n;
+          }
+          for (int k = 0; k < kTerms; ++k) S[static_cast<size_t>(k)] += row[k];
+        }
+      }
+    });
+    cv::Matx66d A = cv::Matx66d::zeros();
+    cv::Vec6d b(0, 0, 0, 0, 0, 0);
+    size_t n = 0;
+    for (int stripe = 0; stripe < kStripes; ++stripe) {
+      const std::array<double, kTerms>& S = stripes[static_cast<size_t>(stripe)];
+      int k = 0;
+      for (int i = 0; i < 6; ++i) {
+        for (int j = i; j < 6; ++j) A(i, j) += S[static_cast<size_t>(k++)];
+        b[i] += S[static_cast<size_t>(21 + i)];
+      }
+      n += counts[static_cast<size_t>(stripe)];
+    }
+    if (n < 6) return std::nullopt;
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < i; ++j) A(i, j) = A(j, i);
+    cv::Vec6d xi;
+    if (!cv::solve(A, -b, xi, cv::DECOMP_CHOLESKY)) return std::nullopt;
+    for (int i = 0; i < 6; ++i)
+      if (!std::isfinite(xi[i])) return std::nullopt;
+    cv::Matx33d Rd;
+    cv::Rodrigues(cv::Vec3d(xi[0], xi[1], xi[2]), Rd);
+    return capture::makePose(Rd, cv::Vec3d(xi[3], xi[4], xi[5]));
+  }
+
   static OdometryResult solve(const OdometryFrame& source, const OdometryFrame& target, const capture::Pose& init,
                               const OdometryOptions& o) {
     const auto& S = *source.impl_;
@@ -279,6 +402,9 @@ struct OdometrySolver {
     OdometryMethod method = o.method;
     if (method != OdometryMethod::PointToPlane && !(S.intensity && T.intensity))
       throw std::invalid_argument(std::string("odometry: ") + toString(method) + " needs colour in both frames");
+    if (method != OdometryMethod::PointToPlane &&
+        (o.subpixel ? T.levels[0].samples.empty() : T.levels[0].tIntensityDx.NumElements() == 0))
+      throw std::invalid_argument("odometry: the target was prepared for the other kind of step (subpixel)");
     OdometryResult out;
     out.T_target_source = init;
     const int levels = static_cast<int>(S.levels.size());
@@ -287,6 +413,9 @@ struct OdometrySolver {
     for (int l = levels - 1; l >= 0 && solved; --l) {
       const auto* sp = &S.levels[l];
       const auto& t = T.levels[l];
+      // A step that moves the view by less than this (radians, or metres at 1 m) has converged: a share of the
+      // level's pixel, so that the coarse levels stop where their pixels cannot tell more.
+      const double converged = o.convergedPixels / std::max(t.k.fx, t.k.fy);
       const int steps = o.iterations[static_cast<size_t>(levels - 1 - l)];
       // Where the source's appearance has changed since the target (a hand, a screen, a painted-out marker, a
       // highlight that moved) its intensity residual stays large however the pose moves: once the level has
@@ -302,40 +431,51 @@ struct OdometrySolver {
         }
         const auto& s = *sp;
         for (int i = 0; i < steps; ++i) {
-          o3o::OdometryResult r;
-          try {
-            switch (method) {
-              case OdometryMethod::PointToPlane:
-                r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose,
-                                                           o.depthOutlierM, o.depthHuberM);
-                break;
-              case OdometryMethod::Intensity:
-                r = o3o::ComputeOdometryResultIntensity(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tIntensityDx,
-                                                        t.tIntensityDy, s.tVertices, t.tK, pose, o.depthOutlierM,
-                                                        o.intensityHuber * o.intensityWeight);
-                break;
-              case OdometryMethod::Hybrid:
-                r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx,
-                                                     t.tDepthDy, t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK,
-                                                     pose, o.depthOutlierM, o.depthHuberM,
-                                                     o.intensityHuber * o.intensityWeight);
-                break;
+          capture::Pose delta;
+          if (o.subpixel && method != OdometryMethod::PointToPlane) {
+            const std::optional<capture::Pose> step =
+                subpixelStep(s, t, poseOf(pose), method == OdometryMethod::Hybrid, o);
+            if (!step) {
+              solved = false;  // no inlier at all: the frames do not overlap at this pose
+              break;
             }
-          } catch (const std::exception&) {
-            solved = false;  // no inlier at all: the frames do not overlap at this pose
-            break;
+            delta = *step;
+          } else {
+            o3o::OdometryResult r;
+            try {
+              switch (method) {
+                case OdometryMethod::PointToPlane:
+                  r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose,
+                                                             o.depthOutlierM, o.depthHuberM);
+                  break;
+                case OdometryMethod::Intensity:
+                  r = o3o::ComputeOdometryResultIntensity(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity,
+                                                          t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK, pose,
+                                                          o.depthOutlierM, o.intensityHuber * o.intensityWeight);
+                  break;
+                case OdometryMethod::Hybrid:
+                  r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx,
+                                                       t.tDepthDy, t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK,
+                                                       pose, o.depthOutlierM, o.depthHuberM,
+                                                       o.intensityHuber * o.intensityWeight);
+                  break;
+              }
+            } catch (const std::exception&) {
+              solved = false;  // no inlier at all: the frames do not overlap at this pose
+              break;
+            }
+            delta = poseOf(r.transformation_);
           }
-          const capture::Pose delta = poseOf(r.transformation_);
           bool finite = true;
           for (double v : delta.val) finite &= std::isfinite(v);
           if (!finite) {
             solved = false;
             break;
           }
-          pose = r.transformation_.To(o3c::Float64).Matmul(pose);
+          pose = poseTensor(delta * poseOf(pose));
           ++out.steps;
           const double angle = std::acos(std::clamp((delta(0, 0) + delta(1, 1) + delta(2, 2) - 1) / 2, -1.0, 1.0));
-          if (angle + cv::norm(capture::translationOf(delta)) < o.convergedStep) break;
+          if (angle + cv::norm(capture::translationOf(delta)) < converged) break;
         }
       }
     }

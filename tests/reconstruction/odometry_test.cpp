@@ -1,6 +1,7 @@
-// Dense RGB-D odometry (reconstruction/odometry.h): each Gauss-Newton step is Open3D's own; the pyramid and
-// the coarse-to-fine driver are ours. Parity with Open3D's complete legacy odometry on real and synthetic
-// frame pairs, a frame against itself, frames that do not overlap, and extremes (no depth, one flat depth).
+// Dense RGB-D odometry (reconstruction/odometry.h): the intensity and hybrid steps sample between pixels (ours),
+// point to plane is Open3D's own step; the pyramid and the coarse-to-fine driver are ours. Parity with Open3D's
+// complete legacy odometry on real and synthetic frame pairs, a frame against itself, frames that do not overlap, and
+// extremes (no depth, one flat depth).
 #include "reconstruction/odometry.h"
 
 #include <gtest/gtest.h>
@@ -66,7 +67,8 @@ std::vector<Pair> synthPairs() {
 
 TEST(Odometry, ParityWithOpen3DsLegacyOdometryOnSyntheticPairs) {
   // Consecutive frames of the synthetic orbit (40 mm and 3 degrees apart): ours and Open3D's whole legacy
-  // pipeline find the same motion, both within 2 mm and 0.2 degrees of the truth.
+  // pipeline find the same motion, both within 2 mm and 0.2 degrees of the truth; ours within half a millimetre
+  // (0.05-0.17 mm; 0.3-1.4 mm with Open3D's nearest-pixel steps, Open3D's legacy pipeline 0.05-0.24 mm).
   for (const Pair& p : synthPairs()) {
     const OdometryFrame a(p.a.depth, p.a.colour, p.a.colourIntrinsics), b(p.b.depth, p.b.colour, p.b.colourIntrinsics);
     const OdometryResult ours = estimateOdometry(b, a);
@@ -76,8 +78,8 @@ TEST(Odometry, ParityWithOpen3DsLegacyOdometryOnSyntheticPairs) {
                 1e3 * translationError(ours.T_target_source, p.T_a_b), rotationErrorDeg(ours.T_target_source, p.T_a_b),
                 1e3 * translationError(theirs, p.T_a_b), rotationErrorDeg(theirs, p.T_a_b),
                 1e3 * translationError(ours.T_target_source, theirs));
-    EXPECT_LT(translationError(ours.T_target_source, p.T_a_b), 2e-3);
-    EXPECT_LT(rotationErrorDeg(ours.T_target_source, p.T_a_b), 0.2);
+    EXPECT_LT(translationError(ours.T_target_source, p.T_a_b), 0.5e-3);
+    EXPECT_LT(rotationErrorDeg(ours.T_target_source, p.T_a_b), 0.05);
     EXPECT_LT(translationError(theirs, p.T_a_b), 2e-3);
     EXPECT_LT(translationError(ours.T_target_source, theirs), 2e-3);
     EXPECT_GT(ours.fitness, 0.7);
@@ -124,9 +126,10 @@ TEST(Odometry, ExtremesStayFinite) {
   EXPECT_THROW(OdometryFrame(p.a.depth, cv::Mat(3, 3, CV_8UC3), k), std::invalid_argument);
 }
 
-// A frame's pyramid holds each image once: per pixel of a level, depth, intensity, their x and y gradients, and
-// the vertex and normal maps (three floats each): 12 floats. Open3D's steps read tensors over the same pixels,
-// not copies (a tracker keeps 64 keyframes).
+// A frame's pyramid holds each image once: per pixel of a level, depth, intensity, the vertex and normal maps
+// (three floats each) and what the sub-pixel steps sample (intensity, depth and their x and y derivatives,
+// interleaved): 14 floats. Open3D's steps (subpixel off) read tensors over the same pixels, not copies: depth,
+// intensity, their gradients, vertices and normals, 12 floats. A tracker keeps 64 keyframes.
 TEST(Odometry, AFrameHoldsEachImageOnce) {
   const Pair p = synthPairs()[0];
   OdometryOptions o;  // hybrid, three levels, the finest at most 320 wide
@@ -135,10 +138,19 @@ TEST(Odometry, AFrameHoldsEachImageOnce) {
   size_t pixels = 0;
   for (int l = 0; l < f.levels(); ++l) pixels += f.depth(l).total();
   EXPECT_EQ(f.depth(0).cols, 320);
-  EXPECT_EQ(f.bytes(), pixels * 12 * sizeof(float));
-  // Point to plane without colour: no intensity and no intensity gradients.
+  EXPECT_EQ(f.bytes(), pixels * 14 * sizeof(float));
+  // Point to plane without colour: depth, vertices and normals.
   o.method = OdometryMethod::PointToPlane;
-  EXPECT_EQ(OdometryFrame(p.a.depth, cv::Mat(), p.a.colourIntrinsics, o).bytes(), pixels * 9 * sizeof(float));
+  EXPECT_EQ(OdometryFrame(p.a.depth, cv::Mat(), p.a.colourIntrinsics, o).bytes(), pixels * 7 * sizeof(float));
+  OdometryOptions open3d;
+  open3d.subpixel = false;
+  EXPECT_EQ(OdometryFrame(p.a.depth, p.a.colour, p.a.colourIntrinsics, open3d).bytes(), pixels * 12 * sizeof(float));
+  open3d.method = OdometryMethod::PointToPlane;
+  EXPECT_EQ(OdometryFrame(p.a.depth, cv::Mat(), p.a.colourIntrinsics, open3d).bytes(), pixels * 9 * sizeof(float));
+  // A frame prepared for one kind of step is refused by the other, not read past its images.
+  OdometryOptions hybridOpen3d;
+  hybridOpen3d.subpixel = false;
+  EXPECT_THROW(estimateOdometry(f, f, capture::identityPose(), hybridOpen3d), std::invalid_argument);
 }
 
 /// Frames `from` and `from + 1` of tabletop-scan's look-around (a camera turning 12 degrees a frame in place).
@@ -192,7 +204,7 @@ TEST(Odometry, RangeRmseHoldsFarAndNearResidualsToOneMeasure) {
 
 TEST(Odometry, AViewThatHoldsNoTranslationKeepsInitsAlongIt) {
   // tabletop-scan frames 37 -> 38: a green wall and the ceiling, nothing else. The line where they meet holds
-  // no translation: aligned from the true motion, depth noise and the intensity term slide the pose 24 mm
+  // no translation: aligned from the true motion, depth noise and the intensity term slide the pose 7 mm
   // along it unless that direction keeps init's translation. The tabletop's view (a marker and a box) holds
   // every direction and is left as solved.
   const Pair p = scanPair(37);
@@ -206,7 +218,7 @@ TEST(Odometry, AViewThatHoldsNoTranslationKeepsInitsAlongIt) {
               1e3 * translationError(free.T_target_source, p.T_a_b));
   EXPECT_GE(guarded.weakDirections, 1);
   EXPECT_LT(translationError(guarded.T_target_source, p.T_a_b), 3e-3);
-  EXPECT_GT(translationError(free.T_target_source, p.T_a_b), 10e-3);
+  EXPECT_GT(translationError(free.T_target_source, p.T_a_b), 5e-3);
   EXPECT_EQ(free.weakDirections, 0);
   for (const Pair& q : synthPairs()) {
     const OdometryFrame c(q.a.depth, q.a.colour, q.a.colourIntrinsics), e(q.b.depth, q.b.colour, q.b.colourIntrinsics);
