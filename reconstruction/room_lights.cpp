@@ -103,6 +103,138 @@ RoomLights lightsSeenFrom(const RoomMesh& room, const cv::Vec3d& centre, const R
                           const MeshRays& mesh, const KnownDistant* sun = nullptr);
 }  // namespace
 
+namespace {
+
+/// Clipped surfaces that a lamp lights, not lamps: a lamp near a ceiling or a wall over-exposes a wide patch of it
+/// around the lamp's own clipped body, and the patch, taken as an emitter, would stand in for the lamp (its light
+/// from the wrong place, its gain judged on the wrong surfaces). The saturated vertices are grouped into connected
+/// pieces (by the mesh's edges); a piece no wider than kLampRadiusM, of kMinBodyVertices or more, is a lamp's body; a
+/// wider piece most of whose vertices face such a body within kLampReachM with nothing between is a surface it lights,
+/// and is cleared from `saturated` (its radiance stays the lower bound it is). A wide piece no body lights (a
+/// clipped window, a panel light) stays an emitter. Returns the vertices cleared.
+size_t clearLampLitClipped(const RoomMesh& room, const MeshRays& mesh, std::vector<uint8_t>& saturated) {
+  constexpr double kLampRadiusM = 0.15, kLampReachM = 2.5, kLitShare = 0.6;
+  constexpr size_t kMinBodyVertices = 12;
+  const size_t n = std::min(saturated.size(), room.positions.size());
+  // Connected pieces: saturated vertices joined by the mesh's edges (union-find).
+  std::vector<uint32_t> parent(n);
+  for (size_t i = 0; i < n; ++i) parent[i] = static_cast<uint32_t>(i);
+  const auto root = [&](uint32_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (size_t t = 0; t + 2 < room.indices.size(); t += 3)
+    for (int e = 0; e < 3; ++e) {
+      const uint32_t a = room.indices[t + static_cast<size_t>(e)],
+                     b = room.indices[t + static_cast<size_t>((e + 1) % 3)];
+      if (a < n && b < n && saturated[a] && saturated[b]) parent[root(a)] = root(b);
+    }
+  std::map<uint32_t, std::vector<uint32_t>> byRoot;
+  for (size_t i = 0; i < n; ++i)
+    if (saturated[i]) byRoot[root(static_cast<uint32_t>(i))].push_back(static_cast<uint32_t>(i));
+  if (byRoot.empty()) return 0;
+  std::vector<std::vector<uint32_t>> pieces;
+  for (auto& [r, members] : byRoot) pieces.push_back(std::move(members));
+  struct Body {
+    cv::Vec3d centre;
+    double radius;
+  };
+  std::vector<Body> bodies;
+  std::vector<size_t> wide, specks;
+  for (size_t k = 0; k < pieces.size(); ++k) {
+    cv::Vec3d c(0, 0, 0);
+    for (uint32_t i : pieces[k]) c += cv::Vec3d(room.positions[i]);
+    c /= static_cast<double>(pieces[k].size());
+    double r = 0;
+    for (uint32_t i : pieces[k]) r = std::max(r, cv::norm(cv::Vec3d(room.positions[i]) - c));
+    if (r > kLampRadiusM)
+      wide.push_back(k);
+    else if (pieces[k].size() < kMinBodyVertices)
+      specks.push_back(k);
+    else
+      bodies.push_back({c, r});
+  }
+  if (bodies.empty()) return 0;
+  // Specks (a few clipped vertices: a highlight, a patch's rim) would take the lamp's gain, a thousand times their
+  // bound, and shine as lamps of their own beside the object: once a lamp's body is found they are surfaces.
+  size_t cleared = 0;
+  for (size_t k : specks)
+    for (uint32_t i : pieces[k]) saturated[i] = 0, ++cleared;
+  for (size_t k : wide) {
+    const std::vector<uint32_t>& members = pieces[k];
+    const size_t step = std::max<size_t>(1, members.size() / 400);
+    size_t tried = 0, lit = 0;
+    for (size_t j = 0; j < members.size(); j += step) {
+      const cv::Vec3d p(room.positions[members[j]]), nrm(room.normals[members[j]]);
+      ++tried;
+      for (const Body& b : bodies) {
+        cv::Vec3d d = b.centre - p;
+        const double r = cv::norm(d);
+        if (r > kLampReachM || r < 1e-6) continue;
+        d /= r;
+        if (nrm.dot(d) <= 0.1) continue;
+        // The body's own surface faces the patch: a shadow ray stops short of it by its radius and a voxel.
+        if (mesh.occluded(p + 0.01 * nrm, d, std::max(0.0, r - b.radius - 0.04))) continue;
+        ++lit;
+        break;
+      }
+    }
+    if (static_cast<double>(lit) < kLitShare * static_cast<double>(tried)) continue;
+    for (uint32_t i : members) saturated[i] = 0, ++cleared;
+  }
+  return cleared;
+}
+
+/// The clipped pieces joined to a sunlit clipped surface (vertices the light's rays reach) are sunlit too, where
+/// they face the light: the rays miss the patch's rim (the fused window frame a voxel thick, a piece of the table's
+/// edge), and a rim left clipped would read as a small bright lamp beside the object. `saturated` has the sunlit
+/// vertices cleared already (where it differs from `room.saturated`); the rest of each piece they touch (5 cm
+/// cells) is cleared here. Returns the vertices cleared.
+size_t clearConnectedSunlit(const RoomMesh& room, std::vector<uint8_t>& saturated, const cv::Vec3d& towards) {
+  constexpr double kCellM = 0.05;
+  const size_t n = std::min({saturated.size(), room.saturated.size(), room.positions.size()});
+  const auto cellOf = [&](size_t i) {
+    const cv::Vec3f& p = room.positions[i];
+    return std::array<int, 3>{static_cast<int>(std::floor(p[0] / kCellM)), static_cast<int>(std::floor(p[1] / kCellM)),
+                              static_cast<int>(std::floor(p[2] / kCellM))};
+  };
+  std::map<std::array<int, 3>, std::vector<uint32_t>> clipped;  // still clipped, by cell
+  std::vector<std::array<int, 3>> frontier;
+  std::map<std::array<int, 3>, bool> sunlitCell;
+  for (size_t i = 0; i < n; ++i) {
+    if (!room.saturated[i]) continue;
+    const auto c = cellOf(i);
+    if (saturated[i]) {
+      clipped[c].push_back(static_cast<uint32_t>(i));
+    } else if (!sunlitCell[c]) {
+      sunlitCell[c] = true;
+      frontier.push_back(c);
+    }
+  }
+  size_t cleared = 0;
+  while (!frontier.empty()) {
+    const std::array<int, 3> c = frontier.back();
+    frontier.pop_back();
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const std::array<int, 3> m{c[0] + dx, c[1] + dy, c[2] + dz};
+          const auto it = clipped.find(m);
+          if (it == clipped.end()) continue;
+          bool any = false;
+          for (uint32_t i : it->second)
+            if (saturated[i] && cv::Vec3d(room.normals[i]).dot(towards) > 0) saturated[i] = 0, ++cleared, any = true;
+          if (any && !sunlitCell[m]) {
+            sunlitCell[m] = true;
+            frontier.push_back(m);
+          }
+        }
+  }
+  return cleared;
+}
+
+}  // namespace
+
 RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, const RoomLightOptions& o,
                               const MeshRays* given) {
   if (room.positions.empty() || room.indices.size() < 3) throw std::invalid_argument("estimateRoomLights: empty room");
@@ -119,7 +251,15 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   std::optional<MeshRays> built;
   if (!given) built.emplace(room.positions, room.indices);
   const MeshRays& mesh = given ? *given : *built;
-  if (!o.findDistant) return lightsSeenFrom(room, centre, o, mesh);
+  // The room with the clipped surfaces a lamp lights taken as surfaces (clearLampLitClipped).
+  const auto lampsOnly = [&](const RoomMesh& r, const RoomLightOptions& opts, const KnownDistant* sun = nullptr) {
+    RoomMesh cleared = r;
+    const size_t count = clearLampLitClipped(r, mesh, cleared.saturated);
+    RoomLights out = lightsSeenFrom(cleared, centre, opts, mesh, sun);
+    out.lampLitClipped = count;
+    return out;
+  };
+  if (!o.findDistant) return lampsOnly(room, o);
 
   // A distant light the room shows by its sunlit patches and shadows: its direction from the radiance alone (a
   // mid-grey albedo everywhere: the edges' signs are what the search needs).
@@ -127,7 +267,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   const std::vector<cv::Vec3f> grey(n, cv::Vec3f(0.5f, 0.5f, 0.5f));
   const std::optional<DistantLight> found = findDistantLight(room.positions, room.normals, room.radiance, grey,
                                                              room.saturated, mesh, o.distant, &room.openings);
-  if (!found) return lightsSeenFrom(room, centre, o, mesh);
+  if (!found) return lampsOnly(room, o);
   // Clipped surfaces it lights are sunlit surfaces, not lamps: their radiance stays a lower bound of what they
   // send, and they neither become lights nor judge the lamps' gain.
   RoomMesh lit = room;
@@ -139,6 +279,8 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
     lit.saturated[i] = 0;
     ++sunlitClipped;
   }
+  sunlitClipped += clearConnectedSunlit(room, lit.saturated, found->towards);
+  const size_t lampLitClipped = clearLampLitClipped(lit, mesh, lit.saturated);
   // Its power from the same edges, measured against the albedo the room's other light gives the shadowed side:
   // the lamps at their clipped bound here (their gain, judged by the light on the room's white surfaces, needs the
   // distant light's share of it first).
@@ -152,7 +294,11 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
                             &room.openings);
   };
   std::optional<DistantLight> sun = measureSun(lightsSeenFrom(lit, centre, bounded, mesh));
-  if (!sun || !(capture::luminance(sun->irradiance) > 0)) return lightsSeenFrom(lit, centre, o, mesh);
+  if (!sun || !(capture::luminance(sun->irradiance) > 0)) {
+    RoomLights out = lightsSeenFrom(lit, centre, o, mesh);
+    out.lampLitClipped = lampLitClipped;
+    return out;
+  }
   KnownDistant known{sun->irradiance, sun->towards, &reach};
   RoomLights out = lightsSeenFrom(lit, centre, o, mesh, &known);
   // Once more with the lamps' gain that leaves (the shadowed side's albedo under the lamps as they are).
@@ -173,6 +319,7 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   out.distant = *sun;
   out.distant->consistency = found->consistency;
   out.sunlitClipped = sunlitClipped;
+  out.lampLitClipped = lampLitClipped;
   return out;
 }
 

@@ -90,6 +90,9 @@ struct RoomLights {
   LightSplit split;                     ///< the split itself (its lights' directions are world)
   std::optional<DistantLight> distant;  ///< the light found from the shadow edges (also among `lights`)
   size_t sunlitClipped = 0;             ///< clipped vertices it lights (taken as surfaces, not lamps)
+  /// Clipped vertices of wide patches a lamp's clipped body lights (a ceiling around a lamp below it): taken as
+  /// surfaces, not lamps.
+  size_t lampLitClipped = 0;
 };
 
 /// The room's lat-long directions and pixel solid angles (row v: polar angle from +z; column u: azimuth

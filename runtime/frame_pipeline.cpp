@@ -615,6 +615,7 @@ void FramePipeline::useRoom(const PreparedFrame& p, nlohmann::json& info, gl::Pr
                               {"gain_estimated", roomLightEstimate_->gainEstimated},
                               {"gain_samples", roomLightEstimate_->gainSamples},
                               {"saturated_fraction", roomLightEstimate_->saturatedFraction},
+                              {"lamp_lit_clipped_vertices", roomLightEstimate_->lampLitClipped},
                               {"over_exposed", roomLightEstimate_->overExposed},
                               {"coverage", roomLightEstimate_->coverage},
                               {"ambient_radiance",

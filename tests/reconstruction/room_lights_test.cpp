@@ -117,6 +117,78 @@ TEST(RoomLights, OneLampGivesADominantLightWithin5DegreesAndItsIntensityFromTheW
   EXPECT_NEAR(split[1], total[1], 1e-3 * total[1]);
 }
 
+/// A room lit by a small lamp hanging 0.5 m under the ceiling (a point of kHangingI W/sr): the camera clipped the
+/// lamp's body (an 8 cm box) and the ceiling around it out to about 0.9 m, where the lamp puts more than the
+/// sensor's white on its 0.8 albedo. `withBody` false: the same ceiling, no body (a wide clipped patch alone).
+constexpr double kHangingI = 8.0;
+const cv::Vec3d kHanging(0.6, 0.4, 2.0);
+RoomMesh hangingLampRoom(bool withBody) {
+  RoomMesh m;
+  const auto lit = [](const cv::Vec3d& p, const cv::Vec3d& n) {
+    const cv::Vec3d d = kHanging - p;
+    const double r = cv::norm(d);
+    return kFloorAlbedo / CV_PI * (kHangingI * std::max(0.0, n.dot(d / r)) / (r * r) + CV_PI * kWall);
+  };
+  const auto grey = [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kWall)); };
+  addQuad(
+      m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 3, 0}, {0, 0, 1}, 40,
+      [&](const cv::Vec3d& p) {
+        return cv::Vec3f::all(static_cast<float>(lit(p, {0, 0, 1})));
+      },
+      false);
+  const size_t ceiling = m.positions.size();
+  addQuad(
+      m, {-1.5, -1.5, 2.5}, {3, 0, 0}, {0, 3, 0}, {0, 0, -1}, 60,
+      [&](const cv::Vec3d& p) {
+        return cv::Vec3f::all(static_cast<float>(lit(p, {0, 0, -1})));
+      },
+      false);
+  for (size_t i = ceiling; i < m.positions.size(); ++i)
+    if (m.radiance[i][1] >= kBound) m.radiance[i] = cv::Vec3f::all(static_cast<float>(kBound)), m.saturated[i] = 1;
+  addQuad(m, {-1.5, -1.5, 0}, {3, 0, 0}, {0, 0, 2.5}, {0, 1, 0}, 20, grey, false);
+  addQuad(m, {-1.5, 1.5, 0}, {3, 0, 0}, {0, 0, 2.5}, {0, -1, 0}, 20, grey, false);
+  addQuad(m, {-1.5, -1.5, 0}, {0, 3, 0}, {0, 0, 2.5}, {1, 0, 0}, 20, grey, false);
+  addQuad(m, {1.5, -1.5, 0}, {0, 3, 0}, {0, 0, 2.5}, {-1, 0, 0}, 20, grey, false);
+  if (withBody) {
+    const double h = 0.04;
+    const auto bound = [](const cv::Vec3d&) { return cv::Vec3f::all(static_cast<float>(kBound)); };
+    const cv::Vec3d c = kHanging;
+    addQuad(m, c + cv::Vec3d(-h, -h, -h), {2 * h, 0, 0}, {0, 2 * h, 0}, {0, 0, -1}, 4, bound, true);
+    addQuad(m, c + cv::Vec3d(-h, -h, -h), {2 * h, 0, 0}, {0, 0, 2 * h}, {0, -1, 0}, 4, bound, true);
+    addQuad(m, c + cv::Vec3d(-h, h, -h), {2 * h, 0, 0}, {0, 0, 2 * h}, {0, 1, 0}, 4, bound, true);
+    addQuad(m, c + cv::Vec3d(-h, -h, -h), {0, 2 * h, 0}, {0, 0, 2 * h}, {-1, 0, 0}, 4, bound, true);
+    addQuad(m, c + cv::Vec3d(h, -h, -h), {0, 2 * h, 0}, {0, 0, 2 * h}, {1, 0, 0}, 4, bound, true);
+  }
+  return m;
+}
+
+TEST(RoomLights, ALampsOverExposedCeilingIsASurfaceItLightsNotALamp) {
+  // The ceiling's clipped patch is far wider than the lamp: taken as an emitter it would stand in for the lamp
+  // half a metre above it and spread its light over the patch. The lamp's clipped body (a compact piece) lights
+  // the patch, so the patch is a surface it lights: the light sits at the body.
+  const cv::Vec3d centre(0, 0, 0.3);
+  const reconstruction::RoomLights lights = reconstruction::estimateRoomLights(hangingLampRoom(true), centre);
+  EXPECT_GT(lights.lampLitClipped, 500u);
+  EXPECT_TRUE(lights.gainEstimated);
+  ASSERT_FALSE(lights.lights.empty());
+  const reconstruction::RoomLight* dominant = &lights.lights[0];
+  for (const auto& l : lights.lights)
+    if (capture::luminance(l.irradiance) > capture::luminance(dominant->irradiance)) dominant = &l;
+  ASSERT_TRUE(dominant->point);
+  std::printf("hanging lamp: found %.3f m from it, intensity %.2f W/sr (true %.2f), %zu clipped ceiling vertices lit\n",
+              cv::norm(dominant->position - kHanging), capture::luminance(dominant->intensity), kHangingI,
+              lights.lampLitClipped);
+  // On the body's face towards the centre (4 cm from its middle); its power from the white floor 20 % low (the
+  // body's clipped faces stand in for the point inside it). Taken from the clipped ceiling too, the light sat
+  // 0.56 m away, on the ceiling.
+  EXPECT_LT(cv::norm(dominant->position - kHanging), 0.08);
+  EXPECT_NEAR(capture::luminance(dominant->intensity), kHangingI, 0.25 * kHangingI);
+  // Without a body to light it, a wide clipped patch stays an emitter (a panel light, a clipped window).
+  const reconstruction::RoomLights patch = reconstruction::estimateRoomLights(hangingLampRoom(false), centre);
+  EXPECT_EQ(patch.lampLitClipped, 0u);
+  EXPECT_GT(patch.saturatedFraction, 0.01);
+}
+
 TEST(RoomLights, AGivenGainIsUsedAndAnUnscannedRoomStaysFinite) {
   reconstruction::RoomLightOptions o;
   o.saturatedGain = 10;
