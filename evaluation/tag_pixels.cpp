@@ -20,6 +20,7 @@
 #include "capture/image_io.h"
 #include "capture/json_io.h"
 #include "capture/npz.h"
+#include "reconstruction/room_model.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -366,14 +367,29 @@ std::vector<std::optional<capture::Pose>> open3dTrajectory(const TagSequence& se
 }
 
 std::vector<std::optional<capture::Pose>> trackedTrajectory(const TagSequence& seq, runtime::PoseMode mode,
-                                                            int markerId, const runtime::TrackingOptions& options) {
+                                                            int markerId, const runtime::TrackingOptions& options,
+                                                            int fuseRefresh) {
   runtime::MarkerSpec marker;
   marker.size = seq.tagSize;
   marker.id = markerId;
   auto source = runtime::makePoseSource(mode, marker, std::nullopt, options);
   gl::Profiler none;
   std::vector<std::optional<capture::Pose>> out;
-  for (const capture::Frame& f : seq.frames) out.push_back(source->locate(f, none).T_world_camera);
+  std::optional<reconstruction::RoomModel> room;
+  if (fuseRefresh > 0) room.emplace();
+  int sinceRefresh = 0;
+  for (const capture::Frame& f : seq.frames) {
+    out.push_back(source->locate(f, none).T_world_camera);
+    if (!room || !out.back()) continue;
+    // Fused at the pose just found, as replay --fuse-room does; its surface handed over every fuseRefresh frames.
+    const capture::RgbdFrame& rgbd = *f.rgbd;
+    if (!room->integrate(rgbd.depth, rgbd.colour, rgbd.colourIntrinsics, *out.back(), rgbd.exposure).integrated)
+      continue;
+    if (++sinceRefresh < fuseRefresh) continue;
+    sinceRefresh = 0;
+    auto mesh = std::make_shared<const reconstruction::RoomMesh>(room->mesh());
+    if (!mesh->positions.empty()) source->useModel(std::move(mesh));
+  }
   return out;
 }
 
@@ -411,6 +427,8 @@ std::vector<TagPixelRow> tagPixelTable(const std::string& dir, int frames, int m
       {"ours, --pose odometry, tags painted out", &painted, ours(painted, runtime::PoseMode::Odometry, {})},
       {"ours, --pose odometry, tags painted out, " + full, &painted, ours(painted, runtime::PoseMode::Odometry, fine)},
       {"ours, --pose tracked, tags painted out", &painted, ours(painted, runtime::PoseMode::Tracked, {})},
+      {"ours, --pose odometry, tags painted out, against the room as it is fused (every 3 frames)", &painted,
+       [&] { return trackedTrajectory(painted, runtime::PoseMode::Odometry, markerId, {}, 3); }},
       {"Open3D colour term, tags painted out", &painted, [&] { return open3dTrajectory(painted, false); }},
       {"Open3D hybrid term, tags painted out", &painted, [&] { return open3dTrajectory(painted, true); }},
       {"ours, --pose odometry, every frame painted (no marker)", &bare,

@@ -64,10 +64,13 @@ TagPixelError tagPixelError(const TagSequence& seq, const std::vector<std::optio
 std::vector<std::optional<capture::Pose>> open3dTrajectory(const TagSequence& seq, bool hybrid);
 
 /// The product's own poses of every frame of `seq`, in order, by `mode` (the marker: the sequence's tag of
-/// `markerId`, which anchors the world on the first frame it is seen).
+/// `markerId`, which anchors the world on the first frame it is seen). `fuseRefresh` > 0: each posed frame is fused
+/// into a room as it comes and the frames are aligned with its surface first (frame to model, as replay
+/// --fuse-room --track-room does), the surface taken anew every `fuseRefresh` fused frames.
 std::vector<std::optional<capture::Pose>> trackedTrajectory(const TagSequence& seq, runtime::PoseMode mode,
                                                             int markerId = 3,
-                                                            const runtime::TrackingOptions& options = {});
+                                                            const runtime::TrackingOptions& options = {},
+                                                            int fuseRefresh = 0);
 
 /// The board's own poses (camera to board): what the harness gives when the poses are exact up to the board's
 /// detection (its floor).

@@ -1242,7 +1242,7 @@ TEST(Cli, TrackPixelsMeasuresOursAndOpen3DsOdometryOnTheRealDeskAndRefusesAFolde
   const Result r = runMrgi("track-pixels " + visp + " --frames 4 --json");
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  ASSERT_EQ(j["rows"].size(), 11u);
+  ASSERT_EQ(j["rows"].size(), 12u);
   for (const auto& row : j["rows"]) {
     EXPECT_EQ(row["tracked"], 3) << row["poses"];
     EXPECT_LT(row["rms_px"].get<double>(), 3.0) << row["poses"];
