@@ -393,6 +393,64 @@ struct OdometrySolver {
     return capture::makePose(Rd, cv::Vec3d(xi[3], xi[4], xi[5]));
   }
 
+  /// One Gauss-Newton step of options.method from T (target from source): the motion to apply on the left, or
+  /// nullopt when no pixel associates (the frames do not overlap at T) or the step is not finite.
+  static std::optional<capture::Pose> step(const OdometryFrame::Impl::Level& s, const OdometryFrame::Impl::Level& t,
+                                           const capture::Pose& T, const OdometryOptions& o) {
+    const OdometryMethod method = o.method;
+    capture::Pose delta;
+    if (o.subpixel && method != OdometryMethod::PointToPlane) {
+      const std::optional<capture::Pose> d = subpixelStep(s, t, T, method == OdometryMethod::Hybrid, o);
+      if (!d) return std::nullopt;
+      delta = *d;
+    } else {
+      const o3c::Tensor pose = poseTensor(T);
+      o3o::OdometryResult r;
+      try {
+        switch (method) {
+          case OdometryMethod::PointToPlane:
+            r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose,
+                                                       o.depthOutlierM, o.depthHuberM);
+            break;
+          case OdometryMethod::Intensity:
+            r = o3o::ComputeOdometryResultIntensity(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tIntensityDx,
+                                                    t.tIntensityDy, s.tVertices, t.tK, pose, o.depthOutlierM,
+                                                    o.intensityHuber * o.intensityWeight);
+            break;
+          case OdometryMethod::Hybrid:
+            r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx, t.tDepthDy,
+                                                 t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK, pose,
+                                                 o.depthOutlierM, o.depthHuberM, o.intensityHuber * o.intensityWeight);
+            break;
+        }
+      } catch (const std::exception&) {
+        return std::nullopt;  // no inlier at all
+      }
+      delta = poseOf(r.transformation_);
+    }
+    for (double v : delta.val)
+      if (!std::isfinite(v)) return std::nullopt;
+    return delta;
+  }
+
+  /// At most `steps` steps at one pyramid level, from T (updated in place), until a step moves the view by less
+  /// than OdometryOptions::convergedPixels of the level's pixel (radians, or metres at 1 m): the coarse levels
+  /// stop where their pixels cannot tell more. `count` gains the steps taken. False when a step fails.
+  static bool solveLevel(const OdometryFrame::Impl::Level& s, const OdometryFrame::Impl::Level& t, int steps,
+                         const OdometryOptions& o, capture::Pose& T, int& count) {
+    const double converged = o.convergedPixels / std::max(t.k.fx, t.k.fy);
+    for (int i = 0; i < steps; ++i) {
+      const std::optional<capture::Pose> delta = step(s, t, T, o);
+      if (!delta) return false;
+      T = *delta * T;
+      ++count;
+      const capture::Pose& d = *delta;
+      const double angle = std::acos(std::clamp((d(0, 0) + d(1, 1) + d(2, 2) - 1) / 2, -1.0, 1.0));
+      if (angle + cv::norm(capture::translationOf(d)) < converged) break;
+    }
+    return true;
+  }
+
   static OdometryResult solve(const OdometryFrame& source, const OdometryFrame& target, const capture::Pose& init,
                               const OdometryOptions& o) {
     const auto& S = *source.impl_;
@@ -408,79 +466,24 @@ struct OdometrySolver {
     OdometryResult out;
     out.T_target_source = init;
     const int levels = static_cast<int>(S.levels.size());
-    o3c::Tensor pose = poseTensor(init);
+    capture::Pose pose = init;
     bool solved = true;
     for (int l = levels - 1; l >= 0 && solved; --l) {
-      const auto* sp = &S.levels[l];
+      const auto& s = S.levels[l];
       const auto& t = T.levels[l];
-      // A step that moves the view by less than this (radians, or metres at 1 m) has converged: a share of the
-      // level's pixel, so that the coarse levels stop where their pixels cannot tell more.
-      const double converged = o.convergedPixels / std::max(t.k.fx, t.k.fy);
       const int steps = o.iterations[static_cast<size_t>(levels - 1 - l)];
+      solved = solveLevel(s, t, steps, o, pose, out.steps);
       // Where the source's appearance has changed since the target (a hand, a screen, a painted-out marker, a
       // highlight that moved) its intensity residual stays large however the pose moves: once the level has
       // converged, those pixels are left out and the level solved again (a redescending weight, where the
-      // steps' own Huber weight would keep pulling the pose by them).
-      std::optional<OdometryFrame::Impl::Level> masked;
-      const bool rejects = method != OdometryMethod::PointToPlane && o.intensityOutlier > 0;
-      for (int pass = 0; pass < (rejects ? 2 : 1) && solved; ++pass) {
-        if (pass == 1) {
-          masked = withoutIntensityOutliers(*sp, t, poseOf(pose), o);
-          if (!masked) break;  // nothing (or too much) to leave out: the level stands
-          sp = &*masked;
-        }
-        const auto& s = *sp;
-        for (int i = 0; i < steps; ++i) {
-          capture::Pose delta;
-          if (o.subpixel && method != OdometryMethod::PointToPlane) {
-            const std::optional<capture::Pose> step =
-                subpixelStep(s, t, poseOf(pose), method == OdometryMethod::Hybrid, o);
-            if (!step) {
-              solved = false;  // no inlier at all: the frames do not overlap at this pose
-              break;
-            }
-            delta = *step;
-          } else {
-            o3o::OdometryResult r;
-            try {
-              switch (method) {
-                case OdometryMethod::PointToPlane:
-                  r = o3o::ComputeOdometryResultPointToPlane(s.tVertices, t.tVertices, t.tNormals, t.tK, pose,
-                                                             o.depthOutlierM, o.depthHuberM);
-                  break;
-                case OdometryMethod::Intensity:
-                  r = o3o::ComputeOdometryResultIntensity(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity,
-                                                          t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK, pose,
-                                                          o.depthOutlierM, o.intensityHuber * o.intensityWeight);
-                  break;
-                case OdometryMethod::Hybrid:
-                  r = o3o::ComputeOdometryResultHybrid(s.tDepth, t.tDepth, s.tIntensity, t.tIntensity, t.tDepthDx,
-                                                       t.tDepthDy, t.tIntensityDx, t.tIntensityDy, s.tVertices, t.tK,
-                                                       pose, o.depthOutlierM, o.depthHuberM,
-                                                       o.intensityHuber * o.intensityWeight);
-                  break;
-              }
-            } catch (const std::exception&) {
-              solved = false;  // no inlier at all: the frames do not overlap at this pose
-              break;
-            }
-            delta = poseOf(r.transformation_);
-          }
-          bool finite = true;
-          for (double v : delta.val) finite &= std::isfinite(v);
-          if (!finite) {
-            solved = false;
-            break;
-          }
-          pose = poseTensor(delta * poseOf(pose));
-          ++out.steps;
-          const double angle = std::acos(std::clamp((delta(0, 0) + delta(1, 1) + delta(2, 2) - 1) / 2, -1.0, 1.0));
-          if (angle + cv::norm(capture::translationOf(delta)) < converged) break;
-        }
-      }
+      // steps' own Huber weight would keep pulling the pose by them). Nothing (or too much) to leave out: the
+      // level stands.
+      if (solved && method != OdometryMethod::PointToPlane && o.intensityOutlier > 0)
+        if (const auto masked = withoutIntensityOutliers(s, t, pose, o))
+          solved = solveLevel(*masked, t, steps, o, pose, out.steps);
     }
     if (!solved) return out;
-    out.T_target_source = poseOf(pose);
+    out.T_target_source = pose;
     out.solved = true;
     measure(S.levels[0], T.levels[0], out, o);
     if (o.weakDirection > 0 && out.fitness > 0 && method != OdometryMethod::PointToPlane) {
