@@ -159,7 +159,7 @@ cv::Point2d tagCentre(const std::array<cv::Point2d, 4>& c) {
   return c[0] + s * a;
 }
 
-int paintTagsOut(TagSequence& seq, size_t i) {
+std::vector<std::array<cv::Vec3d, 4>> boardTagQuads(const TagSequence& seq) {
   const capture::Intrinsics& k = seq.intrinsics;
   // Each tag's corners on the board (board frame), from every frame that detected it, averaged.
   std::map<int, std::array<cv::Vec3d, 4>> board;
@@ -230,6 +230,13 @@ int paintTagsOut(TagSequence& seq, size_t i) {
         }
     }
   }
+  return quads;
+}
+
+int paintTagsOut(TagSequence& seq, size_t i) { return paintTagsOut(seq, i, boardTagQuads(seq)); }
+
+int paintTagsOut(TagSequence& seq, size_t i, const std::vector<std::array<cv::Vec3d, 4>>& quads) {
+  const capture::Intrinsics& k = seq.intrinsics;
   // In frame i: each tag's quad grown to hold its white border (a tag36h11's is one of its 8 cells a side).
   capture::RgbdFrame& rgbd = *seq.frames[i].rgbd;
   cv::Mat mask(rgbd.colour.size(), CV_8UC1, cv::Scalar(0)), around(rgbd.colour.size(), CV_8UC1, cv::Scalar(0));
@@ -404,11 +411,12 @@ std::vector<TagPixelRow> tagPixelTable(const std::string& dir, int frames, int m
   const TagSequence inView = loadTagSequence(dir, frames);
   TagSequence painted = inView;
   for (capture::Frame& f : painted.frames) f.rgbd->colour = f.rgbd->colour.clone();  // its own pixels to paint
-  for (size_t i = 1; i < painted.frames.size(); ++i) paintTagsOut(painted, i);
+  const auto quads = boardTagQuads(inView);
+  for (size_t i = 1; i < painted.frames.size(); ++i) paintTagsOut(painted, i, quads);
   // Every frame painted, the first included: a recording without a marker (the world founded on its first frame).
   TagSequence bare = painted;
   bare.frames[0].rgbd->colour = bare.frames[0].rgbd->colour.clone();
-  paintTagsOut(bare, 0);
+  paintTagsOut(bare, 0, quads);
   runtime::TrackingOptions founded;
   founded.worldFromFirstFrame = true;
   runtime::TrackingOptions fine;

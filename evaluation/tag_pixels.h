@@ -45,6 +45,11 @@ cv::Point2d tagCentre(const std::array<cv::Point2d, 4>& corners);
 /// depth lies within 3 cm of the board's plane (the sensor's offset from it removed) or is missing. Returns the
 /// pixels painted.
 int paintTagsOut(TagSequence& seq, size_t i);
+/// The same with the board's tag quads (board frame, metres) computed once for the sequence (boardTagQuads).
+int paintTagsOut(TagSequence& seq, size_t i, const std::vector<std::array<cv::Vec3d, 4>>& quads);
+/// Every tag's quad on the board (board frame, metres): each detected tag's corners from every frame that saw it,
+/// averaged, and the board's grid filled out with the tags never detected.
+std::vector<std::array<cv::Vec3d, 4>> boardTagQuads(const TagSequence& seq);
 
 struct TagPixelError {
   int frames = 0;   ///< frames after the first with at least one tag detected

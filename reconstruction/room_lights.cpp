@@ -188,8 +188,9 @@ size_t clearLampLitClipped(const RoomMesh& room, const MeshRays& mesh, std::vect
 /// The clipped pieces joined to a sunlit clipped surface (vertices the light's rays reach) are sunlit too, where
 /// they face the light: the rays miss the patch's rim (the fused window frame a voxel thick, a piece of the table's
 /// edge), and a rim left clipped would read as a small bright lamp beside the object. `saturated` has the sunlit
-/// vertices cleared already (where it differs from `room.saturated`); the rest of each piece they touch (5 cm
-/// cells) is cleared here. Returns the vertices cleared.
+/// vertices cleared already (where it differs from `room.saturated`); the rest of each piece they touch is cleared
+/// here. Touching is by 5 cm cells, not by the mesh's edges (as clearLampLitClipped groups a lamp's body): a rim
+/// is often parted from its patch by a vertex or two the camera did not clip. Returns the vertices cleared.
 size_t clearConnectedSunlit(const RoomMesh& room, std::vector<uint8_t>& saturated, const cv::Vec3d& towards) {
   constexpr double kCellM = 0.05;
   const size_t n = std::min({saturated.size(), room.saturated.size(), room.positions.size()});
