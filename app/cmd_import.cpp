@@ -11,8 +11,8 @@
 #include "capture/error.h"
 #include "capture/image_io.h"
 #include "capture/json_io.h"
-#include "capture/npz.h"
 #include "capture/session.h"
+#include "capture/visp_folder.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -33,12 +33,9 @@ json readJson(const fs::path& p) {
 int runImport(const ImportOptions& o) {
   checkTagId(o.family, o.tagId, "--tag-id");
   const fs::path dir(o.input);
-  const json cam = readJson(dir / "cam.json");
+  const capture::VispFolder folder(o.input);
   capture::SessionManifest m;
-  const std::string camFile = (dir / "cam.json").string();
-  m.colour = {capture::jsonInt(cam, "w", camFile),     capture::jsonInt(cam, "h", camFile),
-              capture::jsonNumber(cam, "px", camFile), capture::jsonNumber(cam, "py", camFile),
-              capture::jsonNumber(cam, "u0", camFile), capture::jsonNumber(cam, "v0", camFile)};
+  m.colour = folder.intrinsics();
   m.depth = m.colour;  // depth is already aligned to colour (depth_M_color = identity)
   m.depthUnitsMetres = 0.001;
   double tagSize = 0;
@@ -52,26 +49,10 @@ int runImport(const ImportOptions& o) {
                        "tag_size");
   m.marker = capture::MarkerSpec{o.family, tagSize, o.tagId};
   capture::SessionWriter writer(o.out, m);
-  const double scale = capture::jsonNumberOr(cam, "depthScale", 0.001, camFile);
   for (int i = 0;; ++i) {
-    char name[64];
-    std::snprintf(name, sizeof name, "color_image_%04d.png", i);
-    const fs::path colourPath = dir / name;
-    if (!fs::exists(colourPath)) break;
-    std::snprintf(name, sizeof name, "depth_image_%04d.npz", i);
-    const cv::Mat raw = capture::readNpzArray((dir / name).string(), "data.npy");
-    if (raw.type() != CV_16UC1 || raw.cols != m.colour.width || raw.rows != m.colour.height)
-      throw capture::CaptureError((dir / name).string(), "expected a " + std::to_string(m.colour.width) + "x" +
-                                                             std::to_string(m.colour.height) + " uint16 depth array");
-    capture::Frame f;
-    f.index = i;
-    f.timestamp = i / o.fps;
-    capture::RgbdFrame rgbd;
-    rgbd.colour = capture::readColour(colourPath.string());
-    raw.convertTo(rgbd.depth, CV_32F, scale);
-    rgbd.colourIntrinsics = rgbd.depthIntrinsics = m.colour;
-    f.rgbd = rgbd;
-    writer.append(f);
+    std::optional<capture::Frame> f = folder.frame(i, o.fps);
+    if (!f) break;
+    writer.append(*f);
   }
   if (writer.framesWritten() == 0)
     throw capture::CaptureError(o.input, "no color_image_0000.png: not a ViSP RGB-D sequence");

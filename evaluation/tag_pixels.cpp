@@ -19,7 +19,7 @@
 #include "capture/error.h"
 #include "capture/image_io.h"
 #include "capture/json_io.h"
-#include "capture/npz.h"
+#include "capture/visp_folder.h"
 #include "reconstruction/room_model.h"
 
 namespace fs = std::filesystem;
@@ -83,13 +83,9 @@ TagSequence loadTagSequence(const std::string& dirName, int maxFrames) {
   const fs::path dir(dirName);
   TagSequence seq;
   seq.path = dirName;
-  const std::string camFile = (dir / "cam.json").string(), tagFile = (dir / "apriltag_data.json").string();
-  const json cam = readJson(camFile);
-  seq.intrinsics = {capture::jsonInt(cam, "w", camFile),     capture::jsonInt(cam, "h", camFile),
-                    capture::jsonNumber(cam, "px", camFile), capture::jsonNumber(cam, "py", camFile),
-                    capture::jsonNumber(cam, "u0", camFile), capture::jsonNumber(cam, "v0", camFile)};
-  if (!seq.intrinsics.valid()) throw capture::CaptureError(camFile, "intrinsics out of range");
-  const double scale = capture::jsonNumberOr(cam, "depthScale", 0.001, camFile);
+  const std::string tagFile = (dir / "apriltag_data.json").string();
+  const capture::VispFolder folder(dirName);
+  seq.intrinsics = folder.intrinsics();
   const json tags = readJson(tagFile);
   if (!tags.is_object() || !tags.contains("tag_size") || !tags["tag_size"].is_number() || !tags.contains("grid") ||
       !tags["grid"].is_array() || !tags.contains("detections") || !tags["detections"].is_array())
@@ -97,29 +93,11 @@ TagSequence loadTagSequence(const std::string& dirName, int maxFrames) {
   seq.tagSize = tags["tag_size"].get<double>();
   capture::checkNumber(seq.tagSize, capture::kMinTagSizeM, capture::kMaxTagSizeM, tagFile, "tag_size");
   for (int i = 0; maxFrames <= 0 || i < maxFrames; ++i) {
-    char name[64];
-    std::snprintf(name, sizeof name, "color_image_%04d.png", i);
-    const fs::path colourPath = dir / name;
-    if (!fs::exists(colourPath)) break;
+    std::optional<capture::Frame> f = folder.frame(i);
+    if (!f) break;
     if (static_cast<size_t>(i) >= tags["grid"].size() || static_cast<size_t>(i) >= tags["detections"].size())
       throw capture::CaptureError(tagFile, "no board pose or detections for frame " + std::to_string(i));
-    std::snprintf(name, sizeof name, "depth_image_%04d.npz", i);
-    const cv::Mat raw = capture::readNpzArray((dir / name).string(), "data.npy");
-    if (raw.type() != CV_16UC1 || raw.cols != seq.intrinsics.width || raw.rows != seq.intrinsics.height)
-      throw capture::CaptureError((dir / name).string(), "expected a " + std::to_string(seq.intrinsics.width) + "x" +
-                                                             std::to_string(seq.intrinsics.height) +
-                                                             " uint16 depth array");
-    capture::Frame f;
-    f.index = i;
-    f.timestamp = i / 30.0;
-    capture::RgbdFrame rgbd;
-    rgbd.colour = capture::readColour(colourPath.string());
-    if (rgbd.colour.cols != seq.intrinsics.width || rgbd.colour.rows != seq.intrinsics.height)
-      throw capture::CaptureError(colourPath.string(), "not the size cam.json gives");
-    raw.convertTo(rgbd.depth, CV_32F, scale);
-    rgbd.colourIntrinsics = rgbd.depthIntrinsics = seq.intrinsics;
-    f.rgbd = rgbd;
-    seq.frames.push_back(std::move(f));
+    seq.frames.push_back(std::move(*f));
     seq.T_camera_board.push_back(poseFromJson(tags["grid"][i], tagFile, "grid[" + std::to_string(i) + "]"));
     std::map<int, std::array<cv::Point2d, 4>> frameCorners;
     const json& det = tags["detections"][i];
