@@ -36,14 +36,24 @@ float lightDistance(int i, vec3 p) {
   return uLightType[i] == 2 ? dot(p, uLightDirection[i]) : distance(p, uLightPosition[i]);
 }
 
+// Where p falls in a light's map ([0, 1]^2), through the light's view and projection; false behind the light or
+// outside the map (nothing there occludes p). lighting::mapCoordinates is the C++ twin.
+bool mapCoordinates(mat4 viewProj, vec3 p, out vec2 uv) {
+  vec4 c = viewProj * vec4(p, 1.0);
+  uv = vec2(0.0);
+  if (c.w <= 0.0) return false;
+  vec2 ndc = c.xy / c.w;
+  if (any(greaterThan(abs(ndc), vec2(1.0)))) return false;
+  uv = ndc * 0.5 + 0.5;
+  return true;
+}
+
 // The distance of what light i's map holds where p projects (1e30 where nothing, or outside the map: not
 // occluded by what it holds).
 float occluderDistance(sampler2DArray map, int i, mat4 viewProj, vec3 p) {
-  vec4 c = viewProj * vec4(p, 1.0);
-  if (c.w <= 0.0) return 1e30;
-  vec2 ndc = c.xy / c.w;
-  if (any(greaterThan(abs(ndc), vec2(1.0)))) return 1e30;
-  vec4 s = texture(map, vec3(ndc * 0.5 + 0.5, float(i)));
+  vec2 uv;
+  if (!mapCoordinates(viewProj, p, uv)) return 1e30;
+  vec4 s = texture(map, vec3(uv, float(i)));
   return s.w < 0.5 ? 1e30 : lightDistance(i, s.xyz);
 }
 
@@ -113,12 +123,10 @@ float softObjectsShadow(int i, vec3 at, vec3 n) {
 float smoothShadowTest(sampler2DArray map, int i, mat4 viewProj, float bias, vec3 x, vec3 n) {
   if (bias < -1e29) return 1.0;
   x += n * bias;
-  vec4 c = viewProj * vec4(x, 1.0);
-  if (c.w <= 0.0) return 1.0;
-  vec2 ndc = c.xy / c.w;
-  if (any(greaterThan(abs(ndc), vec2(1.0)))) return 1.0;
+  vec2 uv;
+  if (!mapCoordinates(viewProj, x, uv)) return 1.0;
   ivec2 size = textureSize(map, 0).xy;
-  vec2 f = (ndc * 0.5 + 0.5) * vec2(size) - 0.5;
+  vec2 f = uv * vec2(size) - 0.5;
   vec2 t0 = floor(f), w = f - t0;
   float self = lightDistance(i, x) - bias;
   float lit[4];

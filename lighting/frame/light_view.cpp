@@ -5,6 +5,7 @@
 #include <limits>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <stdexcept>
 
 #include "capture/view_factor.h"
@@ -120,6 +121,14 @@ void fitObjectView(LightView& v, const SceneLight& light, const cv::Vec3d& centr
   v.objectNear = dist - radius;
 }
 
+std::optional<cv::Vec2d> mapCoordinates(const cv::Matx44d& viewProj, const cv::Vec3d& p) {
+  const cv::Vec4d c = viewProj * cv::Vec4d(p[0], p[1], p[2], 1.0);
+  if (c[3] <= 0) return std::nullopt;
+  const double u = c[0] / c[3], v = c[1] / c[3];
+  if (std::abs(u) > 1 || std::abs(v) > 1) return std::nullopt;
+  return cv::Vec2d(u * 0.5 + 0.5, v * 0.5 + 0.5);
+}
+
 namespace {
 
 /// The shadow test's distance of a point: along a directional light's direction, else from the light.
@@ -130,12 +139,10 @@ double lightDistance(const SceneLight& light, const cv::Vec3d& p) {
 /// The distance of what the map holds where p projects (+inf where nothing or outside the map).
 double occluderDistance(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj,
                         const cv::Vec3d& p) {
-  const cv::Vec4d c = viewProj * cv::Vec4d(p[0], p[1], p[2], 1.0);
-  if (c[3] <= 0) return std::numeric_limits<double>::infinity();
-  const double u = c[0] / c[3], v = c[1] / c[3];
-  if (std::abs(u) > 1 || std::abs(v) > 1) return std::numeric_limits<double>::infinity();
-  const int col = std::clamp(static_cast<int>(std::floor((u * 0.5 + 0.5) * positions.cols)), 0, positions.cols - 1);
-  const int row = std::clamp(static_cast<int>(std::floor((v * 0.5 + 0.5) * positions.rows)), 0, positions.rows - 1);
+  const std::optional<cv::Vec2d> uv = mapCoordinates(viewProj, p);
+  if (!uv) return std::numeric_limits<double>::infinity();
+  const int col = std::clamp(static_cast<int>(std::floor((*uv)[0] * positions.cols)), 0, positions.cols - 1);
+  const int row = std::clamp(static_cast<int>(std::floor((*uv)[1] * positions.rows)), 0, positions.rows - 1);
   const cv::Vec4f s = positions.at<cv::Vec4f>(row, col);
   if (s[3] < 0.5f) return std::numeric_limits<double>::infinity();
   return lightDistance(light, cv::Vec3d(s[0], s[1], s[2]));
@@ -213,11 +220,9 @@ float smoothShadowTest(const cv::Mat& positions, const SceneLight& light, const 
                        cv::Vec3d x, const cv::Vec3d& n) {
   if (bias < 0 || positions.empty()) return 1.f;
   x += n * bias;
-  const cv::Vec4d c = viewProj * cv::Vec4d(x[0], x[1], x[2], 1.0);
-  if (c[3] <= 0) return 1.f;
-  const double u = c[0] / c[3], v = c[1] / c[3];
-  if (std::abs(u) > 1 || std::abs(v) > 1) return 1.f;
-  const double fx = (u * 0.5 + 0.5) * positions.cols - 0.5, fy = (v * 0.5 + 0.5) * positions.rows - 0.5;
+  const std::optional<cv::Vec2d> uv = mapCoordinates(viewProj, x);
+  if (!uv) return 1.f;
+  const double fx = (*uv)[0] * positions.cols - 0.5, fy = (*uv)[1] * positions.rows - 0.5;
   const double x0 = std::floor(fx), y0 = std::floor(fy), wx = fx - x0, wy = fy - y0;
   const double self = lightDistance(light, x) - bias;
   double lit[4];

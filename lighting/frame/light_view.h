@@ -3,6 +3,7 @@
 /// (and the objects' own), the RSM and shadow-map texels as read back, and the C++ twins of
 /// lighting/direct_light.glsl's shadow tests.
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "gl/objects.h"
@@ -81,6 +82,10 @@ struct Rsm {
 /// a light's visibility with or without the objects, and a light's irradiance before shadowing.
 float shadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
                  cv::Vec3d x, const cv::Vec3d& n);
+/// direct_light.glsl's mapCoordinates: where p falls in a light's map ([0, 1]^2) through its view and projection;
+/// nullopt behind the light or outside the map.
+std::optional<cv::Vec2d> mapCoordinates(const cv::Matx44d& viewProj, const cv::Vec3d& p);
+
 /// direct_light.glsl's smoothShadowTest: the map tested at the four texels around x's projection, weighed
 /// bilinearly (a virtual surface's test of the real surfaces' map).
 float smoothShadowTest(const cv::Mat& positions, const SceneLight& light, const cv::Matx44d& viewProj, double bias,
