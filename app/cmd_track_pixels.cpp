@@ -21,18 +21,18 @@ struct TrackPixelsOptions {
 };
 
 int trackPixels(const TrackPixelsOptions& o) {
-  const std::vector<evaluation::TagPixelRow> rows = evaluation::tagPixelTable(o.input, o.frames, o.markerId);
-  const size_t frames = rows.empty() ? 0 : rows.front().error.frameRmsPx.size() + 1;
+  const evaluation::TagPixelTable table = evaluation::tagPixelTable(o.input, o.frames, o.markerId);
   if (o.json) {
-    std::printf("%s\n", evaluation::tagPixelJson(o.input, frames, rows).dump().c_str());
+    std::printf("%s\n", evaluation::tagPixelJson(table).dump().c_str());
     return 0;
   }
+  const size_t frames = table.frames;
   std::printf(
       "%s, frames 0-%zu: the tags' centres placed from frame 0, drawn in frames 1-%zu\n\n"
       "| poses | RMS (px) | 95th percentile (px) | max (px) | frames tracked | ms a frame |\n"
       "|---|---|---|---|---|---|\n",
       o.input.c_str(), frames - 1, frames - 1);
-  for (const auto& r : rows)
+  for (const auto& r : table.rows)
     std::printf("| %s | %.2f | %.2f | %.2f | %d of %d | %.0f |\n", r.poses.c_str(), r.error.rmsPx, r.error.p95Px,
                 r.error.maxPx, r.error.tracked, r.error.frames, r.msPerFrame);
   return 0;

@@ -993,9 +993,7 @@ int runSweep(const BenchOptions& o) {
               {"process", processSettingsInEffect()},
               {"records", records}};
   if (!o.trackingPixels.empty()) {
-    const auto rows = tagPixelTable(o.trackingPixels);
-    doc["tracking_pixels"] =
-        tagPixelJson(o.trackingPixels, rows.empty() ? 0 : rows.front().error.frameRmsPx.size() + 1, rows);
+    doc["tracking_pixels"] = tagPixelJson(tagPixelTable(o.trackingPixels));
   }
   doc["presets"] = choosePresets(records);
   doc["preset_differences"] = presetDifferences(doc["presets"]);

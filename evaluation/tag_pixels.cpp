@@ -384,7 +384,7 @@ std::vector<std::optional<capture::Pose>> boardTrajectory(const TagSequence& seq
   return out;
 }
 
-std::vector<TagPixelRow> tagPixelTable(const std::string& dir, int frames, int markerId) {
+TagPixelTable tagPixelTable(const std::string& dir, int frames, int markerId) {
   using Trajectory = std::vector<std::optional<capture::Pose>>;
   const TagSequence inView = loadTagSequence(dir, frames);
   TagSequence painted = inView;
@@ -424,20 +424,20 @@ std::vector<TagPixelRow> tagPixelTable(const std::string& dir, int frames, int m
       {"ours, --pose tracked, tags in view", &inView, ours(inView, runtime::PoseMode::Tracked, {})},
       {"Open3D hybrid term, tags in view", &inView, [&] { return open3dTrajectory(inView, true); }},
   };
-  std::vector<TagPixelRow> out;
+  TagPixelTable out{dir, inView.frames.size(), {}};
   for (const Row& r : rows) {
     const auto start = std::chrono::steady_clock::now();
     const Trajectory poses = r.run();
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count() /
                       static_cast<double>(r.seq->frames.size());
-    out.push_back({r.name, tagPixelError(*r.seq, poses), ms});
+    out.rows.push_back({r.name, tagPixelError(*r.seq, poses), ms});
   }
   return out;
 }
 
-nlohmann::json tagPixelJson(const std::string& dir, size_t frames, const std::vector<TagPixelRow>& rows) {
-  nlohmann::json j = {{"sequence", dir}, {"frames", frames}, {"rows", nlohmann::json::array()}};
-  for (const TagPixelRow& r : rows)
+nlohmann::json tagPixelJson(const TagPixelTable& table) {
+  nlohmann::json j = {{"sequence", table.sequence}, {"frames", table.frames}, {"rows", nlohmann::json::array()}};
+  for (const TagPixelRow& r : table.rows)
     j["rows"].push_back({{"poses", r.poses},
                          {"rms_px", r.error.rmsPx},
                          {"p95_px", r.error.p95Px},

@@ -88,14 +88,21 @@ struct TagPixelRow {
   double msPerFrame = 0;  ///< its wall time over the sequence's frames (in memory), per frame
 };
 
+/// The harness's table on a ViSP tag sequence: the sequence's folder, its frames read, a row per way of tracking.
+struct TagPixelTable {
+  std::string sequence;
+  size_t frames = 0;
+  std::vector<TagPixelRow> rows;
+};
+
 /// The harness's table on a ViSP tag sequence (its first `frames` frames, 0: all; the world anchored by tag
 /// `markerId`): the board's own poses (the floor); ours (--pose odometry, the same at the frame's full width,
-/// --pose tracked) and Open3D's colour and hybrid terms with the tags painted out after frame 0; ours and
-/// Open3D's with every frame painted (no marker: the world founded on frame 0); ours tracked and Open3D's hybrid
-/// with the tags in view.
-std::vector<TagPixelRow> tagPixelTable(const std::string& dir, int frames = 0, int markerId = 3);
+/// --pose tracked, --pose odometry against the room as it is fused) and Open3D's colour and hybrid terms with the
+/// tags painted out after frame 0; ours and Open3D's with every frame painted (no marker: the world founded on
+/// frame 0); ours tracked and Open3D's hybrid with the tags in view.
+TagPixelTable tagPixelTable(const std::string& dir, int frames = 0, int markerId = 3);
 
 /// {"sequence", "frames", "rows": [{poses, rms_px, p95_px, max_px, frames, tracked, ms_per_frame, frame_rms_px}]}
-nlohmann::json tagPixelJson(const std::string& dir, size_t frames, const std::vector<TagPixelRow>& rows);
+nlohmann::json tagPixelJson(const TagPixelTable& table);
 
 }  // namespace mrgi::evaluation

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <optional>
+#include <set>
 #include <stdexcept>
 
 #include "capture/checks.h"
@@ -201,14 +202,13 @@ size_t clearConnectedSunlit(const RoomMesh& room, std::vector<uint8_t>& saturate
   };
   std::map<std::array<int, 3>, std::vector<uint32_t>> clipped;  // still clipped, by cell
   std::vector<std::array<int, 3>> frontier;
-  std::map<std::array<int, 3>, bool> sunlitCell;
+  std::set<std::array<int, 3>> sunlitCells;
   for (size_t i = 0; i < n; ++i) {
     if (!room.saturated[i]) continue;
     const auto c = cellOf(i);
     if (saturated[i]) {
       clipped[c].push_back(static_cast<uint32_t>(i));
-    } else if (!sunlitCell[c]) {
-      sunlitCell[c] = true;
+    } else if (sunlitCells.insert(c).second) {
       frontier.push_back(c);
     }
   }
@@ -225,10 +225,7 @@ size_t clearConnectedSunlit(const RoomMesh& room, std::vector<uint8_t>& saturate
           bool any = false;
           for (uint32_t i : it->second)
             if (saturated[i] && cv::Vec3d(room.normals[i]).dot(towards) > 0) saturated[i] = 0, ++cleared, any = true;
-          if (any && !sunlitCell[m]) {
-            sunlitCell[m] = true;
-            frontier.push_back(m);
-          }
+          if (any && sunlitCells.insert(m).second) frontier.push_back(m);
         }
   }
   return cleared;
@@ -252,36 +249,38 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   std::optional<MeshRays> built;
   if (!given) built.emplace(room.positions, room.indices);
   const MeshRays& mesh = given ? *given : *built;
-  // The room with the clipped surfaces a lamp lights taken as surfaces (clearLampLitClipped).
-  const auto lampsOnly = [&](const RoomMesh& r, const RoomLightOptions& opts, const KnownDistant* sun = nullptr) {
-    RoomMesh cleared = r;
-    const size_t count = clearLampLitClipped(r, mesh, cleared.saturated);
-    RoomLights out = lightsSeenFrom(cleared, centre, opts, mesh, sun);
-    out.lampLitClipped = count;
-    return out;
-  };
-  if (!o.findDistant) return lampsOnly(room, o);
-
   // A distant light the room shows by its sunlit patches and shadows: its direction from the radiance alone (a
   // mid-grey albedo everywhere: the edges' signs are what the search needs).
   const size_t n = room.positions.size();
-  const std::vector<cv::Vec3f> grey(n, cv::Vec3f(0.5f, 0.5f, 0.5f));
-  const std::optional<DistantLight> found = findDistantLight(room.positions, room.normals, room.radiance, grey,
-                                                             room.saturated, mesh, o.distant, &room.openings);
-  if (!found) return lampsOnly(room, o);
-  // Clipped surfaces it lights are sunlit surfaces, not lamps: their radiance stays a lower bound of what they
-  // send, and they neither become lights nor judge the lamps' gain.
-  RoomMesh lit = room;
-  const DistantLightRays reach(room.positions, mesh, &room.openings);
-  size_t sunlitClipped = 0;
-  for (size_t i = 0; i < n && i < lit.saturated.size(); ++i) {
-    if (!lit.saturated[i]) continue;
-    if (!(reach.lightOn(cv::Vec3d(room.positions[i]), cv::Vec3d(room.normals[i]), found->towards) > 0)) continue;
-    lit.saturated[i] = 0;
-    ++sunlitClipped;
+  std::optional<DistantLight> found;
+  if (o.findDistant) {
+    const std::vector<cv::Vec3f> grey(n, cv::Vec3f(0.5f, 0.5f, 0.5f));
+    found = findDistantLight(room.positions, room.normals, room.radiance, grey, room.saturated, mesh, o.distant,
+                             &room.openings);
   }
-  sunlitClipped += clearConnectedSunlit(room, lit.saturated, found->towards);
+  // The room as its lights are judged. Clipped surfaces the distant light lights are sunlit surfaces, not lamps:
+  // their radiance stays a lower bound of what they send, and they neither become lights nor judge the lamps' gain.
+  // So are the clipped surfaces a lamp's own clipped body lights (clearLampLitClipped).
+  RoomMesh lit = room;
+  std::optional<DistantLightRays> reach;
+  size_t sunlitClipped = 0;
+  if (found) {
+    reach.emplace(room.positions, mesh, &room.openings);
+    for (size_t i = 0; i < n && i < lit.saturated.size(); ++i) {
+      if (!lit.saturated[i]) continue;
+      if (!(reach->lightOn(cv::Vec3d(room.positions[i]), cv::Vec3d(room.normals[i]), found->towards) > 0)) continue;
+      lit.saturated[i] = 0;
+      ++sunlitClipped;
+    }
+    sunlitClipped += clearConnectedSunlit(room, lit.saturated, found->towards);
+  }
   const size_t lampLitClipped = clearLampLitClipped(lit, mesh, lit.saturated);
+  const auto seen = [&](const RoomLightOptions& opts, const KnownDistant* sun = nullptr) {
+    RoomLights out = lightsSeenFrom(lit, centre, opts, mesh, sun);
+    out.lampLitClipped = lampLitClipped;
+    return out;
+  };
+  if (!found) return seen(o);
   // Its power from the same edges, measured against the albedo the room's other light gives the shadowed side:
   // the lamps at their clipped bound here (their gain, judged by the light on the room's white surfaces, needs the
   // distant light's share of it first).
@@ -294,20 +293,16 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
     return findDistantLight(room.positions, room.normals, room.radiance, albedo.albedo, room.saturated, mesh, measure,
                             &room.openings);
   };
-  std::optional<DistantLight> sun = measureSun(lightsSeenFrom(lit, centre, bounded, mesh));
-  if (!sun || !(capture::luminance(sun->irradiance) > 0)) {
-    RoomLights out = lightsSeenFrom(lit, centre, o, mesh);
-    out.lampLitClipped = lampLitClipped;
-    return out;
-  }
-  KnownDistant known{sun->irradiance, sun->towards, &reach};
-  RoomLights out = lightsSeenFrom(lit, centre, o, mesh, &known);
+  std::optional<DistantLight> sun = measureSun(seen(bounded));
+  if (!sun || !(capture::luminance(sun->irradiance) > 0)) return seen(o);
+  KnownDistant known{sun->irradiance, sun->towards, &*reach};
+  RoomLights out = seen(o, &known);
   // Once more with the lamps' gain that leaves (the shadowed side's albedo under the lamps as they are).
   if (out.gainEstimated && out.gain > 1) {
     if (std::optional<DistantLight> again = measureSun(out); again && capture::luminance(again->irradiance) > 0) {
       sun = again;
       known.irradiance = sun->irradiance;
-      out = lightsSeenFrom(lit, centre, o, mesh, &known);
+      out = seen(o, &known);
     }
   }
   RoomLight l;
@@ -320,7 +315,6 @@ RoomLights estimateRoomLights(const RoomMesh& room, const cv::Vec3d& centre, con
   out.distant = *sun;
   out.distant->consistency = found->consistency;
   out.sunlitClipped = sunlitClipped;
-  out.lampLitClipped = lampLitClipped;
   return out;
 }
 
