@@ -174,12 +174,14 @@ vec3 unshadowedIrradiance(int i, vec3 x, vec3 n) {
   return uLightPower[i] * capCosine(dot(n, ln), sinA) / d2;
 }
 
-// The objects' direct shadow at (x, n), directIrradiance(true, x, n) - directIrradiance(false, x, n), with each
-// light's maps tested once: a light counts only where its objects' test leaves some of it out, or where it
-// has no objects' map (RSM^rho's test against RSM^mu's); exactly zero where the objects shadow nothing.
-vec3 objectsDirectShadow(vec3 x, vec3 n) {
+// The objects' direct shadow at (x, n) from the lights whose bit is set in `lights` (bit i: light i): for every
+// light, directIrradiance(true, x, n) - directIrradiance(false, x, n), with each light's maps tested once: a light
+// counts only where its objects' test leaves some of it out, or where it has no objects' map (RSM^rho's test
+// against RSM^mu's); exactly zero where the objects shadow nothing.
+vec3 objectsDirectShadow(int lights, vec3 x, vec3 n) {
   vec3 e = vec3(0.0);
   for (int i = 0; i < uLightCount; ++i) {
+    if (((lights >> i) & 1) == 0) continue;
     vec3 contribution = unshadowedIrradiance(i, x, n);
     if (!any(greaterThan(contribution, vec3(0.0)))) continue;
     if (uObjectShadowBias[i] < -1e29) {  // no objects' map: RSM^rho's test against RSM^mu's

@@ -212,7 +212,14 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     frame_->renderGBuffer();
     gbufferAt_ = now;
   }
-  const bool addDirectShadow = !(real_ && real_->accountsForDirectShadow());
+  // The lights whose objects' shadow this pass draws (bit i: kept[i]): those the real-role technique leaves to it.
+  int passShadows = 0;
+  std::vector<SceneLight> passShadowLights;
+  for (size_t li = 0; li < kept.size(); ++li)
+    if (!(real_ && real_->accountsForDirectShadow(kept[li]))) {
+      passShadows |= 1 << li;
+      passShadowLights.push_back(kept[li]);
+    }
   if (needLights) {
     frame_->clearLightViews();
     if (lit) {
@@ -380,8 +387,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     double bias = 0;
     for (const LightView& v : frame_->lightViews()) bias = std::max({bias, v.shadowBias, v.objectShadowBias});
     const double margin = 4.0 * frame_->region()->radius() / std::max(1, frame_->rsmSize()) + 2.0 * bias;
-    footprint_ = objectsFootprint(frame_->camera(), centre, radius, addDirectShadow ? kept : std::vector<SceneLight>{},
-                                  margin, frame_->cameraVertices(), frame_->cameraIndices());
+    footprint_ = objectsFootprint(frame_->camera(), centre, radius, passShadowLights, margin, frame_->cameraVertices(),
+                                  frame_->cameraIndices());
   }
   // The real-role delta at the object terms' own reduced view: one set of upsampling weights for both.
   const bool sharedUpsample = reducedTerms && realOut.realDelta && factors[0] > 1 && factors[0] == termsView.factor &&
@@ -401,7 +408,8 @@ void LightingPipeline::run(const CameraView& camera, const std::vector<SceneLigh
     }
     p.use();
     p.set("uRealDeltaOn", realOut.realDelta ? 1 : 0);
-    p.set("uAddDirectShadow", addDirectShadow ? 1 : 0);
+    p.set("uPassShadows", passShadows);
+    p.set("uAllLights", static_cast<int>((1u << kept.size()) - 1u));
     setObjectTermUniforms(p);
     setAmbientUniforms(p, *frame_);  // this run's ambient (frame_->update) and the SH part (setAmbientSh)
     p.set("uEnvironmentHoldsBounce", environment_ ? 1 : 0);

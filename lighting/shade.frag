@@ -50,7 +50,8 @@ uniform int uRealDeltaFactor, uVirtualIrradianceFactor, uVirtualRadianceFactor; 
 #include "lighting/direct_light.glsl"
 
 uniform int uRealDeltaOn;       // 0: the real-role technique hands out no real-pixel delta (uRealDelta unread)
-uniform int uAddDirectShadow;   // 1: the real-role technique leaves the object's direct shadow to this pass
+uniform int uPassShadows;       // bit i: the real-role technique leaves the objects' direct shadow of light i here
+uniform int uAllLights;         // bit i for every light i
 uniform vec3 uAmbient;          // radiance, W/m^2/sr
 uniform int uEnvironmentHoldsBounce;  // 1: the ambient is an environment seen at the object (real bounce included)
 uniform float uCameraWhite;     // the camera's white in scene radiance (1 / exposure); 0: clipped pixels not corrected
@@ -122,18 +123,19 @@ void main() {
     if (seen) delta += upsampled(uObjectTerms, uLowPosition, uLowNormal, uObjectTermsFactor, p, pos, normal);
 #endif
 #ifndef SHADE_REAL_ONLY
-    if (uAddDirectShadow == 1) delta += objectsDirectShadow(pos.xyz, n);
+    if (uPassShadows != 0) delta += objectsDirectShadow(uPassShadows, pos.xyz, n);
 #endif
 #else
     if (seen) {
       // The object terms need the direct light with and without the objects: the direct shadow is their difference.
       vec3 directMu = directIrradiance(false, pos.xyz, n), directRho = directIrradiance(true, pos.xyz, n);
-      if (uAddDirectShadow == 1) delta += directRho - directMu;
+      if (uPassShadows == uAllLights) delta += directRho - directMu;
+      else if (uPassShadows != 0) delta += objectsDirectShadow(uPassShadows, pos.xyz, n);
       delta += objectTerms(pos.xyz, n, directMu, directRho);
     }
 #ifndef SHADE_REAL_ONLY
-    else if (uAddDirectShadow == 1) {
-      delta += objectsDirectShadow(pos.xyz, n);
+    else if (uPassShadows != 0) {
+      delta += objectsDirectShadow(uPassShadows, pos.xyz, n);
     }
 #endif
 #endif

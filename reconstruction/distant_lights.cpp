@@ -270,18 +270,7 @@ DistantLightRays::DistantLightRays(const std::vector<cv::Vec3f>& positions, cons
 }
 
 int DistantLightRays::opening(const cv::Vec3d& origin, const cv::Vec3d& w) const {
-  if (!openings_ || !openings_->recorded) return -1;
-  // Where the ray leaves the box, a cell the cameras saw through, outside it: only a ray that met no surface goes
-  // there (a window onto the sky, a surface past the sensor's range), not one that met the room.
-  double tExit = 1e30;
-  for (int k = 0; k < 3; ++k)
-    if (std::abs(w[k]) > 1e-12) tExit = std::min(tExit, ((w[k] > 0 ? hi_[k] : lo_[k]) - origin[k]) / w[k]);
-  tExit = std::max(tExit, 0.0);
-  const double step = 0.5 * openings_->cellM;
-  for (double t = tExit - 0.5 * step; t <= tExit + 6 * step; t += step)
-    if (t > 0)
-      if (const int cell = openings_->find(origin + t * w); cell >= 0) return cell;
-  return -1;
+  return openings_ ? openings_->beyond(lo_, hi_, origin, w) : -1;
 }
 
 double DistantLightRays::lightOn(const cv::Vec3d& position, const cv::Vec3d& normal, const cv::Vec3d& w,

@@ -52,15 +52,25 @@ std::vector<cv::Vec3f> roomBounceIrradiance(const RoomMesh& mesh, const MeshRays
   cv::Vec3d lo(1e30, 1e30, 1e30), hi(-1e30, -1e30, -1e30);
   std::vector<cv::Vec3f> finite;
   std::vector<uint32_t> finiteIndex;
-  if (options.holeReachM > 0)
+  const bool openings = mesh.openings.recorded && !mesh.openings.cells.empty();
+  if (options.holeReachM > 0 || openings)
     for (size_t i = 0; i < n; ++i) {
       const cv::Vec3f& p = mesh.positions[i];
       if (!usable(cv::Vec3d(p))) continue;
       for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], double(p[c])), hi[c] = std::max(hi[c], double(p[c]));
+      if (options.holeReachM <= 0) continue;
       finite.push_back(p);
       finiteIndex.push_back(static_cast<uint32_t>(i));
     }
   const bool continueHoles = !finite.empty();
+  // A ray that leaves through an opening the cameras saw through (a window) meets what they saw beyond it (the sky).
+  const auto throughOpening = [&](const cv::Vec3d& o, const cv::Vec3d& d, cv::Vec3d& radiance) {
+    if (!openings) return false;
+    const int cell = mesh.openings.beyond(lo, hi, o, d);
+    if (cell < 0 || static_cast<size_t>(cell) >= mesh.openings.radiance.size()) return false;
+    radiance = cv::Vec3d(mesh.openings.radiance[static_cast<size_t>(cell)]);
+    return true;
+  };
   const PointCloudAdaptor cloud{finite};
   std::optional<PointKdTree> tree;
   if (continueHoles) tree.emplace(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
@@ -101,7 +111,7 @@ std::vector<cv::Vec3f> roomBounceIrradiance(const RoomMesh& mesh, const MeshRays
           const uint32_t* tri = &mesh.indices[3 * static_cast<size_t>(h.triangle)];
           sum += (1 - h.u - h.v) * sent(tri[0]) + h.u * sent(tri[1]) + h.v * sent(tri[2]);
           ++hits;
-        } else if (cv::Vec3d beyond; continueHoles && continued(o, d, beyond)) {
+        } else if (cv::Vec3d beyond; throughOpening(o, d, beyond) || (continueHoles && continued(o, d, beyond))) {
           sum += beyond;
           ++hits;
         }

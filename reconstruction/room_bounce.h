@@ -26,7 +26,8 @@ struct RoomBounceOptions {
   /// (the surface continued into the hole from its seen edge: overhead, where a table looks most, the unseen
   /// ceiling near a lamp is brighter than the room's mean). A ray that leaves farther from anything seen finds
   /// the mean radiance of the vertex's rays that found some; where fewer than a quarter did, `outside`
-  /// (W/m^2/sr, linear RGB). holeReachM = 0: no continuation.
+  /// (W/m^2/sr, linear RGB). holeReachM = 0: no continuation. A ray that leaves through an opening the cameras saw
+  /// through (RoomMesh::openings: a window) finds the radiance they saw beyond it (the sky) instead.
   double holeReachM = 1.0;
   cv::Vec3d outside{0, 0, 0};
   double offsetM =

@@ -724,6 +724,22 @@ int RoomOpenings::find(const cv::Vec3d& p) const {
   return it != cells.end() && *it == c ? static_cast<int>(it - cells.begin()) : -1;
 }
 
+int RoomOpenings::beyond(const cv::Vec3d& lo, const cv::Vec3d& hi, const cv::Vec3d& origin, const cv::Vec3d& w) const {
+  if (!recorded || cells.empty()) return -1;
+  // Where the ray leaves the box, a cell the cameras saw through, outside it: only a ray that met no surface goes
+  // there (a window onto the sky, a surface past the sensor's range), not one that met the room.
+  double tExit = 1e30;
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(w[k]) > 1e-12) tExit = std::min(tExit, ((w[k] > 0 ? hi[k] : lo[k]) - origin[k]) / w[k]);
+  if (!(tExit < 1e29)) return -1;
+  tExit = std::max(tExit, 0.0);
+  const double step = 0.5 * cellM;
+  for (double t = tExit - 0.5 * step; t <= tExit + 6 * step; t += step)
+    if (t > 0)
+      if (const int cell = find(origin + t * w); cell >= 0) return cell;
+  return -1;
+}
+
 size_t RoomModel::blocks() const { return impl_->index.size(); }
 size_t RoomModel::appearanceBytes() const {
   // Entries plus the hash table's node and bucket overhead (libstdc++: a node holds the pair and a next
@@ -974,18 +990,20 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   std::vector<cv::Vec3f> bound(n, cv::Vec3f(0, 0, 0));
   // E over what the lights and the ambient give (RoomAlbedo::sent).
   std::vector<cv::Vec3f> gain(n, cv::Vec3f(1, 1, 1));
-  // In the sharp shadow of a distant light (the sun through a window): the albedo there is measured under the
-  // other lights, away from the shadow's edges (below), as a surface the sun never reaches is.
-  std::vector<uint8_t> inSharpShadow(n, 0);
+  // In the shadow of a light (the sun through a window, a lamp the table hides from the floor): the albedo there is
+  // measured under the other lights, as a surface the light never reaches is, away from the shadow's edges
+  // (below). Rejecting such vertices instead left two thirds of a room
+  // lit by a lamp and the sun to the fill (the window-sun room), their colour from wherever the fill came from, and
+  // a sun measured from them 0.6x its power in the wrong colour.
+  std::vector<uint8_t>& inShadow = out.inShadow;
+  inShadow.assign(n, 0);
   for (size_t i = 0; i < n; ++i) {
     const cv::Vec3d p(mesh.positions[i]), nrm(mesh.normals[i]);
     const cv::Vec3d Lr(mesh.radiance[i]);
-    cv::Vec3d E = bounce ? cv::Vec3d((*bounce)[i]) : lights.ambientIrradiance, direct(0, 0, 0), normalSum(0, 0, 0),
-              blocked(0, 0, 0);
+    cv::Vec3d E = bounce ? cv::Vec3d((*bounce)[i]) : lights.ambientIrradiance, direct(0, 0, 0), normalSum(0, 0, 0);
     for (size_t l = 0; l < L; ++l) {
       cv::Vec3d e;
       double c;
-      bool sharp = false;
       if (l < lights.points.size()) {
         const cv::Vec3d d = lights.points[l].position - p;
         const double r2 = std::max(d.dot(d), 1e-8);
@@ -996,19 +1014,13 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
         const auto& dl = lights.distant[l - lights.points.size()];
         e = dl.power;
         c = capture::capCosine(nrm.dot(dl.direction), seenSine(dl));
-        sharp = dl.angularRadius <= kSharpShadowAngularRadius;
       }
-      if (c > 0 && sharp && occluded[i * L + l]) {
-        inSharpShadow[i] = 1;  // neither light nor blocked light: the vertex is measured without it
+      if (c > 0 && occluded[i * L + l]) {
+        inShadow[i] = 1;  // neither light nor blocked light: the vertex is measured without it
         continue;
       }
       normalSum += e;
-      if (c <= 0) continue;
-      if (occluded[i * L + l]) {
-        blocked += e * c;
-        continue;
-      }
-      direct += e * c;
+      if (c > 0) direct += e * c;
     }
     E += direct;
     const double sumN = normalSum[0] + normalSum[1] + normalSum[2], sumD = direct[0] + direct[1] + direct[2];
@@ -1018,8 +1030,6 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
     AlbedoStatus st = AlbedoStatus::Measured;
     if (i < mesh.saturated.size() ? mesh.saturated[i] != 0 : std::max({Lr[0], Lr[1], Lr[2]}) >= saturated)
       st = AlbedoStatus::Saturated;
-    else if (blocked[0] + blocked[1] + blocked[2] > 0.2 * (sumD + blocked[0] + blocked[1] + blocked[2]))
-      st = AlbedoStatus::Shadowed;
     else if (sumN > 0 && sumD < options.minEffectiveCos * sumN)
       st = AlbedoStatus::Grazing;
     else if (E[0] + E[1] + E[2] <= 1e-9)
@@ -1033,17 +1043,16 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   const std::vector<std::vector<uint32_t>> neighbours = meshNeighbours(mesh.indices, n);
   // A shadow's edge is blurred in the fused colour (voxels, and averaging over views): the two rings of
   // vertices around a shadow are rejected with it, or their darker colour would read as a darker albedo. The
-  // edge of a distant light's sharp shadow is rejected on both sides (the vertices either side of it), then
-  // its two rings.
-  std::vector<size_t> sharpEdge;
+  // edge of a light's shadow is rejected on both sides (the vertices either side of it), then its two rings.
+  std::vector<size_t> shadowEdge;
   for (size_t i = 0; i < n; ++i)
     if (out.status[i] == AlbedoStatus::Measured)
       for (uint32_t j : neighbours[i])
-        if (inSharpShadow[j] != inSharpShadow[i]) {
-          sharpEdge.push_back(i);
+        if (inShadow[j] != inShadow[i]) {
+          shadowEdge.push_back(i);
           break;
         }
-  for (size_t i : sharpEdge) out.status[i] = AlbedoStatus::Shadowed;
+  for (size_t i : shadowEdge) out.status[i] = AlbedoStatus::Shadowed;
   for (int ring = 0; ring < 2; ++ring) {
     std::vector<size_t> edge;
     for (size_t i = 0; i < n; ++i)

@@ -68,6 +68,10 @@ struct RoomOpenings {
   /// The index of the cell holding p, or -1.
   int find(const cv::Vec3d& p) const;
   bool contains(const cv::Vec3d& p) const { return find(p) >= 0; }
+  /// For a ray from `origin` (inside the box [lo, hi] around the room) along unit `w` that meets none of the room:
+  /// the cell it leaves through, looked for where it crosses the box and a few cells beyond, or -1 (a gap the
+  /// cameras never looked through, or no record).
+  int beyond(const cv::Vec3d& lo, const cv::Vec3d& hi, const cv::Vec3d& origin, const cv::Vec3d& w) const;
 };
 
 /// A triangle mesh of the model's surface in the lighting world, with the fused appearance per vertex.
@@ -128,8 +132,9 @@ void fillFromNeighbours(std::vector<cv::Vec3f>& values, std::vector<uint8_t>& kn
 
 /// Per-vertex albedo of the room under known lights (all in the lighting world), as estimateAlbedo does per
 /// pixel: k_d = pi * L / E with E the lights' direct irradiance (shadows ray-cast against the room itself)
-/// plus the ambient. Vertices in a light's shadow, saturated, grazing or unlit are rejected and filled from
-/// their mesh neighbours; the status says which (AlbedoStatus).
+/// plus the ambient. A vertex in a light's shadow is measured under the other lights; the edges of the shadows,
+/// saturated, grazing or unlit vertices are rejected and filled from their mesh neighbours; the status says which
+/// (AlbedoStatus).
 struct RoomAlbedo {
   std::vector<cv::Vec3f> albedo;
   std::vector<AlbedoStatus> status;
@@ -139,6 +144,8 @@ struct RoomAlbedo {
   /// passes bounce the lights' irradiance once; in a closed room the rest of its light is a third or more of
   /// what its surfaces send. Equal to `albedo` without the room's bounce.
   std::vector<cv::Vec3f> sent;
+  /// 1: a light the vertex faces is blocked by the room (the vertex measured under the other lights).
+  std::vector<uint8_t> inShadow;
 };
 
 /// What estimateRoomAlbedo keeps between calls on successive meshes of one room (a live fusion's refreshes),

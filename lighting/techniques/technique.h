@@ -93,9 +93,12 @@ class Technique {
   /// What builds the technique's own input from each frame or a room (lighting/frame/technique_input.h), read
   /// back from FrameResources::techniqueInput(name()); nullptr: it needs none.
   virtual std::unique_ptr<TechniqueInputBuilder> inputBuilder() const { return nullptr; }
-  /// Whether the real-pixel delta already contains the object's direct shadow on real surfaces (otherwise
-  /// the shading pass adds it from the shadow maps).
-  virtual bool accountsForDirectShadow() const { return false; }
+  /// Whether the real-pixel delta already contains the objects' direct shadow from `light` on real surfaces
+  /// (otherwise the shading pass adds it from the shadow maps).
+  virtual bool accountsForDirectShadow(const SceneLight& light) const {
+    (void)light;
+    return false;
+  }
   /// Whether the real-pixel delta already contains the lights the objects reflect onto real surfaces
   /// (otherwise the shading pass adds it: lighting::reflectedLight).
   virtual bool accountsForReflectedLight() const { return false; }

@@ -146,6 +146,45 @@ TEST(RoomBounce, AHoleInTheCeilingSendsWhatTheCeilingAroundItSends) {
   EXPECT_GT(bottom, 10);
 }
 
+TEST(RoomBounce, AnOpeningTheCamerasSawThroughSendsWhatTheySawBeyondIt) {
+  // The same room, its top cap an opening (a window) through which the cameras saw a sky of radiance 2: from the
+  // floor a cap above z0 is (1 - z0) / 2 of what a point sees, so the room sends pi ((z0 - 0.5) / 2 + 0.075 +
+  // (1 - z0)), about pi 0.425 (z0 = 0.8, the hole's rim the highest kept vertex), not the band continued into it
+  // (pi 0.325).
+  RoomMesh full = insideSphere(1.0, 64, 128);
+  for (size_t i = 0; i < full.positions.size(); ++i)
+    full.radiance[i] = full.positions[i][2] > 0.5f ? cv::Vec3f(1, 1, 1) : cv::Vec3f(0.1f, 0.1f, 0.1f);
+  RoomMesh kept = keptPart(full, [](const cv::Vec3f& p) { return p[2] <= 0.8f; });
+  kept.openings.recorded = true;
+  for (int x = -7; x < 7; ++x)
+    for (int y = -7; y < 7; ++y)
+      for (int z = 8; z < 11; ++z) kept.openings.cells.push_back({x, y, z});
+  std::sort(kept.openings.cells.begin(), kept.openings.cells.end(), [](const cv::Vec3i& a, const cv::Vec3i& b) {
+    return std::tie(a[0], a[1], a[2]) < std::tie(b[0], b[1], b[2]);
+  });
+  kept.openings.radiance.assign(kept.openings.cells.size(), cv::Vec3f(2, 2, 2));
+  kept.openings.clipped.assign(kept.openings.cells.size(), 0);
+  ASSERT_GE(kept.openings.find({0.05, 0.05, 0.85}), 0);
+  const reconstruction::MeshRays rays(kept.positions, kept.indices);
+  reconstruction::RoomBounceOptions o;
+  o.rays = 256;
+  o.offsetM = 1e-3;
+  o.smoothing = 0;
+  o.vertexStride = 1;
+  const auto E = reconstruction::roomBounceIrradiance(kept, rays, o);
+  double z0 = -1;
+  for (const cv::Vec3f& p : kept.positions) z0 = std::max(z0, double(p[2]));
+  const double expected = CV_PI * ((z0 - 0.5) / 2 + 0.075 + (1 - z0));
+  ASSERT_NEAR(expected, CV_PI * 0.425, 0.05);
+  int bottom = 0;
+  for (size_t i = 0; i < E.size(); ++i)
+    if (kept.positions[i][2] < -0.99f) {
+      ++bottom;
+      EXPECT_NEAR(E[i][0], expected, 0.04 * expected) << i;  // 256 rays
+    }
+  EXPECT_GT(bottom, 10);
+}
+
 TEST(RoomBounce, TheRoomsAlbedoUnderALampAndItsOwnBounceIsTheTrueAlbedo) {
   // A lamp of intensity I at the centre of a closed sphere of albedo rho: every point receives E_d = I / R^2
   // directly and pi <L> from the rest, so L = rho (E_d + pi L) / pi, L = rho E_d / (pi (1 - rho)). Without the

@@ -6,6 +6,7 @@
 #include "gl/error.h"
 #include "lighting/debug_views.h"
 #include "lighting/techniques/registry.h"
+#include "reconstruction/albedo.h"
 
 namespace mrgi::lighting {
 
@@ -160,19 +161,25 @@ void DlpvTechnique::light(const FrameResources& frame, size_t index, gl::Profile
   const Rsm& mu = frame.rsmMu();
   if (virtual_) inject(rho_, rho, nullptr, 1.0f, kInjectIndirect, light, n);
   if (!real_) return;
+  // A sharp distant light's direct shadow is the shading pass's (accountsForDirectShadow): only its bounce here.
+  const bool direct = accountsForDirectShadow(light);
   if (knobs_.naiveDifference) {
     inject(rhoFull_, rho, nullptr, 1.0f, kInjectIndirect, light, n);
-    inject(rhoDirect_, rho, nullptr, 1.0f, kInjectDirect, light, n);
+    if (direct) inject(rhoDirect_, rho, nullptr, 1.0f, kInjectDirect, light, n);
     inject(muFull_, mu, nullptr, 1.0f, kInjectIndirect, light, n);
-    inject(muDirect_, mu, nullptr, 1.0f, kInjectDirect, light, n);
+    if (direct) inject(muDirect_, mu, nullptr, 1.0f, kInjectDirect, light, n);
   } else {
     // Delta injection, only where RSM^rho and RSM^mu differ: +VPLs of RSM^rho, -VPLs of RSM^mu, and the
     // direct light RSM^mu received there, negative (the virtual object now intercepts it; its own direct
     // light is shaded by the shading pass and must not travel on through the object).
     inject(delta_, rho, &mu, 1.0f, kInjectIndirect, light, n);
     inject(delta_, mu, &rho, -1.0f, kInjectIndirect, light, n);
-    inject(deltaDirect_, mu, &rho, -1.0f, kInjectDirect, light, n);
+    if (direct) inject(deltaDirect_, mu, &rho, -1.0f, kInjectDirect, light, n);
   }
+}
+
+bool DlpvTechnique::sharpDistant(const SceneLight& light) {
+  return light.type == LightType::Directional && light.extent <= reconstruction::kSharpShadowAngularRadius;
 }
 
 void DlpvTechnique::add(const Volume& src, Volume& dst) {

@@ -28,7 +28,12 @@ class DlpvTechnique final : public Technique {
 
   std::string name() const override { return "dlpv"; }
   unsigned inputs() const override { return kInputCamera | kInputGeometry | kInputLights; }
-  bool accountsForDirectShadow() const override { return true; }
+  /// The objects' shadow of every light but a sharp distant one (the sun): the volume covers the region around
+  /// the objects in cells of centimetres, where a low sun throws a sharp shadow past the region's edge; that
+  /// shadow the shading pass draws from the shadow maps.
+  bool accountsForDirectShadow(const SceneLight& light) const override { return !sharpDistant(light); }
+  /// A directional light no wider than reconstruction::kSharpShadowAngularRadius.
+  static bool sharpDistant(const SceneLight& light);
   bool accountsForReflectedLight() const override { return true; }  // the objects' RSMs injected into the volume
   void beginLights(const FrameResources& frame, gl::Profiler* profiler) override;
   void light(const FrameResources& frame, size_t index, gl::Profiler* profiler) override;

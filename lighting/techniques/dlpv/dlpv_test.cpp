@@ -151,7 +151,10 @@ TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
   cfg.set("lpv", "steps", 6);
   cfg.set("lpv", "direct_steps", 2);
   cfg.set("lpv", "damping", 0.5);
-  for (const SceneLight& light : {pointAbove(), sunDown()}) {
+  // A sun 3 degrees wide: its shadow is the volume's (a sharp one's is the shading pass's: below).
+  SceneLight wideSun = sunDown();
+  wideSun.extent = 0.05;
+  for (const SceneLight& light : {pointAbove(), wideSun}) {
     LightingPipeline pipe = makePipeline(cfg, s);
     pipe.run(topCamera(96, 72), {light}, {0, 0, 0}, nullptr);
     const LpvGrid g = *dlpv(pipe).grid();
@@ -200,6 +203,42 @@ TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
     // Texture filtering weights are quantised on some GPUs (8 bits on llvmpipe): 1 % of the largest value.
     EXPECT_LT(worst, 0.01 * scale);
   }
+}
+
+TEST(GL, DlpvLeavesASharpSunsShadowToTheShadowMaps) {
+  // The sun (no wider than kSharpShadowAngularRadius): no direct delta is injected for it, and the real pixels'
+  // irradiance delta holds the shadow-map shadow instead, as a technique that draws no shadow of its own has it;
+  // a lamp's shadow stays the volume's.
+  auto ctx = makeContext();
+  TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
+  PipelineConfig cfg = testConfig(96, 72, 16, 64);
+  cfg.set("lpv", "steps", 6);
+  cfg.set("lpv", "direct_steps", 2);
+  EXPECT_FALSE(DlpvTechnique::sharpDistant(pointAbove()));
+  SceneLight wide = sunDown();
+  wide.extent = 0.05;
+  EXPECT_FALSE(DlpvTechnique::sharpDistant(wide));
+  ASSERT_TRUE(DlpvTechnique::sharpDistant(sunDown()));
+  // The sun at 45 degrees towards +y: the cube (y in [-0.1, 0.1], 0.2 high) shades the floor at y in [0.1, 0.3],
+  // where its 10 W/m^2 give 7.07.
+  SceneLight sun = sunDown();
+  sun.direction = cv::normalize(cv::Vec3d(0, 1, -1));
+  ASSERT_TRUE(DlpvTechnique::sharpDistant(sun));
+  LightingPipeline pipe = makePipeline(cfg, s);
+  pipe.run(topCamera(96, 72), {sun}, {0, 0, 0}, nullptr);
+  EXPECT_EQ(maxAbs(dlpv(pipe).downloadVolume("delta_direct")), 0.0f);
+  const cv::Mat pos = pipe.downloadGBuffer(0), alb = pipe.downloadGBuffer(2), irr = pipe.downloadIrradiance();
+  int inShadow = 0, shadowed = 0;
+  for (int y = 0; y < pos.rows; ++y)
+    for (int x = 0; x < pos.cols; ++x) {
+      const cv::Vec4f p = pos.at<cv::Vec4f>(y, x);
+      if (p[3] < 0.5f || alb.at<cv::Vec4f>(y, x)[3] > 0.5f || p[2] > 0.01f) continue;
+      if (p[0] < -0.32f || p[0] > -0.18f || p[1] < 0.12f || p[1] > 0.28f) continue;
+      ++inShadow;
+      shadowed += std::abs(irr.at<cv::Vec4f>(y, x)[1] + 7.07f) < 0.1f * 7.07f;
+    }
+  ASSERT_GT(inShadow, 20);
+  EXPECT_GT(shadowed, 0.9 * inShadow) << "the sun's sharp shadow is missing or blurred";
 }
 
 // ----------------------------------------------------------------------------------------- properties
