@@ -158,11 +158,20 @@ void FramePipeline::estimateRoomLights() {
   ro.saturatedGain = setup_->scene.roomSaturatedGain;
   ro.whiteAlbedo = setup_->scene.roomWhiteAlbedo;
   // A room fixed for the whole run (a recording fused first, or --room) is searched for a distant light it shows
-  // only by its sunlit patches and shadows (a second or two, once); a room fused as a sensor's frames come is
-  // not yet (it would be searched again at every refresh).
-  ro.findDistant = !options_.fuse;
+  // only by its sunlit patches and shadows (a second or two, once). A room fused as a sensor's frames come is
+  // searched again each time it has grown by a quarter (what it shows of the sun grows with it), and at the
+  // refreshes between, the light found last is measured from its direction (no search).
+  const size_t vertices = options_.room->positions.size();
+  const bool search = !options_.fuse || !distantSearchedAt_ || vertices * 4 >= distantSearchedAt_ * 5;
+  if (!search && distantTowards_) ro.distant.towards = distantTowards_;
+  ro.findDistant = search || distantTowards_.has_value();
   roomLightEstimate_ =
       std::make_shared<reconstruction::RoomLights>(reconstruction::estimateRoomLights(*options_.room, centre, ro));
+  if (search) {
+    distantSearchedAt_ = vertices;
+    distantTowards_.reset();
+  }
+  if (roomLightEstimate_->distant) distantTowards_ = roomLightEstimate_->distant->towards;
   if (const auto& d = roomLightEstimate_->distant) {
     char line[300];
     std::snprintf(line, sizeof line,

@@ -193,6 +193,10 @@ class FramePipeline {
   /// The lights come from the room (estimated by the rendering thread, taken in render()).
   bool litByRoom() const;
   std::shared_ptr<const reconstruction::RoomLights> roomLightEstimate_;
+  /// A room fused as the frames come: its vertices when a distant light was last searched for, and the direction
+  /// found (measured again, not searched, at the refreshes between).
+  size_t distantSearchedAt_ = 0;
+  std::optional<cv::Vec3d> distantTowards_;
   cv::Vec3d objectsCentre() const;  ///< the scene's objects' centre, marker frame
   /// The setup's lights and ambient as the albedo estimate takes them, in the frame T_frame_marker maps to
   /// (the camera for a frame's pixels, the marker frame itself for the room).

@@ -1236,6 +1236,42 @@ TEST(Cli, SynthLetsTheSunInThroughAWindow) {
   fs::remove_all(dir);
 }
 
+TEST(Cli, ARoomFusedAsTheFramesComeFindsTheSunThroughItsWindow) {
+  // Replay fusing the room as the frames come (as the live window does with a sensor), lit from that room: the sun
+  // the camera never sees is searched for as the room grows (a quarter more of it each time; measured from its
+  // direction at the refreshes between), as a room fused before the first frame is searched once.
+  const fs::path dir = fs::temp_directory_path() / ("mrgi_cli_fused_sun_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  ASSERT_EQ(runMrgi("synth --window-sun --render raycast --frames 4 --scan 40 --fisheye-every 0 --width 160 --height "
+                    "120 --out " +
+                    (dir / "ws").string())
+                .exitCode,
+            0);
+  nlohmann::json scene;
+  scene["objects"] = {{{"model", (fs::path(MRGI_SOURCE_DIR) / "recordings/models/sphere.ply").string()},
+                       {"translate", {0.0, 0.0, 0.06}},
+                       {"scale", 0.06}}};
+  scene["lights"] = "room";
+  std::ofstream(dir / "room.json") << scene.dump();
+  const Result r = runMrgi("replay " + (dir / "ws").string() + " --scene " + (dir / "room.json").string() +
+                           " --pose ground-truth --fuse-room --fuse-refresh 10 --out " + (dir / "r").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("the room shows a light the camera never saw"), std::string::npos) << r.err;
+  const auto summary = nlohmann::json::parse(slurp(dir / "r" / "summary.json"));
+  int found = 0;
+  for (const auto& f : summary["per_frame"]) {
+    if (!f.contains("room") || !f["room"].contains("lights") || f["room"]["lights"]["distant"].is_null()) continue;
+    ++found;
+    const auto& towards = f["room"]["lights"]["distant"]["towards"];
+    // The sun shines in through the window in the right wall (+x in the marker frame), 21 degrees up.
+    EXPECT_GT(towards[0].get<double>(), 0.9) << towards;
+    EXPECT_NEAR(towards[2].get<double>(), 0.36, 0.05) << towards;
+  }
+  // The window comes into view late in the look-around: the room refreshed at frame 40 shows it.
+  EXPECT_GE(found, 1) << "the sun is not found from the room fused as the frames come";
+  fs::remove_all(dir);
+}
+
 TEST(Cli, TrackPixelsMeasuresOursAndOpen3DsOdometryOnTheRealDeskAndRefusesAFolderWithoutTags) {
   // The harness on the first frames of the real ViSP desk: every row tracked, the board's own poses at its floor.
   const std::string visp = std::string(MRGI_SHARED_DATA) + "/rgbd-visp-apriltag";
