@@ -257,7 +257,8 @@ void BM_MarkerPoseRealSequence(benchmark::State& state) {
 // The odometry stage of tracked poses on the real ViSP frames (640x480, RealSense): preparing each frame's
 // pyramid and solving it against the frame before, per method (0 point-to-plane, 1 intensity, 2 hybrid) and
 // finest width (320: the default, a 640x480 frame halved first; 640: full resolution) and step (1: sampled between
-// pixels, the default; 0: Open3D's nearest-pixel steps). Beside the marker stage above
+// pixels, the default; 0: Open3D's nearest-pixel steps) and turn (1: the coarsest level also solved from the start
+// turned in place, the default; 0: from the start alone). Beside the marker stage above
 // (BM_MarkerPoseRealSequence's ms_per_frame).
 void BM_OdometryRealFrame(benchmark::State& state) {
   const std::string dir = std::string(MRGI_SHARED_DATA) + "/rgbd-visp-apriltag/";
@@ -278,6 +279,7 @@ void BM_OdometryRealFrame(benchmark::State& state) {
   o.method = static_cast<reconstruction::OdometryMethod>(state.range(0));
   o.maxWidth = static_cast<int>(state.range(1));
   o.subpixel = state.range(2) != 0;
+  o.turnInPlace = state.range(3) != 0;
   double fitness = 0;
   int frames = 0;
   for (auto _ : state) {
@@ -338,14 +340,15 @@ void BM_MedianCutIrradianceError(benchmark::State& state) {
 BENCHMARK(BM_EncodePng)->Arg(0)->Arg(2)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MarkerPoseRealSequence)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_OdometryRealFrame)
-    ->ArgNames({"method", "width", "subpixel"})
-    ->Args({2, 320, 1})
-    ->Args({0, 320, 1})
-    ->Args({1, 320, 1})
-    ->Args({2, 640, 1})
-    ->Args({2, 320, 0})  // Open3D's nearest-pixel steps, side by side
-    ->Args({1, 320, 0})
-    ->Args({2, 640, 0})
+    ->ArgNames({"method", "width", "subpixel", "turn"})
+    ->Args({2, 320, 1, 1})
+    ->Args({2, 320, 1, 0})  // the start alone, side by side
+    ->Args({0, 320, 1, 1})
+    ->Args({1, 320, 1, 1})
+    ->Args({2, 640, 1, 1})
+    ->Args({2, 320, 0, 0})  // Open3D's nearest-pixel steps, side by side
+    ->Args({1, 320, 0, 0})
+    ->Args({2, 640, 0, 0})
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_MedianCutIrradianceError)
     ->ArgsProduct({{1, 4, 16, 64, 256}, {0, 1}})
