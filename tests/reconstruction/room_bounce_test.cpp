@@ -117,22 +117,33 @@ TEST(RoomBounce, SaturatedSurfacesSendNothingAndUnseenDirectionsSendWhatTheSeenO
   EXPECT_GT(bottom, 10);
 }
 
+/// The inside of a unit sphere, its band z > 0.5 of radiance 1 and the rest 0.1, without its top cap z > 0.8.
+RoomMesh bandedRoomWithoutItsTop() {
+  RoomMesh full = insideSphere(1.0, 64, 128);
+  for (size_t i = 0; i < full.positions.size(); ++i)
+    full.radiance[i] = full.positions[i][2] > 0.5f ? cv::Vec3f(1, 1, 1) : cv::Vec3f(0.1f, 0.1f, 0.1f);
+  return keptPart(full, [](const cv::Vec3f& p) { return p[2] <= 0.8f; });
+}
+
+/// Every vertex's own 256 rays, unsmoothed, from a millimetre off the surface.
+reconstruction::RoomBounceOptions everyVertexExactly() {
+  reconstruction::RoomBounceOptions o;
+  o.rays = 256;
+  o.offsetM = 1e-3;
+  o.smoothing = 0;
+  o.vertexStride = 1;
+  return o;
+}
+
 TEST(RoomBounce, AHoleInTheCeilingSendsWhatTheCeilingAroundItSends) {
   // The inside of a sphere, its top cap (z > 0.8, a tenth of its area) never seen, the band below it bright
   // (z > 0.5: radiance 1; the rest 0.1), as a ceiling near a lamp is beside the walls. From the floor (the
   // bottom pole) a point sees a sphere's inside area-uniformly, so the closed room sends pi (0.25 + 0.075).
   // Continued from its rim, the hole sends the band's 1: that again. The seen rays' mean instead gives
   // pi 0.25, 23 % short.
-  RoomMesh full = insideSphere(1.0, 64, 128);
-  for (size_t i = 0; i < full.positions.size(); ++i)
-    full.radiance[i] = full.positions[i][2] > 0.5f ? cv::Vec3f(1, 1, 1) : cv::Vec3f(0.1f, 0.1f, 0.1f);
-  const RoomMesh kept = keptPart(full, [](const cv::Vec3f& p) { return p[2] <= 0.8f; });
+  const RoomMesh kept = bandedRoomWithoutItsTop();
   const reconstruction::MeshRays rays(kept.positions, kept.indices);
-  reconstruction::RoomBounceOptions o;
-  o.rays = 256;
-  o.offsetM = 1e-3;
-  o.smoothing = 0;
-  o.vertexStride = 1;
+  reconstruction::RoomBounceOptions o = everyVertexExactly();
   const auto E = reconstruction::roomBounceIrradiance(kept, rays, o);
   o.holeReachM = 0;
   const auto seenMean = reconstruction::roomBounceIrradiance(kept, rays, o);
@@ -151,10 +162,7 @@ TEST(RoomBounce, AnOpeningTheCamerasSawThroughSendsWhatTheySawBeyondIt) {
   // floor a cap above z0 is (1 - z0) / 2 of what a point sees, so the room sends pi ((z0 - 0.5) / 2 + 0.075 +
   // (1 - z0)), about pi 0.425 (z0 = 0.8, the hole's rim the highest kept vertex), not the band continued into it
   // (pi 0.325).
-  RoomMesh full = insideSphere(1.0, 64, 128);
-  for (size_t i = 0; i < full.positions.size(); ++i)
-    full.radiance[i] = full.positions[i][2] > 0.5f ? cv::Vec3f(1, 1, 1) : cv::Vec3f(0.1f, 0.1f, 0.1f);
-  RoomMesh kept = keptPart(full, [](const cv::Vec3f& p) { return p[2] <= 0.8f; });
+  RoomMesh kept = bandedRoomWithoutItsTop();
   kept.openings.recorded = true;
   for (int x = -7; x < 7; ++x)
     for (int y = -7; y < 7; ++y)
@@ -166,12 +174,7 @@ TEST(RoomBounce, AnOpeningTheCamerasSawThroughSendsWhatTheySawBeyondIt) {
   kept.openings.clipped.assign(kept.openings.cells.size(), 0);
   ASSERT_GE(kept.openings.find({0.05, 0.05, 0.85}), 0);
   const reconstruction::MeshRays rays(kept.positions, kept.indices);
-  reconstruction::RoomBounceOptions o;
-  o.rays = 256;
-  o.offsetM = 1e-3;
-  o.smoothing = 0;
-  o.vertexStride = 1;
-  const auto E = reconstruction::roomBounceIrradiance(kept, rays, o);
+  const auto E = reconstruction::roomBounceIrradiance(kept, rays, everyVertexExactly());
   double z0 = -1;
   for (const cv::Vec3f& p : kept.positions) z0 = std::max(z0, double(p[2]));
   const double expected = CV_PI * ((z0 - 0.5) / 2 + 0.075 + (1 - z0));

@@ -144,12 +144,18 @@ TEST(GL, DlpvWithoutVirtualObjectIsExactlyZero) {
   EXPECT_EQ(worst, 0.0);
 }
 
-TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
-  auto ctx = makeContext();
-  TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
+/// A 96 x 72 frame, a 16^3 volume and 64^2 RSMs, 6 propagation steps of which the direct delta's last 2.
+PipelineConfig smallDlpv() {
   PipelineConfig cfg = testConfig(96, 72, 16, 64);
   cfg.set("lpv", "steps", 6);
   cfg.set("lpv", "direct_steps", 2);
+  return cfg;
+}
+
+TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
+  auto ctx = makeContext();
+  TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
+  PipelineConfig cfg = smallDlpv();
   cfg.set("lpv", "damping", 0.5);
   // A sun 3 degrees wide: its shadow is the volume's (a sharp one's is the shading pass's: below).
   SceneLight wideSun = sunDown();
@@ -210,10 +216,8 @@ TEST(GL, DlpvLeavesASharpSunsShadowToTheShadowMaps) {
   // irradiance delta holds the shadow-map shadow instead, as a technique that draws no shadow of its own has it;
   // a lamp's shadow stays the volume's.
   auto ctx = makeContext();
-  TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
-  PipelineConfig cfg = testConfig(96, 72, 16, 64);
-  cfg.set("lpv", "steps", 6);
-  cfg.set("lpv", "direct_steps", 2);
+  const TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
+  const PipelineConfig cfg = smallDlpv();
   EXPECT_FALSE(DlpvTechnique::sharpDistant(pointAbove()));
   SceneLight wide = sunDown();
   wide.extent = 0.05;
