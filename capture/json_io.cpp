@@ -4,9 +4,14 @@
 #include <limits>
 #include <sstream>
 
+#include "capture/checks.h"
 #include "capture/error.h"
 
 namespace mrgi::capture {
+
+nlohmann::json readJsonFile(const std::string& path, const std::string& kind) {
+  return parseJson(readFileBounded(path, kMaxTextFileBytes, kind), path);
+}
 
 nlohmann::json parseJson(const std::string& text, const std::string& file) {
   // The callback sees every value with its depth; refusing at the first one past the limit keeps both the

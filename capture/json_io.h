@@ -13,6 +13,8 @@ constexpr int kMaxJsonDepth = 64;
 /// Parses `text`; throws InputError("<file>: not valid JSON: ..." or "...: nested deeper than 64 levels").
 nlohmann::json parseJson(const std::string& text, const std::string& fileForErrors);
 nlohmann::json parseJson(std::istream& in, const std::string& fileForErrors);
+/// The JSON file at `path` (at most kMaxTextFileBytes; `kind` names it in errors, as readFileBounded's), parsed.
+nlohmann::json readJsonFile(const std::string& path, const std::string& kind = "JSON file");
 
 /// Typed access to one key of an object, every error naming the file and the key's path:
 /// "<file>: missing key 'colour.fx'", "...: key 'colour.fx' must be a finite number",

@@ -15,12 +15,20 @@ namespace mrgi::capture {
 
 VispFolder::VispFolder(const std::string& directory) : directory_(directory) {
   const std::string camFile = (fs::path(directory) / "cam.json").string();
-  const nlohmann::json cam = parseJson(readFileBounded(camFile, kMaxTextFileBytes, "JSON file"), camFile);
+  const nlohmann::json cam = readJsonFile(camFile);
   intrinsics_ = {jsonInt(cam, "w", camFile),     jsonInt(cam, "h", camFile),     jsonNumber(cam, "px", camFile),
                  jsonNumber(cam, "py", camFile), jsonNumber(cam, "u0", camFile), jsonNumber(cam, "v0", camFile)};
   if (!intrinsics_.valid()) throw CaptureError(camFile, "intrinsics out of range");
   depthScale_ = jsonNumberOr(cam, "depthScale", 0.001, camFile);
   checkNumber(depthScale_, 1e-6, 1.0, camFile, "depthScale");
+}
+
+double VispFolder::tagSize() const {
+  const std::string tagFile = (fs::path(directory_) / "apriltag_data.json").string();
+  const nlohmann::json tags = readJsonFile(tagFile);
+  const double size = jsonNumber(tags, "tag_size", tagFile);
+  checkNumber(size, kMinTagSizeM, kMaxTagSizeM, tagFile, "tag_size");
+  return size;
 }
 
 std::optional<Frame> VispFolder::frame(int i, double fps) const {

@@ -16,6 +16,9 @@ class VispFolder {
   explicit VispFolder(const std::string& directory);
   const Intrinsics& intrinsics() const { return intrinsics_; }
   double depthScale() const { return depthScale_; }
+  /// The tags' black-square edge in metres from `directory`/apriltag_data.json's tag_size: throws CaptureError
+  /// naming the file when it is missing, malformed, has no tag_size or one out of range.
+  double tagSize() const;
   /// Frame `i` (colour RGB, depth in metres, both on the intrinsics' grid), or nullopt when there is no
   /// color_image_<i>.png. Throws CaptureError naming a depth file that is missing or not a uint16 array of the
   /// intrinsics' size, or a colour image of another size.

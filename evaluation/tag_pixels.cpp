@@ -28,10 +28,6 @@ using nlohmann::json;
 namespace mrgi::evaluation {
 namespace {
 
-json readJson(const fs::path& p) {
-  return capture::parseJson(capture::readFileBounded(p.string(), capture::kMaxTextFileBytes, "JSON file"), p.string());
-}
-
 capture::Pose poseFromJson(const json& m, const std::string& file, const std::string& what) {
   if (!m.is_array() || m.size() != 4) throw capture::CaptureError(file, what + " is not a 4x4 matrix");
   capture::Pose T;
@@ -86,7 +82,7 @@ TagSequence loadTagSequence(const std::string& dirName, int maxFrames) {
   const std::string tagFile = (dir / "apriltag_data.json").string();
   const capture::VispFolder folder(dirName);
   seq.intrinsics = folder.intrinsics();
-  const json tags = readJson(tagFile);
+  const json tags = capture::readJsonFile(tagFile);
   if (!tags.is_object() || !tags.contains("tag_size") || !tags["tag_size"].is_number() || !tags.contains("grid") ||
       !tags["grid"].is_array() || !tags.contains("detections") || !tags["detections"].is_array())
     throw capture::CaptureError(tagFile, "expected tag_size, grid and detections");

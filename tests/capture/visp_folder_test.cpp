@@ -38,6 +38,7 @@ TEST(VispFolder, ReadsTheDesksFramesInMetresAndEndsAfterTheLast) {
   EXPECT_LT(z[z.size() / 2], 1.5f);
   EXPECT_TRUE(folder.frame(19).has_value());
   EXPECT_FALSE(folder.frame(20).has_value());
+  EXPECT_DOUBLE_EQ(folder.tagSize(), 0.0955);  // apriltag_data.json's tag_size
 }
 
 TEST(VispFolder, AFolderWithoutItsCameraOrWithABadOneIsOneErrorNamingTheFile) {
@@ -57,6 +58,18 @@ TEST(VispFolder, AFolderWithoutItsCameraOrWithABadOneIsOneErrorNamingTheFile) {
     ADD_FAILURE() << "a negative depth scale read";
   } catch (const CaptureError& e) {
     EXPECT_NE(std::string(e.what()).find("depthScale"), std::string::npos) << e.what();
+  }
+  // A readable camera but no tag file, then a tag file without its size or with a size out of range.
+  std::ofstream(dir / "cam.json") << R"({"w": 640, "h": 480, "px": 600, "py": 600, "u0": 320, "v0": 240})";
+  const VispFolder folder(dir.string());
+  for (const std::string tags : {"", R"({"grid": []})", R"({"tag_size": 1e9})"}) {
+    if (!tags.empty()) std::ofstream(dir / "apriltag_data.json") << tags;
+    try {
+      (void)folder.tagSize();
+      ADD_FAILURE() << "a tag size read from '" << tags << "'";
+    } catch (const CaptureError& e) {
+      EXPECT_NE(std::string(e.what()).find("apriltag_data.json"), std::string::npos) << e.what();
+    }
   }
   std::filesystem::remove_all(dir);
 }
