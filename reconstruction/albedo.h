@@ -28,10 +28,6 @@ inline double seenSine(const AlbedoPointLight& l, double distance) {
 /// The sine of a distant light's half-angle (0: a point direction), for capture::capCosine.
 inline double seenSine(const EstimatedLight& l) { return std::sin(std::clamp(l.angularRadius, 0.0, 1.5)); }
 
-/// A distant light no wider than this (radians; the sun's is 0.0047) casts shadows sharp enough that a volume of
-/// centimetre cells cannot draw them (DLPV leaves its objects' shadow to the shadow maps).
-constexpr double kSharpShadowAngularRadius = 0.02;
-
 struct AlbedoLights {
   std::vector<AlbedoPointLight> points;
   /// Directions in the camera frame; power = irradiance at normal incidence; a disc of angularRadius lights a

@@ -976,6 +976,7 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   RoomAlbedo out;
   out.albedo.assign(n, cv::Vec3f(0.5f, 0.5f, 0.5f));
   out.status.assign(n, AlbedoStatus::NoGeometry);
+  out.inShadow.assign(n, 0);
   out.sent = out.albedo;
   if (n == 0 || mesh.indices.empty()) return out;
   const size_t L = lights.points.size() + lights.distant.size();
@@ -996,7 +997,6 @@ RoomAlbedo estimateRoomAlbedo(const RoomMesh& mesh, const AlbedoLights& lights, 
   // lit by a lamp and the sun to the fill (the window-sun room), their colour from wherever the fill came from, and
   // a sun measured from them 0.6x its power in the wrong colour.
   std::vector<uint8_t>& inShadow = out.inShadow;
-  inShadow.assign(n, 0);
   for (size_t i = 0; i < n; ++i) {
     const cv::Vec3d p(mesh.positions[i]), nrm(mesh.normals[i]);
     const cv::Vec3d Lr(mesh.radiance[i]);

@@ -239,6 +239,13 @@ TEST(RoomBounce, EmptyAndDegenerateRoomsGiveFiniteZeros) {
   const auto E = reconstruction::roomBounceIrradiance(m, rays);
   for (const auto& e : E)
     for (int c = 0; c < 3; ++c) EXPECT_TRUE(std::isfinite(e[c]));
+  // A room without triangles: one status, albedo and shadow flag per vertex all the same.
+  RoomMesh points = m;
+  points.indices.clear();
+  const auto a = reconstruction::estimateRoomAlbedo(points, {});
+  EXPECT_EQ(a.status.size(), points.positions.size());
+  EXPECT_EQ(a.inShadow.size(), points.positions.size());
+  EXPECT_EQ(a.albedo.size(), points.positions.size());
 }
 
 }  // namespace

@@ -6,7 +6,6 @@
 #include "gl/error.h"
 #include "lighting/debug_views.h"
 #include "lighting/techniques/registry.h"
-#include "reconstruction/albedo.h"
 
 namespace mrgi::lighting {
 
@@ -179,7 +178,7 @@ void DlpvTechnique::light(const FrameResources& frame, size_t index, gl::Profile
 }
 
 bool DlpvTechnique::sharpDistant(const SceneLight& light) {
-  return light.type == LightType::Directional && light.extent <= reconstruction::kSharpShadowAngularRadius;
+  return light.type == LightType::Directional && light.extent <= kSharpAngularRadius;
 }
 
 void DlpvTechnique::add(const Volume& src, Volume& dst) {

@@ -32,7 +32,10 @@ class DlpvTechnique final : public Technique {
   /// the objects in cells of centimetres, where a low sun throws a sharp shadow past the region's edge; that
   /// shadow the shading pass draws from the shadow maps.
   bool accountsForDirectShadow(const SceneLight& light) const override { return !sharpDistant(light); }
-  /// A directional light no wider than reconstruction::kSharpShadowAngularRadius.
+  /// A directional light no wider than this (radians; the sun's is 0.0047) casts shadows sharp enough that a volume
+  /// of centimetre cells cannot draw them.
+  static constexpr double kSharpAngularRadius = 0.02;
+  /// A directional light no wider than kSharpAngularRadius.
   static bool sharpDistant(const SceneLight& light);
   bool accountsForReflectedLight() const override { return true; }  // the objects' RSMs injected into the volume
   void beginLights(const FrameResources& frame, gl::Profiler* profiler) override;

@@ -212,9 +212,9 @@ TEST(GL, DlpvInjectionAndPropagationMatchCpuReference) {
 }
 
 TEST(GL, DlpvLeavesASharpSunsShadowToTheShadowMaps) {
-  // The sun (no wider than kSharpShadowAngularRadius): no direct delta is injected for it, and the real pixels'
-  // irradiance delta holds the shadow-map shadow instead, as a technique that draws no shadow of its own has it;
-  // a lamp's shadow stays the volume's.
+  // The sun (no wider than DlpvTechnique::kSharpAngularRadius): no direct delta is injected for it, and the real
+  // pixels' irradiance delta holds the shadow-map shadow instead, as a technique that draws no shadow of its own has
+  // it; a lamp's shadow stays the volume's.
   auto ctx = makeContext();
   const TestScene s = makeScene(true, 0.2, {-0.25, 0.0, 0.1});
   const PipelineConfig cfg = smallDlpv();
